@@ -1,0 +1,280 @@
+//! The event-triggered Kalman filter of Wu et al. (2013), MODEL.md §2.
+//!
+//! Fixed-size (`const N` state, `const M` measurement) so the per-step work is a
+//! few dozen flops on the stack. Pure: no I/O, no clock; randomness only through
+//! the `Rng` passed in.
+
+use crate::gaussian;
+use crate::linalg::{cholesky_lower, deterministic_eigen, symmetrize, to_dynamic, to_static, to_static_vec};
+use crate::scenario::{Plant, Sensor};
+use nalgebra::{SMatrix, SVector};
+use rand::{Rng, RngExt};
+use rand_distr::StandardNormal;
+
+/// Column vector of dimension N.
+pub type Vector<const N: usize> = SVector<f64, N>;
+/// R×C matrix.
+pub type Matrix<const R: usize, const C: usize> = SMatrix<f64, R, C>;
+
+/// A Gaussian belief `N(mean, cov)` over the state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Belief<const N: usize> {
+    pub mean: Vector<N>,
+    pub cov: Matrix<N, N>,
+}
+
+/// A sample of `N(0, I)` of dimension D.
+pub fn standard_normal<const D: usize, R: Rng + ?Sized>(rng: &mut R) -> Vector<D> {
+    Vector::<D>::from_fn(|_, _| rng.sample(StandardNormal))
+}
+
+/// The linear-Gaussian plant `x' = F x + G u + w`, `w ~ N(0, Q)`.
+#[derive(Debug, Clone, Copy)]
+pub struct LinearPlant<const N: usize> {
+    pub f: Matrix<N, N>,
+    pub g: Matrix<N, N>,
+    pub q: Matrix<N, N>,
+    q_chol: Matrix<N, N>,
+}
+
+impl<const N: usize> LinearPlant<N> {
+    pub fn new(p: &Plant) -> Self {
+        let q = to_static::<N, N>(&p.q);
+        Self {
+            f: to_static(&p.f),
+            g: to_static(&p.g),
+            q,
+            q_chol: cholesky_lower(&q),
+        }
+    }
+
+    /// The initial belief `N(x̂0, P0)` of a scenario.
+    pub fn initial_belief(p: &Plant) -> Belief<N> {
+        Belief {
+            mean: to_static_vec(&p.x0),
+            cov: to_static(&p.p0),
+        }
+    }
+
+    /// One step of the true dynamics.
+    #[inline]
+    pub fn step<R: Rng + ?Sized>(&self, x: &Vector<N>, u: &Vector<N>, rng: &mut R) -> Vector<N> {
+        self.f * x + self.g * u + self.q_chol * standard_normal::<N, R>(rng)
+    }
+
+    /// Prediction: `x̂⁻ = F x̂ + G u`, `P⁻ = F P Fᵀ + Q`.
+    #[inline]
+    pub fn predict(&self, post: &Belief<N>, u: &Vector<N>) -> Belief<N> {
+        Belief {
+            mean: self.f * post.mean + self.g * u,
+            cov: self.f * post.cov * self.f.transpose() + self.q,
+        }
+    }
+}
+
+/// Draw a state from a Gaussian belief.
+pub fn sample_belief<const N: usize, R: Rng + ?Sized>(b: &Belief<N>, rng: &mut R) -> Vector<N> {
+    b.mean + cholesky_lower(&b.cov) * standard_normal::<N, R>(rng)
+}
+
+/// A sensor `y = H x + v`, `v ~ N(0, R)`.
+#[derive(Debug, Clone, Copy)]
+pub struct SensorModel<const N: usize, const M: usize> {
+    pub h: Matrix<M, N>,
+    pub r: Matrix<M, M>,
+    r_chol: Matrix<M, M>,
+    /// Energy per transmitted measurement.
+    pub cost: f64,
+}
+
+impl<const N: usize, const M: usize> SensorModel<N, M> {
+    pub fn new(s: &Sensor) -> Self {
+        let r = to_static::<M, M>(&s.r);
+        Self {
+            h: to_static(&s.h),
+            r,
+            r_chol: cholesky_lower(&r),
+            cost: s.cost,
+        }
+    }
+
+    /// A noisy measurement of the true state.
+    #[inline]
+    pub fn measure<R: Rng + ?Sized>(&self, x: &Vector<N>, rng: &mut R) -> Vector<M> {
+        self.h * x + self.r_chol * standard_normal::<M, R>(rng)
+    }
+}
+
+/// `ε = Λ^{-1/2} Vᵀ z` for the innovation covariance `Z = V Λ Vᵀ`.
+#[derive(Debug, Clone, Copy)]
+pub enum Whitener<const M: usize> {
+    /// Z is diagonal (the common case, every built-in scenario): V = I, so ε_i = z_i / √Z_ii.
+    Diagonal(Vector<M>),
+    /// General Z: the rows of `Λ^{-1/2} Vᵀ` with the deterministic basis of
+    /// [`deterministic_eigen`].
+    Basis(Matrix<M, M>),
+}
+
+impl<const M: usize> Whitener<M> {
+    /// The whitening transform of an innovation covariance.
+    pub fn new(z: &Matrix<M, M>) -> Self {
+        let diagonal = (0..M).all(|i| (0..M).all(|j| i == j || z[(i, j)] == 0.0));
+        if diagonal {
+            // Coordinate axes are eigenvectors; order and sign do not change ‖ε‖∞.
+            return Self::Diagonal(Vector::<M>::from_fn(|i, _| 1.0 / z[(i, i)].sqrt()));
+        }
+        let (values, v) = deterministic_eigen(&to_dynamic(z));
+        let v = to_static::<M, M>(&v);
+        let inv_sqrt = Matrix::<M, M>::from_diagonal(&Vector::<M>::from_fn(|i, _| {
+            1.0 / values[i].max(f64::MIN_POSITIVE).sqrt()
+        }));
+        Self::Basis(inv_sqrt * v.transpose())
+    }
+
+    /// The whitened innovation ε (identity covariance under the Gaussian assumption).
+    #[inline]
+    pub fn whiten(&self, z: &Vector<M>) -> Vector<M> {
+        match self {
+            Self::Diagonal(s) => z.component_mul(s),
+            Self::Basis(w) => w * z,
+        }
+    }
+}
+
+/// The innovation's statistics at one step, shared by trigger and update.
+#[derive(Debug, Clone, Copy)]
+pub struct Innovation<const N: usize, const M: usize> {
+    /// Predicted measurement `H x̂⁻`.
+    pub predicted: Vector<M>,
+    /// Its covariance `Z = H P⁻ Hᵀ + R`.
+    pub cov: Matrix<M, M>,
+    /// Kalman gain `K = P⁻ Hᵀ Z⁻¹`.
+    pub gain: Matrix<N, M>,
+    pub whitener: Whitener<M>,
+}
+
+impl<const N: usize, const M: usize> Innovation<N, M> {
+    /// Whitened innovation of a measurement.
+    #[inline]
+    pub fn whitened(&self, y: &Vector<M>) -> Vector<M> {
+        self.whitener.whiten(&(y - self.predicted))
+    }
+
+    /// The trigger: transmit iff ‖ε‖∞ > δ.
+    #[inline]
+    pub fn triggers(&self, y: &Vector<M>, delta: f64) -> bool {
+        self.whitened(y).amax() > delta
+    }
+}
+
+/// A threshold together with its precomputed implicit-information factor β(δ).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Threshold {
+    pub delta: f64,
+    pub beta: f64,
+}
+
+impl Threshold {
+    pub fn new(delta: f64) -> Self {
+        Self {
+            delta,
+            beta: gaussian::beta(delta),
+        }
+    }
+}
+
+/// ET-KF for one (plant, sensor) pair.
+#[derive(Debug, Clone, Copy)]
+pub struct EtKalmanFilter<const N: usize, const M: usize> {
+    pub plant: LinearPlant<N>,
+    pub sensor: SensorModel<N, M>,
+}
+
+impl<const N: usize, const M: usize> EtKalmanFilter<N, M> {
+    pub fn new(plant: &Plant, sensor: &Sensor) -> Self {
+        Self {
+            plant: LinearPlant::new(plant),
+            sensor: SensorModel::new(sensor),
+        }
+    }
+
+    /// Innovation statistics for a prior.
+    #[inline]
+    pub fn innovation(&self, prior: &Belief<N>) -> Innovation<N, M> {
+        let h = &self.sensor.h;
+        let pht = prior.cov * h.transpose();
+        let cov = h * pht + self.sensor.r;
+        // Z is SPD (R is); fall back to a pseudo-inverse only under pathological rounding.
+        let z_inv = cov
+            .try_inverse()
+            .unwrap_or_else(|| cov.pseudo_inverse(1e-300).unwrap_or_else(|_| Matrix::<M, M>::zeros()));
+        Innovation {
+            predicted: h * prior.mean,
+            cov,
+            gain: pht * z_inv,
+            whitener: Whitener::new(&cov),
+        }
+    }
+
+    /// Explicit update with a received measurement (Joseph form).
+    #[inline]
+    pub fn update_explicit(&self, prior: &Belief<N>, inn: &Innovation<N, M>, y: &Vector<M>) -> Belief<N> {
+        let k = &inn.gain;
+        let ikh = Matrix::<N, N>::identity() - k * self.sensor.h;
+        let cov = ikh * prior.cov * ikh.transpose() + k * self.sensor.r * k.transpose();
+        Belief {
+            mean: prior.mean + k * (y - inn.predicted),
+            cov: symmetrize(&cov),
+        }
+    }
+
+    /// Implicit update after a silent slot: `P = P⁻ − β K H P⁻`, mean unchanged.
+    #[inline]
+    pub fn update_implicit(&self, prior: &Belief<N>, inn: &Innovation<N, M>, beta: f64) -> Belief<N> {
+        let cov = prior.cov - inn.gain * (self.sensor.h * prior.cov) * beta;
+        Belief {
+            mean: prior.mean,
+            cov: symmetrize(&cov),
+        }
+    }
+
+    /// Prediction only (no information at all, e.g. a dead sensor).
+    #[inline]
+    pub fn predict(&self, post: &Belief<N>, u: &Vector<N>) -> Belief<N> {
+        self.plant.predict(post, u)
+    }
+
+    /// One full ET-KF step for a measurement `y` the sensor took: predict,
+    /// trigger, update. Returns the posterior and whether `y` was transmitted.
+    #[inline]
+    pub fn step(&self, post: &Belief<N>, u: &Vector<N>, y: &Vector<M>, th: Threshold) -> (Belief<N>, bool) {
+        let prior = self.predict(post, u);
+        let inn = self.innovation(&prior);
+        if inn.triggers(y, th.delta) {
+            (self.update_explicit(&prior, &inn, y), true)
+        } else {
+            (self.update_implicit(&prior, &inn, th.beta), false)
+        }
+    }
+
+    /// Steady-state posterior covariance `P_KF` of the ordinary Kalman filter
+    /// (δ = 0), by iterating the Riccati recursion to a fixed point.
+    pub fn steady_state_posterior(&self) -> Matrix<N, N> {
+        let mut b = Belief {
+            mean: Vector::<N>::zeros(),
+            cov: self.plant.q,
+        };
+        let zero = Vector::<N>::zeros();
+        for _ in 0..1_000_000 {
+            let prior = self.predict(&b, &zero);
+            let inn = self.innovation(&prior);
+            let next = self.update_implicit(&prior, &inn, 1.0);
+            let change = (next.cov - b.cov).amax();
+            b = next;
+            if change <= 1e-15 * b.cov.amax().max(f64::MIN_POSITIVE) {
+                break;
+            }
+        }
+        b.cov
+    }
+}

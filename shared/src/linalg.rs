@@ -1,0 +1,102 @@
+//! Small dense linear algebra the model needs beyond nalgebra: a *deterministic*
+//! symmetric eigenbasis (the ∞-norm trigger depends on the basis, MODEL.md §2),
+//! conversions between dynamic and fixed-size matrices, and the Riccati steady state.
+
+use nalgebra::{DMatrix, SMatrix, SVector};
+
+/// Relative tolerance under which two eigenvalues count as repeated.
+pub const REPEATED_EIGENVALUE_RTOL: f64 = 1e-9;
+
+/// Eigen-decomposition `A = V diag(λ) Vᵀ` of a symmetric matrix with a basis fixed
+/// by rule, not by the solver: eigenvalues sorted descending; for a repeated
+/// eigenvalue the coordinate axes projected into its eigenspace and
+/// orthonormalised in coordinate order (so `V = I` for a multiple of I); every
+/// column's sign chosen so that its largest-magnitude entry is positive.
+pub fn deterministic_eigen(a: &DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
+    let n = a.nrows();
+    let sym = (a + a.transpose()) * 0.5;
+    let eig = sym.symmetric_eigen();
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
+    let values: Vec<f64> = order.iter().map(|&i| eig.eigenvalues[i]).collect();
+    let scale = values.iter().fold(0.0_f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
+    let mut v = DMatrix::<f64>::zeros(n, n);
+    let mut start = 0;
+    while start < n {
+        let mut end = start + 1;
+        while end < n && (values[end - 1] - values[end]).abs() <= REPEATED_EIGENVALUE_RTOL * scale {
+            end += 1;
+        }
+        if end - start == 1 {
+            v.set_column(start, &eig.eigenvectors.column(order[start]));
+        } else {
+            // Projector onto the repeated eigenspace.
+            let mut u = DMatrix::<f64>::zeros(n, end - start);
+            for (c, k) in (start..end).enumerate() {
+                u.set_column(c, &eig.eigenvectors.column(order[k]));
+            }
+            let proj = &u * u.transpose();
+            let mut filled = 0;
+            for axis in 0..n {
+                if filled == end - start {
+                    break;
+                }
+                let mut w = proj.column(axis).clone_owned();
+                for c in 0..filled {
+                    let prev = v.column(start + c).clone_owned();
+                    w -= &prev * prev.dot(&w);
+                }
+                let norm = w.norm();
+                if norm > 1e-6 {
+                    v.set_column(start + filled, &(w / norm));
+                    filled += 1;
+                }
+            }
+        }
+        start = end;
+    }
+    for c in 0..n {
+        let col = v.column(c);
+        let imax = col.iamax();
+        if col[imax] < 0.0 {
+            v.column_mut(c).neg_mut();
+        }
+    }
+    (values, v)
+}
+
+/// Dynamic → fixed-size copy (dimensions are validated at scenario load).
+pub fn to_static<const R: usize, const C: usize>(m: &DMatrix<f64>) -> SMatrix<f64, R, C> {
+    debug_assert_eq!((m.nrows(), m.ncols()), (R, C));
+    SMatrix::<f64, R, C>::from_fn(|i, j| m[(i, j)])
+}
+
+/// Dynamic vector → fixed-size vector.
+pub fn to_static_vec<const N: usize>(v: &nalgebra::DVector<f64>) -> SVector<f64, N> {
+    debug_assert_eq!(v.len(), N);
+    SVector::<f64, N>::from_fn(|i, _| v[i])
+}
+
+/// Fixed-size → dynamic copy.
+pub fn to_dynamic<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> DMatrix<f64> {
+    DMatrix::from_fn(R, C, |i, j| m[(i, j)])
+}
+
+/// Lower Cholesky factor of an SPD matrix (validated at load; falls back to the
+/// symmetric square root's diagonal if rounding ever breaks definiteness).
+pub fn cholesky_lower<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    match nalgebra::Cholesky::new(*m) {
+        Some(c) => c.l(),
+        None => SMatrix::<f64, N, N>::from_diagonal(&m.diagonal().map(|d| d.max(0.0).sqrt())),
+    }
+}
+
+/// Symmetrise in place: `(A + Aᵀ)/2`.
+pub fn symmetrize<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    (m + m.transpose()) * 0.5
+}
+
+/// `max_ij |a_ij|`.
+pub fn max_abs<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> f64 {
+    m.amax()
+}

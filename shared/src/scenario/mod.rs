@@ -1,0 +1,153 @@
+//! Scenarios: the system, sensors, route, target, obstacles and candidate thresholds.
+//!
+//! A scenario is written in TOML (see `scenarios/*.toml`). [`Scenario::from_toml`]
+//! parses *and validates* it: every error names the offending field (for example
+//! `sensor[2] "s2".R`) and the reason. A [`Scenario`] value is therefore always
+//! usable by the maths without further checks: dimensions agree, covariances are
+//! symmetric positive definite, numbers are finite.
+
+mod builtin;
+mod raw;
+mod validate;
+
+pub use builtin::{BUILTIN_NAMES, DEFAULT_SCENARIO, builtin_text};
+
+use crate::geometry::Aabb;
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+/// Largest state dimension the fixed-size maths is instantiated for.
+pub const MAX_DIM: usize = 6;
+
+/// Why a scenario was refused.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ScenarioError {
+    /// The text is not valid TOML or does not have the scenario's shape.
+    #[error("scenario is not valid TOML for the scenario format: {0}")]
+    Parse(String),
+    /// A field has a value the model cannot accept.
+    #[error("scenario field `{field}`: {reason}")]
+    Invalid { field: String, reason: String },
+    /// Neither a built-in name nor a readable file.
+    #[error("unknown built-in scenario `{0}` (built-ins: winding-2d, open-2d, superg-3d)")]
+    UnknownBuiltin(String),
+}
+
+impl ScenarioError {
+    pub(crate) fn invalid(field: impl Into<String>, reason: impl Into<String>) -> Self {
+        Self::Invalid {
+            field: field.into(),
+            reason: reason.into(),
+        }
+    }
+}
+
+/// Linear-Gaussian plant: `x' = F x + G u + w`, `w ~ N(0, Q)`, `x0 ~ N(x0, P0)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Plant {
+    pub f: DMatrix<f64>,
+    pub g: DMatrix<f64>,
+    pub q: DMatrix<f64>,
+    pub x0: DVector<f64>,
+    pub p0: DMatrix<f64>,
+}
+
+/// The waypoint controller `u = sat(w - x̂, u_max)` and its leg termination rule.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ControllerParams {
+    /// Euclidean saturation of the input.
+    pub u_max: f64,
+    /// A leg ends when `‖x̂ − w‖₂ ≤ eps_x` ...
+    pub eps_x: f64,
+    /// ... or after `k_max` steps in the leg.
+    pub k_max: u32,
+}
+
+/// A remote sensor: `y = H x + v`, `v ~ N(0, R)`, `cost` per transmitted measurement.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Sensor {
+    pub name: String,
+    pub position: DVector<f64>,
+    pub h: DMatrix<f64>,
+    pub r: DMatrix<f64>,
+    pub cost: f64,
+}
+
+impl Sensor {
+    /// Measurement dimension m.
+    pub fn dim(&self) -> usize {
+        self.h.nrows()
+    }
+}
+
+/// One leg of the route: drive to `to`, served by sensor index `sensor`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Leg {
+    pub to: DVector<f64>,
+    pub sensor: usize,
+}
+
+/// A named closed axis-aligned box.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Obstacle {
+    pub name: String,
+    pub bounds: Aabb,
+}
+
+/// A validated scenario.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Scenario {
+    pub name: String,
+    pub description: String,
+    /// State dimension n (1..=6).
+    pub dim: usize,
+    pub plant: Plant,
+    pub controller: ControllerParams,
+    pub sensors: Vec<Sensor>,
+    pub legs: Vec<Leg>,
+    pub target: Aabb,
+    pub obstacles: Vec<Obstacle>,
+    /// Candidate thresholds Δ (the MDP's actions), in file order.
+    pub deltas: Vec<f64>,
+    /// SHA-256 (hex) of the scenario's canonical content: files made from this
+    /// scenario (MDP, strategy, recording) carry it so a mismatch is refused.
+    pub content_hash: String,
+}
+
+impl Scenario {
+    /// Parse and validate a scenario from TOML text.
+    pub fn from_toml(text: &str) -> Result<Self, ScenarioError> {
+        let raw: raw::RawScenario =
+            toml::from_str(text).map_err(|e| ScenarioError::Parse(e.to_string()))?;
+        validate::validate(raw)
+    }
+
+    /// A built-in scenario by name (`winding-2d`, `open-2d`, `superg-3d`).
+    pub fn builtin(name: &str) -> Result<Self, ScenarioError> {
+        let text =
+            builtin_text(name).ok_or_else(|| ScenarioError::UnknownBuiltin(name.to_string()))?;
+        Self::from_toml(text)
+    }
+
+    /// Number of legs (= decision points).
+    pub fn num_legs(&self) -> usize {
+        self.legs.len()
+    }
+
+    /// The sensor serving leg `i`.
+    pub fn leg_sensor(&self, leg: usize) -> &Sensor {
+        &self.sensors[self.legs[leg].sensor]
+    }
+
+    /// Where leg `i` starts: the initial mean for leg 0, else the previous waypoint.
+    pub fn leg_start(&self, leg: usize) -> &DVector<f64> {
+        if leg == 0 {
+            &self.plant.x0
+        } else {
+            &self.legs[leg - 1].to
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,319 @@
+//! From the raw TOML shape to a [`Scenario`] the maths can trust.
+//!
+//! Every check names the field (`sensor[1] "s1".R`, `leg[3].sensor`, ...) and the
+//! reason, so a user can fix the file without reading code.
+
+use super::raw::{RawBox, RawMatrix, RawScenario};
+use super::{
+    ControllerParams, Leg, MAX_DIM, Obstacle, Plant, Scenario, ScenarioError, Sensor,
+};
+use crate::geometry::Aabb;
+use nalgebra::{DMatrix, DVector};
+use sha2::{Digest, Sha256};
+use std::collections::HashMap;
+
+type Result<T> = std::result::Result<T, ScenarioError>;
+
+pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
+    let content_hash = content_hash(&raw);
+    let n = raw.dim;
+    if n == 0 || n > MAX_DIM {
+        return Err(ScenarioError::invalid(
+            "dim",
+            format!("must be between 1 and {MAX_DIM}, got {n}"),
+        ));
+    }
+    if raw.name.trim().is_empty() {
+        return Err(ScenarioError::invalid("name", "must not be empty"));
+    }
+
+    let m = &raw.model;
+    let plant = Plant {
+        f: matrix("model.F", &m.f, Some(n), n)?,
+        g: matrix("model.G", &m.g, Some(n), n)?,
+        q: spd("model.Q", &m.q, n)?,
+        x0: vector("model.x0", &m.x0, n)?,
+        p0: spd("model.P0", &m.p0, n)?,
+    };
+
+    let c = &raw.controller;
+    positive("controller.u_max", c.u_max)?;
+    positive("controller.eps_x", c.eps_x)?;
+    if c.k_max < 1 || c.k_max > i64::from(u32::MAX) {
+        return Err(ScenarioError::invalid(
+            "controller.k_max",
+            format!("must be a whole number of steps >= 1, got {}", c.k_max),
+        ));
+    }
+    let controller = ControllerParams {
+        u_max: c.u_max,
+        eps_x: c.eps_x,
+        k_max: c.k_max as u32,
+    };
+
+    if raw.sensors.is_empty() {
+        return Err(ScenarioError::invalid(
+            "sensor",
+            "no sensors: at least one [[sensor]] is needed",
+        ));
+    }
+    let mut sensors = Vec::with_capacity(raw.sensors.len());
+    let mut by_name = HashMap::new();
+    for (i, s) in raw.sensors.iter().enumerate() {
+        let at = format!("sensor[{i}] \"{}\"", s.name);
+        if s.name.trim().is_empty() {
+            return Err(ScenarioError::invalid(
+                format!("sensor[{i}].name"),
+                "must not be empty",
+            ));
+        }
+        if let Some(first) = by_name.insert(s.name.clone(), i) {
+            return Err(ScenarioError::invalid(
+                format!("{at}.name"),
+                format!("duplicate sensor name (also sensor[{first}])"),
+            ));
+        }
+        let rows = s.h.len();
+        if rows == 0 || rows > n {
+            return Err(ScenarioError::invalid(
+                format!("{at}.H"),
+                format!("must have between 1 and dim = {n} rows (measurement dimension m <= n), got {rows}"),
+            ));
+        }
+        let cost = s.cost;
+        if !cost.is_finite() || cost < 0.0 {
+            return Err(ScenarioError::invalid(
+                format!("{at}.cost"),
+                format!("must be a finite number >= 0, got {cost}"),
+            ));
+        }
+        sensors.push(Sensor {
+            name: s.name.clone(),
+            position: vector(&format!("{at}.position"), &s.position, n)?,
+            h: matrix(&format!("{at}.H"), &s.h, Some(rows), n)?,
+            r: spd(&format!("{at}.R"), &s.r, rows)?,
+            cost,
+        });
+    }
+
+    let obstacles = raw
+        .obstacles
+        .iter()
+        .enumerate()
+        .map(|(i, o)| {
+            let name = o.name.clone().unwrap_or_else(|| format!("obstacle{i}"));
+            let at = format!("obstacle[{i}] \"{name}\"");
+            let bounds = aabb(
+                &at,
+                &RawBox {
+                    min: o.min.clone(),
+                    max: o.max.clone(),
+                },
+                n,
+            )?;
+            Ok(Obstacle { name, bounds })
+        })
+        .collect::<Result<Vec<_>>>()?;
+
+    let inside = |p: &DVector<f64>| {
+        obstacles
+            .iter()
+            .enumerate()
+            .find(|(_, o)| o.bounds.contains(p.as_slice()))
+    };
+    if let Some((j, o)) = inside(&plant.x0) {
+        return Err(ScenarioError::invalid(
+            "model.x0",
+            format!("the start lies inside obstacle[{j}] \"{}\"", o.name),
+        ));
+    }
+
+    if raw.legs.is_empty() {
+        return Err(ScenarioError::invalid(
+            "leg",
+            "the route is empty: at least one [[leg]] is needed",
+        ));
+    }
+    let mut legs = Vec::with_capacity(raw.legs.len());
+    for (i, l) in raw.legs.iter().enumerate() {
+        let to = vector(&format!("leg[{i}].to"), &l.to, n)?;
+        let sensor = *by_name.get(&l.sensor).ok_or_else(|| {
+            ScenarioError::invalid(
+                format!("leg[{i}].sensor"),
+                format!(
+                    "unknown sensor \"{}\" (known: {})",
+                    l.sensor,
+                    raw.sensors
+                        .iter()
+                        .map(|s| s.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            )
+        })?;
+        if let Some((j, o)) = inside(&to) {
+            return Err(ScenarioError::invalid(
+                format!("leg[{i}].to"),
+                format!("the waypoint lies inside obstacle[{j}] \"{}\"", o.name),
+            ));
+        }
+        legs.push(Leg { to, sensor });
+    }
+
+    let target = aabb("target", &raw.target, n)?;
+
+    let deltas = raw.triggering.deltas.clone();
+    if deltas.is_empty() {
+        return Err(ScenarioError::invalid(
+            "triggering.deltas",
+            "at least one threshold is needed",
+        ));
+    }
+    for (i, &d) in deltas.iter().enumerate() {
+        if !d.is_finite() || d < 0.0 {
+            return Err(ScenarioError::invalid(
+                format!("triggering.deltas[{i}]"),
+                format!("a threshold must be a finite number >= 0, got {d}"),
+            ));
+        }
+        if let Some(j) = deltas[..i].iter().position(|&e| e == d) {
+            return Err(ScenarioError::invalid(
+                format!("triggering.deltas[{i}]"),
+                format!("duplicate threshold {d} (also deltas[{j}])"),
+            ));
+        }
+    }
+
+    Ok(Scenario {
+        name: raw.name,
+        description: raw.description,
+        dim: n,
+        plant,
+        controller,
+        sensors,
+        legs,
+        target,
+        obstacles,
+        deltas,
+        content_hash,
+    })
+}
+
+/// SHA-256 over the canonical (parsed, defaults filled) content, so comments and
+/// formatting do not change it but any value does.
+fn content_hash(raw: &RawScenario) -> String {
+    // Serialising plain structs of numbers and strings cannot fail.
+    let canonical = serde_json::to_vec(raw).unwrap_or_default();
+    let digest = Sha256::digest(&canonical);
+    digest.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn finite(field: &str, v: f64) -> Result<f64> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(ScenarioError::invalid(
+            field,
+            format!("must be a finite number, got {v}"),
+        ))
+    }
+}
+
+fn positive(field: &str, v: f64) -> Result<f64> {
+    finite(field, v)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(ScenarioError::invalid(
+            field,
+            format!("must be > 0, got {v}"),
+        ))
+    }
+}
+
+fn vector(field: &str, raw: &[f64], n: usize) -> Result<DVector<f64>> {
+    if raw.len() != n {
+        return Err(ScenarioError::invalid(
+            field,
+            format!("must have dim = {n} entries, got {}", raw.len()),
+        ));
+    }
+    for (i, &v) in raw.iter().enumerate() {
+        finite(&format!("{field}[{i}]"), v)?;
+    }
+    Ok(DVector::from_column_slice(raw))
+}
+
+/// A `rows × cols` matrix (rows `None`: any non-zero count).
+fn matrix(field: &str, raw: &RawMatrix, rows: Option<usize>, cols: usize) -> Result<DMatrix<f64>> {
+    let r = raw.len();
+    if let Some(want) = rows
+        && r != want
+    {
+        return Err(ScenarioError::invalid(
+            field,
+            format!("wrong shape: must be {want}x{cols}, got {r} rows"),
+        ));
+    }
+    for (i, row) in raw.iter().enumerate() {
+        if row.len() != cols {
+            return Err(ScenarioError::invalid(
+                field,
+                format!(
+                    "wrong shape: must be {r}x{cols}, row {i} has {} entries",
+                    row.len()
+                ),
+            ));
+        }
+        for (j, &v) in row.iter().enumerate() {
+            finite(&format!("{field}[{i}][{j}]"), v)?;
+        }
+    }
+    Ok(DMatrix::from_fn(r, cols, |i, j| raw[i][j]))
+}
+
+/// A symmetric positive definite `n × n` matrix.
+fn spd(field: &str, raw: &RawMatrix, n: usize) -> Result<DMatrix<f64>> {
+    let a = matrix(field, raw, Some(n), n)?;
+    let scale = a.amax().max(f64::MIN_POSITIVE);
+    for i in 0..n {
+        for j in 0..i {
+            if (a[(i, j)] - a[(j, i)]).abs() > 1e-9 * scale {
+                return Err(ScenarioError::invalid(
+                    field,
+                    format!(
+                        "not symmetric: [{i}][{j}] = {} but [{j}][{i}] = {}",
+                        a[(i, j)],
+                        a[(j, i)]
+                    ),
+                ));
+            }
+        }
+    }
+    let sym = (&a + a.transpose()) * 0.5;
+    let smallest = sym.clone().symmetric_eigenvalues().min();
+    if smallest <= 0.0 || nalgebra::Cholesky::new(sym.clone()).is_none() {
+        return Err(ScenarioError::invalid(
+            field,
+            format!("not positive definite: smallest eigenvalue is {smallest:e}"),
+        ));
+    }
+    Ok(sym)
+}
+
+fn aabb(field: &str, raw: &RawBox, n: usize) -> Result<Aabb> {
+    let min = vector(&format!("{field}.min"), &raw.min, n)?;
+    let max = vector(&format!("{field}.max"), &raw.max, n)?;
+    for i in 0..n {
+        if min[i] > max[i] {
+            return Err(ScenarioError::invalid(
+                field,
+                format!("min > max on axis {i}: {} > {}", min[i], max[i]),
+            ));
+        }
+    }
+    Ok(Aabb {
+        min: min.as_slice().to_vec(),
+        max: max.as_slice().to_vec(),
+    })
+}
