@@ -1,2 +1,30 @@
+//! `etp-shared`: the vocabulary every etpareto process shares.
+//!
+//! A short tour, in the order data flows:
+//!
+//! * [`scenario::Scenario`] — a validated scenario (plant, sensors, route, target,
+//!   obstacles, thresholds Δ), loaded from TOML or a built-in name.
+//! * [`etkf::EtKalmanFilter`] — the event-triggered Kalman filter of MODEL.md §2
+//!   for fixed dimensions `N ≤ 6`, `M ≤ 6`: prediction, whitened innovation,
+//!   ∞-norm trigger, explicit (Joseph) and implicit (β(δ)) updates.
+//! * [`gaussian`] — φ, Φ, β(δ), the expected rate γ̄(δ) and its inverse.
+//! * [`episode::CompiledScenario`] — the scenario in fixed-size form with the
+//!   episode rules of MODEL.md §3 (controller, collision, leg termination,
+//!   target/free classification): [`episode::CompiledScenario::run_leg`] and
+//!   [`episode::CompiledScenario::run_episode`].
+//! * [`rng`] — reproducible per-episode random streams (`Xoshiro256++`).
+//! * [`stats`] — confidence intervals for means and proportions.
+//!
+//! Everything here is pure: no I/O, no clock, randomness only through the RNG
+//! the caller passes in, so every result is reproducible from a seed.
+
+pub mod controller;
+pub mod dispatch;
+pub mod episode;
+pub mod etkf;
+pub mod gaussian;
 pub mod geometry;
+pub mod linalg;
+pub mod rng;
 pub mod scenario;
+pub mod stats;

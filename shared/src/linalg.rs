@@ -100,3 +100,40 @@ pub fn symmetrize<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> 
 pub fn max_abs<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> f64 {
     m.amax()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn multiple_of_identity_gets_the_coordinate_axes() {
+        let (vals, v) = deterministic_eigen(&DMatrix::identity(3, 3).scale(0.5));
+        assert_eq!(vals, vec![0.5, 0.5, 0.5]);
+        assert_eq!(v, DMatrix::identity(3, 3));
+    }
+
+    #[test]
+    fn distinct_eigenvalues_sorted_descending_with_fixed_sign() {
+        let a = DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, 3.0]);
+        let (vals, v) = deterministic_eigen(&a);
+        assert_eq!(vals, vec![3.0, 1.0]);
+        assert_eq!(v, DMatrix::from_row_slice(2, 2, &[0.0, 1.0, 1.0, 0.0]));
+        let b = DMatrix::from_row_slice(3, 3, &[2.0, -0.4, 0.1, -0.4, 1.0, 0.2, 0.1, 0.2, 0.5]);
+        let (vals, v) = deterministic_eigen(&b);
+        let recon = &v * DMatrix::from_diagonal(&nalgebra::DVector::from_vec(vals.clone())) * v.transpose();
+        assert!((recon - &b).amax() < 1e-12);
+        for c in 0..3 {
+            let col = v.column(c);
+            assert!(col[col.iamax()] > 0.0);
+        }
+    }
+
+    #[test]
+    fn repeated_block_is_orthonormalised_in_coordinate_order() {
+        // diag(2, 1, 1) rotated in the (y, z) plane stays diag: block spans y, z.
+        let a = DMatrix::from_row_slice(3, 3, &[2.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
+        let (vals, v) = deterministic_eigen(&a);
+        assert_eq!(vals, vec![2.0, 1.0, 1.0]);
+        assert_eq!(v, DMatrix::identity(3, 3));
+    }
+}

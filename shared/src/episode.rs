@@ -1,0 +1,375 @@
+//! The task of MODEL.md §3: legs, controller, collision, leg termination and the
+//! end-of-episode classification, over fixed-size state.
+//!
+//! [`CompiledScenario`] is a [`Scenario`] converted once to stack matrices.
+//! [`CompiledScenario::run_leg`] runs one leg from a given (true state, belief)
+//! — the unit the Monte Carlo abstraction samples — and
+//! [`CompiledScenario::run_episode`] chains legs with a threshold policy.
+//!
+//! Step order inside leg i (exactly MODEL.md §3; a leg always runs at least one
+//! step, termination is checked after the step):
+//! 1. `u = sat(w_i − x̂, u_max)`
+//! 2. `x ← F x + G u + w`
+//! 3. `x` in a closed obstacle box → collision (terminal, no measurement)
+//! 4. the serving sensor measures, triggers, the filter updates
+//! 5. `k_i += 1`; the leg ends if `‖x̂ − w_i‖ ≤ ε_x` or `k_i ≥ k_max`
+//!
+//! Random numbers are drawn in a fixed order per step (process noise, then
+//! measurement noise), so a seed fixes an episode completely.
+
+use crate::controller::{reached, waypoint_input};
+use crate::etkf::{Belief, EtKalmanFilter, LinearPlant, Matrix, Threshold, Vector, sample_belief};
+use crate::gaussian;
+use crate::geometry::{StaticBox, first_containing};
+use crate::linalg::to_static_vec;
+use crate::scenario::Scenario;
+use rand::Rng;
+
+/// The ET-KF of one sensor, whatever its measurement dimension.
+#[derive(Debug, Clone, Copy)]
+pub enum SensorFilter<const N: usize> {
+    M1(EtKalmanFilter<N, 1>),
+    M2(EtKalmanFilter<N, 2>),
+    M3(EtKalmanFilter<N, 3>),
+    M4(EtKalmanFilter<N, 4>),
+    M5(EtKalmanFilter<N, 5>),
+    M6(EtKalmanFilter<N, 6>),
+}
+
+/// Apply `$body` to the inner `EtKalmanFilter<N, M>` of a [`SensorFilter`].
+macro_rules! on_filter {
+    ($sf:expr, $f:ident => $body:expr) => {
+        match $sf {
+            SensorFilter::M1($f) => $body,
+            SensorFilter::M2($f) => $body,
+            SensorFilter::M3($f) => $body,
+            SensorFilter::M4($f) => $body,
+            SensorFilter::M5($f) => $body,
+            SensorFilter::M6($f) => $body,
+        }
+    };
+}
+
+impl<const N: usize> SensorFilter<N> {
+    pub fn new(scenario: &Scenario, sensor: usize) -> Self {
+        let (p, s) = (&scenario.plant, &scenario.sensors[sensor]);
+        match s.dim() {
+            1 => Self::M1(EtKalmanFilter::new(p, s)),
+            2 => Self::M2(EtKalmanFilter::new(p, s)),
+            3 => Self::M3(EtKalmanFilter::new(p, s)),
+            4 => Self::M4(EtKalmanFilter::new(p, s)),
+            5 => Self::M5(EtKalmanFilter::new(p, s)),
+            6 => Self::M6(EtKalmanFilter::new(p, s)),
+            m => panic!("measurement dimension {m} outside 1..=6 (scenario validation bug)"),
+        }
+    }
+
+    /// Measurement dimension m.
+    pub fn dim(&self) -> usize {
+        on_filter!(self, f => f.sensor.h.nrows())
+    }
+
+    /// Energy per transmission.
+    pub fn cost(&self) -> f64 {
+        on_filter!(self, f => f.sensor.cost)
+    }
+
+    /// Steady-state posterior covariance of the full Kalman filter (δ = 0).
+    pub fn steady_state_posterior(&self) -> Matrix<N, N> {
+        on_filter!(self, f => f.steady_state_posterior())
+    }
+
+    /// One prediction with a zero input and an implicit update with factor β —
+    /// the covariance recursion of a silent step (used to bound eigenvalues).
+    pub fn silent_covariance_step(&self, cov: &Matrix<N, N>, beta: f64) -> Matrix<N, N> {
+        on_filter!(self, f => {
+            let prior = f.predict(&Belief { mean: Vector::<N>::zeros(), cov: *cov }, &Vector::<N>::zeros());
+            let inn = f.innovation(&prior);
+            f.update_implicit(&prior, &inn, beta).cov
+        })
+    }
+}
+
+/// How thresholds are applied inside a leg.
+#[derive(Debug, Clone, Copy)]
+pub enum LegMode<const N: usize> {
+    /// Method 2 and constant-δ runs: one threshold for the whole leg.
+    EventTriggered(Threshold),
+    /// Method 1 (MODEL.md §4): `threshold` until the estimate comes within
+    /// `eps_kf` of the waypoint, then δ = 0 (sticky) and the leg ends only once
+    /// `‖P − P_KF‖max ≤ eps_p` and the mean criterion hold (or at `k_max`).
+    KfConvergence {
+        threshold: Threshold,
+        eps_kf: f64,
+        eps_p: f64,
+        p_kf: Matrix<N, N>,
+    },
+}
+
+/// The agent's state: true plant state and the filter's posterior.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AgentState<const N: usize> {
+    pub x: Vector<N>,
+    pub belief: Belief<N>,
+}
+
+/// How a leg ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LegEnd {
+    /// The true state entered obstacle `obstacle` (index into the scenario's list).
+    Collision { obstacle: usize },
+    /// The termination rule fired (waypoint reached or `k_max`).
+    Terminated,
+}
+
+/// Counts of one leg.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LegResult {
+    pub end: LegEnd,
+    /// Plant moves in this leg (the colliding move included).
+    pub steps: u32,
+    /// Measurement slots (steps that reached the sensor: all but a colliding one).
+    pub slots: u32,
+    /// Transmitted measurements.
+    pub transmissions: u32,
+    /// Slots spent in the enforced δ = 0 phase of [`LegMode::KfConvergence`].
+    pub kf_slots: u32,
+    /// Σ over slots of γ̄(δ, m): the transmissions the Gaussian assumption predicts.
+    pub expected_transmissions: f64,
+}
+
+/// Terminal classification of an episode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub enum Outcome {
+    Target,
+    Collision,
+    Free,
+}
+
+/// Totals of one episode.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EpisodeResult {
+    pub outcome: Outcome,
+    pub steps: u32,
+    pub slots: u32,
+    pub transmissions: u32,
+    /// Σ c_m γ_k over the episode.
+    pub energy: f64,
+    /// Σ γ̄(δ, m) over the episode's slots.
+    pub expected_transmissions: f64,
+}
+
+/// What happened at one step, for observers (trajectories, plots, per-sensor counts).
+#[derive(Debug, Clone, Copy)]
+pub struct StepEvent<'a, const N: usize> {
+    pub leg: usize,
+    /// True state after the move.
+    pub x: &'a Vector<N>,
+    /// Posterior after the update (the previous posterior on a colliding step).
+    pub belief: &'a Belief<N>,
+    pub delta: f64,
+    pub transmitted: bool,
+    pub collided: bool,
+}
+
+/// Hooks into a running episode; `()` observes nothing and compiles away.
+pub trait EpisodeObserver<const N: usize> {
+    #[inline]
+    fn on_step(&mut self, _event: &StepEvent<'_, N>) {}
+    #[inline]
+    fn on_leg_end(&mut self, _leg: usize, _sensor: usize, _result: &LegResult) {}
+}
+
+impl<const N: usize> EpisodeObserver<N> for () {}
+
+/// One leg of the route in fixed-size form.
+#[derive(Debug, Clone, Copy)]
+pub struct CompiledLeg<const N: usize> {
+    pub waypoint: Vector<N>,
+    pub sensor: usize,
+}
+
+/// A scenario in fixed-size form, ready for the hot loop.
+#[derive(Debug, Clone)]
+pub struct CompiledScenario<const N: usize> {
+    pub plant: LinearPlant<N>,
+    pub initial: Belief<N>,
+    pub filters: Vec<SensorFilter<N>>,
+    pub legs: Vec<CompiledLeg<N>>,
+    pub obstacles: Vec<StaticBox<N>>,
+    pub target: StaticBox<N>,
+    pub u_max: f64,
+    pub eps_x: f64,
+    pub k_max: u32,
+}
+
+impl<const N: usize> CompiledScenario<N> {
+    /// Convert a validated scenario; `N` must equal `scenario.dim`
+    /// (use [`crate::with_dim!`]).
+    pub fn new(scenario: &Scenario) -> Self {
+        assert_eq!(scenario.dim, N, "CompiledScenario<{N}> for a {}-D scenario", scenario.dim);
+        Self {
+            plant: LinearPlant::new(&scenario.plant),
+            initial: LinearPlant::<N>::initial_belief(&scenario.plant),
+            filters: (0..scenario.sensors.len()).map(|s| SensorFilter::new(scenario, s)).collect(),
+            legs: scenario
+                .legs
+                .iter()
+                .map(|l| CompiledLeg {
+                    waypoint: to_static_vec(&l.to),
+                    sensor: l.sensor,
+                })
+                .collect(),
+            obstacles: scenario.obstacles.iter().map(|o| o.bounds.to_static()).collect(),
+            target: scenario.target.to_static(),
+            u_max: scenario.controller.u_max,
+            eps_x: scenario.controller.eps_x,
+            k_max: scenario.controller.k_max,
+        }
+    }
+
+    /// Draw the initial true state `x0 ~ N(x̂0, P0)`; the belief is `(x̂0, P0)`.
+    pub fn initial_state<R: Rng + ?Sized>(&self, rng: &mut R) -> AgentState<N> {
+        AgentState {
+            x: sample_belief(&self.initial, rng),
+            belief: self.initial,
+        }
+    }
+
+    /// Run leg `leg` from `state` (updated in place) under `mode`.
+    pub fn run_leg<R: Rng + ?Sized, O: EpisodeObserver<N>>(
+        &self,
+        leg: usize,
+        state: &mut AgentState<N>,
+        mode: &LegMode<N>,
+        rng: &mut R,
+        observer: &mut O,
+    ) -> LegResult {
+        let sensor = self.legs[leg].sensor;
+        let result = on_filter!(&self.filters[sensor], f => self.run_leg_with(f, leg, state, mode, rng, observer));
+        observer.on_leg_end(leg, sensor, &result);
+        result
+    }
+
+    #[inline]
+    fn run_leg_with<const M: usize, R: Rng + ?Sized, O: EpisodeObserver<N>>(
+        &self,
+        filter: &EtKalmanFilter<N, M>,
+        leg: usize,
+        state: &mut AgentState<N>,
+        mode: &LegMode<N>,
+        rng: &mut R,
+        observer: &mut O,
+    ) -> LegResult {
+        let w = self.legs[leg].waypoint;
+        let (initial_threshold, kf) = match *mode {
+            LegMode::EventTriggered(t) => (t, None),
+            LegMode::KfConvergence {
+                threshold,
+                eps_kf,
+                eps_p,
+                p_kf,
+            } => (threshold, Some((eps_kf, eps_p, p_kf))),
+        };
+        let full_kf = Threshold::new(0.0);
+        let mut threshold = initial_threshold;
+        let mut in_kf_phase = false;
+        let mut r = LegResult {
+            end: LegEnd::Terminated,
+            steps: 0,
+            slots: 0,
+            transmissions: 0,
+            kf_slots: 0,
+            expected_transmissions: 0.0,
+        };
+        let mut expected_rate = gaussian::expected_rate(threshold.delta, M);
+        loop {
+            let u = waypoint_input(&state.belief.mean, &w, self.u_max);
+            state.x = self.plant.step(&state.x, &u, rng);
+            r.steps += 1;
+            if let Some(obstacle) = first_containing(&self.obstacles, &state.x) {
+                observer.on_step(&StepEvent {
+                    leg,
+                    x: &state.x,
+                    belief: &state.belief,
+                    delta: threshold.delta,
+                    transmitted: false,
+                    collided: true,
+                });
+                r.end = LegEnd::Collision { obstacle };
+                return r;
+            }
+            let y = filter.sensor.measure(&state.x, rng);
+            let (post, sent) = filter.step(&state.belief, &u, &y, threshold);
+            state.belief = post;
+            r.slots += 1;
+            r.transmissions += u32::from(sent);
+            r.kf_slots += u32::from(in_kf_phase);
+            r.expected_transmissions += expected_rate;
+            observer.on_step(&StepEvent {
+                leg,
+                x: &state.x,
+                belief: &state.belief,
+                delta: threshold.delta,
+                transmitted: sent,
+                collided: false,
+            });
+            let near = reached(&state.belief.mean, &w, self.eps_x);
+            let done = match kf {
+                None => near,
+                Some((eps_kf, eps_p, p_kf)) => {
+                    if !in_kf_phase && reached(&state.belief.mean, &w, eps_kf) {
+                        in_kf_phase = true;
+                        threshold = full_kf;
+                        expected_rate = 1.0;
+                    }
+                    in_kf_phase && near && (state.belief.cov - p_kf).amax() <= eps_p
+                }
+            };
+            if done || r.steps >= self.k_max {
+                return r;
+            }
+        }
+    }
+
+    /// Run a whole episode: draw `x0`, then for each leg ask `policy(leg, belief)`
+    /// for the leg's mode, run it, stop at a collision; classify at the end.
+    pub fn run_episode<R, P, O>(&self, mut policy: P, rng: &mut R, observer: &mut O) -> EpisodeResult
+    where
+        R: Rng + ?Sized,
+        P: FnMut(usize, &Belief<N>, &mut R) -> LegMode<N>,
+        O: EpisodeObserver<N>,
+    {
+        let mut state = self.initial_state(rng);
+        let mut total = EpisodeResult {
+            outcome: Outcome::Free,
+            steps: 0,
+            slots: 0,
+            transmissions: 0,
+            energy: 0.0,
+            expected_transmissions: 0.0,
+        };
+        for leg in 0..self.legs.len() {
+            let mode = policy(leg, &state.belief, rng);
+            let r = self.run_leg(leg, &mut state, &mode, rng, observer);
+            total.steps += r.steps;
+            total.slots += r.slots;
+            total.transmissions += r.transmissions;
+            total.expected_transmissions += r.expected_transmissions;
+            total.energy += f64::from(r.transmissions) * self.filters[self.legs[leg].sensor].cost();
+            if let LegEnd::Collision { .. } = r.end {
+                total.outcome = Outcome::Collision;
+                return total;
+            }
+        }
+        total.outcome = if self.target.contains(&state.x) {
+            Outcome::Target
+        } else {
+            Outcome::Free
+        };
+        total
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,182 @@
+//! Point estimates with 95 % confidence half-widths.
+//!
+//! Means use the normal approximation `1.96 s / √n`; proportions use the
+//! Wilson score interval (never a zero-width interval at p = 0 or 1); ratios of
+//! sums (e.g. transmissions per measurement slot) use the delta method.
+
+use serde::{Deserialize, Serialize};
+
+/// z-value of a two-sided 95 % interval.
+pub const Z95: f64 = 1.959_963_984_540_054;
+
+/// An estimate and the half-width of its 95 % confidence interval.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Estimate {
+    pub value: f64,
+    pub ci95: f64,
+}
+
+impl Estimate {
+    /// Does `x` lie in `value ± ci95`?
+    pub fn covers(&self, x: f64) -> bool {
+        (x - self.value).abs() <= self.ci95
+    }
+}
+
+/// Running sums of a scalar sample, for a mean with a confidence interval.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MeanAccumulator {
+    pub n: u64,
+    pub sum: f64,
+    pub sum_sq: f64,
+}
+
+impl MeanAccumulator {
+    pub fn push(&mut self, x: f64) {
+        self.n += 1;
+        self.sum += x;
+        self.sum_sq += x * x;
+    }
+
+    pub fn merge(&mut self, other: &Self) {
+        self.n += other.n;
+        self.sum += other.sum;
+        self.sum_sq += other.sum_sq;
+    }
+
+    pub fn mean(&self) -> f64 {
+        if self.n == 0 { 0.0 } else { self.sum / self.n as f64 }
+    }
+
+    /// Unbiased sample variance.
+    pub fn variance(&self) -> f64 {
+        if self.n < 2 {
+            return 0.0;
+        }
+        let n = self.n as f64;
+        ((self.sum_sq - self.sum * self.sum / n) / (n - 1.0)).max(0.0)
+    }
+
+    pub fn estimate(&self) -> Estimate {
+        let ci95 = if self.n < 2 {
+            f64::INFINITY
+        } else {
+            Z95 * (self.variance() / self.n as f64).sqrt()
+        };
+        Estimate {
+            value: self.mean(),
+            ci95,
+        }
+    }
+}
+
+/// Wilson score interval `(lo, hi)` for `k` successes in `n` trials.
+pub fn wilson_interval(k: u64, n: u64) -> (f64, f64) {
+    if n == 0 {
+        return (0.0, 1.0);
+    }
+    let n_f = n as f64;
+    let p = k as f64 / n_f;
+    let z2 = Z95 * Z95;
+    let denom = 1.0 + z2 / n_f;
+    let centre = (p + z2 / (2.0 * n_f)) / denom;
+    let half = Z95 * (p * (1.0 - p) / n_f + z2 / (4.0 * n_f * n_f)).sqrt() / denom;
+    ((centre - half).max(0.0), (centre + half).min(1.0))
+}
+
+/// The proportion `k/n` with the larger distance to a Wilson bound as half-width.
+pub fn proportion(k: u64, n: u64) -> Estimate {
+    let p = if n == 0 { 0.0 } else { k as f64 / n as f64 };
+    let (lo, hi) = wilson_interval(k, n);
+    Estimate {
+        value: p,
+        ci95: (p - lo).max(hi - p),
+    }
+}
+
+/// Per-unit sums for a ratio estimator `Σa / Σb` (e.g. transmissions per slot
+/// over episodes), with a delta-method interval treating episodes as units.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RatioAccumulator {
+    pub n: u64,
+    pub sum_a: f64,
+    pub sum_b: f64,
+    pub sum_aa: f64,
+    pub sum_bb: f64,
+    pub sum_ab: f64,
+}
+
+impl RatioAccumulator {
+    pub fn push(&mut self, a: f64, b: f64) {
+        self.n += 1;
+        self.sum_a += a;
+        self.sum_b += b;
+        self.sum_aa += a * a;
+        self.sum_bb += b * b;
+        self.sum_ab += a * b;
+    }
+
+    pub fn merge(&mut self, o: &Self) {
+        self.n += o.n;
+        self.sum_a += o.sum_a;
+        self.sum_b += o.sum_b;
+        self.sum_aa += o.sum_aa;
+        self.sum_bb += o.sum_bb;
+        self.sum_ab += o.sum_ab;
+    }
+
+    pub fn estimate(&self) -> Estimate {
+        if self.sum_b <= 0.0 || self.n < 2 {
+            return Estimate {
+                value: 0.0,
+                ci95: f64::INFINITY,
+            };
+        }
+        let n = self.n as f64;
+        let r = self.sum_a / self.sum_b;
+        let b_mean = self.sum_b / n;
+        // Var of residuals d_i = a_i − r b_i.
+        let ss = self.sum_aa - 2.0 * r * self.sum_ab + r * r * self.sum_bb;
+        let var_d = (ss / (n - 1.0)).max(0.0);
+        Estimate {
+            value: r,
+            ci95: Z95 * (var_d / n).sqrt() / b_mean,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mean_of_constant_has_zero_width() {
+        let mut a = MeanAccumulator::default();
+        for _ in 0..10 {
+            a.push(2.5);
+        }
+        let e = a.estimate();
+        assert_eq!(e.value, 2.5);
+        assert!(e.ci95.abs() < 1e-12);
+    }
+
+    #[test]
+    fn wilson_matches_textbook_value() {
+        // 5 of 10: Wilson 95 % interval (0.2366, 0.7634).
+        let (lo, hi) = wilson_interval(5, 10);
+        assert!((lo - 0.2366).abs() < 1e-4 && (hi - 0.7634).abs() < 1e-4, "{lo} {hi}");
+        let e = proportion(0, 100);
+        assert_eq!(e.value, 0.0);
+        assert!(e.ci95 > 0.03 && e.ci95 < 0.04, "{}", e.ci95);
+    }
+
+    #[test]
+    fn ratio_of_proportional_sums_is_exact() {
+        let mut r = RatioAccumulator::default();
+        for b in [10.0, 20.0, 30.0] {
+            r.push(0.25 * b, b);
+        }
+        let e = r.estimate();
+        assert!((e.value - 0.25).abs() < 1e-12 && e.ci95 < 1e-9);
+    }
+}
