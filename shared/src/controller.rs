@@ -4,7 +4,11 @@ use crate::etkf::Vector;
 
 /// Drive the estimate toward the waypoint, saturated to Euclidean norm `u_max`.
 #[inline]
-pub fn waypoint_input<const N: usize>(mean: &Vector<N>, waypoint: &Vector<N>, u_max: f64) -> Vector<N> {
+pub fn waypoint_input<const N: usize>(
+    mean: &Vector<N>,
+    waypoint: &Vector<N>,
+    u_max: f64,
+) -> Vector<N> {
     let d = waypoint - mean;
     let norm = d.norm();
     if norm > u_max { d * (u_max / norm) } else { d }

@@ -207,11 +207,17 @@ impl<const N: usize> CompiledScenario<N> {
     /// Convert a validated scenario; `N` must equal `scenario.dim`
     /// (use [`crate::with_dim!`]).
     pub fn new(scenario: &Scenario) -> Self {
-        assert_eq!(scenario.dim, N, "CompiledScenario<{N}> for a {}-D scenario", scenario.dim);
+        assert_eq!(
+            scenario.dim, N,
+            "CompiledScenario<{N}> for a {}-D scenario",
+            scenario.dim
+        );
         Self {
             plant: LinearPlant::new(&scenario.plant),
             initial: LinearPlant::<N>::initial_belief(&scenario.plant),
-            filters: (0..scenario.sensors.len()).map(|s| SensorFilter::new(scenario, s)).collect(),
+            filters: (0..scenario.sensors.len())
+                .map(|s| SensorFilter::new(scenario, s))
+                .collect(),
             legs: scenario
                 .legs
                 .iter()
@@ -220,7 +226,11 @@ impl<const N: usize> CompiledScenario<N> {
                     sensor: l.sensor,
                 })
                 .collect(),
-            obstacles: scenario.obstacles.iter().map(|o| o.bounds.to_static()).collect(),
+            obstacles: scenario
+                .obstacles
+                .iter()
+                .map(|o| o.bounds.to_static())
+                .collect(),
             target: scenario.target.to_static(),
             u_max: scenario.controller.u_max,
             eps_x: scenario.controller.eps_x,
@@ -334,7 +344,12 @@ impl<const N: usize> CompiledScenario<N> {
 
     /// Run a whole episode: draw `x0`, then for each leg ask `policy(leg, belief)`
     /// for the leg's mode, run it, stop at a collision; classify at the end.
-    pub fn run_episode<R, P, O>(&self, mut policy: P, rng: &mut R, observer: &mut O) -> EpisodeResult
+    pub fn run_episode<R, P, O>(
+        &self,
+        mut policy: P,
+        rng: &mut R,
+        observer: &mut O,
+    ) -> EpisodeResult
     where
         R: Rng + ?Sized,
         P: FnMut(usize, &Belief<N>, &mut R) -> LegMode<N>,

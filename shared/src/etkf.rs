@@ -5,7 +5,9 @@
 //! the `Rng` passed in.
 
 use crate::gaussian;
-use crate::linalg::{cholesky_lower, deterministic_eigen, symmetrize, to_dynamic, to_static, to_static_vec};
+use crate::linalg::{
+    cholesky_lower, deterministic_eigen, symmetrize, to_dynamic, to_static, to_static_vec,
+};
 use crate::scenario::{Plant, Sensor};
 use nalgebra::{SMatrix, SVector};
 use rand::{Rng, RngExt};
@@ -217,7 +219,12 @@ impl<const N: usize, const M: usize> EtKalmanFilter<N, M> {
 
     /// Explicit update with a received measurement (Joseph form).
     #[inline]
-    pub fn update_explicit(&self, prior: &Belief<N>, inn: &Innovation<N, M>, y: &Vector<M>) -> Belief<N> {
+    pub fn update_explicit(
+        &self,
+        prior: &Belief<N>,
+        inn: &Innovation<N, M>,
+        y: &Vector<M>,
+    ) -> Belief<N> {
         let k = &inn.gain;
         let ikh = Matrix::<N, N>::identity() - k * self.sensor.h;
         let cov = ikh * prior.cov * ikh.transpose() + k * self.sensor.r * k.transpose();
@@ -229,7 +236,12 @@ impl<const N: usize, const M: usize> EtKalmanFilter<N, M> {
 
     /// Implicit update after a silent slot: `P = P⁻ − β K H P⁻`, mean unchanged.
     #[inline]
-    pub fn update_implicit(&self, prior: &Belief<N>, inn: &Innovation<N, M>, beta: f64) -> Belief<N> {
+    pub fn update_implicit(
+        &self,
+        prior: &Belief<N>,
+        inn: &Innovation<N, M>,
+        beta: f64,
+    ) -> Belief<N> {
         let cov = prior.cov - inn.gain * (self.sensor.h * prior.cov) * beta;
         Belief {
             mean: prior.mean,
@@ -246,7 +258,13 @@ impl<const N: usize, const M: usize> EtKalmanFilter<N, M> {
     /// One full ET-KF step for a measurement `y` the sensor took: predict,
     /// trigger, update. Returns the posterior and whether `y` was transmitted.
     #[inline]
-    pub fn step(&self, post: &Belief<N>, u: &Vector<N>, y: &Vector<M>, th: Threshold) -> (Belief<N>, bool) {
+    pub fn step(
+        &self,
+        post: &Belief<N>,
+        u: &Vector<N>,
+        y: &Vector<M>,
+        th: Threshold,
+    ) -> (Belief<N>, bool) {
         let prior = self.predict(post, u);
         let inn = self.innovation(&prior);
         if inn.triggers(y, th.delta) {

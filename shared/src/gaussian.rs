@@ -83,19 +83,35 @@ mod tests {
             let (mut num, mut den) = (0.0, 0.0);
             for i in 0..=n {
                 let t = -d + i as f64 * h;
-                let w = if i == 0 || i == n { 1.0 } else if i % 2 == 1 { 4.0 } else { 2.0 };
+                let w = if i == 0 || i == n {
+                    1.0
+                } else if i % 2 == 1 {
+                    4.0
+                } else {
+                    2.0
+                };
                 num += w * t * t * normal_pdf(t);
                 den += w * normal_pdf(t);
             }
             let var = num / den;
-            assert!((1.0 - beta(d) - var).abs() < 1e-10, "δ={d}: {} vs {var}", 1.0 - beta(d));
+            assert!(
+                (1.0 - beta(d) - var).abs() < 1e-10,
+                "δ={d}: {} vs {var}",
+                1.0 - beta(d)
+            );
         }
     }
 
     #[test]
     fn expected_rates_of_builtin_thresholds() {
         // The built-in 2-D thresholds are chosen for rates 1, .5, .25, .1, .05.
-        for (d, r) in [(0.0, 1.0), (1.0518, 0.5), (1.4986, 0.25), (1.9488, 0.1), (2.2365, 0.05)] {
+        for (d, r) in [
+            (0.0, 1.0),
+            (1.0518, 0.5),
+            (1.4986, 0.25),
+            (1.9488, 0.1),
+            (2.2365, 0.05),
+        ] {
             assert!((expected_rate(d, 2) - r).abs() < 2e-4, "δ={d}");
         }
         for (d, r) in [(1.2638, 0.5), (1.6879, 0.25), (2.1141, 0.1), (2.3877, 0.05)] {

@@ -19,7 +19,10 @@ pub fn deterministic_eigen(a: &DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
     let values: Vec<f64> = order.iter().map(|&i| eig.eigenvalues[i]).collect();
-    let scale = values.iter().fold(0.0_f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
+    let scale = values
+        .iter()
+        .fold(0.0_f64, |m, v| m.max(v.abs()))
+        .max(f64::MIN_POSITIVE);
     let mut v = DMatrix::<f64>::zeros(n, n);
     let mut start = 0;
     while start < n {
@@ -120,7 +123,8 @@ mod tests {
         assert_eq!(v, DMatrix::from_row_slice(2, 2, &[0.0, 1.0, 1.0, 0.0]));
         let b = DMatrix::from_row_slice(3, 3, &[2.0, -0.4, 0.1, -0.4, 1.0, 0.2, 0.1, 0.2, 0.5]);
         let (vals, v) = deterministic_eigen(&b);
-        let recon = &v * DMatrix::from_diagonal(&nalgebra::DVector::from_vec(vals.clone())) * v.transpose();
+        let recon =
+            &v * DMatrix::from_diagonal(&nalgebra::DVector::from_vec(vals.clone())) * v.transpose();
         assert!((recon - &b).amax() < 1e-12);
         for c in 0..3 {
             let col = v.column(c);

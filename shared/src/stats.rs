@@ -45,7 +45,11 @@ impl MeanAccumulator {
     }
 
     pub fn mean(&self) -> f64 {
-        if self.n == 0 { 0.0 } else { self.sum / self.n as f64 }
+        if self.n == 0 {
+            0.0
+        } else {
+            self.sum / self.n as f64
+        }
     }
 
     /// Unbiased sample variance.
@@ -164,7 +168,10 @@ mod tests {
     fn wilson_matches_textbook_value() {
         // 5 of 10: Wilson 95 % interval (0.2366, 0.7634).
         let (lo, hi) = wilson_interval(5, 10);
-        assert!((lo - 0.2366).abs() < 1e-4 && (hi - 0.7634).abs() < 1e-4, "{lo} {hi}");
+        assert!(
+            (lo - 0.2366).abs() < 1e-4 && (hi - 0.7634).abs() < 1e-4,
+            "{lo} {hi}"
+        );
         let e = proportion(0, 100);
         assert_eq!(e.value, 0.0);
         assert!(e.ci95 > 0.03 && e.ci95 < 0.04, "{}", e.ci95);

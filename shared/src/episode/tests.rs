@@ -15,10 +15,22 @@ fn constant(delta: f64) -> impl FnMut(usize, &Belief<2>, &mut crate::rng::SimRng
 #[test]
 fn same_seed_same_episode() {
     let (_, c) = winding();
-    let a = c.run_episode(constant(1.5), &mut stream_rng(7, streams::SIMULATE, 3), &mut ());
-    let b = c.run_episode(constant(1.5), &mut stream_rng(7, streams::SIMULATE, 3), &mut ());
+    let a = c.run_episode(
+        constant(1.5),
+        &mut stream_rng(7, streams::SIMULATE, 3),
+        &mut (),
+    );
+    let b = c.run_episode(
+        constant(1.5),
+        &mut stream_rng(7, streams::SIMULATE, 3),
+        &mut (),
+    );
     assert_eq!(a, b);
-    let other = c.run_episode(constant(1.5), &mut stream_rng(7, streams::SIMULATE, 4), &mut ());
+    let other = c.run_episode(
+        constant(1.5),
+        &mut stream_rng(7, streams::SIMULATE, 4),
+        &mut (),
+    );
     assert_ne!(a, other);
 }
 
@@ -42,11 +54,26 @@ fn full_kf_transmits_every_slot_and_counts_add_up() {
         }
     }
     for ep in 0..20 {
-        let mut obs = Count { steps: 0, slots: 0, sent: 0, legs: 0 };
-        let r = c.run_episode(constant(0.0), &mut stream_rng(1, streams::SIMULATE, ep), &mut obs);
+        let mut obs = Count {
+            steps: 0,
+            slots: 0,
+            sent: 0,
+            legs: 0,
+        };
+        let r = c.run_episode(
+            constant(0.0),
+            &mut stream_rng(1, streams::SIMULATE, ep),
+            &mut obs,
+        );
         assert_eq!(r.transmissions, r.slots, "δ = 0 sends every measurement");
-        assert_eq!((obs.steps, obs.slots, obs.sent), (r.steps, r.slots, r.transmissions));
-        assert!((r.energy - f64::from(r.transmissions)).abs() < 1e-12, "cost 1 per packet");
+        assert_eq!(
+            (obs.steps, obs.slots, obs.sent),
+            (r.steps, r.slots, r.transmissions)
+        );
+        assert!(
+            (r.energy - f64::from(r.transmissions)).abs() < 1e-12,
+            "cost 1 per packet"
+        );
         match r.outcome {
             Outcome::Collision => assert_eq!(r.steps, r.slots + 1),
             _ => {
@@ -63,7 +90,13 @@ fn a_leg_runs_at_least_one_step_and_stops_at_k_max() {
     c.k_max = 3;
     let mut rng = stream_rng(2, streams::SIMULATE, 0);
     let mut state = c.initial_state(&mut rng);
-    let r = c.run_leg(0, &mut state, &LegMode::EventTriggered(Threshold::new(0.0)), &mut rng, &mut ());
+    let r = c.run_leg(
+        0,
+        &mut state,
+        &LegMode::EventTriggered(Threshold::new(0.0)),
+        &mut rng,
+        &mut (),
+    );
     assert_eq!(r.end, LegEnd::Terminated);
     assert_eq!(r.steps, 3, "leg 0 of winding-2d is 2.5 long: k_max ends it");
 
@@ -72,7 +105,13 @@ fn a_leg_runs_at_least_one_step_and_stops_at_k_max() {
     let mut state = c.initial_state(&mut rng);
     state.belief.mean = c.legs[0].waypoint;
     state.x = c.legs[0].waypoint;
-    let r = c.run_leg(0, &mut state, &LegMode::EventTriggered(Threshold::new(0.0)), &mut rng, &mut ());
+    let r = c.run_leg(
+        0,
+        &mut state,
+        &LegMode::EventTriggered(Threshold::new(0.0)),
+        &mut rng,
+        &mut (),
+    );
     assert!(r.steps >= 1);
 }
 
@@ -86,7 +125,11 @@ fn an_obstacle_on_the_line_is_hit() {
     );
     let s = Scenario::from_toml(&text).expect("valid");
     let c = CompiledScenario::<2>::new(&s);
-    let r = c.run_episode(constant(0.0), &mut stream_rng(3, streams::SIMULATE, 0), &mut ());
+    let r = c.run_episode(
+        constant(0.0),
+        &mut stream_rng(3, streams::SIMULATE, 0),
+        &mut (),
+    );
     assert_eq!(r.outcome, Outcome::Collision);
     assert_eq!(r.steps, r.slots + 1);
 }

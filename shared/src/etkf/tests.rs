@@ -55,7 +55,11 @@ fn riccati_steady_state_matches_the_scalar_closed_form() {
     assert!((closed - 7.7686e-4).abs() < 1e-7);
     let p = f.steady_state_posterior();
     for i in 0..2 {
-        assert!((p[(i, i)] - closed).abs() < 1e-14, "P_KF[{i}{i}] = {} vs {closed}", p[(i, i)]);
+        assert!(
+            (p[(i, i)] - closed).abs() < 1e-14,
+            "P_KF[{i}{i}] = {} vs {closed}",
+            p[(i, i)]
+        );
     }
     assert_eq!(p[(0, 1)], 0.0);
 }
@@ -64,7 +68,10 @@ fn riccati_steady_state_matches_the_scalar_closed_form() {
 fn steady_state_is_a_fixed_point_of_the_full_filter() {
     let (_, f) = aniso();
     let p = f.steady_state_posterior();
-    let b = Belief { mean: Vector::<3>::zeros(), cov: p };
+    let b = Belief {
+        mean: Vector::<3>::zeros(),
+        cov: p,
+    };
     let prior = f.predict(&b, &Vector::<3>::zeros());
     let inn = f.innovation(&prior);
     let y = inn.predicted; // any y: the covariance update does not depend on it
@@ -75,7 +82,10 @@ fn steady_state_is_a_fixed_point_of_the_full_filter() {
 #[test]
 fn joseph_and_short_form_agree_for_the_optimal_gain() {
     let (_, f) = aniso();
-    let prior = Belief { mean: Vector::<3>::zeros(), cov: Matrix::<3, 3>::identity() * 0.02 };
+    let prior = Belief {
+        mean: Vector::<3>::zeros(),
+        cov: Matrix::<3, 3>::identity() * 0.02,
+    };
     let inn = f.innovation(&prior);
     let joseph = f.update_explicit(&prior, &inn, &inn.predicted).cov;
     let short = f.update_implicit(&prior, &inn, 1.0).cov;
@@ -85,7 +95,10 @@ fn joseph_and_short_form_agree_for_the_optimal_gain() {
 #[test]
 fn silence_at_large_delta_is_prediction_only() {
     let (_, f) = aniso();
-    let prior = Belief { mean: Vector::<3>::zeros(), cov: Matrix::<3, 3>::identity() * 0.02 };
+    let prior = Belief {
+        mean: Vector::<3>::zeros(),
+        cov: Matrix::<3, 3>::identity() * 0.02,
+    };
     let inn = f.innovation(&prior);
     let post = f.update_implicit(&prior, &inn, gaussian::beta(40.0));
     assert!((post.cov - prior.cov).amax() < 1e-15);
@@ -107,7 +120,10 @@ fn whitened_innovation_of_the_full_filter_has_identity_covariance() {
         let y = f.sensor.measure(&x, &mut rng);
         let prior = f.predict(&b, &u);
         let inn = f.innovation(&prior);
-        assert!(matches!(inn.whitener, Whitener::Basis(_)), "full Z must use the eigenbasis");
+        assert!(
+            matches!(inn.whitener, Whitener::Basis(_)),
+            "full Z must use the eigenbasis"
+        );
         let e = inn.whitened(&y);
         sum += e;
         outer += e * e.transpose();
@@ -120,7 +136,10 @@ fn whitened_innovation_of_the_full_filter_has_identity_covariance() {
     // of a covariance: 1/√n. Tolerance 4.5 sd.
     for i in 0..2 {
         assert!(mean[i].abs() < 4.5 / nf.sqrt(), "mean {mean}");
-        assert!((cov[(i, i)] - 1.0).abs() < 4.5 * (2.0 / nf).sqrt(), "cov {cov}");
+        assert!(
+            (cov[(i, i)] - 1.0).abs() < 4.5 * (2.0 / nf).sqrt(),
+            "cov {cov}"
+        );
     }
     assert!(cov[(0, 1)].abs() < 4.5 / nf.sqrt(), "cov {cov}");
 }

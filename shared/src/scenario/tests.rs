@@ -11,8 +11,14 @@ fn winding() -> String {
 /// `field` with a reason containing `reason`.
 fn refused(text: &str, field: &str, reason: &str) {
     match Scenario::from_toml(text) {
-        Err(ScenarioError::Invalid { field: f, reason: r }) => {
-            assert!(f.contains(field), "field `{f}` should name `{field}` (reason: {r})");
+        Err(ScenarioError::Invalid {
+            field: f,
+            reason: r,
+        }) => {
+            assert!(
+                f.contains(field),
+                "field `{f}` should name `{field}` (reason: {r})"
+            );
             assert!(r.contains(reason), "reason `{r}` should contain `{reason}`");
         }
         other => panic!("expected Invalid({field}), got {other:?}"),
@@ -34,7 +40,10 @@ fn builtins_load_and_have_stable_hashes() {
         assert_eq!(s.content_hash, again.content_hash);
     }
     let w = Scenario::builtin("winding-2d").expect("valid");
-    assert_eq!((w.dim, w.sensors.len(), w.legs.len(), w.obstacles.len()), (2, 7, 11, 13));
+    assert_eq!(
+        (w.dim, w.sensors.len(), w.legs.len(), w.obstacles.len()),
+        (2, 7, 11, 13)
+    );
     assert_eq!(w.deltas.len(), 5);
     let s3 = Scenario::builtin("superg-3d").expect("valid");
     assert_eq!(s3.dim, 3);
@@ -51,27 +60,45 @@ fn unknown_builtin_is_named() {
 #[test]
 fn hash_changes_with_content() {
     let a = Scenario::from_toml(&winding()).expect("valid");
-    let b = Scenario::from_toml(&replace_once(&winding(), "u_max = 0.05", "u_max = 0.06")).expect("valid");
+    let b = Scenario::from_toml(&replace_once(&winding(), "u_max = 0.05", "u_max = 0.06"))
+        .expect("valid");
     assert_ne!(a.content_hash, b.content_hash);
 }
 
 #[test]
 fn not_toml_is_a_parse_error() {
-    assert!(matches!(Scenario::from_toml("dim = [").unwrap_err(), ScenarioError::Parse(_)));
+    assert!(matches!(
+        Scenario::from_toml("dim = [").unwrap_err(),
+        ScenarioError::Parse(_)
+    ));
     // Missing table.
-    let t = winding().replace("[controller]\nu_max = 0.05\neps_x = 0.05\nk_max = 200\n", "");
-    assert!(matches!(Scenario::from_toml(&t).unwrap_err(), ScenarioError::Parse(_)));
+    let t = winding().replace(
+        "[controller]\nu_max = 0.05\neps_x = 0.05\nk_max = 200\n",
+        "",
+    );
+    assert!(matches!(
+        Scenario::from_toml(&t).unwrap_err(),
+        ScenarioError::Parse(_)
+    ));
 }
 
 #[test]
 fn unknown_sensor_in_leg() {
-    let t = replace_once(&winding(), "to = [5.5, 1.0]\nsensor = \"s1\"", "to = [5.5, 1.0]\nsensor = \"s9\"");
+    let t = replace_once(
+        &winding(),
+        "to = [5.5, 1.0]\nsensor = \"s1\"",
+        "to = [5.5, 1.0]\nsensor = \"s9\"",
+    );
     refused(&t, "leg[1].sensor", "unknown sensor");
 }
 
 #[test]
 fn matrix_of_wrong_shape() {
-    let t = replace_once(&winding(), "F = [[1.0, 0.0], [0.0, 1.0]]", "F = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]");
+    let t = replace_once(
+        &winding(),
+        "F = [[1.0, 0.0], [0.0, 1.0]]",
+        "F = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]",
+    );
     refused(&t, "model.F", "");
     let t = replace_once(
         &winding(),
@@ -85,13 +112,29 @@ fn matrix_of_wrong_shape() {
 
 #[test]
 fn covariances_must_be_spd() {
-    let t = replace_once(&winding(), "Q = [[0.0049, 0.0], [0.0, 0.0049]]", "Q = [[0.0049, 0.001], [0.0, 0.0049]]");
+    let t = replace_once(
+        &winding(),
+        "Q = [[0.0049, 0.0], [0.0, 0.0049]]",
+        "Q = [[0.0049, 0.001], [0.0, 0.0049]]",
+    );
     refused(&t, "model.Q", "symmetric");
-    let t = replace_once(&winding(), "Q = [[0.0049, 0.0], [0.0, 0.0049]]", "Q = [[0.0049, 0.0], [0.0, -0.0049]]");
+    let t = replace_once(
+        &winding(),
+        "Q = [[0.0049, 0.0], [0.0, 0.0049]]",
+        "Q = [[0.0049, 0.0], [0.0, -0.0049]]",
+    );
     refused(&t, "model.Q", "positive definite");
-    let t = replace_once(&winding(), "P0 = [[0.0009, 0.0], [0.0, 0.0009]]", "P0 = [[0.0009, 0.0], [0.0, 0.0]]");
+    let t = replace_once(
+        &winding(),
+        "P0 = [[0.0009, 0.0], [0.0, 0.0009]]",
+        "P0 = [[0.0009, 0.0], [0.0, 0.0]]",
+    );
     refused(&t, "model.P0", "positive definite");
-    let t = replace_once(&winding(), "R = [[0.0009, 0.0], [0.0, 0.0009]]", "R = [[0.0009, 0.5], [0.5, 0.0009]]");
+    let t = replace_once(
+        &winding(),
+        "R = [[0.0009, 0.0], [0.0, 0.0009]]",
+        "R = [[0.0009, 0.5], [0.5, 0.0009]]",
+    );
     refused(&t, "sensor[0]", "positive definite");
 }
 
@@ -99,9 +142,17 @@ fn covariances_must_be_spd() {
 fn nan_and_inf_are_refused() {
     let t = replace_once(&winding(), "x0 = [0.5, 1.0]", "x0 = [nan, 1.0]");
     refused(&t, "model.x0", "finite");
-    let t = replace_once(&winding(), "F = [[1.0, 0.0], [0.0, 1.0]]", "F = [[1.0, inf], [0.0, 1.0]]");
+    let t = replace_once(
+        &winding(),
+        "F = [[1.0, 0.0], [0.0, 1.0]]",
+        "F = [[1.0, inf], [0.0, 1.0]]",
+    );
     refused(&t, "model.F", "finite");
-    let t = replace_once(&winding(), "position = [1.75, 0.5]", "position = [1.75, -inf]");
+    let t = replace_once(
+        &winding(),
+        "position = [1.75, 0.5]",
+        "position = [1.75, -inf]",
+    );
     refused(&t, "sensor[0]", "finite");
     let t = replace_once(&winding(), "u_max = 0.05", "u_max = nan");
     refused(&t, "controller.u_max", "");
@@ -132,11 +183,23 @@ fn start_inside_an_obstacle() {
 
 #[test]
 fn thresholds_must_be_non_negative_and_distinct() {
-    let t = replace_once(&winding(), "deltas = [0.0, 1.0518", "deltas = [-0.5, 1.0518");
+    let t = replace_once(
+        &winding(),
+        "deltas = [0.0, 1.0518",
+        "deltas = [-0.5, 1.0518",
+    );
     refused(&t, "triggering.deltas", "");
-    let t = replace_once(&winding(), "deltas = [0.0, 1.0518", "deltas = [1.0518, 1.0518");
+    let t = replace_once(
+        &winding(),
+        "deltas = [0.0, 1.0518",
+        "deltas = [1.0518, 1.0518",
+    );
     refused(&t, "triggering.deltas", "duplicate");
-    let t = replace_once(&winding(), "deltas = [0.0, 1.0518, 1.4986, 1.9488, 2.2365]", "deltas = []");
+    let t = replace_once(
+        &winding(),
+        "deltas = [0.0, 1.0518, 1.4986, 1.9488, 2.2365]",
+        "deltas = []",
+    );
     refused(&t, "triggering.deltas", "");
 }
 
@@ -156,7 +219,19 @@ fn dimension_above_six() {
 
 #[test]
 fn controller_limits() {
-    refused(&replace_once(&winding(), "eps_x = 0.05", "eps_x = 0.0"), "controller.eps_x", "");
-    refused(&replace_once(&winding(), "k_max = 200", "k_max = 0"), "controller.k_max", "");
-    refused(&replace_once(&winding(), "cost = 1.0", "cost = -1.0"), "sensor[0]", "");
+    refused(
+        &replace_once(&winding(), "eps_x = 0.05", "eps_x = 0.0"),
+        "controller.eps_x",
+        "",
+    );
+    refused(
+        &replace_once(&winding(), "k_max = 200", "k_max = 0"),
+        "controller.k_max",
+        "",
+    );
+    refused(
+        &replace_once(&winding(), "cost = 1.0", "cost = -1.0"),
+        "sensor[0]",
+        "",
+    );
 }

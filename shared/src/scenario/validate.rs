@@ -4,9 +4,7 @@
 //! reason, so a user can fix the file without reading code.
 
 use super::raw::{RawBox, RawMatrix, RawScenario};
-use super::{
-    ControllerParams, Leg, MAX_DIM, Obstacle, Plant, Scenario, ScenarioError, Sensor,
-};
+use super::{ControllerParams, Leg, MAX_DIM, Obstacle, Plant, Scenario, ScenarioError, Sensor};
 use crate::geometry::Aabb;
 use nalgebra::{DMatrix, DVector};
 use sha2::{Digest, Sha256};
@@ -77,7 +75,9 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
         if rows == 0 || rows > n {
             return Err(ScenarioError::invalid(
                 format!("{at}.H"),
-                format!("must have between 1 and dim = {n} rows (measurement dimension m <= n), got {rows}"),
+                format!(
+                    "must have between 1 and dim = {n} rows (measurement dimension m <= n), got {rows}"
+                ),
             ));
         }
         let cost = s.cost;

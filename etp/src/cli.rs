@@ -1,0 +1,22 @@
+//! The command-line interface (clap derive). Each variant's arguments are a
+//! struct owned by its command module.
+
+use clap::{Parser, Subcommand};
+
+/// etpareto: Pareto-optimal event-triggered estimation strategies, computed and run.
+#[derive(Debug, Parser)]
+#[command(name = "etp", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Validate a scenario and print its legs, sensors, obstacles and thresholds.
+    Check(crate::cmd::check::Args),
+    /// Run episodes in-process with a constant threshold.
+    Simulate(crate::cmd::simulate::Args),
+    /// Measure simulator throughput (episode-steps per second).
+    Bench(crate::cmd::bench::Args),
+}

@@ -1,0 +1,16 @@
+//! One module per subcommand.
+
+pub mod bench;
+pub mod check;
+pub mod simulate;
+
+use crate::cli::Command;
+
+/// Run one subcommand.
+pub fn dispatch(command: Command) -> anyhow::Result<()> {
+    match command {
+        Command::Check(a) => check::run(a),
+        Command::Simulate(a) => simulate::run(a),
+        Command::Bench(a) => bench::run(a),
+    }
+}

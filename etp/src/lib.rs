@@ -1,0 +1,38 @@
+//! The `etp` command line.
+//!
+//! * [`cli`] — the clap definition of every subcommand (one place to read the
+//!   whole interface).
+//! * [`cmd`] — one module per subcommand; each exposes `run(args) -> anyhow::Result<()>`.
+//! * [`input`] — resolving a `SCENARIO` argument (built-in name or path).
+//! * [`progress`] — indicatif bars that hide themselves when stderr is not a terminal.
+//!
+//! Errors are `anyhow` with context; [`run`] prints them to stderr and exits non-zero.
+
+pub mod cli;
+pub mod cmd;
+pub mod input;
+pub mod progress;
+
+use std::process::ExitCode;
+
+/// Run a parsed command line; print any error chain to stderr.
+pub fn run(cli: cli::Cli) -> ExitCode {
+    init_tracing();
+    match cmd::dispatch(cli.command) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn init_tracing() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+    // A second init (tests calling run twice) is harmless.
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .try_init();
+}
