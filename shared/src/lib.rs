@@ -19,6 +19,7 @@
 //! the caller passes in, so every result is reproducible from a seed.
 
 pub mod controller;
+pub mod discretization;
 pub mod dispatch;
 pub mod episode;
 pub mod etkf;
@@ -28,3 +29,4 @@ pub mod linalg;
 pub mod rng;
 pub mod scenario;
 pub mod stats;
+pub mod strategy;

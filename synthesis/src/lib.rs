@@ -8,4 +8,5 @@
 //! Pure maths: no I/O, no clock. Progress is reported through a callback so the
 //! front end can draw a bar.
 
+pub mod mdp;
 pub mod simulate;

@@ -52,7 +52,7 @@ fn builtins_load_and_have_stable_hashes() {
 #[test]
 fn unknown_builtin_is_named() {
     assert_eq!(
-        Scenario::builtin("windy").unwrap_err(),
+        Scenario::builtin("windy").expect_err("must be refused"),
         ScenarioError::UnknownBuiltin("windy".into())
     );
 }
@@ -68,7 +68,7 @@ fn hash_changes_with_content() {
 #[test]
 fn not_toml_is_a_parse_error() {
     assert!(matches!(
-        Scenario::from_toml("dim = [").unwrap_err(),
+        Scenario::from_toml("dim = [").expect_err("must be refused"),
         ScenarioError::Parse(_)
     ));
     // Missing table.
@@ -77,7 +77,7 @@ fn not_toml_is_a_parse_error() {
         "",
     );
     assert!(matches!(
-        Scenario::from_toml(&t).unwrap_err(),
+        Scenario::from_toml(&t).expect_err("must be refused"),
         ScenarioError::Parse(_)
     ));
 }

@@ -1,0 +1,195 @@
+//! Method 2 of MODEL.md §4: the covariance region of a belief at a decision point.
+//!
+//! `P = Σ_j λ_j v_j v_jᵀ` (λ descending, deterministic basis). Per axis j:
+//! * magnitude bin: uniform in log λ between `lambda_lo` and `lambda_hi`,
+//!   values outside clamped into the end bins;
+//! * angle bin of `θ_j = arccos |v_jᵀ v_nom,j| ∈ [0, π/2]`, skipped (bin 0) when
+//!   λ_j is numerically repeated — the eigenvector is then arbitrary.
+//!
+//! The region is the tuple of (magnitude bin, angle bin) per axis. The same
+//! classification runs offline (abstraction, validation) and at run time
+//! (coordinator), so it lives here, in the shared vocabulary.
+
+use crate::linalg::deterministic_eigen;
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+use std::f64::consts::FRAC_PI_2;
+
+/// Relative gap under which neighbouring eigenvalues count as repeated for the
+/// angle bins (looser than the eigenbasis rule: rounding in the filter
+/// recursion leaves ~1e-15 differences on an isotropic system).
+pub const REPEATED_RTOL: f64 = 1e-9;
+
+/// A covariance region: `(magnitude bin, angle bin)` per eigen-axis, λ descending.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct Region(pub Vec<(u16, u16)>);
+
+impl std::fmt::Display for Region {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let parts: Vec<String> = self.0.iter().map(|(m, a)| format!("{m}/{a}")).collect();
+        write!(f, "[{}]", parts.join(" "))
+    }
+}
+
+/// How many bins, chosen by the user.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BinCounts {
+    /// Log-uniform magnitude bins per eigenvalue.
+    pub magnitude: u16,
+    /// Angle bins per eigenvector on [0, π/2].
+    pub angle: u16,
+}
+
+impl Default for BinCounts {
+    fn default() -> Self {
+        Self {
+            magnitude: 12,
+            angle: 4,
+        }
+    }
+}
+
+/// The bins of one decision point.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DecisionPointBins {
+    pub lambda_lo: f64,
+    pub lambda_hi: f64,
+    pub counts: BinCounts,
+    /// Nominal unit vector per axis (λ descending), from the samples seen here.
+    pub nominal: Vec<Vec<f64>>,
+}
+
+impl DecisionPointBins {
+    /// Bins with nominal axes taken from the mean of the covariances seen at
+    /// this decision point (its eigenvectors, deterministic basis).
+    pub fn from_samples<'a>(
+        lambda_lo: f64,
+        lambda_hi: f64,
+        counts: BinCounts,
+        covs: impl IntoIterator<Item = &'a DMatrix<f64>>,
+    ) -> Self {
+        let mut mean: Option<DMatrix<f64>> = None;
+        let mut n = 0.0;
+        for c in covs {
+            n += 1.0;
+            mean = Some(match mean {
+                None => c.clone(),
+                Some(m) => m + c,
+            });
+        }
+        let nominal = match mean {
+            Some(m) => {
+                let (_, v) = deterministic_eigen(&(m / n));
+                (0..v.ncols()).map(|j| v.column(j).iter().copied().collect()).collect()
+            }
+            None => Vec::new(),
+        };
+        Self {
+            lambda_lo,
+            lambda_hi,
+            counts,
+            nominal,
+        }
+    }
+
+    /// Magnitude bin of an eigenvalue (log-uniform, clamped).
+    pub fn magnitude_bin(&self, lambda: f64) -> u16 {
+        let b = self.counts.magnitude.max(1);
+        if !(lambda > 0.0) || self.lambda_hi <= self.lambda_lo {
+            return 0;
+        }
+        let t = (lambda.ln() - self.lambda_lo.ln()) / (self.lambda_hi.ln() - self.lambda_lo.ln());
+        let k = (t * f64::from(b)).floor();
+        k.clamp(0.0, f64::from(b - 1)) as u16
+    }
+
+    /// Angle bin of `θ = arccos |v·v_nom|` on [0, π/2].
+    pub fn angle_bin(&self, axis: usize, v: &[f64]) -> u16 {
+        let a = self.counts.angle.max(1);
+        let Some(nom) = self.nominal.get(axis) else {
+            return 0;
+        };
+        let c = v.iter().zip(nom).map(|(x, y)| x * y).sum::<f64>().abs().min(1.0);
+        let k = (c.acos() / FRAC_PI_2 * f64::from(a)).floor();
+        k.clamp(0.0, f64::from(a - 1)) as u16
+    }
+
+    /// The region of a covariance at this decision point.
+    pub fn classify(&self, cov: &DMatrix<f64>) -> Region {
+        let (values, v) = deterministic_eigen(cov);
+        let n = values.len();
+        let scale = values.iter().fold(0.0_f64, |m, x| m.max(x.abs())).max(f64::MIN_POSITIVE);
+        let repeated = |j: usize| {
+            (j > 0 && (values[j - 1] - values[j]).abs() <= REPEATED_RTOL * scale)
+                || (j + 1 < n && (values[j] - values[j + 1]).abs() <= REPEATED_RTOL * scale)
+        };
+        Region(
+            (0..n)
+                .map(|j| {
+                    let m = self.magnitude_bin(values[j]);
+                    let a = if repeated(j) {
+                        0
+                    } else {
+                        let col: Vec<f64> = v.column(j).iter().copied().collect();
+                        self.angle_bin(j, &col)
+                    };
+                    (m, a)
+                })
+                .collect(),
+        )
+    }
+}
+
+/// The bins of every decision point of a scenario.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Discretization {
+    pub decision_points: Vec<DecisionPointBins>,
+}
+
+impl Discretization {
+    /// Region of covariance `cov` at decision point `dp`.
+    pub fn classify(&self, dp: usize, cov: &DMatrix<f64>) -> Region {
+        self.decision_points[dp].classify(cov)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bins() -> DecisionPointBins {
+        let covs = [DMatrix::from_row_slice(2, 2, &[4.0, 0.0, 0.0, 1.0])];
+        DecisionPointBins::from_samples(1e-4, 1e-2, BinCounts { magnitude: 4, angle: 3 }, covs.iter())
+    }
+
+    #[test]
+    fn magnitudes_are_log_uniform_and_clamped() {
+        let b = bins();
+        assert_eq!(b.magnitude_bin(1e-6), 0);
+        assert_eq!(b.magnitude_bin(1e-4), 0);
+        assert_eq!(b.magnitude_bin(3.2e-4), 1); // log10 = -3.49 → t = 0.25..
+        assert_eq!(b.magnitude_bin(1.1e-3), 2);
+        assert_eq!(b.magnitude_bin(9.9e-3), 3);
+        assert_eq!(b.magnitude_bin(1.0), 3);
+    }
+
+    #[test]
+    fn isotropic_covariance_has_magnitudes_only() {
+        let b = bins();
+        let r = b.classify(&DMatrix::identity(2, 2).scale(1.1e-3));
+        assert_eq!(r, Region(vec![(2, 0), (2, 0)]));
+    }
+
+    #[test]
+    fn rotated_covariance_changes_the_angle_bin() {
+        let b = bins();
+        assert_eq!(b.nominal[0], vec![1.0, 0.0]);
+        let aligned = DMatrix::from_row_slice(2, 2, &[4e-3, 0.0, 0.0, 1e-3]);
+        assert_eq!(b.classify(&aligned).0[0].1, 0);
+        // Rotate by 60°: θ = π/3 → bin 2 of 3.
+        let (c, s) = (60f64.to_radians().cos(), 60f64.to_radians().sin());
+        let rot = DMatrix::from_row_slice(2, 2, &[c, -s, s, c]);
+        let rotated = &rot * aligned * rot.transpose();
+        assert_eq!(b.classify(&rotated).0[0].1, 2);
+    }
+}

@@ -1,0 +1,297 @@
+//! A threshold strategy: at decision point i, the belief's covariance region s
+//! selects a distribution ω(s) over the thresholds Δ (MODEL.md §5).
+//!
+//! Stored as `strategy.json`. It carries the scenario's content hash so it is
+//! never applied to another scenario, and its own discretization so the
+//! coordinator and the in-process validator classify beliefs identically.
+
+use crate::discretization::{Discretization, Region};
+use crate::scenario::Scenario;
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+
+/// Version of the `strategy.json` layout.
+pub const STRATEGY_FORMAT_VERSION: u32 = 1;
+
+/// Why a strategy cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum StrategyError {
+    #[error("strategy file is not valid JSON for a strategy: {0}")]
+    Parse(String),
+    #[error("strategy format version {found} is not supported (this etp reads version {expected})")]
+    Version { found: u32, expected: u32 },
+    #[error(
+        "strategy was made for scenario `{strategy_name}` (hash {strategy_hash:.12}…), not for `{scenario_name}` (hash {scenario_hash:.12}…)"
+    )]
+    ScenarioMismatch {
+        strategy_name: String,
+        strategy_hash: String,
+        scenario_name: String,
+        scenario_hash: String,
+    },
+    #[error("strategy is inconsistent: {0}")]
+    Invalid(String),
+}
+
+/// The values a strategy is predicted to reach (on the abstraction).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Prediction {
+    pub p_target: f64,
+    pub p_collision: f64,
+    pub p_free: f64,
+    pub energy_mean: f64,
+}
+
+/// ω for one abstract state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StrategyState {
+    pub decision_point: usize,
+    pub region: Region,
+    /// Probability of each threshold (same order as [`Strategy::deltas`]); sums to 1.
+    pub omega: Vec<f64>,
+}
+
+/// A memoryless randomised threshold strategy.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Strategy {
+    pub format_version: u32,
+    pub scenario_name: String,
+    pub scenario_hash: String,
+    /// How it was obtained (e.g. "min energy s.t. P_tar ≥ 0.95", "constant δ = 0").
+    pub label: String,
+    /// The actions Δ.
+    pub deltas: Vec<f64>,
+    /// Regions of covariances; `None` for a region-free strategy (ω depends on
+    /// the decision point only, e.g. a constant δ).
+    pub discretization: Option<Discretization>,
+    pub states: Vec<StrategyState>,
+    pub predicted: Prediction,
+}
+
+impl Strategy {
+    /// The same δ on every leg (region-free).
+    pub fn constant(scenario: &Scenario, delta_index: usize, predicted: Prediction) -> Self {
+        let mut omega = vec![0.0; scenario.deltas.len()];
+        omega[delta_index] = 1.0;
+        Self {
+            format_version: STRATEGY_FORMAT_VERSION,
+            scenario_name: scenario.name.clone(),
+            scenario_hash: scenario.content_hash.clone(),
+            label: format!("constant δ = {}", scenario.deltas[delta_index]),
+            deltas: scenario.deltas.clone(),
+            discretization: None,
+            states: (0..scenario.num_legs())
+                .map(|i| StrategyState {
+                    decision_point: i,
+                    region: Region(Vec::new()),
+                    omega: omega.clone(),
+                })
+                .collect(),
+            predicted,
+        }
+    }
+
+    /// Parse and check internal consistency.
+    pub fn from_json(text: &str) -> Result<Self, StrategyError> {
+        #[derive(Deserialize)]
+        struct Versioned {
+            format_version: u32,
+        }
+        let v: Versioned = serde_json::from_str(text).map_err(|e| StrategyError::Parse(e.to_string()))?;
+        if v.format_version != STRATEGY_FORMAT_VERSION {
+            return Err(StrategyError::Version {
+                found: v.format_version,
+                expected: STRATEGY_FORMAT_VERSION,
+            });
+        }
+        let s: Self = serde_json::from_str(text).map_err(|e| StrategyError::Parse(e.to_string()))?;
+        s.check_consistent()?;
+        Ok(s)
+    }
+
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+
+    fn check_consistent(&self) -> Result<(), StrategyError> {
+        if self.deltas.is_empty() || self.deltas.iter().any(|d| !(d.is_finite() && *d >= 0.0)) {
+            return Err(StrategyError::Invalid("deltas must be non-empty, finite and ≥ 0".into()));
+        }
+        for (i, st) in self.states.iter().enumerate() {
+            if st.omega.len() != self.deltas.len() {
+                return Err(StrategyError::Invalid(format!(
+                    "states[{i}].omega has {} entries for {} thresholds",
+                    st.omega.len(),
+                    self.deltas.len()
+                )));
+            }
+            let sum: f64 = st.omega.iter().sum();
+            if st.omega.iter().any(|p| !(p.is_finite() && *p >= 0.0)) || (sum - 1.0).abs() > 1e-6 {
+                return Err(StrategyError::Invalid(format!(
+                    "states[{i}].omega is not a probability distribution (sum {sum})"
+                )));
+            }
+            if let Some(d) = &self.discretization
+                && st.decision_point >= d.decision_points.len()
+            {
+                return Err(StrategyError::Invalid(format!(
+                    "states[{i}].decision_point {} beyond the discretization's {} decision points",
+                    st.decision_point,
+                    d.decision_points.len()
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Refuse a strategy made for another scenario.
+    pub fn check_scenario(&self, scenario: &Scenario) -> Result<(), StrategyError> {
+        if self.scenario_hash != scenario.content_hash {
+            return Err(StrategyError::ScenarioMismatch {
+                strategy_name: self.scenario_name.clone(),
+                strategy_hash: self.scenario_hash.clone(),
+                scenario_name: scenario.name.clone(),
+                scenario_hash: scenario.content_hash.clone(),
+            });
+        }
+        if let Some(max) = self.states.iter().map(|s| s.decision_point).max()
+            && max >= scenario.num_legs()
+        {
+            return Err(StrategyError::Invalid(format!(
+                "decision point {max} but the scenario has {} legs",
+                scenario.num_legs()
+            )));
+        }
+        Ok(())
+    }
+
+    /// The region of a covariance at decision point `dp` (empty when region-free).
+    pub fn region(&self, dp: usize, cov: &DMatrix<f64>) -> Region {
+        match &self.discretization {
+            Some(d) => d.classify(dp, cov),
+            None => Region(Vec::new()),
+        }
+    }
+
+    /// ω for a belief at decision point `dp`: the state with the belief's region;
+    /// for a region never seen in synthesis, the nearest region at `dp` (L1
+    /// distance in bins, first in file order on ties); with no state at `dp`
+    /// at all, the full Kalman filter (smallest δ) — the safe choice.
+    pub fn omega(&self, dp: usize, cov: &DMatrix<f64>) -> OmegaChoice<'_> {
+        let region = self.region(dp, cov);
+        let mut best: Option<(u64, &StrategyState)> = None;
+        for st in self.states.iter().filter(|s| s.decision_point == dp) {
+            let d = region_distance(&st.region, &region);
+            if d == 0 {
+                return OmegaChoice::Exact(&st.omega);
+            }
+            if best.is_none_or(|(bd, _)| d < bd) {
+                best = Some((d, st));
+            }
+        }
+        match best {
+            Some((_, st)) => OmegaChoice::Nearest(&st.omega),
+            None => OmegaChoice::FullKf(self.smallest_delta_index()),
+        }
+    }
+
+    /// Draw a threshold index for a belief, with `u` uniform on [0, 1).
+    pub fn draw(&self, dp: usize, cov: &DMatrix<f64>, u: f64) -> usize {
+        match self.omega(dp, cov) {
+            OmegaChoice::Exact(w) | OmegaChoice::Nearest(w) => sample_index(w, u),
+            OmegaChoice::FullKf(i) => i,
+        }
+    }
+
+    fn smallest_delta_index(&self) -> usize {
+        self.deltas
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))
+            .map_or(0, |(i, _)| i)
+    }
+}
+
+/// Where ω came from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OmegaChoice<'a> {
+    Exact(&'a [f64]),
+    Nearest(&'a [f64]),
+    FullKf(usize),
+}
+
+fn region_distance(a: &Region, b: &Region) -> u64 {
+    if a.0.len() != b.0.len() {
+        return u64::MAX / 2;
+    }
+    a.0.iter()
+        .zip(&b.0)
+        .map(|(x, y)| u64::from(x.0.abs_diff(y.0)) + u64::from(x.1.abs_diff(y.1)))
+        .sum()
+}
+
+/// Inverse-CDF draw from a distribution with `u ∈ [0, 1)`.
+pub fn sample_index(weights: &[f64], u: f64) -> usize {
+    let mut acc = 0.0;
+    let mut last = 0;
+    for (i, &w) in weights.iter().enumerate() {
+        if w <= 0.0 {
+            continue;
+        }
+        acc += w;
+        last = i;
+        if u < acc {
+            return i;
+        }
+    }
+    last
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn prediction() -> Prediction {
+        Prediction {
+            p_target: 0.9,
+            p_collision: 0.1,
+            p_free: 0.0,
+            energy_mean: 10.0,
+        }
+    }
+
+    #[test]
+    fn constant_strategy_round_trips_and_checks_the_scenario() {
+        let s = Scenario::builtin("winding-2d").expect("built-in");
+        let st = Strategy::constant(&s, 2, prediction());
+        let back = Strategy::from_json(&st.to_json()).expect("round trip");
+        assert_eq!(back, st);
+        back.check_scenario(&s).expect("same scenario");
+        let other = Scenario::builtin("open-2d").expect("built-in");
+        assert!(matches!(back.check_scenario(&other), Err(StrategyError::ScenarioMismatch { .. })));
+        let cov = DMatrix::identity(2, 2);
+        assert_eq!(back.draw(3, &cov, 0.7), 2);
+    }
+
+    #[test]
+    fn corrupted_strategies_are_refused() {
+        let s = Scenario::builtin("winding-2d").expect("built-in");
+        let text = Strategy::constant(&s, 0, prediction()).to_json();
+        assert!(matches!(Strategy::from_json(&text[..text.len() / 2]), Err(StrategyError::Parse(_))));
+        let bad = text.replacen("\"format_version\": 1", "\"format_version\": 99", 1);
+        assert!(matches!(Strategy::from_json(&bad), Err(StrategyError::Version { .. })));
+        let mut broken = Strategy::constant(&s, 0, prediction());
+        broken.states[4].omega[0] = 0.5;
+        let bad = broken.to_json();
+        assert!(matches!(Strategy::from_json(&bad), Err(StrategyError::Invalid(_))));
+    }
+
+    #[test]
+    fn sampling_follows_the_cdf() {
+        let w = [0.0, 0.25, 0.0, 0.75];
+        assert_eq!(sample_index(&w, 0.0), 1);
+        assert_eq!(sample_index(&w, 0.2499), 1);
+        assert_eq!(sample_index(&w, 0.25), 3);
+        assert_eq!(sample_index(&w, 0.999_999), 3);
+    }
+}

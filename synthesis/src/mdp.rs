@@ -1,0 +1,316 @@
+//! The finite, acyclic MDP of the belief abstraction (MODEL.md §4) and its file
+//! format `mdp.bin`.
+//!
+//! Layout invariant (checked by [`Mdp::check`]): states are sorted by decision
+//! point; every transition from a state at decision point i goes to a state at
+//! decision point i + 1 or to a terminal. Backward induction is therefore one
+//! pass over the states in reverse order.
+//!
+//! File: the 8-byte magic `ETPMDP\0\n`, a little-endian `u32` format version, then
+//! the bincode 2.0.1 (serde, standard config) encoding of [`Mdp`].
+
+use etp_shared::discretization::{Discretization, Region};
+use serde::{Deserialize, Serialize};
+
+/// Version of the `mdp.bin` layout.
+pub const MDP_FORMAT_VERSION: u32 = 1;
+const MAGIC: &[u8; 8] = b"ETPMDP\0\n";
+
+/// Why an MDP file was refused.
+#[derive(Debug, thiserror::Error)]
+pub enum MdpError {
+    #[error("not an etp MDP file (bad magic; is it truncated or another file?)")]
+    Magic,
+    #[error("MDP format version {found} is not supported (this etp reads version {expected})")]
+    Version { found: u32, expected: u32 },
+    #[error("MDP file is truncated or corrupted: {0}")]
+    Decode(String),
+    #[error("MDP is inconsistent: {0}")]
+    Invalid(String),
+}
+
+/// Which abstraction built the MDP.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Method {
+    /// Method 2: discretized covariance regions (the paper's contribution).
+    Discretized,
+    /// Method 1: enforced KF convergence near each waypoint (one state per decision point).
+    KfConvergence,
+}
+
+/// Where a transition leads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub enum Next {
+    State(u32),
+    Collision,
+    Target,
+    Free,
+}
+
+/// One estimated transition with its sample count and 95 % interval.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Transition {
+    pub next: Next,
+    /// Segments (of [`Choice::samples`]) that ended here.
+    pub count: u32,
+    pub probability: f64,
+    /// Wilson 95 % interval on the probability.
+    pub ci_low: f64,
+    pub ci_high: f64,
+}
+
+/// Which energy cost to optimise.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum CostModel {
+    /// Mean of the transmissions counted in the simulated segments × c_m (default).
+    #[default]
+    Counted,
+    /// The paper's `k̄(s, δ) γ̄(δ) c_m`.
+    Paper,
+}
+
+/// Action `action` (index into [`Mdp::deltas`]) in a state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Choice {
+    pub action: u16,
+    /// Simulated segments behind the estimates.
+    pub samples: u32,
+    /// Mean counted energy of a segment.
+    pub cost_counted: f64,
+    /// The paper's model `k̄ γ̄(δ) c_m`.
+    pub cost_model: f64,
+    /// Mean steps of a segment (k̄).
+    pub mean_steps: f64,
+    /// Sorted by `next`; probabilities sum to 1.
+    pub transitions: Vec<Transition>,
+}
+
+impl Choice {
+    pub fn cost(&self, model: CostModel) -> f64 {
+        match model {
+            CostModel::Counted => self.cost_counted,
+            CostModel::Paper => self.cost_model,
+        }
+    }
+}
+
+/// An abstract state: a decision point and the covariance region of the belief.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct State {
+    pub decision_point: u32,
+    pub region: Region,
+    /// Available actions (at least one).
+    pub choices: Vec<Choice>,
+}
+
+/// Parameters of Method 1, stored for reproduction and the runtime.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct KfConvergenceParams {
+    pub eps_kf: f64,
+    pub eps_p: f64,
+}
+
+/// The abstraction.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Mdp {
+    pub scenario_name: String,
+    pub scenario_hash: String,
+    pub method: Method,
+    /// The actions Δ.
+    pub deltas: Vec<f64>,
+    /// Method 2's bins (None for Method 1).
+    pub discretization: Option<Discretization>,
+    /// Method 1's parameters (None for Method 2).
+    pub kf_convergence: Option<KfConvergenceParams>,
+    pub states: Vec<State>,
+    pub initial: u32,
+    /// Monte Carlo settings and totals.
+    pub samples_per_choice: u32,
+    pub seed: u64,
+    pub total_segments: u64,
+    pub total_steps: u64,
+}
+
+fn bincode_config() -> bincode::config::Configuration {
+    bincode::config::standard()
+}
+
+impl Mdp {
+    /// Number of decision points (legs).
+    pub fn num_decision_points(&self) -> usize {
+        self.states.last().map_or(0, |s| s.decision_point as usize + 1)
+    }
+
+    /// Total transitions over all choices.
+    pub fn num_transitions(&self) -> usize {
+        self.states.iter().flat_map(|s| &s.choices).map(|c| c.transitions.len()).sum()
+    }
+
+    /// States per decision point.
+    pub fn states_per_decision_point(&self) -> Vec<usize> {
+        let mut v = vec![0; self.num_decision_points()];
+        for s in &self.states {
+            v[s.decision_point as usize] += 1;
+        }
+        v
+    }
+
+    /// The file bytes.
+    pub fn encode(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(1 << 16);
+        out.extend_from_slice(MAGIC);
+        out.extend_from_slice(&MDP_FORMAT_VERSION.to_le_bytes());
+        // Encoding plain data into a Vec cannot fail.
+        if let Ok(body) = bincode::serde::encode_to_vec(self, bincode_config()) {
+            out.extend_from_slice(&body);
+        }
+        out
+    }
+
+    /// Parse and check a file's bytes.
+    pub fn decode(bytes: &[u8]) -> Result<Self, MdpError> {
+        if bytes.len() < 12 || &bytes[..8] != MAGIC {
+            return Err(MdpError::Magic);
+        }
+        let version = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
+        if version != MDP_FORMAT_VERSION {
+            return Err(MdpError::Version {
+                found: version,
+                expected: MDP_FORMAT_VERSION,
+            });
+        }
+        let (mdp, used): (Self, usize) = bincode::serde::decode_from_slice(&bytes[12..], bincode_config())
+            .map_err(|e| MdpError::Decode(e.to_string()))?;
+        if used != bytes.len() - 12 {
+            return Err(MdpError::Decode(format!(
+                "{} trailing bytes after the MDP",
+                bytes.len() - 12 - used
+            )));
+        }
+        mdp.check()?;
+        Ok(mdp)
+    }
+
+    /// The structural invariants: sorted, acyclic layering, distributions.
+    pub fn check(&self) -> Result<(), MdpError> {
+        let bad = |m: String| Err(MdpError::Invalid(m));
+        if self.states.is_empty() {
+            return bad("no states".into());
+        }
+        if self.initial as usize >= self.states.len() || self.states[self.initial as usize].decision_point != 0 {
+            return bad("initial state missing or not at decision point 0".into());
+        }
+        for (i, s) in self.states.iter().enumerate() {
+            if i > 0 && s.decision_point < self.states[i - 1].decision_point {
+                return bad(format!("states not sorted by decision point at {i}"));
+            }
+            if s.choices.is_empty() {
+                return bad(format!("state {i} has no action"));
+            }
+            for c in &s.choices {
+                if c.action as usize >= self.deltas.len() {
+                    return bad(format!("state {i}: action {} out of range", c.action));
+                }
+                if !(c.cost_counted.is_finite() && c.cost_counted >= 0.0) {
+                    return bad(format!("state {i}: cost {}", c.cost_counted));
+                }
+                let mut sum = 0.0;
+                for t in &c.transitions {
+                    if let Next::State(j) = t.next {
+                        let ok = (j as usize) < self.states.len()
+                            && self.states[j as usize].decision_point == s.decision_point + 1;
+                        if !ok {
+                            return bad(format!("state {i}: transition to {j} breaks the layering"));
+                        }
+                    }
+                    if !(t.probability.is_finite() && (0.0..=1.0).contains(&t.probability)) {
+                        return bad(format!("state {i}: probability {}", t.probability));
+                    }
+                    sum += t.probability;
+                }
+                if (sum - 1.0).abs() > 1e-9 {
+                    return bad(format!("state {i}, action {}: probabilities sum to {sum}", c.action));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// A two-decision-point MDP with known values, for tests of the MDP users.
+    pub(crate) fn toy() -> Mdp {
+        let t = |next, p: f64| Transition {
+            next,
+            count: (p * 100.0) as u32,
+            probability: p,
+            ci_low: p,
+            ci_high: p,
+        };
+        let choice = |action, cost, transitions| Choice {
+            action,
+            samples: 100,
+            cost_counted: cost,
+            cost_model: cost,
+            mean_steps: 10.0,
+            transitions,
+        };
+        Mdp {
+            scenario_name: "toy".into(),
+            scenario_hash: "0".repeat(64),
+            method: Method::Discretized,
+            deltas: vec![0.0, 2.0],
+            discretization: None,
+            kf_convergence: None,
+            states: vec![
+                State {
+                    decision_point: 0,
+                    region: Region(vec![(0, 0)]),
+                    choices: vec![
+                        choice(0, 10.0, vec![t(Next::State(1), 0.9), t(Next::Collision, 0.1)]),
+                        choice(1, 2.0, vec![t(Next::State(2), 0.7), t(Next::Collision, 0.3)]),
+                    ],
+                },
+                State {
+                    decision_point: 1,
+                    region: Region(vec![(0, 0)]),
+                    choices: vec![
+                        choice(0, 10.0, vec![t(Next::Target, 0.95), t(Next::Free, 0.05)]),
+                        choice(1, 2.0, vec![t(Next::Target, 0.6), t(Next::Collision, 0.4)]),
+                    ],
+                },
+                State {
+                    decision_point: 1,
+                    region: Region(vec![(5, 0)]),
+                    choices: vec![
+                        choice(0, 12.0, vec![t(Next::Target, 0.9), t(Next::Free, 0.1)]),
+                        choice(1, 2.0, vec![t(Next::Target, 0.5), t(Next::Collision, 0.5)]),
+                    ],
+                },
+            ],
+            initial: 0,
+            samples_per_choice: 100,
+            seed: 0,
+            total_segments: 600,
+            total_steps: 6000,
+        }
+    }
+
+    #[test]
+    fn round_trip_and_refusals() {
+        let m = toy();
+        let bytes = m.encode();
+        assert_eq!(Mdp::decode(&bytes).expect("round trip"), m);
+        assert!(matches!(Mdp::decode(&bytes[..bytes.len() - 3]), Err(MdpError::Decode(_))));
+        assert!(matches!(Mdp::decode(b"hello"), Err(MdpError::Magic)));
+        let mut v = bytes.clone();
+        v[8] = 7;
+        assert!(matches!(Mdp::decode(&v), Err(MdpError::Version { found: 7, .. })));
+        let mut broken = toy();
+        broken.states[0].choices[0].transitions[0].next = Next::State(0);
+        assert!(matches!(Mdp::decode(&broken.encode()), Err(MdpError::Invalid(_))));
+    }
+}
