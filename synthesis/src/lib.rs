@@ -9,4 +9,5 @@
 //! front end can draw a bar.
 
 pub mod mdp;
+pub mod pareto;
 pub mod simulate;

@@ -1,0 +1,203 @@
+//! The Pareto front of (expected energy, P_coll, 1 − P_tar) over randomised
+//! strategies on the acyclic MDP, strategies for requested trade-offs, and the
+//! `front.json` file (MODEL.md §5).
+//!
+//! * [`policy`] — weighted backward induction, evaluation, occupation measures.
+//! * [`enumerate`] — every vertex and facet by supporting hyperplanes.
+//! * [`select`] — vertex-mixture LP, realisation as ω, whole-MDP LP cross-check.
+
+pub mod enumerate;
+pub mod policy;
+pub mod select;
+
+use crate::mdp::{CostModel, Method, Mdp};
+use etp_shared::strategy::{Prediction, STRATEGY_FORMAT_VERSION, Strategy, StrategyState};
+use policy::{DeterministicPolicy, Objectives, RandomisedPolicy, as_randomised, constant_action, evaluate};
+use serde::{Deserialize, Serialize};
+
+/// Version of the `front.json` layout.
+pub const FRONT_FORMAT_VERSION: u32 = 1;
+
+/// A vertex of the front: a deterministic policy optimal for some weight λ.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Vertex {
+    pub objectives: Objectives,
+    /// A weight vector (on energy/scale, P_coll, 1 − P_tar) it is optimal for.
+    pub lambda: [f64; 3],
+    /// Chosen choice per MDP state (index into `State::choices`).
+    pub policy: DeterministicPolicy,
+}
+
+/// A bounded facet of the front: three vertices and its weight vector.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Facet {
+    pub vertices: [usize; 3],
+    pub lambda: [f64; 3],
+}
+
+/// A reference strategy evaluated on the same MDP.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Baseline {
+    pub label: String,
+    /// δ of a constant strategy.
+    pub delta: Option<f64>,
+    pub objectives: Objectives,
+}
+
+/// The front of one MDP (`front.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ParetoFront {
+    pub format_version: u32,
+    pub scenario_name: String,
+    pub scenario_hash: String,
+    pub method: Method,
+    pub cost_model: CostModel,
+    /// Energy normalisation: the full-KF (δ = 0) energy on this MDP.
+    pub energy_scale: f64,
+    /// Sorted by increasing energy.
+    pub vertices: Vec<Vertex>,
+    pub facets: Vec<Facet>,
+    /// Each constant δ (the smallest δ is the full KF when δ = 0 is in Δ).
+    pub baselines: Vec<Baseline>,
+    /// Method 1's front, when both methods were built.
+    pub kf_convergence: Option<Box<ParetoFront>>,
+    /// Weighted optimisations and hull rounds of the enumeration.
+    pub optimisations: usize,
+    pub rounds: usize,
+    pub mdp_states: usize,
+    pub mdp_transitions: usize,
+}
+
+impl ParetoFront {
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// Parse `front.json`.
+    pub fn from_json(text: &str) -> Result<Self, String> {
+        let f: Self = serde_json::from_str(text).map_err(|e| e.to_string())?;
+        if f.format_version != FRONT_FORMAT_VERSION {
+            return Err(format!(
+                "front format version {} is not supported (expected {FRONT_FORMAT_VERSION})",
+                f.format_version
+            ));
+        }
+        Ok(f)
+    }
+
+    /// Index of the vertex with the highest P_tar (least energy among ties).
+    pub fn max_target_vertex(&self) -> Option<usize> {
+        (0..self.vertices.len()).max_by(|&a, &b| {
+            let (x, y) = (&self.vertices[a].objectives, &self.vertices[b].objectives);
+            x.p_target.total_cmp(&y.p_target).then(y.energy.total_cmp(&x.energy))
+        })
+    }
+}
+
+/// Compute the front of an MDP with its baselines.
+pub fn compute_front(mdp: &Mdp, cost: CostModel) -> Result<ParetoFront, enumerate::EnumerationError> {
+    let mut baselines = Vec::new();
+    for (a, &delta) in mdp.deltas.iter().enumerate() {
+        if let Some(p) = constant_action(mdp, a as u16) {
+            baselines.push(Baseline {
+                label: if delta == 0.0 {
+                    "full KF (δ = 0)".into()
+                } else {
+                    format!("constant δ = {delta}")
+                },
+                delta: Some(delta),
+                objectives: evaluate(mdp, &as_randomised(mdp, &p), cost),
+            });
+        }
+    }
+    let full_kf = baselines
+        .iter()
+        .filter(|b| b.delta.is_some())
+        .min_by(|a, b| a.delta.unwrap_or(f64::MAX).total_cmp(&b.delta.unwrap_or(f64::MAX)))
+        .map(|b| b.objectives.energy);
+    let scale = full_kf.filter(|e| *e > 0.0).unwrap_or(1.0);
+    let en = enumerate::enumerate_front(mdp, scale, cost)?;
+    let mut order: Vec<usize> = en.vertices.clone();
+    order.sort_by(|&a, &b| {
+        let (x, y) = (&en.points[a].objectives, &en.points[b].objectives);
+        x.energy.total_cmp(&y.energy).then(y.p_target.total_cmp(&x.p_target))
+    });
+    let position = |p: usize| order.iter().position(|&q| q == p);
+    let vertices = order
+        .iter()
+        .map(|&i| Vertex {
+            objectives: en.points[i].objectives,
+            lambda: en.points[i].lambda,
+            policy: en.points[i].policy.clone(),
+        })
+        .collect();
+    let facets = en
+        .facets
+        .iter()
+        .filter_map(|f| {
+            Some(Facet {
+                vertices: [position(f.points[0])?, position(f.points[1])?, position(f.points[2])?],
+                lambda: f.lambda,
+            })
+        })
+        .collect();
+    Ok(ParetoFront {
+        format_version: FRONT_FORMAT_VERSION,
+        scenario_name: mdp.scenario_name.clone(),
+        scenario_hash: mdp.scenario_hash.clone(),
+        method: mdp.method,
+        cost_model: cost,
+        energy_scale: scale,
+        vertices,
+        facets,
+        baselines,
+        kf_convergence: None,
+        optimisations: en.optimisations,
+        rounds: en.rounds,
+        mdp_states: mdp.states.len(),
+        mdp_transitions: mdp.num_transitions(),
+    })
+}
+
+/// Package a randomised policy over MDP choices as a `strategy.json`
+/// (ω over Δ per abstract state).
+pub fn to_strategy(mdp: &Mdp, policy: &RandomisedPolicy, label: String, predicted: Objectives) -> Strategy {
+    let states = mdp
+        .states
+        .iter()
+        .zip(policy)
+        .map(|(s, w)| {
+            let mut omega = vec![0.0; mdp.deltas.len()];
+            for (c, p) in s.choices.iter().zip(w) {
+                omega[c.action as usize] += p;
+            }
+            let sum: f64 = omega.iter().sum();
+            if sum > 0.0 {
+                omega.iter_mut().for_each(|p| *p /= sum);
+            }
+            StrategyState {
+                decision_point: s.decision_point as usize,
+                region: s.region.clone(),
+                omega,
+            }
+        })
+        .collect();
+    Strategy {
+        format_version: STRATEGY_FORMAT_VERSION,
+        scenario_name: mdp.scenario_name.clone(),
+        scenario_hash: mdp.scenario_hash.clone(),
+        label,
+        deltas: mdp.deltas.clone(),
+        discretization: mdp.discretization.clone(),
+        states,
+        predicted: Prediction {
+            p_target: predicted.p_target,
+            p_collision: predicted.p_collision,
+            p_free: (1.0 - predicted.p_target - predicted.p_collision).max(0.0),
+            energy_mean: predicted.energy,
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests;
