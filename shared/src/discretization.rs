@@ -95,7 +95,7 @@ impl DecisionPointBins {
     /// Magnitude bin of an eigenvalue (log-uniform, clamped).
     pub fn magnitude_bin(&self, lambda: f64) -> u16 {
         let b = self.counts.magnitude.max(1);
-        if !(lambda > 0.0) || self.lambda_hi <= self.lambda_lo {
+        if lambda.is_nan() || lambda <= 0.0 || self.lambda_hi <= self.lambda_lo {
             return 0;
         }
         let t = (lambda.ln() - self.lambda_lo.ln()) / (self.lambda_hi.ln() - self.lambda_lo.ln());

@@ -66,6 +66,11 @@ pub struct Strategy {
     pub discretization: Option<Discretization>,
     pub states: Vec<StrategyState>,
     pub predicted: Prediction,
+    /// The scenario's TOML text, so a strategy file is self-contained
+    /// (`etp validate` / `etp run` need nothing else). Optional: without it the
+    /// scenario is looked up among the built-ins by name and hash.
+    #[serde(default)]
+    pub scenario_toml: Option<String>,
 }
 
 impl Strategy {
@@ -88,7 +93,20 @@ impl Strategy {
                 })
                 .collect(),
             predicted,
+            scenario_toml: None,
         }
+    }
+
+    /// The scenario this strategy was made for: the embedded text, else the
+    /// built-in of that name; refused unless its content hash matches.
+    pub fn scenario(&self) -> Result<Scenario, StrategyError> {
+        let parsed = match &self.scenario_toml {
+            Some(text) => Scenario::from_toml(text),
+            None => Scenario::builtin(&self.scenario_name),
+        }
+        .map_err(|e| StrategyError::Invalid(format!("its scenario `{}`: {e}", self.scenario_name)))?;
+        self.check_scenario(&parsed)?;
+        Ok(parsed)
     }
 
     /// Parse and check internal consistency.
@@ -267,6 +285,12 @@ mod tests {
         let back = Strategy::from_json(&st.to_json()).expect("round trip");
         assert_eq!(back, st);
         back.check_scenario(&s).expect("same scenario");
+        assert_eq!(back.scenario().expect("built-in by name").content_hash, s.content_hash);
+        let mut tampered = back.clone();
+        tampered.scenario_toml = Some(
+            crate::scenario::builtin_text("winding-2d").expect("built-in").replace("k_max = 200", "k_max = 201"),
+        );
+        assert!(matches!(tampered.scenario(), Err(StrategyError::ScenarioMismatch { .. })));
         let other = Scenario::builtin("open-2d").expect("built-in");
         assert!(matches!(back.check_scenario(&other), Err(StrategyError::ScenarioMismatch { .. })));
         let cov = DMatrix::identity(2, 2);

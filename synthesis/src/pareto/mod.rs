@@ -196,6 +196,7 @@ pub fn to_strategy(mdp: &Mdp, policy: &RandomisedPolicy, label: String, predicte
             p_free: (1.0 - predicted.p_target - predicted.p_collision).max(0.0),
             energy_mean: predicted.energy,
         },
+        scenario_toml: None,
     }
 }
 
