@@ -10,7 +10,10 @@
 
 pub mod cli;
 pub mod cmd;
+pub mod front;
 pub mod input;
+pub mod output;
+pub mod plot;
 pub mod progress;
 
 use std::process::ExitCode;

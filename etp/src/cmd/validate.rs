@@ -1,0 +1,121 @@
+//! `etp validate STRATEGY`: simulate a strategy in-process and compare with its
+//! prediction, like the paper's tables.
+
+use crate::cmd::simulate::summary_table;
+use crate::progress;
+use anyhow::{Context, Result, bail};
+use etp_shared::strategy::Strategy;
+use etp_synthesis::simulate::SimulationSummary;
+use etp_synthesis::validate::{sample_trajectories, simulate_strategy};
+use serde_json::json;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// A strategy.json written by `etp strategy`.
+    pub strategy: PathBuf,
+    /// Number of episodes.
+    #[arg(long, default_value_t = 3000)]
+    pub episodes: u64,
+    /// Seed of the random streams.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Also draw the map with sampled trajectories (PNG + SVG next to the strategy).
+    #[arg(long)]
+    pub plot: bool,
+    /// Trajectories on the map.
+    #[arg(long, default_value_t = 40)]
+    pub plot_episodes: u64,
+}
+
+/// Load and check a strategy file (scenario embedded or built-in, hash checked).
+pub fn load_strategy(path: &Path) -> Result<(Strategy, etp_shared::scenario::Scenario)> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let strategy = Strategy::from_json(&text).with_context(|| format!("loading strategy {}", path.display()))?;
+    let scenario = strategy
+        .scenario()
+        .with_context(|| format!("strategy {}", path.display()))?;
+    Ok((strategy, scenario))
+}
+
+pub fn run(a: Args) -> Result<()> {
+    if a.episodes == 0 {
+        bail!("--episodes must be at least 1");
+    }
+    let (strategy, scenario) = load_strategy(&a.strategy)?;
+    let pb = progress::bar(a.episodes, "validate", a.json);
+    let sum = simulate_strategy(&scenario, &strategy, a.episodes, a.seed, &|k| pb.inc(k)).summary();
+    pb.finish_and_clear();
+    let mut plot_paths = Vec::new();
+    if a.plot {
+        let stem = a.strategy.with_extension("").with_file_name(format!(
+            "{}-map",
+            a.strategy.file_stem().and_then(|s| s.to_str()).unwrap_or("strategy")
+        ));
+        let tr = sample_trajectories(&scenario, &strategy, a.plot_episodes, a.seed);
+        crate::plot::map_plot(&scenario, &tr, &stem)?;
+        plot_paths.push(stem.with_extension("png"));
+        plot_paths.push(stem.with_extension("svg"));
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&comparison_json(&strategy, &sum))?);
+    } else {
+        println!("{} — {}", scenario.name, strategy.label);
+        print!("{}", comparison_table(&strategy, &sum));
+        println!("\nsimulation details ({} episodes, seed {}):", sum.episodes, a.seed);
+        print!("{}", summary_table(&sum));
+        for p in &plot_paths {
+            println!("wrote {}", p.display());
+        }
+    }
+    Ok(())
+}
+
+/// `predicted` and `simulated` objects.
+pub fn comparison_json(strategy: &Strategy, sum: &SimulationSummary) -> serde_json::Value {
+    let p = &strategy.predicted;
+    json!({
+        "label": strategy.label,
+        "predicted": {"p_target": p.p_target, "p_collision": p.p_collision, "p_free": p.p_free, "energy_mean": p.energy_mean},
+        "simulated": {
+            "episodes": sum.episodes,
+            "p_target": sum.p_target.value, "p_target_ci95": sum.p_target.ci95,
+            "p_collision": sum.p_collision.value, "p_collision_ci95": sum.p_collision.ci95,
+            "p_free": sum.p_free.value, "p_free_ci95": sum.p_free.ci95,
+            "energy_mean": sum.energy_mean.value, "energy_mean_ci95": sum.energy_mean.ci95,
+            "trigger_rate": sum.trigger_rate.value, "trigger_rate_expected": sum.trigger_rate_expected.value,
+        }
+    })
+}
+
+/// Predicted vs simulated, one row per quantity.
+pub fn comparison_table(strategy: &Strategy, sum: &SimulationSummary) -> String {
+    let p = &strategy.predicted;
+    let rows = [
+        ("P_tar", p.p_target, sum.p_target, true),
+        ("P_coll", p.p_collision, sum.p_collision, true),
+        ("energy", p.energy_mean, sum.energy_mean, false),
+    ];
+    let mut o = format!("  {:<8} {:>10} {:>20} {:>10}\n", "", "predicted", "simulated (95 %)", "error");
+    for (name, pred, sim, is_prob) in rows {
+        if is_prob {
+            o.push_str(&format!(
+                "  {name:<8} {:>9.2}% {:>11.2}% ± {:>4.2}% {:>+8.2} pt\n",
+                100.0 * pred,
+                100.0 * sim.value,
+                100.0 * sim.ci95,
+                100.0 * (sim.value - pred)
+            ));
+        } else {
+            let rel = if pred != 0.0 { 100.0 * (sim.value - pred) / pred } else { 0.0 };
+            o.push_str(&format!(
+                "  {name:<8} {:>10.2} {:>12.2} ± {:>5.2} {:>+8.2} %\n",
+                pred, sim.value, sim.ci95, rel
+            ));
+        }
+    }
+    o
+}

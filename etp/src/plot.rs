@@ -1,0 +1,257 @@
+//! Figures (plotters, PNG and SVG): the Pareto front (P_tar vs energy coloured
+//! by P_coll, baselines marked) and the scenario map with sampled trajectories
+//! coloured by the expected rate of the threshold in force (the paper's Fig. 4).
+//!
+//! The font is embedded (DejaVu Sans, see `assets/`), so plots render the same on
+//! a machine without any installed fonts.
+
+use anyhow::{Context, Result, anyhow};
+use etp_shared::episode::Outcome;
+use etp_shared::scenario::Scenario;
+use etp_synthesis::pareto::ParetoFront;
+use etp_synthesis::validate::Trajectory;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+use std::sync::Once;
+
+static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+static REGISTER: Once = Once::new();
+
+fn register_font() {
+    REGISTER.call_once(|| {
+        // The bytes are a valid TTF shipped with the crate; failure would only
+        // lose text, never the plot.
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
+    });
+}
+
+/// Blue (low) → red (high) colour map on [0, 1].
+fn heat(t: f64) -> RGBColor {
+    let t = t.clamp(0.0, 1.0);
+    let r = (255.0 * t.min(0.5) * 2.0) as u8;
+    let b = (255.0 * (1.0 - t).min(0.5) * 2.0) as u8;
+    let g = (200.0 * (1.0 - (2.0 * t - 1.0).abs())) as u8;
+    RGBColor(r, g, b)
+}
+
+/// Write the front plot to `stem.png` and `stem.svg`.
+pub fn front_plot(front: &ParetoFront, stem: &Path) -> Result<()> {
+    register_font();
+    let png = stem.with_extension("png");
+    let svg = stem.with_extension("svg");
+    {
+        let root = BitMapBackend::new(&png, (1000, 700)).into_drawing_area();
+        draw_front(&root, front)?;
+        root.present().with_context(|| format!("writing {}", png.display()))?;
+    }
+    let root = SVGBackend::new(&svg, (1000, 700)).into_drawing_area();
+    draw_front(&root, front)?;
+    root.present().with_context(|| format!("writing {}", svg.display()))?;
+    Ok(())
+}
+
+fn draw_front<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, front: &ParetoFront) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let e = |x: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {x:?}");
+    root.fill(&WHITE).map_err(e)?;
+    let all: Vec<(f64, f64, f64)> = front
+        .vertices
+        .iter()
+        .map(|v| &v.objectives)
+        .chain(front.baselines.iter().map(|b| &b.objectives))
+        .map(|o| (o.energy, o.p_target, o.p_collision))
+        .collect();
+    let e_max = all.iter().map(|p| p.0).fold(1.0, f64::max) * 1.05;
+    let t_min = all.iter().map(|p| p.1).fold(1.0, f64::min);
+    let c_max = all.iter().map(|p| p.2).fold(1e-9, f64::max);
+    let y_lo = (t_min - 0.02).max(0.0);
+    let mut chart = ChartBuilder::on(root)
+        .caption(
+            format!(
+                "Pareto front of {} ({} vertices) — colour: P_coll (blue 0 → red {:.3})",
+                front.scenario_name,
+                front.vertices.len(),
+                c_max
+            ),
+            ("sans-serif", 20),
+        )
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..e_max, y_lo..1.0)
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("expected energy (transmissions × cost)")
+        .y_desc("P_tar")
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(e)?;
+    // Upper envelope (best P_tar per energy) through the vertices, for the eye.
+    let mut by_energy: Vec<(f64, f64)> =
+        front.vertices.iter().map(|v| (v.objectives.energy, v.objectives.p_target)).collect();
+    by_energy.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut envelope: Vec<(f64, f64)> = Vec::new();
+    for p in by_energy {
+        if envelope.last().is_none_or(|l| p.1 > l.1) {
+            envelope.push(p);
+        }
+    }
+    chart
+        .draw_series(LineSeries::new(envelope, RGBColor(150, 150, 150).stroke_width(1)))
+        .map_err(e)?;
+    chart
+        .draw_series(front.vertices.iter().map(|v| {
+            let o = &v.objectives;
+            Circle::new((o.energy, o.p_target), 4, heat(o.p_collision / c_max).filled())
+        }))
+        .map_err(e)?
+        .label("front vertices")
+        .legend(|(x, y)| Circle::new((x, y), 4, heat(0.0).filled()));
+    chart
+        .draw_series(front.baselines.iter().map(|b| {
+            let o = &b.objectives;
+            TriangleMarker::new((o.energy, o.p_target), 8, BLACK.stroke_width(2))
+        }))
+        .map_err(e)?
+        .label("constant δ baselines")
+        .legend(|(x, y)| TriangleMarker::new((x, y), 6, BLACK.stroke_width(2)));
+    chart
+        .draw_series(front.baselines.iter().map(|b| {
+            let o = &b.objectives;
+            Text::new(
+                format!("δ={}", b.delta.unwrap_or(f64::NAN)),
+                (o.energy, o.p_target - 0.004),
+                ("sans-serif", 12),
+            )
+        }))
+        .map_err(e)?;
+    if let Some(m1) = &front.kf_convergence {
+        chart
+            .draw_series(m1.vertices.iter().map(|v| {
+                let o = &v.objectives;
+                Cross::new((o.energy, o.p_target), 5, RGBColor(0, 120, 0).stroke_width(2))
+            }))
+            .map_err(e)?
+            .label("Method 1 (KF convergence) vertices")
+            .legend(|(x, y)| Cross::new((x, y), 5, RGBColor(0, 120, 0).stroke_width(2)));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .position(SeriesLabelPosition::LowerRight)
+        .draw()
+        .map_err(e)?;
+    Ok(())
+}
+
+/// Write the map plot (first two state coordinates) to `stem.png` and `stem.svg`.
+pub fn map_plot(scenario: &Scenario, trajectories: &[Trajectory], stem: &Path) -> Result<()> {
+    register_font();
+    let png = stem.with_extension("png");
+    let svg = stem.with_extension("svg");
+    {
+        let root = BitMapBackend::new(&png, (1200, 900)).into_drawing_area();
+        draw_map(&root, scenario, trajectories)?;
+        root.present().with_context(|| format!("writing {}", png.display()))?;
+    }
+    let root = SVGBackend::new(&svg, (1200, 900)).into_drawing_area();
+    draw_map(&root, scenario, trajectories)?;
+    root.present().with_context(|| format!("writing {}", svg.display()))?;
+    Ok(())
+}
+
+fn draw_map<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    scenario: &Scenario,
+    trajectories: &[Trajectory],
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let e = |x: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {x:?}");
+    root.fill(&WHITE).map_err(e)?;
+    let y_of = |v: &[f64]| if v.len() > 1 { v[1] } else { 0.0 };
+    let mut xs: Vec<f64> = vec![scenario.plant.x0[0]];
+    let mut ys: Vec<f64> = vec![y_of(scenario.plant.x0.as_slice())];
+    for l in &scenario.legs {
+        xs.push(l.to[0]);
+        ys.push(y_of(l.to.as_slice()));
+    }
+    for o in &scenario.obstacles {
+        xs.extend([o.bounds.min[0], o.bounds.max[0]]);
+        ys.extend([y_of(&o.bounds.min), y_of(&o.bounds.max)]);
+    }
+    let (x0, x1) = (xs.iter().copied().fold(f64::INFINITY, f64::min), xs.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+    let (y0, y1) = (ys.iter().copied().fold(f64::INFINITY, f64::min), ys.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+    let pad = 0.05 * (x1 - x0).max(y1 - y0).max(1e-3);
+    let mut chart = ChartBuilder::on(root)
+        .caption(
+            format!(
+                "{} — {} sampled episodes, colour: expected rate γ̄(δ) (blue 0 → red 1)",
+                scenario.name,
+                trajectories.len()
+            ),
+            ("sans-serif", 20),
+        )
+        .margin(15)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d((x0 - pad)..(x1 + pad), (y0 - pad)..(y1 + pad))
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("x₁")
+        .y_desc("x₂")
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(e)?;
+    chart
+        .draw_series(scenario.obstacles.iter().map(|o| {
+            Rectangle::new(
+                [(o.bounds.min[0], y_of(&o.bounds.min)), (o.bounds.max[0], y_of(&o.bounds.max))],
+                RGBColor(90, 90, 90).filled(),
+            )
+        }))
+        .map_err(e)?;
+    let t = &scenario.target;
+    chart
+        .draw_series(std::iter::once(Rectangle::new(
+            [(t.min[0], y_of(&t.min)), (t.max[0], y_of(&t.max))],
+            RGBColor(0, 170, 0).filled(),
+        )))
+        .map_err(e)?;
+    for tr in trajectories {
+        for w in tr.points.windows(2) {
+            chart
+                .draw_series(std::iter::once(PathElement::new(
+                    vec![(w[0].x[0], y_of(&w[0].x)), (w[1].x[0], y_of(&w[1].x))],
+                    heat(w[1].expected_rate).stroke_width(1),
+                )))
+                .map_err(e)?;
+        }
+        if tr.outcome == Outcome::Collision
+            && let Some(last) = tr.points.last()
+        {
+            chart
+                .draw_series(std::iter::once(Cross::new((last.x[0], y_of(&last.x)), 6, RED.stroke_width(2))))
+                .map_err(e)?;
+        }
+    }
+    let mut route = vec![(scenario.plant.x0[0], y_of(scenario.plant.x0.as_slice()))];
+    route.extend(scenario.legs.iter().map(|l| (l.to[0], y_of(l.to.as_slice()))));
+    chart
+        .draw_series(route.iter().map(|&p| Circle::new(p, 4, BLACK.filled())))
+        .map_err(e)?;
+    chart
+        .draw_series(scenario.sensors.iter().map(|s| {
+            TriangleMarker::new((s.position[0], y_of(s.position.as_slice())), 8, RGBColor(128, 0, 128).filled())
+        }))
+        .map_err(e)?;
+    Ok(())
+}

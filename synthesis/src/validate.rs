@@ -1,0 +1,94 @@
+//! In-process simulation of a strategy: at each decision point the belief's
+//! covariance is classified into its region and δ is drawn from ω (MODEL.md §5,
+//! "Validation"). Also collects sample trajectories for the map plot.
+
+use crate::simulate::{SimulationTotals, simulate};
+use etp_shared::episode::{CompiledScenario, EpisodeObserver, LegMode, Outcome, StepEvent};
+use etp_shared::etkf::{Belief, Threshold};
+use etp_shared::gaussian::expected_rate;
+use etp_shared::linalg::to_dynamic;
+use etp_shared::rng::{SimRng, stream_rng, streams};
+use etp_shared::scenario::Scenario;
+use etp_shared::strategy::Strategy;
+use etp_shared::with_dim;
+use rand::RngExt;
+
+/// The leg policy of a strategy: classify, draw δ with one uniform from the episode's RNG.
+fn strategy_policy<const N: usize>(
+    strategy: &Strategy,
+) -> impl Fn(usize, &Belief<N>, &mut SimRng) -> LegMode<N> + Sync + '_ {
+    let thresholds: Vec<Threshold> = strategy.deltas.iter().map(|&d| Threshold::new(d)).collect();
+    move |leg, belief, rng| {
+        let u: f64 = rng.random();
+        let k = strategy.draw(leg, &to_dynamic(&belief.cov), u);
+        LegMode::EventTriggered(thresholds[k])
+    }
+}
+
+/// Simulate `episodes` episodes of `strategy` on `scenario` (all threads, reproducible).
+pub fn simulate_strategy(
+    scenario: &Scenario,
+    strategy: &Strategy,
+    episodes: u64,
+    seed: u64,
+    progress: &(dyn Fn(u64) + Sync),
+) -> SimulationTotals {
+    with_dim!(scenario.dim, N => {
+        let c = CompiledScenario::<N>::new(scenario);
+        simulate(&c, &strategy_policy::<N>(strategy), episodes, seed, streams::VALIDATE, progress)
+    })
+}
+
+/// One point of a sampled trajectory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrajectoryPoint {
+    /// True state.
+    pub x: Vec<f64>,
+    /// Estimate.
+    pub mean: Vec<f64>,
+    /// γ̄(δ) of the threshold in force (the colour of the paper's Fig. 4).
+    pub expected_rate: f64,
+    pub transmitted: bool,
+}
+
+/// A sampled episode.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trajectory {
+    pub points: Vec<TrajectoryPoint>,
+    pub outcome: Outcome,
+}
+
+struct Recorder<'a, const N: usize> {
+    points: Vec<TrajectoryPoint>,
+    scenario: &'a CompiledScenario<N>,
+}
+
+impl<const N: usize> EpisodeObserver<N> for Recorder<'_, N> {
+    fn on_step(&mut self, e: &StepEvent<'_, N>) {
+        let m = self.scenario.filters[self.scenario.legs[e.leg].sensor].dim();
+        self.points.push(TrajectoryPoint {
+            x: e.x.iter().copied().collect(),
+            mean: e.belief.mean.iter().copied().collect(),
+            expected_rate: expected_rate(e.delta, m),
+            transmitted: e.transmitted,
+        });
+    }
+}
+
+/// The first `count` validation episodes of a seed, step by step.
+pub fn sample_trajectories(scenario: &Scenario, strategy: &Strategy, count: u64, seed: u64) -> Vec<Trajectory> {
+    with_dim!(scenario.dim, N => {
+        let c = CompiledScenario::<N>::new(scenario);
+        let policy = strategy_policy::<N>(strategy);
+        (0..count)
+            .map(|e| {
+                let mut rng = stream_rng(seed, streams::VALIDATE, e);
+                let mut rec = Recorder { points: Vec::new(), scenario: &c };
+                let start = c.initial.mean.iter().copied().collect::<Vec<f64>>();
+                rec.points.push(TrajectoryPoint { x: start.clone(), mean: start, expected_rate: 1.0, transmitted: false });
+                let r = c.run_episode(&policy, &mut rng, &mut rec);
+                Trajectory { points: rec.points, outcome: r.outcome }
+            })
+            .collect()
+    })
+}
