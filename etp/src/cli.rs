@@ -17,6 +17,10 @@ pub enum Command {
     Check(crate::cmd::check::Args),
     /// Run episodes in-process with a constant threshold.
     Simulate(crate::cmd::simulate::Args),
+    /// Build the belief-space MDP by Monte Carlo and write DIR/mdp.bin.
+    Synthesize(crate::cmd::synthesize::Args),
+    /// Export an MDP as PRISM explicit files (model.tra/.sta/.lab/.trew).
+    ExportPrism(crate::cmd::export_prism::Args),
     /// Measure simulator throughput (episode-steps per second).
     Bench(crate::cmd::bench::Args),
 }

@@ -8,6 +8,8 @@
 //! Pure maths: no I/O, no clock. Progress is reported through a callback so the
 //! front end can draw a bar.
 
+pub mod abstraction;
 pub mod mdp;
 pub mod pareto;
+pub mod prism;
 pub mod simulate;

@@ -2,7 +2,9 @@
 
 pub mod bench;
 pub mod check;
+pub mod export_prism;
 pub mod simulate;
+pub mod synthesize;
 
 use crate::cli::Command;
 
@@ -12,5 +14,7 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Check(a) => check::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Synthesize(a) => synthesize::run(a),
+        Command::ExportPrism(a) => export_prism::run(a),
     }
 }

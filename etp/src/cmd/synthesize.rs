@@ -1,0 +1,228 @@
+//! `etp synthesize SCENARIO`: build the belief-space MDP by Monte Carlo
+//! (MODEL.md §4) and write `DIR/mdp.bin`.
+//!
+//! [`build_mdp`] is the MDP part (load, refuse to overwrite, simulate with a
+//! progress bar, write the file, measure); [`run`] prints its report. The Pareto
+//! step appends to [`run`] after [`build_mdp`].
+
+use crate::input::load_scenario;
+use crate::progress;
+use anyhow::{Context, Result, bail};
+use etp_shared::discretization::BinCounts;
+use etp_shared::scenario::Scenario;
+use etp_synthesis::abstraction::{
+    self, AbstractionParams, DEFAULT_POOL_PER_REGION, DEFAULT_SAMPLES, default_kf_params,
+};
+use etp_synthesis::mdp::{KfConvergenceParams, Mdp, Method};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Name of the MDP file inside the output directory.
+pub const MDP_FILE: &str = "mdp.bin";
+
+/// Which abstraction to build.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum MethodArg {
+    /// Method 2: discretized covariance regions (the paper's contribution).
+    Discretized,
+    /// Method 1: enforced KF convergence near each waypoint (N + 3 states).
+    KfConvergence,
+}
+
+impl From<MethodArg> for Method {
+    fn from(m: MethodArg) -> Self {
+        match m {
+            MethodArg::Discretized => Method::Discretized,
+            MethodArg::KfConvergence => Method::KfConvergence,
+        }
+    }
+}
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Built-in name (winding-2d, open-2d, superg-3d) or path to a scenario TOML.
+    pub scenario: String,
+    /// Abstraction method.
+    #[arg(long, value_enum, default_value_t = MethodArg::Discretized)]
+    pub method: MethodArg,
+    /// Simulated segments per (state, action).
+    #[arg(long, default_value_t = DEFAULT_SAMPLES)]
+    pub samples: u32,
+    /// Seed of the random streams (same seed, same mdp.bin bytes, any thread count).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Log-uniform magnitude bins per eigenvalue (Method 2).
+    #[arg(long, default_value_t = BinCounts::default().magnitude)]
+    pub magnitude_bins: u16,
+    /// Angle bins per eigenvector on [0, π/2] (Method 2; unused for repeated eigenvalues).
+    #[arg(long, default_value_t = BinCounts::default().angle)]
+    pub angle_bins: u16,
+    /// Pool particles kept per region and decision point.
+    #[arg(long, default_value_t = DEFAULT_POOL_PER_REGION)]
+    pub pool: u32,
+    /// Method 1: distance to the waypoint at which the full KF switches on
+    /// (default max(5·u_max, 2·eps_x)).
+    #[arg(long)]
+    pub eps_kf: Option<f64>,
+    /// Method 1: covariance convergence tolerance ‖P − P_KF‖max
+    /// (default 1 % of the smallest ‖P_KF‖max over the sensors).
+    #[arg(long)]
+    pub eps_p: Option<f64>,
+    /// Output directory (default `out/<scenario name>`).
+    #[arg(short = 'o', long = "out")]
+    pub out: Option<PathBuf>,
+    /// Overwrite an existing mdp.bin.
+    #[arg(long)]
+    pub force: bool,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// What [`build_mdp`] did, for the summary.
+#[derive(Debug, Clone, Serialize)]
+pub struct MdpReport {
+    pub scenario: String,
+    pub method: String,
+    pub path: PathBuf,
+    pub samples: u32,
+    pub seed: u64,
+    pub states: usize,
+    pub states_per_decision_point: Vec<usize>,
+    pub choices: usize,
+    pub transitions: usize,
+    pub segments: u64,
+    pub segment_steps: u64,
+    pub seconds: f64,
+    pub segment_steps_per_second: f64,
+    pub threads: usize,
+}
+
+/// The result of the MDP step of `synthesize`.
+#[derive(Debug, Clone)]
+pub struct BuiltMdp {
+    pub scenario: Scenario,
+    pub mdp: Mdp,
+    /// The output directory (holds `mdp.bin`).
+    pub dir: PathBuf,
+    pub report: MdpReport,
+}
+
+/// The abstraction parameters of the command line.
+pub fn params(a: &Args, s: &Scenario) -> Result<AbstractionParams> {
+    let kf = match a.method {
+        MethodArg::Discretized => {
+            if a.eps_kf.is_some() || a.eps_p.is_some() {
+                bail!("--eps-kf and --eps-p apply to --method kf-convergence only");
+            }
+            None
+        }
+        MethodArg::KfConvergence => {
+            let d = default_kf_params(s);
+            Some(KfConvergenceParams {
+                eps_kf: a.eps_kf.unwrap_or(d.eps_kf),
+                eps_p: a.eps_p.unwrap_or(d.eps_p),
+            })
+        }
+    };
+    Ok(AbstractionParams {
+        method: a.method.into(),
+        samples: a.samples,
+        seed: a.seed,
+        bins: BinCounts {
+            magnitude: a.magnitude_bins,
+            angle: a.angle_bins,
+        },
+        pool_per_region: a.pool,
+        kf,
+    })
+}
+
+/// Write `bytes` to `path` through a temporary file in the same directory, so
+/// an interrupted write never leaves a truncated file under the final name.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = path.with_extension("bin.partial");
+    std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))
+}
+
+/// Build the MDP of `a.scenario` and write `DIR/mdp.bin`; refuses (before any
+/// work, touching nothing) when the file exists and `--force` is not given.
+pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
+    let s = load_scenario(&a.scenario)?;
+    let dir = a.out.clone().unwrap_or_else(|| Path::new("out").join(&s.name));
+    let path = dir.join(MDP_FILE);
+    if path.exists() && !a.force {
+        bail!(
+            "{} already exists; pass --force to overwrite it or -o to choose another directory",
+            path.display()
+        );
+    }
+    let p = params(a, &s)?;
+    let pb = progress::bar(abstraction::progress_total(&s, &p), "synthesize", a.json);
+    let started = Instant::now();
+    let mdp = abstraction::build(&s, &p, &|k| pb.inc(k)).context("building the abstraction")?;
+    let seconds = started.elapsed().as_secs_f64();
+    pb.finish_and_clear();
+    mdp.check().context("the built MDP failed its own consistency check (a bug)")?;
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    write_atomically(&path, &mdp.encode())?;
+    let report = MdpReport {
+        scenario: s.name.clone(),
+        method: format!("{:?}", mdp.method),
+        path: path.clone(),
+        samples: mdp.samples_per_choice,
+        seed: mdp.seed,
+        states: mdp.states.len(),
+        states_per_decision_point: mdp.states_per_decision_point(),
+        choices: mdp.states.iter().map(|s| s.choices.len()).sum(),
+        transitions: mdp.num_transitions(),
+        segments: mdp.total_segments,
+        segment_steps: mdp.total_steps,
+        seconds,
+        segment_steps_per_second: mdp.total_steps as f64 / seconds.max(1e-9),
+        threads: rayon::current_num_threads(),
+    };
+    Ok(BuiltMdp {
+        scenario: s,
+        mdp,
+        dir,
+        report,
+    })
+}
+
+/// A readable summary of the MDP step.
+pub fn report_text(r: &MdpReport) -> String {
+    format!(
+        "{} · {} · {} samples per state-action · seed {}\n\
+         \x20 wrote {}\n\
+         \x20 states {} (+3 terminal) per decision point {:?}\n\
+         \x20 choices {} · transitions {}\n\
+         \x20 segments {} · segment-steps {} · {:.2} s · {:.2} M steps/s on {} threads\n",
+        r.scenario,
+        r.method,
+        r.samples,
+        r.seed,
+        r.path.display(),
+        r.states,
+        r.states_per_decision_point,
+        r.choices,
+        r.transitions,
+        r.segments,
+        r.segment_steps,
+        r.seconds,
+        r.segment_steps_per_second / 1e6,
+        r.threads,
+    )
+}
+
+pub fn run(a: Args) -> Result<()> {
+    let built = build_mdp(&a)?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&built.report)?);
+    } else {
+        print!("{}", report_text(&built.report));
+    }
+    Ok(())
+}

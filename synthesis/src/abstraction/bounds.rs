@@ -1,0 +1,66 @@
+//! The magnitude range `[λ_lo, λ_hi]` of the log-uniform bins (MODEL.md §4).
+//!
+//! * `λ_lo`: the smallest eigenvalue of `P_KF` over the sensors that serve a
+//!   leg (the best a filter can do);
+//! * `λ_hi`: the largest eigenvalue reached by propagating the covariance with
+//!   γ = 0 (silent steps) at the largest δ of the scenario, from `P_KF` and from
+//!   `P0`, until it settles or for `k_max` steps (the longest possible leg);
+//!   `λmax(P0)` is included so the initial belief is covered.
+
+use etp_shared::episode::CompiledScenario;
+use etp_shared::etkf::Matrix;
+use etp_shared::gaussian;
+use etp_shared::linalg::to_dynamic;
+
+/// `[λ_lo, λ_hi]` of the magnitude bins.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MagnitudeRange {
+    pub lambda_lo: f64,
+    pub lambda_hi: f64,
+}
+
+fn eigenvalues<const N: usize>(m: &Matrix<N, N>) -> (f64, f64) {
+    let sym = to_dynamic(&((m + m.transpose()) * 0.5));
+    let e = sym.symmetric_eigenvalues();
+    let lo = e.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = e.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    (lo, hi)
+}
+
+/// The magnitude range of a compiled scenario with thresholds `deltas`.
+pub fn magnitude_range<const N: usize>(cs: &CompiledScenario<N>, deltas: &[f64]) -> MagnitudeRange {
+    let delta_max = deltas.iter().copied().fold(0.0_f64, f64::max);
+    let beta = gaussian::beta(delta_max);
+    let mut used: Vec<usize> = cs.legs.iter().map(|l| l.sensor).collect();
+    used.sort_unstable();
+    used.dedup();
+    let (_, p0_hi) = eigenvalues(&cs.initial.cov);
+    let mut lo = f64::INFINITY;
+    let mut hi = p0_hi;
+    for &s in &used {
+        let f = &cs.filters[s];
+        let p_kf = f.steady_state_posterior();
+        let (kf_lo, kf_hi) = eigenvalues(&p_kf);
+        lo = lo.min(kf_lo);
+        hi = hi.max(kf_hi);
+        for start in [p_kf, cs.initial.cov] {
+            let mut cov = start;
+            for _ in 0..cs.k_max {
+                let next = f.silent_covariance_step(&cov, beta);
+                let change = (next - cov).amax();
+                cov = next;
+                hi = hi.max(eigenvalues(&cov).1);
+                if change <= 1e-12 * cov.amax().max(f64::MIN_POSITIVE) {
+                    break;
+                }
+            }
+        }
+    }
+    if !lo.is_finite() {
+        lo = eigenvalues(&cs.initial.cov).0;
+    }
+    MagnitudeRange {
+        lambda_lo: lo,
+        lambda_hi: hi,
+    }
+}

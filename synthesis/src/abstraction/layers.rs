@@ -1,0 +1,316 @@
+//! The layered Monte Carlo engine shared by both methods (MODEL.md §4):
+//!
+//! ```text
+//! pool_0 = { initial belief }
+//! for each decision point i:
+//!     S_i = regions occupied by pool_i
+//!     for each s in S_i, each δ in Δ:
+//!         draw M start beliefs from the pool_i particles in s; x ~ N(x̂, P)
+//!         simulate leg i → collision | arrival belief | (last leg) target / free
+//!     bins_{i+1} from the arrivals (nominal axes of their mean covariance)
+//!     T(s, δ, ·) = frequencies; C(s, δ) = mean transmissions × c_m
+//!     pool_{i+1} = per-region bottom-k reservoir of the arrivals
+//! ```
+
+use super::bounds::magnitude_range;
+use super::pool::{bottom_k, key};
+use super::tally::{Arrival, ChoiceTally, ChunkTally};
+use super::{AbstractionError, AbstractionParams};
+use crate::mdp::{KfConvergenceParams, Mdp, Method, State};
+use etp_shared::discretization::{DecisionPointBins, Discretization, Region};
+use etp_shared::episode::{AgentState, CompiledScenario, LegEnd, LegMode};
+use etp_shared::etkf::{Belief, Matrix, Threshold, sample_belief};
+use etp_shared::linalg::to_dynamic;
+use etp_shared::rng::{mix64, stream_rng, streams};
+use etp_shared::scenario::Scenario;
+use rand::RngExt;
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+
+/// Segments per work unit: small enough to balance 2 cores when a decision
+/// point has a single state, large enough to amortise scheduling.
+const CHUNK: u32 = 128;
+
+/// The random-stream index of segment `m` of (decision point, state, action).
+#[inline]
+fn segment_id(dp: usize, state: usize, action: usize, m: u32) -> u64 {
+    mix64(mix64(mix64(dp as u64 + 1) ^ state as u64) ^ action as u64) ^ u64::from(m)
+}
+
+/// One unit of work: segments `lo..hi` of (state, action) at a decision point.
+#[derive(Debug, Clone, Copy)]
+struct Task {
+    state: usize,
+    action: usize,
+    lo: u32,
+    hi: u32,
+}
+
+/// A state of the current layer: its region and its pool particles.
+struct LayerState<const N: usize> {
+    region: Region,
+    particles: Vec<Belief<N>>,
+}
+
+/// Simulate the segments of one task.
+#[allow(clippy::too_many_arguments)]
+fn run_task<const N: usize>(
+    cs: &CompiledScenario<N>,
+    dp: usize,
+    last: bool,
+    particles: &[Belief<N>],
+    mode: &LegMode<N>,
+    seed: u64,
+    t: Task,
+) -> ChunkTally<N> {
+    let mut c = ChunkTally::<N> {
+        samples: t.hi - t.lo,
+        ..ChunkTally::default()
+    };
+    if !last {
+        c.arrivals.reserve((t.hi - t.lo) as usize);
+    }
+    for m in t.lo..t.hi {
+        let id = segment_id(dp, t.state, t.action, m);
+        let mut rng = stream_rng(seed, streams::SYNTHESIS, id);
+        let start = if particles.len() == 1 {
+            particles[0]
+        } else {
+            particles[rng.random_range(0..particles.len())]
+        };
+        let mut st = AgentState {
+            x: sample_belief(&start, &mut rng),
+            belief: start,
+        };
+        let r = cs.run_leg(dp, &mut st, mode, &mut rng, &mut ());
+        c.steps += u64::from(r.steps);
+        c.transmissions += u64::from(r.transmissions);
+        c.expected_transmissions += r.expected_transmissions;
+        match r.end {
+            LegEnd::Collision { .. } => c.collisions += 1,
+            LegEnd::Terminated if last => {
+                if cs.target.contains(&st.x) {
+                    c.target += 1;
+                } else {
+                    c.free += 1;
+                }
+            }
+            LegEnd::Terminated => c.arrivals.push(Arrival {
+                key: key(id),
+                belief: st.belief,
+            }),
+        }
+    }
+    c
+}
+
+/// How beliefs are mapped to states at a decision point.
+enum Classifier {
+    /// Method 2: covariance regions.
+    Bins(DecisionPointBins),
+    /// Method 1: one state per decision point.
+    Single,
+}
+
+impl Classifier {
+    fn classify<const N: usize>(&self, cov: &Matrix<N, N>) -> Region {
+        match self {
+            Self::Bins(b) => b.classify(&to_dynamic(cov)),
+            Self::Single => Region(Vec::new()),
+        }
+    }
+}
+
+/// Bins of a decision point from the covariances that arrived there (their
+/// mean's eigenvectors are the nominal axes).
+fn bins_from<const N: usize>(
+    params: &AbstractionParams,
+    lambda: (f64, f64),
+    covs: impl Iterator<Item = Matrix<N, N>>,
+) -> DecisionPointBins {
+    let mut sum = Matrix::<N, N>::zeros();
+    let mut n = 0u64;
+    for c in covs {
+        sum += c;
+        n += 1;
+    }
+    let mean = (n > 0).then(|| to_dynamic(&(sum / n as f64)));
+    DecisionPointBins::from_samples(lambda.0, lambda.1, params.bins, mean.iter())
+}
+
+pub(super) fn build<const N: usize>(
+    scenario: &Scenario,
+    cs: &CompiledScenario<N>,
+    params: &AbstractionParams,
+    kf: Option<KfConvergenceParams>,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Mdp, AbstractionError> {
+    let deltas = &scenario.deltas;
+    let samples = params.samples;
+    let cap = params.pool_per_region as usize;
+    let range = magnitude_range(cs, deltas);
+    let lambda = (range.lambda_lo, range.lambda_hi);
+    let legs = cs.legs.len();
+
+    let classifier_for = |covs: &mut dyn Iterator<Item = Matrix<N, N>>| match params.method {
+        Method::Discretized => Classifier::Bins(bins_from(params, lambda, covs)),
+        Method::KfConvergence => Classifier::Single,
+    };
+    let mut classifier = classifier_for(&mut std::iter::once(cs.initial.cov));
+    let mut dp_bins: Vec<DecisionPointBins> = Vec::with_capacity(legs);
+    let mut layer = vec![LayerState {
+        region: classifier.classify(&cs.initial.cov),
+        particles: vec![cs.initial],
+    }];
+    let mut states: Vec<State> = Vec::new();
+    let (mut total_segments, mut total_steps) = (0u64, 0u64);
+
+    for dp in 0..legs {
+        if let Classifier::Bins(b) = &classifier {
+            dp_bins.push(b.clone());
+        }
+        if layer.is_empty() {
+            // Every segment collided before this decision point.
+            progress(deltas.len() as u64 * u64::from(samples));
+            classifier = classifier_for(&mut std::iter::empty());
+            continue;
+        }
+        let last = dp + 1 == legs;
+        let cost = cs.filters[cs.legs[dp].sensor].cost();
+        let modes: Vec<LegMode<N>> = deltas
+            .iter()
+            .map(|&d| {
+                let threshold = Threshold::new(d);
+                match kf {
+                    None => LegMode::EventTriggered(threshold),
+                    Some(k) => LegMode::KfConvergence {
+                        threshold,
+                        eps_kf: k.eps_kf,
+                        eps_p: k.eps_p,
+                        p_kf: cs.filters[cs.legs[dp].sensor].steady_state_posterior(),
+                    },
+                }
+            })
+            .collect();
+        let tasks: Vec<Task> = (0..layer.len())
+            .flat_map(|state| {
+                (0..deltas.len()).flat_map(move |action| {
+                    (0..samples.div_ceil(CHUNK)).map(move |c| Task {
+                        state,
+                        action,
+                        lo: c * CHUNK,
+                        hi: ((c + 1) * CHUNK).min(samples),
+                    })
+                })
+            })
+            .collect();
+        let n_states = layer.len() as u64;
+        let m = u64::from(samples);
+        let results: Vec<ChunkTally<N>> = tasks
+            .par_iter()
+            .map(|&t| {
+                let r = run_task(cs, dp, last, &layer[t.state].particles, &modes[t.action], params.seed, t);
+                // Each action of a decision point is worth `samples` units, spread
+                // over its states: position g of S·M maps to unit g / S.
+                let g = t.state as u64 * m;
+                progress((g + u64::from(t.hi)) / n_states - (g + u64::from(t.lo)) / n_states);
+                r
+            })
+            .collect();
+
+        // The next layer's bins and the region of every arrival.
+        let next_classifier = if last {
+            None
+        } else {
+            let mut covs = results.iter().flat_map(|r| r.arrivals.iter().map(|a| a.belief.cov));
+            Some(classifier_for(&mut covs))
+        };
+        let arrival_regions: Vec<Vec<Region>> = match &next_classifier {
+            Some(c) => results
+                .par_iter()
+                .map(|r| r.arrivals.iter().map(|a| c.classify(&a.belief.cov)).collect())
+                .collect(),
+            None => Vec::new(),
+        };
+        let mut region_index: BTreeMap<&Region, u32> = BTreeMap::new();
+        for r in arrival_regions.iter().flatten() {
+            region_index.insert(r, 0);
+        }
+        let next_offset = states.len() + layer.len();
+        for (k, v) in region_index.values_mut().enumerate() {
+            *v = u32::try_from(next_offset + k).map_err(|_| AbstractionError::TooManyStates)?;
+        }
+
+        // Transitions and costs per (state, action), chunks merged in order.
+        let per_choice = samples.div_ceil(CHUNK) as usize;
+        for (s, ls) in layer.iter().enumerate() {
+            let mut choices = Vec::with_capacity(deltas.len());
+            for a in 0..deltas.len() {
+                let mut tally = ChoiceTally::default();
+                let first = (s * deltas.len() + a) * per_choice;
+                for (k, r) in results[first..first + per_choice].iter().enumerate() {
+                    let regions = arrival_regions.get(first + k);
+                    tally.add(r, |j| {
+                        regions
+                            .and_then(|rs| rs.get(j))
+                            .and_then(|reg| region_index.get(reg))
+                            .copied()
+                            .unwrap_or(u32::MAX)
+                    });
+                }
+                total_segments += u64::from(tally.samples);
+                total_steps += tally.steps;
+                // `a` < |Δ| ≤ u16::MAX, checked by the caller.
+                choices.push(tally.into_choice(a as u16, cost));
+            }
+            states.push(State {
+                decision_point: dp as u32,
+                region: ls.region.clone(),
+                choices,
+            });
+        }
+
+        // The next pool: a bottom-k reservoir per region.
+        let mut buckets: Vec<Vec<(u64, Belief<N>)>> = vec![Vec::new(); region_index.len()];
+        for (r, regions) in results.iter().zip(&arrival_regions) {
+            for (a, reg) in r.arrivals.iter().zip(regions) {
+                if let Some(&j) = region_index.get(reg) {
+                    buckets[j as usize - next_offset].push((a.key, a.belief));
+                }
+            }
+        }
+        let regions: Vec<Region> = region_index.keys().map(|r| (*r).clone()).collect();
+        drop(region_index);
+        layer = regions
+            .into_iter()
+            .zip(buckets)
+            .map(|(region, items)| LayerState {
+                region,
+                particles: bottom_k(items, cap),
+            })
+            .collect();
+        if let Some(c) = next_classifier {
+            classifier = c;
+        }
+    }
+
+    Ok(Mdp {
+        scenario_name: scenario.name.clone(),
+        scenario_hash: scenario.content_hash.clone(),
+        method: params.method,
+        deltas: deltas.clone(),
+        discretization: match params.method {
+            Method::Discretized => Some(Discretization {
+                decision_points: dp_bins,
+            }),
+            Method::KfConvergence => None,
+        },
+        kf_convergence: kf,
+        states,
+        initial: 0,
+        samples_per_choice: samples,
+        seed: params.seed,
+        total_segments,
+        total_steps,
+    })
+}

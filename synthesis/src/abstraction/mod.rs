@@ -1,0 +1,163 @@
+//! The belief-space abstraction of MODEL.md §4: a finite, acyclic MDP estimated
+//! by layered Monte Carlo simulation of legs.
+//!
+//! * Method 2 ([`Method::Discretized`], the paper's contribution): the state at
+//!   decision point i is the covariance region of the belief
+//!   ([`etp_shared::discretization`]); start beliefs are drawn from a bounded
+//!   pool of beliefs that actually arrived at decision point i.
+//! * Method 1 ([`Method::KfConvergence`]): the filter is forced to δ = 0 near
+//!   each waypoint until the covariance has converged to `P_KF`, so one state per
+//!   decision point suffices (|S| = N + 3 with the terminals).
+//!
+//! Both methods share one layered engine ([`layers`]): for each decision point,
+//! for each state and action, `samples` legs are simulated from start beliefs
+//! drawn from the pool particles of that state; outcomes and arrival regions are
+//! tallied ([`tally`]), arrivals feed a bounded per-region reservoir
+//! ([`pool`]) that becomes the next pool.
+//!
+//! Determinism: every segment draws its randomness from
+//! `stream_rng(seed, streams::SYNTHESIS, id)` with `id` derived from (decision
+//! point, state, action, sample), the work is split into fixed chunks whose
+//! results are merged in index order, and the reservoir keeps the arrivals with
+//! the smallest hash keys — so the MDP is bit-identical for a seed whatever the
+//! number of threads. Pure: no I/O, no clock.
+
+mod bounds;
+mod layers;
+mod pool;
+mod tally;
+
+pub use bounds::{MagnitudeRange, magnitude_range};
+
+use crate::mdp::{KfConvergenceParams, Mdp, Method};
+use etp_shared::discretization::BinCounts;
+use etp_shared::episode::CompiledScenario;
+use etp_shared::scenario::Scenario;
+use etp_shared::with_dim;
+
+/// Default Monte Carlo segments per (state, action).
+pub const DEFAULT_SAMPLES: u32 = 4000;
+/// Default bound on the pool particles kept per region and decision point.
+pub const DEFAULT_POOL_PER_REGION: u32 = 2048;
+
+/// Why an abstraction could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum AbstractionError {
+    #[error("--samples must be at least 1")]
+    NoSamples,
+    #[error("the pool bound must be at least 1")]
+    NoPool,
+    #[error("bin counts must be at least 1 (got {magnitude} magnitude, {angle} angle bins)")]
+    Bins { magnitude: u16, angle: u16 },
+    #[error("the scenario has no thresholds")]
+    NoActions,
+    #[error("the scenario has {0} thresholds; at most 65535 are supported")]
+    TooManyActions(usize),
+    #[error("Method 1 parameters must be finite and positive (eps_kf = {eps_kf}, eps_p = {eps_p})")]
+    KfParams { eps_kf: f64, eps_p: f64 },
+    #[error("the abstraction has more than u32::MAX states")]
+    TooManyStates,
+}
+
+/// Settings of one abstraction run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AbstractionParams {
+    pub method: Method,
+    /// Segments simulated per (state, action).
+    pub samples: u32,
+    /// Seed of the random streams.
+    pub seed: u64,
+    /// Method 2's bins.
+    pub bins: BinCounts,
+    /// Pool particles kept per region at each decision point (reservoir bound).
+    pub pool_per_region: u32,
+    /// Method 1's parameters; `None` = [`default_kf_params`] of the scenario.
+    pub kf: Option<KfConvergenceParams>,
+}
+
+impl Default for AbstractionParams {
+    fn default() -> Self {
+        Self {
+            method: Method::Discretized,
+            samples: DEFAULT_SAMPLES,
+            seed: 0,
+            bins: BinCounts::default(),
+            pool_per_region: DEFAULT_POOL_PER_REGION,
+            kf: None,
+        }
+    }
+}
+
+/// Method 1 defaults for a scenario:
+/// * `eps_kf = max(5 u_max, 2 eps_x)`: the full KF switches on five full-speed
+///   steps before the waypoint — enough for the Riccati recursion (which
+///   contracts by ~(1 − K)² per step) to converge before the mean criterion is met;
+/// * `eps_p = 1e-2 · min over sensors of ‖P_KF‖max`: the covariance is within
+///   1 % of the steady state, so every leg starts from (practically) the same
+///   belief covariance and one state per decision point is justified.
+pub fn default_kf_params(scenario: &Scenario) -> KfConvergenceParams {
+    let c = &scenario.controller;
+    let p_kf_min = with_dim!(scenario.dim, N => {
+        let cs = CompiledScenario::<N>::new(scenario);
+        cs.filters
+            .iter()
+            .map(|f| f.steady_state_posterior().amax())
+            .fold(f64::INFINITY, f64::min)
+    });
+    KfConvergenceParams {
+        eps_kf: (5.0 * c.u_max).max(2.0 * c.eps_x),
+        eps_p: 1e-2 * p_kf_min,
+    }
+}
+
+/// Total units the progress callback of [`build`] reports: decision points ×
+/// actions × samples (each (decision point, action) pair is worth `samples`).
+pub fn progress_total(scenario: &Scenario, params: &AbstractionParams) -> u64 {
+    scenario.num_legs() as u64 * scenario.deltas.len() as u64 * u64::from(params.samples)
+}
+
+/// Build the MDP of `scenario` by layered Monte Carlo (MODEL.md §4).
+/// `progress(k)` is called as work finishes; the units add up to
+/// [`progress_total`].
+pub fn build(
+    scenario: &Scenario,
+    params: &AbstractionParams,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Mdp, AbstractionError> {
+    if params.samples == 0 {
+        return Err(AbstractionError::NoSamples);
+    }
+    if params.pool_per_region == 0 {
+        return Err(AbstractionError::NoPool);
+    }
+    if params.bins.magnitude == 0 || params.bins.angle == 0 {
+        return Err(AbstractionError::Bins {
+            magnitude: params.bins.magnitude,
+            angle: params.bins.angle,
+        });
+    }
+    if scenario.deltas.is_empty() {
+        return Err(AbstractionError::NoActions);
+    }
+    if scenario.deltas.len() > usize::from(u16::MAX) {
+        return Err(AbstractionError::TooManyActions(scenario.deltas.len()));
+    }
+    let kf = match params.method {
+        Method::Discretized => None,
+        Method::KfConvergence => {
+            let k = params.kf.unwrap_or_else(|| default_kf_params(scenario));
+            let ok = |v: f64| v.is_finite() && v > 0.0;
+            if !(ok(k.eps_kf) && ok(k.eps_p)) {
+                return Err(AbstractionError::KfParams {
+                    eps_kf: k.eps_kf,
+                    eps_p: k.eps_p,
+                });
+            }
+            Some(k)
+        }
+    };
+    with_dim!(scenario.dim, N => {
+        let cs = CompiledScenario::<N>::new(scenario);
+        layers::build::<N>(scenario, &cs, params, kf, progress)
+    })
+}
