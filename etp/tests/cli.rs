@@ -1,0 +1,129 @@
+//! End-to-end tests of the `etp` binary (one integration-test binary per crate).
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn etp(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_etp"))
+        .args(args)
+        .output()
+        .expect("spawn etp")
+}
+
+fn ok_json(args: &[&str]) -> Value {
+    let out = etp(args);
+    assert!(
+        out.status.success(),
+        "etp {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("stdout is one JSON value")
+}
+
+fn fails_with(args: &[&str], needles: &[&str]) {
+    let out = etp(args);
+    assert!(!out.status.success(), "etp {args:?} should fail");
+    let err = String::from_utf8_lossy(&out.stderr);
+    for n in needles {
+        assert!(err.contains(n), "stderr of etp {args:?} lacks {n:?}: {err}");
+    }
+}
+
+/// A fresh scratch directory under the target dir (removed on drop).
+struct Scratch(PathBuf);
+impl Scratch {
+    fn new(name: &str) -> Self {
+        let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("scratch dir");
+        Self(dir)
+    }
+    fn path(&self, p: &str) -> PathBuf {
+        self.0.join(p)
+    }
+}
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+#[test]
+fn check_describes_every_builtin() {
+    for name in ["winding-2d", "open-2d", "superg-3d"] {
+        let out = etp(&["check", name]);
+        assert!(out.status.success());
+        let text = String::from_utf8_lossy(&out.stdout);
+        for needle in ["legs", "sensors", "obstacles", "thresholds", "γ̄"] {
+            assert!(text.contains(needle), "{name}: {needle} missing in\n{text}");
+        }
+        let v = ok_json(&["check", name, "--json"]);
+        assert_eq!(v["name"], name);
+    }
+    let v = ok_json(&["check", "winding-2d", "--json"]);
+    assert_eq!(v["legs"].as_array().map(Vec::len), Some(11));
+    // γ̄ of the built-in thresholds: 1, 0.5, 0.25, 0.1, 0.05.
+    let rates: Vec<f64> = v["thresholds"]
+        .as_array()
+        .expect("thresholds")
+        .iter()
+        .map(|t| t["expected_rate"]["m2"].as_f64().expect("rate"))
+        .collect();
+    for (r, e) in rates.iter().zip([1.0, 0.5, 0.25, 0.1, 0.05]) {
+        assert!((r - e).abs() < 1e-4, "{rates:?}");
+    }
+}
+
+#[test]
+fn simulate_json_has_every_key_with_an_interval_and_is_reproducible() {
+    let args = ["simulate", "winding-2d", "--delta", "1.4986", "--episodes", "400", "--seed", "3", "--json"];
+    let v = ok_json(&args);
+    assert_eq!(v["episodes"], 400);
+    for k in [
+        "p_target",
+        "p_collision",
+        "p_free",
+        "energy_mean",
+        "steps_mean",
+        "trigger_rate",
+        "trigger_rate_expected",
+    ] {
+        assert!(v[k].is_number(), "{k} missing");
+        assert!(v[format!("{k}_ci95")].is_number(), "{k}_ci95 missing");
+    }
+    let total = v["p_target"].as_f64().unwrap_or(0.0) + v["p_collision"].as_f64().unwrap_or(0.0) + v["p_free"].as_f64().unwrap_or(0.0);
+    assert!((total - 1.0).abs() < 1e-12);
+    assert_eq!(ok_json(&args), v, "same seed, same numbers");
+    let other = ok_json(&["simulate", "winding-2d", "--delta", "1.4986", "--episodes", "400", "--seed", "4", "--json"]);
+    assert_ne!(other, v);
+}
+
+#[test]
+fn full_kf_transmits_everything() {
+    let v = ok_json(&["simulate", "open-2d", "--delta", "0", "--episodes", "200", "--json"]);
+    assert_eq!(v["trigger_rate"], 1.0);
+    assert_eq!(v["trigger_rate_expected"], 1.0);
+}
+
+#[test]
+fn bad_input_is_refused_with_a_reason() {
+    fails_with(&["simulate", "windy-2d", "--delta", "0"], &["windy-2d", "winding-2d"]);
+    fails_with(&["simulate", "winding-2d", "--delta", "-1"], &["--delta"]);
+    fails_with(&["simulate", "winding-2d", "--delta", "0", "--episodes", "0"], &["--episodes"]);
+    let dir = Scratch::new("bad-scenario");
+    let text = etp_shared_text().replace("sensor = \"s3\"", "sensor = \"nobody\"");
+    let path = dir.path("bad.toml");
+    std::fs::write(&path, text).expect("write");
+    fails_with(&["check", s(&path)], &["leg[", "sensor", "unknown sensor"]);
+    std::fs::write(&path, "dim = [").expect("write");
+    fails_with(&["check", s(&path)], &["not valid TOML"]);
+}
+
+fn etp_shared_text() -> String {
+    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/winding-2d.toml")).expect("scenario")
+}
