@@ -6,6 +6,7 @@
 //! step appends to [`run`] after [`build_mdp`].
 
 use crate::input::load_scenario;
+use crate::output::write_new;
 use crate::progress;
 use anyhow::{Context, Result, bail};
 use etp_shared::discretization::BinCounts;
@@ -139,14 +140,6 @@ pub fn params(a: &Args, s: &Scenario) -> Result<AbstractionParams> {
     })
 }
 
-/// Write `bytes` to `path` through a temporary file in the same directory, so
-/// an interrupted write never leaves a truncated file under the final name.
-pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension("bin.partial");
-    std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))
-}
-
 /// Build the MDP of `a.scenario` and write `DIR/mdp.bin`; refuses (before any
 /// work, touching nothing) when the file exists and `--force` is not given.
 pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
@@ -166,8 +159,8 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
     let seconds = started.elapsed().as_secs_f64();
     pb.finish_and_clear();
     mdp.check().context("the built MDP failed its own consistency check (a bug)")?;
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    write_atomically(&path, &mdp.encode())?;
+    // Checked above; `force` here only covers a file that appeared meanwhile.
+    write_new(&path, &mdp.encode(), a.force)?;
     let report = MdpReport {
         scenario: s.name.clone(),
         method: format!("{:?}", mdp.method),

@@ -27,8 +27,13 @@ fn eigenvalues<const N: usize>(m: &Matrix<N, N>) -> (f64, f64) {
     (lo, hi)
 }
 
-/// The magnitude range of a compiled scenario with thresholds `deltas`.
-pub fn magnitude_range<const N: usize>(cs: &CompiledScenario<N>, deltas: &[f64]) -> MagnitudeRange {
+/// The magnitude range of a compiled scenario with thresholds `deltas`;
+/// `p_kf[s]` is the steady-state posterior covariance of sensor `s`.
+pub fn magnitude_range<const N: usize>(
+    cs: &CompiledScenario<N>,
+    deltas: &[f64],
+    p_kf: &[Matrix<N, N>],
+) -> MagnitudeRange {
     let delta_max = deltas.iter().copied().fold(0.0_f64, f64::max);
     let beta = gaussian::beta(delta_max);
     let mut used: Vec<usize> = cs.legs.iter().map(|l| l.sensor).collect();
@@ -39,7 +44,7 @@ pub fn magnitude_range<const N: usize>(cs: &CompiledScenario<N>, deltas: &[f64])
     let mut hi = p0_hi;
     for &s in &used {
         let f = &cs.filters[s];
-        let p_kf = f.steady_state_posterior();
+        let p_kf = p_kf[s];
         let (kf_lo, kf_hi) = eigenvalues(&p_kf);
         lo = lo.min(kf_lo);
         hi = hi.max(kf_hi);

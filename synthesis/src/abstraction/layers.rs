@@ -148,7 +148,19 @@ pub(super) fn build<const N: usize>(
     let deltas = &scenario.deltas;
     let samples = params.samples;
     let cap = params.pool_per_region as usize;
-    let range = magnitude_range(cs, deltas);
+    // P_KF per sensor, once (the Riccati iteration is not free).
+    // Only the sensors serving a leg are needed; computed in parallel.
+    let p_kf: Vec<Matrix<N, N>> = (0..cs.filters.len())
+        .into_par_iter()
+        .map(|s| {
+            if cs.legs.iter().any(|l| l.sensor == s) {
+                cs.filters[s].steady_state_posterior()
+            } else {
+                Matrix::<N, N>::zeros()
+            }
+        })
+        .collect();
+    let range = magnitude_range(cs, deltas, &p_kf);
     let lambda = (range.lambda_lo, range.lambda_hi);
     let legs = cs.legs.len();
 
@@ -187,7 +199,7 @@ pub(super) fn build<const N: usize>(
                         threshold,
                         eps_kf: k.eps_kf,
                         eps_p: k.eps_p,
-                        p_kf: cs.filters[cs.legs[dp].sensor].steady_state_posterior(),
+                        p_kf: p_kf[cs.legs[dp].sensor],
                     },
                 }
             })
