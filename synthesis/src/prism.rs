@@ -112,7 +112,10 @@ pub fn export(mdp: &Mdp, cost: CostModel) -> PrismFiles {
     }
 
     let mut lab = String::new();
-    let _ = writeln!(lab, "0=\"init\" 1=\"deadlock\" 2=\"coll\" 3=\"tar\" 4=\"free\"");
+    let _ = writeln!(
+        lab,
+        "0=\"init\" 1=\"deadlock\" 2=\"coll\" 3=\"tar\" 4=\"free\""
+    );
     let _ = writeln!(lab, "{}: 0", mdp.initial);
     for (k, t) in (n..n + 3).enumerate() {
         let _ = writeln!(lab, "{t}: {}", k + 2);
@@ -167,7 +170,10 @@ mod tests {
         assert!(sums.values().all(|s| (s - 1.0).abs() < 1e-12));
         assert!(body.contains(&"0 1 3 0.3 d1"));
         assert!(body.contains(&"5 0 5 1 done"));
-        assert!(f.sta.starts_with("(dp,r,t)\n0:(0,0,0)\n1:(1,0,0)\n2:(1,1,0)\n3:(2,0,1)\n"));
+        assert!(
+            f.sta
+                .starts_with("(dp,r,t)\n0:(0,0,0)\n1:(1,0,0)\n2:(1,1,0)\n3:(2,0,1)\n")
+        );
         assert_eq!(
             f.lab,
             "0=\"init\" 1=\"deadlock\" 2=\"coll\" 3=\"tar\" 4=\"free\"\n0: 0\n3: 2\n4: 3\n5: 4\n"

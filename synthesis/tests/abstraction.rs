@@ -94,7 +94,11 @@ fn corridor_has_known_transitions_and_costs() {
     assert_eq!(d0.cost_model, f64::from(k_max));
     // The silent threshold transmits less, and the paper's model is close to the count.
     let d1 = &mdp.states[0].choices[1];
-    assert!(d1.cost_counted < 0.6 * d0.cost_counted, "{}", d1.cost_counted);
+    assert!(
+        d1.cost_counted < 0.6 * d0.cost_counted,
+        "{}",
+        d1.cost_counted
+    );
 
     // Target probability of the last leg: 2Φ(a/σ) − 1 with σ² = P_KF + q.
     let (q, r) = (0.01_f64, 0.01_f64);
@@ -113,7 +117,11 @@ fn corridor_has_known_transitions_and_costs() {
         tar.ci_low,
         tar.ci_high
     );
-    let free = last.transitions.iter().find(|t| t.next == Next::Free).expect("free");
+    let free = last
+        .transitions
+        .iter()
+        .find(|t| t.next == Next::Free)
+        .expect("free");
     assert_eq!(tar.count + free.count, samples);
     assert!(last.transitions.iter().all(|t| t.next != Next::Collision));
 }
@@ -127,7 +135,10 @@ fn every_choice_is_a_distribution_with_counted_cost() {
         units.fetch_add(k, Ordering::Relaxed);
     })
     .expect("builds");
-    assert_eq!(units.load(Ordering::Relaxed), abstraction::progress_total(&s, &p));
+    assert_eq!(
+        units.load(Ordering::Relaxed),
+        abstraction::progress_total(&s, &p)
+    );
     mdp.check().expect("consistent");
     assert_eq!(mdp.num_decision_points(), s.num_legs());
     let mut segments = 0u64;
@@ -172,7 +183,10 @@ fn isotropic_system_uses_magnitudes_only() {
                 assert_eq!(m, m0, "{name}: a multiple of I has equal magnitudes");
             }
         }
-        assert!(mdp.states.len() > s.num_legs(), "{name}: more than one region somewhere");
+        assert!(
+            mdp.states.len() > s.num_legs(),
+            "{name}: more than one region somewhere"
+        );
     }
 }
 
@@ -202,12 +216,18 @@ fn method_one_has_one_state_per_decision_point() {
 fn same_seed_same_bytes_any_thread_count() {
     let s = Scenario::builtin("winding-2d").expect("built-in");
     let p = params(80);
-    let a = abstraction::build(&s, &p, &|_| {}).expect("builds").encode();
+    let a = abstraction::build(&s, &p, &|_| {})
+        .expect("builds")
+        .encode();
     let one = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .expect("pool")
-        .install(|| abstraction::build(&s, &p, &|_| {}).expect("builds").encode());
+        .install(|| {
+            abstraction::build(&s, &p, &|_| {})
+                .expect("builds")
+                .encode()
+        });
     assert!(a == one, "1 thread vs all threads differ");
     let other = abstraction::build(&s, &AbstractionParams { seed: 8, ..p }, &|_| {})
         .expect("builds")
@@ -220,8 +240,81 @@ fn bad_parameters_are_refused() {
     let s = corridor(10, 0.1);
     assert!(abstraction::build(&s, &params(0), &|_| {}).is_err());
     let bins = AbstractionParams {
-        bins: etp_shared::discretization::BinCounts { magnitude: 0, angle: 1 },
+        bins: etp_shared::discretization::BinCounts {
+            magnitude: 0,
+            angle: 1,
+        },
         ..params(10)
     };
     assert!(abstraction::build(&s, &bins, &|_| {}).is_err());
+}
+
+/// `(E[energy], P_coll, P_tar)` of the constant action `a` on the MDP, by one
+/// backward pass (states are sorted by decision point, transitions go forward).
+fn constant_action_values(mdp: &etp_synthesis::mdp::Mdp, a: u16) -> (f64, f64, f64) {
+    let mut v = vec![(0.0, 0.0, 0.0); mdp.states.len()];
+    for i in (0..mdp.states.len()).rev() {
+        let c = mdp.states[i]
+            .choices
+            .iter()
+            .find(|c| c.action == a)
+            .expect("action available");
+        let mut acc = (c.cost_counted, 0.0, 0.0);
+        for t in &c.transitions {
+            let (e, pc, pt) = match t.next {
+                Next::State(j) => v[j as usize],
+                Next::Collision => (0.0, 1.0, 0.0),
+                Next::Target => (0.0, 0.0, 1.0),
+                Next::Free => (0.0, 0.0, 0.0),
+            };
+            acc.0 += t.probability * e;
+            acc.1 += t.probability * pc;
+            acc.2 += t.probability * pt;
+        }
+        v[i] = acc;
+    }
+    v[mdp.initial as usize]
+}
+
+#[test]
+fn constant_threshold_prediction_matches_simulation() {
+    use etp_shared::episode::{CompiledScenario, LegMode};
+    use etp_shared::etkf::Threshold;
+    use etp_shared::rng::streams;
+    let s = Scenario::builtin("winding-2d").expect("built-in");
+    let mdp = abstraction::build(&s, &params(1500), &|_| {}).expect("builds");
+    let cs = CompiledScenario::<2>::new(&s);
+    for a in [0u16, 2, 4] {
+        let (energy, p_coll, p_tar) = constant_action_values(&mdp, a);
+        let t = Threshold::new(s.deltas[a as usize]);
+        let policy = move |_: usize, _: &_, _: &mut _| LegMode::<2>::EventTriggered(t);
+        let sim =
+            etp_synthesis::simulate::simulate(&cs, &policy, 4000, 11, streams::VALIDATE, &|_| {})
+                .summary();
+        let e_err = (energy - sim.energy_mean.value).abs() / sim.energy_mean.value;
+        eprintln!(
+            "δ#{a}: MDP (E {energy:.2}, P_coll {p_coll:.4}, P_tar {p_tar:.4}) vs simulated (E {:.2} ± {:.2}, P_coll {:.4} ± {:.4}, P_tar {:.4} ± {:.4})",
+            sim.energy_mean.value,
+            sim.energy_mean.ci95,
+            sim.p_collision.value,
+            sim.p_collision.ci95,
+            sim.p_target.value,
+            sim.p_target.ci95
+        );
+        assert!(
+            e_err < 0.04,
+            "δ#{a}: energy {energy} vs simulated {:?}",
+            sim.energy_mean
+        );
+        assert!(
+            (p_coll - sim.p_collision.value).abs() < sim.p_collision.ci95 + 0.015,
+            "δ#{a}: P_coll {p_coll} vs simulated {:?}",
+            sim.p_collision
+        );
+        assert!(
+            (p_tar - sim.p_target.value).abs() < sim.p_target.ci95 + 0.015,
+            "δ#{a}: P_tar {p_tar} vs simulated {:?}",
+            sim.p_target
+        );
+    }
 }

@@ -32,7 +32,11 @@ pub struct Args {
 
 /// Load an MDP from a directory (its `mdp.bin`) or a file path.
 pub fn load_mdp(path: &Path) -> Result<Mdp> {
-    let file = if path.is_dir() { path.join("mdp.bin") } else { path.to_path_buf() };
+    let file = if path.is_dir() {
+        path.join("mdp.bin")
+    } else {
+        path.to_path_buf()
+    };
     let bytes = std::fs::read(&file).with_context(|| format!("reading {}", file.display()))?;
     Mdp::decode(&bytes).with_context(|| format!("loading {}", file.display()))
 }
@@ -53,10 +57,14 @@ pub fn run(a: Args) -> Result<()> {
         .collect();
     if !a.force {
         if let Some((p, _)) = targets.iter().find(|(p, _)| p.exists()) {
-            bail!("{} already exists; pass --force to overwrite the PRISM files", p.display());
+            bail!(
+                "{} already exists; pass --force to overwrite the PRISM files",
+                p.display()
+            );
         }
     }
-    std::fs::create_dir_all(&a.outdir).with_context(|| format!("creating {}", a.outdir.display()))?;
+    std::fs::create_dir_all(&a.outdir)
+        .with_context(|| format!("creating {}", a.outdir.display()))?;
     for (p, text) in &targets {
         std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?;
     }

@@ -144,7 +144,10 @@ pub fn params(a: &Args, s: &Scenario) -> Result<AbstractionParams> {
 /// work, touching nothing) when the file exists and `--force` is not given.
 pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
     let s = load_scenario(&a.scenario)?;
-    let dir = a.out.clone().unwrap_or_else(|| Path::new("out").join(&s.name));
+    let dir = a
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("out").join(&s.name));
     let path = dir.join(MDP_FILE);
     if path.exists() && !a.force {
         bail!(
@@ -158,7 +161,8 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
     let mdp = abstraction::build(&s, &p, &|k| pb.inc(k)).context("building the abstraction")?;
     let seconds = started.elapsed().as_secs_f64();
     pb.finish_and_clear();
-    mdp.check().context("the built MDP failed its own consistency check (a bug)")?;
+    mdp.check()
+        .context("the built MDP failed its own consistency check (a bug)")?;
     // Checked above; `force` here only covers a file that appeared meanwhile.
     write_new(&path, &mdp.encode(), a.force)?;
     let report = MdpReport {

@@ -221,7 +221,15 @@ pub(super) fn build<const N: usize>(
         let results: Vec<ChunkTally<N>> = tasks
             .par_iter()
             .map(|&t| {
-                let r = run_task(cs, dp, last, &layer[t.state].particles, &modes[t.action], params.seed, t);
+                let r = run_task(
+                    cs,
+                    dp,
+                    last,
+                    &layer[t.state].particles,
+                    &modes[t.action],
+                    params.seed,
+                    t,
+                );
                 // Each action of a decision point is worth `samples` units, spread
                 // over its states: position g of S·M maps to unit g / S.
                 let g = t.state as u64 * m;
@@ -234,13 +242,20 @@ pub(super) fn build<const N: usize>(
         let next_classifier = if last {
             None
         } else {
-            let mut covs = results.iter().flat_map(|r| r.arrivals.iter().map(|a| a.belief.cov));
+            let mut covs = results
+                .iter()
+                .flat_map(|r| r.arrivals.iter().map(|a| a.belief.cov));
             Some(classifier_for(&mut covs))
         };
         let arrival_regions: Vec<Vec<Region>> = match &next_classifier {
             Some(c) => results
                 .par_iter()
-                .map(|r| r.arrivals.iter().map(|a| c.classify(&a.belief.cov)).collect())
+                .map(|r| {
+                    r.arrivals
+                        .iter()
+                        .map(|a| c.classify(&a.belief.cov))
+                        .collect()
+                })
                 .collect(),
             None => Vec::new(),
         };

@@ -36,7 +36,7 @@ use etp_shared::scenario::Scenario;
 use etp_shared::with_dim;
 
 /// Default Monte Carlo segments per (state, action).
-pub const DEFAULT_SAMPLES: u32 = 4000;
+pub const DEFAULT_SAMPLES: u32 = 6000;
 /// Default bound on the pool particles kept per region and decision point.
 pub const DEFAULT_POOL_PER_REGION: u32 = 2048;
 

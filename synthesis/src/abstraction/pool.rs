@@ -11,7 +11,7 @@ use etp_shared::etkf::Belief;
 use etp_shared::rng::mix64;
 
 /// Salt separating reservoir keys from the segment's random stream.
-const KEY_SALT: u64 = 0x5EED_0F_B0_77_0A_1E;
+const KEY_SALT: u64 = 0x5EED_0FB0_770A_1E00;
 
 /// The reservoir key of segment `id`.
 #[inline]
@@ -20,7 +20,10 @@ pub(super) fn key(id: u64) -> u64 {
 }
 
 /// Keep the `cap` items with the smallest keys, in key order.
-pub(super) fn bottom_k<const N: usize>(mut items: Vec<(u64, Belief<N>)>, cap: usize) -> Vec<Belief<N>> {
+pub(super) fn bottom_k<const N: usize>(
+    mut items: Vec<(u64, Belief<N>)>,
+    cap: usize,
+) -> Vec<Belief<N>> {
     let cap = cap.max(1);
     if items.len() > cap {
         items.select_nth_unstable_by_key(cap - 1, |x| x.0);
