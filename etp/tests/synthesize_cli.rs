@@ -1,0 +1,105 @@
+//! `etp synthesize` and `etp export-prism` through the real binary: files
+//! written, refusal to overwrite, byte-identical output for a seed on 1 and 2
+//! threads.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn etp(args: &[&str], threads: &str) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_etp"))
+        .args(args)
+        .env("RAYON_NUM_THREADS", threads)
+        .output()
+        .expect("etp runs")
+}
+
+fn fresh_dir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("etp-synth-cli-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 temp path")
+}
+
+#[test]
+fn synthesize_writes_refuses_overwrite_and_exports_prism() {
+    let dir = fresh_dir("a");
+    let args = [
+        "synthesize",
+        "open-2d",
+        "--samples",
+        "40",
+        "--seed",
+        "3",
+        "-o",
+        s(&dir),
+    ];
+    let first = etp(&args, "2");
+    assert!(
+        first.status.success(),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    let mdp = dir.join("mdp.bin");
+    let bytes = std::fs::read(&mdp).expect("mdp.bin written");
+
+    // No --force: refused, non-zero, file untouched.
+    let again = etp(&args, "2");
+    assert!(!again.status.success());
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(
+        err.contains("already exists") && err.contains("--force"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&mdp).expect("still there"), bytes);
+
+    // Same seed on one thread, with --force: the same bytes.
+    let mut forced = args.to_vec();
+    forced.push("--force");
+    let one = etp(&forced, "1");
+    assert!(
+        one.status.success(),
+        "{}",
+        String::from_utf8_lossy(&one.stderr)
+    );
+    assert!(
+        std::fs::read(&mdp).expect("rewritten") == bytes,
+        "1 vs 2 threads differ"
+    );
+
+    // PRISM export.
+    let out = dir.join("prism");
+    let e = etp(&["export-prism", s(&dir), s(&out)], "2");
+    assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
+    for f in [
+        "model.tra",
+        "model.sta",
+        "model.lab",
+        "model.trew",
+        "model.props",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let tra = std::fs::read_to_string(out.join("model.tra")).expect("tra");
+    assert_eq!(tra.lines().next().map(|l| l.split(' ').count()), Some(3));
+    let refused = etp(&["export-prism", s(&dir), s(&out)], "2");
+    assert!(!refused.status.success());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bad_arguments_fail_cleanly() {
+    let dir = fresh_dir("b");
+    let zero = etp(
+        &["synthesize", "open-2d", "--samples", "0", "-o", s(&dir)],
+        "1",
+    );
+    assert!(!zero.status.success());
+    assert!(!dir.join("mdp.bin").exists());
+    let missing = etp(&["export-prism", s(&dir), s(&dir.join("p"))], "1");
+    assert!(!missing.status.success());
+    let unknown = etp(&["synthesize", "no-such-scenario", "-o", s(&dir)], "1");
+    assert!(!unknown.status.success());
+}
