@@ -23,4 +23,6 @@ pub enum Command {
     ExportPrism(crate::cmd::export_prism::Args),
     /// Measure simulator throughput (episode-steps per second).
     Bench(crate::cmd::bench::Args),
+    /// Run a strategy as processes (coordinator, agent, one per sensor) over iceoryx2.
+    Run(crate::cmd::run::Args),
 }

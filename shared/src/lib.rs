@@ -14,6 +14,8 @@
 //!   [`episode::CompiledScenario::run_episode`].
 //! * [`rng`] — reproducible per-episode random streams (`Xoshiro256++`).
 //! * [`stats`] — confidence intervals for means and proportions.
+//! * [`wire`] — the multi-process runtime's payloads, service names, per-run
+//!   iceoryx2 configuration and service limits (the one part that does I/O).
 //!
 //! Everything here is pure: no I/O, no clock, randomness only through the RNG
 //! the caller passes in, so every result is reproducible from a seed.
@@ -30,3 +32,4 @@ pub mod rng;
 pub mod scenario;
 pub mod stats;
 pub mod strategy;
+pub mod wire;

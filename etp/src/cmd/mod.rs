@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod check;
 pub mod export_prism;
+pub mod run;
 pub mod simulate;
 pub mod synthesize;
 
@@ -14,6 +15,7 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Check(a) => check::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Run(a) => run::run(a),
         Command::Synthesize(a) => synthesize::run(a),
         Command::ExportPrism(a) => export_prism::run(a),
     }

@@ -1,0 +1,80 @@
+//! `etp-coordinator`: runs the episodes of a strategy over the agent and the
+//! sensor processes.
+//!
+//! A short tour:
+//!
+//! * [`Args`] — run id, scenario, `strategy.json`, episodes, seed.
+//! * [`run`] — loads the scenario and the strategy (refusing a strategy made
+//!   for another scenario: `Strategy::check_scenario`), waits for `hello`
+//!   from the agent and every sensor, runs the episodes and returns the
+//!   [`RunReport`].
+//! * [`Coordinator`](session::Coordinator) — per episode: `control` start;
+//!   on each `waypoint` it classifies the agent's covariance into the
+//!   strategy's region and draws δ from ω (`Strategy::draw`, uniform numbers
+//!   from `streams::COORDINATOR`), closes the previous leg at its sensor and
+//!   opens the new one (`threshold`); on `outcome` it records the episode. The
+//!   sensors' `ledger`s are joined to the agent's received counts per leg.
+
+mod session;
+
+pub use etp_shared::wire::report::RunReport;
+
+use etp_shared::strategy::Strategy;
+use etp_shared::wire::{self, RunId, WireError};
+use std::time::Duration;
+
+/// Why the coordinator failed.
+#[derive(Debug, thiserror::Error)]
+pub enum CoordinatorError {
+    #[error(transparent)]
+    Wire(#[from] WireError),
+    #[error("{0}")]
+    Input(String),
+    #[error("sending on `{0}` failed: {1}")]
+    Send(&'static str, String),
+    #[error("receiving on `{0}` failed: {1}")]
+    Receive(&'static str, String),
+    #[error("processes not ready after {0:?}: missing {1}")]
+    Startup(Duration, String),
+    #[error("the agent died during episode {0}")]
+    AgentDied(u64),
+}
+
+/// The command line of `etp-coordinator`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// Run id (services live under `etp/<run-id>/`).
+    #[arg(long)]
+    pub run_id: String,
+    /// Built-in scenario name or TOML path (must match the strategy's hash).
+    #[arg(long)]
+    pub scenario: String,
+    /// Path of `strategy.json`.
+    #[arg(long)]
+    pub strategy: String,
+    /// Number of episodes.
+    #[arg(long, default_value_t = 100)]
+    pub episodes: u64,
+    /// Run seed (agent, sensor and coordinator streams derive from it).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Seconds to wait for every process's hello.
+    #[arg(long, default_value_t = 30.0)]
+    pub startup_timeout: f64,
+}
+
+/// Run all episodes and return the report.
+pub fn run(args: &Args) -> Result<RunReport, CoordinatorError> {
+    let run = RunId::new(&args.run_id)?;
+    let scenario = wire::load_scenario(&args.scenario).map_err(CoordinatorError::Input)?;
+    let text = std::fs::read_to_string(&args.strategy)
+        .map_err(|e| CoordinatorError::Input(format!("reading strategy {}: {e}", args.strategy)))?;
+    let strategy = Strategy::from_json(&text).map_err(|e| CoordinatorError::Input(format!("{}: {e}", args.strategy)))?;
+    strategy
+        .check_scenario(&scenario)
+        .map_err(|e| CoordinatorError::Input(e.to_string()))?;
+    let startup = Duration::from_secs_f64(args.startup_timeout.max(0.1));
+    let mut c = session::Coordinator::new(&run, &scenario, &strategy, args.seed)?;
+    c.wait_ready(startup)?;
+    c.run_episodes(args.episodes)
+}

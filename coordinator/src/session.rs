@@ -1,0 +1,434 @@
+//! The coordinator's ports, episode loop and bookkeeping.
+
+use crate::CoordinatorError;
+use etp_shared::rng::{SimRng, stream_rng, streams};
+use etp_shared::scenario::Scenario;
+use etp_shared::strategy::Strategy;
+use etp_shared::wire::agent_to_coordinator::{Outcome, Waypoint};
+use etp_shared::wire::coordinator_to_agent::Control;
+use etp_shared::wire::coordinator_to_all::Threshold;
+use etp_shared::wire::report::{EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals};
+use etp_shared::wire::sensor_to_coordinator::Ledger;
+use etp_shared::wire::to_coordinator::Hello;
+use etp_shared::wire::{
+    self, AGENT_NODE, COORDINATOR_NODE, Header, Listener, Liveness, Notifier, Ports, Pub, RunId,
+    SENDER_AGENT, SENDER_COORDINATOR, ServiceId, Sub, to_wire_vec,
+};
+use iceoryx2::prelude::*;
+use nalgebra::DMatrix;
+use rand::RngExt;
+use std::collections::HashMap;
+use std::time::{Duration, Instant};
+
+/// Silence after which the coordinator checks that the agent lives.
+const IDLE_CHECK: Duration = Duration::from_millis(250);
+/// After the last episode: how long to wait for outstanding ledgers.
+const LEDGER_GRACE: Duration = Duration::from_secs(2);
+
+pub struct Coordinator<'a> {
+    run: RunId,
+    scenario: &'a Scenario,
+    strategy: &'a Strategy,
+    seed: u64,
+    node: Node<ipc::Service>,
+    tag: u64,
+    seq: u32,
+    wake: Listener,
+    control: Pub<Control>,
+    threshold: Pub<Threshold>,
+    waypoint: Sub<Waypoint>,
+    outcome: Sub<Outcome>,
+    ledger: Sub<Ledger>,
+    hello: Sub<Hello>,
+    agent_wake: Notifier,
+    sensor_wake: Vec<Notifier>,
+    ledgers: HashMap<(u64, u32), Ledger>,
+    parent: u32,
+}
+
+impl<'a> Coordinator<'a> {
+    pub fn new(run: &RunId, scenario: &'a Scenario, strategy: &'a Strategy, seed: u64) -> Result<Self, CoordinatorError> {
+        let node = wire::create_node(run, COORDINATOR_NODE)?;
+        let sensors = scenario.sensors.len();
+        let ports = Ports {
+            node: &node,
+            run,
+            sensors,
+        };
+        Ok(Self {
+            wake: ports.listener(ServiceId::CoordinatorWake)?,
+            control: ports.publisher(ServiceId::Control)?,
+            threshold: ports.publisher(ServiceId::Threshold)?,
+            waypoint: ports.subscriber(ServiceId::Waypoint)?,
+            outcome: ports.subscriber(ServiceId::Outcome)?,
+            ledger: ports.subscriber(ServiceId::Ledger)?,
+            hello: ports.subscriber(ServiceId::Hello)?,
+            agent_wake: ports.notifier(ServiceId::AgentWake)?,
+            sensor_wake: (0..sensors)
+                .map(|i| ports.notifier(ServiceId::SensorWake(i)))
+                .collect::<Result<_, _>>()?,
+            run: run.clone(),
+            scenario,
+            strategy,
+            seed,
+            tag: run.tag(),
+            seq: 0,
+            ledgers: HashMap::new(),
+            parent: std::os::unix::process::parent_id(),
+            node,
+        })
+    }
+
+    fn header(&mut self, episode: u64, leg: u32) -> Header {
+        self.seq = self.seq.wrapping_add(1);
+        Header {
+            run: self.tag,
+            episode,
+            step: 0,
+            leg,
+            sender: SENDER_COORDINATOR,
+            seq: self.seq,
+        }
+    }
+
+    /// Wait until the agent and every sensor said hello.
+    pub fn wait_ready(&mut self, timeout: Duration) -> Result<(), CoordinatorError> {
+        let sensors = self.scenario.sensors.len();
+        let mut agent = false;
+        let mut seen = vec![false; sensors];
+        let start = Instant::now();
+        loop {
+            while let Some(s) = self
+                .hello
+                .receive()
+                .map_err(|e| CoordinatorError::Receive("hello", format!("{e:?}")))?
+            {
+                let h = s.header;
+                if h.run != self.tag {
+                    continue;
+                }
+                if h.sender == SENDER_AGENT {
+                    agent = true;
+                } else if let Some(x) = seen.get_mut(h.sender as usize) {
+                    *x = true;
+                }
+            }
+            if agent && seen.iter().all(|&x| x) {
+                return Ok(());
+            }
+            if start.elapsed() >= timeout {
+                let mut missing: Vec<String> = seen
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, x)| !**x)
+                    .map(|(i, _)| self.scenario.sensors[i].name.clone())
+                    .collect();
+                if !agent {
+                    missing.insert(0, "agent".into());
+                }
+                return Err(CoordinatorError::Startup(timeout, missing.join(", ")));
+            }
+            self.wake
+                .timed_wait(|_| {}, Duration::from_millis(50))
+                .map_err(|e| CoordinatorError::Receive("coordinator wake", format!("{e:?}")))?;
+        }
+    }
+
+    fn send_threshold(&mut self, episode: u64, leg: u32, kind: u32, sensor: u32, delta_index: u32, delta: f64) -> Result<(), CoordinatorError> {
+        let header = self.header(episode, leg);
+        self.threshold
+            .send_copy(Threshold {
+                header,
+                kind,
+                sensor,
+                delta_index,
+                _pad: 0,
+                delta,
+            })
+            .map(|_| ())
+            .map_err(|e| CoordinatorError::Send("threshold", format!("{e:?}")))
+    }
+
+    fn notify(n: &Notifier, what: &'static str) -> Result<(), CoordinatorError> {
+        n.notify()
+            .map(|_| ())
+            .map_err(|e| CoordinatorError::Send(what, format!("{e:?}")))
+    }
+
+    /// Close `leg` at its sensor (the sensor answers with its ledger).
+    fn close(&mut self, episode: u64, leg: u32) -> Result<(), CoordinatorError> {
+        let sensor = self.scenario.legs[leg as usize].sensor;
+        self.send_threshold(episode, leg, Threshold::CLOSE, sensor as u32, 0, 0.0)?;
+        Self::notify(&self.sensor_wake[sensor], "sensor wake")
+    }
+
+    fn drain_ledgers(&mut self) -> Result<(), CoordinatorError> {
+        while let Some(s) = self
+            .ledger
+            .receive()
+            .map_err(|e| CoordinatorError::Receive("ledger", format!("{e:?}")))?
+        {
+            let l: Ledger = *s;
+            if l.header.run == self.tag {
+                self.ledgers.insert((l.header.episode, l.header.leg), l);
+            }
+        }
+        Ok(())
+    }
+
+    /// Decision point `w.header.leg`: classify, draw δ, open the leg.
+    fn decide(&mut self, w: &Waypoint, rng: &mut SimRng, legs: &mut Vec<LegRecord>) -> Result<(), CoordinatorError> {
+        let episode = w.header.episode;
+        let leg = w.header.leg;
+        if leg > 0 {
+            if let Some(prev) = legs.last_mut() {
+                prev.steps = w.prev_steps;
+                prev.received = w.prev_received;
+            }
+            self.close(episode, leg - 1)?;
+        }
+        let n = self.scenario.dim;
+        let cov = DMatrix::from_fn(n, n, |r, c| w.cov[r][c]);
+        let u: f64 = rng.random();
+        let index = self.strategy.draw(leg as usize, &cov, u);
+        let delta = self.strategy.deltas[index];
+        let sensor = self.scenario.legs[leg as usize].sensor as u32;
+        legs.push(LegRecord {
+            leg,
+            sensor,
+            delta,
+            steps: 0,
+            received: 0,
+            transmitted: None,
+            slots: None,
+        });
+        self.send_threshold(episode, leg, Threshold::OPEN, sensor, index as u32, delta)?;
+        Self::notify(&self.agent_wake, "agent wake")
+    }
+
+    /// Run `episodes` episodes, stop every process, return the report.
+    pub fn run_episodes(&mut self, episodes: u64) -> Result<RunReport, CoordinatorError> {
+        let mut records: Vec<EpisodeRecord> = Vec::new();
+        let mut faults: Vec<FaultRecord> = Vec::new();
+        let mut aborted = None;
+        let started = Instant::now();
+        let initial = initial_wire(&self.scenario.plant);
+        'episodes: for episode in 0..episodes {
+            let mut rng = stream_rng(self.seed, streams::COORDINATOR, episode);
+            let header = self.header(episode, 0);
+            self.control
+                .send_copy(Control {
+                    header,
+                    kind: Control::START,
+                    dim: self.scenario.dim as u32,
+                    seed: self.seed,
+                    initial_mean: initial.0,
+                    initial_cov: initial.1,
+                })
+                .map_err(|e| CoordinatorError::Send("control", format!("{e:?}")))?;
+            Self::notify(&self.agent_wake, "agent wake")?;
+            let mut legs = Vec::new();
+            loop {
+                let mut progressed = false;
+                while let Some(s) = self
+                    .waypoint
+                    .receive()
+                    .map_err(|e| CoordinatorError::Receive("waypoint", format!("{e:?}")))?
+                {
+                    let w: Waypoint = *s;
+                    if w.header.run == self.tag && w.header.episode == episode {
+                        progressed = true;
+                        self.decide(&w, &mut rng, &mut legs)?;
+                    }
+                }
+                let mut done = None;
+                while let Some(s) = self
+                    .outcome
+                    .receive()
+                    .map_err(|e| CoordinatorError::Receive("outcome", format!("{e:?}")))?
+                {
+                    let o: Outcome = *s;
+                    if o.header.run == self.tag && o.header.episode == episode {
+                        done = Some(o);
+                    }
+                }
+                self.drain_ledgers()?;
+                if let Some(o) = done {
+                    if let Some(last) = legs.last_mut() {
+                        last.steps = o.last_steps;
+                        last.received = o.last_received;
+                    }
+                    self.close(episode, o.header.leg)?;
+                    if o.dead_sensor != u32::MAX {
+                        faults.push(FaultRecord {
+                            episode,
+                            sensor: self.sensor_name(o.dead_sensor),
+                            detect_ms: o.detect_us as f64 / 1000.0,
+                            wait_started_unix_ns: o.wait_started_unix_ns,
+                            detected_unix_ns: o.detected_unix_ns,
+                            dead_slots: o.dead_slots,
+                        });
+                    }
+                    records.push(EpisodeRecord {
+                        episode,
+                        outcome: match o.outcome {
+                            Outcome::TARGET => "target",
+                            Outcome::COLLISION => "collision",
+                            _ => "free",
+                        }
+                        .to_string(),
+                        degraded: o.degraded != 0,
+                        steps: o.steps,
+                        energy: 0.0,
+                        legs,
+                    });
+                    break;
+                }
+                if progressed {
+                    continue;
+                }
+                let woke = self
+                    .wake
+                    .timed_wait(|_| {}, IDLE_CHECK)
+                    .map_err(|e| CoordinatorError::Receive("coordinator wake", format!("{e:?}")))?;
+                if woke > 0 {
+                    continue;
+                }
+                if wire::termination_requested(&self.node) {
+                    aborted = Some(format!("interrupted during episode {episode}"));
+                    break 'episodes;
+                }
+                if std::os::unix::process::parent_id() != self.parent {
+                    aborted = Some(format!("supervisor gone during episode {episode}"));
+                    break 'episodes;
+                }
+                if wire::liveness(self.node.config(), AGENT_NODE) != Liveness::Alive {
+                    self.stop()?;
+                    return Err(CoordinatorError::AgentDied(episode));
+                }
+            }
+        }
+        let seconds = started.elapsed().as_secs_f64();
+        self.collect_ledgers(&records)?;
+        self.stop()?;
+        Ok(self.report(episodes, records, faults, seconds, aborted))
+    }
+
+    fn sensor_name(&self, i: u32) -> String {
+        self.scenario
+            .sensors
+            .get(i as usize)
+            .map_or_else(|| format!("#{i}"), |s| s.name.clone())
+    }
+
+    /// Wait (bounded) for the ledgers of every leg of every episode, skipping
+    /// sensors that are dead.
+    fn collect_ledgers(&mut self, records: &[EpisodeRecord]) -> Result<(), CoordinatorError> {
+        let deadline = Instant::now() + LEDGER_GRACE;
+        loop {
+            self.drain_ledgers()?;
+            let missing: Vec<u32> = records
+                .iter()
+                .flat_map(|r| r.legs.iter().map(move |l| (r.episode, l)))
+                .filter(|(e, l)| !self.ledgers.contains_key(&(*e, l.leg)))
+                .map(|(_, l)| l.sensor)
+                .collect();
+            if missing.is_empty() || Instant::now() >= deadline {
+                return Ok(());
+            }
+            let cfg = self.node.config().clone();
+            let all_dead = missing
+                .iter()
+                .all(|s| wire::liveness(&cfg, &wire::sensor_node_name(*s as usize)) != Liveness::Alive);
+            if all_dead {
+                return Ok(());
+            }
+            self.wake
+                .timed_wait(|_| {}, Duration::from_millis(20))
+                .map_err(|e| CoordinatorError::Receive("coordinator wake", format!("{e:?}")))?;
+        }
+    }
+
+    /// Tell the agent and every sensor to exit.
+    fn stop(&mut self) -> Result<(), CoordinatorError> {
+        let header = self.header(u64::MAX, 0);
+        let _ = self.control.send_copy(Control {
+            header,
+            kind: Control::STOP,
+            ..Control::default()
+        });
+        self.send_threshold(u64::MAX, 0, Threshold::STOP, u32::MAX, 0, 0.0)?;
+        let _ = self.agent_wake.notify();
+        for n in &self.sensor_wake {
+            let _ = n.notify();
+        }
+        Ok(())
+    }
+
+    fn report(&self, requested: u64, mut records: Vec<EpisodeRecord>, faults: Vec<FaultRecord>, seconds: f64, aborted: Option<String>) -> RunReport {
+        let s = self.scenario;
+        let mut sensors: Vec<SensorTotals> = s
+            .sensors
+            .iter()
+            .map(|x| SensorTotals {
+                name: x.name.clone(),
+                transmitted: 0,
+                received: 0,
+                slots: 0,
+                energy: 0.0,
+                missing_ledgers: 0,
+            })
+            .collect();
+        for r in &mut records {
+            let mut energy = 0.0;
+            for l in &mut r.legs {
+                let cost = s.sensors[l.sensor as usize].cost;
+                let t = &mut sensors[l.sensor as usize];
+                t.received += u64::from(l.received);
+                match self.ledgers.get(&(r.episode, l.leg)) {
+                    Some(led) => {
+                        l.transmitted = Some(led.transmissions);
+                        l.slots = Some(led.slots);
+                        t.transmitted += u64::from(led.transmissions);
+                        t.slots += u64::from(led.slots);
+                        t.energy += led.energy;
+                        energy += led.energy;
+                    }
+                    None => {
+                        t.missing_ledgers += 1;
+                        r.degraded = true;
+                        energy += f64::from(l.received) * cost;
+                    }
+                }
+            }
+            r.energy = energy;
+        }
+        let count = |o: &str| records.iter().filter(|r| r.outcome == o).count() as u64;
+        RunReport {
+            run_id: self.run.to_string(),
+            scenario: s.name.clone(),
+            scenario_hash: s.content_hash.clone(),
+            strategy_label: self.strategy.label.clone(),
+            seed: self.seed,
+            requested_episodes: requested,
+            episodes: records.len() as u64,
+            target: count("target"),
+            collision: count("collision"),
+            free: count("free"),
+            degraded: records.iter().filter(|r| r.degraded).count() as u64,
+            steps: records.iter().map(|r| u64::from(r.steps)).sum(),
+            seconds,
+            predicted: self.strategy.predicted,
+            sensors,
+            faults,
+            episode_results: records,
+            aborted,
+        }
+    }
+}
+
+/// The initial belief of a scenario as wire arrays.
+fn initial_wire(p: &etp_shared::scenario::Plant) -> (wire::WireVec, wire::WireMat) {
+    let n = p.x0.len();
+    (to_wire_vec(p.x0.as_slice()), wire::to_wire_mat(n, |r, c| p.p0[(r, c)]))
+}

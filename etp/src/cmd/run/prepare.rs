@@ -1,0 +1,163 @@
+//! Everything decided before a process is spawned.
+
+use super::Args;
+use anyhow::{Context, Result, bail};
+use etp_shared::scenario::{Scenario, builtin_text};
+use etp_shared::strategy::{Prediction, Strategy};
+use etp_shared::wire::RunId;
+use etp_synthesis::validate::simulate_strategy;
+use std::path::PathBuf;
+
+/// A run ready to be spawned.
+#[derive(Debug)]
+pub struct Plan {
+    pub run_id: RunId,
+    pub seed: u64,
+    pub episodes: u64,
+    pub scenario: Scenario,
+    pub strategy: Strategy,
+    /// The run's private folder (scenario and strategy files for the processes).
+    pub dir: PathBuf,
+    pub scenario_path: PathBuf,
+    pub strategy_path: PathBuf,
+    /// Predicted energy per episode of each sensor (in-process simulation).
+    pub sensor_energy_per_episode: Vec<f64>,
+    pub predict_episodes: u64,
+}
+
+/// Where a run keeps its files (removed at the end).
+pub fn run_dir(run: &RunId) -> PathBuf {
+    std::env::temp_dir().join("etp-run").join(run.as_str())
+}
+
+fn scenario_text(arg: &str) -> Result<String> {
+    match builtin_text(arg) {
+        Some(t) => Ok(t.to_string()),
+        None => std::fs::read_to_string(arg).with_context(|| {
+            format!("`{arg}` is neither a built-in scenario (winding-2d, open-2d, superg-3d) nor a readable file")
+        }),
+    }
+}
+
+/// `--clone-sensors K`: K copies of the first sensor (named c0…), legs served
+/// round robin. The maths of every step is unchanged when the sensors are
+/// identical, so step rates with 1 and with 32 sensor processes compare.
+fn clone_sensors(text: &str, k: usize) -> Result<String> {
+    if k == 0 {
+        bail!("--clone-sensors must be at least 1");
+    }
+    let mut v: toml::Table = toml::from_str(text).context("parsing the scenario for --clone-sensors")?;
+    let first = v
+        .get("sensor")
+        .and_then(|s| s.as_array())
+        .and_then(|a| a.first())
+        .cloned()
+        .context("scenario has no sensor")?;
+    let sensors: Vec<toml::Value> = (0..k)
+        .map(|i| {
+            let mut s = first.clone();
+            if let Some(t) = s.as_table_mut() {
+                t.insert("name".into(), toml::Value::String(format!("c{i}")));
+            }
+            s
+        })
+        .collect();
+    v.insert("sensor".into(), toml::Value::Array(sensors));
+    if let Some(legs) = v.get_mut("leg").and_then(|l| l.as_array_mut()) {
+        for (i, leg) in legs.iter_mut().enumerate() {
+            if let Some(t) = leg.as_table_mut() {
+                t.insert("sensor".into(), toml::Value::String(format!("c{}", i % k)));
+            }
+        }
+    }
+    if let Some(name) = v.get("name").and_then(|n| n.as_str()).map(str::to_string) {
+        v.insert("name".into(), toml::Value::String(format!("{name}-x{k}")));
+    }
+    toml::to_string(&v).context("writing the cloned scenario")
+}
+
+pub fn prepare(a: &Args, run_id: &RunId) -> Result<Plan> {
+    let (mut text, strategy_in) = match (&a.strategy, &a.scenario, a.delta) {
+        (Some(path), _, None) => {
+            let s = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+            let st = Strategy::from_json(&s).with_context(|| format!("loading strategy {}", path.display()))?;
+            let text = match (&a.scenario, &st.scenario_toml) {
+                (Some(arg), _) => scenario_text(arg)?,
+                (None, Some(t)) => t.clone(),
+                (None, None) => scenario_text(&st.scenario_name)
+                    .with_context(|| format!("strategy {} names scenario `{}`", path.display(), st.scenario_name))?,
+            };
+            (text, Some(st))
+        }
+        (None, Some(arg), Some(_)) => (scenario_text(arg)?, None),
+        (Some(_), _, Some(_)) => bail!("give either a strategy file or --scenario with --delta, not both"),
+        _ => bail!("give a strategy.json, or --scenario NAME --delta D for a constant threshold"),
+    };
+    if let Some(k) = a.clone_sensors {
+        if strategy_in.is_some() {
+            bail!("--clone-sensors works with --scenario/--delta only (a strategy is tied to its scenario's hash)");
+        }
+        text = clone_sensors(&text, k)?;
+    }
+    let scenario = Scenario::from_toml(&text).context("scenario")?;
+    let mut strategy = match strategy_in {
+        Some(st) => {
+            st.check_scenario(&scenario).context("strategy and scenario")?;
+            st
+        }
+        None => {
+            let delta = a.delta.unwrap_or(0.0);
+            let index = scenario
+                .deltas
+                .iter()
+                .position(|d| (d - delta).abs() <= 1e-9 * d.abs().max(1.0))
+                .with_context(|| format!("δ = {delta} is not one of the scenario's thresholds {:?}", scenario.deltas))?;
+            let placeholder = Prediction {
+                p_target: 0.0,
+                p_collision: 0.0,
+                p_free: 0.0,
+                energy_mean: 0.0,
+            };
+            Strategy::constant(&scenario, index, placeholder)
+        }
+    };
+    // In-process simulation of the same strategy: per-sensor energy, and the
+    // whole prediction for a constant strategy made here.
+    let predict_episodes = a.predict_episodes.max(1);
+    let sim = simulate_strategy(&scenario, &strategy, predict_episodes, a.seed ^ 0x5EED, &|_| {}).summary();
+    let sensor_energy_per_episode = scenario
+        .sensors
+        .iter()
+        .zip(&sim.sensors)
+        .map(|(s, c)| s.cost * c.transmissions as f64 / predict_episodes as f64)
+        .collect();
+    if a.strategy.is_none() {
+        strategy.predicted = Prediction {
+            p_target: sim.p_target.value,
+            p_collision: sim.p_collision.value,
+            p_free: sim.p_free.value,
+            energy_mean: sim.energy_mean.value,
+        };
+        strategy.label = format!("{} (prediction: in-process simulation, {predict_episodes} episodes)", strategy.label);
+    }
+    strategy.scenario_toml = Some(text.clone());
+
+    let dir = run_dir(run_id);
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let scenario_path = dir.join("scenario.toml");
+    let strategy_path = dir.join("strategy.json");
+    std::fs::write(&scenario_path, &text).with_context(|| format!("writing {}", scenario_path.display()))?;
+    std::fs::write(&strategy_path, strategy.to_json()).with_context(|| format!("writing {}", strategy_path.display()))?;
+    Ok(Plan {
+        run_id: run_id.clone(),
+        seed: a.seed,
+        episodes: a.episodes,
+        scenario,
+        strategy,
+        dir,
+        scenario_path,
+        strategy_path,
+        sensor_energy_per_episode,
+        predict_episodes,
+    })
+}

@@ -1,0 +1,143 @@
+//! The run report: table or JSON.
+
+use super::Args;
+use super::prepare::Plan;
+use super::supervise::Supervised;
+use anyhow::Result;
+use etp_shared::stats::{Estimate, MeanAccumulator, proportion};
+use serde_json::{Value, json};
+
+/// Outcomes of the run with 95 % intervals.
+struct Estimates {
+    p_target: Estimate,
+    p_collision: Estimate,
+    p_free: Estimate,
+    energy: Estimate,
+}
+
+fn estimates(s: &Supervised) -> Estimates {
+    let r = &s.report;
+    let mut energy = MeanAccumulator::default();
+    for e in &r.episode_results {
+        energy.push(e.energy);
+    }
+    Estimates {
+        p_target: proportion(r.target, r.episodes),
+        p_collision: proportion(r.collision, r.episodes),
+        p_free: proportion(r.free, r.episodes),
+        energy: energy.estimate(),
+    }
+}
+
+/// The `--json` object (keys of issue 5, plus details).
+pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
+    let r = &s.report;
+    let e = estimates(s);
+    let sensors: Vec<Value> = r
+        .sensors
+        .iter()
+        .zip(&plan.sensor_energy_per_episode)
+        .map(|(t, per_ep)| {
+            json!({"name": t.name, "transmitted": t.transmitted, "received": t.received,
+                   "predicted_energy": per_ep * r.episodes as f64, "energy": t.energy,
+                   "slots": t.slots, "missing_ledgers": t.missing_ledgers})
+        })
+        .collect();
+    let mut v = json!({
+        "run_id": r.run_id,
+        "scenario": r.scenario,
+        "strategy": r.strategy_label,
+        "seed": r.seed,
+        "episodes": r.episodes,
+        "requested_episodes": r.requested_episodes,
+        "p_target": e.p_target.value, "p_target_ci95": e.p_target.ci95,
+        "p_collision": e.p_collision.value, "p_collision_ci95": e.p_collision.ci95,
+        "p_free": e.p_free.value, "p_free_ci95": e.p_free.ci95,
+        "energy_mean": e.energy.value, "energy_mean_ci95": e.energy.ci95,
+        "predicted": {"p_target": r.predicted.p_target, "p_collision": r.predicted.p_collision,
+                      "energy_mean": r.predicted.energy_mean},
+        "sensors": sensors,
+        "processes": s.processes.len(),
+        "process_exits": s.processes,
+        "degraded": r.degraded,
+        "faults": r.faults,
+        "steps": r.steps,
+        "seconds": r.seconds,
+        "steps_per_second": if r.seconds > 0.0 { r.steps as f64 / r.seconds } else { 0.0 },
+        "wall_seconds": s.wall_seconds,
+        "aborted": r.aborted,
+    });
+    if a.episode_details
+        && let Some(m) = v.as_object_mut()
+    {
+        m.insert("episode_results".into(), json!(r.episode_results));
+    }
+    v
+}
+
+pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&json(a, plan, s))?);
+        return Ok(());
+    }
+    let r = &s.report;
+    let e = estimates(s);
+    println!(
+        "run {} · {} · {} · {} episodes · seed {} · {} processes · {:.2} s ({:.0} steps/s)",
+        r.run_id,
+        r.scenario,
+        r.strategy_label,
+        r.episodes,
+        r.seed,
+        s.processes.len(),
+        r.seconds,
+        if r.seconds > 0.0 { r.steps as f64 / r.seconds } else { 0.0 }
+    );
+    println!("  {:<12} {:>20}   {:>10}", "", "measured (95 %)", "predicted");
+    let p = &r.predicted;
+    for (k, m, pr) in [
+        ("P_target", e.p_target, p.p_target),
+        ("P_collision", e.p_collision, p.p_collision),
+        ("P_free", e.p_free, p.p_free),
+        ("energy", e.energy, p.energy_mean),
+    ] {
+        println!("  {k:<12} {:>10.4} ± {:<7.4}   {pr:>10.4}", m.value, m.ci95);
+    }
+    println!(
+        "  {:<8} {:>12} {:>12} {:>16}",
+        "sensor", "transmitted", "received", "predicted energy"
+    );
+    for (t, per_ep) in r.sensors.iter().zip(&plan.sensor_energy_per_episode) {
+        let flag = if t.transmitted != t.received || t.missing_ledgers > 0 {
+            format!("  ({} ledgers missing)", t.missing_ledgers)
+        } else {
+            String::new()
+        };
+        println!(
+            "  {:<8} {:>12} {:>12} {:>16.1}{flag}",
+            t.name,
+            t.transmitted,
+            t.received,
+            per_ep * r.episodes as f64
+        );
+    }
+    if r.degraded > 0 {
+        println!(
+            "  DEGRADED: {} episode(s) ran with a dead link (prediction only on its slots)",
+            r.degraded
+        );
+        for f in &r.faults {
+            println!(
+                "    episode {}: sensor {} dead, detected {:.1} ms after the agent began waiting, {} slots prediction-only",
+                f.episode, f.sensor, f.detect_ms, f.dead_slots
+            );
+        }
+    }
+    if let Some(why) = &r.aborted {
+        println!("  ABORTED: {why}");
+    }
+    for p in s.processes.iter().filter(|p| p.status != "exit 0") {
+        println!("  process {} (pid {}): {}", p.name, p.pid, p.status);
+    }
+    Ok(())
+}

@@ -1,0 +1,182 @@
+//! Spawning and supervising the run's processes with tokio.
+
+use super::prepare::Plan;
+use anyhow::{Context, Result, anyhow};
+use etp_shared::wire::report::RunReport;
+use std::path::{Path, PathBuf};
+use std::process::Stdio;
+use std::time::{Duration, Instant};
+use tokio::io::AsyncReadExt;
+use tokio::process::{Child, Command};
+
+/// How long the agent and sensors get to exit after the coordinator ended.
+const GRACE: Duration = Duration::from_secs(2);
+
+/// How one process ended.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ProcessExit {
+    pub name: String,
+    pub pid: u32,
+    /// "exit 0", "exit 1", "signal 9", or "killed by supervisor".
+    pub status: String,
+}
+
+/// What the supervisor saw.
+#[derive(Debug)]
+pub struct Supervised {
+    pub report: RunReport,
+    pub processes: Vec<ProcessExit>,
+    pub wall_seconds: f64,
+}
+
+/// A sibling binary of the running executable (`target/<profile>/etp-agent`
+/// next to `target/<profile>/etp`, or the same folder after `cargo install`).
+pub fn sibling_binary(name: &str) -> Result<PathBuf> {
+    let exe = std::env::current_exe().context("locating the etp executable")?;
+    let dir = exe.parent().context("etp executable has no folder")?;
+    // Test harnesses run from target/<profile>/deps: look one level up too.
+    for d in [Some(dir), dir.parent()].into_iter().flatten() {
+        let p = d.join(name);
+        if p.is_file() {
+            return Ok(p);
+        }
+    }
+    Err(anyhow!(
+        "`{name}` not found next to {} (build the workspace: cargo build --release --workspace)",
+        exe.display()
+    ))
+}
+
+fn status_text(s: &std::process::ExitStatus) -> String {
+    use std::os::unix::process::ExitStatusExt;
+    match (s.code(), s.signal()) {
+        (Some(c), _) => format!("exit {c}"),
+        (None, Some(sig)) => format!("signal {sig}"),
+        _ => "unknown".into(),
+    }
+}
+
+fn spawn(bin: &Path, args: &[String], stdout: bool) -> Result<Child> {
+    let mut c = Command::new(bin);
+    c.args(args)
+        .stdin(Stdio::null())
+        .stdout(if stdout { Stdio::piped() } else { Stdio::null() })
+        .stderr(Stdio::inherit())
+        .kill_on_drop(true);
+    c.spawn().with_context(|| format!("spawning {}", bin.display()))
+}
+
+/// Send a signal by pid with the system `kill` (keeps this crate free of unsafe).
+fn signal(pid: u32, sig: &str) {
+    let _ = std::process::Command::new("kill")
+        .args([sig, &pid.to_string()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status();
+}
+
+pub async fn supervise(plan: &Plan, deadline: Duration) -> Result<Supervised> {
+    let started = Instant::now();
+    let run = plan.run_id.as_str().to_string();
+    let scenario = plan.scenario_path.display().to_string();
+    let common = |extra: &[String]| -> Vec<String> {
+        let mut v = vec!["--run-id".to_string(), run.clone(), "--scenario".to_string(), scenario.clone()];
+        v.extend_from_slice(extra);
+        v
+    };
+    // Sensors and agent first: the coordinator waits for their hello.
+    let mut children: Vec<(String, Child)> = Vec::new();
+    let sensor_bin = sibling_binary("etp-sensor-node")?;
+    for s in &plan.scenario.sensors {
+        let args = common(&["--sensor".into(), s.name.clone(), "--seed".into(), plan.seed.to_string()]);
+        children.push((format!("sensor {}", s.name), spawn(&sensor_bin, &args, false)?));
+    }
+    children.push(("agent".into(), spawn(&sibling_binary("etp-agent")?, &common(&[]), false)?));
+    let coord_args = common(&[
+        "--strategy".into(),
+        plan.strategy_path.display().to_string(),
+        "--episodes".into(),
+        plan.episodes.to_string(),
+        "--seed".into(),
+        plan.seed.to_string(),
+    ]);
+    let mut coordinator = spawn(&sibling_binary("etp-coordinator")?, &coord_args, true)?;
+    let coord_pid = coordinator.id().unwrap_or(0);
+    let mut stdout = coordinator.stdout.take().context("coordinator stdout")?;
+    let reader = tokio::spawn(async move {
+        let mut s = String::new();
+        stdout.read_to_string(&mut s).await.map(|_| s)
+    });
+
+    let mut failure: Option<String> = None;
+    let coord_status = tokio::select! {
+        st = coordinator.wait() => Some(st.context("waiting for the coordinator")?),
+        _ = tokio::signal::ctrl_c() => {
+            failure = Some("interrupted (ctrl-c)".into());
+            // The coordinator stops the episodes and still reports.
+            signal(coord_pid, "-INT");
+            tokio::time::timeout(GRACE, coordinator.wait()).await.ok().and_then(Result::ok)
+        }
+        _ = tokio::time::sleep(deadline) => {
+            failure = Some(format!("deadline of {:.0} s passed", deadline.as_secs_f64()));
+            None
+        }
+    };
+    let mut processes = Vec::new();
+    match coord_status {
+        Some(st) => processes.push(ProcessExit {
+            name: "coordinator".into(),
+            pid: coord_pid,
+            status: status_text(&st),
+        }),
+        None => {
+            let _ = coordinator.kill().await;
+            processes.push(ProcessExit {
+                name: "coordinator".into(),
+                pid: coord_pid,
+                status: "killed by supervisor".into(),
+            });
+        }
+    }
+    // The others exit on the coordinator's stop (or on its death, within 1 s).
+    let grace_end = tokio::time::Instant::now() + GRACE;
+    for (name, mut child) in children {
+        let pid = child.id().unwrap_or(0);
+        let status = match tokio::time::timeout_at(grace_end, child.wait()).await {
+            Ok(Ok(st)) => status_text(&st),
+            _ => {
+                let _ = child.kill().await;
+                "killed by supervisor".into()
+            }
+        };
+        processes.push(ProcessExit { name, pid, status });
+    }
+    let out = tokio::time::timeout(GRACE, reader)
+        .await
+        .map_err(|_| anyhow!("coordinator output not closed"))?
+        .context("reading coordinator output")?
+        .context("reading coordinator output")?;
+    if let Some(f) = failure
+        && out.trim().is_empty()
+    {
+        return Err(anyhow!("run {run}: {f}; processes: {}", summary(&processes)));
+    }
+    let report: RunReport = serde_json::from_str(out.trim()).map_err(|e| {
+        anyhow!(
+            "run {run}: the coordinator gave no report ({e}); processes: {}",
+            summary(&processes)
+        )
+    })?;
+    Ok(Supervised {
+        report,
+        processes,
+        wall_seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+fn summary(p: &[ProcessExit]) -> String {
+    p.iter()
+        .map(|x| format!("{} {}", x.name, x.status))
+        .collect::<Vec<_>>()
+        .join(", ")
+}

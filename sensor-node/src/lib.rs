@@ -1,0 +1,88 @@
+//! `etp-sensor-node`: one process per sensor of the scenario.
+//!
+//! A short tour:
+//!
+//! * [`Args`] — what the supervisor (`etp run`) passes: run id, scenario,
+//!   sensor name, seed.
+//! * [`run`] — opens the sensor's ports (see `etp_shared::wire`), says hello
+//!   to the coordinator and serves until `threshold` says stop or the
+//!   coordinator dies.
+//! * [`Node`](node::SensorNode) — the per-slot work: on a wake-up from the
+//!   agent it takes `truth` x_k and `prior` (x̂⁻_k, P⁻_k), measures
+//!   y_k = H x_k + v_k (noise from `streams::SENSOR`, keyed by episode and
+//!   step), whitens the innovation, triggers on ‖ε‖∞ > δ, publishes
+//!   `measurement` if it triggers and always `slot`. Its energy
+//!   [`Ledger`](node::LegLedger) per leg goes to the coordinator when the
+//!   coordinator closes the leg.
+//!
+//! Waiting is a blocking `Listener::timed_wait` on the sensor's own wake-up
+//! event: an idle sensor sleeps in the kernel and wakes only every
+//! [`IDLE_CHECK`] to check that the coordinator still lives.
+
+mod node;
+
+pub use node::{LegLedger, SensorStats};
+
+use etp_shared::wire::{self, RunId, WireError};
+use std::time::Duration;
+
+/// How often an idle sensor checks its coordinator and its termination flag.
+pub const IDLE_CHECK: Duration = Duration::from_millis(250);
+
+/// Why a sensor node stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum SensorError {
+    #[error(transparent)]
+    Wire(#[from] WireError),
+    #[error("{0}")]
+    Scenario(String),
+    #[error("unknown sensor `{0}` in scenario `{1}`")]
+    UnknownSensor(String, String),
+    #[error("sending on `{0}` failed: {1}")]
+    Send(&'static str, String),
+    #[error("protocol error: {0}")]
+    Protocol(String),
+}
+
+/// The command line of `etp-sensor-node`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// Run id (services live under `etp/<run-id>/`).
+    #[arg(long)]
+    pub run_id: String,
+    /// Built-in scenario name or TOML path.
+    #[arg(long)]
+    pub scenario: String,
+    /// Name of the sensor this process is.
+    #[arg(long)]
+    pub sensor: String,
+    /// Run seed (measurement noise comes from `streams::SENSOR`).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
+/// How a sensor node ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Exit {
+    /// The coordinator said stop.
+    Stopped,
+    /// The coordinator (or the supervisor) died: no one will stop us.
+    CoordinatorGone,
+    /// SIGINT/SIGTERM.
+    Signal,
+}
+
+/// Serve as sensor `args.sensor` until stopped.
+pub fn run(args: &Args) -> Result<(Exit, SensorStats), SensorError> {
+    let run = RunId::new(&args.run_id)?;
+    let scenario = wire::load_scenario(&args.scenario).map_err(SensorError::Scenario)?;
+    let index = scenario
+        .sensors
+        .iter()
+        .position(|s| s.name == args.sensor)
+        .ok_or_else(|| SensorError::UnknownSensor(args.sensor.clone(), scenario.name.clone()))?;
+    let m = scenario.sensors[index].dim();
+    etp_shared::with_dim!(scenario.dim, N => {
+        etp_shared::with_dim!(m, M => node::serve::<N, M>(&run, &scenario, index, args.seed))
+    })
+}

@@ -1,0 +1,272 @@
+//! The payloads, one module per direction of the table in DESIGN.md "Runtime".
+//!
+//! Every payload is a fixed-size `#[repr(C)]` struct of plain numbers (no heap,
+//! no pointers), sized for n ≤ 6 and m ≤ 6, and starts with a [`Header`]. The
+//! derive `ZeroCopySend` lets iceoryx2 place them directly in shared memory.
+//!
+//! The derive expands to an `unsafe impl ZeroCopySend` (the trait is unsafe
+//! because iceoryx2 cannot check that a type holds no pointers); the structs
+//! below hold only integers, floats and arrays of them, which is exactly the
+//! contract. That is the only reason this module allows `unsafe_code`.
+#![allow(unsafe_code)]
+
+use iceoryx2::prelude::ZeroCopySend;
+use serde::{Deserialize, Serialize};
+
+/// Largest state or measurement dimension a payload carries.
+pub const MAX_DIM: usize = 6;
+
+/// A state-sized vector on the wire (unused entries are 0).
+pub type WireVec = [f64; MAX_DIM];
+/// A state-sized matrix on the wire, `[row][col]` (unused entries 0). Nested
+/// arrays of 6 keep serde's derives usable (serde stops at arrays of 32).
+pub type WireMat = [[f64; MAX_DIM]; MAX_DIM];
+
+/// Sender id of the coordinator.
+pub const SENDER_COORDINATOR: u32 = 0xFFFF_0000;
+/// Sender id of the agent.
+pub const SENDER_AGENT: u32 = 0xFFFF_0001;
+// Sensors send with their index in the scenario (0, 1, …).
+
+/// Common first field of every payload.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ZeroCopySend, Serialize, Deserialize)]
+pub struct Header {
+    /// Hash of the run id ([`super::run_tag`]): a message from another run is refused.
+    pub run: u64,
+    /// Episode index (0-based).
+    pub episode: u64,
+    /// Step k inside the episode (1-based for plant steps; 0 before the first step).
+    pub step: u32,
+    /// Leg (decision point) index.
+    pub leg: u32,
+    /// Who sent it: a sensor index, [`SENDER_AGENT`] or [`SENDER_COORDINATOR`].
+    pub sender: u32,
+    /// Per-sender sequence number (for recording and gap detection).
+    pub seq: u32,
+}
+
+/// Coordinator → agent.
+pub mod coordinator_to_agent {
+    use super::*;
+
+    /// `control`: start an episode or stop the agent.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+    #[type_name("etp::Control")]
+    pub struct Control {
+        pub header: Header,
+        /// [`Control::START`] or [`Control::STOP`].
+        pub kind: u32,
+        /// State dimension of `initial_mean` / `initial_cov`.
+        pub dim: u32,
+        /// Run seed (the agent derives its per-episode stream from it).
+        pub seed: u64,
+        /// Initial belief x̂₀ (for the record: the agent takes it from the scenario).
+        pub initial_mean: WireVec,
+        /// Initial covariance P₀, row-major.
+        pub initial_cov: WireMat,
+    }
+
+    impl Control {
+        pub const START: u32 = 1;
+        pub const STOP: u32 = 2;
+    }
+}
+
+/// Coordinator → agent and sensors.
+pub mod coordinator_to_all {
+    use super::*;
+
+    /// `threshold`: open leg i with δ at the serving sensor, close a leg (the
+    /// sensor answers with its ledger), or stop.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+    #[type_name("etp::Threshold")]
+    pub struct Threshold {
+        pub header: Header,
+        /// [`Threshold::OPEN`], [`Threshold::CLOSE`] or [`Threshold::STOP`].
+        pub kind: u32,
+        /// The serving sensor of `header.leg` (index).
+        pub sensor: u32,
+        /// Index of δ in the strategy's Δ.
+        pub delta_index: u32,
+        pub _pad: u32,
+        /// The threshold δ.
+        pub delta: f64,
+    }
+
+    impl Threshold {
+        pub const OPEN: u32 = 1;
+        pub const CLOSE: u32 = 2;
+        pub const STOP: u32 = 3;
+    }
+}
+
+/// Agent → one sensor (one service per sensor, so idle sensors are never woken).
+pub mod agent_to_sensor {
+    use super::*;
+
+    /// `truth`: the true state x_k (simulation only: stands in for the world).
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+    #[type_name("etp::Truth")]
+    pub struct Truth {
+        pub header: Header,
+        pub dim: u32,
+        pub _pad: u32,
+        pub x: WireVec,
+    }
+
+    /// `prior`: the shared estimate x̂⁻_k, P⁻_k before the slot.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+    #[type_name("etp::Prior")]
+    pub struct Prior {
+        pub header: Header,
+        pub dim: u32,
+        pub _pad: u32,
+        pub mean: WireVec,
+        pub cov: WireMat,
+    }
+}
+
+/// Sensor → agent.
+pub mod sensor_to_agent {
+    use super::*;
+
+    /// `measurement` (costed: c_m each): a transmitted y_k.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+    #[type_name("etp::Measurement")]
+    pub struct Measurement {
+        pub header: Header,
+        /// Measurement dimension m.
+        pub dim: u32,
+        /// Transmissions of this sensor in this episode, this one included.
+        pub sequence: u32,
+        pub y: WireVec,
+    }
+
+    /// `slot`: "slot k closed" (sent after the measurement, if any).
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+    #[type_name("etp::Slot")]
+    pub struct Slot {
+        pub header: Header,
+        /// 1 if a measurement was transmitted for this slot.
+        pub transmitted: u32,
+        pub _pad: u32,
+    }
+}
+
+/// Agent → coordinator.
+pub mod agent_to_coordinator {
+    use super::*;
+
+    /// `waypoint`: decision point `header.leg` reached (leg 0: episode start),
+    /// with the belief there and the counts of the leg that just ended.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+    #[type_name("etp::Waypoint")]
+    pub struct Waypoint {
+        pub header: Header,
+        pub dim: u32,
+        /// Plant steps of the previous leg (0 at leg 0).
+        pub prev_steps: u32,
+        /// Measurements received in the previous leg.
+        pub prev_received: u32,
+        /// 1 if the previous leg had a dead link.
+        pub prev_degraded: u32,
+        pub mean: WireVec,
+        pub cov: WireMat,
+    }
+
+    /// `outcome`: the episode ended.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+    #[type_name("etp::Outcome")]
+    pub struct Outcome {
+        pub header: Header,
+        /// [`Outcome::TARGET`], [`Outcome::COLLISION`] or [`Outcome::FREE`].
+        pub outcome: u32,
+        /// 1 if any slot of the episode had a dead link (prediction only).
+        pub degraded: u32,
+        pub steps: u32,
+        pub slots: u32,
+        /// Measurements received in the episode.
+        pub received: u32,
+        /// Steps of the last leg and measurements received in it.
+        pub last_steps: u32,
+        pub last_received: u32,
+        /// Slots in which the agent did prediction only (dead link).
+        pub dead_slots: u32,
+        /// Longest wait for a slot before a dead link was declared, µs (0: none).
+        pub detect_us: u64,
+        /// Wall clock (ns since the Unix epoch) when the dead link was declared (0: none).
+        pub detected_unix_ns: u64,
+        /// Wall clock when the agent started waiting on the dead link.
+        pub wait_started_unix_ns: u64,
+        /// Index of the sensor found dead (u32::MAX: none).
+        pub dead_sensor: u32,
+        pub _pad: u32,
+    }
+
+    impl Outcome {
+        pub const TARGET: u32 = 1;
+        pub const COLLISION: u32 = 2;
+        pub const FREE: u32 = 3;
+    }
+}
+
+/// Sensor → coordinator.
+pub mod sensor_to_coordinator {
+    use super::*;
+
+    /// `ledger`: what the sensor spent on leg `header.leg` of `header.episode`.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+    #[type_name("etp::Ledger")]
+    pub struct Ledger {
+        pub header: Header,
+        pub slots: u32,
+        pub transmissions: u32,
+        /// transmissions × c_m.
+        pub energy: f64,
+    }
+}
+
+/// Any process → coordinator.
+pub mod to_coordinator {
+    use super::*;
+
+    /// `hello`: a process has created all its ports and is ready.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+    #[type_name("etp::Hello")]
+    pub struct Hello {
+        pub header: Header,
+        pub pid: u32,
+        pub _pad: u32,
+    }
+}
+
+/// Copy a slice into a wire vector (entries beyond `MAX_DIM` are ignored).
+pub fn to_wire_vec(v: &[f64]) -> WireVec {
+    let mut out = [0.0; MAX_DIM];
+    for (o, x) in out.iter_mut().zip(v) {
+        *o = *x;
+    }
+    out
+}
+
+/// Copy an `n × n` matrix given by `get(row, col)` into a wire matrix.
+pub fn to_wire_mat(n: usize, get: impl Fn(usize, usize) -> f64) -> WireMat {
+    let mut out = [[0.0; MAX_DIM]; MAX_DIM];
+    for (r, row) in out.iter_mut().enumerate().take(n) {
+        for (c, x) in row.iter_mut().enumerate().take(n) {
+            *x = get(r, c);
+        }
+    }
+    out
+}

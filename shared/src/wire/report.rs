@@ -1,0 +1,89 @@
+//! The coordinator's run report (JSON on its stdout), read by `etp run` and the
+//! end-to-end tests.
+
+use crate::strategy::Prediction;
+use serde::{Deserialize, Serialize};
+
+/// One leg of one episode, as the coordinator saw it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LegRecord {
+    pub leg: u32,
+    pub sensor: u32,
+    pub delta: f64,
+    /// Plant steps of the leg.
+    pub steps: u32,
+    /// Measurements the agent received on this leg.
+    pub received: u32,
+    /// Transmissions in the sensor's ledger (`None`: no ledger, sensor dead).
+    pub transmitted: Option<u32>,
+    /// Slots in the sensor's ledger.
+    pub slots: Option<u32>,
+}
+
+/// One episode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeRecord {
+    pub episode: u64,
+    /// "target", "collision" or "free".
+    pub outcome: String,
+    /// A dead link in this episode (prediction-only slots) or a missing ledger.
+    pub degraded: bool,
+    pub steps: u32,
+    /// Sensor-side energy: Σ c_m × transmissions (agent-received where no ledger).
+    pub energy: f64,
+    pub legs: Vec<LegRecord>,
+}
+
+/// A dead link the agent detected.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FaultRecord {
+    pub episode: u64,
+    pub sensor: String,
+    /// From the start of the agent's wait on the slot to its verdict, ms.
+    pub detect_ms: f64,
+    pub wait_started_unix_ns: u64,
+    pub detected_unix_ns: u64,
+    /// Slots of the episode done with prediction only.
+    pub dead_slots: u32,
+}
+
+/// Per-sensor totals over the run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SensorTotals {
+    pub name: String,
+    /// Σ transmissions in the sensor's ledgers.
+    pub transmitted: u64,
+    /// Σ measurements the agent received from it.
+    pub received: u64,
+    /// Σ slots it served.
+    pub slots: u64,
+    /// Σ c_m × transmitted.
+    pub energy: f64,
+    /// Legs whose ledger never came (sensor dead).
+    pub missing_ledgers: u64,
+}
+
+/// Everything the coordinator knows at the end of a run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunReport {
+    pub run_id: String,
+    pub scenario: String,
+    pub scenario_hash: String,
+    pub strategy_label: String,
+    pub seed: u64,
+    pub requested_episodes: u64,
+    pub episodes: u64,
+    pub target: u64,
+    pub collision: u64,
+    pub free: u64,
+    pub degraded: u64,
+    pub steps: u64,
+    /// Wall time from the first episode's start to the last outcome, s.
+    pub seconds: f64,
+    pub predicted: Prediction,
+    pub sensors: Vec<SensorTotals>,
+    pub faults: Vec<FaultRecord>,
+    pub episode_results: Vec<EpisodeRecord>,
+    /// Why the run stopped early, if it did.
+    pub aborted: Option<String>,
+}

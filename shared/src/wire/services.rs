@@ -1,0 +1,458 @@
+//! Service names, the per-run iceoryx2 configuration, the one function that
+//! sets every service's limits, and node liveness.
+
+use super::WireError;
+use iceoryx2::config::Config;
+use iceoryx2::node::NodeView;
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::{event, publish_subscribe};
+use std::fmt::Debug;
+use std::path::PathBuf;
+
+/// Folder under which every run keeps its iceoryx2 root (`<base>/<run-id>/`).
+pub const ROOT_BASE: &str = "/tmp/etp-iox2";
+
+/// How long a process waits for the coordinator to subscribe to `hello`.
+pub const HELLO_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(30);
+
+/// Event id the iceoryx2 cleanup emits when a notifier's process died.
+pub const DEAD_NOTIFIER_EVENT: usize = 200;
+
+/// A run id: 1–40 characters of `[a-z0-9-]`. It names the services
+/// (`etp/<run-id>/…`), the shared-memory prefix and the root folder, so two
+/// runs never see each other.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct RunId(String);
+
+impl RunId {
+    pub fn new(s: &str) -> Result<Self, WireError> {
+        let ok = !s.is_empty()
+            && s.len() <= 40
+            && s.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-');
+        if ok {
+            Ok(Self(s.to_string()))
+        } else {
+            Err(WireError::RunId(s.to_string()))
+        }
+    }
+
+    /// A fresh id from the clock and the process id.
+    pub fn generate() -> Self {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos() as u64);
+        let mixed = crate::rng::mix64(nanos ^ (u64::from(std::process::id()) << 32));
+        Self(format!("r{:012x}", mixed & 0xFFFF_FFFF_FFFF))
+    }
+
+    pub fn as_str(&self) -> &str {
+        &self.0
+    }
+
+    /// The 64-bit tag carried in every [`super::Header`].
+    pub fn tag(&self) -> u64 {
+        self.0
+            .bytes()
+            .fold(0x45_54_50_u64, |h, b| crate::rng::mix64(h ^ u64::from(b)))
+    }
+
+    /// Shared-memory file prefix (`_` cannot occur in an id, so no prefix of
+    /// one run is a prefix of another's).
+    pub fn shm_prefix(&self) -> String {
+        format!("etp_{}_", self.0)
+    }
+
+    /// The run's iceoryx2 root folder.
+    pub fn root_dir(&self) -> PathBuf {
+        PathBuf::from(ROOT_BASE).join(&self.0)
+    }
+}
+
+impl std::fmt::Display for RunId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+/// The iceoryx2 configuration of a run: its own prefix and root path, built in
+/// code (no config file is read, whatever the working directory).
+pub fn config(run: &RunId) -> Result<Config, WireError> {
+    let mut cfg = Config::default();
+    cfg.global.prefix = FileName::new(run.shm_prefix().as_bytes())
+        .map_err(|e| WireError::Config(format!("prefix: {e:?}")))?;
+    let root = format!("{}/", run.root_dir().display());
+    let path = Path::new(root.as_bytes()).map_err(|e| WireError::Config(format!("root {root}: {e:?}")))?;
+    cfg.global.set_root_path(&path);
+    Ok(cfg)
+}
+
+/// Every service of a run (DESIGN.md "Runtime"). Per-sensor services keep
+/// idle sensors asleep: the agent wakes only the serving sensor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ServiceId {
+    /// coordinator → agent: start episode / stop.
+    Control,
+    /// coordinator → agent and sensors: open / close a leg with δ, stop.
+    Threshold,
+    /// agent → sensor i: true state.
+    Truth(usize),
+    /// agent → sensor i: prior x̂⁻, P⁻.
+    Prior(usize),
+    /// sensors → agent: transmitted measurements (costed).
+    Measurement,
+    /// sensors → agent: slot closed.
+    Slot,
+    /// agent → coordinator: decision point reached.
+    Waypoint,
+    /// agent → coordinator: episode ended.
+    Outcome,
+    /// sensors → coordinator: per-leg energy ledger.
+    Ledger,
+    /// every process → coordinator: ready.
+    Hello,
+    /// event: wakes the agent.
+    AgentWake,
+    /// event: wakes the coordinator.
+    CoordinatorWake,
+    /// event: wakes sensor i.
+    SensorWake(usize),
+}
+
+impl ServiceId {
+    /// The service name `etp/<run-id>/…`.
+    pub fn name(&self, run: &RunId) -> String {
+        let tail = match self {
+            Self::Control => "control".to_string(),
+            Self::Threshold => "threshold".to_string(),
+            Self::Truth(i) => format!("sensor/{i}/truth"),
+            Self::Prior(i) => format!("sensor/{i}/prior"),
+            Self::Measurement => "measurement".to_string(),
+            Self::Slot => "slot".to_string(),
+            Self::Waypoint => "waypoint".to_string(),
+            Self::Outcome => "outcome".to_string(),
+            Self::Ledger => "ledger".to_string(),
+            Self::Hello => "hello".to_string(),
+            Self::AgentWake => "agent/wake".to_string(),
+            Self::CoordinatorWake => "coordinator/wake".to_string(),
+            Self::SensorWake(i) => format!("sensor/{i}/wake"),
+        };
+        format!("etp/{run}/{tail}")
+    }
+
+    /// Every publish-subscribe service of a run with `sensors` sensors (what a
+    /// recorder subscribes to).
+    pub fn all_pubsub(sensors: usize) -> Vec<Self> {
+        let mut v = vec![
+            Self::Control,
+            Self::Threshold,
+            Self::Measurement,
+            Self::Slot,
+            Self::Waypoint,
+            Self::Outcome,
+            Self::Ledger,
+            Self::Hello,
+        ];
+        for i in 0..sensors {
+            v.push(Self::Truth(i));
+            v.push(Self::Prior(i));
+        }
+        v
+    }
+}
+
+/// The limits of one service.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Limits {
+    pub max_publishers: usize,
+    pub max_subscribers: usize,
+    pub max_nodes: usize,
+    pub buffer: usize,
+    pub history: usize,
+    pub safe_overflow: bool,
+}
+
+/// Extra ports and nodes every service allows beyond the run's own processes:
+/// a recorder and a replayer.
+const OBSERVERS: usize = 2;
+
+/// THE limits table: every process opens every service through [`open_pubsub`]
+/// / [`open_event`], which take their limits from here, so whichever process
+/// creates a service first, it has the same QoS (the iceoryx2 defaults —
+/// 2 publishers, 20 nodes, 16 notifiers — fail at 32 sensors).
+pub fn limits(service: ServiceId, sensors: usize) -> Limits {
+    let nodes = sensors + 2 + OBSERVERS;
+    let one_to_one = |buffer| Limits {
+        max_publishers: 1 + OBSERVERS,
+        max_subscribers: 1 + OBSERVERS,
+        max_nodes: nodes,
+        buffer,
+        history: 0,
+        safe_overflow: true,
+    };
+    let many_to_one = |buffer| Limits {
+        max_publishers: sensors + OBSERVERS,
+        max_subscribers: 1 + OBSERVERS,
+        max_nodes: nodes,
+        buffer,
+        history: 0,
+        safe_overflow: true,
+    };
+    match service {
+        ServiceId::Control => one_to_one(8),
+        ServiceId::Truth(_) | ServiceId::Prior(_) => one_to_one(8),
+        ServiceId::Waypoint | ServiceId::Outcome => one_to_one(16),
+        ServiceId::Measurement | ServiceId::Slot => many_to_one(16),
+        // Ledgers are drained at leg boundaries; a generous buffer per sensor.
+        ServiceId::Ledger => many_to_one(256),
+        // Sensors that do not serve never drain: they keep the newest entries.
+        ServiceId::Threshold => Limits {
+            max_publishers: 1 + OBSERVERS,
+            max_subscribers: sensors + 1 + OBSERVERS,
+            max_nodes: nodes,
+            buffer: 16,
+            history: 0,
+            safe_overflow: true,
+        },
+        // Late subscribers (the coordinator starts in parallel) get the history.
+        ServiceId::Hello => Limits {
+            max_publishers: sensors + 2 + OBSERVERS,
+            max_subscribers: 1 + OBSERVERS,
+            max_nodes: nodes,
+            buffer: sensors + 4,
+            history: 1,
+            safe_overflow: true,
+        },
+        ServiceId::AgentWake | ServiceId::CoordinatorWake => Limits {
+            max_publishers: sensors + 2 + OBSERVERS,
+            max_subscribers: 1 + OBSERVERS,
+            max_nodes: nodes,
+            buffer: 0,
+            history: 0,
+            safe_overflow: true,
+        },
+        ServiceId::SensorWake(_) => Limits {
+            max_publishers: 2 + OBSERVERS,
+            max_subscribers: 1 + OBSERVERS,
+            max_nodes: nodes,
+            buffer: 0,
+            history: 0,
+            safe_overflow: true,
+        },
+    }
+}
+
+/// A publish-subscribe service's factory.
+pub type PubSub<T> = publish_subscribe::PortFactory<ipc::Service, T, ()>;
+/// An event service's factory.
+pub type Event = event::PortFactory<ipc::Service>;
+
+/// Open (or create) a publish-subscribe service with the limits of [`limits`].
+pub fn open_pubsub<T: Debug + ZeroCopySend>(
+    node: &Node<ipc::Service>,
+    run: &RunId,
+    service: ServiceId,
+    sensors: usize,
+) -> Result<PubSub<T>, WireError> {
+    let l = limits(service, sensors);
+    let name = service.name(run);
+    let sname = ServiceName::new(&name).map_err(|e| WireError::Service(name.clone(), format!("{e:?}")))?;
+    node.service_builder(&sname)
+        .publish_subscribe::<T>()
+        .max_publishers(l.max_publishers)
+        .max_subscribers(l.max_subscribers)
+        .max_nodes(l.max_nodes)
+        .subscriber_max_buffer_size(l.buffer)
+        .history_size(l.history)
+        .enable_safe_overflow(l.safe_overflow)
+        .open_or_create()
+        .map_err(|e| WireError::Service(name, format!("{e:?}")))
+}
+
+/// Open (or create) an event service with the limits of [`limits`].
+pub fn open_event(
+    node: &Node<ipc::Service>,
+    run: &RunId,
+    service: ServiceId,
+    sensors: usize,
+) -> Result<Event, WireError> {
+    let l = limits(service, sensors);
+    let name = service.name(run);
+    let sname = ServiceName::new(&name).map_err(|e| WireError::Service(name.clone(), format!("{e:?}")))?;
+    node.service_builder(&sname)
+        .event()
+        .max_notifiers(l.max_publishers)
+        .max_listeners(l.max_subscribers)
+        .max_nodes(l.max_nodes)
+        .notifier_dead_event(EventId::new(DEAD_NOTIFIER_EVENT))
+        .open_or_create()
+        .map_err(|e| WireError::Service(name, format!("{e:?}")))
+}
+
+/// Node names of the run's processes (used for liveness checks).
+pub const COORDINATOR_NODE: &str = "etp-coordinator";
+pub const AGENT_NODE: &str = "etp-agent";
+/// Node name of sensor `i`.
+pub fn sensor_node_name(i: usize) -> String {
+    format!("etp-sensor-{i}")
+}
+
+/// Create a node of a run. iceoryx2 signal handling is off: the processes poll
+/// their own termination flag (see the binaries), and tokio owns signals in `etp`.
+pub fn create_node(run: &RunId, name: &str) -> Result<Node<ipc::Service>, WireError> {
+    let cfg = config(run)?;
+    let nname = NodeName::new(name).map_err(|e| WireError::Node(format!("name {name}: {e:?}")))?;
+    NodeBuilder::new()
+        .name(&nname)
+        .config(&cfg)
+        .create::<ipc::Service>()
+        .map_err(|e| WireError::Node(format!("{e:?}")))
+}
+
+/// What the node list says about a named node.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Liveness {
+    Alive,
+    /// Its process died (its stale resources were removed just now).
+    Dead,
+    /// No such node (never started, or already cleaned up).
+    Missing,
+}
+
+/// Look a node up by name in the run's node list; a dead node's stale
+/// resources are removed on the way (so the peers' counts drop and listeners
+/// get [`DEAD_NOTIFIER_EVENT`]).
+pub fn liveness(cfg: &Config, name: &str) -> Liveness {
+    let mut found = Liveness::Missing;
+    let _ = Node::<ipc::Service>::list(cfg, |state| {
+        match state {
+            NodeState::Alive(view) => {
+                if view.details().as_ref().is_some_and(|d| d.name().as_str() == name) {
+                    found = Liveness::Alive;
+                    return CallbackProgression::Stop;
+                }
+            }
+            NodeState::Dead(view) => {
+                if view.details().as_ref().is_some_and(|d| d.name().as_str() == name) {
+                    found = Liveness::Dead;
+                    let _ = view.try_remove_stale_resources();
+                    return CallbackProgression::Stop;
+                }
+            }
+            NodeState::Inaccessible(_) | NodeState::Undefined(_) => {}
+        }
+        CallbackProgression::Continue
+    });
+    found
+}
+
+/// Remove what dead nodes of a run left behind; returns how many were removed.
+pub fn remove_dead_nodes(cfg: &Config) -> usize {
+    let mut removed = 0;
+    let _ = Node::<ipc::Service>::list(cfg, |state| {
+        if let NodeState::Dead(view) = state
+            && view.try_remove_stale_resources().is_ok()
+        {
+            removed += 1;
+        }
+        CallbackProgression::Continue
+    });
+    removed
+}
+
+/// Number of live nodes of a run.
+pub fn alive_nodes(cfg: &Config) -> usize {
+    let mut alive = 0;
+    let _ = Node::<ipc::Service>::list(cfg, |state| {
+        if let NodeState::Alive(_) = state {
+            alive += 1;
+        }
+        CallbackProgression::Continue
+    });
+    alive
+}
+
+/// A publisher on a run's service.
+pub type Pub<T> = iceoryx2::port::publisher::Publisher<ipc::Service, T, ()>;
+/// A subscriber on a run's service.
+pub type Sub<T> = iceoryx2::port::subscriber::Subscriber<ipc::Service, T, ()>;
+/// A listener (wake-ups) on a run's event service.
+pub type Listener = iceoryx2::port::listener::Listener<ipc::Service>;
+/// A notifier on a run's event service.
+pub type Notifier = iceoryx2::port::notifier::Notifier<ipc::Service>;
+
+/// The run's ports are opened through these, all with the limits of [`limits`].
+pub struct Ports<'a> {
+    pub node: &'a Node<ipc::Service>,
+    pub run: &'a RunId,
+    pub sensors: usize,
+}
+
+impl Ports<'_> {
+    pub fn publisher<T: Debug + ZeroCopySend>(&self, s: ServiceId) -> Result<Pub<T>, WireError> {
+        open_pubsub::<T>(self.node, self.run, s, self.sensors)?
+            .publisher_builder()
+            .create()
+            .map_err(|e| WireError::Port(s.name(self.run), format!("{e:?}")))
+    }
+
+    pub fn subscriber<T: Debug + ZeroCopySend>(&self, s: ServiceId) -> Result<Sub<T>, WireError> {
+        open_pubsub::<T>(self.node, self.run, s, self.sensors)?
+            .subscriber_builder()
+            .create()
+            .map_err(|e| WireError::Port(s.name(self.run), format!("{e:?}")))
+    }
+
+    pub fn listener(&self, s: ServiceId) -> Result<Listener, WireError> {
+        open_event(self.node, self.run, s, self.sensors)?
+            .listener_builder()
+            .create()
+            .map_err(|e| WireError::Port(s.name(self.run), format!("{e:?}")))
+    }
+
+    pub fn notifier(&self, s: ServiceId) -> Result<Notifier, WireError> {
+        open_event(self.node, self.run, s, self.sensors)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| WireError::Port(s.name(self.run), format!("{e:?}")))
+    }
+}
+
+/// Was SIGINT/SIGTERM received? (iceoryx2's default signal handling records
+/// termination requests; `Node::wait` reports them.)
+pub fn termination_requested(node: &Node<ipc::Service>) -> bool {
+    node.wait(std::time::Duration::ZERO).is_err()
+}
+
+/// Announce a process to the coordinator: wait (bounded, sleeping) until the
+/// coordinator's `hello` subscriber exists, then send `hello` and wake it.
+/// Samples sent before a subscriber exists would be lost, and the processes
+/// start in parallel. Returns the publisher (keep it alive).
+pub fn say_hello(
+    ports: &Ports<'_>,
+    hello: super::messages::to_coordinator::Hello,
+    timeout: std::time::Duration,
+) -> Result<Pub<super::messages::to_coordinator::Hello>, WireError> {
+    let factory = open_pubsub::<super::messages::to_coordinator::Hello>(ports.node, ports.run, ServiceId::Hello, ports.sensors)?;
+    let publisher = factory
+        .publisher_builder()
+        .create()
+        .map_err(|e| WireError::Port(ServiceId::Hello.name(ports.run), format!("{e:?}")))?;
+    let start = std::time::Instant::now();
+    while factory.dynamic_config().number_of_subscribers() == 0 {
+        if start.elapsed() >= timeout {
+            return Err(WireError::Port(
+                ServiceId::Hello.name(ports.run),
+                format!("no coordinator subscribed within {timeout:?}"),
+            ));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    publisher
+        .send_copy(hello)
+        .map_err(|e| WireError::Port(ServiceId::Hello.name(ports.run), format!("{e:?}")))?;
+    ports
+        .notifier(ServiceId::CoordinatorWake)?
+        .notify()
+        .map_err(|e| WireError::Port(ServiceId::CoordinatorWake.name(ports.run), format!("{e:?}")))?;
+    Ok(publisher)
+}
