@@ -286,9 +286,11 @@ impl<const N: usize, const M: usize> EtKalmanFilter<N, M> {
             let prior = self.predict(&b, &zero);
             let inn = self.innovation(&prior);
             let next = self.update_implicit(&prior, &inn, 1.0);
+            // Stop at the fixed point; the recursion contracts geometrically,
+            // so a relative change of a few ulps is the floor rounding allows.
             let change = (next.cov - b.cov).amax();
             b = next;
-            if change <= 1e-15 * b.cov.amax().max(f64::MIN_POSITIVE) {
+            if change <= 4.0 * f64::EPSILON * b.cov.amax() {
                 break;
             }
         }

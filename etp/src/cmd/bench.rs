@@ -18,9 +18,42 @@ pub struct Args {
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
+    /// Instead: time the Pareto front of DIR/mdp.bin (written by `etp synthesize`).
+    #[arg(long, value_name = "DIR")]
+    pub front: Option<std::path::PathBuf>,
+}
+
+fn bench_front(dir: &std::path::Path, json_out: bool) -> Result<()> {
+    let (mdp, _) = crate::output::read_mdp(dir)?;
+    let start = Instant::now();
+    let front = etp_synthesis::pareto::compute_front(&mdp, Default::default())?;
+    let secs = start.elapsed().as_secs_f64();
+    let v = json!({"states": mdp.states.len(), "transitions": mdp.num_transitions(),
+                   "choices": mdp.states.iter().map(|s| s.choices.len()).sum::<usize>(),
+                   "vertices": front.vertices.len(), "facets": front.facets.len(),
+                   "optimisations": front.optimisations, "rounds": front.rounds, "seconds": secs});
+    if json_out {
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        println!(
+            "Pareto front of {}: {} states, {} transitions → {} vertices, {} facets ({} optimisations, {} rounds) in {:.3} s",
+            dir.display(),
+            mdp.states.len(),
+            mdp.num_transitions(),
+            front.vertices.len(),
+            front.facets.len(),
+            front.optimisations,
+            front.rounds,
+            secs
+        );
+    }
+    Ok(())
 }
 
 pub fn run(a: Args) -> Result<()> {
+    if let Some(dir) = &a.front {
+        return bench_front(dir, a.json);
+    }
     let s = load_scenario(&a.scenario)?;
     let max_delta = s.deltas.iter().copied().fold(0.0, f64::max);
     let threads = rayon::current_num_threads();

@@ -28,10 +28,10 @@ pub struct Vertex {
     pub policy: DeterministicPolicy,
 }
 
-/// A bounded facet of the front: three vertices and its weight vector.
+/// A bounded facet of the front: its vertices (a polygon) and weight vector.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Facet {
-    pub vertices: [usize; 3],
+    pub vertices: Vec<usize>,
     pub lambda: [f64; 3],
 }
 
@@ -136,7 +136,7 @@ pub fn compute_front(mdp: &Mdp, cost: CostModel) -> Result<ParetoFront, enumerat
         .iter()
         .filter_map(|f| {
             Some(Facet {
-                vertices: [position(f.points[0])?, position(f.points[1])?, position(f.points[2])?],
+                vertices: f.points.iter().map(|&p| position(p)).collect::<Option<Vec<_>>>()?,
                 lambda: f.lambda,
             })
         })
