@@ -5,7 +5,7 @@ use etp_shared::etkf::{Belief, Vector};
 use etp_shared::wire::agent_to_sensor::{Prior, Truth};
 use etp_shared::wire::sensor_to_agent::{Measurement, Slot};
 use etp_shared::wire::{
-    self, Header, Liveness, Listener, Notifier, Ports, Pub, ServiceId, Sub, WireVec,
+    self, Header, Listener, Liveness, Notifier, Ports, Pub, ServiceId, Sub, WireVec,
     belief_to_wire, to_wire_vec,
 };
 use iceoryx2::config::Config;
@@ -45,7 +45,8 @@ pub struct Links {
 }
 
 fn unix_ns(t: SystemTime) -> u64 {
-    t.duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
+    t.duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
 }
 
 impl Links {
@@ -146,7 +147,12 @@ impl Links {
     }
 
     /// The slot record of (episode, step, sensor) if it arrived; older records are dropped.
-    fn take_slot(&mut self, episode: u64, step: u32, sensor: u32) -> Result<Option<bool>, AgentError> {
+    fn take_slot(
+        &mut self,
+        episode: u64,
+        step: u32,
+        sensor: u32,
+    ) -> Result<Option<bool>, AgentError> {
         let mut found = None;
         while let Some(s) = self
             .slot
@@ -161,7 +167,12 @@ impl Links {
         Ok(found)
     }
 
-    fn take_measurement(&mut self, episode: u64, step: u32, sensor: u32) -> Result<Option<WireVec>, AgentError> {
+    fn take_measurement(
+        &mut self,
+        episode: u64,
+        step: u32,
+        sensor: u32,
+    ) -> Result<Option<WireVec>, AgentError> {
         let mut found = None;
         while let Some(s) = self
             .measurement

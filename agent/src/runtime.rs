@@ -122,7 +122,8 @@ impl<const N: usize> Agent<N> {
 
     /// Serve episodes until stopped.
     pub fn serve(mut self) -> Result<(Exit, AgentStats), AgentError> {
-        let mut seen_coordinator = false;
+        // `say_hello` waited for the coordinator's subscriber: it was alive.
+        let mut seen_coordinator = true;
         loop {
             let next = self.wait(&mut seen_coordinator, |a| {
                 while let Some(s) = a
@@ -189,7 +190,12 @@ impl<const N: usize> Agent<N> {
     }
 
     /// Wait for the coordinator to open `leg` of `episode`: (δ, serving sensor).
-    fn wait_open(&mut self, episode: u64, leg: u32, seen: &mut bool) -> Result<Next<(f64, usize)>, AgentError> {
+    fn wait_open(
+        &mut self,
+        episode: u64,
+        leg: u32,
+        seen: &mut bool,
+    ) -> Result<Next<(f64, usize)>, AgentError> {
         self.wait(seen, |a| {
             while let Some(s) = a
                 .threshold
@@ -213,13 +219,20 @@ impl<const N: usize> Agent<N> {
     }
 
     /// One episode; `Some(exit)` if the process must stop.
-    fn episode(&mut self, episode: u64, seed: u64, seen: &mut bool) -> Result<Option<Exit>, AgentError> {
+    fn episode(
+        &mut self,
+        episode: u64,
+        seed: u64,
+        seen: &mut bool,
+    ) -> Result<Option<Exit>, AgentError> {
         let mut rng = stream_rng(seed, streams::AGENT, episode);
         let mut state = self.c.initial_state(&mut rng);
         let mut k: u32 = 0;
         let mut prev = LegCounts::default();
-        let mut totals = Outcome::default();
-        totals.dead_sensor = u32::MAX;
+        let mut totals = Outcome {
+            dead_sensor: u32::MAX,
+            ..Outcome::default()
+        };
         let legs = self.c.legs.len();
         for leg in 0..legs {
             let leg32 = leg as u32;
@@ -259,7 +272,9 @@ impl<const N: usize> Agent<N> {
                 totals.steps += 1;
                 if first_containing(&self.c.obstacles, &state.x).is_some() {
                     totals.outcome = Outcome::COLLISION;
-                    return self.finish(episode, leg32, k, counts, totals).map(|()| None);
+                    return self
+                        .finish(episode, leg32, k, counts, totals)
+                        .map(|()| None);
                 }
                 let prior = self.c.plant.predict(&state.belief, &u);
                 let result = if self.links.alive[sensor] {
@@ -301,7 +316,9 @@ impl<const N: usize> Agent<N> {
                 } else {
                     Outcome::FREE
                 };
-                return self.finish(episode, leg32, k, counts, totals).map(|()| None);
+                return self
+                    .finish(episode, leg32, k, counts, totals)
+                    .map(|()| None);
             }
             totals.received += counts.received;
             prev = counts;
@@ -309,7 +326,14 @@ impl<const N: usize> Agent<N> {
         Err(AgentError::Protocol("scenario without legs".into()))
     }
 
-    fn finish(&mut self, episode: u64, leg: u32, k: u32, last: LegCounts, mut o: Outcome) -> Result<(), AgentError> {
+    fn finish(
+        &mut self,
+        episode: u64,
+        leg: u32,
+        k: u32,
+        last: LegCounts,
+        mut o: Outcome,
+    ) -> Result<(), AgentError> {
         o.header = self.header(episode, leg, k);
         o.last_steps = last.steps;
         o.last_received = last.received;
@@ -336,7 +360,12 @@ fn record_fault(o: &mut Outcome, f: &Fault) {
 
 /// The posterior after a slot of the serving sensor's filter: explicit update
 /// with `y`, else the implicit update with β.
-fn update<const N: usize>(f: &SensorFilter<N>, prior: &Belief<N>, y: Option<&WireVec>, beta: f64) -> Belief<N> {
+fn update<const N: usize>(
+    f: &SensorFilter<N>,
+    prior: &Belief<N>,
+    y: Option<&WireVec>,
+    beta: f64,
+) -> Belief<N> {
     macro_rules! go {
         ($f:expr) => {{
             let inn = $f.innovation(prior);

@@ -47,7 +47,12 @@ pub struct Coordinator<'a> {
 }
 
 impl<'a> Coordinator<'a> {
-    pub fn new(run: &RunId, scenario: &'a Scenario, strategy: &'a Strategy, seed: u64) -> Result<Self, CoordinatorError> {
+    pub fn new(
+        run: &RunId,
+        scenario: &'a Scenario,
+        strategy: &'a Strategy,
+        seed: u64,
+    ) -> Result<Self, CoordinatorError> {
         let node = wire::create_node(run, COORDINATOR_NODE)?;
         let sensors = scenario.sensors.len();
         let ports = Ports {
@@ -134,7 +139,15 @@ impl<'a> Coordinator<'a> {
         }
     }
 
-    fn send_threshold(&mut self, episode: u64, leg: u32, kind: u32, sensor: u32, delta_index: u32, delta: f64) -> Result<(), CoordinatorError> {
+    fn send_threshold(
+        &mut self,
+        episode: u64,
+        leg: u32,
+        kind: u32,
+        sensor: u32,
+        delta_index: u32,
+        delta: f64,
+    ) -> Result<(), CoordinatorError> {
         let header = self.header(episode, leg);
         self.threshold
             .send_copy(Threshold {
@@ -177,7 +190,12 @@ impl<'a> Coordinator<'a> {
     }
 
     /// Decision point `w.header.leg`: classify, draw δ, open the leg.
-    fn decide(&mut self, w: &Waypoint, rng: &mut SimRng, legs: &mut Vec<LegRecord>) -> Result<(), CoordinatorError> {
+    fn decide(
+        &mut self,
+        w: &Waypoint,
+        rng: &mut SimRng,
+        legs: &mut Vec<LegRecord>,
+    ) -> Result<(), CoordinatorError> {
         let episode = w.header.episode;
         let leg = w.header.leg;
         if leg > 0 {
@@ -337,9 +355,9 @@ impl<'a> Coordinator<'a> {
                 return Ok(());
             }
             let cfg = self.node.config().clone();
-            let all_dead = missing
-                .iter()
-                .all(|s| wire::liveness(&cfg, &wire::sensor_node_name(*s as usize)) != Liveness::Alive);
+            let all_dead = missing.iter().all(|s| {
+                wire::liveness(&cfg, &wire::sensor_node_name(*s as usize)) != Liveness::Alive
+            });
             if all_dead {
                 return Ok(());
             }
@@ -365,7 +383,14 @@ impl<'a> Coordinator<'a> {
         Ok(())
     }
 
-    fn report(&self, requested: u64, mut records: Vec<EpisodeRecord>, faults: Vec<FaultRecord>, seconds: f64, aborted: Option<String>) -> RunReport {
+    fn report(
+        &self,
+        requested: u64,
+        mut records: Vec<EpisodeRecord>,
+        faults: Vec<FaultRecord>,
+        seconds: f64,
+        aborted: Option<String>,
+    ) -> RunReport {
         let s = self.scenario;
         let mut sensors: Vec<SensorTotals> = s
             .sensors
@@ -430,5 +455,8 @@ impl<'a> Coordinator<'a> {
 /// The initial belief of a scenario as wire arrays.
 fn initial_wire(p: &etp_shared::scenario::Plant) -> (wire::WireVec, wire::WireMat) {
     let n = p.x0.len();
-    (to_wire_vec(p.x0.as_slice()), wire::to_wire_mat(n, |r, c| p.p0[(r, c)]))
+    (
+        to_wire_vec(p.x0.as_slice()),
+        wire::to_wire_mat(n, |r, c| p.p0[(r, c)]),
+    )
 }

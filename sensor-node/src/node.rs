@@ -88,7 +88,8 @@ pub(crate) fn serve<const N: usize, const M: usize>(
     )?;
 
     let parent = std::os::unix::process::parent_id();
-    let mut seen_coordinator = false;
+    // `say_hello` waited for the coordinator's subscriber: it was alive.
+    let mut seen_coordinator = true;
     let mut open: Option<OpenLeg> = None;
     let mut truth: Option<Truth> = None;
     let mut stats = SensorStats::default();
@@ -148,7 +149,12 @@ pub(crate) fn serve<const N: usize, const M: usize>(
                 }
                 Threshold::CLOSE if t.sensor == sender => {
                     let l = match open {
-                        Some(o) if o.ledger.episode == t.header.episode && o.ledger.leg == t.header.leg => o.ledger,
+                        Some(o)
+                            if o.ledger.episode == t.header.episode
+                                && o.ledger.leg == t.header.leg =>
+                        {
+                            o.ledger
+                        }
                         // A leg that never reached this sensor (e.g. ended by a
                         // collision on its first step) spent nothing.
                         _ => LegLedger {
@@ -194,13 +200,16 @@ pub(crate) fn serve<const N: usize, const M: usize>(
             {
                 truth = Some(*s);
             }
-            let Some(t) = truth.filter(|t| t.header.episode == p.header.episode && t.header.step == p.header.step) else {
+            let Some(t) = truth
+                .filter(|t| t.header.episode == p.header.episode && t.header.step == p.header.step)
+            else {
                 return Err(SensorError::Protocol(format!(
                     "prior of episode {} step {} without its truth",
                     p.header.episode, p.header.step
                 )));
             };
-            let is_open = |o: &OpenLeg| o.ledger.episode == p.header.episode && o.ledger.leg == p.header.leg;
+            let is_open =
+                |o: &OpenLeg| o.ledger.episode == p.header.episode && o.ledger.leg == p.header.leg;
             if !open.as_ref().is_some_and(is_open) {
                 if retried {
                     return Err(SensorError::Protocol(format!(
@@ -215,7 +224,11 @@ pub(crate) fn serve<const N: usize, const M: usize>(
             }
             let Some(leg) = open.as_mut() else { continue };
             // Measurement noise: keyed by (episode, step), independent of timing.
-            let mut rng = stream_rng(seed, streams::SENSOR, (p.header.episode << 32) | u64::from(p.header.step));
+            let mut rng = stream_rng(
+                seed,
+                streams::SENSOR,
+                (p.header.episode << 32) | u64::from(p.header.step),
+            );
             let x: Vector<N> = vec_from_wire(&t.x);
             let y = filter.sensor.measure(&x, &mut rng);
             let prior = belief_from_wire::<N>(&p.mean, &p.cov);

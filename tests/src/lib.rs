@@ -1,1 +1,169 @@
-//! End-to-end test helpers (work in progress).
+//! Helpers of the end-to-end tests (`tests/tests/*.rs`), which spawn the real
+//! binaries.
+//!
+//! * [`bin_dir`] — where the binaries are: the `target/<profile>/` folder of
+//!   the running test executable (`target/<profile>/deps/runtime-…`).
+//!   `cargo test --workspace` builds them there: `etp`, `etp-agent`,
+//!   `etp-coordinator` and `etp-sensor-node` each have an integration test,
+//!   and cargo builds a package's binaries before its integration tests run.
+//!   With `cargo test -p etp-tests` alone, build them first
+//!   (`cargo build --release --workspace`, same profile).
+//! * [`EtpRun`] — an `etp run` child in its own process group; dropping it
+//!   kills the whole group (coordinator, agent, sensors) and reaps it, so no
+//!   process outlives a test, even a failing one.
+//! * [`processes_of_run`] — the live processes whose command line names a run.
+//! * [`unique_run_id`] — a run id per test.
+
+use etp_shared::wire::{RunId, cleanup};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+
+/// `target/<profile>/`, where cargo puts the workspace binaries.
+pub fn bin_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("test executable path");
+    let deps = exe.parent().expect("deps folder");
+    let dir = if deps.ends_with("deps") {
+        deps.parent().expect("profile folder").to_path_buf()
+    } else {
+        deps.to_path_buf()
+    };
+    for b in ["etp", "etp-agent", "etp-coordinator", "etp-sensor-node"] {
+        assert!(
+            dir.join(b).is_file(),
+            "{} missing: run `cargo test --workspace` (or `cargo build --workspace` with the same profile) first",
+            dir.join(b).display()
+        );
+    }
+    dir
+}
+
+/// A run id unique to this test process and tag.
+pub fn unique_run_id(tag: &str) -> String {
+    format!("t{}-{tag}", std::process::id())
+}
+
+/// Send a signal with the system `kill` (`-9`, `-INT`, …); `target` may be
+/// `-PGID` for a process group.
+pub fn kill(sig: &str, target: &str) {
+    let _ = Command::new("kill")
+        .args([sig, "--", target])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status();
+}
+
+/// An `etp run` in its own process group, killed with its children on drop.
+pub struct EtpRun {
+    pub child: Option<Child>,
+    pub run_id: String,
+}
+
+impl EtpRun {
+    /// Spawn `etp run <args> --run-id <run_id> --json` with stdout captured.
+    pub fn spawn(run_id: &str, args: &[&str]) -> Self {
+        use std::os::unix::process::CommandExt;
+        let child = Command::new(bin_dir().join("etp"))
+            .arg("run")
+            .args(args)
+            .args(["--run-id", run_id, "--json"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .process_group(0)
+            .spawn()
+            .expect("spawning etp run");
+        Self {
+            child: Some(child),
+            run_id: run_id.to_string(),
+        }
+    }
+
+    /// Wait for the end; (success, stdout, stderr).
+    pub fn finish(mut self) -> (bool, String, String) {
+        let child = self.child.take().expect("child");
+        let out = child.wait_with_output().expect("waiting for etp run");
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    }
+
+    pub fn pid(&self) -> u32 {
+        self.child.as_ref().map_or(0, Child::id)
+    }
+}
+
+impl Drop for EtpRun {
+    fn drop(&mut self) {
+        if let Some(mut c) = self.child.take() {
+            kill("-KILL", &format!("-{}", c.id()));
+            let _ = c.wait();
+        }
+        // Whatever was left in /dev/shm and the root folder by killed nodes.
+        if let Ok(run) = RunId::new(&self.run_id) {
+            for _ in 0..50 {
+                if processes_of_run(&self.run_id).is_empty() {
+                    break;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+            cleanup::remove_run(&run);
+        }
+    }
+}
+
+/// Live processes (pid, command line) whose arguments contain `--run-id <id>`.
+/// Zombies have an empty command line and are not listed.
+pub fn processes_of_run(run_id: &str) -> Vec<(u32, Vec<String>)> {
+    let mut found = Vec::new();
+    let Ok(dir) = std::fs::read_dir("/proc") else {
+        return found;
+    };
+    for e in dir.filter_map(Result::ok) {
+        let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(raw) = std::fs::read(e.path().join("cmdline")) else {
+            continue;
+        };
+        let args: Vec<String> = raw
+            .split(|b| *b == 0)
+            .filter(|a| !a.is_empty())
+            .map(|a| String::from_utf8_lossy(a).into_owned())
+            .collect();
+        if args
+            .windows(2)
+            .any(|w| w[0] == "--run-id" && w[1] == run_id)
+        {
+            found.push((pid, args));
+        }
+    }
+    found
+}
+
+/// The pid of a run's process whose command line has `needle` as an argument
+/// next to `flag` (e.g. `--sensor s2`), or that runs binary `needle`.
+pub fn find_process(run_id: &str, binary: &str, flag_value: Option<(&str, &str)>) -> Option<u32> {
+    processes_of_run(run_id)
+        .into_iter()
+        .find_map(|(pid, args)| {
+            let is_bin = args.first().is_some_and(|a| a.ends_with(binary));
+            let has =
+                flag_value.is_none_or(|(f, v)| args.windows(2).any(|w| w[0] == f && w[1] == v));
+            (is_bin && has).then_some(pid)
+        })
+}
+
+/// No iceoryx2 file of the run is left in /dev/shm, nor its root folder.
+pub fn no_leftovers(run_id: &str) -> Result<(), String> {
+    let run = RunId::new(run_id).map_err(|e| e.to_string())?;
+    let shm = cleanup::shm_files(&run);
+    if !shm.is_empty() {
+        return Err(format!("left in /dev/shm: {shm:?}"));
+    }
+    if run.root_dir().exists() {
+        return Err(format!("left: {}", run.root_dir().display()));
+    }
+    Ok(())
+}

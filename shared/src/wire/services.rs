@@ -28,7 +28,8 @@ impl RunId {
     pub fn new(s: &str) -> Result<Self, WireError> {
         let ok = !s.is_empty()
             && s.len() <= 40
-            && s.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-');
+            && s.bytes()
+                .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-');
         if ok {
             Ok(Self(s.to_string()))
         } else {
@@ -81,7 +82,8 @@ pub fn config(run: &RunId) -> Result<Config, WireError> {
     cfg.global.prefix = FileName::new(run.shm_prefix().as_bytes())
         .map_err(|e| WireError::Config(format!("prefix: {e:?}")))?;
     let root = format!("{}/", run.root_dir().display());
-    let path = Path::new(root.as_bytes()).map_err(|e| WireError::Config(format!("root {root}: {e:?}")))?;
+    let path =
+        Path::new(root.as_bytes()).map_err(|e| WireError::Config(format!("root {root}: {e:?}")))?;
     cfg.global.set_root_path(&path);
     Ok(cfg)
 }
@@ -255,7 +257,8 @@ pub fn open_pubsub<T: Debug + ZeroCopySend>(
 ) -> Result<PubSub<T>, WireError> {
     let l = limits(service, sensors);
     let name = service.name(run);
-    let sname = ServiceName::new(&name).map_err(|e| WireError::Service(name.clone(), format!("{e:?}")))?;
+    let sname =
+        ServiceName::new(&name).map_err(|e| WireError::Service(name.clone(), format!("{e:?}")))?;
     node.service_builder(&sname)
         .publish_subscribe::<T>()
         .max_publishers(l.max_publishers)
@@ -277,7 +280,8 @@ pub fn open_event(
 ) -> Result<Event, WireError> {
     let l = limits(service, sensors);
     let name = service.name(run);
-    let sname = ServiceName::new(&name).map_err(|e| WireError::Service(name.clone(), format!("{e:?}")))?;
+    let sname =
+        ServiceName::new(&name).map_err(|e| WireError::Service(name.clone(), format!("{e:?}")))?;
     node.service_builder(&sname)
         .event()
         .max_notifiers(l.max_publishers)
@@ -326,13 +330,21 @@ pub fn liveness(cfg: &Config, name: &str) -> Liveness {
     let _ = Node::<ipc::Service>::list(cfg, |state| {
         match state {
             NodeState::Alive(view) => {
-                if view.details().as_ref().is_some_and(|d| d.name().as_str() == name) {
+                if view
+                    .details()
+                    .as_ref()
+                    .is_some_and(|d| d.name().as_str() == name)
+                {
                     found = Liveness::Alive;
                     return CallbackProgression::Stop;
                 }
             }
             NodeState::Dead(view) => {
-                if view.details().as_ref().is_some_and(|d| d.name().as_str() == name) {
+                if view
+                    .details()
+                    .as_ref()
+                    .is_some_and(|d| d.name().as_str() == name)
+                {
                     found = Liveness::Dead;
                     let _ = view.try_remove_stale_resources();
                     return CallbackProgression::Stop;
@@ -432,7 +444,12 @@ pub fn say_hello(
     hello: super::messages::to_coordinator::Hello,
     timeout: std::time::Duration,
 ) -> Result<Pub<super::messages::to_coordinator::Hello>, WireError> {
-    let factory = open_pubsub::<super::messages::to_coordinator::Hello>(ports.node, ports.run, ServiceId::Hello, ports.sensors)?;
+    let factory = open_pubsub::<super::messages::to_coordinator::Hello>(
+        ports.node,
+        ports.run,
+        ServiceId::Hello,
+        ports.sensors,
+    )?;
     let publisher = factory
         .publisher_builder()
         .create()
@@ -453,6 +470,8 @@ pub fn say_hello(
     ports
         .notifier(ServiceId::CoordinatorWake)?
         .notify()
-        .map_err(|e| WireError::Port(ServiceId::CoordinatorWake.name(ports.run), format!("{e:?}")))?;
+        .map_err(|e| {
+            WireError::Port(ServiceId::CoordinatorWake.name(ports.run), format!("{e:?}"))
+        })?;
     Ok(publisher)
 }

@@ -80,7 +80,10 @@ pub fn run(a: Args) -> Result<()> {
         .enable_all()
         .build()
         .context("starting the tokio runtime")?;
-    let outcome = rt.block_on(supervise::supervise(&plan, Duration::from_secs_f64(a.deadline)));
+    let outcome = rt.block_on(supervise::supervise(
+        &plan,
+        Duration::from_secs_f64(a.deadline),
+    ));
     // Whatever happened: no iceoryx2 leftovers of this run.
     let cleaned = cleanup::remove_run(&run_id);
     let _ = std::fs::remove_dir_all(&plan.dir);

@@ -2,10 +2,16 @@
 
 use super::Args;
 use anyhow::{Context, Result, bail};
+use etp_shared::episode::{CompiledScenario, LegMode};
+use etp_shared::etkf::{Belief, Threshold};
+use etp_shared::linalg::to_dynamic;
+use etp_shared::rng::{SimRng, streams};
 use etp_shared::scenario::{Scenario, builtin_text};
 use etp_shared::strategy::{Prediction, Strategy};
 use etp_shared::wire::RunId;
-use etp_synthesis::validate::simulate_strategy;
+use etp_shared::with_dim;
+use etp_synthesis::simulate::{SimulationSummary, simulate};
+use rand::RngExt;
 use std::path::PathBuf;
 
 /// A run ready to be spawned.
@@ -15,7 +21,6 @@ pub struct Plan {
     pub seed: u64,
     pub episodes: u64,
     pub scenario: Scenario,
-    pub strategy: Strategy,
     /// The run's private folder (scenario and strategy files for the processes).
     pub dir: PathBuf,
     pub scenario_path: PathBuf,
@@ -46,7 +51,8 @@ fn clone_sensors(text: &str, k: usize) -> Result<String> {
     if k == 0 {
         bail!("--clone-sensors must be at least 1");
     }
-    let mut v: toml::Table = toml::from_str(text).context("parsing the scenario for --clone-sensors")?;
+    let mut v: toml::Table =
+        toml::from_str(text).context("parsing the scenario for --clone-sensors")?;
     let first = v
         .get("sensor")
         .and_then(|s| s.as_array())
@@ -79,30 +85,42 @@ fn clone_sensors(text: &str, k: usize) -> Result<String> {
 pub fn prepare(a: &Args, run_id: &RunId) -> Result<Plan> {
     let (mut text, strategy_in) = match (&a.strategy, &a.scenario, a.delta) {
         (Some(path), _, None) => {
-            let s = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-            let st = Strategy::from_json(&s).with_context(|| format!("loading strategy {}", path.display()))?;
+            let s = std::fs::read_to_string(path)
+                .with_context(|| format!("reading {}", path.display()))?;
+            let st = Strategy::from_json(&s)
+                .with_context(|| format!("loading strategy {}", path.display()))?;
             let text = match (&a.scenario, &st.scenario_toml) {
                 (Some(arg), _) => scenario_text(arg)?,
                 (None, Some(t)) => t.clone(),
-                (None, None) => scenario_text(&st.scenario_name)
-                    .with_context(|| format!("strategy {} names scenario `{}`", path.display(), st.scenario_name))?,
+                (None, None) => scenario_text(&st.scenario_name).with_context(|| {
+                    format!(
+                        "strategy {} names scenario `{}`",
+                        path.display(),
+                        st.scenario_name
+                    )
+                })?,
             };
             (text, Some(st))
         }
         (None, Some(arg), Some(_)) => (scenario_text(arg)?, None),
-        (Some(_), _, Some(_)) => bail!("give either a strategy file or --scenario with --delta, not both"),
+        (Some(_), _, Some(_)) => {
+            bail!("give either a strategy file or --scenario with --delta, not both")
+        }
         _ => bail!("give a strategy.json, or --scenario NAME --delta D for a constant threshold"),
     };
     if let Some(k) = a.clone_sensors {
         if strategy_in.is_some() {
-            bail!("--clone-sensors works with --scenario/--delta only (a strategy is tied to its scenario's hash)");
+            bail!(
+                "--clone-sensors works with --scenario/--delta only (a strategy is tied to its scenario's hash)"
+            );
         }
         text = clone_sensors(&text, k)?;
     }
     let scenario = Scenario::from_toml(&text).context("scenario")?;
     let mut strategy = match strategy_in {
         Some(st) => {
-            st.check_scenario(&scenario).context("strategy and scenario")?;
+            st.check_scenario(&scenario)
+                .context("strategy and scenario")?;
             st
         }
         None => {
@@ -111,7 +129,12 @@ pub fn prepare(a: &Args, run_id: &RunId) -> Result<Plan> {
                 .deltas
                 .iter()
                 .position(|d| (d - delta).abs() <= 1e-9 * d.abs().max(1.0))
-                .with_context(|| format!("δ = {delta} is not one of the scenario's thresholds {:?}", scenario.deltas))?;
+                .with_context(|| {
+                    format!(
+                        "δ = {delta} is not one of the scenario's thresholds {:?}",
+                        scenario.deltas
+                    )
+                })?;
             let placeholder = Prediction {
                 p_target: 0.0,
                 p_collision: 0.0,
@@ -124,7 +147,7 @@ pub fn prepare(a: &Args, run_id: &RunId) -> Result<Plan> {
     // In-process simulation of the same strategy: per-sensor energy, and the
     // whole prediction for a constant strategy made here.
     let predict_episodes = a.predict_episodes.max(1);
-    let sim = simulate_strategy(&scenario, &strategy, predict_episodes, a.seed ^ 0x5EED, &|_| {}).summary();
+    let sim = simulate_strategy(&scenario, &strategy, predict_episodes, a.seed);
     let sensor_energy_per_episode = scenario
         .sensors
         .iter()
@@ -138,7 +161,10 @@ pub fn prepare(a: &Args, run_id: &RunId) -> Result<Plan> {
             p_free: sim.p_free.value,
             energy_mean: sim.energy_mean.value,
         };
-        strategy.label = format!("{} (prediction: in-process simulation, {predict_episodes} episodes)", strategy.label);
+        strategy.label = format!(
+            "{} (prediction: in-process simulation, {predict_episodes} episodes)",
+            strategy.label
+        );
     }
     strategy.scenario_toml = Some(text.clone());
 
@@ -146,18 +172,38 @@ pub fn prepare(a: &Args, run_id: &RunId) -> Result<Plan> {
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let scenario_path = dir.join("scenario.toml");
     let strategy_path = dir.join("strategy.json");
-    std::fs::write(&scenario_path, &text).with_context(|| format!("writing {}", scenario_path.display()))?;
-    std::fs::write(&strategy_path, strategy.to_json()).with_context(|| format!("writing {}", strategy_path.display()))?;
+    std::fs::write(&scenario_path, &text)
+        .with_context(|| format!("writing {}", scenario_path.display()))?;
+    std::fs::write(&strategy_path, strategy.to_json())
+        .with_context(|| format!("writing {}", strategy_path.display()))?;
     Ok(Plan {
         run_id: run_id.clone(),
         seed: a.seed,
         episodes: a.episodes,
         scenario,
-        strategy,
         dir,
         scenario_path,
         strategy_path,
         sensor_energy_per_episode,
         predict_episodes,
+    })
+}
+
+/// In-process simulation of a strategy (the same classification and draw as
+/// the coordinator, on `streams::VALIDATE`), for the per-sensor prediction.
+pub fn simulate_strategy(
+    scenario: &Scenario,
+    strategy: &Strategy,
+    episodes: u64,
+    seed: u64,
+) -> SimulationSummary {
+    let thresholds: Vec<Threshold> = strategy.deltas.iter().map(|&d| Threshold::new(d)).collect();
+    with_dim!(scenario.dim, N => {
+        let c = CompiledScenario::<N>::new(scenario);
+        let policy = |leg: usize, b: &Belief<N>, rng: &mut SimRng| {
+            let u: f64 = rng.random();
+            LegMode::<N>::EventTriggered(thresholds[strategy.draw(leg, &to_dynamic(&b.cov), u)])
+        };
+        simulate(&c, &policy, episodes, seed, streams::VALIDATE, &|_| {}).summary()
     })
 }

@@ -57,6 +57,7 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         "predicted": {"p_target": r.predicted.p_target, "p_collision": r.predicted.p_collision,
                       "energy_mean": r.predicted.energy_mean},
         "sensors": sensors,
+        "predicted_energy_from": format!("in-process simulation, {} episodes", plan.predict_episodes),
         "processes": s.processes.len(),
         "process_exits": s.processes,
         "degraded": r.degraded,
@@ -91,9 +92,16 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
         r.seed,
         s.processes.len(),
         r.seconds,
-        if r.seconds > 0.0 { r.steps as f64 / r.seconds } else { 0.0 }
+        if r.seconds > 0.0 {
+            r.steps as f64 / r.seconds
+        } else {
+            0.0
+        }
     );
-    println!("  {:<12} {:>20}   {:>10}", "", "measured (95 %)", "predicted");
+    println!(
+        "  {:<12} {:>20}   {:>10}",
+        "", "measured (95 %)", "predicted"
+    );
     let p = &r.predicted;
     for (k, m, pr) in [
         ("P_target", e.p_target, p.p_target),

@@ -60,10 +60,15 @@ fn spawn(bin: &Path, args: &[String], stdout: bool) -> Result<Child> {
     let mut c = Command::new(bin);
     c.args(args)
         .stdin(Stdio::null())
-        .stdout(if stdout { Stdio::piped() } else { Stdio::null() })
+        .stdout(if stdout {
+            Stdio::piped()
+        } else {
+            Stdio::null()
+        })
         .stderr(Stdio::inherit())
         .kill_on_drop(true);
-    c.spawn().with_context(|| format!("spawning {}", bin.display()))
+    c.spawn()
+        .with_context(|| format!("spawning {}", bin.display()))
 }
 
 /// Send a signal by pid with the system `kill` (keeps this crate free of unsafe).
@@ -80,7 +85,12 @@ pub async fn supervise(plan: &Plan, deadline: Duration) -> Result<Supervised> {
     let run = plan.run_id.as_str().to_string();
     let scenario = plan.scenario_path.display().to_string();
     let common = |extra: &[String]| -> Vec<String> {
-        let mut v = vec!["--run-id".to_string(), run.clone(), "--scenario".to_string(), scenario.clone()];
+        let mut v = vec![
+            "--run-id".to_string(),
+            run.clone(),
+            "--scenario".to_string(),
+            scenario.clone(),
+        ];
         v.extend_from_slice(extra);
         v
     };
@@ -88,10 +98,21 @@ pub async fn supervise(plan: &Plan, deadline: Duration) -> Result<Supervised> {
     let mut children: Vec<(String, Child)> = Vec::new();
     let sensor_bin = sibling_binary("etp-sensor-node")?;
     for s in &plan.scenario.sensors {
-        let args = common(&["--sensor".into(), s.name.clone(), "--seed".into(), plan.seed.to_string()]);
-        children.push((format!("sensor {}", s.name), spawn(&sensor_bin, &args, false)?));
+        let args = common(&[
+            "--sensor".into(),
+            s.name.clone(),
+            "--seed".into(),
+            plan.seed.to_string(),
+        ]);
+        children.push((
+            format!("sensor {}", s.name),
+            spawn(&sensor_bin, &args, false)?,
+        ));
     }
-    children.push(("agent".into(), spawn(&sibling_binary("etp-agent")?, &common(&[]), false)?));
+    children.push((
+        "agent".into(),
+        spawn(&sibling_binary("etp-agent")?, &common(&[]), false)?,
+    ));
     let coord_args = common(&[
         "--strategy".into(),
         plan.strategy_path.display().to_string(),
@@ -159,7 +180,10 @@ pub async fn supervise(plan: &Plan, deadline: Duration) -> Result<Supervised> {
     if let Some(f) = failure
         && out.trim().is_empty()
     {
-        return Err(anyhow!("run {run}: {f}; processes: {}", summary(&processes)));
+        return Err(anyhow!(
+            "run {run}: {f}; processes: {}",
+            summary(&processes)
+        ));
     }
     let report: RunReport = serde_json::from_str(out.trim()).map_err(|e| {
         anyhow!(

@@ -1,0 +1,293 @@
+//! End-to-end tests of the multi-process runtime: `etp run` spawning the real
+//! `etp-coordinator`, `etp-agent` and `etp-sensor-node` binaries.
+
+use etp_shared::episode::{CompiledScenario, LegMode};
+use etp_shared::etkf::Threshold;
+use etp_shared::rng::streams;
+use etp_shared::scenario::Scenario;
+use etp_shared::stats::Estimate;
+use etp_synthesis::simulate::simulate;
+use etp_tests::{EtpRun, find_process, kill, no_leftovers, processes_of_run, unique_run_id};
+use serde_json::Value;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+const DELTA: &str = "1.4986";
+
+fn run_json(tag: &str, args: &[&str]) -> (String, Value) {
+    let id = unique_run_id(tag);
+    let (ok, out, err) = EtpRun::spawn(&id, args).finish();
+    assert!(ok, "etp run failed: {err}");
+    let v: Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("bad JSON ({e}): {out}"));
+    (id, v)
+}
+
+fn num(v: &Value, k: &str) -> f64 {
+    v[k].as_f64()
+        .unwrap_or_else(|| panic!("no number `{k}` in {v}"))
+}
+
+fn est(v: &Value, k: &str) -> Estimate {
+    Estimate {
+        value: num(v, k),
+        ci95: num(v, &format!("{k}_ci95")),
+    }
+}
+
+/// Every leg's ledger equals what the agent received; per sensor too.
+fn assert_ledgers_match(v: &Value, skip_degraded: bool) {
+    let mut per_sensor = std::collections::HashMap::<u64, (u64, u64)>::new();
+    for e in v["episode_results"].as_array().expect("episode_results") {
+        if skip_degraded && e["degraded"].as_bool() == Some(true) {
+            continue;
+        }
+        assert_eq!(e["degraded"].as_bool(), Some(false), "episode {e}");
+        for l in e["legs"].as_array().expect("legs") {
+            let received = l["received"].as_u64().expect("received");
+            let transmitted = l["transmitted"]
+                .as_u64()
+                .unwrap_or_else(|| panic!("no ledger: {l}"));
+            assert_eq!(
+                transmitted, received,
+                "episode {} leg {}",
+                e["episode"], l["leg"]
+            );
+            let s = per_sensor
+                .entry(l["sensor"].as_u64().expect("sensor"))
+                .or_default();
+            s.0 += transmitted;
+            s.1 += received;
+        }
+    }
+    if !skip_degraded {
+        for (i, s) in v["sensors"].as_array().expect("sensors").iter().enumerate() {
+            let (t, r) = per_sensor.get(&(i as u64)).copied().unwrap_or_default();
+            assert_eq!(s["transmitted"].as_u64(), Some(t), "{s}");
+            assert_eq!(s["received"].as_u64(), Some(r), "{s}");
+        }
+    }
+}
+
+#[test]
+fn ledgers_equal_received_and_outcomes_agree_with_in_process_simulation() {
+    let (id, v) = run_json(
+        "agree",
+        &[
+            "--scenario",
+            "winding-2d",
+            "--delta",
+            DELTA,
+            "--episodes",
+            "300",
+            "--seed",
+            "11",
+            "--episode-details",
+        ],
+    );
+    for k in [
+        "episodes",
+        "p_target",
+        "p_collision",
+        "energy_mean",
+        "predicted",
+        "sensors",
+        "processes",
+        "degraded",
+    ] {
+        assert!(v.get(k).is_some(), "key `{k}` missing");
+    }
+    for k in ["p_target", "p_collision", "energy_mean"] {
+        assert!(v["predicted"].get(k).is_some(), "predicted.{k} missing");
+    }
+    for s in v["sensors"].as_array().expect("sensors") {
+        for k in ["name", "transmitted", "received", "predicted_energy"] {
+            assert!(s.get(k).is_some(), "sensors[].{k} missing");
+        }
+    }
+    assert_eq!(num(&v, "episodes"), 300.0);
+    assert_eq!(num(&v, "processes"), 9.0, "coordinator + agent + 7 sensors");
+    assert_eq!(num(&v, "degraded"), 0.0);
+    for p in v["process_exits"].as_array().expect("process_exits") {
+        assert_eq!(p["status"].as_str(), Some("exit 0"), "{p}");
+    }
+    assert_ledgers_match(&v, false);
+
+    // The same strategy in-process (independent random streams).
+    let s = Scenario::builtin("winding-2d").expect("built-in");
+    let c = CompiledScenario::<2>::new(&s);
+    let t = Threshold::new(DELTA.parse().expect("δ"));
+    let policy = move |_: usize, _: &_, _: &mut _| LegMode::<2>::EventTriggered(t);
+    let sim = simulate(&c, &policy, 3000, 5, streams::VALIDATE, &|_| {}).summary();
+    for (k, inproc) in [
+        ("p_target", sim.p_target),
+        ("p_collision", sim.p_collision),
+        ("energy_mean", sim.energy_mean),
+    ] {
+        let ipc = est(&v, k);
+        assert!(
+            (ipc.value - inproc.value).abs() <= ipc.ci95 + inproc.ci95,
+            "{k}: IPC {:.4} ± {:.4} vs in-process {:.4} ± {:.4}",
+            ipc.value,
+            ipc.ci95,
+            inproc.value,
+            inproc.ci95
+        );
+    }
+    assert!(processes_of_run(&id).is_empty());
+    no_leftovers(&id).expect("clean /dev/shm and root folder");
+}
+
+#[test]
+fn the_same_seed_gives_the_same_episodes() {
+    let args = [
+        "--scenario",
+        "open-2d",
+        "--delta",
+        "1.4986",
+        "--episodes",
+        "25",
+        "--seed",
+        "3",
+        "--episode-details",
+    ];
+    let (_, a) = run_json("seed-a", &args);
+    let (_, b) = run_json("seed-b", &args);
+    assert_eq!(a["episode_results"], b["episode_results"]);
+    let other = [
+        "--scenario",
+        "open-2d",
+        "--delta",
+        "1.4986",
+        "--episodes",
+        "25",
+        "--seed",
+        "4",
+        "--episode-details",
+    ];
+    let (_, c) = run_json("seed-c", &other);
+    assert_ne!(a["episode_results"], c["episode_results"]);
+}
+
+fn unix_ns() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
+#[test]
+fn a_killed_sensor_is_detected_the_episode_degraded_and_the_run_continues() {
+    let id = unique_run_id("kill");
+    let run = EtpRun::spawn(
+        &id,
+        &[
+            "--scenario",
+            "winding-2d",
+            "--delta",
+            DELTA,
+            "--episodes",
+            "400",
+            "--seed",
+            "2",
+            "--episode-details",
+        ],
+    );
+    // s2 serves legs 3 and 4 of every episode that gets that far.
+    let start = Instant::now();
+    let victim = loop {
+        if let Some(pid) = find_process(&id, "etp-sensor-node", Some(("--sensor", "s2"))) {
+            break pid;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "sensor s2 never started"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    std::thread::sleep(Duration::from_millis(1500));
+    let killed_at = unix_ns();
+    kill("-KILL", &victim.to_string());
+    let (ok, out, err) = run.finish();
+    assert!(ok, "etp run failed: {err}");
+    let v: Value = serde_json::from_str(&out).expect("JSON");
+    assert_eq!(num(&v, "episodes"), 400.0, "the run continued to the end");
+    assert!(num(&v, "degraded") >= 1.0);
+    let faults = v["faults"].as_array().expect("faults");
+    let f = faults.first().expect("a fault is reported");
+    assert_eq!(f["sensor"].as_str(), Some("s2"));
+    let detected = f["detected_unix_ns"].as_u64().expect("detected");
+    let waited_from = f["wait_started_unix_ns"]
+        .as_u64()
+        .expect("wait start")
+        .max(killed_at);
+    let latency_ms = (detected.saturating_sub(waited_from)) as f64 / 1e6;
+    assert!(
+        latency_ms < 100.0,
+        "dead link seen {latency_ms:.1} ms after it mattered"
+    );
+    assert!(f["dead_slots"].as_u64().expect("dead slots") >= 1);
+    // Healthy episodes still balance exactly; the dead sensor's status is the kill.
+    assert_ledgers_match(&v, true);
+    let exits = v["process_exits"].as_array().expect("exits");
+    for p in exits {
+        let expected = if p["pid"].as_u64() == Some(u64::from(victim)) {
+            "signal 9"
+        } else {
+            "exit 0"
+        };
+        assert_eq!(p["status"].as_str(), Some(expected), "{p}");
+    }
+    assert!(processes_of_run(&id).is_empty());
+    no_leftovers(&id).expect("clean /dev/shm and root folder");
+}
+
+#[test]
+fn when_the_coordinator_dies_agent_and_sensors_exit_within_a_second() {
+    let id = unique_run_id("coord");
+    let run = EtpRun::spawn(
+        &id,
+        &[
+            "--scenario",
+            "winding-2d",
+            "--delta",
+            DELTA,
+            "--episodes",
+            "100000",
+        ],
+    );
+    let start = Instant::now();
+    let coordinator = loop {
+        if let Some(pid) = find_process(&id, "etp-coordinator", None) {
+            break pid;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "coordinator never started"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    std::thread::sleep(Duration::from_millis(1000));
+    let others = processes_of_run(&id).len();
+    assert!(
+        others >= 9,
+        "etp run + coordinator + agent + 7 sensors, saw {others}"
+    );
+    kill("-KILL", &coordinator.to_string());
+    let killed = Instant::now();
+    loop {
+        let left: Vec<_> = processes_of_run(&id)
+            .into_iter()
+            .filter(|(pid, _)| *pid != run.pid())
+            .collect();
+        if left.is_empty() {
+            break;
+        }
+        assert!(
+            killed.elapsed() < Duration::from_secs(1),
+            "still running 1 s after the coordinator died: {left:?}"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let (ok, _, err) = run.finish();
+    assert!(!ok, "no report without a coordinator");
+    assert!(err.contains("coordinator"), "{err}");
+    no_leftovers(&id).expect("clean /dev/shm and root folder");
+}
