@@ -59,8 +59,17 @@ pub fn describe(front: &ParetoFront) -> String {
         front.mdp_states,
         front.mdp_transitions
     );
-    let _ = writeln!(o, "  {:>4} {:>10} {:>9} {:>9}", "#", "energy", "P_tar", "P_coll");
-    for (k, v) in front.vertices.iter().enumerate() {
+    let _ = writeln!(
+        o,
+        "  a sample of the vertices (all of them are in front.json):\n  {:>4} {:>10} {:>9} {:>9}",
+        "#", "energy", "P_tar", "P_coll"
+    );
+    let n = front.vertices.len();
+    let shown: std::collections::BTreeSet<usize> = (0..12.min(n))
+        .map(|i| i * n.saturating_sub(1) / 11.max(1))
+        .chain(front.max_target_vertex())
+        .collect();
+    for (k, v) in front.vertices.iter().enumerate().filter(|(k, _)| shown.contains(k)) {
         let x = &v.objectives;
         let _ = writeln!(o, "  {k:>4} {:>10.2} {:>8.2}% {:>8.2}%", x.energy, 100.0 * x.p_target, 100.0 * x.p_collision);
     }

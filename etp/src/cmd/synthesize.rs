@@ -79,6 +79,9 @@ pub struct Args {
     /// Print one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Skip the Method 1 (KF convergence) baseline front next to Method 2's.
+    #[arg(long)]
+    pub no_kf_baseline: bool,
 }
 
 /// What [`build_mdp`] did, for the summary.
@@ -215,11 +218,51 @@ pub fn report_text(r: &MdpReport) -> String {
 }
 
 pub fn run(a: Args) -> Result<()> {
+    // Refuse before any work if the Pareto step would have to overwrite.
+    let s = load_scenario(&a.scenario)?;
+    let dir = a.out.clone().unwrap_or_else(|| Path::new("out").join(&s.name));
+    let front_path = dir.join("front.json");
+    if front_path.exists() && !a.force {
+        bail!(
+            "{} already exists; pass --force to overwrite it or -o to choose another directory",
+            front_path.display()
+        );
+    }
+    let text = crate::input::scenario_text(&a.scenario)?;
     let built = build_mdp(&a)?;
+    // Method 1 as a baseline beside Method 2 (cheap: one state per decision point).
+    let method1 = if a.method == MethodArg::Discretized && !a.no_kf_baseline {
+        let d = default_kf_params(&built.scenario);
+        let mut p = params(&a, &built.scenario)?;
+        p.method = Method::KfConvergence;
+        p.kf = Some(d);
+        let m1 = abstraction::build(&built.scenario, &p, &|_| {}).context("building the Method 1 baseline")?;
+        write_new(&dir.join("mdp-kf-convergence.bin"), &m1.encode(), true)?;
+        Some(m1)
+    } else {
+        None
+    };
+    let front = crate::front::write_front(&built.dir, &built.mdp, method1.as_ref(), &text, a.force)?;
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&built.report)?);
+        let v = serde_json::json!({
+            "mdp": built.report,
+            "front": {
+                "vertices": front.front.vertices.len(),
+                "facets": front.front.facets.len(),
+                "optimisations": front.front.optimisations,
+                "seconds": front.seconds,
+                "energy_scale": front.front.energy_scale,
+                "files": front.files,
+            }
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         print!("{}", report_text(&built.report));
+        print!("{}", crate::front::describe(&front.front));
+        println!("  computed in {:.3} s", front.seconds);
+        for f in &front.files {
+            println!("  wrote {}", f.display());
+        }
     }
     Ok(())
 }
