@@ -43,11 +43,13 @@ pub fn front_plot(front: &ParetoFront, stem: &Path) -> Result<()> {
     {
         let root = BitMapBackend::new(&png, (1000, 700)).into_drawing_area();
         draw_front(&root, front)?;
-        root.present().with_context(|| format!("writing {}", png.display()))?;
+        root.present()
+            .with_context(|| format!("writing {}", png.display()))?;
     }
     let root = SVGBackend::new(&svg, (1000, 700)).into_drawing_area();
     draw_front(&root, front)?;
-    root.present().with_context(|| format!("writing {}", svg.display()))?;
+    root.present()
+        .with_context(|| format!("writing {}", svg.display()))?;
     Ok(())
 }
 
@@ -91,8 +93,11 @@ where
         .draw()
         .map_err(e)?;
     // Upper envelope (best P_tar per energy) through the vertices, for the eye.
-    let mut by_energy: Vec<(f64, f64)> =
-        front.vertices.iter().map(|v| (v.objectives.energy, v.objectives.p_target)).collect();
+    let mut by_energy: Vec<(f64, f64)> = front
+        .vertices
+        .iter()
+        .map(|v| (v.objectives.energy, v.objectives.p_target))
+        .collect();
     by_energy.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut envelope: Vec<(f64, f64)> = Vec::new();
     for p in by_energy {
@@ -101,12 +106,19 @@ where
         }
     }
     chart
-        .draw_series(LineSeries::new(envelope, RGBColor(150, 150, 150).stroke_width(1)))
+        .draw_series(LineSeries::new(
+            envelope,
+            RGBColor(150, 150, 150).stroke_width(1),
+        ))
         .map_err(e)?;
     chart
         .draw_series(front.vertices.iter().map(|v| {
             let o = &v.objectives;
-            Circle::new((o.energy, o.p_target), 4, heat(o.p_collision / c_max).filled())
+            Circle::new(
+                (o.energy, o.p_target),
+                4,
+                heat(o.p_collision / c_max).filled(),
+            )
         }))
         .map_err(e)?
         .label("front vertices")
@@ -133,7 +145,11 @@ where
         chart
             .draw_series(m1.vertices.iter().map(|v| {
                 let o = &v.objectives;
-                Cross::new((o.energy, o.p_target), 5, RGBColor(0, 120, 0).stroke_width(2))
+                Cross::new(
+                    (o.energy, o.p_target),
+                    5,
+                    RGBColor(0, 120, 0).stroke_width(2),
+                )
             }))
             .map_err(e)?
             .label("Method 1 (KF convergence) vertices")
@@ -158,11 +174,13 @@ pub fn map_plot(scenario: &Scenario, trajectories: &[Trajectory], stem: &Path) -
     {
         let root = BitMapBackend::new(&png, (1200, 900)).into_drawing_area();
         draw_map(&root, scenario, trajectories)?;
-        root.present().with_context(|| format!("writing {}", png.display()))?;
+        root.present()
+            .with_context(|| format!("writing {}", png.display()))?;
     }
     let root = SVGBackend::new(&svg, (1200, 900)).into_drawing_area();
     draw_map(&root, scenario, trajectories)?;
-    root.present().with_context(|| format!("writing {}", svg.display()))?;
+    root.present()
+        .with_context(|| format!("writing {}", svg.display()))?;
     Ok(())
 }
 
@@ -187,8 +205,14 @@ where
         xs.extend([o.bounds.min[0], o.bounds.max[0]]);
         ys.extend([y_of(&o.bounds.min), y_of(&o.bounds.max)]);
     }
-    let (x0, x1) = (xs.iter().copied().fold(f64::INFINITY, f64::min), xs.iter().copied().fold(f64::NEG_INFINITY, f64::max));
-    let (y0, y1) = (ys.iter().copied().fold(f64::INFINITY, f64::min), ys.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+    let (x0, x1) = (
+        xs.iter().copied().fold(f64::INFINITY, f64::min),
+        xs.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    );
+    let (y0, y1) = (
+        ys.iter().copied().fold(f64::INFINITY, f64::min),
+        ys.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    );
     let pad = 0.05 * (x1 - x0).max(y1 - y0).max(1e-3);
     let mut chart = ChartBuilder::on(root)
         .caption(
@@ -214,7 +238,10 @@ where
     chart
         .draw_series(scenario.obstacles.iter().map(|o| {
             Rectangle::new(
-                [(o.bounds.min[0], y_of(&o.bounds.min)), (o.bounds.max[0], y_of(&o.bounds.max))],
+                [
+                    (o.bounds.min[0], y_of(&o.bounds.min)),
+                    (o.bounds.max[0], y_of(&o.bounds.max)),
+                ],
                 RGBColor(90, 90, 90).filled(),
             )
         }))
@@ -239,18 +266,38 @@ where
             && let Some(last) = tr.points.last()
         {
             chart
-                .draw_series(std::iter::once(Cross::new((last.x[0], y_of(&last.x)), 6, RED.stroke_width(2))))
+                .draw_series(std::iter::once(Cross::new(
+                    (last.x[0], y_of(&last.x)),
+                    6,
+                    RED.stroke_width(2),
+                )))
                 .map_err(e)?;
         }
     }
+    // The target on top of the trajectories, as an outline.
+    chart
+        .draw_series(std::iter::once(Rectangle::new(
+            [(t.min[0], y_of(&t.min)), (t.max[0], y_of(&t.max))],
+            RGBColor(0, 140, 0).stroke_width(3),
+        )))
+        .map_err(e)?;
     let mut route = vec![(scenario.plant.x0[0], y_of(scenario.plant.x0.as_slice()))];
-    route.extend(scenario.legs.iter().map(|l| (l.to[0], y_of(l.to.as_slice()))));
+    route.extend(
+        scenario
+            .legs
+            .iter()
+            .map(|l| (l.to[0], y_of(l.to.as_slice()))),
+    );
     chart
         .draw_series(route.iter().map(|&p| Circle::new(p, 4, BLACK.filled())))
         .map_err(e)?;
     chart
         .draw_series(scenario.sensors.iter().map(|s| {
-            TriangleMarker::new((s.position[0], y_of(s.position.as_slice())), 8, RGBColor(128, 0, 128).filled())
+            TriangleMarker::new(
+                (s.position[0], y_of(s.position.as_slice())),
+                8,
+                RGBColor(128, 0, 128).filled(),
+            )
         }))
         .map_err(e)?;
     Ok(())

@@ -2,25 +2,13 @@
 //! written, refusal to overwrite, byte-identical output for a seed on 1 and 2
 //! threads.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn etp(args: &[&str], threads: &str) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_etp"))
-        .args(args)
-        .env("RAYON_NUM_THREADS", threads)
-        .output()
-        .expect("etp runs")
-}
+use super::{etp_threads as etp, s};
+use std::path::PathBuf;
 
 fn fresh_dir(tag: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("etp-synth-cli-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
 }
 
 #[test]

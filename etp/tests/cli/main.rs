@@ -1,12 +1,22 @@
-//! End-to-end tests of the `etp` binary (one integration-test binary per crate).
+//! End-to-end tests of the `etp` binary (one integration-test binary per crate;
+//! one module per area).
+
+mod pipeline;
+mod synthesize;
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn etp(args: &[&str]) -> Output {
+    etp_threads(args, "2")
+}
+
+/// Run etp with a given rayon thread count.
+fn etp_threads(args: &[&str], threads: &str) -> Output {
     Command::new(env!("CARGO_BIN_EXE_etp"))
         .args(args)
+        .env("RAYON_NUM_THREADS", threads)
         .output()
         .expect("spawn etp")
 }
@@ -34,7 +44,8 @@ fn fails_with(args: &[&str], needles: &[&str]) {
 struct Scratch(PathBuf);
 impl Scratch {
     fn new(name: &str) -> Self {
-        let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("{name}-{}", std::process::id()));
+        let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+            .join(format!("{name}-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).expect("scratch dir");
         Self(dir)
@@ -81,7 +92,17 @@ fn check_describes_every_builtin() {
 
 #[test]
 fn simulate_json_has_every_key_with_an_interval_and_is_reproducible() {
-    let args = ["simulate", "winding-2d", "--delta", "1.4986", "--episodes", "400", "--seed", "3", "--json"];
+    let args = [
+        "simulate",
+        "winding-2d",
+        "--delta",
+        "1.4986",
+        "--episodes",
+        "400",
+        "--seed",
+        "3",
+        "--json",
+    ];
     let v = ok_json(&args);
     assert_eq!(v["episodes"], 400);
     for k in [
@@ -96,25 +117,51 @@ fn simulate_json_has_every_key_with_an_interval_and_is_reproducible() {
         assert!(v[k].is_number(), "{k} missing");
         assert!(v[format!("{k}_ci95")].is_number(), "{k}_ci95 missing");
     }
-    let total = v["p_target"].as_f64().unwrap_or(0.0) + v["p_collision"].as_f64().unwrap_or(0.0) + v["p_free"].as_f64().unwrap_or(0.0);
+    let total = v["p_target"].as_f64().unwrap_or(0.0)
+        + v["p_collision"].as_f64().unwrap_or(0.0)
+        + v["p_free"].as_f64().unwrap_or(0.0);
     assert!((total - 1.0).abs() < 1e-12);
     assert_eq!(ok_json(&args), v, "same seed, same numbers");
-    let other = ok_json(&["simulate", "winding-2d", "--delta", "1.4986", "--episodes", "400", "--seed", "4", "--json"]);
+    let other = ok_json(&[
+        "simulate",
+        "winding-2d",
+        "--delta",
+        "1.4986",
+        "--episodes",
+        "400",
+        "--seed",
+        "4",
+        "--json",
+    ]);
     assert_ne!(other, v);
 }
 
 #[test]
 fn full_kf_transmits_everything() {
-    let v = ok_json(&["simulate", "open-2d", "--delta", "0", "--episodes", "200", "--json"]);
+    let v = ok_json(&[
+        "simulate",
+        "open-2d",
+        "--delta",
+        "0",
+        "--episodes",
+        "200",
+        "--json",
+    ]);
     assert_eq!(v["trigger_rate"], 1.0);
     assert_eq!(v["trigger_rate_expected"], 1.0);
 }
 
 #[test]
 fn bad_input_is_refused_with_a_reason() {
-    fails_with(&["simulate", "windy-2d", "--delta", "0"], &["windy-2d", "winding-2d"]);
+    fails_with(
+        &["simulate", "windy-2d", "--delta", "0"],
+        &["windy-2d", "winding-2d"],
+    );
     fails_with(&["simulate", "winding-2d", "--delta", "-1"], &["--delta"]);
-    fails_with(&["simulate", "winding-2d", "--delta", "0", "--episodes", "0"], &["--episodes"]);
+    fails_with(
+        &["simulate", "winding-2d", "--delta", "0", "--episodes", "0"],
+        &["--episodes"],
+    );
     let dir = Scratch::new("bad-scenario");
     let text = etp_shared_text().replace("sensor = \"s3\"", "sensor = \"nobody\"");
     let path = dir.path("bad.toml");
@@ -125,5 +172,8 @@ fn bad_input_is_refused_with_a_reason() {
 }
 
 fn etp_shared_text() -> String {
-    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/winding-2d.toml")).expect("scenario")
+    std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/winding-2d.toml"),
+    )
+    .expect("scenario")
 }

@@ -1,0 +1,145 @@
+//! synthesize → strategy → validate on open-2d, and every refusal on the way:
+//! existing outputs, infeasible requests, corrupted or foreign files.
+
+use super::{Scratch, etp, fails_with, ok_json, s};
+
+#[test]
+fn pipeline_predicts_what_simulation_measures_and_refuses_bad_files() {
+    let dir = Scratch::new("pipeline");
+    let out = dir.path("open");
+    let synth = ok_json(&[
+        "synthesize",
+        "open-2d",
+        "--samples",
+        "1500",
+        "--seed",
+        "1",
+        "-o",
+        s(&out),
+        "--json",
+    ]);
+    assert!(
+        synth["front"]["vertices"].as_u64().unwrap_or(0) > 5,
+        "{synth}"
+    );
+    for f in [
+        "mdp.bin",
+        "front.json",
+        "front.png",
+        "front.svg",
+        "scenario.toml",
+        "mdp-kf-convergence.bin",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    let front: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("front.json")).expect("front"))
+            .expect("json");
+    assert!(
+        front["kf_convergence"]["vertices"]
+            .as_array()
+            .is_some_and(|v| !v.is_empty())
+    );
+    assert_eq!(front["baselines"].as_array().map(Vec::len), Some(5));
+
+    // The least-energy strategy with P_tar ≥ 0.95, checked by the whole-MDP LP.
+    let sel = ok_json(&["strategy", s(&out), "--min-target", "0.95", "--json"]);
+    let predicted = sel["predicted"]["energy_mean"].as_f64().expect("energy");
+    let lp = sel["occupation_lp_energy"].as_f64().expect("cross-check");
+    assert!(
+        (predicted - lp).abs() <= 1e-6 * predicted.max(1.0),
+        "vertex LP {predicted} vs occupation LP {lp}"
+    );
+    assert!(sel["predicted"]["p_target"].as_f64().unwrap_or(0.0) >= 0.95 - 1e-9);
+
+    // Validation in-process agrees with the prediction (fixed seed).
+    let strategy = out.join("strategy.json");
+    let v = ok_json(&["validate", s(&strategy), "--episodes", "3000", "--json"]);
+    for (k, tol) in [("p_target", 0.02), ("p_collision", 0.02)] {
+        let (p, m) = (
+            v["predicted"][k].as_f64().unwrap_or(-1.0),
+            v["simulated"][k].as_f64().unwrap_or(9.0),
+        );
+        assert!((p - m).abs() <= tol, "{k}: predicted {p}, simulated {m}");
+    }
+    let (pe, me) = (
+        v["predicted"]["energy_mean"].as_f64().unwrap_or(-1.0),
+        v["simulated"]["energy_mean"].as_f64().unwrap_or(-1.0),
+    );
+    assert!(
+        (pe - me).abs() <= 0.05 * pe,
+        "energy: predicted {pe}, simulated {me}"
+    );
+
+    // No silent overwrite.
+    let before = std::fs::read(&strategy).expect("strategy");
+    fails_with(
+        &["strategy", s(&out), "--vertex", "0"],
+        &["already exists", "--force"],
+    );
+    assert_eq!(std::fs::read(&strategy).expect("strategy"), before);
+
+    // Infeasible requests say what is achievable.
+    fails_with(
+        &[
+            "strategy",
+            s(&out),
+            "--min-target",
+            "0.99999",
+            "-o",
+            s(&dir.path("x.json")),
+        ],
+        &["infeasible", "best achievable"],
+    );
+    assert!(!dir.path("x.json").exists());
+    fails_with(
+        &[
+            "strategy",
+            s(&out),
+            "--vertex",
+            "100000",
+            "-o",
+            s(&dir.path("x.json")),
+        ],
+        &["vertex 100000"],
+    );
+    fails_with(
+        &["strategy", s(&out), "--min-target", "1.5"],
+        &["--min-target"],
+    );
+
+    // A strategy whose embedded scenario was edited: hash mismatch.
+    let text = String::from_utf8(before.clone()).expect("utf-8");
+    let tampered = text.replacen("k_max = 200", "k_max = 150", 1);
+    assert_ne!(tampered, text, "strategy embeds the scenario text");
+    std::fs::write(dir.path("tampered.json"), tampered).expect("write");
+    fails_with(
+        &["validate", s(&dir.path("tampered.json"))],
+        &["made for scenario", "hash"],
+    );
+    // Truncated strategy.
+    std::fs::write(dir.path("cut.json"), &before[..before.len() / 2]).expect("write");
+    fails_with(&["validate", s(&dir.path("cut.json"))], &["not valid JSON"]);
+
+    // Truncated and corrupted mdp.bin.
+    let broken = dir.path("broken");
+    std::fs::create_dir_all(&broken).expect("dir");
+    let mdp = std::fs::read(out.join("mdp.bin")).expect("mdp");
+    std::fs::write(broken.join("mdp.bin"), &mdp[..mdp.len() / 3]).expect("write");
+    fails_with(
+        &["strategy", s(&broken), "--vertex", "0"],
+        &["truncated or corrupted"],
+    );
+    let mut flipped = mdp.clone();
+    flipped[0] ^= 0xff;
+    std::fs::write(broken.join("mdp.bin"), &flipped).expect("write");
+    fails_with(
+        &["strategy", s(&broken), "--vertex", "0"],
+        &["not an etp MDP file"],
+    );
+    // A front.json of another MDP is refused.
+    std::fs::write(broken.join("mdp.bin"), &mdp).expect("write");
+    std::fs::write(broken.join("front.json"), "{\"format_version\": 1}").expect("write");
+    fails_with(&["strategy", s(&broken), "--vertex", "0"], &["front.json"]);
+    let _ = etp(&["--help"]);
+}
