@@ -200,6 +200,19 @@ mod tests {
         assert_eq!(per_sensor as f64, par.rate.sum_a);
     }
 
+    /// Golden numbers: the exact outcome of a seed on the reference scenarios.
+    /// They change only if the episode rules, the RNG streams or the filter
+    /// change — any such change must be deliberate (update them and say why).
+    #[test]
+    fn golden_numbers_on_the_reference_scenarios() {
+        let w = Scenario::builtin("winding-2d").expect("built-in");
+        let c = CompiledScenario::<2>::new(&w);
+        let t = simulate(&c, &constant(0.0), 3000, 0, streams::SIMULATE, &|_| {});
+        assert_eq!((t.target, t.collision, t.free), (2885, 108, 7), "winding-2d δ = 0");
+        let t = simulate(&c, &constant(2.2365), 3000, 0, streams::SIMULATE, &|_| {});
+        assert_eq!((t.target, t.collision, t.free), (587, 615, 1798), "winding-2d δ = 2.2365");
+    }
+
     #[test]
     fn full_kf_rate_is_one() {
         let s = Scenario::builtin("open-2d").expect("built-in");
