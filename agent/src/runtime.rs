@@ -168,10 +168,14 @@ impl<const N: usize> Agent<N> {
             if let Some(n) = poll(self)? {
                 return Ok(n);
             }
-            let woke = self
-                .wake
-                .timed_wait(|_| {}, IDLE_CHECK)
-                .map_err(|e| AgentError::Receive("agent wake", format!("{e:?}")))?;
+            let woke = match self.wake.timed_wait(|_| {}, IDLE_CHECK) {
+                Ok(n) => n,
+                // A signal interrupts the wait: it is a termination request.
+                Err(_) if wire::termination_requested(&self.node) => {
+                    return Ok(Next::Exit(Exit::Signal));
+                }
+                Err(e) => return Err(AgentError::Receive("agent wake", format!("{e:?}"))),
+            };
             if woke > 0 {
                 continue;
             }

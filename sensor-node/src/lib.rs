@@ -17,7 +17,9 @@
 //!
 //! Waiting is a blocking `Listener::timed_wait` on the sensor's own wake-up
 //! event: an idle sensor sleeps in the kernel and wakes only every
-//! [`IDLE_CHECK`] to check that the coordinator still lives.
+//! [`IDLE_CHECK`] to check its signals and its parent, and every
+//! [`LIST_EVERY`] periods (or on iceoryx2's dead-notifier event) that the
+//! coordinator still lives.
 
 mod node;
 
@@ -28,6 +30,11 @@ use std::time::Duration;
 
 /// How often an idle sensor checks its coordinator and its termination flag.
 pub const IDLE_CHECK: Duration = Duration::from_millis(250);
+/// An idle sensor lists the run's nodes (to see a dead coordinator) every
+/// this many idle periods; sooner when iceoryx2 reports a dead notifier.
+/// Under `etp run` the supervisor also sends SIGTERM when the coordinator
+/// ends abnormally, which is seen at the next idle period.
+pub const LIST_EVERY: u32 = 12;
 
 /// Why a sensor node stopped with an error.
 #[derive(Debug, thiserror::Error)]

@@ -13,6 +13,7 @@ use etp_shared::wire::{
     self, COORDINATOR_NODE, Header, Liveness, Ports, ServiceId, belief_from_wire, to_wire_vec,
     vec_from_wire,
 };
+use iceoryx2::prelude::EventId;
 
 /// What the sensor spent on one leg.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -100,27 +101,44 @@ pub(crate) fn serve<const N: usize, const M: usize>(
     // published before the agent could send it, so draining the thresholds
     // once more finds it.
     let mut pending: Option<Prior> = None;
+    let mut idle_checks = 0u32;
     'wake: loop {
+        let mut peer_died = false;
         let woke = if pending.is_some() {
             1
         } else {
-            wake.timed_wait(|_| {}, IDLE_CHECK)
-                .map_err(|e| SensorError::Protocol(format!("wait: {e:?}")))?
+            let dead = EventId::new(wire::DEAD_NOTIFIER_EVENT);
+            match wake.timed_wait(|ev| peer_died |= ev.id == dead, IDLE_CHECK) {
+                Ok(n) => n,
+                // A signal interrupts the wait: it is a termination request.
+                Err(_) if wire::termination_requested(&node) => return Ok((Exit::Signal, stats)),
+                Err(e) => return Err(SensorError::Protocol(format!("wait: {e:?}"))),
+            }
         };
-        if woke == 0 {
+        if woke == 0 || peer_died {
             if wire::termination_requested(&node) {
                 return Ok((Exit::Signal, stats));
             }
             if std::os::unix::process::parent_id() != parent {
                 return Ok((Exit::CoordinatorGone, stats));
             }
-            match wire::liveness(&cfg, COORDINATOR_NODE) {
-                Liveness::Alive => seen_coordinator = true,
-                Liveness::Dead => return Ok((Exit::CoordinatorGone, stats)),
-                Liveness::Missing if seen_coordinator => return Ok((Exit::CoordinatorGone, stats)),
-                Liveness::Missing => {}
+            // The node list costs milliseconds: only when a peer's death was
+            // signalled (iceoryx2's dead-notifier event, emitted when someone
+            // cleans a dead node up) or every LIST_EVERY idle periods.
+            idle_checks = idle_checks.wrapping_add(u32::from(woke == 0));
+            if peer_died || idle_checks % crate::LIST_EVERY == 0 {
+                match wire::liveness(&cfg, COORDINATOR_NODE) {
+                    Liveness::Alive => seen_coordinator = true,
+                    Liveness::Dead => return Ok((Exit::CoordinatorGone, stats)),
+                    Liveness::Missing if seen_coordinator => {
+                        return Ok((Exit::CoordinatorGone, stats));
+                    }
+                    Liveness::Missing => {}
+                }
             }
-            continue;
+            if woke == 0 {
+                continue;
+            }
         }
         stats.wakeups += 1;
 

@@ -159,7 +159,15 @@ pub async fn supervise(plan: &Plan, deadline: Duration) -> Result<Supervised> {
             });
         }
     }
-    // The others exit on the coordinator's stop (or on its death, within 1 s).
+    // The others exit on the coordinator's stop. If it did not end cleanly,
+    // ask them to terminate now (they also notice its death by themselves).
+    if processes.first().is_none_or(|p| p.status != "exit 0") {
+        for (_, child) in &children {
+            if let Some(pid) = child.id() {
+                signal(pid, "-TERM");
+            }
+        }
+    }
     let grace_end = tokio::time::Instant::now() + GRACE;
     for (name, mut child) in children {
         let pid = child.id().unwrap_or(0);
