@@ -13,10 +13,16 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// The whole pipeline on the built-in default scenario, with one summary table.
+    Demo(crate::cmd::demo::Args),
     /// Validate a scenario and print its legs, sensors, obstacles and thresholds.
     Check(crate::cmd::check::Args),
     /// Run episodes in-process with a constant threshold.
     Simulate(crate::cmd::simulate::Args),
+    /// Pick the strategy for a requested trade-off from a synthesized front.
+    Strategy(crate::cmd::strategy::Args),
+    /// Simulate a strategy in-process and compare with its prediction.
+    Validate(crate::cmd::validate::Args),
     /// Build the belief-space MDP by Monte Carlo and write DIR/mdp.bin.
     Synthesize(crate::cmd::synthesize::Args),
     /// Export an MDP as PRISM explicit files (model.tra/.sta/.lab/.trew).

@@ -41,7 +41,12 @@ pub fn write_front(
     Ok(FrontReport {
         front,
         seconds,
-        files: vec![json_path, stem.with_extension("png"), stem.with_extension("svg"), scenario_path],
+        files: vec![
+            json_path,
+            stem.with_extension("png"),
+            stem.with_extension("svg"),
+            scenario_path,
+        ],
     })
 }
 
@@ -69,9 +74,20 @@ pub fn describe(front: &ParetoFront) -> String {
         .map(|i| i * n.saturating_sub(1) / 11.max(1))
         .chain(front.max_target_vertex())
         .collect();
-    for (k, v) in front.vertices.iter().enumerate().filter(|(k, _)| shown.contains(k)) {
+    for (k, v) in front
+        .vertices
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| shown.contains(k))
+    {
         let x = &v.objectives;
-        let _ = writeln!(o, "  {k:>4} {:>10.2} {:>8.2}% {:>8.2}%", x.energy, 100.0 * x.p_target, 100.0 * x.p_collision);
+        let _ = writeln!(
+            o,
+            "  {k:>4} {:>10.2} {:>8.2}% {:>8.2}%",
+            x.energy,
+            100.0 * x.p_target,
+            100.0 * x.p_collision
+        );
     }
     let _ = writeln!(o, "  baselines:");
     for b in &front.baselines {

@@ -10,10 +10,14 @@ use std::path::Path;
 /// half-written file under the final name.
 pub fn write_new(path: &Path, bytes: &[u8], force: bool) -> Result<()> {
     if path.exists() && !force {
-        bail!("{} already exists (use --force to overwrite)", path.display());
+        bail!(
+            "{} already exists (use --force to overwrite)",
+            path.display()
+        );
     }
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).with_context(|| format!("creating {}", parent.display()))?;
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("creating {}", parent.display()))?;
     }
     let tmp = path.with_extension("tmp-etp");
     std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
@@ -59,7 +63,11 @@ pub fn read_front(dir: &Path, mdp: &Mdp) -> Result<ParetoFront> {
                 .map_err(anyhow::Error::msg)
                 .with_context(|| format!("loading {}", path.display()))?;
             if f.scenario_hash != mdp.scenario_hash || f.mdp_states != mdp.states.len() {
-                bail!("{} was not computed from {}/mdp.bin", path.display(), dir.display());
+                bail!(
+                    "{} was not computed from {}/mdp.bin",
+                    path.display(),
+                    dir.display()
+                );
             }
             Ok(f)
         }

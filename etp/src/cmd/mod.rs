@@ -2,10 +2,13 @@
 
 pub mod bench;
 pub mod check;
+pub mod demo;
 pub mod export_prism;
 pub mod run;
 pub mod simulate;
+pub mod strategy;
 pub mod synthesize;
+pub mod validate;
 
 use crate::cli::Command;
 
@@ -13,10 +16,13 @@ use crate::cli::Command;
 pub fn dispatch(command: Command) -> anyhow::Result<()> {
     match command {
         Command::Check(a) => check::run(a),
+        Command::Demo(a) => demo::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Run(a) => run::run(a),
         Command::Synthesize(a) => synthesize::run(a),
         Command::ExportPrism(a) => export_prism::run(a),
+        Command::Strategy(a) => strategy::run(a),
+        Command::Validate(a) => validate::run(a),
     }
 }

@@ -49,7 +49,10 @@ pub fn run(a: Args) -> Result<()> {
     let request = match (a.min_target, a.max_energy, a.vertex) {
         (Some(p), None, None) => Request::MinTarget {
             min_target: probability("--min-target", p)?,
-            max_collision: a.max_collision.map(|c| probability("--max-collision", c)).transpose()?,
+            max_collision: a
+                .max_collision
+                .map(|c| probability("--max-collision", c))
+                .transpose()?,
         },
         (None, Some(e), None) => {
             if !(e.is_finite() && e >= 0.0) {
@@ -62,7 +65,10 @@ pub fn run(a: Args) -> Result<()> {
     };
     let (mdp, scenario_text) = read_mdp(&a.dir)?;
     let front = read_front(&a.dir, &mdp)?;
-    let output = a.output.clone().unwrap_or_else(|| a.dir.join("strategy.json"));
+    let output = a
+        .output
+        .clone()
+        .unwrap_or_else(|| a.dir.join("strategy.json"));
     let selection = select(&front, request).context("selecting a point on the front")?;
     let omega = realise(&mdp, &front, &selection);
     let label = match request {
@@ -110,7 +116,9 @@ pub fn run(a: Args) -> Result<()> {
             );
         }
         if let Some(lp) = cross_check {
-            println!("  cross-check: occupation-measure LP over the whole MDP gives energy {lp:.4}");
+            println!(
+                "  cross-check: occupation-measure LP over the whole MDP gives energy {lp:.4}"
+            );
         }
         println!("wrote {}", output.display());
     }

@@ -220,7 +220,10 @@ pub fn report_text(r: &MdpReport) -> String {
 pub fn run(a: Args) -> Result<()> {
     // Refuse before any work if the Pareto step would have to overwrite.
     let s = load_scenario(&a.scenario)?;
-    let dir = a.out.clone().unwrap_or_else(|| Path::new("out").join(&s.name));
+    let dir = a
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("out").join(&s.name));
     let front_path = dir.join("front.json");
     if front_path.exists() && !a.force {
         bail!(
@@ -236,13 +239,15 @@ pub fn run(a: Args) -> Result<()> {
         let mut p = params(&a, &built.scenario)?;
         p.method = Method::KfConvergence;
         p.kf = Some(d);
-        let m1 = abstraction::build(&built.scenario, &p, &|_| {}).context("building the Method 1 baseline")?;
+        let m1 = abstraction::build(&built.scenario, &p, &|_| {})
+            .context("building the Method 1 baseline")?;
         write_new(&dir.join("mdp-kf-convergence.bin"), &m1.encode(), true)?;
         Some(m1)
     } else {
         None
     };
-    let front = crate::front::write_front(&built.dir, &built.mdp, method1.as_ref(), &text, a.force)?;
+    let front =
+        crate::front::write_front(&built.dir, &built.mdp, method1.as_ref(), &text, a.force)?;
     if a.json {
         let v = serde_json::json!({
             "mdp": built.report,

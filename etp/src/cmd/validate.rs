@@ -33,8 +33,10 @@ pub struct Args {
 
 /// Load and check a strategy file (scenario embedded or built-in, hash checked).
 pub fn load_strategy(path: &Path) -> Result<(Strategy, etp_shared::scenario::Scenario)> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let strategy = Strategy::from_json(&text).with_context(|| format!("loading strategy {}", path.display()))?;
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let strategy = Strategy::from_json(&text)
+        .with_context(|| format!("loading strategy {}", path.display()))?;
     let scenario = strategy
         .scenario()
         .with_context(|| format!("strategy {}", path.display()))?;
@@ -53,7 +55,10 @@ pub fn run(a: Args) -> Result<()> {
     if a.plot {
         let stem = a.strategy.with_extension("").with_file_name(format!(
             "{}-map",
-            a.strategy.file_stem().and_then(|s| s.to_str()).unwrap_or("strategy")
+            a.strategy
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .unwrap_or("strategy")
         ));
         let tr = sample_trajectories(&scenario, &strategy, a.plot_episodes, a.seed);
         crate::plot::map_plot(&scenario, &tr, &stem)?;
@@ -61,11 +66,17 @@ pub fn run(a: Args) -> Result<()> {
         plot_paths.push(stem.with_extension("svg"));
     }
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&comparison_json(&strategy, &sum))?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&comparison_json(&strategy, &sum))?
+        );
     } else {
         println!("{} — {}", scenario.name, strategy.label);
         print!("{}", comparison_table(&strategy, &sum));
-        println!("\nsimulation details ({} episodes, seed {}):", sum.episodes, a.seed);
+        println!(
+            "\nsimulation details ({} episodes, seed {}):",
+            sum.episodes, a.seed
+        );
         print!("{}", summary_table(&sum));
         for p in &plot_paths {
             println!("wrote {}", p.display());
@@ -99,7 +110,10 @@ pub fn comparison_table(strategy: &Strategy, sum: &SimulationSummary) -> String 
         ("P_coll", p.p_collision, sum.p_collision, true),
         ("energy", p.energy_mean, sum.energy_mean, false),
     ];
-    let mut o = format!("  {:<8} {:>10} {:>20} {:>10}\n", "", "predicted", "simulated (95 %)", "error");
+    let mut o = format!(
+        "  {:<8} {:>10} {:>20} {:>10}\n",
+        "", "predicted", "simulated (95 %)", "error"
+    );
     for (name, pred, sim, is_prob) in rows {
         if is_prob {
             o.push_str(&format!(
@@ -110,7 +124,11 @@ pub fn comparison_table(strategy: &Strategy, sum: &SimulationSummary) -> String 
                 100.0 * (sim.value - pred)
             ));
         } else {
-            let rel = if pred != 0.0 { 100.0 * (sim.value - pred) / pred } else { 0.0 };
+            let rel = if pred != 0.0 {
+                100.0 * (sim.value - pred) / pred
+            } else {
+                0.0
+            };
             o.push_str(&format!(
                 "  {name:<8} {:>10.2} {:>12.2} ± {:>5.2} {:>+8.2} %\n",
                 pred, sim.value, sim.ci95, rel

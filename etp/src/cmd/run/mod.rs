@@ -60,7 +60,8 @@ pub struct Args {
     pub clone_sensors: Option<usize>,
 }
 
-pub fn run(a: Args) -> Result<()> {
+/// Spawn, supervise and clean up one run; the report data.
+fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     if a.episodes == 0 {
         bail!("--episodes must be at least 1");
     }
@@ -75,7 +76,7 @@ pub fn run(a: Args) -> Result<()> {
     if !stale.is_empty() {
         tracing::info!(?stale, "removed stale iceoryx2 runs");
     }
-    let plan = prepare::prepare(&a, &run_id)?;
+    let plan = prepare::prepare(a, &run_id)?;
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -91,5 +92,16 @@ pub fn run(a: Args) -> Result<()> {
     if !cleaned {
         tracing::warn!("run {run_id}: some iceoryx2 node still alive at the end; files left");
     }
+    Ok((plan, outcome))
+}
+
+/// Run and return the `--json` report object (used by `etp demo`).
+pub fn execute(a: &Args) -> Result<serde_json::Value> {
+    let (plan, outcome) = execute_run(a)?;
+    Ok(report::json(a, &plan, &outcome))
+}
+
+pub fn run(a: Args) -> Result<()> {
+    let (plan, outcome) = execute_run(&a)?;
     report::print(&a, &plan, &outcome)
 }

@@ -1,0 +1,264 @@
+//! `etp demo`: the whole pipeline on the built-in default scenario — synthesize,
+//! pick the `--min-target 0.95` strategy, validate it in-process, run it as
+//! processes over iceoryx2 — and one table: predicted vs in-process vs
+//! multi-process, packets per sensor, and where the plots and files are.
+
+use crate::cmd::{run as run_cmd, synthesize};
+use crate::front::write_front;
+use crate::input::scenario_text;
+use crate::output::write_new;
+use crate::progress;
+use anyhow::{Context, Result};
+use etp_shared::rng::mix64;
+use etp_shared::scenario::DEFAULT_SCENARIO;
+use etp_synthesis::pareto::select::{Request, realise, select};
+use etp_synthesis::pareto::to_strategy;
+use etp_synthesis::validate::{sample_trajectories, simulate_strategy};
+use serde_json::{Value, json};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Scenario (built-in name or TOML path).
+    #[arg(long, default_value = DEFAULT_SCENARIO)]
+    pub scenario: String,
+    /// Required target probability of the demo's strategy.
+    #[arg(long, default_value_t = 0.95)]
+    pub min_target: f64,
+    /// Monte Carlo segments per state-action of the synthesis.
+    #[arg(long, default_value_t = etp_synthesis::abstraction::DEFAULT_SAMPLES)]
+    pub samples: u32,
+    /// In-process validation episodes.
+    #[arg(long, default_value_t = 3000)]
+    pub validate_episodes: u64,
+    /// Multi-process episodes.
+    #[arg(long, default_value_t = 200)]
+    pub run_episodes: u64,
+    /// Seed of everything.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Output folder (default `out/demo-<scenario>-<seed>-<time>`; never reused).
+    #[arg(short = 'o', long = "out")]
+    pub out: Option<PathBuf>,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn stage(quiet: bool, text: &str) {
+    if !quiet {
+        eprintln!("{text}");
+    }
+}
+
+pub fn run(a: Args) -> Result<()> {
+    let started = Instant::now();
+    let text = scenario_text(&a.scenario)?;
+    let stamp = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_millis() as u64);
+    let scenario = crate::input::load_scenario(&a.scenario)?;
+    let dir = a.out.clone().unwrap_or_else(|| {
+        PathBuf::from("out").join(format!(
+            "demo-{}-{}-{:x}",
+            scenario.name,
+            a.seed,
+            mix64(stamp) & 0xffff_ffff
+        ))
+    });
+    if dir.join("mdp.bin").exists() {
+        anyhow::bail!(
+            "{} already holds a synthesis; choose another --out",
+            dir.display()
+        );
+    }
+
+    // 1. Synthesis (MDP + front).
+    stage(
+        a.json,
+        &format!(
+            "[1/4] synthesizing {} ({} segments per state-action)…",
+            scenario.name, a.samples
+        ),
+    );
+    let sargs = synthesize::Args {
+        scenario: a.scenario.clone(),
+        method: synthesize::MethodArg::Discretized,
+        samples: a.samples,
+        seed: a.seed,
+        magnitude_bins: etp_shared::discretization::BinCounts::default().magnitude,
+        angle_bins: etp_shared::discretization::BinCounts::default().angle,
+        pool: etp_synthesis::abstraction::DEFAULT_POOL_PER_REGION,
+        eps_kf: None,
+        eps_p: None,
+        out: Some(dir.clone()),
+        force: false,
+        json: a.json,
+        no_kf_baseline: true,
+    };
+    let built = synthesize::build_mdp(&sargs)?;
+    let front = write_front(&built.dir, &built.mdp, None, &text, false)?;
+
+    // 2. Strategy.
+    stage(
+        a.json,
+        &format!(
+            "[2/4] strategy: least energy with P_tar ≥ {}…",
+            a.min_target
+        ),
+    );
+    let request = Request::MinTarget {
+        min_target: a.min_target,
+        max_collision: None,
+    };
+    let selection = select(&front.front, request).context("selecting the demo's strategy")?;
+    let omega = realise(&built.mdp, &front.front, &selection);
+    let mut strategy = to_strategy(
+        &built.mdp,
+        &omega,
+        format!("least energy with P_tar ≥ {}", a.min_target),
+        selection.predicted,
+    );
+    strategy.scenario_toml = Some(text.clone());
+    let strategy_path = dir.join("strategy.json");
+    write_new(&strategy_path, strategy.to_json().as_bytes(), false)?;
+
+    // 3. In-process validation (+ map plot).
+    stage(
+        a.json,
+        &format!(
+            "[3/4] validating in-process ({} episodes)…",
+            a.validate_episodes
+        ),
+    );
+    let pb = progress::bar(a.validate_episodes, "validate", a.json);
+    let sim = simulate_strategy(
+        &built.scenario,
+        &strategy,
+        a.validate_episodes,
+        a.seed,
+        &|k| pb.inc(k),
+    )
+    .summary();
+    pb.finish_and_clear();
+    let map_stem = dir.join("strategy-map");
+    crate::plot::map_plot(
+        &built.scenario,
+        &sample_trajectories(&built.scenario, &strategy, 40, a.seed),
+        &map_stem,
+    )?;
+
+    // 4. Multi-process run.
+    stage(
+        a.json,
+        &format!(
+            "[4/4] running {} episodes as processes over iceoryx2…",
+            a.run_episodes
+        ),
+    );
+    let rargs = run_cmd::Args {
+        strategy: Some(strategy_path.clone()),
+        scenario: None,
+        delta: None,
+        episodes: a.run_episodes,
+        seed: a.seed,
+        json: true,
+        deadline: 600.0,
+        run_id: None,
+        episode_details: false,
+        predict_episodes: a.validate_episodes,
+        clone_sensors: None,
+    };
+    let mp = run_cmd::execute(&rargs)?;
+
+    let p = &strategy.predicted;
+    let num = |v: &Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
+    let result = json!({
+        "scenario": scenario.name,
+        "strategy": strategy_path,
+        "vertices": front.front.vertices.len(),
+        "predicted": {"p_target": p.p_target, "p_collision": p.p_collision, "energy_mean": p.energy_mean},
+        "in_process": {"episodes": sim.episodes, "p_target": sim.p_target.value, "p_target_ci95": sim.p_target.ci95,
+                        "p_collision": sim.p_collision.value, "p_collision_ci95": sim.p_collision.ci95,
+                        "energy_mean": sim.energy_mean.value, "energy_mean_ci95": sim.energy_mean.ci95},
+        "multi_process": mp,
+        "files": {"front_plot": dir.join("front.png"), "map_plot": map_stem.with_extension("png"),
+                  "recording": mp.get("recording").cloned().unwrap_or(Value::Null), "dir": dir},
+        "seconds": started.elapsed().as_secs_f64(),
+    });
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&result)?);
+        return Ok(());
+    }
+    println!("\netp demo — {} — {}", scenario.name, strategy.label);
+    println!(
+        "Pareto front: {} vertices (front.json); energy of the full Kalman filter {:.1}\n",
+        front.front.vertices.len(),
+        front.front.energy_scale
+    );
+    println!(
+        "  {:<10} {:>12} {:>22} {:>22}",
+        "", "predicted", "in-process (95 %)", "multi-process (95 %)"
+    );
+    let pct = |v: f64| format!("{:.2}%", 100.0 * v);
+    for (name, pred, ip, ipc, key) in [
+        (
+            "P_tar",
+            p.p_target,
+            sim.p_target.value,
+            sim.p_target.ci95,
+            "p_target",
+        ),
+        (
+            "P_coll",
+            p.p_collision,
+            sim.p_collision.value,
+            sim.p_collision.ci95,
+            "p_collision",
+        ),
+    ] {
+        println!(
+            "  {name:<10} {:>12} {:>13} ± {:>6} {:>13} ± {:>6}",
+            pct(pred),
+            pct(ip),
+            pct(ipc),
+            pct(num(&mp, key)),
+            pct(num(&mp, &format!("{key}_ci95")))
+        );
+    }
+    println!(
+        "  {:<10} {:>12.2} {:>13.2} ± {:>6.2} {:>13.2} ± {:>6.2}",
+        "energy",
+        p.energy_mean,
+        sim.energy_mean.value,
+        sim.energy_mean.ci95,
+        num(&mp, "energy_mean"),
+        num(&mp, "energy_mean_ci95")
+    );
+    println!(
+        "\n  packets per sensor ({} multi-process episodes): transmitted (sensor ledger) / received (agent) / predicted",
+        mp["episodes"]
+    );
+    for s in mp["sensors"].as_array().into_iter().flatten() {
+        println!(
+            "  {:<8} {:>11} {:>11} {:>11.1}",
+            s["name"].as_str().unwrap_or("?"),
+            s["transmitted"].as_u64().unwrap_or(0),
+            s["received"].as_u64().unwrap_or(0),
+            s["predicted_energy"].as_f64().unwrap_or(f64::NAN)
+        );
+    }
+    println!("\n  files: {}", dir.display());
+    println!("    front plot     {}", dir.join("front.png").display());
+    println!(
+        "    map plot       {}",
+        map_stem.with_extension("png").display()
+    );
+    println!("    strategy       {}", strategy_path.display());
+    if let Some(r) = mp.get("recording").and_then(Value::as_str) {
+        println!("    recording      {r}");
+    }
+    println!("  finished in {:.1} s", started.elapsed().as_secs_f64());
+    Ok(())
+}
