@@ -71,7 +71,7 @@ pub fn describe(front: &ParetoFront) -> String {
     );
     let n = front.vertices.len();
     let shown: std::collections::BTreeSet<usize> = (0..12.min(n))
-        .map(|i| i * n.saturating_sub(1) / 11.max(1))
+        .map(|i| i * n.saturating_sub(1) / 11)
         .chain(front.max_target_vertex())
         .collect();
     for (k, v) in front

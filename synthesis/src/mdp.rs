@@ -138,12 +138,18 @@ fn bincode_config() -> bincode::config::Configuration {
 impl Mdp {
     /// Number of decision points (legs).
     pub fn num_decision_points(&self) -> usize {
-        self.states.last().map_or(0, |s| s.decision_point as usize + 1)
+        self.states
+            .last()
+            .map_or(0, |s| s.decision_point as usize + 1)
     }
 
     /// Total transitions over all choices.
     pub fn num_transitions(&self) -> usize {
-        self.states.iter().flat_map(|s| &s.choices).map(|c| c.transitions.len()).sum()
+        self.states
+            .iter()
+            .flat_map(|s| &s.choices)
+            .map(|c| c.transitions.len())
+            .sum()
     }
 
     /// States per decision point.
@@ -179,8 +185,9 @@ impl Mdp {
                 expected: MDP_FORMAT_VERSION,
             });
         }
-        let (mdp, used): (Self, usize) = bincode::serde::decode_from_slice(&bytes[12..], bincode_config())
-            .map_err(|e| MdpError::Decode(e.to_string()))?;
+        let (mdp, used): (Self, usize) =
+            bincode::serde::decode_from_slice(&bytes[12..], bincode_config())
+                .map_err(|e| MdpError::Decode(e.to_string()))?;
         if used != bytes.len() - 12 {
             return Err(MdpError::Decode(format!(
                 "{} trailing bytes after the MDP",
@@ -197,7 +204,9 @@ impl Mdp {
         if self.states.is_empty() {
             return bad("no states".into());
         }
-        if self.initial as usize >= self.states.len() || self.states[self.initial as usize].decision_point != 0 {
+        if self.initial as usize >= self.states.len()
+            || self.states[self.initial as usize].decision_point != 0
+        {
             return bad("initial state missing or not at decision point 0".into());
         }
         for (i, s) in self.states.iter().enumerate() {
@@ -220,7 +229,9 @@ impl Mdp {
                         let ok = (j as usize) < self.states.len()
                             && self.states[j as usize].decision_point == s.decision_point + 1;
                         if !ok {
-                            return bad(format!("state {i}: transition to {j} breaks the layering"));
+                            return bad(format!(
+                                "state {i}: transition to {j} breaks the layering"
+                            ));
                         }
                     }
                     if !(t.probability.is_finite() && (0.0..=1.0).contains(&t.probability)) {
@@ -229,7 +240,10 @@ impl Mdp {
                     sum += t.probability;
                 }
                 if (sum - 1.0).abs() > 1e-9 {
-                    return bad(format!("state {i}, action {}: probabilities sum to {sum}", c.action));
+                    return bad(format!(
+                        "state {i}, action {}: probabilities sum to {sum}",
+                        c.action
+                    ));
                 }
             }
         }
@@ -270,8 +284,16 @@ pub(crate) mod tests {
                     decision_point: 0,
                     region: Region(vec![(0, 0)]),
                     choices: vec![
-                        choice(0, 10.0, vec![t(Next::State(1), 0.9), t(Next::Collision, 0.1)]),
-                        choice(1, 2.0, vec![t(Next::State(2), 0.7), t(Next::Collision, 0.3)]),
+                        choice(
+                            0,
+                            10.0,
+                            vec![t(Next::State(1), 0.9), t(Next::Collision, 0.1)],
+                        ),
+                        choice(
+                            1,
+                            2.0,
+                            vec![t(Next::State(2), 0.7), t(Next::Collision, 0.3)],
+                        ),
                     ],
                 },
                 State {
@@ -304,13 +326,22 @@ pub(crate) mod tests {
         let m = toy();
         let bytes = m.encode();
         assert_eq!(Mdp::decode(&bytes).expect("round trip"), m);
-        assert!(matches!(Mdp::decode(&bytes[..bytes.len() - 3]), Err(MdpError::Decode(_))));
+        assert!(matches!(
+            Mdp::decode(&bytes[..bytes.len() - 3]),
+            Err(MdpError::Decode(_))
+        ));
         assert!(matches!(Mdp::decode(b"hello"), Err(MdpError::Magic)));
         let mut v = bytes.clone();
         v[8] = 7;
-        assert!(matches!(Mdp::decode(&v), Err(MdpError::Version { found: 7, .. })));
+        assert!(matches!(
+            Mdp::decode(&v),
+            Err(MdpError::Version { found: 7, .. })
+        ));
         let mut broken = toy();
         broken.states[0].choices[0].transitions[0].next = Next::State(0);
-        assert!(matches!(Mdp::decode(&broken.encode()), Err(MdpError::Invalid(_))));
+        assert!(matches!(
+            Mdp::decode(&broken.encode()),
+            Err(MdpError::Invalid(_))
+        ));
     }
 }

@@ -208,9 +208,17 @@ mod tests {
         let w = Scenario::builtin("winding-2d").expect("built-in");
         let c = CompiledScenario::<2>::new(&w);
         let t = simulate(&c, &constant(0.0), 3000, 0, streams::SIMULATE, &|_| {});
-        assert_eq!((t.target, t.collision, t.free), (2885, 108, 7), "winding-2d δ = 0");
+        assert_eq!(
+            (t.target, t.collision, t.free),
+            (2885, 108, 7),
+            "winding-2d δ = 0"
+        );
         let t = simulate(&c, &constant(2.2365), 3000, 0, streams::SIMULATE, &|_| {});
-        assert_eq!((t.target, t.collision, t.free), (587, 615, 1798), "winding-2d δ = 2.2365");
+        assert_eq!(
+            (t.target, t.collision, t.free),
+            (587, 615, 1798),
+            "winding-2d δ = 2.2365"
+        );
     }
 
     #[test]

@@ -76,7 +76,12 @@ impl<const N: usize> EpisodeObserver<N> for Recorder<'_, N> {
 }
 
 /// The first `count` validation episodes of a seed, step by step.
-pub fn sample_trajectories(scenario: &Scenario, strategy: &Strategy, count: u64, seed: u64) -> Vec<Trajectory> {
+pub fn sample_trajectories(
+    scenario: &Scenario,
+    strategy: &Strategy,
+    count: u64,
+    seed: u64,
+) -> Vec<Trajectory> {
     with_dim!(scenario.dim, N => {
         let c = CompiledScenario::<N>::new(scenario);
         let policy = strategy_policy::<N>(strategy);

@@ -67,7 +67,11 @@ fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
@@ -118,7 +122,11 @@ impl Finder<'_> {
 
 /// Enumerate the front of `mdp` with energy divided by `scale` (e.g. the
 /// full-KF energy) so the three objectives are of comparable size.
-pub fn enumerate_front(mdp: &Mdp, scale: f64, cost: CostModel) -> Result<Enumeration, EnumerationError> {
+pub fn enumerate_front(
+    mdp: &Mdp,
+    scale: f64,
+    cost: CostModel,
+) -> Result<Enumeration, EnumerationError> {
     let mut finder = Finder {
         mdp,
         scale: if scale > 0.0 { scale } else { 1.0 },
@@ -128,7 +136,12 @@ pub fn enumerate_front(mdp: &Mdp, scale: f64, cost: CostModel) -> Result<Enumera
         optimisations: 0,
     };
     // Single-objective optima (ties broken towards the others) and a balanced weight.
-    for l in [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]] {
+    for l in [
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 1.0, 1.0],
+    ] {
         finder.probe(l);
     }
     // Recession-cone copies sit further out than any achievable point: beyond
@@ -214,7 +227,6 @@ struct RecessionHull {
     far: f64,
 }
 
-
 /// Hull of `coords` (2-D or 3-D): vertex coordinates and the facets as index
 /// lists into them. Exact (big-integer) arithmetic: the float quickhull of
 /// `chull` gives up with round-off errors on these nearly coplanar fronts.
@@ -234,7 +246,10 @@ fn map_back(coords: &[Vec<f64>], hv: &[Vec<f64>]) -> Vec<usize> {
     hv.iter()
         .map(|v| {
             let key: Vec<u64> = v.iter().map(|x| x.to_bits()).collect();
-            exact.get(&key).copied().unwrap_or_else(|| nearest(coords, v))
+            exact
+                .get(&key)
+                .copied()
+                .unwrap_or_else(|| nearest(coords, v))
         })
         .collect()
 }
@@ -379,7 +394,11 @@ impl RecessionHull {
 
 fn facet(corners: Vec<Option<usize>>, key: Vec<usize>, lambda: [f64; 3]) -> HullFacet {
     let anchor = corners.iter().flatten().next().copied().unwrap_or(0);
-    let total: f64 = lambda.iter().map(|l| l.max(0.0)).sum::<f64>().max(f64::MIN_POSITIVE);
+    let total: f64 = lambda
+        .iter()
+        .map(|l| l.max(0.0))
+        .sum::<f64>()
+        .max(f64::MIN_POSITIVE);
     HullFacet {
         corners,
         key,

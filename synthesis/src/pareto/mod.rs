@@ -10,9 +10,11 @@ pub mod enumerate;
 pub mod policy;
 pub mod select;
 
-use crate::mdp::{CostModel, Method, Mdp};
+use crate::mdp::{CostModel, Mdp, Method};
 use etp_shared::strategy::{Prediction, STRATEGY_FORMAT_VERSION, Strategy, StrategyState};
-use policy::{DeterministicPolicy, Objectives, RandomisedPolicy, as_randomised, constant_action, evaluate};
+use policy::{
+    DeterministicPolicy, Objectives, RandomisedPolicy, as_randomised, constant_action, evaluate,
+};
 use serde::{Deserialize, Serialize};
 
 /// Version of the `front.json` layout.
@@ -89,13 +91,18 @@ impl ParetoFront {
     pub fn max_target_vertex(&self) -> Option<usize> {
         (0..self.vertices.len()).max_by(|&a, &b| {
             let (x, y) = (&self.vertices[a].objectives, &self.vertices[b].objectives);
-            x.p_target.total_cmp(&y.p_target).then(y.energy.total_cmp(&x.energy))
+            x.p_target
+                .total_cmp(&y.p_target)
+                .then(y.energy.total_cmp(&x.energy))
         })
     }
 }
 
 /// Compute the front of an MDP with its baselines.
-pub fn compute_front(mdp: &Mdp, cost: CostModel) -> Result<ParetoFront, enumerate::EnumerationError> {
+pub fn compute_front(
+    mdp: &Mdp,
+    cost: CostModel,
+) -> Result<ParetoFront, enumerate::EnumerationError> {
     let mut baselines = Vec::new();
     for (a, &delta) in mdp.deltas.iter().enumerate() {
         if let Some(p) = constant_action(mdp, a as u16) {
@@ -113,14 +120,20 @@ pub fn compute_front(mdp: &Mdp, cost: CostModel) -> Result<ParetoFront, enumerat
     let full_kf = baselines
         .iter()
         .filter(|b| b.delta.is_some())
-        .min_by(|a, b| a.delta.unwrap_or(f64::MAX).total_cmp(&b.delta.unwrap_or(f64::MAX)))
+        .min_by(|a, b| {
+            a.delta
+                .unwrap_or(f64::MAX)
+                .total_cmp(&b.delta.unwrap_or(f64::MAX))
+        })
         .map(|b| b.objectives.energy);
     let scale = full_kf.filter(|e| *e > 0.0).unwrap_or(1.0);
     let en = enumerate::enumerate_front(mdp, scale, cost)?;
     let mut order: Vec<usize> = en.vertices.clone();
     order.sort_by(|&a, &b| {
         let (x, y) = (&en.points[a].objectives, &en.points[b].objectives);
-        x.energy.total_cmp(&y.energy).then(y.p_target.total_cmp(&x.p_target))
+        x.energy
+            .total_cmp(&y.energy)
+            .then(y.p_target.total_cmp(&x.p_target))
     });
     let position = |p: usize| order.iter().position(|&q| q == p);
     let vertices = order
@@ -136,7 +149,11 @@ pub fn compute_front(mdp: &Mdp, cost: CostModel) -> Result<ParetoFront, enumerat
         .iter()
         .filter_map(|f| {
             Some(Facet {
-                vertices: f.points.iter().map(|&p| position(p)).collect::<Option<Vec<_>>>()?,
+                vertices: f
+                    .points
+                    .iter()
+                    .map(|&p| position(p))
+                    .collect::<Option<Vec<_>>>()?,
                 lambda: f.lambda,
             })
         })
@@ -161,7 +178,12 @@ pub fn compute_front(mdp: &Mdp, cost: CostModel) -> Result<ParetoFront, enumerat
 
 /// Package a randomised policy over MDP choices as a `strategy.json`
 /// (ω over Δ per abstract state).
-pub fn to_strategy(mdp: &Mdp, policy: &RandomisedPolicy, label: String, predicted: Objectives) -> Strategy {
+pub fn to_strategy(
+    mdp: &Mdp,
+    policy: &RandomisedPolicy,
+    label: String,
+    predicted: Objectives,
+) -> Strategy {
     let states = mdp
         .states
         .iter()

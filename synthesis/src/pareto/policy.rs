@@ -60,7 +60,13 @@ fn terminal_value(n: Next) -> Objectives {
 }
 
 /// Value of taking `choice` in state `s` given the values of later states.
-fn choice_value(mdp: &Mdp, s: usize, c: usize, values: &[Objectives], cost: CostModel) -> Objectives {
+fn choice_value(
+    mdp: &Mdp,
+    s: usize,
+    c: usize,
+    values: &[Objectives],
+    cost: CostModel,
+) -> Objectives {
     let ch = &mdp.states[s].choices[c];
     let mut v = Objectives {
         energy: ch.cost(cost),
@@ -101,7 +107,10 @@ pub fn backward_induction(
             let primary = score(&v, lambda);
             let secondary = score(&v, [1.0, 1.0, 1.0]);
             let key = primary + TIE * secondary;
-            if best.as_ref().is_none_or(|b| key < b.0 - 1e-15 * key.abs().max(1.0)) {
+            if best
+                .as_ref()
+                .is_none_or(|b| key < b.0 - 1e-15 * key.abs().max(1.0))
+            {
                 best = Some((key, secondary, c, v));
             }
         }
@@ -170,6 +179,11 @@ pub fn occupation(mdp: &Mdp, policy: &RandomisedPolicy) -> Vec<Vec<f64>> {
 pub fn constant_action(mdp: &Mdp, action: u16) -> Option<DeterministicPolicy> {
     mdp.states
         .iter()
-        .map(|s| s.choices.iter().position(|c| c.action == action).map(|i| i as u16))
+        .map(|s| {
+            s.choices
+                .iter()
+                .position(|c| c.action == action)
+                .map(|i| i as u16)
+        })
         .collect()
 }

@@ -3,8 +3,8 @@
 //! occupation measures (MODEL.md §5), and the whole-MDP occupation-measure LP
 //! used as a cross-check.
 
-use super::policy::{Objectives, RandomisedPolicy, as_randomised, occupation};
 use super::ParetoFront;
+use super::policy::{Objectives, RandomisedPolicy, as_randomised, occupation};
 use crate::mdp::{CostModel, Mdp, Next};
 use good_lp::{Expression, Solution, SolverModel, constraint, microlp, variable, variables};
 
@@ -12,7 +12,10 @@ use good_lp::{Expression, Solution, SolverModel, constraint, microlp, variable, 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Request {
     /// Least energy with `P_tar ≥ min_target` (and `P_coll ≤ max_collision`).
-    MinTarget { min_target: f64, max_collision: Option<f64> },
+    MinTarget {
+        min_target: f64,
+        max_collision: Option<f64>,
+    },
     /// Highest `P_tar` with `E ≤ max_energy` (ties: least collision).
     MaxEnergy { max_energy: f64 },
     /// Exactly vertex `k` of the front.
@@ -57,7 +60,10 @@ pub fn select(front: &ParetoFront, request: Request) -> Result<Selection, Select
         });
     }
     let mut vars = variables!();
-    let mu: Vec<_> = v.iter().map(|_| vars.add(variable().min(0.0).max(1.0))).collect();
+    let mu: Vec<_> = v
+        .iter()
+        .map(|_| vars.add(variable().min(0.0).max(1.0)))
+        .collect();
     let sum = |f: &dyn Fn(&Objectives) -> f64| -> Expression {
         mu.iter().zip(v).map(|(m, x)| f(&x.objectives) * *m).sum()
     };
@@ -67,28 +73,36 @@ pub fn select(front: &ParetoFront, request: Request) -> Result<Selection, Select
     let pc = sum(&|o| o.p_collision);
     // Secondary terms keep the optimum Pareto-optimal when the primary ties.
     let eps_scale = 1e-7;
-    let (objective, constraints, describe): (Expression, Vec<good_lp::Constraint>, String) = match request {
-        Request::MinTarget {
-            min_target,
-            max_collision,
-        } => {
-            let mut c = vec![constraint!(pt.clone() >= min_target)];
-            let mut d = format!("P_tar ≥ {min_target}");
-            if let Some(mc) = max_collision {
-                c.push(constraint!(pc.clone() <= mc));
-                d.push_str(&format!(" and P_coll ≤ {mc}"));
+    let (objective, constraints, describe): (Expression, Vec<good_lp::Constraint>, String) =
+        match request {
+            Request::MinTarget {
+                min_target,
+                max_collision,
+            } => {
+                let mut c = vec![constraint!(pt.clone() >= min_target)];
+                let mut d = format!("P_tar ≥ {min_target}");
+                if let Some(mc) = max_collision {
+                    c.push(constraint!(pc.clone() <= mc));
+                    d.push_str(&format!(" and P_coll ≤ {mc}"));
+                }
+                let scale = front.energy_scale.max(1e-12);
+                (
+                    e.clone() / scale + eps_scale * (pc.clone() - pt.clone()),
+                    c,
+                    d,
+                )
             }
-            let scale = front.energy_scale.max(1e-12);
-            (e.clone() / scale + eps_scale * (pc.clone() - pt.clone()), c, d)
-        }
-        Request::MaxEnergy { max_energy } => (
-            -pt.clone() + eps_scale * pc.clone(),
-            vec![constraint!(e.clone() <= max_energy)],
-            format!("energy ≤ {max_energy}"),
-        ),
-        Request::Vertex(_) => unreachable!("handled above"),
-    };
-    let mut problem = vars.minimise(objective).using(microlp).with(constraint!(total == 1.0));
+            Request::MaxEnergy { max_energy } => (
+                -pt.clone() + eps_scale * pc.clone(),
+                vec![constraint!(e.clone() <= max_energy)],
+                format!("energy ≤ {max_energy}"),
+            ),
+            Request::Vertex(_) => unreachable!("handled above"),
+        };
+    let mut problem = vars
+        .minimise(objective)
+        .using(microlp)
+        .with(constraint!(total == 1.0));
     for c in constraints {
         problem = problem.with(c);
     }
@@ -101,14 +115,21 @@ pub fn select(front: &ParetoFront, request: Request) -> Result<Selection, Select
                 .filter(|(_, w)| *w > 1e-12)
                 .collect();
             let norm: f64 = weights.iter().map(|(_, w)| w).sum();
-            let weights: Vec<(usize, f64)> = weights.into_iter().map(|(k, w)| (k, w / norm)).collect();
+            let weights: Vec<(usize, f64)> =
+                weights.into_iter().map(|(k, w)| (k, w / norm)).collect();
             let predicted = Objectives::mix(weights.iter().map(|&(k, w)| (w, v[k].objectives)));
             Ok(Selection { weights, predicted })
         }
         Err(good_lp::ResolutionError::Infeasible) => {
             let best_target = v.iter().map(|x| x.objectives.p_target).fold(0.0, f64::max);
-            let best_collision = v.iter().map(|x| x.objectives.p_collision).fold(1.0, f64::min);
-            let best_energy = v.iter().map(|x| x.objectives.energy).fold(f64::INFINITY, f64::min);
+            let best_collision = v
+                .iter()
+                .map(|x| x.objectives.p_collision)
+                .fold(1.0, f64::min);
+            let best_energy = v
+                .iter()
+                .map(|x| x.objectives.energy)
+                .fold(f64::INFINITY, f64::min);
             let detail = match request {
                 Request::MinTarget {
                     min_target,
@@ -136,8 +157,16 @@ fn least_collision_with_target(front: &ParetoFront, min_target: f64) -> Option<f
     let v = &front.vertices;
     let mut vars = variables!();
     let mu: Vec<_> = v.iter().map(|_| vars.add(variable().min(0.0))).collect();
-    let pt: Expression = mu.iter().zip(v).map(|(m, x)| x.objectives.p_target * *m).sum();
-    let pc: Expression = mu.iter().zip(v).map(|(m, x)| x.objectives.p_collision * *m).sum();
+    let pt: Expression = mu
+        .iter()
+        .zip(v)
+        .map(|(m, x)| x.objectives.p_target * *m)
+        .sum();
+    let pc: Expression = mu
+        .iter()
+        .zip(v)
+        .map(|(m, x)| x.objectives.p_collision * *m)
+        .sum();
     let total: Expression = mu.iter().copied().sum();
     let sol = vars
         .minimise(pc.clone())
@@ -154,7 +183,11 @@ fn least_collision_with_target(front: &ParetoFront, min_target: f64) -> Option<f
 /// mixture reaches take the policy of the heaviest vertex.
 pub fn realise(mdp: &Mdp, front: &ParetoFront, selection: &Selection) -> RandomisedPolicy {
     let n = mdp.states.len();
-    let mut x: Vec<Vec<f64>> = mdp.states.iter().map(|s| vec![0.0; s.choices.len()]).collect();
+    let mut x: Vec<Vec<f64>> = mdp
+        .states
+        .iter()
+        .map(|s| vec![0.0; s.choices.len()])
+        .collect();
     for &(k, w) in &selection.weights {
         let occ = occupation(mdp, &as_randomised(mdp, &front.vertices[k].policy));
         for s in 0..n {
@@ -195,7 +228,12 @@ pub fn occupation_lp_min_energy(
     let x: Vec<Vec<_>> = mdp
         .states
         .iter()
-        .map(|s| s.choices.iter().map(|_| vars.add(variable().min(0.0))).collect())
+        .map(|s| {
+            s.choices
+                .iter()
+                .map(|_| vars.add(variable().min(0.0)))
+                .collect()
+        })
         .collect();
     let mut inflow: Vec<Expression> = vec![Expression::from(0.0); mdp.states.len()];
     inflow[mdp.initial as usize] += 1.0;

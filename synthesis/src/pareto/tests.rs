@@ -52,7 +52,11 @@ fn front_contains_every_deterministic_pareto_point_and_dominates_baselines() {
                     },
                 )
                 .expect("feasible");
-                assert!(sel.predicted.energy <= o.energy + 1e-7, "policy {a}{b}{c}: {o:?} vs {:?}", sel.predicted);
+                assert!(
+                    sel.predicted.energy <= o.energy + 1e-7,
+                    "policy {a}{b}{c}: {o:?} vs {:?}",
+                    sel.predicted
+                );
             }
         }
     }
@@ -84,10 +88,18 @@ fn realised_strategy_attains_the_mixture_and_matches_the_occupation_lp() {
         .expect("feasible");
         let omega = realise(&m, &f, &sel);
         let v = evaluate(&m, &omega, CostModel::Counted);
-        assert!((v.energy - sel.predicted.energy).abs() < 1e-9, "{v:?} vs {:?}", sel.predicted);
+        assert!(
+            (v.energy - sel.predicted.energy).abs() < 1e-9,
+            "{v:?} vs {:?}",
+            sel.predicted
+        );
         assert!((v.p_target - sel.predicted.p_target).abs() < 1e-9);
         let lp = occupation_lp_min_energy(&m, CostModel::Counted, target, None).expect("feasible");
-        assert!((lp - sel.predicted.energy).abs() < 1e-6, "occupation LP {lp} vs vertex LP {}", sel.predicted.energy);
+        assert!(
+            (lp - sel.predicted.energy).abs() < 1e-6,
+            "occupation LP {lp} vs vertex LP {}",
+            sel.predicted.energy
+        );
     }
 }
 
@@ -104,6 +116,12 @@ fn infeasible_requests_name_the_best_achievable() {
     )
     .expect_err("P_tar 0.99 is beyond 0.855");
     let msg = e.to_string();
-    assert!(msg.contains("infeasible") && msg.contains("0.8550"), "{msg}");
-    assert!(matches!(select(&f, Request::Vertex(99)), Err(SelectError::NoSuchVertex(99, _))));
+    assert!(
+        msg.contains("infeasible") && msg.contains("0.8550"),
+        "{msg}"
+    );
+    assert!(matches!(
+        select(&f, Request::Vertex(99)),
+        Err(SelectError::NoSuchVertex(99, _))
+    ));
 }

@@ -2,16 +2,10 @@
 
 use super::Args;
 use anyhow::{Context, Result, bail};
-use etp_shared::episode::{CompiledScenario, LegMode};
-use etp_shared::etkf::{Belief, Threshold};
-use etp_shared::linalg::to_dynamic;
-use etp_shared::rng::{SimRng, streams};
 use etp_shared::scenario::{Scenario, builtin_text};
 use etp_shared::strategy::{Prediction, Strategy};
 use etp_shared::wire::RunId;
-use etp_shared::with_dim;
-use etp_synthesis::simulate::{SimulationSummary, simulate};
-use rand::RngExt;
+use etp_synthesis::validate::simulate_strategy;
 use std::path::PathBuf;
 
 /// A run ready to be spawned.
@@ -147,7 +141,7 @@ pub fn prepare(a: &Args, run_id: &RunId) -> Result<Plan> {
     // In-process simulation of the same strategy: per-sensor energy, and the
     // whole prediction for a constant strategy made here.
     let predict_episodes = a.predict_episodes.max(1);
-    let sim = simulate_strategy(&scenario, &strategy, predict_episodes, a.seed);
+    let sim = simulate_strategy(&scenario, &strategy, predict_episodes, a.seed, &|_| {}).summary();
     let sensor_energy_per_episode = scenario
         .sensors
         .iter()
@@ -186,24 +180,5 @@ pub fn prepare(a: &Args, run_id: &RunId) -> Result<Plan> {
         strategy_path,
         sensor_energy_per_episode,
         predict_episodes,
-    })
-}
-
-/// In-process simulation of a strategy (the same classification and draw as
-/// the coordinator, on `streams::VALIDATE`), for the per-sensor prediction.
-pub fn simulate_strategy(
-    scenario: &Scenario,
-    strategy: &Strategy,
-    episodes: u64,
-    seed: u64,
-) -> SimulationSummary {
-    let thresholds: Vec<Threshold> = strategy.deltas.iter().map(|&d| Threshold::new(d)).collect();
-    with_dim!(scenario.dim, N => {
-        let c = CompiledScenario::<N>::new(scenario);
-        let policy = |leg: usize, b: &Belief<N>, rng: &mut SimRng| {
-            let u: f64 = rng.random();
-            LegMode::<N>::EventTriggered(thresholds[strategy.draw(leg, &to_dynamic(&b.cov), u)])
-        };
-        simulate(&c, &policy, episodes, seed, streams::VALIDATE, &|_| {}).summary()
     })
 }
