@@ -289,19 +289,11 @@ impl RecessionHull {
         let mut out = Vec::new();
         for tri in idx.chunks_exact(3) {
             let ids = [map[tri[0]], map[tri[1]], map[tri[2]]];
-            let (a, b, d) = (points[ids[0]].f, points[ids[1]].f, points[ids[2]].f);
-            let mut normal = cross(sub(b, a), sub(d, a));
-            let len = dot(normal, normal).sqrt();
-            if len == 0.0 {
+            let Some(lambda) =
+                lower_weight([points[ids[0]].f, points[ids[1]].f, points[ids[2]].f], &c)
+            else {
                 continue;
-            }
-            if dot(normal, sub([c[0], c[1], c[2]], a)) > 0.0 {
-                normal = normal.map(|x| -x);
-            }
-            let lambda = normal.map(|x| -x / len);
-            if lambda.iter().any(|&l| l < -1e-12) {
-                continue;
-            }
+            };
             let mut key = ids.to_vec();
             key.sort_unstable();
             out.push(facet(key.iter().map(|&i| Some(i)).collect(), key, lambda));
@@ -364,19 +356,9 @@ impl RecessionHull {
         let mut out = Vec::new();
         for tri in idx.chunks_exact(3) {
             let ids = [map[tri[0]], map[tri[1]], map[tri[2]]];
-            let (a, b, d) = (at(ids[0]), at(ids[1]), at(ids[2]));
-            let mut normal = cross(sub(b, a), sub(d, a));
-            let len = dot(normal, normal).sqrt();
-            if len == 0.0 {
+            let Some(lambda) = lower_weight([at(ids[0]), at(ids[1]), at(ids[2])], &c) else {
                 continue;
-            }
-            if dot(normal, sub([c[0], c[1], c[2]], a)) > 0.0 {
-                normal = normal.map(|x| -x);
-            }
-            let lambda = normal.map(|x| -x / len);
-            if lambda.iter().any(|&l| l < -1e-12) {
-                continue;
-            }
+            };
             let corners: Vec<Option<usize>> = ids.iter().map(|&i| owner[i]).collect();
             // Keys in point indices (far copies as axis pseudo-indices), so
             // they stay comparable with the split method's keys.
@@ -390,6 +372,22 @@ impl RecessionHull {
         }
         Ok(out)
     }
+}
+
+/// The weight λ ≥ 0 of a hull triangle if it is a lower facet: its outward
+/// normal (away from the interior point `inside`) is `−λ`. `None` for upper or
+/// degenerate triangles.
+fn lower_weight([a, b, d]: [[f64; 3]; 3], inside: &[f64]) -> Option<[f64; 3]> {
+    let mut normal = cross(sub(b, a), sub(d, a));
+    let len = dot(normal, normal).sqrt();
+    if len == 0.0 {
+        return None;
+    }
+    if dot(normal, sub([inside[0], inside[1], inside[2]], a)) > 0.0 {
+        normal = normal.map(|x| -x);
+    }
+    let lambda = normal.map(|x| -x / len);
+    lambda.iter().all(|&l| l >= -1e-12).then_some(lambda)
 }
 
 fn facet(corners: Vec<Option<usize>>, key: Vec<usize>, lambda: [f64; 3]) -> HullFacet {
