@@ -80,7 +80,9 @@ impl DecisionPointBins {
         let nominal = match mean {
             Some(m) => {
                 let (_, v) = deterministic_eigen(&(m / n));
-                (0..v.ncols()).map(|j| v.column(j).iter().copied().collect()).collect()
+                (0..v.ncols())
+                    .map(|j| v.column(j).iter().copied().collect())
+                    .collect()
             }
             None => Vec::new(),
         };
@@ -109,7 +111,13 @@ impl DecisionPointBins {
         let Some(nom) = self.nominal.get(axis) else {
             return 0;
         };
-        let c = v.iter().zip(nom).map(|(x, y)| x * y).sum::<f64>().abs().min(1.0);
+        let c = v
+            .iter()
+            .zip(nom)
+            .map(|(x, y)| x * y)
+            .sum::<f64>()
+            .abs()
+            .min(1.0);
         let k = (c.acos() / FRAC_PI_2 * f64::from(a)).floor();
         k.clamp(0.0, f64::from(a - 1)) as u16
     }
@@ -118,7 +126,10 @@ impl DecisionPointBins {
     pub fn classify(&self, cov: &DMatrix<f64>) -> Region {
         let (values, v) = deterministic_eigen(cov);
         let n = values.len();
-        let scale = values.iter().fold(0.0_f64, |m, x| m.max(x.abs())).max(f64::MIN_POSITIVE);
+        let scale = values
+            .iter()
+            .fold(0.0_f64, |m, x| m.max(x.abs()))
+            .max(f64::MIN_POSITIVE);
         let repeated = |j: usize| {
             (j > 0 && (values[j - 1] - values[j]).abs() <= REPEATED_RTOL * scale)
                 || (j + 1 < n && (values[j] - values[j + 1]).abs() <= REPEATED_RTOL * scale)
@@ -148,8 +159,12 @@ pub struct Discretization {
 
 impl Discretization {
     /// Region of covariance `cov` at decision point `dp`.
+    /// A decision point without bins (never in a consistent file) has the
+    /// empty region.
     pub fn classify(&self, dp: usize, cov: &DMatrix<f64>) -> Region {
-        self.decision_points[dp].classify(cov)
+        self.decision_points
+            .get(dp)
+            .map_or_else(|| Region(Vec::new()), |b| b.classify(cov))
     }
 }
 
@@ -159,7 +174,15 @@ mod tests {
 
     fn bins() -> DecisionPointBins {
         let covs = [DMatrix::from_row_slice(2, 2, &[4.0, 0.0, 0.0, 1.0])];
-        DecisionPointBins::from_samples(1e-4, 1e-2, BinCounts { magnitude: 4, angle: 3 }, covs.iter())
+        DecisionPointBins::from_samples(
+            1e-4,
+            1e-2,
+            BinCounts {
+                magnitude: 4,
+                angle: 3,
+            },
+            covs.iter(),
+        )
     }
 
     #[test]

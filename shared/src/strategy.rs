@@ -104,7 +104,9 @@ impl Strategy {
             Some(text) => Scenario::from_toml(text),
             None => Scenario::builtin(&self.scenario_name),
         }
-        .map_err(|e| StrategyError::Invalid(format!("its scenario `{}`: {e}", self.scenario_name)))?;
+        .map_err(|e| {
+            StrategyError::Invalid(format!("its scenario `{}`: {e}", self.scenario_name))
+        })?;
         self.check_scenario(&parsed)?;
         Ok(parsed)
     }
@@ -115,14 +117,16 @@ impl Strategy {
         struct Versioned {
             format_version: u32,
         }
-        let v: Versioned = serde_json::from_str(text).map_err(|e| StrategyError::Parse(e.to_string()))?;
+        let v: Versioned =
+            serde_json::from_str(text).map_err(|e| StrategyError::Parse(e.to_string()))?;
         if v.format_version != STRATEGY_FORMAT_VERSION {
             return Err(StrategyError::Version {
                 found: v.format_version,
                 expected: STRATEGY_FORMAT_VERSION,
             });
         }
-        let s: Self = serde_json::from_str(text).map_err(|e| StrategyError::Parse(e.to_string()))?;
+        let s: Self =
+            serde_json::from_str(text).map_err(|e| StrategyError::Parse(e.to_string()))?;
         s.check_consistent()?;
         Ok(s)
     }
@@ -133,7 +137,9 @@ impl Strategy {
 
     fn check_consistent(&self) -> Result<(), StrategyError> {
         if self.deltas.is_empty() || self.deltas.iter().any(|d| !(d.is_finite() && *d >= 0.0)) {
-            return Err(StrategyError::Invalid("deltas must be non-empty, finite and ≥ 0".into()));
+            return Err(StrategyError::Invalid(
+                "deltas must be non-empty, finite and ≥ 0".into(),
+            ));
         }
         for (i, st) in self.states.iter().enumerate() {
             if st.omega.len() != self.deltas.len() {
@@ -171,6 +177,15 @@ impl Strategy {
                 scenario_name: scenario.name.clone(),
                 scenario_hash: scenario.content_hash.clone(),
             });
+        }
+        if let Some(d) = &self.discretization
+            && d.decision_points.len() != scenario.num_legs()
+        {
+            return Err(StrategyError::Invalid(format!(
+                "its discretization has {} decision points but the scenario has {} legs",
+                d.decision_points.len(),
+                scenario.num_legs()
+            )));
         }
         if let Some(max) = self.states.iter().map(|s| s.decision_point).max()
             && max >= scenario.num_legs()
@@ -285,14 +300,25 @@ mod tests {
         let back = Strategy::from_json(&st.to_json()).expect("round trip");
         assert_eq!(back, st);
         back.check_scenario(&s).expect("same scenario");
-        assert_eq!(back.scenario().expect("built-in by name").content_hash, s.content_hash);
+        assert_eq!(
+            back.scenario().expect("built-in by name").content_hash,
+            s.content_hash
+        );
         let mut tampered = back.clone();
         tampered.scenario_toml = Some(
-            crate::scenario::builtin_text("winding-2d").expect("built-in").replace("k_max = 200", "k_max = 201"),
+            crate::scenario::builtin_text("winding-2d")
+                .expect("built-in")
+                .replace("k_max = 200", "k_max = 201"),
         );
-        assert!(matches!(tampered.scenario(), Err(StrategyError::ScenarioMismatch { .. })));
+        assert!(matches!(
+            tampered.scenario(),
+            Err(StrategyError::ScenarioMismatch { .. })
+        ));
         let other = Scenario::builtin("open-2d").expect("built-in");
-        assert!(matches!(back.check_scenario(&other), Err(StrategyError::ScenarioMismatch { .. })));
+        assert!(matches!(
+            back.check_scenario(&other),
+            Err(StrategyError::ScenarioMismatch { .. })
+        ));
         let cov = DMatrix::identity(2, 2);
         assert_eq!(back.draw(3, &cov, 0.7), 2);
     }
@@ -301,13 +327,22 @@ mod tests {
     fn corrupted_strategies_are_refused() {
         let s = Scenario::builtin("winding-2d").expect("built-in");
         let text = Strategy::constant(&s, 0, prediction()).to_json();
-        assert!(matches!(Strategy::from_json(&text[..text.len() / 2]), Err(StrategyError::Parse(_))));
+        assert!(matches!(
+            Strategy::from_json(&text[..text.len() / 2]),
+            Err(StrategyError::Parse(_))
+        ));
         let bad = text.replacen("\"format_version\": 1", "\"format_version\": 99", 1);
-        assert!(matches!(Strategy::from_json(&bad), Err(StrategyError::Version { .. })));
+        assert!(matches!(
+            Strategy::from_json(&bad),
+            Err(StrategyError::Version { .. })
+        ));
         let mut broken = Strategy::constant(&s, 0, prediction());
         broken.states[4].omega[0] = 0.5;
         let bad = broken.to_json();
-        assert!(matches!(Strategy::from_json(&bad), Err(StrategyError::Invalid(_))));
+        assert!(matches!(
+            Strategy::from_json(&bad),
+            Err(StrategyError::Invalid(_))
+        ));
     }
 
     #[test]

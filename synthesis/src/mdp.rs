@@ -131,8 +131,19 @@ pub struct Mdp {
     pub total_steps: u64,
 }
 
+/// Decoding never allocates more than this, whatever lengths a corrupted file claims.
+const DECODE_LIMIT: usize = 1 << 30;
+
 fn bincode_config() -> bincode::config::Configuration {
     bincode::config::standard()
+}
+
+fn bincode_decode_config() -> bincode::config::Configuration<
+    bincode::config::LittleEndian,
+    bincode::config::Varint,
+    bincode::config::Limit<DECODE_LIMIT>,
+> {
+    bincode::config::standard().with_limit::<DECODE_LIMIT>()
 }
 
 impl Mdp {
@@ -186,7 +197,7 @@ impl Mdp {
             });
         }
         let (mdp, used): (Self, usize) =
-            bincode::serde::decode_from_slice(&bytes[12..], bincode_config())
+            bincode::serde::decode_from_slice(&bytes[12..], bincode_decode_config())
                 .map_err(|e| MdpError::Decode(e.to_string()))?;
         if used != bytes.len() - 12 {
             return Err(MdpError::Decode(format!(
