@@ -28,6 +28,7 @@ pub mod etkf;
 pub mod gaussian;
 pub mod geometry;
 pub mod linalg;
+pub mod recording;
 pub mod rng;
 pub mod scenario;
 pub mod stats;

@@ -169,6 +169,8 @@ pub fn run(a: Args) -> Result<()> {
         episode_details: false,
         predict_episodes: a.validate_episodes,
         clone_sensors: None,
+        record: None,
+        record_default: false,
     };
     let mp = run_cmd::execute(&rargs)?;
 

@@ -168,10 +168,21 @@ pub struct Limits {
     pub max_publishers: usize,
     pub max_subscribers: usize,
     pub max_nodes: usize,
+    /// Buffer of the run's own subscribers.
     pub buffer: usize,
+    /// Buffer of an observer's (the recorder's) subscriber; the service's
+    /// maximum is the larger of the two.
+    pub observer_buffer: usize,
     pub history: usize,
+    /// Off for every recorded service but `threshold`: a full buffer (the
+    /// recorder lagging) makes the publisher wait instead of dropping.
+    /// `threshold` keeps it on because idle sensors never drain it; the
+    /// recorder's large buffer there makes an overflow practically impossible.
     pub safe_overflow: bool,
 }
+
+/// Buffer of the recorder's subscribers (it drains every ~0.5 ms).
+const OBSERVER_BUFFER: usize = 512;
 
 /// Extra ports and nodes every service allows beyond the run's own processes:
 /// a recorder and a replayer.
@@ -188,16 +199,18 @@ pub fn limits(service: ServiceId, sensors: usize) -> Limits {
         max_subscribers: 1 + OBSERVERS,
         max_nodes: nodes,
         buffer,
+        observer_buffer: OBSERVER_BUFFER,
         history: 0,
-        safe_overflow: true,
+        safe_overflow: false,
     };
     let many_to_one = |buffer| Limits {
         max_publishers: sensors + OBSERVERS,
         max_subscribers: 1 + OBSERVERS,
         max_nodes: nodes,
         buffer,
+        observer_buffer: OBSERVER_BUFFER,
         history: 0,
-        safe_overflow: true,
+        safe_overflow: false,
     };
     match service {
         ServiceId::Control => one_to_one(8),
@@ -212,6 +225,7 @@ pub fn limits(service: ServiceId, sensors: usize) -> Limits {
             max_subscribers: sensors + 1 + OBSERVERS,
             max_nodes: nodes,
             buffer: 16,
+            observer_buffer: 8 * OBSERVER_BUFFER,
             history: 0,
             safe_overflow: true,
         },
@@ -221,14 +235,16 @@ pub fn limits(service: ServiceId, sensors: usize) -> Limits {
             max_subscribers: 1 + OBSERVERS,
             max_nodes: nodes,
             buffer: sensors + 4,
+            observer_buffer: sensors + 4,
             history: 1,
-            safe_overflow: true,
+            safe_overflow: false,
         },
         ServiceId::AgentWake | ServiceId::CoordinatorWake => Limits {
             max_publishers: sensors + 2 + OBSERVERS,
             max_subscribers: 1 + OBSERVERS,
             max_nodes: nodes,
             buffer: 0,
+            observer_buffer: 0,
             history: 0,
             safe_overflow: true,
         },
@@ -237,6 +253,7 @@ pub fn limits(service: ServiceId, sensors: usize) -> Limits {
             max_subscribers: 1 + OBSERVERS,
             max_nodes: nodes,
             buffer: 0,
+            observer_buffer: 0,
             history: 0,
             safe_overflow: true,
         },
@@ -264,7 +281,7 @@ pub fn open_pubsub<T: Debug + ZeroCopySend>(
         .max_publishers(l.max_publishers)
         .max_subscribers(l.max_subscribers)
         .max_nodes(l.max_nodes)
-        .subscriber_max_buffer_size(l.buffer)
+        .subscriber_max_buffer_size(l.buffer.max(l.observer_buffer))
         .history_size(l.history)
         .enable_safe_overflow(l.safe_overflow)
         .open_or_create()
@@ -295,6 +312,8 @@ pub fn open_event(
 /// Node names of the run's processes (used for liveness checks).
 pub const COORDINATOR_NODE: &str = "etp-coordinator";
 pub const AGENT_NODE: &str = "etp-agent";
+/// Node name of the recorder (`etp run --record`), started before the others.
+pub const RECORDER_NODE: &str = "etp-recorder";
 /// Node name of sensor `i`.
 pub fn sensor_node_name(i: usize) -> String {
     format!("etp-sensor-{i}")
@@ -410,6 +429,16 @@ impl Ports<'_> {
     pub fn subscriber<T: Debug + ZeroCopySend>(&self, s: ServiceId) -> Result<Sub<T>, WireError> {
         open_pubsub::<T>(self.node, self.run, s, self.sensors)?
             .subscriber_builder()
+            .buffer_size(limits(s, self.sensors).buffer)
+            .create()
+            .map_err(|e| WireError::Port(s.name(self.run), format!("{e:?}")))
+    }
+
+    /// A subscriber with the observer's (recorder's) buffer.
+    pub fn observer<T: Debug + ZeroCopySend>(&self, s: ServiceId) -> Result<Sub<T>, WireError> {
+        open_pubsub::<T>(self.node, self.run, s, self.sensors)?
+            .subscriber_builder()
+            .buffer_size(limits(s, self.sensors).observer_buffer)
             .create()
             .map_err(|e| WireError::Port(s.name(self.run), format!("{e:?}")))
     }
@@ -454,8 +483,11 @@ pub fn say_hello(
         .publisher_builder()
         .create()
         .map_err(|e| WireError::Port(ServiceId::Hello.name(ports.run), format!("{e:?}")))?;
+    // A recorder (started before everyone) subscribes too: wait for one more.
+    let cfg = config(ports.run)?;
+    let needed = 1 + usize::from(liveness(&cfg, RECORDER_NODE) == Liveness::Alive);
     let start = std::time::Instant::now();
-    while factory.dynamic_config().number_of_subscribers() == 0 {
+    while factory.dynamic_config().number_of_subscribers() < needed {
         if start.elapsed() >= timeout {
             return Err(WireError::Port(
                 ServiceId::Hello.name(ports.run),

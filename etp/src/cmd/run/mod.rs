@@ -14,6 +14,7 @@
 //! * [`report`] — the table and the `--json` object.
 
 mod prepare;
+mod record;
 mod report;
 mod supervise;
 
@@ -58,6 +59,12 @@ pub struct Args {
     /// served round robin (same maths, K sensor processes).
     #[arg(long)]
     pub clone_sensors: Option<usize>,
+    /// Record every message of the run to this MCAP file (see `etp replay`).
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
+    /// Record to the default file `recordings/<scenario>-<run-id>.mcap`.
+    #[arg(long, conflicts_with = "record")]
+    pub record_default: bool,
 }
 
 /// Spawn, supervise and clean up one run; the report data.
@@ -81,9 +88,15 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         .enable_all()
         .build()
         .context("starting the tokio runtime")?;
+    let record = match (&a.record, a.record_default) {
+        (Some(p), _) => Some(p.clone()),
+        (None, true) => Some(record::default_path(&plan)),
+        (None, false) => None,
+    };
     let outcome = rt.block_on(supervise::supervise(
         &plan,
         Duration::from_secs_f64(a.deadline),
+        record.as_deref(),
     ));
     // Whatever happened: no iceoryx2 leftovers of this run.
     let cleaned = cleanup::remove_run(&run_id);

@@ -68,6 +68,11 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         "wall_seconds": s.wall_seconds,
         "aborted": r.aborted,
     });
+    if let Some(rec) = &s.recording
+        && let Some(m) = v.as_object_mut()
+    {
+        m.insert("recording".into(), json!(rec));
+    }
     if a.episode_details
         && let Some(m) = v.as_object_mut()
     {
@@ -143,6 +148,22 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
     }
     if let Some(why) = &r.aborted {
         println!("  ABORTED: {why}");
+    }
+    if let Some(rec) = &s.recording {
+        let total: u64 = rec.counts.values().sum();
+        println!(
+            "  recording {} ({} bytes, {}): {total} messages",
+            rec.path.display(),
+            rec.bytes,
+            if rec.finished {
+                "finished"
+            } else {
+                "UNFINISHED: see etp replay --repair"
+            }
+        );
+        for (topic, n) in &rec.counts {
+            println!("    {topic:<20} {n}");
+        }
     }
     for p in s.processes.iter().filter(|p| p.status != "exit 0") {
         println!("  process {} (pid {}): {}", p.name, p.pid, p.status);

@@ -27,6 +27,8 @@ pub struct Supervised {
     pub report: RunReport,
     pub processes: Vec<ProcessExit>,
     pub wall_seconds: f64,
+    /// `--record`: what the recorder wrote.
+    pub recording: Option<super::record::Recording>,
 }
 
 /// A sibling binary of the running executable (`target/<profile>/etp-agent`
@@ -47,7 +49,7 @@ pub fn sibling_binary(name: &str) -> Result<PathBuf> {
     ))
 }
 
-fn status_text(s: &std::process::ExitStatus) -> String {
+pub(super) fn status_text(s: &std::process::ExitStatus) -> String {
     use std::os::unix::process::ExitStatusExt;
     match (s.code(), s.signal()) {
         (Some(c), _) => format!("exit {c}"),
@@ -72,7 +74,7 @@ fn spawn(bin: &Path, args: &[String], stdout: bool) -> Result<Child> {
 }
 
 /// Send a signal by pid with the system `kill` (keeps this crate free of unsafe).
-fn signal(pid: u32, sig: &str) {
+pub(super) fn signal(pid: u32, sig: &str) {
     let _ = std::process::Command::new("kill")
         .args([sig, &pid.to_string()])
         .stdout(Stdio::null())
@@ -80,8 +82,17 @@ fn signal(pid: u32, sig: &str) {
         .status();
 }
 
-pub async fn supervise(plan: &Plan, deadline: Duration) -> Result<Supervised> {
+pub async fn supervise(
+    plan: &Plan,
+    deadline: Duration,
+    record: Option<&Path>,
+) -> Result<Supervised> {
     let started = Instant::now();
+    // The recorder first: every subscriber exists before anything is sent.
+    let recorder = match record {
+        Some(out) => Some(super::record::start(plan, out).await?),
+        None => None,
+    };
     let run = plan.run_id.as_str().to_string();
     let scenario = plan.scenario_path.display().to_string();
     let common = |extra: &[String]| -> Vec<String> {
@@ -180,6 +191,14 @@ pub async fn supervise(plan: &Plan, deadline: Duration) -> Result<Supervised> {
         };
         processes.push(ProcessExit { name, pid, status });
     }
+    let recording = match recorder {
+        Some(r) => {
+            let (rec, exit) = r.stop().await?;
+            processes.push(exit);
+            Some(rec)
+        }
+        None => None,
+    };
     let out = tokio::time::timeout(GRACE, reader)
         .await
         .map_err(|_| anyhow!("coordinator output not closed"))?
@@ -203,6 +222,7 @@ pub async fn supervise(plan: &Plan, deadline: Duration) -> Result<Supervised> {
         report,
         processes,
         wall_seconds: started.elapsed().as_secs_f64(),
+        recording,
     })
 }
 
