@@ -31,4 +31,6 @@ pub enum Command {
     Bench(crate::cmd::bench::Args),
     /// Run a strategy as processes (coordinator, agent, one per sensor) over iceoryx2.
     Run(crate::cmd::run::Args),
+    /// Summarise an MCAP recording of a run (finished or not); `--repair OUT` writes a finished copy.
+    Replay(crate::cmd::replay::Args),
 }

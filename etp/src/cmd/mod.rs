@@ -4,6 +4,7 @@ pub mod bench;
 pub mod check;
 pub mod demo;
 pub mod export_prism;
+pub mod replay;
 pub mod run;
 pub mod simulate;
 pub mod strategy;
@@ -20,6 +21,7 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Simulate(a) => simulate::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Run(a) => run::run(a),
+        Command::Replay(a) => replay::run(a),
         Command::Synthesize(a) => synthesize::run(a),
         Command::ExportPrism(a) => export_prism::run(a),
         Command::Strategy(a) => strategy::run(a),

@@ -1,0 +1,264 @@
+//! `etp replay FILE`: the run's summary from a recording alone (episodes,
+//! outcomes, per-sensor transmissions = `measurement` messages beside the
+//! sensors' ledgers and what the agent received, energy vs prediction). Works
+//! on an unfinished file (crashed recorder): every complete record is read.
+//! `--repair OUT` writes a finished copy.
+
+use anyhow::{Context, Result, bail};
+use etp_shared::recording::{self, Contents, Recorded};
+use etp_shared::wire::agent_to_coordinator::Outcome;
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// An MCAP recording (`etp run --record`).
+    pub file: PathBuf,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Write a finished copy (summary, indexes, footer) of the file to OUT.
+    #[arg(long, value_name = "OUT")]
+    pub repair: Option<PathBuf>,
+}
+
+#[derive(Debug, Default, Clone, serde::Serialize)]
+struct SensorSummary {
+    name: String,
+    /// `measurement` messages sent by this sensor.
+    measurements: u64,
+    /// Sum of the sensor's ledgers (transmissions).
+    ledger_transmissions: u64,
+    ledger_energy: f64,
+    predicted_energy: Option<f64>,
+}
+
+/// The summary object of a recording.
+pub fn summarize(c: &Contents) -> Result<Value> {
+    let prediction: Option<Value> = c
+        .meta(recording::META_PREDICTION, "json")
+        .and_then(|t| serde_json::from_str(t).ok());
+    let names: Vec<String> = prediction
+        .as_ref()
+        .and_then(|p| p.get("sensors"))
+        .and_then(|s| serde_json::from_value(s.clone()).ok())
+        .unwrap_or_default();
+    let per_ep: Vec<f64> = prediction
+        .as_ref()
+        .and_then(|p| p.get("sensor_energy_per_episode"))
+        .and_then(|s| serde_json::from_value(s.clone()).ok())
+        .unwrap_or_default();
+    let mut sensors: BTreeMap<u32, SensorSummary> = BTreeMap::new();
+    let sensor = |sensors: &mut BTreeMap<u32, SensorSummary>, i: u32| {
+        let name = names
+            .get(i as usize)
+            .cloned()
+            .unwrap_or_else(|| format!("sensor {i}"));
+        sensors.entry(i).or_insert_with(|| SensorSummary {
+            name,
+            ..SensorSummary::default()
+        });
+    };
+    let (mut target, mut collision, mut free, mut steps, mut received) =
+        (0u64, 0u64, 0u64, 0u64, 0u64);
+    let mut episodes = 0u64;
+    for m in &c.messages {
+        let rec = recording::decode(&m.topic, &m.data)
+            .with_context(|| format!("message at log time {}", m.log_time))?;
+        match rec {
+            Recorded::Measurement(x) => {
+                sensor(&mut sensors, x.header.sender);
+                if let Some(s) = sensors.get_mut(&x.header.sender) {
+                    s.measurements += 1;
+                }
+            }
+            Recorded::Ledger(l) => {
+                sensor(&mut sensors, l.header.sender);
+                if let Some(s) = sensors.get_mut(&l.header.sender) {
+                    s.ledger_transmissions += u64::from(l.transmissions);
+                    s.ledger_energy += l.energy;
+                }
+            }
+            Recorded::Outcome(o) => {
+                episodes += 1;
+                steps += u64::from(o.steps);
+                received += u64::from(o.received);
+                match o.outcome {
+                    Outcome::TARGET => target += 1,
+                    Outcome::COLLISION => collision += 1,
+                    Outcome::FREE => free += 1,
+                    _ => {}
+                }
+            }
+            _ => {}
+        }
+    }
+    for (i, s) in &mut sensors {
+        s.predicted_energy = per_ep.get(*i as usize).map(|e| e * episodes as f64);
+    }
+    let measurements: u64 = sensors.values().map(|s| s.measurements).sum();
+    let ledgers: u64 = sensors.values().map(|s| s.ledger_transmissions).sum();
+    let frac = |n: u64| {
+        if episodes > 0 {
+            n as f64 / episodes as f64
+        } else {
+            0.0
+        }
+    };
+    let energy: f64 = sensors.values().map(|s| s.ledger_energy).sum();
+    let predicted: Option<f64> = if per_ep.is_empty() {
+        None
+    } else {
+        Some(per_ep.iter().sum::<f64>() * episodes as f64)
+    };
+    Ok(json!({
+        "run_id": c.meta(recording::META_RUN, "run_id"),
+        "scenario": c.meta(recording::META_RUN, "scenario_name"),
+        "seed": c.meta(recording::META_RUN, "seed"),
+        "software_version": c.meta(recording::META_RUN, "software_version"),
+        "format_version": c.meta(recording::META_RUN, "format_version"),
+        "requested_episodes": c.meta(recording::META_RUN, "episodes"),
+        "finished": c.finished,
+        "truncated": c.truncated,
+        "messages": c.messages.len(),
+        "counts": c.counts(),
+        "episodes": episodes,
+        "target": target, "collision": collision, "free": free,
+        "p_target": frac(target), "p_collision": frac(collision), "p_free": frac(free),
+        "steps": steps,
+        "measurements": measurements,
+        "ledger_transmissions": ledgers,
+        "agent_received": received,
+        "energy": energy,
+        "predicted_energy": predicted,
+        "sensors": sensors.values().collect::<Vec<_>>(),
+    }))
+}
+
+/// Write a finished copy of a (possibly unfinished) recording.
+pub fn repair(c: &Contents, out: &std::path::Path) -> Result<u64> {
+    let file = std::fs::File::create(out).with_context(|| format!("creating {}", out.display()))?;
+    let mut w = mcap::WriteOptions::new()
+        .compression(Some(mcap::Compression::Zstd))
+        .chunk_size(Some(1024 * 1024))
+        .profile(recording::PROFILE)
+        .library(format!("etp replay --repair {}", env!("CARGO_PKG_VERSION")))
+        .create(std::io::BufWriter::new(file))
+        .context("starting the MCAP writer")?;
+    for (name, metadata) in &c.metadata {
+        w.write_metadata(&mcap::records::Metadata {
+            name: name.clone(),
+            metadata: metadata.clone(),
+        })?;
+    }
+    let mut ids: BTreeMap<&str, u16> = BTreeMap::new();
+    for topic in c.channels.keys() {
+        let Some(kind) = recording::kind_of_topic(topic) else {
+            bail!("unknown channel `{topic}` in the recording");
+        };
+        let schema = w.add_schema(
+            kind.schema_name(),
+            recording::SCHEMA_ENCODING,
+            kind.schema_text().as_bytes(),
+        )?;
+        let id = w.add_channel(schema, topic, recording::MESSAGE_ENCODING, &BTreeMap::new())?;
+        ids.insert(topic, id);
+    }
+    let mut seq: BTreeMap<u16, u32> = BTreeMap::new();
+    for m in &c.messages {
+        let Some(&id) = ids.get(m.topic.as_str()) else {
+            bail!("message on unknown channel `{}`", m.topic);
+        };
+        let s = seq.entry(id).or_default();
+        w.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id: id,
+                sequence: *s,
+                log_time: m.log_time,
+                publish_time: m.log_time,
+            },
+            &m.data,
+        )?;
+        *s = s.wrapping_add(1);
+    }
+    w.finish().context("finishing the repaired file")?;
+    Ok(c.messages.len() as u64)
+}
+
+/// Read a recording (finished or not).
+pub fn load(path: &std::path::Path) -> Result<Contents> {
+    let buf = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    Ok(recording::read_lenient(&path.display().to_string(), &buf)?)
+}
+
+pub fn run(a: Args) -> Result<()> {
+    let c = load(&a.file)?;
+    let s = summarize(&c)?;
+    if let Some(out) = &a.repair {
+        let n = repair(&c, out)?;
+        eprintln!("repaired copy: {} ({n} messages)", out.display());
+    }
+    if a.json {
+        println!("{s}");
+        return Ok(());
+    }
+    let g = |k: &str| match s.get(k) {
+        Some(Value::String(t)) => t.clone(),
+        Some(v) => v.to_string(),
+        None => "?".into(),
+    };
+    println!(
+        "recording {} · run {} · scenario {} · seed {} · {}",
+        a.file.display(),
+        g("run_id"),
+        g("scenario"),
+        g("seed"),
+        g("software_version")
+    );
+    if let Some(t) = &c.truncated {
+        println!("  UNFINISHED file: read every complete record; stopped at: {t}");
+    }
+    println!(
+        "  {} episodes (requested {}): target {} · collision {} · free {} · {} steps",
+        g("episodes"),
+        g("requested_episodes"),
+        g("target"),
+        g("collision"),
+        g("free"),
+        g("steps")
+    );
+    println!(
+        "  transmissions: {} measurement messages · {} in ledgers · {} received by the agent",
+        g("measurements"),
+        g("ledger_transmissions"),
+        g("agent_received")
+    );
+    println!(
+        "  energy {} (predicted {})",
+        g("energy"),
+        g("predicted_energy")
+    );
+    println!(
+        "  {:<10} {:>12} {:>12} {:>12} {:>12}",
+        "sensor", "measurements", "ledgers", "energy", "predicted"
+    );
+    if let Some(arr) = s.get("sensors").and_then(Value::as_array) {
+        for x in arr {
+            let f = |k: &str| x.get(k).cloned().unwrap_or(Value::Null);
+            println!(
+                "  {:<10} {:>12} {:>12} {:>12.1} {:>12.1}",
+                f("name").as_str().unwrap_or("?"),
+                f("measurements").as_u64().unwrap_or(0),
+                f("ledger_transmissions").as_u64().unwrap_or(0),
+                f("ledger_energy").as_f64().unwrap_or(f64::NAN),
+                f("predicted_energy").as_f64().unwrap_or(f64::NAN)
+            );
+        }
+    }
+    println!("  messages per channel:");
+    for (t, n) in c.counts() {
+        println!("    {t:<20} {n}");
+    }
+    Ok(())
+}
