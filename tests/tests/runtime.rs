@@ -11,6 +11,9 @@ use etp_tests::{EtpRun, find_process, kill, no_leftovers, processes_of_run, uniq
 use serde_json::Value;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+#[path = "runtime/recording.rs"]
+mod recording;
+
 const DELTA: &str = "1.4986";
 
 fn run_json(tag: &str, args: &[&str]) -> (String, Value) {
