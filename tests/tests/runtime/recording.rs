@@ -153,7 +153,7 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
             "--delta",
             "0",
             "--episodes",
-            "400",
+            "150",
             "--seed",
             "1",
             "--record",
@@ -168,7 +168,7 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
         assert!(start.elapsed() < Duration::from_secs(20), "no recorder");
         std::thread::sleep(Duration::from_millis(20));
     };
-    std::thread::sleep(Duration::from_millis(1200));
+    std::thread::sleep(Duration::from_millis(800));
     kill("-KILL", &victim.to_string());
     let (ok, out, err) = run.finish();
     assert!(ok, "the run goes on without its recorder: {err}");
