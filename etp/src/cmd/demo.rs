@@ -170,7 +170,7 @@ pub fn run(a: Args) -> Result<()> {
         predict_episodes: a.validate_episodes,
         clone_sensors: None,
         record: None,
-        record_default: false,
+        record_default: true,
     };
     let mp = run_cmd::execute(&rargs)?;
 
@@ -186,7 +186,7 @@ pub fn run(a: Args) -> Result<()> {
                         "energy_mean": sim.energy_mean.value, "energy_mean_ci95": sim.energy_mean.ci95},
         "multi_process": mp,
         "files": {"front_plot": dir.join("front.png"), "map_plot": map_stem.with_extension("png"),
-                  "recording": mp.get("recording").cloned().unwrap_or(Value::Null), "dir": dir},
+                  "recording": mp["recording"]["path"].clone(), "dir": dir},
         "seconds": started.elapsed().as_secs_f64(),
     });
     if a.json {
@@ -251,6 +251,18 @@ pub fn run(a: Args) -> Result<()> {
             s["predicted_energy"].as_f64().unwrap_or(f64::NAN)
         );
     }
+    let ledgers: u64 = mp["sensors"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .map(|s| s["transmitted"].as_u64().unwrap_or(0))
+        .sum();
+    if let Some(recorded) = mp["recording"]["counts"]["measurement"].as_u64() {
+        println!(
+            "  {:<8} {:>11} (Σ ledgers) = {recorded} measurement messages in the recording",
+            "total", ledgers
+        );
+    }
     println!("\n  files: {}", dir.display());
     println!("    front plot     {}", dir.join("front.png").display());
     println!(
@@ -258,8 +270,8 @@ pub fn run(a: Args) -> Result<()> {
         map_stem.with_extension("png").display()
     );
     println!("    strategy       {}", strategy_path.display());
-    if let Some(r) = mp.get("recording").and_then(Value::as_str) {
-        println!("    recording      {r}");
+    if let Some(r) = mp["recording"]["path"].as_str() {
+        println!("    recording      {r}  (etp replay {r})");
     }
     println!("  finished in {:.1} s", started.elapsed().as_secs_f64());
     Ok(())

@@ -364,7 +364,7 @@ impl RecessionHull {
             // they stay comparable with the split method's keys.
             let mut key: Vec<usize> = ids
                 .iter()
-                .map(|&i| owner[i].unwrap_or(usize::MAX - (i % 4 - 1)))
+                .map(|&i| owner[i].unwrap_or_else(|| usize::MAX - (i % 4).saturating_sub(1)))
                 .collect();
             key.sort_unstable();
             key.dedup();

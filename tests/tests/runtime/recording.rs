@@ -2,7 +2,7 @@
 //! report and the independent Python `mcap` reader, a recorder killed by
 //! SIGKILL, and determinism of the recorded payloads.
 
-use super::{DELTA, num};
+use super::{DELTA, num, serial};
 use etp_shared::recording;
 use etp_tests::{EtpRun, bin_dir, find_process, kill, processes_of_run, unique_run_id};
 use serde_json::Value;
@@ -98,6 +98,7 @@ with open(sys.argv[1], "rb") as f:
 
 #[test]
 fn recording_counts_equal_the_report_and_measurements_equal_ledgers_and_received() {
+    let _serial = serial();
     let id = unique_run_id("rec");
     let file = out_file(&id);
     let v = record(&id, &file, "60", "4");
@@ -142,6 +143,7 @@ fn recording_counts_equal_the_report_and_measurements_equal_ledgers_and_received
 
 #[test]
 fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
+    let _serial = serial();
     let id = unique_run_id("reckill");
     let file = out_file(&id);
     let repaired = std::env::temp_dir().join(format!("etp-test-{id}-repaired.mcap"));
@@ -223,6 +225,7 @@ fn payloads(file: &Path) -> BTreeMap<String, Vec<Vec<u8>>> {
 
 #[test]
 fn the_same_seed_records_identical_payloads() {
+    let _serial = serial();
     let (a, b) = (unique_run_id("det-a"), unique_run_id("det-b"));
     let (fa, fb) = (out_file(&a), out_file(&b));
     record(&a, &fa, "40", "9");
