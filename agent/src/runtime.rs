@@ -4,8 +4,8 @@
 use crate::link::{Fault, Links, SlotResult};
 use crate::{AgentError, AgentStats, Exit, IDLE_CHECK};
 use etp_shared::controller::{reached, waypoint_input};
-use etp_shared::episode::{CompiledScenario, SensorFilter};
-use etp_shared::etkf::{Belief, Threshold as Th};
+use etp_shared::episode::CompiledScenario;
+use etp_shared::etkf::Threshold as Th;
 use etp_shared::geometry::first_containing;
 use etp_shared::rng::{stream_rng, streams};
 use etp_shared::scenario::Scenario;
@@ -15,7 +15,7 @@ use etp_shared::wire::coordinator_to_all::Threshold;
 use etp_shared::wire::to_coordinator::Hello;
 use etp_shared::wire::{
     self, AGENT_NODE, COORDINATOR_NODE, Header, Listener, Liveness, Notifier, Ports, Pub,
-    SENDER_AGENT, ServiceId, Sub, WireVec, belief_to_wire, vec_from_wire,
+    SENDER_AGENT, ServiceId, Sub, belief_to_wire,
 };
 use iceoryx2::prelude::*;
 use std::time::Instant;
@@ -296,7 +296,11 @@ impl<const N: usize> Agent<N> {
                 state.belief = match result {
                     SlotResult::Closed(y) => {
                         counts.received += u32::from(y.is_some());
-                        update(&self.c.filters[sensor], &prior, y.as_ref(), th.beta)
+                        self.c.filters[sensor].posterior(
+                            &prior,
+                            y.as_ref().map(|y| &y[..]),
+                            th.beta,
+                        )
                     }
                     SlotResult::Dead(y) => {
                         counts.degraded = true;
@@ -304,7 +308,7 @@ impl<const N: usize> Agent<N> {
                         totals.dead_slots += 1;
                         counts.received += u32::from(y.is_some());
                         match y {
-                            Some(y) => update(&self.c.filters[sensor], &prior, Some(&y), 0.0),
+                            Some(y) => self.c.filters[sensor].posterior(&prior, Some(&y[..]), 0.0),
                             // Silence from a dead link carries no information.
                             None => prior,
                         }
@@ -359,32 +363,5 @@ fn record_fault(o: &mut Outcome, f: &Fault) {
         o.detect_us = f.detect_us;
         o.wait_started_unix_ns = f.wait_started_unix_ns;
         o.detected_unix_ns = f.detected_unix_ns;
-    }
-}
-
-/// The posterior after a slot of the serving sensor's filter: explicit update
-/// with `y`, else the implicit update with β.
-fn update<const N: usize>(
-    f: &SensorFilter<N>,
-    prior: &Belief<N>,
-    y: Option<&WireVec>,
-    beta: f64,
-) -> Belief<N> {
-    macro_rules! go {
-        ($f:expr) => {{
-            let inn = $f.innovation(prior);
-            match y {
-                Some(y) => $f.update_explicit(prior, &inn, &vec_from_wire(y)),
-                None => $f.update_implicit(prior, &inn, beta),
-            }
-        }};
-    }
-    match f {
-        SensorFilter::M1(f) => go!(f),
-        SensorFilter::M2(f) => go!(f),
-        SensorFilter::M3(f) => go!(f),
-        SensorFilter::M4(f) => go!(f),
-        SensorFilter::M5(f) => go!(f),
-        SensorFilter::M6(f) => go!(f),
     }
 }

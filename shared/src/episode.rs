@@ -79,6 +79,20 @@ impl<const N: usize> SensorFilter<N> {
         on_filter!(self, f => f.steady_state_posterior())
     }
 
+    /// The posterior after a slot of this sensor: the explicit update with the
+    /// transmitted `y` (its first m entries; `y.len() >= m`), else the
+    /// implicit update with factor β. The one slot update shared by the
+    /// agent process and `etp replay --verify`, so both compute the same bits.
+    pub fn posterior(&self, prior: &Belief<N>, y: Option<&[f64]>, beta: f64) -> Belief<N> {
+        on_filter!(self, f => {
+            let inn = f.innovation(prior);
+            match y {
+                Some(y) => f.update_explicit(prior, &inn, &Vector::from_fn(|i, _| y[i])),
+                None => f.update_implicit(prior, &inn, beta),
+            }
+        })
+    }
+
     /// One prediction with a zero input and an implicit update with factor β —
     /// the covariance recursion of a silent step (used to bound eigenvalues).
     pub fn silent_covariance_step(&self, cov: &Matrix<N, N>, beta: f64) -> Matrix<N, N> {

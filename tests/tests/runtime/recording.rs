@@ -187,8 +187,16 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
     let messages = r["messages"].as_u64().expect("messages");
     assert!(messages > 1000, "{r}");
     assert!(r["episodes"].as_u64().expect("episodes") >= 1, "{r}");
-    let rr = replay(&[&repaired.display().to_string()]);
+    let rr = replay(&[&repaired.display().to_string(), "--verify"]);
     assert_eq!(rr["finished"].as_bool(), Some(true));
+    // Every complete episode of the cut file still re-runs bit for bit.
+    assert_eq!(
+        rr["verify"]["passed"].as_bool(),
+        Some(true),
+        "{}",
+        rr["verify"]
+    );
+    assert!(rr["verify"]["episodes_incomplete"].as_u64() <= Some(1));
     assert_eq!(rr["counts"], r["counts"]);
     if python_mcap() {
         let (py, total) = python_counts(&repaired);
@@ -245,6 +253,72 @@ fn the_same_seed_records_identical_payloads() {
             diff.and_then(|i| other.get(i)),
         );
     }
+    for f in [&fa, &fb] {
+        let v = replay(&[&f.display().to_string(), "--verify"]);
+        assert_eq!(
+            v["verify"]["passed"].as_bool(),
+            Some(true),
+            "{}",
+            v["verify"]
+        );
+        assert_eq!(v["verify"]["episodes_checked"].as_u64(), Some(40));
+        assert_eq!(
+            v["verify"]["priors_checked"].as_u64(),
+            v["counts"]["slot"].as_u64(),
+            "every slot's prior is checked"
+        );
+    }
+    verify_detects_tampering(&fa);
     let _ = std::fs::remove_file(&fa);
     let _ = std::fs::remove_file(&fb);
+}
+
+/// `--verify` is not vacuous: one ulp on one recorded measurement, or one
+/// lost slot, is found at the step it affects.
+fn verify_detects_tampering(file: &Path) {
+    use etp_shared::recording::Recorded;
+    let buf = std::fs::read(file).expect("recording");
+    let clean = recording::read_lenient("rec", &buf).expect("readable");
+    assert!(recording::verify(&clean).expect("verify").passed());
+
+    let (i, m) = clean
+        .messages
+        .iter()
+        .enumerate()
+        .find_map(|(i, raw)| match recording::decode(&raw.topic, &raw.data) {
+            Ok(Recorded::Measurement(m)) if m.header.step > 3 => Some((i, m)),
+            _ => None,
+        })
+        .expect("a measurement");
+    let mut bent = m;
+    bent.y[0] = bent.y[0].next_up();
+    let mut tampered = clean.clone();
+    tampered.messages[i].data = recording::encode(&bent).expect("encode");
+    let r = recording::verify(&tampered).expect("verify");
+    assert!(!r.passed());
+    assert_eq!(r.mismatch_count, 1, "{:?}", r.mismatches);
+    let first = &r.mismatches[0];
+    assert_eq!(first.episode, m.header.episode);
+    assert!(
+        first.step == m.header.step || first.step == m.header.step + 1,
+        "{first:?} vs measurement at step {}",
+        m.header.step
+    );
+
+    let j = clean
+        .messages
+        .iter()
+        .position(|raw| raw.topic == "slot")
+        .expect("a slot");
+    let mut lost = clean.clone();
+    let slot = lost.messages.remove(j);
+    let r = recording::verify(&lost).expect("verify");
+    assert!(!r.passed());
+    let Ok(Recorded::Slot(s)) = recording::decode(&slot.topic, &slot.data) else {
+        panic!("not a slot");
+    };
+    assert_eq!(
+        (r.mismatches[0].episode, r.mismatches[0].step),
+        (s.header.episode, s.header.step)
+    );
 }

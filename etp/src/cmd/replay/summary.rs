@@ -1,27 +1,13 @@
-//! `etp replay FILE`: the run's summary from a recording alone (episodes,
-//! outcomes, per-sensor transmissions = `measurement` messages beside the
-//! sensors' ledgers and what the agent received, energy vs prediction). Works
-//! on an unfinished file (crashed recorder): every complete record is read.
-//! `--repair OUT` writes a finished copy.
+//! The run's summary from a recording alone: episodes, outcomes, per-sensor
+//! transmissions (`measurement` messages beside the sensors' ledgers and what
+//! the agent received), energy vs prediction.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use etp_shared::recording::{self, Contents, Recorded};
 use etp_shared::wire::agent_to_coordinator::Outcome;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
-use std::path::PathBuf;
-
-#[derive(Debug, clap::Args)]
-pub struct Args {
-    /// An MCAP recording (`etp run --record`).
-    pub file: PathBuf,
-    /// Print one JSON object.
-    #[arg(long)]
-    pub json: bool,
-    /// Write a finished copy (summary, indexes, footer) of the file to OUT.
-    #[arg(long, value_name = "OUT")]
-    pub repair: Option<PathBuf>,
-}
+use std::path::Path;
 
 #[derive(Debug, Default, Clone, serde::Serialize)]
 struct SensorSummary {
@@ -136,73 +122,8 @@ pub fn summarize(c: &Contents) -> Result<Value> {
     }))
 }
 
-/// Write a finished copy of a (possibly unfinished) recording.
-pub fn repair(c: &Contents, out: &std::path::Path) -> Result<u64> {
-    let file = std::fs::File::create(out).with_context(|| format!("creating {}", out.display()))?;
-    let mut w = mcap::WriteOptions::new()
-        .compression(Some(mcap::Compression::Zstd))
-        .chunk_size(Some(1024 * 1024))
-        .profile(recording::PROFILE)
-        .library(format!("etp replay --repair {}", env!("CARGO_PKG_VERSION")))
-        .create(std::io::BufWriter::new(file))
-        .context("starting the MCAP writer")?;
-    for (name, metadata) in &c.metadata {
-        w.write_metadata(&mcap::records::Metadata {
-            name: name.clone(),
-            metadata: metadata.clone(),
-        })?;
-    }
-    let mut ids: BTreeMap<&str, u16> = BTreeMap::new();
-    for topic in c.channels.keys() {
-        let Some(kind) = recording::kind_of_topic(topic) else {
-            bail!("unknown channel `{topic}` in the recording");
-        };
-        let schema = w.add_schema(
-            kind.schema_name(),
-            recording::SCHEMA_ENCODING,
-            kind.schema_text().as_bytes(),
-        )?;
-        let id = w.add_channel(schema, topic, recording::MESSAGE_ENCODING, &BTreeMap::new())?;
-        ids.insert(topic, id);
-    }
-    let mut seq: BTreeMap<u16, u32> = BTreeMap::new();
-    for m in &c.messages {
-        let Some(&id) = ids.get(m.topic.as_str()) else {
-            bail!("message on unknown channel `{}`", m.topic);
-        };
-        let s = seq.entry(id).or_default();
-        w.write_to_known_channel(
-            &mcap::records::MessageHeader {
-                channel_id: id,
-                sequence: *s,
-                log_time: m.log_time,
-                publish_time: m.log_time,
-            },
-            &m.data,
-        )?;
-        *s = s.wrapping_add(1);
-    }
-    w.finish().context("finishing the repaired file")?;
-    Ok(c.messages.len() as u64)
-}
-
-/// Read a recording (finished or not).
-pub fn load(path: &std::path::Path) -> Result<Contents> {
-    let buf = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    Ok(recording::read_lenient(&path.display().to_string(), &buf)?)
-}
-
-pub fn run(a: Args) -> Result<()> {
-    let c = load(&a.file)?;
-    let s = summarize(&c)?;
-    if let Some(out) = &a.repair {
-        let n = repair(&c, out)?;
-        eprintln!("repaired copy: {} ({n} messages)", out.display());
-    }
-    if a.json {
-        println!("{s}");
-        return Ok(());
-    }
+/// Print the summary `s` of the recording `c` read from `file` as a table.
+pub fn print(file: &Path, c: &Contents, s: &Value) {
     let g = |k: &str| match s.get(k) {
         Some(Value::String(t)) => t.clone(),
         Some(v) => v.to_string(),
@@ -210,7 +131,7 @@ pub fn run(a: Args) -> Result<()> {
     };
     println!(
         "recording {} · run {} · scenario {} · seed {} · {}",
-        a.file.display(),
+        file.display(),
         g("run_id"),
         g("scenario"),
         g("seed"),
@@ -260,5 +181,4 @@ pub fn run(a: Args) -> Result<()> {
     for (t, n) in c.counts() {
         println!("    {t:<20} {n}");
     }
-    Ok(())
 }

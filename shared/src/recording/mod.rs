@@ -22,7 +22,12 @@ use crate::wire::{
     coordinator_to_all as c2all, sensor_to_agent as s2a, sensor_to_coordinator as s2c,
     to_coordinator as tc,
 };
-use std::collections::BTreeMap;
+
+mod read;
+mod verify;
+
+pub use read::{Contents, RawMessage, read_lenient};
+pub use verify::{Mismatch, VerifyReport, verify};
 
 /// Version of this format (metadata `etp.run` / `format_version`).
 pub const FORMAT_VERSION: &str = "1";
@@ -47,6 +52,8 @@ pub enum RecordingError {
     Decode { topic: String, reason: String },
     #[error("encoding a payload: {0}")]
     Encode(String),
+    #[error("recording metadata: {0}")]
+    Metadata(String),
     #[error("{0}: not an MCAP recording: {1}")]
     NotMcap(String, String),
 }
@@ -205,100 +212,4 @@ pub fn decode(topic: &str, data: &[u8]) -> Result<Recorded, RecordingError> {
         Kind::Ledger => Recorded::Ledger(dec(topic, data)?),
         Kind::Hello => Recorded::Hello(dec(topic, data)?),
     })
-}
-
-/// One message read back from a file.
-#[derive(Debug, Clone)]
-pub struct RawMessage {
-    pub topic: String,
-    pub log_time: u64,
-    pub data: Vec<u8>,
-}
-
-/// Everything a (possibly unfinished) recording holds, in file order.
-#[derive(Debug, Clone, Default)]
-pub struct Contents {
-    pub metadata: BTreeMap<String, BTreeMap<String, String>>,
-    /// Channel topic → schema name.
-    pub channels: BTreeMap<String, String>,
-    pub messages: Vec<RawMessage>,
-    /// True when the file ends with a footer and the end magic.
-    pub finished: bool,
-    /// Why reading stopped early (the tail of an unfinished file).
-    pub truncated: Option<String>,
-}
-
-impl Contents {
-    /// Messages per channel topic.
-    pub fn counts(&self) -> BTreeMap<String, u64> {
-        let mut c: BTreeMap<String, u64> = self.channels.keys().map(|t| (t.clone(), 0)).collect();
-        for m in &self.messages {
-            *c.entry(m.topic.clone()).or_default() += 1;
-        }
-        c
-    }
-
-    /// A metadata value.
-    pub fn meta(&self, record: &str, key: &str) -> Option<&str> {
-        self.metadata.get(record)?.get(key).map(String::as_str)
-    }
-}
-
-/// Read every complete record of a recording (finished or not): the linear
-/// reader with `IgnoreEndMagic` over the flattened chunks; a damaged tail
-/// stops the reading and is reported in [`Contents::truncated`].
-pub fn read_lenient(name: &str, buf: &[u8]) -> Result<Contents, RecordingError> {
-    use mcap::read::{ChunkFlattener, Options};
-    use mcap::records::Record;
-    if buf.len() < 8 || &buf[..8] != mcap::MAGIC {
-        return Err(RecordingError::NotMcap(
-            name.into(),
-            "no MCAP magic at the start".into(),
-        ));
-    }
-    let reader = ChunkFlattener::new_with_options(buf, Options::IgnoreEndMagic.into())
-        .map_err(|e| RecordingError::NotMcap(name.into(), e.to_string()))?;
-    let mut out = Contents::default();
-    let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
-    let mut topics: BTreeMap<u16, String> = BTreeMap::new();
-    for rec in reader {
-        let rec = match rec {
-            Ok(r) => r,
-            Err(e) => {
-                out.truncated = Some(e.to_string());
-                break;
-            }
-        };
-        match rec {
-            Record::Schema { header, .. } => {
-                schemas.insert(header.id, header.name);
-            }
-            Record::Channel(c) => {
-                let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                out.channels.insert(c.topic.clone(), schema);
-                topics.insert(c.id, c.topic);
-            }
-            Record::Message { header, data } => {
-                let Some(topic) = topics.get(&header.channel_id) else {
-                    out.truncated = Some(format!(
-                        "message on unknown channel id {}",
-                        header.channel_id
-                    ));
-                    break;
-                };
-                out.messages.push(RawMessage {
-                    topic: topic.clone(),
-                    log_time: header.log_time,
-                    data: data.into_owned(),
-                });
-            }
-            Record::Metadata(m) => {
-                out.metadata.insert(m.name, m.metadata);
-            }
-            Record::Footer(_) => out.finished = true,
-            _ => {}
-        }
-    }
-    out.finished &= buf.len() >= 8 && &buf[buf.len() - 8..] == mcap::MAGIC;
-    Ok(out)
 }

@@ -1,0 +1,62 @@
+//! `--repair OUT`: a finished copy (summary, indexes, footer) of a possibly
+//! unfinished recording, holding every complete record of it.
+
+use anyhow::{Context, Result, bail};
+use etp_shared::recording::{self, Contents};
+use std::collections::BTreeMap;
+
+/// Write a finished copy of a (possibly unfinished) recording.
+pub fn repair(c: &Contents, out: &std::path::Path) -> Result<u64> {
+    // Written beside OUT and moved into place: an interrupted repair never
+    // leaves a half-written file under the final name.
+    let tmp = out.with_extension("tmp-etp");
+    let file =
+        std::fs::File::create(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
+    let mut w = mcap::WriteOptions::new()
+        .compression(Some(mcap::Compression::Zstd))
+        .chunk_size(Some(1024 * 1024))
+        .profile(recording::PROFILE)
+        .library(format!("etp replay --repair {}", env!("CARGO_PKG_VERSION")))
+        .create(std::io::BufWriter::new(file))
+        .context("starting the MCAP writer")?;
+    for (name, metadata) in &c.metadata {
+        w.write_metadata(&mcap::records::Metadata {
+            name: name.clone(),
+            metadata: metadata.clone(),
+        })?;
+    }
+    let mut ids: BTreeMap<&str, u16> = BTreeMap::new();
+    for topic in c.channels.keys() {
+        let Some(kind) = recording::kind_of_topic(topic) else {
+            bail!("unknown channel `{topic}` in the recording");
+        };
+        let schema = w.add_schema(
+            kind.schema_name(),
+            recording::SCHEMA_ENCODING,
+            kind.schema_text().as_bytes(),
+        )?;
+        let id = w.add_channel(schema, topic, recording::MESSAGE_ENCODING, &BTreeMap::new())?;
+        ids.insert(topic, id);
+    }
+    let mut seq: BTreeMap<u16, u32> = BTreeMap::new();
+    for m in &c.messages {
+        let Some(&id) = ids.get(m.topic.as_str()) else {
+            bail!("message on unknown channel `{}`", m.topic);
+        };
+        let s = seq.entry(id).or_default();
+        w.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id: id,
+                sequence: *s,
+                log_time: m.log_time,
+                publish_time: m.log_time,
+            },
+            &m.data,
+        )?;
+        *s = s.wrapping_add(1);
+    }
+    w.finish().context("finishing the repaired file")?;
+    drop(w);
+    std::fs::rename(&tmp, out).with_context(|| format!("moving {} into place", out.display()))?;
+    Ok(c.messages.len() as u64)
+}

@@ -1,0 +1,391 @@
+//! `etp replay --verify`: re-run the agent's estimator on a recording and
+//! check that it reproduces every recorded belief bit for bit.
+//!
+//! The estimator's inputs are all in the file: the scenario (metadata), the
+//! threshold δ of each leg (`threshold` OPEN), the transmitted measurements
+//! (`measurement`) and the closed slots (`slot`). From the initial belief
+//! (x̂₀, P₀) the re-run applies MODEL.md §3 exactly as the agent does — input
+//! from the posterior mean, prediction, the slot's update through
+//! [`SensorFilter::posterior`] (the agent's own function), the leg's end
+//! rule — and compares, with `f64::to_bits`, every belief the agent
+//! published: the prior of each slot (`sensor/<i>/prior`) and the posterior at
+//! each decision point (`waypoint`). It also checks that legs and episodes
+//! end at the recorded steps.
+//!
+//! Degraded episodes (a dead link) are skipped and counted: whether a late
+//! slot was taken as closed or dead depended on wall-clock timing the file
+//! does not hold. An episode cut by the end of an unfinished file is checked
+//! up to its last complete slot and counted as incomplete.
+
+use super::{META_RUN, META_SCENARIO, Recorded, RecordingError, decode, read::Contents};
+use crate::controller::{reached, waypoint_input};
+use crate::episode::CompiledScenario;
+use crate::etkf::{Belief, Threshold as Th};
+use crate::scenario::Scenario;
+use crate::wire::agent_to_coordinator::{Outcome, Waypoint};
+use crate::wire::agent_to_sensor::Prior;
+use crate::wire::coordinator_to_agent::Control;
+use crate::wire::coordinator_to_all::Threshold;
+use crate::wire::sensor_to_agent::{Measurement, Slot};
+use crate::wire::{WireMat, WireVec};
+use std::collections::BTreeMap;
+
+/// Mismatches kept in the report (the count is always exact).
+const MAX_LISTED: usize = 50;
+
+/// One belief (or end of leg) the re-run did not reproduce.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Mismatch {
+    pub episode: u64,
+    pub leg: u32,
+    pub step: u32,
+    /// What differs (`prior`, `belief at waypoint`, `end of leg`, …).
+    pub what: String,
+    /// Largest absolute difference over mean and covariance entries (0 when
+    /// the mismatch is not numeric).
+    pub max_abs_diff: f64,
+}
+
+/// What `verify` checked and found.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct VerifyReport {
+    /// Episodes with an outcome, re-run to their end.
+    pub episodes_checked: u64,
+    /// Episodes cut by the end of an unfinished file (checked as far as recorded).
+    pub episodes_incomplete: u64,
+    /// Episodes with a dead link, not re-run.
+    pub episodes_degraded_skipped: u64,
+    /// Recorded slot priors reproduced bit for bit.
+    pub priors_checked: u64,
+    /// Recorded decision-point beliefs reproduced bit for bit.
+    pub waypoints_checked: u64,
+    /// Plant steps re-run.
+    pub steps: u64,
+    /// Explicit updates (recorded measurements) and implicit updates (silent slots).
+    pub explicit_updates: u64,
+    pub implicit_updates: u64,
+    pub mismatch_count: u64,
+    /// The first mismatches (at most 50), in episode order.
+    pub mismatches: Vec<Mismatch>,
+}
+
+impl VerifyReport {
+    /// True when beliefs were checked and every one was reproduced exactly.
+    pub fn passed(&self) -> bool {
+        self.mismatch_count == 0 && self.priors_checked + self.waypoints_checked > 0
+    }
+
+    fn mismatch(&mut self, m: Mismatch) {
+        self.mismatch_count += 1;
+        if self.mismatches.len() < MAX_LISTED {
+            self.mismatches.push(m);
+        }
+    }
+}
+
+/// The recorded inputs and outputs of the agent's estimator in one episode.
+#[derive(Debug, Default)]
+struct EpisodeRecord {
+    control: Option<Control>,
+    /// Leg → the agent's belief at that decision point.
+    waypoints: BTreeMap<u32, Waypoint>,
+    /// Leg → δ opened by the coordinator.
+    opens: BTreeMap<u32, f64>,
+    /// Step → prior sent to the serving sensor.
+    priors: BTreeMap<u32, Prior>,
+    measurements: BTreeMap<u32, Measurement>,
+    slots: BTreeMap<u32, Slot>,
+    outcome: Option<Outcome>,
+    /// Two messages of one kind for one step or leg.
+    duplicate: Option<String>,
+}
+
+fn insert<T>(map: &mut BTreeMap<u32, T>, key: u32, v: T, dup: &mut Option<String>, what: &str) {
+    if map.insert(key, v).is_some() && dup.is_none() {
+        *dup = Some(format!("two `{what}` messages for {key}"));
+    }
+}
+
+fn group(c: &Contents) -> Result<BTreeMap<u64, EpisodeRecord>, RecordingError> {
+    let mut eps: BTreeMap<u64, EpisodeRecord> = BTreeMap::new();
+    for m in &c.messages {
+        let rec = decode(&m.topic, &m.data)?;
+        let r = match &rec {
+            Recorded::Control(x) if x.kind == Control::START => eps.entry(x.header.episode),
+            Recorded::Threshold(x) if x.kind == Threshold::OPEN => eps.entry(x.header.episode),
+            Recorded::Prior(x) => eps.entry(x.header.episode),
+            Recorded::Measurement(x) => eps.entry(x.header.episode),
+            Recorded::Slot(x) => eps.entry(x.header.episode),
+            Recorded::Waypoint(x) => eps.entry(x.header.episode),
+            Recorded::Outcome(x) => eps.entry(x.header.episode),
+            _ => continue,
+        }
+        .or_default();
+        let dup = &mut r.duplicate;
+        match rec {
+            Recorded::Control(x) => r.control = Some(x),
+            Recorded::Threshold(x) => insert(&mut r.opens, x.header.leg, x.delta, dup, "open"),
+            Recorded::Prior(x) => insert(&mut r.priors, x.header.step, x, dup, "prior"),
+            Recorded::Measurement(x) => {
+                insert(&mut r.measurements, x.header.step, x, dup, "measurement");
+            }
+            Recorded::Slot(x) => insert(&mut r.slots, x.header.step, x, dup, "slot"),
+            Recorded::Waypoint(x) => insert(&mut r.waypoints, x.header.leg, x, dup, "waypoint"),
+            Recorded::Outcome(x) => r.outcome = Some(x),
+            _ => {}
+        }
+    }
+    Ok(eps)
+}
+
+/// Re-run the estimator of every episode of a recording (see the module doc).
+pub fn verify(c: &Contents) -> Result<VerifyReport, RecordingError> {
+    let text = c
+        .meta(META_SCENARIO, "toml")
+        .ok_or_else(|| RecordingError::Metadata(format!("no `{META_SCENARIO}` record")))?;
+    let scenario = Scenario::from_toml(text)
+        .map_err(|e| RecordingError::Metadata(format!("the recorded scenario: {e}")))?;
+    let episodes = group(c)?;
+    // Was the recording cut (recorder killed)? Then the run's last episodes
+    // may miss messages. The coordinator starts episode e + 1 only after the
+    // outcome of e, so only the last two episodes of the file can be affected.
+    let outcomes = episodes.values().filter(|r| r.outcome.is_some()).count() as u64;
+    let cut = match c
+        .meta(META_RUN, "episodes")
+        .and_then(|t| t.parse::<u64>().ok())
+    {
+        Some(requested) => outcomes < requested,
+        None => !c.finished,
+    };
+    let last = episodes.keys().next_back().copied().unwrap_or(0);
+    let mut report = VerifyReport::default();
+    crate::with_dim!(scenario.dim, N => {
+        let compiled = CompiledScenario::<N>::new(&scenario);
+        for (e, r) in &episodes {
+            let may_be_cut = cut && e.saturating_add(1) >= last;
+            verify_episode(&compiled, *e, r, may_be_cut, &mut report);
+        }
+    });
+    Ok(report)
+}
+
+/// `None` if `b` has exactly the recorded bits, else the largest difference.
+fn differs<const N: usize>(b: &Belief<N>, dim: u32, mean: &WireVec, cov: &WireMat) -> Option<f64> {
+    if dim as usize != N {
+        return Some(f64::INFINITY);
+    }
+    let mut same = true;
+    let mut worst = 0.0f64;
+    for r in 0..N {
+        let pairs = std::iter::once((b.mean[r], mean[r]))
+            .chain((0..N).map(|col| (b.cov[(r, col)], cov[r][col])));
+        for (ours, theirs) in pairs {
+            if ours.to_bits() != theirs.to_bits() {
+                same = false;
+                worst = worst.max((ours - theirs).abs());
+            }
+        }
+    }
+    (!same).then_some(worst)
+}
+
+enum Ended {
+    /// Re-run to the recorded outcome (possibly with a mismatch).
+    Done,
+    /// The file ends inside this episode.
+    Cut,
+}
+
+fn verify_episode<const N: usize>(
+    c: &CompiledScenario<N>,
+    episode: u64,
+    r: &EpisodeRecord,
+    may_be_cut: bool,
+    rep: &mut VerifyReport,
+) {
+    if r.outcome.is_some_and(|o| o.degraded != 0) {
+        rep.episodes_degraded_skipped += 1;
+        return;
+    }
+    match rerun(c, episode, r, may_be_cut, rep) {
+        Ok(Ended::Done) => rep.episodes_checked += 1,
+        Ok(Ended::Cut) => rep.episodes_incomplete += 1,
+        Err(m) => {
+            rep.episodes_checked += 1;
+            rep.mismatch(m);
+        }
+    }
+}
+
+fn rerun<const N: usize>(
+    c: &CompiledScenario<N>,
+    episode: u64,
+    r: &EpisodeRecord,
+    may_be_cut: bool,
+    rep: &mut VerifyReport,
+) -> Result<Ended, Mismatch> {
+    let miss = |leg: u32, step: u32, what: String, d: f64| Mismatch {
+        episode,
+        leg,
+        step,
+        what,
+        max_abs_diff: d,
+    };
+    // A message the agent must have published is not in the file.
+    let missing = |leg: u32, step: u32, what: &str| {
+        if may_be_cut {
+            Ok(Ended::Cut)
+        } else {
+            Err(miss(leg, step, what.to_string(), 0.0))
+        }
+    };
+    if let Some(d) = &r.duplicate {
+        return Err(miss(0, 0, d.clone(), 0.0));
+    }
+    let mut belief = c.initial;
+    if let Some(ctrl) = &r.control
+        && let Some(d) = differs(&belief, ctrl.dim, &ctrl.initial_mean, &ctrl.initial_cov)
+    {
+        return Err(miss(0, 0, "initial belief (control)".into(), d));
+    }
+    let outcome = r.outcome;
+    let mut k: u32 = 0;
+    let legs = c.legs.len() as u32;
+    for leg in 0..legs {
+        let Some(wp) = r.waypoints.get(&leg) else {
+            return missing(leg, k, "no waypoint recorded for this leg");
+        };
+        if wp.header.step != k {
+            return Err(miss(
+                leg,
+                k,
+                format!("waypoint recorded at step {}", wp.header.step),
+                0.0,
+            ));
+        }
+        if let Some(d) = differs(&belief, wp.dim, &wp.mean, &wp.cov) {
+            return Err(miss(leg, k, "belief at waypoint".into(), d));
+        }
+        rep.waypoints_checked += 1;
+        let Some(&delta) = r.opens.get(&leg) else {
+            return missing(leg, k, "no threshold opened this leg");
+        };
+        let beta = Th::new(delta).beta;
+        let compiled_leg = c.legs[leg as usize];
+        let (w, sensor) = (compiled_leg.waypoint, compiled_leg.sensor);
+        // The step at which the record ends this leg, if it is in the file.
+        let recorded_end = match (r.waypoints.get(&(leg + 1)), outcome) {
+            (Some(next), _) => Some(next.header.step),
+            (None, Some(o)) if o.header.leg == leg => Some(o.header.step),
+            _ => None,
+        };
+        let mut steps_in_leg = 0u32;
+        loop {
+            // MODEL.md §3 in the agent's order: input, plant step, collision
+            // check (ends the episode before the slot), prediction, slot.
+            let u = waypoint_input(&belief.mean, &w, c.u_max);
+            k += 1;
+            steps_in_leg += 1;
+            rep.steps += 1;
+            if let Some(o) = outcome
+                && o.outcome == Outcome::COLLISION
+                && o.header.step == k
+            {
+                return if o.header.leg == leg {
+                    Ok(Ended::Done)
+                } else {
+                    Err(miss(
+                        leg,
+                        k,
+                        format!("collision recorded in leg {}", o.header.leg),
+                        0.0,
+                    ))
+                };
+            }
+            let prior = c.plant.predict(&belief, &u);
+            let Some(p) = r.priors.get(&k) else {
+                return missing(leg, k, "no prior recorded");
+            };
+            if let Some(d) = differs(&prior, p.dim, &p.mean, &p.cov) {
+                return Err(miss(leg, k, "prior".into(), d));
+            }
+            rep.priors_checked += 1;
+            let y = r.measurements.get(&k);
+            if let Some(m) = y
+                && m.header.sender as usize != sensor
+            {
+                return Err(miss(
+                    leg,
+                    k,
+                    format!(
+                        "measurement from sensor {}, the leg is served by {sensor}",
+                        m.header.sender
+                    ),
+                    0.0,
+                ));
+            }
+            let Some(slot) = r.slots.get(&k) else {
+                return missing(leg, k, "slot not closed in the record");
+            };
+            if slot.transmitted == 1 && y.is_none() {
+                return missing(
+                    leg,
+                    k,
+                    "slot says transmitted but no measurement is recorded",
+                );
+            }
+            if slot.transmitted != 1 && y.is_some() {
+                return Err(miss(
+                    leg,
+                    k,
+                    format!(
+                        "slot says transmitted = {} but a measurement is recorded",
+                        slot.transmitted
+                    ),
+                    0.0,
+                ));
+            }
+            match y {
+                Some(_) => rep.explicit_updates += 1,
+                None => rep.implicit_updates += 1,
+            }
+            belief = c.filters[sensor].posterior(&prior, y.map(|m| &m.y[..]), beta);
+            let ends = reached(&belief.mean, &w, c.eps_x) || steps_in_leg >= c.k_max;
+            match recorded_end {
+                Some(end) if ends && end != k => {
+                    return Err(miss(
+                        leg,
+                        k,
+                        format!("the estimator ends the leg here, the record at step {end}"),
+                        0.0,
+                    ));
+                }
+                Some(end) if !ends && end == k => {
+                    return Err(miss(
+                        leg,
+                        k,
+                        "the record ends the leg here, the estimator does not".into(),
+                        0.0,
+                    ));
+                }
+                _ => {}
+            }
+            if ends {
+                break;
+            }
+        }
+        if leg + 1 == legs {
+            return match outcome {
+                None => missing(leg, k, "no outcome recorded"),
+                Some(o) if o.outcome != Outcome::COLLISION && o.header.step == k => Ok(Ended::Done),
+                Some(o) => Err(miss(
+                    leg,
+                    k,
+                    format!("outcome {} recorded at step {}", o.outcome, o.header.step),
+                    0.0,
+                )),
+            };
+        }
+    }
+    Ok(Ended::Done)
+}
