@@ -126,7 +126,7 @@ pub(crate) fn serve<const N: usize, const M: usize>(
             // signalled (iceoryx2's dead-notifier event, emitted when someone
             // cleans a dead node up) or every LIST_EVERY idle periods.
             idle_checks = idle_checks.wrapping_add(u32::from(woke == 0));
-            if peer_died || idle_checks % crate::LIST_EVERY == 0 {
+            if peer_died || idle_checks.is_multiple_of(crate::LIST_EVERY) {
                 match wire::liveness(&cfg, COORDINATOR_NODE) {
                     Liveness::Alive => seen_coordinator = true,
                     Liveness::Dead => return Ok((Exit::CoordinatorGone, stats)),

@@ -55,13 +55,13 @@ pub fn run(a: Args) -> Result<()> {
         .iter()
         .map(|(name, text)| (a.outdir.join(name), *text))
         .collect();
-    if !a.force {
-        if let Some((p, _)) = targets.iter().find(|(p, _)| p.exists()) {
-            bail!(
-                "{} already exists; pass --force to overwrite the PRISM files",
-                p.display()
-            );
-        }
+    if !a.force
+        && let Some((p, _)) = targets.iter().find(|(p, _)| p.exists())
+    {
+        bail!(
+            "{} already exists; pass --force to overwrite the PRISM files",
+            p.display()
+        );
     }
     std::fs::create_dir_all(&a.outdir)
         .with_context(|| format!("creating {}", a.outdir.display()))?;
