@@ -8,9 +8,9 @@
 //!   and cargo builds a package's binaries before its integration tests run.
 //!   With `cargo test -p etp-tests` alone, build them first
 //!   (`cargo build --release --workspace`, same profile).
-//! * [`EtpRun`] — an `etp run` child in its own process group; dropping it
-//!   kills the whole group (coordinator, agent, sensors) and reaps it, so no
-//!   process outlives a test, even a failing one.
+//! * [`EtpRun`] — an `etp run` (or any workspace binary) child in its own
+//!   process group; dropping it kills the whole group (coordinator, agent,
+//!   sensors) and reaps it, so no process outlives a test, even a failing one.
 //! * [`processes_of_run`] — the live processes whose command line names a run.
 //! * [`unique_run_id`] — a run id per test.
 
@@ -61,17 +61,25 @@ pub struct EtpRun {
 impl EtpRun {
     /// Spawn `etp run <args> --run-id <run_id> --json` with stdout captured.
     pub fn spawn(run_id: &str, args: &[&str]) -> Self {
+        let mut all = vec!["run"];
+        all.extend_from_slice(args);
+        all.extend_from_slice(&["--run-id", run_id, "--json"]);
+        Self::spawn_binary(run_id, "etp", &all)
+    }
+
+    /// Spawn workspace binary `binary` with `args` (stdout and stderr
+    /// captured) under the same guard: its process group is killed and
+    /// reaped, and the run's iceoryx2 files removed, on drop.
+    pub fn spawn_binary(run_id: &str, binary: &str, args: &[&str]) -> Self {
         use std::os::unix::process::CommandExt;
-        let child = Command::new(bin_dir().join("etp"))
-            .arg("run")
+        let child = Command::new(bin_dir().join(binary))
             .args(args)
-            .args(["--run-id", run_id, "--json"])
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .process_group(0)
             .spawn()
-            .expect("spawning etp run");
+            .unwrap_or_else(|e| panic!("spawning {binary}: {e}"));
         Self {
             child: Some(child),
             run_id: run_id.to_string(),

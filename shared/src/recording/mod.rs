@@ -139,6 +139,34 @@ pub fn channel(service: ServiceId) -> Option<(String, Kind)> {
     })
 }
 
+/// The service a channel topic was recorded from (the inverse of [`channel`]).
+pub fn service_of_topic(topic: &str) -> Option<ServiceId> {
+    let sensor = |tail: &str| -> Option<usize> {
+        topic
+            .strip_prefix("sensor/")?
+            .strip_suffix(tail)?
+            .parse()
+            .ok()
+    };
+    Some(match topic {
+        "control" => ServiceId::Control,
+        "threshold" => ServiceId::Threshold,
+        "measurement" => ServiceId::Measurement,
+        "slot" => ServiceId::Slot,
+        "waypoint" => ServiceId::Waypoint,
+        "outcome" => ServiceId::Outcome,
+        "ledger" => ServiceId::Ledger,
+        "hello" => ServiceId::Hello,
+        _ => {
+            if let Some(i) = sensor("/truth") {
+                ServiceId::Truth(i)
+            } else {
+                ServiceId::Prior(sensor("/prior")?)
+            }
+        }
+    })
+}
+
 /// The kind of a channel topic.
 pub fn kind_of_topic(topic: &str) -> Option<Kind> {
     Some(match topic {
@@ -212,4 +240,63 @@ pub fn decode(topic: &str, data: &[u8]) -> Result<Recorded, RecordingError> {
         Kind::Ledger => Recorded::Ledger(dec(topic, data)?),
         Kind::Hello => Recorded::Hello(dec(topic, data)?),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::Header;
+
+    #[test]
+    fn every_recorded_service_maps_to_a_topic_and_back() {
+        for s in ServiceId::all_pubsub(12) {
+            let (topic, kind) = channel(s).expect("pub-sub services are recorded");
+            assert_eq!(service_of_topic(&topic), Some(s), "{topic}");
+            assert_eq!(kind_of_topic(&topic), Some(kind), "{topic}");
+        }
+        for bad in [
+            "",
+            "sensor/x/truth",
+            "sensor/1/wake",
+            "sensor//prior",
+            "nope",
+        ] {
+            assert_eq!(service_of_topic(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn payloads_round_trip_and_trailing_bytes_are_refused() {
+        let m = s2a::Measurement {
+            header: Header {
+                run: 7,
+                episode: 3,
+                step: 11,
+                leg: 2,
+                sender: 1,
+                seq: 5,
+            },
+            dim: 2,
+            sequence: 4,
+            y: [0.25, -1.5, 0.0, 0.0, 0.0, 0.0],
+        };
+        let bytes = encode(&m).expect("encode");
+        // Fixed-width legacy encoding: header (8+8+4·4) + 2·4 + 6·8 bytes.
+        assert_eq!(bytes.len(), 32 + 8 + 48);
+        assert_eq!(
+            decode("measurement", &bytes).expect("decode"),
+            Recorded::Measurement(m)
+        );
+        let mut long = bytes.clone();
+        long.push(0);
+        assert!(matches!(
+            decode("measurement", &long),
+            Err(RecordingError::Decode { .. })
+        ));
+        assert!(decode("measurement", &bytes[..bytes.len() - 1]).is_err());
+        assert!(matches!(
+            decode("sensor/9/wake", &bytes),
+            Err(RecordingError::UnknownTopic(_))
+        ));
+    }
 }

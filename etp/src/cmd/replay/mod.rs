@@ -5,11 +5,13 @@
 //! `--repair OUT` writes a finished copy; `--verify` re-runs the estimator
 //! (`etp_shared::recording::verify`).
 
+mod publish;
 mod repair;
 mod summary;
 
 use anyhow::{Context, Result, bail};
 use etp_shared::recording::{self, Contents};
+use etp_shared::wire::RunId;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
@@ -28,6 +30,18 @@ pub struct Args {
     /// (exit code 1 if not).
     #[arg(long)]
     pub verify: bool,
+    /// Re-publish the recorded traffic on iceoryx2 (like `ros2 bag play`), at
+    /// the recorded timing divided by `--rate`, on the services of run
+    /// `--run-id` (start subscribers such as `etp-recorder --run-id ID` first).
+    #[arg(long)]
+    pub publish: bool,
+    /// Speed of `--publish`: 1 = recorded timing, 2 = twice as fast, `inf` =
+    /// as fast as the subscribers take it.
+    #[arg(long, default_value = "1", value_parser = publish::parse_rate, requires = "publish")]
+    pub rate: f64,
+    /// Run id (services `etp/<run-id>/…`) for `--publish`; default: a fresh one.
+    #[arg(long, requires = "publish")]
+    pub run_id: Option<String>,
     /// Overwrite output files that exist.
     #[arg(long)]
     pub force: bool,
@@ -70,6 +84,21 @@ pub fn run(a: Args) -> Result<()> {
         let n = repair::repair(&c, out)?;
         eprintln!("repaired copy: {} ({n} messages)", out.display());
     }
+    let published = match a.publish {
+        true => {
+            let run = match &a.run_id {
+                Some(id) => RunId::new(id)?,
+                None => RunId::generate(),
+            };
+            eprintln!(
+                "publishing {} messages on services etp/{run}/… at rate {}",
+                c.messages.len(),
+                a.rate
+            );
+            Some(publish::publish(&c, &run, a.rate).context("--publish")?)
+        }
+        false => None,
+    };
     let verified = if a.verify {
         Some(recording::verify(&c).context("verifying the recording")?)
     } else {
@@ -81,11 +110,20 @@ pub fn run(a: Args) -> Result<()> {
             s["verify"] = json!(v);
             s["verify"]["passed"] = json!(v.passed());
         }
+        if let Some(p) = &published {
+            s["published"] = json!(p);
+        }
         println!("{s}");
     } else {
         summary::print(&a.file, &c, &s);
         if let Some(v) = &verified {
             print_verify(v);
+        }
+        if let Some(p) = &published {
+            println!(
+                "published {} messages on run {} in {:.2} s (recorded span {:.2} s, rate {}); {} reached no subscriber",
+                p.messages, p.run_id, p.wall_seconds, p.recorded_seconds, p.rate, p.undelivered
+            );
         }
     }
     match verified {

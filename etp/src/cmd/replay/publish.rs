@@ -1,0 +1,175 @@
+//! `--publish [--rate X]`: put a recording's traffic back on iceoryx2, like
+//! `ros2 bag play`. Every recorded message is sent, unchanged, on its service
+//! under a run id of its own (`etp/<run-id>/<topic>`), at the recorded time
+//! offsets divided by X; the services have the limits of the live run
+//! (`wire::limits`), so a lagging subscriber makes the replay wait rather than
+//! lose messages. Subscribers (`etp-recorder --run-id ID`, a test, a tool)
+//! should exist before the replay starts: iceoryx2 delivers to the subscribers
+//! present at send time.
+
+use anyhow::{Context, Result, bail};
+use etp_shared::recording::{self, Contents, Recorded};
+use etp_shared::scenario::Scenario;
+use etp_shared::wire::{
+    self, Ports, Pub, RunId, ServiceId, agent_to_coordinator as a2c, agent_to_sensor as a2s,
+    coordinator_to_agent as c2a, coordinator_to_all as c2all, sensor_to_agent as s2a,
+    sensor_to_coordinator as s2c, to_coordinator as tc,
+};
+use iceoryx2::prelude::ZeroCopySend;
+use std::collections::BTreeMap;
+use std::fmt::Debug;
+use std::time::{Duration, Instant};
+
+/// Node name of the replayer.
+const REPLAY_NODE: &str = "etp-replay";
+
+/// `--rate`: a positive speed factor (`inf`: as fast as subscribers take it).
+pub fn parse_rate(s: &str) -> Result<f64, String> {
+    let x: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
+    if x.is_nan() || x <= 0.0 {
+        return Err(format!("the rate must be > 0 (got {s})"));
+    }
+    Ok(x)
+}
+
+/// A typed publisher of one channel.
+enum Sender {
+    Control(Pub<c2a::Control>),
+    Threshold(Pub<c2all::Threshold>),
+    Truth(Pub<a2s::Truth>),
+    Prior(Pub<a2s::Prior>),
+    Measurement(Pub<s2a::Measurement>),
+    Slot(Pub<s2a::Slot>),
+    Waypoint(Pub<a2c::Waypoint>),
+    Outcome(Pub<a2c::Outcome>),
+    Ledger(Pub<s2c::Ledger>),
+    Hello(Pub<tc::Hello>),
+}
+
+fn send<T: Debug + ZeroCopySend + Copy>(p: &Pub<T>, v: T) -> Result<usize> {
+    p.send_copy(v).map_err(|e| anyhow::anyhow!("{e:?}"))
+}
+
+impl Sender {
+    fn open(ports: &Ports<'_>, s: ServiceId) -> Result<Self> {
+        use recording::Kind;
+        let kind = recording::channel(s)
+            .map(|(_, k)| k)
+            .context("not a recorded service")?;
+        Ok(match kind {
+            Kind::Control => Self::Control(ports.publisher(s)?),
+            Kind::Threshold => Self::Threshold(ports.publisher(s)?),
+            Kind::Truth => Self::Truth(ports.publisher(s)?),
+            Kind::Prior => Self::Prior(ports.publisher(s)?),
+            Kind::Measurement => Self::Measurement(ports.publisher(s)?),
+            Kind::Slot => Self::Slot(ports.publisher(s)?),
+            Kind::Waypoint => Self::Waypoint(ports.publisher(s)?),
+            Kind::Outcome => Self::Outcome(ports.publisher(s)?),
+            Kind::Ledger => Self::Ledger(ports.publisher(s)?),
+            Kind::Hello => Self::Hello(ports.publisher(s)?),
+        })
+    }
+
+    /// Send one decoded payload; the number of subscribers it reached.
+    fn send(&self, r: Recorded) -> Result<usize> {
+        match (self, r) {
+            (Self::Control(p), Recorded::Control(v)) => send(p, v),
+            (Self::Threshold(p), Recorded::Threshold(v)) => send(p, v),
+            (Self::Truth(p), Recorded::Truth(v)) => send(p, v),
+            (Self::Prior(p), Recorded::Prior(v)) => send(p, v),
+            (Self::Measurement(p), Recorded::Measurement(v)) => send(p, v),
+            (Self::Slot(p), Recorded::Slot(v)) => send(p, v),
+            (Self::Waypoint(p), Recorded::Waypoint(v)) => send(p, v),
+            (Self::Outcome(p), Recorded::Outcome(v)) => send(p, v),
+            (Self::Ledger(p), Recorded::Ledger(v)) => send(p, v),
+            (Self::Hello(p), Recorded::Hello(v)) => send(p, v),
+            _ => bail!("payload of another channel"),
+        }
+    }
+}
+
+/// What a replay published.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Published {
+    pub run_id: String,
+    pub rate: f64,
+    pub messages: u64,
+    /// Messages that reached no subscriber.
+    pub undelivered: u64,
+    pub counts: BTreeMap<String, u64>,
+    /// Span of the recorded log times, and the wall time the replay took.
+    pub recorded_seconds: f64,
+    pub wall_seconds: f64,
+}
+
+/// Publish every message of `c` under `run` at `rate` × the recorded speed.
+pub fn publish(c: &Contents, run: &RunId, rate: f64) -> Result<Published> {
+    let text = c
+        .meta(recording::META_SCENARIO, "toml")
+        .context("the recording has no scenario (metadata `etp.scenario`)")?;
+    let scenario = Scenario::from_toml(text).context("the recorded scenario")?;
+    // Decode everything first: a damaged payload stops the replay before it starts.
+    let mut order: Vec<(u64, &str, Recorded)> = Vec::with_capacity(c.messages.len());
+    for m in &c.messages {
+        let r = recording::decode(&m.topic, &m.data)
+            .with_context(|| format!("message at log time {}", m.log_time))?;
+        order.push((m.log_time, m.topic.as_str(), r));
+    }
+    // The recorder drains channel by channel: restore the global time order
+    // (stable, so a channel's own order is kept).
+    order.sort_by_key(|(t, _, _)| *t);
+
+    let node = wire::create_node(run, REPLAY_NODE)?;
+    let ports = Ports {
+        node: &node,
+        run,
+        sensors: scenario.sensors.len(),
+    };
+    let mut senders: BTreeMap<&str, Sender> = BTreeMap::new();
+    for topic in c.channels.keys() {
+        let s = recording::service_of_topic(topic)
+            .with_context(|| format!("unknown channel `{topic}` in the recording"))?;
+        senders.insert(
+            topic.as_str(),
+            Sender::open(&ports, s).with_context(|| format!("opening `{topic}`"))?,
+        );
+    }
+    let t0 = order.first().map_or(0, |(t, _, _)| *t);
+    let t_end = order.last().map_or(0, |(t, _, _)| *t);
+    let start = Instant::now();
+    let mut counts: BTreeMap<String, u64> = BTreeMap::new();
+    let (mut messages, mut undelivered) = (0u64, 0u64);
+    for (t, topic, r) in order {
+        if messages % 256 == 0 && wire::termination_requested(&node) {
+            bail!("interrupted after {messages} messages");
+        }
+        let due = Duration::try_from_secs_f64((t - t0) as f64 * 1e-9 / rate)
+            .with_context(|| format!("--rate {rate}: the replay would take forever"))?;
+        if let Some(wait) = due.checked_sub(start.elapsed()) {
+            std::thread::sleep(wait);
+        }
+        let Some(sender) = senders.get(topic) else {
+            bail!("message on unknown channel `{topic}`");
+        };
+        let reached = sender
+            .send(r)
+            .with_context(|| format!("publishing on `{topic}`"))?;
+        undelivered += u64::from(reached == 0);
+        messages += 1;
+        *counts.entry(topic.to_string()).or_default() += 1;
+    }
+    let wall_seconds = start.elapsed().as_secs_f64();
+    drop(senders);
+    drop(node);
+    // Leaves the run's folder to any subscriber still alive.
+    wire::cleanup::remove_run(run);
+    Ok(Published {
+        run_id: run.to_string(),
+        rate,
+        messages,
+        undelivered,
+        counts,
+        recorded_seconds: (t_end - t0) as f64 * 1e-9,
+        wall_seconds,
+    })
+}
