@@ -18,15 +18,37 @@ pub mod progress;
 
 use std::process::ExitCode;
 
+/// An outcome with its own exit code (documented by the command that uses
+/// it), e.g. `etp replay` on an unfinished recording exits with 3.
+#[derive(Debug)]
+pub struct ExitWith {
+    pub code: u8,
+    pub message: String,
+}
+
+impl std::fmt::Display for ExitWith {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for ExitWith {}
+
 /// Run a parsed command line; print any error chain to stderr.
 pub fn run(cli: cli::Cli) -> ExitCode {
     init_tracing();
     match cmd::dispatch(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
-        }
+        Err(e) => match e.downcast_ref::<ExitWith>() {
+            Some(x) => {
+                eprintln!("{}", x.message);
+                ExitCode::from(x.code)
+            }
+            None => {
+                eprintln!("error: {e:#}");
+                ExitCode::FAILURE
+            }
+        },
     }
 }
 

@@ -2,6 +2,7 @@
 //! one module per area).
 
 mod pipeline;
+mod replay;
 mod synthesize;
 
 use serde_json::Value;

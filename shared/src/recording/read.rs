@@ -21,8 +21,12 @@ pub struct Contents {
     pub messages: Vec<RawMessage>,
     /// True when the file ends with a footer and the end magic.
     pub finished: bool,
-    /// Why reading stopped early (the tail of an unfinished file).
+    /// Why reading stopped early (the tail of an unfinished file, or damage).
     pub truncated: Option<String>,
+    /// Reading stopped at a damaged record (bad CRC, undecodable record, a
+    /// message on an undeclared channel) rather than at the end of the data:
+    /// the file is corrupt, not merely unfinished.
+    pub damaged: bool,
 }
 
 impl Contents {
@@ -53,8 +57,9 @@ pub fn read_lenient(name: &str, buf: &[u8]) -> Result<Contents, RecordingError> 
             "no MCAP magic at the start".into(),
         ));
     }
-    let reader = ChunkFlattener::new_with_options(buf, Options::IgnoreEndMagic.into())
-        .map_err(|e| RecordingError::NotMcap(name.into(), e.to_string()))?;
+    let reader =
+        ChunkFlattener::new_with_options(buf, Options::IgnoreEndMagic | Options::ValidateChunkCrcs)
+            .map_err(|e| RecordingError::NotMcap(name.into(), e.to_string()))?;
     let mut out = Contents::default();
     let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
     let mut topics: BTreeMap<u16, String> = BTreeMap::new();
@@ -62,6 +67,11 @@ pub fn read_lenient(name: &str, buf: &[u8]) -> Result<Contents, RecordingError> 
         let rec = match rec {
             Ok(r) => r,
             Err(e) => {
+                // A crashed writer leaves a record cut by the end of the file;
+                // anything else — or a cut record in a file that does end
+                // with the end magic (a corrupted length) — is damage.
+                let ends_with_magic = buf.len() >= 16 && buf[buf.len() - 8..] == *mcap::MAGIC;
+                out.damaged = !matches!(e, mcap::McapError::UnexpectedEof) || ends_with_magic;
                 out.truncated = Some(e.to_string());
                 break;
             }
@@ -81,6 +91,7 @@ pub fn read_lenient(name: &str, buf: &[u8]) -> Result<Contents, RecordingError> 
                         "message on unknown channel id {}",
                         header.channel_id
                     ));
+                    out.damaged = true;
                     break;
                 };
                 out.messages.push(RawMessage {

@@ -2,7 +2,10 @@
 //! outcomes, per-sensor transmissions = `measurement` messages beside the
 //! sensors' ledgers and what the agent received, energy vs prediction). Works
 //! on an unfinished file (crashed recorder): every complete record is read.
-//! `--repair OUT` writes a finished copy; `--verify` re-runs the estimator
+//! `--repair OUT` writes a finished copy. Exit codes: 0 complete file, 3
+//! unfinished file (summary of every complete record printed), 1 error —
+//! including a damaged file (bad CRC, undecodable record), which only
+//! `--repair` reads (salvaging the records before the damage); `--verify` re-runs the estimator
 //! (`etp_shared::recording::verify`).
 
 mod publish;
@@ -74,11 +77,25 @@ fn check_output(input: &Path, out: &Path, force: bool) -> Result<()> {
     Ok(())
 }
 
+/// Exit code of `etp replay` on an unfinished recording (summary printed).
+pub const EXIT_UNFINISHED: u8 = 3;
+
 pub fn run(a: Args) -> Result<()> {
     if let Some(out) = &a.repair {
         check_output(&a.file, out, a.force)?;
     }
     let c = load(&a.file)?;
+    // A damaged file is refused unless the user asked to salvage it.
+    if c.damaged && a.repair.is_none() {
+        bail!(
+            "{} is damaged: {}; {} complete messages precede the damage \
+             (`etp replay {} --repair OUT` salvages them)",
+            a.file.display(),
+            c.truncated.as_deref().unwrap_or("unreadable record"),
+            c.messages.len(),
+            a.file.display()
+        );
+    }
     let s = summary::summarize(&c)?;
     if let Some(out) = &a.repair {
         let n = repair::repair(&c, out)?;
@@ -126,13 +143,26 @@ pub fn run(a: Args) -> Result<()> {
             );
         }
     }
-    match verified {
-        Some(v) if !v.passed() => bail!(
+    if let Some(v) = verified
+        && !v.passed()
+    {
+        bail!(
             "verify FAILED: {} of the recorded beliefs were not reproduced",
             v.mismatch_count
-        ),
-        _ => Ok(()),
+        );
     }
+    if !c.finished && a.repair.is_none() {
+        return Err(crate::ExitWith {
+            code: EXIT_UNFINISHED,
+            message: format!(
+                "warning: {} is unfinished (its recorder stopped before finishing it): \
+                 the summary covers every complete record; `--repair OUT` writes a finished copy",
+                a.file.display()
+            ),
+        }
+        .into());
+    }
+    Ok(())
 }
 
 fn print_verify(v: &recording::VerifyReport) {
