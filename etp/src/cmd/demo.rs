@@ -171,6 +171,7 @@ pub fn run(a: Args) -> Result<()> {
         clone_sensors: None,
         record: None,
         record_default: true,
+        force: false,
     };
     let mp = run_cmd::execute(&rargs)?;
 

@@ -29,6 +29,9 @@ pub struct Args {
     /// Trajectories on the map.
     #[arg(long, default_value_t = 40)]
     pub plot_episodes: u64,
+    /// Overwrite map plots that exist.
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Load and check a strategy file (scenario embedded or built-in, hash checked).
@@ -60,6 +63,11 @@ pub fn run(a: Args) -> Result<()> {
                 .and_then(|s| s.to_str())
                 .unwrap_or("strategy")
         ));
+        for p in [stem.with_extension("png"), stem.with_extension("svg")] {
+            if p.exists() && !a.force {
+                bail!("{} already exists (use --force to overwrite)", p.display());
+            }
+        }
         let tr = sample_trajectories(&scenario, &strategy, a.plot_episodes, a.seed);
         crate::plot::map_plot(&scenario, &tr, &stem)?;
         plot_paths.push(stem.with_extension("png"));

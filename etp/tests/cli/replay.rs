@@ -2,15 +2,11 @@
 //! open-2d) and on broken copies of it: exit codes, messages, and that no
 //! existing file is ever overwritten.
 
-use super::{Scratch, etp, fails_with, ok_json};
+use super::{Scratch, etp, fails_with, ok_json, s};
 use std::path::PathBuf;
 
 fn fixture() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../recordings/fixtures/open-2d-4-episodes.mcap")
-}
-
-fn s(p: &std::path::Path) -> &str {
-    p.to_str().expect("utf-8 path")
 }
 
 #[test]
@@ -118,6 +114,20 @@ fn replay_never_overwrites_without_force() {
     std::fs::write(&taken, b"precious").expect("write");
     fails_with(
         &["replay", s(&f), "--repair", s(&taken)],
+        &["already exists", "--force"],
+    );
+    assert_eq!(std::fs::read(&taken).expect("read"), b"precious");
+    // `etp run --record` onto an existing file is refused before anything starts.
+    fails_with(
+        &[
+            "run",
+            "--scenario",
+            "open-2d",
+            "--delta",
+            "0",
+            "--record",
+            s(&taken),
+        ],
         &["already exists", "--force"],
     );
     assert_eq!(std::fs::read(&taken).expect("read"), b"precious");

@@ -65,6 +65,9 @@ pub struct Args {
     /// Record to the default file `recordings/<scenario>-<run-id>.mcap`.
     #[arg(long, conflicts_with = "record")]
     pub record_default: bool,
+    /// Overwrite the `--record` file if it exists.
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Spawn, supervise and clean up one run; the report data.
@@ -74,6 +77,12 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     }
     if !(a.deadline.is_finite() && a.deadline > 0.0) {
         bail!("--deadline must be a positive number of seconds");
+    }
+    if let Some(p) = &a.record
+        && p.exists()
+        && !a.force
+    {
+        bail!("{} already exists (use --force to overwrite)", p.display());
     }
     let run_id = match &a.run_id {
         Some(id) => RunId::new(id)?,
