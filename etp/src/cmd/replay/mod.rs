@@ -3,8 +3,10 @@
 //! sensors' ledgers and what the agent received, energy vs prediction). Works
 //! on an unfinished file (crashed recorder): every complete record is read.
 //! `--repair OUT` writes a finished copy; `--verify` re-runs the estimator
-//! (`etp_shared::recording::verify`).
+//! (`etp_shared::recording::verify`); `--foxglove OUT` writes a copy that
+//! Foxglove draws (`foxglove.rs`).
 
+mod foxglove;
 mod repair;
 mod summary;
 
@@ -28,6 +30,10 @@ pub struct Args {
     /// (exit code 1 if not).
     #[arg(long)]
     pub verify: bool,
+    /// Write a copy for Foxglove to OUT: JSON messages with Foxglove's
+    /// schemas (map, agent with 3σ ellipse, paths, transmissions, outcomes).
+    #[arg(long, value_name = "OUT")]
+    pub foxglove: Option<PathBuf>,
     /// Overwrite output files that exist.
     #[arg(long)]
     pub force: bool,
@@ -64,12 +70,28 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(out) = &a.repair {
         check_output(&a.file, out, a.force)?;
     }
+    if let Some(out) = &a.foxglove {
+        check_output(&a.file, out, a.force)?;
+    }
     let c = load(&a.file)?;
     let s = summary::summarize(&c)?;
     if let Some(out) = &a.repair {
         let n = repair::repair(&c, out)?;
         eprintln!("repaired copy: {} ({n} messages)", out.display());
     }
+    let fox = match &a.foxglove {
+        Some(out) => {
+            let st = foxglove::write_foxglove(&c, out)
+                .with_context(|| format!("writing the Foxglove copy {}", out.display()))?;
+            eprintln!(
+                "foxglove copy: {} ({} messages)",
+                out.display(),
+                st.messages
+            );
+            Some(st)
+        }
+        None => None,
+    };
     let verified = if a.verify {
         Some(recording::verify(&c).context("verifying the recording")?)
     } else {
@@ -80,6 +102,9 @@ pub fn run(a: Args) -> Result<()> {
         if let Some(v) = &verified {
             s["verify"] = json!(v);
             s["verify"]["passed"] = json!(v.passed());
+        }
+        if let Some(f) = &fox {
+            s["foxglove"] = json!(f);
         }
         println!("{s}");
     } else {
