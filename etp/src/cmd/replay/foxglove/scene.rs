@@ -184,7 +184,7 @@ pub fn agent(a: &AgentView, t: Time) -> SceneUpdate {
             text += &format!(" · {s}");
         }
         if let Some(d) = a.delta {
-            text += &format!(" δ {d}");
+            text += &format!(" δ={d}");
         }
         text += &format!(" · {slot}");
         e.texts.push(TextPrimitive::label(
