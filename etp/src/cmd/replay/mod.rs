@@ -72,6 +72,9 @@ pub fn run(a: Args) -> Result<()> {
     }
     if let Some(out) = &a.foxglove {
         check_output(&a.file, out, a.force)?;
+        if a.repair.as_ref() == Some(out) {
+            bail!("--repair and --foxglove both write {}", out.display());
+        }
     }
     let c = load(&a.file)?;
     let s = summary::summarize(&c)?;
