@@ -14,6 +14,9 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 #[path = "runtime/recording.rs"]
 mod recording;
 
+#[path = "runtime/foxglove.rs"]
+mod foxglove;
+
 const DELTA: &str = "1.4986";
 
 /// Multi-process runs take both cores; run them one at a time so the timing

@@ -208,7 +208,10 @@ mod tests {
         let mut file = mcap::MAGIC.to_vec();
         file.extend(record(0x01, &[string("etpareto"), string("test")].concat()));
         let header_end = file.len();
-        file.extend(record(0x0C, &[string("etp.run"), 0u32.to_le_bytes().to_vec()].concat()));
+        file.extend(record(
+            0x0C,
+            &[string("etp.run"), 0u32.to_le_bytes().to_vec()].concat(),
+        ));
         let c = read_lenient("cut", &file[..file.len() - 2]).expect("an MCAP file");
         assert!(!c.damaged && !c.finished, "{:?}", c.truncated);
         assert!(c.truncated.is_some());

@@ -11,11 +11,11 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-fn out_file(id: &str) -> PathBuf {
+pub(super) fn out_file(id: &str) -> PathBuf {
     std::env::temp_dir().join(format!("etp-test-{id}.mcap"))
 }
 
-fn record(id: &str, file: &Path, episodes: &str, seed: &str) -> Value {
+pub(super) fn record(id: &str, file: &Path, episodes: &str, seed: &str) -> Value {
     let (ok, out, err) = EtpRun::spawn(
         id,
         &[
@@ -36,7 +36,7 @@ fn record(id: &str, file: &Path, episodes: &str, seed: &str) -> Value {
     serde_json::from_str(&out).unwrap_or_else(|e| panic!("bad JSON ({e}): {out}"))
 }
 
-fn replay(args: &[&str]) -> Value {
+pub(super) fn replay(args: &[&str]) -> Value {
     let out = Command::new(bin_dir().join("etp"))
         .arg("replay")
         .args(args)
@@ -52,7 +52,7 @@ fn replay(args: &[&str]) -> Value {
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("bad JSON ({e}): {text}"))
 }
 
-fn python_mcap() -> bool {
+pub(super) fn python_mcap() -> bool {
     let ok = Command::new("python3")
         .args(["-c", "import mcap"])
         .status()

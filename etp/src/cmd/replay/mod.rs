@@ -2,12 +2,15 @@
 //! outcomes, per-sensor transmissions = `measurement` messages beside the
 //! sensors' ledgers and what the agent received, energy vs prediction). Works
 //! on an unfinished file (crashed recorder): every complete record is read.
-//! `--repair OUT` writes a finished copy. Exit codes: 0 complete file, 3
-//! unfinished file (summary of every complete record printed), 1 error —
-//! including a damaged file (bad CRC, undecodable record), which only
-//! `--repair` reads (salvaging the records before the damage); `--verify` re-runs the estimator
-//! (`etp_shared::recording::verify`).
+//! `--repair OUT` writes a finished copy; `--verify` re-runs the estimator
+//! (`etp_shared::recording::verify`); `--publish` puts the traffic back on
+//! iceoryx2 (`publish.rs`); `--foxglove OUT` writes a copy that Foxglove
+//! draws (`foxglove.rs`). Exit codes: 0 complete file, 3 unfinished file
+//! (summary of every complete record printed), 1 error — including a damaged
+//! file (bad CRC, undecodable record), which only `--repair` reads
+//! (salvaging the records before the damage).
 
+mod foxglove;
 mod publish;
 mod repair;
 mod summary;
@@ -45,6 +48,10 @@ pub struct Args {
     /// Run id (services `etp/<run-id>/…`) for `--publish`; default: a fresh one.
     #[arg(long, requires = "publish")]
     pub run_id: Option<String>,
+    /// Write a copy for Foxglove to OUT: JSON messages with Foxglove's
+    /// schemas (map, agent with 3σ ellipse, paths, transmissions, outcomes).
+    #[arg(long, value_name = "OUT")]
+    pub foxglove: Option<PathBuf>,
     /// Overwrite output files that exist.
     #[arg(long)]
     pub force: bool,
@@ -84,6 +91,12 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(out) = &a.repair {
         check_output(&a.file, out, a.force)?;
     }
+    if let Some(out) = &a.foxglove {
+        check_output(&a.file, out, a.force)?;
+        if a.repair.as_ref() == Some(out) {
+            bail!("--repair and --foxglove both write {}", out.display());
+        }
+    }
     let c = load(&a.file)?;
     // A damaged file is refused unless the user asked to salvage it.
     if c.damaged && a.repair.is_none() {
@@ -101,6 +114,19 @@ pub fn run(a: Args) -> Result<()> {
         let n = repair::repair(&c, out)?;
         eprintln!("repaired copy: {} ({n} messages)", out.display());
     }
+    let fox = match &a.foxglove {
+        Some(out) => {
+            let st = foxglove::write_foxglove(&c, out)
+                .with_context(|| format!("writing the Foxglove copy {}", out.display()))?;
+            eprintln!(
+                "foxglove copy: {} ({} messages)",
+                out.display(),
+                st.messages
+            );
+            Some(st)
+        }
+        None => None,
+    };
     let published = match a.publish {
         true => {
             let run = match &a.run_id {
@@ -129,6 +155,9 @@ pub fn run(a: Args) -> Result<()> {
         }
         if let Some(p) = &published {
             s["published"] = json!(p);
+        }
+        if let Some(f) = &fox {
+            s["foxglove"] = json!(f);
         }
         println!("{s}");
     } else {
