@@ -16,9 +16,13 @@
 //! * `/transmissions` (`foxglove.Log`, one per `measurement` message) and
 //!   `/outcomes` (`foxglove.Log`, one per `outcome`).
 //!
-//! Times are the recorded `log_time`s (when the recorder took the sample;
-//! it drains in batches, so a few consecutive slots can share one). The
-//! copy is written in time order (the source is in drain order).
+//! Times ([`Clock`]): by default a step clock — plant step k of an episode
+//! at 10 ms × k after the episode's start, episodes one after another — so
+//! Foxglove plays the motion smoothly at 1×. `--foxglove-clock recorded`
+//! keeps the recorded `log_time`s instead (when the recorder took the
+//! sample; it drains in batches, so a few consecutive slots share one and a
+//! whole episode lasts some tens of milliseconds). The copy is written in
+//! time order (the source is in drain order).
 
 mod geometry;
 mod msg;
@@ -50,7 +54,7 @@ pub const TRANSMISSIONS: &str = "/transmissions";
 pub const OUTCOMES: &str = "/outcomes";
 
 /// What was written (`"foxglove"` in `etp replay --json`).
-#[derive(Debug, Clone, Default, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize)]
 pub struct FoxgloveStats {
     /// Messages per topic, and in all.
     pub topics: BTreeMap<String, u64>,
@@ -61,8 +65,45 @@ pub struct FoxgloveStats {
     pub incomplete_episodes: u64,
     /// Ellipses are drawn at this many σ of the prior covariance.
     pub sigma: f64,
+    /// The times of the copy.
+    pub clock: Clock,
     /// Size of the written file.
     pub bytes: u64,
+}
+
+/// Which times the copy carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Clock {
+    /// Plant step k at [`STEP_NS`] × k after its episode's start; the
+    /// episodes follow each other with one step of gap.
+    Step,
+    /// The recorder's `log_time`s.
+    Recorded,
+}
+
+/// One plant step on the step clock: 10 ms (100 steps per second).
+pub const STEP_NS: u64 = 10_000_000;
+
+/// Put the episodes on the step clock, starting at `t0`.
+fn retime(eps: &mut BTreeMap<u64, Episode>, t0: u64) {
+    let mut offset = 0u64;
+    for ep in eps.values_mut() {
+        let at = |k: u32| t0.saturating_add((offset + u64::from(k)).saturating_mul(STEP_NS));
+        ep.start = Some(at(0));
+        for (k, s) in &mut ep.steps {
+            s.time = at(*k);
+        }
+        for (t, m) in &mut ep.measurements {
+            *t = at(m.header.step);
+        }
+        let mut last = ep.steps.keys().next_back().copied().unwrap_or(0);
+        if let Some((t, o)) = &mut ep.outcome {
+            *t = at(o.header.step);
+            last = last.max(o.header.step);
+        }
+        offset += u64::from(last) + 2;
+    }
 }
 
 /// One slot of an episode as gathered from its channels.
@@ -299,7 +340,7 @@ fn episode_items(
 
 /// Write the Foxglove copy of a recording to `out` (through a temporary
 /// sibling renamed into place, like `--repair`).
-pub fn write_foxglove(c: &Contents, out: &Path) -> Result<FoxgloveStats> {
+pub fn write_foxglove(c: &Contents, out: &Path, clock: Clock) -> Result<FoxgloveStats> {
     let scenario = match c.meta(recording::META_SCENARIO, "toml") {
         Some(text) => Some(
             Scenario::from_toml(text)
@@ -311,11 +352,17 @@ pub fn write_foxglove(c: &Contents, out: &Path) -> Result<FoxgloveStats> {
         }
     };
     let names = sensor_names(c, scenario.as_ref());
-    let eps = gather(c)?;
+    let mut eps = gather(c)?;
+    if clock == Clock::Step {
+        retime(
+            &mut eps,
+            c.messages.iter().map(|m| m.log_time).min().unwrap_or(0),
+        );
+    }
     let tmp = out.with_extension("tmp-etp");
     let result = write_file(c, &tmp, scenario.as_ref(), &names, &eps);
     let mut stats = match result {
-        Ok(s) => s,
+        Ok(s) => FoxgloveStats { clock, ..s },
         Err(e) => {
             // Best effort: no half-written sibling is left behind.
             let _ = std::fs::remove_file(&tmp);
@@ -386,8 +433,12 @@ fn write_file(
     let mut seq = [0u32; TOPICS.len()];
     let mut stats = FoxgloveStats {
         topics: TOPICS.iter().map(|(t, _)| (t.to_string(), 0)).collect(),
+        messages: 0,
+        episodes: 0,
+        incomplete_episodes: 0,
         sigma: SIGMA,
-        ..FoxgloveStats::default()
+        clock: Clock::Recorded,
+        bytes: 0,
     };
     let mut write = |w: &mut mcap::Writer<_>, (time, topic, data): Item| -> Result<()> {
         w.write_to_known_channel(

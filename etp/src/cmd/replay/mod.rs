@@ -52,6 +52,10 @@ pub struct Args {
     /// schemas (map, agent with 3σ ellipse, paths, transmissions, outcomes).
     #[arg(long, value_name = "OUT")]
     pub foxglove: Option<PathBuf>,
+    /// Times of the `--foxglove` copy: `step` (10 ms per plant step, smooth
+    /// playback at 1×) or `recorded` (the recorder's time stamps).
+    #[arg(long, value_enum, default_value = "step", requires = "foxglove")]
+    pub foxglove_clock: foxglove::Clock,
     /// Overwrite output files that exist.
     #[arg(long)]
     pub force: bool,
@@ -116,7 +120,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     let fox = match &a.foxglove {
         Some(out) => {
-            let st = foxglove::write_foxglove(&c, out)
+            let st = foxglove::write_foxglove(&c, out, a.foxglove_clock)
                 .with_context(|| format!("writing the Foxglove copy {}", out.display()))?;
             eprintln!(
                 "foxglove copy: {} ({} messages)",

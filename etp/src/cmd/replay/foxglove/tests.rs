@@ -273,7 +273,7 @@ fn a_drain_ordered_recording_becomes_a_time_ordered_copy() {
     let dir = std::env::temp_dir().join(format!("etp-foxglove-unit-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let out = dir.join("copy.mcap");
-    let st = write_foxglove(&c, &out).expect("written");
+    let st = write_foxglove(&c, &out, Clock::Recorded).expect("written");
     assert_eq!((st.episodes, st.incomplete_episodes), (1, 1));
     let want = [
         (SCENE, 2),
@@ -334,4 +334,40 @@ fn sensor_index_from_topic() {
     assert_eq!(sensor_of_topic("sensor/12/truth"), Some(12));
     assert_eq!(sensor_of_topic("measurement"), None);
     assert_eq!(sensor_of_topic("sensor/x/prior"), None);
+}
+
+#[test]
+fn the_step_clock_spaces_slots_by_ten_milliseconds_and_episodes_in_sequence() {
+    let c = synthetic();
+    let dir = std::env::temp_dir().join(format!("etp-foxglove-clock-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let out = dir.join("copy.mcap");
+    let st = write_foxglove(&c, &out, Clock::Step).expect("written");
+    assert_eq!(st.clock, Clock::Step);
+    let back = recording::read_lenient("copy", &std::fs::read(&out).expect("read")).expect("mcap");
+    let times: Vec<u64> = back.messages.iter().map(|m| m.log_time).collect();
+    assert!(times.windows(2).all(|w| w[0] <= w[1]), "{times:?}");
+    let t0 = 101; // the earliest recorded time
+    let agent_time = |episode: &str, step: &str| {
+        back.messages
+            .iter()
+            .filter(|m| m.topic == AGENT)
+            .find(|m| {
+                let v: Value = serde_json::from_slice(&m.data).expect("JSON");
+                v["entities"][0]["metadata"][0]["value"] == episode
+                    && v["entities"][0]["metadata"][1]["value"] == step
+            })
+            .map(|m| m.log_time)
+    };
+    assert_eq!(agent_time("0", "1"), Some(t0 + STEP_NS));
+    assert_eq!(agent_time("0", "3"), Some(t0 + 3 * STEP_NS));
+    // Episode 0 ends at step 3; episode 1 starts two steps later (offset 5).
+    assert_eq!(agent_time("1", "1"), Some(t0 + 6 * STEP_NS));
+    let outcome = back
+        .messages
+        .iter()
+        .find(|m| m.topic == OUTCOMES)
+        .expect("outcome");
+    assert_eq!(outcome.log_time, t0 + 3 * STEP_NS);
+    let _ = std::fs::remove_dir_all(&dir);
 }
