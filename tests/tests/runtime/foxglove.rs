@@ -3,7 +3,7 @@
 //! the source recording; Python `jsonschema` on a sample when installed),
 //! and no silent overwrite.
 
-use super::recording::{out_file, python_mcap, record, replay};
+use super::recording::{out_file, python_json, python_mcap, record, replay};
 use super::serial;
 use etp_tests::{bin_dir, unique_run_id};
 use serde_json::Value;
@@ -60,17 +60,7 @@ print(json.dumps(out))
 "#;
 
 fn inspect(file: &Path) -> Value {
-    let out = Command::new("python3")
-        .args(["-c", INSPECT, &file.display().to_string()])
-        .output()
-        .expect("python3");
-    assert!(
-        out.status.success(),
-        "python mcap could not read {}: {}",
-        file.display(),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("python JSON")
+    python_json(INSPECT, file)
 }
 
 #[test]

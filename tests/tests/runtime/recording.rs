@@ -65,6 +65,29 @@ pub(super) fn python_mcap() -> bool {
     ok
 }
 
+/// Run a Python script on `file` (its `sys.argv[1]`); its stdout as JSON.
+pub(super) fn python_json(script: &str, file: &Path) -> Value {
+    let out = Command::new("python3")
+        .args(["-c", script, &file.display().to_string()])
+        .output()
+        .expect("python3");
+    assert!(
+        out.status.success(),
+        "python mcap could not read {}: {}",
+        file.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("python JSON")
+}
+
+/// A recording that must be finished and whole.
+fn read_finished(file: &Path) -> recording::Contents {
+    let buf = std::fs::read(file).expect("recording");
+    let c = recording::read_lenient("rec", &buf).expect("readable");
+    assert!(c.finished && c.truncated.is_none(), "{}", file.display());
+    c
+}
+
 /// Messages per channel as the Python `mcap` reader (make_reader: summary,
 /// footer and all) sees them; also the summary's message count.
 fn python_counts(file: &Path) -> (BTreeMap<String, u64>, u64) {
@@ -79,17 +102,7 @@ with open(sys.argv[1], "rb") as f:
         counts[channel.topic] += 1
     print(json.dumps({"counts": counts, "total": s.statistics.message_count}))
 "#;
-    let out = Command::new("python3")
-        .args(["-c", script, &file.display().to_string()])
-        .output()
-        .expect("python3");
-    assert!(
-        out.status.success(),
-        "python mcap could not read {}: {}",
-        file.display(),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: Value = serde_json::from_slice(&out.stdout).expect("python JSON");
+    let v = python_json(script, file);
     (
         serde_json::from_value(v["counts"].clone()).expect("counts"),
         v["total"].as_u64().expect("total"),
@@ -212,9 +225,7 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
 /// Sorted payloads per channel without the run tag (the first 8 bytes: the header's
 /// `run`, a hash of the run id); `hello` carries pids and is left out.
 fn payloads(file: &Path) -> BTreeMap<String, Vec<Vec<u8>>> {
-    let buf = std::fs::read(file).expect("recording");
-    let c = recording::read_lenient("rec", &buf).expect("readable");
-    assert!(c.finished && c.truncated.is_none());
+    let c = read_finished(file);
     let mut out: BTreeMap<String, Vec<Vec<u8>>> = BTreeMap::new();
     for m in c.messages.iter().filter(|m| m.topic != "hello") {
         recording::decode(&m.topic, &m.data).expect("decodes");
@@ -325,9 +336,7 @@ fn verify_detects_tampering(file: &Path) {
 
 /// Per-channel payload sequences, in file order (the run tag included).
 fn channel_payloads(file: &Path) -> BTreeMap<String, Vec<Vec<u8>>> {
-    let buf = std::fs::read(file).expect("recording");
-    let c = recording::read_lenient("rec", &buf).expect("readable");
-    assert!(c.finished && c.truncated.is_none(), "{}", file.display());
+    let c = read_finished(file);
     let mut out: BTreeMap<String, Vec<Vec<u8>>> = BTreeMap::new();
     for m in c.messages {
         out.entry(m.topic).or_default().push(m.data);

@@ -383,24 +383,9 @@ fn write_file(
     names: &[String],
     eps: &BTreeMap<u64, Episode>,
 ) -> Result<FoxgloveStats> {
-    let file = std::fs::File::create(tmp).with_context(|| format!("creating {}", tmp.display()))?;
-    let mut w = mcap::WriteOptions::new()
-        .compression(Some(mcap::Compression::Zstd))
-        .chunk_size(Some(1024 * 1024))
-        .library(format!(
-            "etp replay --foxglove {}",
-            env!("CARGO_PKG_VERSION")
-        ))
-        .create(std::io::BufWriter::new(file))
-        .context("starting the MCAP writer")?;
     // The source's metadata (run, scenario, strategy) travels along, with a
     // note on what the drawing means.
-    for (name, metadata) in &c.metadata {
-        w.write_metadata(&mcap::records::Metadata {
-            name: name.clone(),
-            metadata: metadata.clone(),
-        })?;
-    }
+    let mut w = super::copy_writer(c, tmp, "", "--foxglove")?;
     w.write_metadata(&mcap::records::Metadata {
         name: "etp.foxglove".into(),
         metadata: BTreeMap::from([

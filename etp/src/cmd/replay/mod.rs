@@ -61,6 +61,32 @@ pub struct Args {
     pub force: bool,
 }
 
+/// The MCAP writer of `etp replay`'s copies (zstd, 1 MiB chunks), with the
+/// source's metadata records already written.
+fn copy_writer(
+    c: &Contents,
+    path: &Path,
+    profile: &str,
+    what: &str,
+) -> Result<mcap::Writer<std::io::BufWriter<std::fs::File>>> {
+    let file =
+        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+    let mut w = mcap::WriteOptions::new()
+        .compression(Some(mcap::Compression::Zstd))
+        .chunk_size(Some(1024 * 1024))
+        .profile(profile)
+        .library(format!("etp replay {what} {}", env!("CARGO_PKG_VERSION")))
+        .create(std::io::BufWriter::new(file))
+        .context("starting the MCAP writer")?;
+    for (name, metadata) in &c.metadata {
+        w.write_metadata(&mcap::records::Metadata {
+            name: name.clone(),
+            metadata: metadata.clone(),
+        })?;
+    }
+    Ok(w)
+}
+
 /// Read a recording (finished or not).
 pub fn load(path: &Path) -> Result<Contents> {
     let buf = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;

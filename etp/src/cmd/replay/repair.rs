@@ -10,21 +10,7 @@ pub fn repair(c: &Contents, out: &std::path::Path) -> Result<u64> {
     // Written beside OUT and moved into place: an interrupted repair never
     // leaves a half-written file under the final name.
     let tmp = out.with_extension("tmp-etp");
-    let file =
-        std::fs::File::create(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
-    let mut w = mcap::WriteOptions::new()
-        .compression(Some(mcap::Compression::Zstd))
-        .chunk_size(Some(1024 * 1024))
-        .profile(recording::PROFILE)
-        .library(format!("etp replay --repair {}", env!("CARGO_PKG_VERSION")))
-        .create(std::io::BufWriter::new(file))
-        .context("starting the MCAP writer")?;
-    for (name, metadata) in &c.metadata {
-        w.write_metadata(&mcap::records::Metadata {
-            name: name.clone(),
-            metadata: metadata.clone(),
-        })?;
-    }
+    let mut w = super::copy_writer(c, &tmp, recording::PROFILE, "--repair")?;
     let mut ids: BTreeMap<&str, u16> = BTreeMap::new();
     for topic in c.channels.keys() {
         let Some(kind) = recording::kind_of_topic(topic) else {
