@@ -81,3 +81,45 @@ pub fn run(args: &Args) -> Result<(Exit, AgentStats), AgentError> {
     let scenario = wire::load_scenario(&args.scenario).map_err(AgentError::Scenario)?;
     etp_shared::with_dim!(scenario.dim, N => runtime::Agent::<N>::new(&run, &scenario)?.serve())
 }
+
+/// The process entry point (`main` of the binary, and `etp process <name>`
+/// when the binary is not installed beside `etp`): parse `args` (the first
+/// is the program name) and run.
+pub fn main_with<I, T>(args: I) -> std::process::ExitCode
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    use clap::Parser;
+    use std::process::ExitCode;
+    /// The agent of an etpareto run: plant, ET-KF, controller (spawned by `etp run`).
+    #[derive(Debug, Parser)]
+    #[command(name = "etp-agent", version, about)]
+    struct Cli {
+        #[command(flatten)]
+        args: crate::Args,
+    }
+
+    let cli = match Cli::try_parse_from(args) {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    etp_shared::wire::init_process_logging();
+    match crate::run(&cli.args) {
+        Ok((exit, stats)) => {
+            tracing::info!(?exit, ?stats, "agent done");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("etp-agent: error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,27 +1,5 @@
-//! `etp-agent`: thin main over [`etp_agent::run`].
+//! `etp-agent`: thin main over [`etp_agent::main_with`].
 
-use clap::Parser;
-use std::process::ExitCode;
-
-/// The agent of an etpareto run: plant, ET-KF, controller (spawned by `etp run`).
-#[derive(Debug, Parser)]
-#[command(name = "etp-agent", version, about)]
-struct Cli {
-    #[command(flatten)]
-    args: etp_agent::Args,
-}
-
-fn main() -> ExitCode {
-    let cli = Cli::parse();
-    etp_shared::wire::init_process_logging();
-    match etp_agent::run(&cli.args) {
-        Ok((exit, stats)) => {
-            tracing::info!(?exit, ?stats, "agent done");
-            ExitCode::SUCCESS
-        }
-        Err(e) => {
-            eprintln!("etp-agent: error: {e}");
-            ExitCode::FAILURE
-        }
-    }
+fn main() -> std::process::ExitCode {
+    etp_agent::main_with(std::env::args_os())
 }

@@ -79,3 +79,50 @@ pub fn run(args: &Args) -> Result<RunReport, CoordinatorError> {
     c.wait_ready(startup)?;
     c.run_episodes(args.episodes)
 }
+
+use anyhow::Context;
+
+/// The process entry point (`main` of the binary, and `etp process <name>`
+/// when the binary is not installed beside `etp`): parse `args` (the first
+/// is the program name) and run.
+pub fn main_with<I, T>(args: I) -> std::process::ExitCode
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    use clap::Parser;
+    use std::process::ExitCode;
+    /// The coordinator of an etpareto run (spawned by `etp run`).
+    #[derive(Debug, Parser)]
+    #[command(name = "etp-coordinator", version, about)]
+    struct Cli {
+        #[command(flatten)]
+        args: crate::Args,
+    }
+
+    let cli = match Cli::try_parse_from(args) {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    etp_shared::wire::init_process_logging();
+    let result = crate::run(&cli.args)
+        .context("coordinator")
+        .and_then(|r| serde_json::to_string(&r).context("encoding the report"));
+    match result {
+        Ok(json) => {
+            println!("{json}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("etp-coordinator: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

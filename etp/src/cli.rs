@@ -33,4 +33,8 @@ pub enum Command {
     Run(crate::cmd::run::Args),
     /// Summarise an MCAP recording of a run (finished or not); `--repair OUT` writes a finished copy.
     Replay(crate::cmd::replay::Args),
+    /// Run one process of a run (used by `etp run` when the process binaries
+    /// are not installed beside `etp`).
+    #[command(hide = true, disable_help_flag = true)]
+    Process(crate::cmd::process::Args),
 }

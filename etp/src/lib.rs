@@ -36,6 +36,10 @@ impl std::error::Error for ExitWith {}
 
 /// Run a parsed command line; print any error chain to stderr.
 pub fn run(cli: cli::Cli) -> ExitCode {
+    // A run's process sets up its own logging and exit code.
+    if let cli::Command::Process(a) = cli.command {
+        return cmd::process::run(a);
+    }
     init_tracing();
     match cmd::dispatch(cli.command) {
         Ok(()) => ExitCode::SUCCESS,

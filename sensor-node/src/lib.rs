@@ -93,3 +93,47 @@ pub fn run(args: &Args) -> Result<(Exit, SensorStats), SensorError> {
         etp_shared::with_dim!(m, M => node::serve::<N, M>(&run, &scenario, index, args.seed))
     })
 }
+
+use anyhow::Context;
+
+/// The process entry point (`main` of the binary, and `etp process <name>`
+/// when the binary is not installed beside `etp`): parse `args` (the first
+/// is the program name) and run.
+pub fn main_with<I, T>(args: I) -> std::process::ExitCode
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    use clap::Parser;
+    use std::process::ExitCode;
+    /// One sensor of an etpareto run (spawned by `etp run`).
+    #[derive(Debug, Parser)]
+    #[command(name = "etp-sensor-node", version, about)]
+    struct Cli {
+        #[command(flatten)]
+        args: crate::Args,
+    }
+
+    let cli = match Cli::try_parse_from(args) {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    etp_shared::wire::init_process_logging();
+    match crate::run(&cli.args).with_context(|| format!("sensor `{}`", cli.args.sensor)) {
+        Ok((exit, stats)) => {
+            tracing::info!(?exit, ?stats, "sensor node done");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("etp-sensor-node: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -4,6 +4,7 @@ pub mod bench;
 pub mod check;
 pub mod demo;
 pub mod export_prism;
+pub mod process;
 pub mod replay;
 pub mod run;
 pub mod simulate;
@@ -26,5 +27,6 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::ExportPrism(a) => export_prism::run(a),
         Command::Strategy(a) => strategy::run(a),
         Command::Validate(a) => validate::run(a),
+        Command::Process(_) => anyhow::bail!("`etp process` is dispatched by etp::run"),
     }
 }

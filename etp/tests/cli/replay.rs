@@ -163,3 +163,56 @@ fn publish_options_are_checked() {
         &["Bad_Id"],
     );
 }
+
+/// `etp` alone (no process binaries beside it, as after `cargo run -p etp` on
+/// a fresh checkout) still runs a strategy as processes — it starts itself as
+/// `etp process <name>` — and the recording verifies.
+#[test]
+fn etp_alone_runs_the_processes_itself() {
+    let dir = Scratch::new("etp-alone");
+    let lone = dir.path("etp");
+    std::fs::copy(env!("CARGO_BIN_EXE_etp"), &lone).expect("copy etp");
+    let rec = dir.path("alone.mcap");
+    let run_id = format!("t{}-alone", std::process::id());
+    let out = std::process::Command::new(&lone)
+        .args([
+            "run",
+            "--scenario",
+            "open-2d",
+            "--delta",
+            "1.0518",
+            "--episodes",
+            "3",
+            "--predict-episodes",
+            "200",
+            "--run-id",
+            &run_id,
+            "--record",
+            s(&rec),
+            "--json",
+        ])
+        .output()
+        .expect("spawn etp");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON report");
+    assert_eq!(v["episodes"].as_u64(), Some(3));
+    for sensor in v["sensors"].as_array().expect("sensors") {
+        assert_eq!(sensor["transmitted"], sensor["received"], "{sensor}");
+    }
+    let r = ok_json(&["replay", s(&rec), "--json", "--verify"]);
+    assert_eq!(
+        r["verify"]["passed"].as_bool(),
+        Some(true),
+        "{}",
+        r["verify"]
+    );
+    let help = std::process::Command::new(&lone)
+        .args(["process", "etp-agent", "--help"])
+        .output()
+        .expect("spawn etp");
+    assert!(String::from_utf8_lossy(&help.stdout).contains("--run-id"));
+}

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use std::process::Stdio;
 use std::time::Duration;
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, BufReader};
-use tokio::process::{ChildStdout, Command};
+use tokio::process::ChildStdout;
 
 /// How long the recorder gets to subscribe, and to finish after SIGTERM.
 const READY_TIMEOUT: Duration = Duration::from_secs(30);
@@ -102,8 +102,8 @@ pub async fn start(plan: &Plan, out: &Path) -> Result<Recorder> {
     std::fs::write(&meta, serde_json::to_string(&metadata(plan)?)?)
         .with_context(|| format!("writing {}", meta.display()))?;
     let bin = sibling_binary("etp-recorder")?;
-    let mut child = Command::new(&bin)
-        .args([
+    let mut child = bin
+        .command(&[
             "--run-id".to_string(),
             plan.run_id.to_string(),
             "--scenario".into(),

@@ -31,17 +31,51 @@ pub struct Supervised {
     pub recording: Option<super::record::Recording>,
 }
 
-/// A sibling binary of the running executable (`target/<profile>/etp-agent`
-/// next to `target/<profile>/etp`, or the same folder after `cargo install`).
-pub fn sibling_binary(name: &str) -> Result<PathBuf> {
+/// How to start one of the run's processes.
+#[derive(Debug, Clone)]
+pub struct Launcher {
+    pub program: PathBuf,
+    /// Arguments before the process's own (`process <name>` when `etp`
+    /// runs the process itself).
+    pub prefix: Vec<String>,
+}
+
+impl Launcher {
+    /// A command for this process with `args`.
+    pub fn command(&self, args: &[String]) -> Command {
+        let mut c = Command::new(&self.program);
+        c.args(&self.prefix).args(args);
+        c
+    }
+
+    pub fn display(&self) -> String {
+        self.program.display().to_string()
+    }
+}
+
+/// The process binary `name` (`etp-agent`, …): the sibling of the running
+/// executable (`target/<profile>/etp-agent` next to `target/<profile>/etp`,
+/// or the same folder after `cargo install`), else `etp` itself as
+/// `etp process <name>` — the same library entry point in its own process,
+/// so `cargo run -p etp -- demo` works before the workspace is built.
+pub fn sibling_binary(name: &str) -> Result<Launcher> {
     let exe = std::env::current_exe().context("locating the etp executable")?;
     let dir = exe.parent().context("etp executable has no folder")?;
     // Test harnesses run from target/<profile>/deps: look one level up too.
     for d in [Some(dir), dir.parent()].into_iter().flatten() {
         let p = d.join(name);
         if p.is_file() {
-            return Ok(p);
+            return Ok(Launcher {
+                program: p,
+                prefix: Vec::new(),
+            });
         }
+    }
+    if crate::cmd::process::known(name) && exe.file_stem().is_some_and(|s| s == "etp") {
+        return Ok(Launcher {
+            program: exe,
+            prefix: vec!["process".into(), name.into()],
+        });
     }
     Err(anyhow!(
         "`{name}` not found next to {} (build the workspace: cargo build --release --workspace)",
@@ -58,10 +92,9 @@ pub(super) fn status_text(s: &std::process::ExitStatus) -> String {
     }
 }
 
-fn spawn(bin: &Path, args: &[String], stdout: bool) -> Result<Child> {
-    let mut c = Command::new(bin);
-    c.args(args)
-        .stdin(Stdio::null())
+fn spawn(bin: &Launcher, args: &[String], stdout: bool) -> Result<Child> {
+    let mut c = bin.command(args);
+    c.stdin(Stdio::null())
         .stdout(if stdout {
             Stdio::piped()
         } else {

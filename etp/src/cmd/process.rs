@@ -1,0 +1,47 @@
+//! `etp process <name> ARGS…` (hidden): run one of the run's processes —
+//! `etp-agent`, `etp-sensor-node`, `etp-coordinator`, `etp-recorder` — from
+//! the `etp` executable. `etp run` uses it when those binaries are not
+//! installed beside `etp` (e.g. `cargo run -p etp -- demo` on a fresh
+//! checkout builds only `etp`). It calls the same library entry point as the
+//! standalone binary, in a process of its own: nothing is shared in memory.
+
+use std::ffi::OsString;
+use std::process::ExitCode;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// `etp-agent`, `etp-sensor-node`, `etp-coordinator` or `etp-recorder`.
+    pub name: String,
+    /// The process's own arguments.
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+    pub args: Vec<OsString>,
+}
+
+const NAMES: [&str; 4] = [
+    "etp-agent",
+    "etp-sensor-node",
+    "etp-coordinator",
+    "etp-recorder",
+];
+
+/// Can `etp process` run `name`?
+pub fn known(name: &str) -> bool {
+    NAMES.contains(&name)
+}
+
+pub fn run(a: Args) -> ExitCode {
+    let argv = std::iter::once(OsString::from(&a.name)).chain(a.args);
+    match a.name.as_str() {
+        "etp-agent" => etp_agent::main_with(argv),
+        "etp-sensor-node" => etp_sensor_node::main_with(argv),
+        "etp-coordinator" => etp_coordinator::main_with(argv),
+        "etp-recorder" => etp_recorder::main_with(argv),
+        other => {
+            eprintln!(
+                "error: `{other}` is not a process of a run ({})",
+                NAMES.join(", ")
+            );
+            ExitCode::from(2)
+        }
+    }
+}

@@ -1,0 +1,248 @@
+//! The `etp-recorder` process: subscribes to every publish-subscribe service of a run and
+//! writes one MCAP file (format: `etp_shared::recording`).
+//!
+//! Spawned by `etp run --record` before the other processes; prints `ready`
+//! on stdout once every subscriber exists, then records until SIGTERM/SIGINT
+//! (or its parent's death), drains what is left, calls `finish()` and prints
+//! one JSON object `{"path", "counts": {topic: n}, "messages", "bytes"}`.
+//! zstd chunks of 128 KiB plus a flush every 100 ms: a crash loses at most the
+//! last ~100 ms (read such a file with `etp replay`, repair it with `--repair`).
+
+use anyhow::{Context, Result};
+use clap::Parser;
+use etp_shared::recording::{self, Kind};
+use etp_shared::wire::{self, Ports, RunId, ServiceId, Sub};
+use iceoryx2::prelude::ZeroCopySend;
+use mcap::records::{MessageHeader, Metadata};
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::PathBuf;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+/// Record every message of an etpareto run to MCAP (spawned by `etp run --record`).
+#[derive(Debug, Parser)]
+#[command(name = "etp-recorder", version, about)]
+struct Cli {
+    #[arg(long)]
+    run_id: String,
+    /// Scenario (built-in name or TOML path): gives the number of sensors.
+    #[arg(long)]
+    scenario: String,
+    /// Output MCAP file.
+    #[arg(long)]
+    out: PathBuf,
+    /// JSON object `{record name: {key: value}}` written as metadata records.
+    #[arg(long)]
+    meta: Option<PathBuf>,
+}
+
+const FLUSH_EVERY: Duration = Duration::from_millis(100);
+const IDLE_SLEEP: Duration = Duration::from_micros(500);
+const CHUNK: u64 = 128 * 1024;
+
+type Drain = Box<dyn FnMut(&mut Vec<Vec<u8>>) -> Result<()>>;
+
+/// A drain function for one subscriber: appends every waiting payload, encoded.
+fn drainer<T>(sub: Sub<T>, topic: String) -> Drain
+where
+    T: std::fmt::Debug + ZeroCopySend + serde::Serialize + Copy + 'static,
+{
+    Box::new(move |out: &mut Vec<Vec<u8>>| {
+        while let Some(s) = sub
+            .receive()
+            .map_err(|e| anyhow::anyhow!("receiving on {topic}: {e:?}"))?
+        {
+            let v: T = *s;
+            out.push(recording::encode(&v)?);
+        }
+        Ok(())
+    })
+}
+
+fn subscribe(ports: &Ports<'_>, s: ServiceId, kind: Kind, topic: String) -> Result<Drain> {
+    use etp_shared::wire::{
+        agent_to_coordinator as a2c, agent_to_sensor as a2s, coordinator_to_agent as c2a,
+        coordinator_to_all as c2all, sensor_to_agent as s2a, sensor_to_coordinator as s2c,
+        to_coordinator as tc,
+    };
+    Ok(match kind {
+        Kind::Control => drainer(ports.observer::<c2a::Control>(s)?, topic),
+        Kind::Threshold => drainer(ports.observer::<c2all::Threshold>(s)?, topic),
+        Kind::Truth => drainer(ports.observer::<a2s::Truth>(s)?, topic),
+        Kind::Prior => drainer(ports.observer::<a2s::Prior>(s)?, topic),
+        Kind::Measurement => drainer(ports.observer::<s2a::Measurement>(s)?, topic),
+        Kind::Slot => drainer(ports.observer::<s2a::Slot>(s)?, topic),
+        Kind::Waypoint => drainer(ports.observer::<a2c::Waypoint>(s)?, topic),
+        Kind::Outcome => drainer(ports.observer::<a2c::Outcome>(s)?, topic),
+        Kind::Ledger => drainer(ports.observer::<s2c::Ledger>(s)?, topic),
+        Kind::Hello => drainer(ports.observer::<tc::Hello>(s)?, topic),
+    })
+}
+
+fn now_ns() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
+struct Channel {
+    id: u16,
+    topic: String,
+    drain: Drain,
+    count: u32,
+}
+
+fn run(cli: &Cli) -> Result<serde_json::Value> {
+    let run = RunId::new(&cli.run_id)?;
+    let scenario = wire::load_scenario(&cli.scenario).map_err(anyhow::Error::msg)?;
+    let sensors = scenario.sensors.len();
+    let node = wire::create_node(&run, wire::RECORDER_NODE)?;
+    let ports = Ports {
+        node: &node,
+        run: &run,
+        sensors,
+    };
+    let file = File::create(&cli.out).with_context(|| format!("creating {}", cli.out.display()))?;
+    let mut w = mcap::WriteOptions::new()
+        .compression(Some(mcap::Compression::Zstd))
+        .chunk_size(Some(CHUNK))
+        .profile(recording::PROFILE)
+        .library(format!("etp-recorder {}", env!("CARGO_PKG_VERSION")))
+        .create(BufWriter::new(file))
+        .context("starting the MCAP writer")?;
+    if let Some(meta) = &cli.meta {
+        let text =
+            std::fs::read_to_string(meta).with_context(|| format!("reading {}", meta.display()))?;
+        let records: BTreeMap<String, BTreeMap<String, String>> =
+            serde_json::from_str(&text).with_context(|| format!("parsing {}", meta.display()))?;
+        for (name, metadata) in records {
+            w.write_metadata(&Metadata { name, metadata })
+                .context("writing metadata")?;
+        }
+    }
+    let mut schemas: BTreeMap<Kind, u16> = BTreeMap::new();
+    let mut channels = Vec::new();
+    for s in ServiceId::all_pubsub(sensors) {
+        let Some((topic, kind)) = recording::channel(s) else {
+            continue;
+        };
+        let schema = match schemas.get(&kind) {
+            Some(id) => *id,
+            None => {
+                let id = w.add_schema(
+                    kind.schema_name(),
+                    recording::SCHEMA_ENCODING,
+                    kind.schema_text().as_bytes(),
+                )?;
+                schemas.insert(kind, id);
+                id
+            }
+        };
+        let id = w.add_channel(
+            schema,
+            &topic,
+            recording::MESSAGE_ENCODING,
+            &BTreeMap::from([("service".to_string(), s.name(&run))]),
+        )?;
+        let drain = subscribe(&ports, s, kind, topic.clone())?;
+        channels.push(Channel {
+            id,
+            topic,
+            drain,
+            count: 0,
+        });
+    }
+    w.flush().context("flushing the MCAP header")?;
+    {
+        let mut out = std::io::stdout().lock();
+        writeln!(out, "ready").context("stdout")?;
+        out.flush().context("stdout")?;
+    }
+    let parent = std::os::unix::process::parent_id();
+    let mut last_flush = Instant::now();
+    let mut batch: Vec<Vec<u8>> = Vec::new();
+    let mut stopping = false;
+    loop {
+        let mut got = 0usize;
+        for c in &mut channels {
+            batch.clear();
+            (c.drain)(&mut batch)?;
+            let t = now_ns();
+            for data in &batch {
+                w.write_to_known_channel(
+                    &MessageHeader {
+                        channel_id: c.id,
+                        sequence: c.count,
+                        log_time: t,
+                        publish_time: t,
+                    },
+                    data,
+                )
+                .with_context(|| format!("writing a message of {}", c.topic))?;
+                c.count = c.count.wrapping_add(1);
+            }
+            got += batch.len();
+        }
+        if last_flush.elapsed() >= FLUSH_EVERY {
+            w.flush().context("flushing the recording")?;
+            last_flush = Instant::now();
+        }
+        if stopping && got == 0 {
+            break;
+        }
+        if got == 0 {
+            if wire::termination_requested(&node) || std::os::unix::process::parent_id() != parent {
+                // One more pass drains what arrived meanwhile.
+                stopping = true;
+                continue;
+            }
+            std::thread::sleep(IDLE_SLEEP);
+        }
+    }
+    let summary = w.finish().context("finishing the recording")?;
+    drop(w);
+    let counts: BTreeMap<String, u64> = channels
+        .iter()
+        .map(|c| (c.topic.clone(), u64::from(c.count)))
+        .collect();
+    let bytes = std::fs::metadata(&cli.out).map_or(0, |m| m.len());
+    Ok(serde_json::json!({
+        "path": cli.out.display().to_string(),
+        "messages": summary.stats.map_or(0, |s| s.message_count),
+        "counts": counts,
+        "bytes": bytes,
+    }))
+}
+
+/// The process entry point (`main` of `etp-recorder`, and `etp process
+/// etp-recorder` when the binary is not installed beside `etp`): parse `args`
+/// (the first is the program name), record, print the summary JSON.
+pub fn main_with<I, T>(args: I) -> std::process::ExitCode
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let cli = match Cli::try_parse_from(args) {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                std::process::ExitCode::from(2)
+            } else {
+                std::process::ExitCode::SUCCESS
+            };
+        }
+    };
+    wire::init_process_logging();
+    match run(&cli) {
+        Ok(v) => {
+            println!("{v}");
+            std::process::ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("etp-recorder: error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
