@@ -72,6 +72,21 @@ fn pipeline_predicts_what_simulation_measures_and_refuses_bad_files() {
     );
 
     // No silent overwrite.
+    let plot_args = [
+        "validate",
+        s(&strategy),
+        "--episodes",
+        "50",
+        "--plot",
+        "--plot-episodes",
+        "5",
+        "--json",
+    ];
+    ok_json(&plot_args);
+    let map = out.join("strategy-map.png");
+    let drawn = std::fs::read(&map).expect("map plot");
+    fails_with(&plot_args, &["strategy-map", "already exists", "--force"]);
+    assert_eq!(std::fs::read(&map).expect("map plot"), drawn);
     let before = std::fs::read(&strategy).expect("strategy");
     fails_with(
         &["strategy", s(&out), "--vertex", "0"],
