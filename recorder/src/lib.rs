@@ -223,17 +223,8 @@ where
     I: IntoIterator<Item = T>,
     T: Into<std::ffi::OsString> + Clone,
 {
-    let cli = match Cli::try_parse_from(args) {
-        Ok(c) => c,
-        Err(e) => {
-            let _ = e.print();
-            return if e.use_stderr() {
-                std::process::ExitCode::from(2)
-            } else {
-                std::process::ExitCode::SUCCESS
-            };
-        }
-    };
+    // Prints help or the usage error and exits (0 or 2), as `main` would.
+    let cli = Cli::parse_from(args);
     wire::init_process_logging();
     match run(&cli) {
         Ok(v) => {

@@ -114,17 +114,8 @@ where
         args: crate::Args,
     }
 
-    let cli = match Cli::try_parse_from(args) {
-        Ok(c) => c,
-        Err(e) => {
-            let _ = e.print();
-            return if e.use_stderr() {
-                ExitCode::from(2)
-            } else {
-                ExitCode::SUCCESS
-            };
-        }
-    };
+    // Prints help or the usage error and exits (0 or 2), as `main` would.
+    let cli = Cli::parse_from(args);
     etp_shared::wire::init_process_logging();
     match crate::run(&cli.args).with_context(|| format!("sensor `{}`", cli.args.sensor)) {
         Ok((exit, stats)) => {
