@@ -124,8 +124,13 @@ impl Links {
             }
             let silent = started.elapsed();
             let dead = silent >= SLOT_DEADLINE
-                || wire::liveness(&self.cfg, &wire::sensor_node_name(sensor)) != Liveness::Alive;
+                || wire::peek_liveness(&self.cfg, &wire::sensor_node_name(sensor))
+                    != Liveness::Alive;
             if dead {
+                // The verdict's time, before the dead node's cleanup (below),
+                // which can take tens of milliseconds.
+                let detect_us = started.elapsed().as_micros() as u64;
+                let detected_unix_ns = unix_ns(SystemTime::now());
                 // One last look: the slot may have closed just before the verdict.
                 if let Some(transmitted) = self.take_slot(header.episode, header.step, who)? {
                     let y = self.take_measurement(header.episode, header.step, who)?;
@@ -137,10 +142,13 @@ impl Links {
                 let y = self.take_measurement(header.episode, header.step, who)?;
                 let fault = Fault {
                     sensor: who,
-                    detect_us: started.elapsed().as_micros() as u64,
+                    detect_us,
                     wait_started_unix_ns: unix_ns(started_wall),
-                    detected_unix_ns: unix_ns(SystemTime::now()),
+                    detected_unix_ns,
                 };
+                // Its ports go, so the others' counts drop and listeners get
+                // the dead-notifier event.
+                wire::remove_dead_nodes(&self.cfg);
                 return Ok((SlotResult::Dead(y), Some(fault)));
             }
         }

@@ -239,6 +239,7 @@ fn a_killed_sensor_is_detected_the_episode_degraded_and_the_run_continues() {
         .expect("wait start")
         .max(killed_at);
     let latency_ms = (detected.saturating_sub(waited_from)) as f64 / 1e6;
+    eprintln!("dead link of s2 detected {latency_ms:.1} ms after it mattered");
     assert!(
         latency_ms < 100.0,
         "dead link seen {latency_ms:.1} ms after it mattered"

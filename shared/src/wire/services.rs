@@ -345,6 +345,17 @@ pub enum Liveness {
 /// resources are removed on the way (so the peers' counts drop and listeners
 /// get [`DEAD_NOTIFIER_EVENT`]).
 pub fn liveness(cfg: &Config, name: &str) -> Liveness {
+    node_state(cfg, name, true)
+}
+
+/// [`liveness`] without the cleanup: the verdict only, as fast as the node
+/// list can give it (the cleanup of a dead node's ports can take tens of
+/// milliseconds; call [`remove_dead_nodes`] afterwards).
+pub fn peek_liveness(cfg: &Config, name: &str) -> Liveness {
+    node_state(cfg, name, false)
+}
+
+fn node_state(cfg: &Config, name: &str, cleanup: bool) -> Liveness {
     let mut found = Liveness::Missing;
     let _ = Node::<ipc::Service>::list(cfg, |state| {
         match state {
@@ -365,7 +376,9 @@ pub fn liveness(cfg: &Config, name: &str) -> Liveness {
                     .is_some_and(|d| d.name().as_str() == name)
                 {
                     found = Liveness::Dead;
-                    let _ = view.try_remove_stale_resources();
+                    if cleanup {
+                        let _ = view.try_remove_stale_resources();
+                    }
                     return CallbackProgression::Stop;
                 }
             }
