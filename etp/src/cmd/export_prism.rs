@@ -2,7 +2,7 @@
 //! files (`model.tra`, `.sta`, `.lab`, `.trew`, plus `model.props`), loadable
 //! with `prism -importmodel OUTDIR/model.all -mdp`.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::prism;
 use std::path::{Path, PathBuf};
@@ -55,18 +55,12 @@ pub fn run(a: Args) -> Result<()> {
         .iter()
         .map(|(name, text)| (a.outdir.join(name), *text))
         .collect();
-    if !a.force
-        && let Some((p, _)) = targets.iter().find(|(p, _)| p.exists())
-    {
-        bail!(
-            "{} already exists; pass --force to overwrite the PRISM files",
-            p.display()
-        );
+    // All refused before any is written: no half-updated set of files.
+    for (p, _) in &targets {
+        crate::output::refuse_existing(p, a.force)?;
     }
-    std::fs::create_dir_all(&a.outdir)
-        .with_context(|| format!("creating {}", a.outdir.display()))?;
     for (p, text) in &targets {
-        std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?;
+        crate::output::write_new(p, text.as_bytes(), true)?;
     }
     println!(
         "{} states (+3 terminal), {} transitions → {}\n  load: prism -importmodel {} -mdp {}",

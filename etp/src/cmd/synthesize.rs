@@ -152,12 +152,7 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
         .clone()
         .unwrap_or_else(|| Path::new("out").join(&s.name));
     let path = dir.join(MDP_FILE);
-    if path.exists() && !a.force {
-        bail!(
-            "{} already exists; pass --force to overwrite it or -o to choose another directory",
-            path.display()
-        );
-    }
+    crate::output::refuse_existing(&path, a.force)?;
     let p = params(a, &s)?;
     let pb = progress::bar(abstraction::progress_total(&s, &p), "synthesize", a.json);
     let started = Instant::now();
@@ -225,12 +220,7 @@ pub fn run(a: Args) -> Result<()> {
         .clone()
         .unwrap_or_else(|| Path::new("out").join(&s.name));
     let front_path = dir.join("front.json");
-    if front_path.exists() && !a.force {
-        bail!(
-            "{} already exists; pass --force to overwrite it or -o to choose another directory",
-            front_path.display()
-        );
-    }
+    crate::output::refuse_existing(&front_path, a.force)?;
     let text = crate::input::scenario_text(&a.scenario)?;
     let built = build_mdp(&a)?;
     // Method 1 as a baseline beside Method 2 (cheap: one state per decision point).

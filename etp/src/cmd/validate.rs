@@ -64,9 +64,7 @@ pub fn run(a: Args) -> Result<()> {
                 .unwrap_or("strategy")
         ));
         for p in [stem.with_extension("png"), stem.with_extension("svg")] {
-            if p.exists() && !a.force {
-                bail!("{} already exists (use --force to overwrite)", p.display());
-            }
+            crate::output::refuse_existing(&p, a.force)?;
         }
         let tr = sample_trajectories(&scenario, &strategy, a.plot_episodes, a.seed);
         crate::plot::map_plot(&scenario, &tr, &stem)?;

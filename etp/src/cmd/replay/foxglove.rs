@@ -359,17 +359,9 @@ pub fn write_foxglove(c: &Contents, out: &Path, clock: Clock) -> Result<Foxglove
             c.messages.iter().map(|m| m.log_time).min().unwrap_or(0),
         );
     }
-    let tmp = out.with_extension("tmp-etp");
-    let result = write_file(c, &tmp, scenario.as_ref(), &names, &eps);
-    let mut stats = match result {
-        Ok(s) => FoxgloveStats { clock, ..s },
-        Err(e) => {
-            // Best effort: no half-written sibling is left behind.
-            let _ = std::fs::remove_file(&tmp);
-            return Err(e);
-        }
-    };
-    std::fs::rename(&tmp, out).with_context(|| format!("moving {} into place", out.display()))?;
+    let mut stats = crate::output::write_via_temp(out, |tmp| {
+        write_file(c, tmp, scenario.as_ref(), &names, &eps, clock)
+    })?;
     stats.bytes = std::fs::metadata(out)
         .with_context(|| format!("reading the size of {}", out.display()))?
         .len();
@@ -382,6 +374,7 @@ fn write_file(
     scenario: Option<&Scenario>,
     names: &[String],
     eps: &BTreeMap<u64, Episode>,
+    clock: Clock,
 ) -> Result<FoxgloveStats> {
     // The source's metadata (run, scenario, strategy) travels along, with a
     // note on what the drawing means.
@@ -422,7 +415,7 @@ fn write_file(
         episodes: 0,
         incomplete_episodes: 0,
         sigma: SIGMA,
-        clock: Clock::Recorded,
+        clock,
         bytes: 0,
     };
     let mut write = |w: &mut mcap::Writer<_>, (time, topic, data): Item| -> Result<()> {

@@ -105,13 +105,7 @@ fn check_output(input: &Path, out: &Path, force: bool) -> Result<()> {
             out.display()
         );
     }
-    if out.exists() && !force {
-        bail!(
-            "{} already exists (use --force to overwrite)",
-            out.display()
-        );
-    }
-    Ok(())
+    crate::output::refuse_existing(out, force)
 }
 
 /// Exit code of `etp replay` on an unfinished recording (summary printed).

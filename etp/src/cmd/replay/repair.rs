@@ -7,10 +7,11 @@ use std::collections::BTreeMap;
 
 /// Write a finished copy of a (possibly unfinished) recording.
 pub fn repair(c: &Contents, out: &std::path::Path) -> Result<u64> {
-    // Written beside OUT and moved into place: an interrupted repair never
-    // leaves a half-written file under the final name.
-    let tmp = out.with_extension("tmp-etp");
-    let mut w = super::copy_writer(c, &tmp, recording::PROFILE, "--repair")?;
+    crate::output::write_via_temp(out, |tmp| write_copy(c, tmp))
+}
+
+fn write_copy(c: &Contents, tmp: &std::path::Path) -> Result<u64> {
+    let mut w = super::copy_writer(c, tmp, recording::PROFILE, "--repair")?;
     let mut ids: BTreeMap<&str, u16> = BTreeMap::new();
     for topic in c.channels.keys() {
         let Some(kind) = recording::kind_of_topic(topic) else {
@@ -43,6 +44,5 @@ pub fn repair(c: &Contents, out: &std::path::Path) -> Result<u64> {
     }
     w.finish().context("finishing the repaired file")?;
     drop(w);
-    std::fs::rename(&tmp, out).with_context(|| format!("moving {} into place", out.display()))?;
     Ok(c.messages.len() as u64)
 }

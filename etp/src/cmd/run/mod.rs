@@ -78,11 +78,8 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     if !(a.deadline.is_finite() && a.deadline > 0.0) {
         bail!("--deadline must be a positive number of seconds");
     }
-    if let Some(p) = &a.record
-        && p.exists()
-        && !a.force
-    {
-        bail!("{} already exists (use --force to overwrite)", p.display());
+    if let Some(p) = &a.record {
+        crate::output::refuse_existing(p, a.force)?;
     }
     let run_id = match &a.run_id {
         Some(id) => RunId::new(id)?,
