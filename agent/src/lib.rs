@@ -45,8 +45,9 @@ pub enum AgentError {
     Protocol(String),
 }
 
-/// The command line of `etp-agent`.
-#[derive(Debug, Clone, clap::Args)]
+/// The agent of an etpareto run: plant, ET-KF, controller (spawned by `etp run`).
+#[derive(Debug, Clone, clap::Parser)]
+#[command(name = "etp-agent", version, about)]
 pub struct Args {
     /// Run id (services live under `etp/<run-id>/`).
     #[arg(long)]
@@ -92,18 +93,10 @@ where
 {
     use clap::Parser;
     use std::process::ExitCode;
-    /// The agent of an etpareto run: plant, ET-KF, controller (spawned by `etp run`).
-    #[derive(Debug, Parser)]
-    #[command(name = "etp-agent", version, about)]
-    struct Cli {
-        #[command(flatten)]
-        args: crate::Args,
-    }
-
     // Prints help or the usage error and exits (0 or 2), as `main` would.
-    let cli = Cli::parse_from(args);
+    let args = Args::parse_from(args);
     etp_shared::wire::init_process_logging();
-    match crate::run(&cli.args) {
+    match crate::run(&args) {
         Ok((exit, stats)) => {
             tracing::info!(?exit, ?stats, "agent done");
             ExitCode::SUCCESS

@@ -40,8 +40,9 @@ pub enum CoordinatorError {
     AgentDied(u64),
 }
 
-/// The command line of `etp-coordinator`.
-#[derive(Debug, Clone, clap::Args)]
+/// The coordinator of an etpareto run (spawned by `etp run`).
+#[derive(Debug, Clone, clap::Parser)]
+#[command(name = "etp-coordinator", version, about)]
 pub struct Args {
     /// Run id (services live under `etp/<run-id>/`).
     #[arg(long)]
@@ -92,18 +93,10 @@ where
 {
     use clap::Parser;
     use std::process::ExitCode;
-    /// The coordinator of an etpareto run (spawned by `etp run`).
-    #[derive(Debug, Parser)]
-    #[command(name = "etp-coordinator", version, about)]
-    struct Cli {
-        #[command(flatten)]
-        args: crate::Args,
-    }
-
     // Prints help or the usage error and exits (0 or 2), as `main` would.
-    let cli = Cli::parse_from(args);
+    let args = Args::parse_from(args);
     etp_shared::wire::init_process_logging();
-    let result = crate::run(&cli.args)
+    let result = crate::run(&args)
         .context("coordinator")
         .and_then(|r| serde_json::to_string(&r).context("encoding the report"));
     match result {

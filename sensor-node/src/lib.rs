@@ -51,8 +51,9 @@ pub enum SensorError {
     Protocol(String),
 }
 
-/// The command line of `etp-sensor-node`.
-#[derive(Debug, Clone, clap::Args)]
+/// One sensor of an etpareto run (spawned by `etp run`).
+#[derive(Debug, Clone, clap::Parser)]
+#[command(name = "etp-sensor-node", version, about)]
 pub struct Args {
     /// Run id (services live under `etp/<run-id>/`).
     #[arg(long)]
@@ -106,18 +107,10 @@ where
 {
     use clap::Parser;
     use std::process::ExitCode;
-    /// One sensor of an etpareto run (spawned by `etp run`).
-    #[derive(Debug, Parser)]
-    #[command(name = "etp-sensor-node", version, about)]
-    struct Cli {
-        #[command(flatten)]
-        args: crate::Args,
-    }
-
     // Prints help or the usage error and exits (0 or 2), as `main` would.
-    let cli = Cli::parse_from(args);
+    let args = Args::parse_from(args);
     etp_shared::wire::init_process_logging();
-    match crate::run(&cli.args).with_context(|| format!("sensor `{}`", cli.args.sensor)) {
+    match crate::run(&args).with_context(|| format!("sensor `{}`", args.sensor)) {
         Ok((exit, stats)) => {
             tracing::info!(?exit, ?stats, "sensor node done");
             ExitCode::SUCCESS

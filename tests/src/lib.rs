@@ -121,6 +121,22 @@ impl Drop for EtpRun {
     }
 }
 
+/// Wait (up to 20 s) until `binary` of the run is alive (with `flag_value`
+/// among its arguments, if given); its pid.
+pub fn wait_for_process(run_id: &str, binary: &str, flag_value: Option<(&str, &str)>) -> u32 {
+    let start = std::time::Instant::now();
+    loop {
+        if let Some(pid) = find_process(run_id, binary, flag_value) {
+            return pid;
+        }
+        assert!(
+            start.elapsed() < std::time::Duration::from_secs(20),
+            "{binary} {flag_value:?} of run {run_id} never started"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
+
 /// Live processes (pid, command line) whose arguments contain `--run-id <id>`.
 /// Zombies have an empty command line and are not listed.
 pub fn processes_of_run(run_id: &str) -> Vec<(u32, Vec<String>)> {

@@ -7,7 +7,7 @@ use etp_shared::rng::streams;
 use etp_shared::scenario::Scenario;
 use etp_shared::stats::Estimate;
 use etp_synthesis::simulate::simulate;
-use etp_tests::{EtpRun, find_process, kill, no_leftovers, processes_of_run, unique_run_id};
+use etp_tests::{EtpRun, kill, no_leftovers, processes_of_run, unique_run_id, wait_for_process};
 use serde_json::Value;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -211,17 +211,7 @@ fn a_killed_sensor_is_detected_the_episode_degraded_and_the_run_continues() {
         ],
     );
     // s2 serves legs 3 and 4 of every episode that gets that far.
-    let start = Instant::now();
-    let victim = loop {
-        if let Some(pid) = find_process(&id, "etp-sensor-node", Some(("--sensor", "s2"))) {
-            break pid;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(20),
-            "sensor s2 never started"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    };
+    let victim = wait_for_process(&id, "etp-sensor-node", Some(("--sensor", "s2")));
     std::thread::sleep(Duration::from_millis(1500));
     let killed_at = unix_ns();
     kill("-KILL", &victim.to_string());
@@ -275,17 +265,7 @@ fn when_the_coordinator_dies_agent_and_sensors_exit_within_a_second() {
             "100000",
         ],
     );
-    let start = Instant::now();
-    let coordinator = loop {
-        if let Some(pid) = find_process(&id, "etp-coordinator", None) {
-            break pid;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(20),
-            "coordinator never started"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    };
+    let coordinator = wait_for_process(&id, "etp-coordinator", None);
     std::thread::sleep(Duration::from_millis(1000));
     let others = processes_of_run(&id).len();
     assert!(

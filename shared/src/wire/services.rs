@@ -440,18 +440,22 @@ impl Ports<'_> {
     }
 
     pub fn subscriber<T: Debug + ZeroCopySend>(&self, s: ServiceId) -> Result<Sub<T>, WireError> {
-        open_pubsub::<T>(self.node, self.run, s, self.sensors)?
-            .subscriber_builder()
-            .buffer_size(limits(s, self.sensors).buffer)
-            .create()
-            .map_err(|e| WireError::Port(s.name(self.run), format!("{e:?}")))
+        self.subscriber_with_buffer(s, limits(s, self.sensors).buffer)
     }
 
     /// A subscriber with the observer's (recorder's) buffer.
     pub fn observer<T: Debug + ZeroCopySend>(&self, s: ServiceId) -> Result<Sub<T>, WireError> {
+        self.subscriber_with_buffer(s, limits(s, self.sensors).observer_buffer)
+    }
+
+    fn subscriber_with_buffer<T: Debug + ZeroCopySend>(
+        &self,
+        s: ServiceId,
+        buffer: usize,
+    ) -> Result<Sub<T>, WireError> {
         open_pubsub::<T>(self.node, self.run, s, self.sensors)?
             .subscriber_builder()
-            .buffer_size(limits(s, self.sensors).observer_buffer)
+            .buffer_size(buffer)
             .create()
             .map_err(|e| WireError::Port(s.name(self.run), format!("{e:?}")))
     }

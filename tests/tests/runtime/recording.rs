@@ -4,12 +4,12 @@
 
 use super::{DELTA, num, serial};
 use etp_shared::recording;
-use etp_tests::{EtpRun, bin_dir, find_process, kill, processes_of_run, unique_run_id};
+use etp_tests::{EtpRun, bin_dir, kill, processes_of_run, unique_run_id, wait_for_process};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 pub(super) fn out_file(id: &str) -> PathBuf {
     std::env::temp_dir().join(format!("etp-test-{id}.mcap"))
@@ -175,14 +175,7 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
             &file.display().to_string(),
         ],
     );
-    let start = Instant::now();
-    let victim = loop {
-        if let Some(pid) = find_process(&id, "etp-recorder", None) {
-            break pid;
-        }
-        assert!(start.elapsed() < Duration::from_secs(20), "no recorder");
-        std::thread::sleep(Duration::from_millis(20));
-    };
+    let victim = wait_for_process(&id, "etp-recorder", None);
     std::thread::sleep(Duration::from_millis(800));
     kill("-KILL", &victim.to_string());
     let (ok, out, err) = run.finish();
