@@ -356,35 +356,22 @@ pub fn peek_liveness(cfg: &Config, name: &str) -> Liveness {
 }
 
 fn node_state(cfg: &Config, name: &str, cleanup: bool) -> Liveness {
+    let named = |d: &Option<iceoryx2::node::NodeDetails>| {
+        d.as_ref().is_some_and(|d| d.name().as_str() == name)
+    };
     let mut found = Liveness::Missing;
     let _ = Node::<ipc::Service>::list(cfg, |state| {
         match state {
-            NodeState::Alive(view) => {
-                if view
-                    .details()
-                    .as_ref()
-                    .is_some_and(|d| d.name().as_str() == name)
-                {
-                    found = Liveness::Alive;
-                    return CallbackProgression::Stop;
+            NodeState::Alive(view) if named(view.details()) => found = Liveness::Alive,
+            NodeState::Dead(view) if named(view.details()) => {
+                found = Liveness::Dead;
+                if cleanup {
+                    let _ = view.try_remove_stale_resources();
                 }
             }
-            NodeState::Dead(view) => {
-                if view
-                    .details()
-                    .as_ref()
-                    .is_some_and(|d| d.name().as_str() == name)
-                {
-                    found = Liveness::Dead;
-                    if cleanup {
-                        let _ = view.try_remove_stale_resources();
-                    }
-                    return CallbackProgression::Stop;
-                }
-            }
-            NodeState::Inaccessible(_) | NodeState::Undefined(_) => {}
+            _ => return CallbackProgression::Continue,
         }
-        CallbackProgression::Continue
+        CallbackProgression::Stop
     });
     found
 }
