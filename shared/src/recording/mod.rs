@@ -169,19 +169,7 @@ pub fn service_of_topic(topic: &str) -> Option<ServiceId> {
 
 /// The kind of a channel topic.
 pub fn kind_of_topic(topic: &str) -> Option<Kind> {
-    Some(match topic {
-        "control" => Kind::Control,
-        "threshold" => Kind::Threshold,
-        "measurement" => Kind::Measurement,
-        "slot" => Kind::Slot,
-        "waypoint" => Kind::Waypoint,
-        "outcome" => Kind::Outcome,
-        "ledger" => Kind::Ledger,
-        "hello" => Kind::Hello,
-        t if t.starts_with("sensor/") && t.ends_with("/truth") => Kind::Truth,
-        t if t.starts_with("sensor/") && t.ends_with("/prior") => Kind::Prior,
-        _ => return None,
-    })
+    channel(service_of_topic(topic)?).map(|(_, kind)| kind)
 }
 
 /// One decoded message.
