@@ -133,12 +133,11 @@ fn earliest(slot: &mut Option<u64>, t: u64) {
 
 /// `sensor/<i>/truth` → i.
 fn sensor_of_topic(topic: &str) -> Option<u32> {
-    topic
-        .strip_prefix("sensor/")?
-        .split('/')
-        .next()?
-        .parse()
-        .ok()
+    use etp_shared::wire::ServiceId;
+    match recording::service_of_topic(topic)? {
+        ServiceId::Truth(i) | ServiceId::Prior(i) => u32::try_from(i).ok(),
+        _ => None,
+    }
 }
 
 /// The slot `header.step` of an episode, its fields from `header` and the
