@@ -6,15 +6,17 @@
 //! * [`Args`] — run id, scenario, seed (what `etp run` passes).
 //! * [`run`] — opens the agent's ports (`etp_shared::wire`), says hello and
 //!   runs episodes when `control` says start, until stop.
-//! * [`runtime::Agent`] — one episode, step by step in exactly the order of
-//!   MODEL.md §3 / `etp_shared::episode` (controller, plant move from
-//!   `streams::AGENT`, collision check, slot, update, leg termination); at
-//!   each decision point it publishes `waypoint` and waits for `threshold`.
-//! * [`link`] — one slot over IPC: publish `truth` and `prior`, wake the
-//!   serving sensor, wait for its `slot` (and `measurement`). A sensor that is
-//!   dead (iceoryx2 node list) or silent past [`SLOT_DEADLINE`] is a *dead
-//!   link*: the agent does prediction only, never the implicit update, and
-//!   marks the episode degraded.
+//! * [`runtime::Agent`] — one episode, step by step through
+//!   `etp_shared::episode::step` (input, plant move from `streams::AGENT`,
+//!   collision check, prior, slot update, leg end — the functions the
+//!   in-process simulation and `replay --verify` use); at each decision point
+//!   it publishes `waypoint` and waits for the coordinator's `threshold`.
+//! * [`link`] — the ports of a slot: publish `truth` and `prior`, wake the
+//!   serving sensor, take its `slot` (and `measurement`). A sensor that is
+//!   dead (iceoryx2 node list) — or, only with `--slot-deadline`, late — is a
+//!   *dead link*: the agent does prediction only, never the implicit update,
+//!   and marks the episode degraded. A live sensor is waited for, however
+//!   slow or paused.
 
 pub mod link;
 pub mod runtime;
@@ -25,8 +27,6 @@ use std::time::Duration;
 /// Silence on a slot after which the agent asks the node list whether the
 /// serving sensor still lives (so a kill -9 is seen within ~this + the list).
 pub const SLOT_CHECK: Duration = Duration::from_millis(10);
-/// A slot not closed after this long is a dead link even if the process lives.
-pub const SLOT_DEADLINE: Duration = Duration::from_secs(2);
 /// How often an agent waiting on the coordinator checks that it lives.
 pub const IDLE_CHECK: Duration = Duration::from_millis(250);
 
@@ -55,6 +55,11 @@ pub struct Args {
     /// Built-in scenario name or TOML path.
     #[arg(long)]
     pub scenario: String,
+    /// Real-time studies: a slot not closed within MS milliseconds is a dead
+    /// link even if the sensor process lives (reported as a fault). Default:
+    /// a live sensor is waited for, however slow.
+    #[arg(long, value_name = "MS")]
+    pub slot_deadline: Option<u64>,
 }
 
 /// How the agent ended.
@@ -80,7 +85,8 @@ pub struct AgentStats {
 pub fn run(args: &Args) -> Result<(Exit, AgentStats), AgentError> {
     let run = RunId::new(&args.run_id)?;
     let scenario = wire::load_scenario(&args.scenario).map_err(AgentError::Scenario)?;
-    etp_shared::with_dim!(scenario.dim, N => runtime::Agent::<N>::new(&run, &scenario)?.serve())
+    let deadline = args.slot_deadline.map(Duration::from_millis);
+    etp_shared::with_dim!(scenario.dim, N => runtime::Agent::<N>::new(&run, &scenario, deadline)?.serve())
 }
 
 /// The process entry point (`main` of the binary, and `etp process <name>`
@@ -95,7 +101,8 @@ where
     use std::process::ExitCode;
     // Prints help or the usage error and exits (0 or 2), as `main` would.
     let args = Args::parse_from(args);
-    etp_shared::wire::init_process_logging();
+    etp_shared::wire::init_process_logging("etp-agent");
+    let _span = tracing::info_span!("agent").entered();
     match crate::run(&args) {
         Ok((exit, stats)) => {
             tracing::info!(?exit, ?stats, "agent done");

@@ -1,28 +1,50 @@
-//! The agent's episodes over IPC: the rules of `etp_shared::episode`, with the
-//! slot done by a sensor process and the threshold chosen by the coordinator.
+//! The agent's episodes over IPC: the step of `etp_shared::episode::step`
+//! (the same functions the in-process simulation and `replay --verify` use),
+//! with the slot served by a sensor process and the threshold chosen by the
+//! coordinator.
+//!
+//! The agent waits in exactly one place, [`Agent::wait_until`], on its
+//! wake-up event; what a silence means depends on whom it waits for
+//! ([`Awaiting`]): the coordinator (idle, or a decision point) is checked by
+//! the watchdog every [`IDLE_CHECK`]; the serving sensor is checked in the
+//! node list every [`SLOT_CHECK`] of silence. A live process is waited for,
+//! however slow or paused; only a dead one (or, with `--slot-deadline`, a
+//! late one) makes a dead link.
 
 use crate::link::{Fault, Links, SlotResult};
-use crate::{AgentError, AgentStats, Exit, IDLE_CHECK};
-use etp_shared::controller::{reached, waypoint_input};
-use etp_shared::episode::CompiledScenario;
+use crate::{AgentError, AgentStats, Exit, IDLE_CHECK, SLOT_CHECK};
+use etp_shared::episode::{CompiledScenario, SlotOutcome};
 use etp_shared::etkf::Threshold as Th;
-use etp_shared::geometry::first_containing;
 use etp_shared::rng::{stream_rng, streams};
 use etp_shared::scenario::Scenario;
 use etp_shared::wire::agent_to_coordinator::{Outcome, Waypoint};
 use etp_shared::wire::coordinator_to_agent::Control;
-use etp_shared::wire::coordinator_to_all::Threshold;
 use etp_shared::wire::to_coordinator::Hello;
 use etp_shared::wire::{
-    self, AGENT_NODE, COORDINATOR_NODE, Header, Listener, Liveness, Notifier, Ports, Pub,
-    SENDER_AGENT, ServiceId, Sub, belief_to_wire,
+    self, AGENT_NODE, COORDINATOR_NODE, Liveness, Notifier, Ports, Pub, SENDER_AGENT, ServiceId,
+    Stamper, Sub, Waiter, Wake, Watchdog, belief_to_wire,
 };
 use iceoryx2::prelude::*;
-use std::time::Instant;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-/// What the agent waits for between episodes and at decision points.
-enum Next<T> {
-    Go(T),
+/// Whom a wait is for (decides what a silence means).
+#[derive(Debug, Clone, Copy)]
+enum Awaiting {
+    /// The coordinator: a start, a stop, or a leg's threshold.
+    Coordinator,
+    /// Sensor `sensor`'s slot, waited for since `since`.
+    Slot {
+        sensor: usize,
+        since: Instant,
+        since_wall: SystemTime,
+    },
+}
+
+/// How a wait ended.
+enum Waited<T> {
+    Got(T),
+    /// The awaited sensor is dead (or late past `--slot-deadline`).
+    DeadLink(Fault),
     Exit(Exit),
 }
 
@@ -30,16 +52,15 @@ enum Next<T> {
 pub struct Agent<const N: usize> {
     c: CompiledScenario<N>,
     node: Node<ipc::Service>,
-    tag: u64,
-    seq: u32,
+    stamp: Stamper,
     links: Links,
-    wake: Listener,
+    waiter: Waiter,
+    watchdog: Watchdog,
+    slot_deadline: Option<Duration>,
     control: Sub<Control>,
-    threshold: Sub<Threshold>,
     waypoint: Pub<Waypoint>,
     outcome: Pub<Outcome>,
     coordinator_wake: Notifier,
-    parent: u32,
     stats: AgentStats,
     _hello: Option<Pub<Hello>>,
 }
@@ -52,8 +73,17 @@ struct LegCounts {
     degraded: bool,
 }
 
+fn unix_ns(t: SystemTime) -> u64 {
+    t.duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
 impl<const N: usize> Agent<N> {
-    pub fn new(run: &wire::RunId, scenario: &Scenario) -> Result<Self, AgentError> {
+    pub fn new(
+        run: &wire::RunId,
+        scenario: &Scenario,
+        slot_deadline: Option<Duration>,
+    ) -> Result<Self, AgentError> {
         let node = wire::create_node(run, AGENT_NODE)?;
         let sensors = scenario.sensors.len();
         let ports = Ports {
@@ -62,55 +92,37 @@ impl<const N: usize> Agent<N> {
             sensors,
         };
         let links = Links::new(&ports)?;
-        let wake = ports.listener(ServiceId::AgentWake)?;
+        let waiter = Waiter::new(ports.listener(ServiceId::AgentWake)?);
         let control = ports.subscriber::<Control>(ServiceId::Control)?;
-        let threshold = ports.subscriber::<Threshold>(ServiceId::Threshold)?;
         let waypoint = ports.publisher::<Waypoint>(ServiceId::Waypoint)?;
         let outcome = ports.publisher::<Outcome>(ServiceId::Outcome)?;
         let coordinator_wake = ports.notifier(ServiceId::CoordinatorWake)?;
-        let mut agent = Self {
-            c: CompiledScenario::<N>::new(scenario),
-            tag: run.tag(),
-            seq: 0,
-            links,
-            wake,
-            control,
-            threshold,
-            waypoint,
-            outcome,
-            coordinator_wake,
-            parent: std::os::unix::process::parent_id(),
-            stats: AgentStats::default(),
-            _hello: None,
-            node,
-        };
-        let h = agent.header(0, 0, 0);
-        agent._hello = Some(wire::say_hello(
-            &Ports {
-                node: &agent.node,
-                run,
-                sensors,
-            },
+        let mut stamp = Stamper::new(run, SENDER_AGENT);
+        let hello = wire::say_hello(
+            &ports,
             Hello {
-                header: h,
+                header: stamp.header(0, 0, 0),
                 pid: std::process::id(),
                 _pad: 0,
             },
             wire::HELLO_TIMEOUT,
-        )?);
-        Ok(agent)
-    }
-
-    fn header(&mut self, episode: u64, leg: u32, step: u32) -> Header {
-        self.seq = self.seq.wrapping_add(2);
-        Header {
-            run: self.tag,
-            episode,
-            step,
-            leg,
-            sender: SENDER_AGENT,
-            seq: self.seq,
-        }
+        )?;
+        Ok(Self {
+            c: CompiledScenario::<N>::new(scenario),
+            stamp,
+            links,
+            waiter,
+            // `say_hello` waited for the coordinator's subscriber: it was alive.
+            watchdog: Watchdog::new(COORDINATOR_NODE, true, 1),
+            slot_deadline,
+            control,
+            waypoint,
+            outcome,
+            coordinator_wake,
+            stats: AgentStats::default(),
+            _hello: Some(hello),
+            node,
+        })
     }
 
     fn notify_coordinator(&self) -> Result<(), AgentError> {
@@ -122,113 +134,149 @@ impl<const N: usize> Agent<N> {
 
     /// Serve episodes until stopped.
     pub fn serve(mut self) -> Result<(Exit, AgentStats), AgentError> {
-        // `say_hello` waited for the coordinator's subscriber: it was alive.
-        let mut seen_coordinator = true;
         loop {
-            let next = self.wait(&mut seen_coordinator, |a| {
-                while let Some(s) = a
-                    .control
-                    .receive()
-                    .map_err(|e| AgentError::Receive("control", format!("{e:?}")))?
-                {
-                    let c: Control = *s;
-                    if c.header.run != a.tag {
-                        continue;
-                    }
-                    match c.kind {
-                        Control::START => return Ok(Some(Next::Go((c.header.episode, c.seed)))),
-                        Control::STOP => return Ok(Some(Next::Exit(Exit::Stopped))),
-                        _ => {}
-                    }
-                }
-                Ok(None)
-            })?;
-            match next {
-                Next::Go((episode, seed)) => {
+            let start = self.wait_until(Awaiting::Coordinator, |a| a.take_control())?;
+            match start {
+                Waited::Got(Some((episode, seed))) => {
                     let started = Instant::now();
-                    let r = self.episode(episode, seed, &mut seen_coordinator)?;
+                    let r = self.episode(episode, seed)?;
                     self.stats.busy_seconds += started.elapsed().as_secs_f64();
                     if let Some(exit) = r {
                         return Ok((exit, self.stats));
                     }
                 }
-                Next::Exit(exit) => return Ok((exit, self.stats)),
+                Waited::Got(None) => return Ok((Exit::Stopped, self.stats)),
+                Waited::Exit(exit) => return Ok((exit, self.stats)),
+                Waited::DeadLink(_) => unreachable!("no slot awaited"),
             }
         }
     }
 
-    /// Block on the agent's wake-up event until `poll` yields something;
-    /// every [`IDLE_CHECK`] of silence, check signals and the coordinator.
-    fn wait<T>(
-        &mut self,
-        seen_coordinator: &mut bool,
-        mut poll: impl FnMut(&mut Self) -> Result<Option<Next<T>>, AgentError>,
-    ) -> Result<Next<T>, AgentError> {
-        loop {
-            if let Some(n) = poll(self)? {
-                return Ok(n);
-            }
-            let woke = match self.wake.timed_wait(|_| {}, IDLE_CHECK) {
-                Ok(n) => n,
-                // A signal interrupts the wait: it is a termination request.
-                Err(_) if wire::termination_requested(&self.node) => {
-                    return Ok(Next::Exit(Exit::Signal));
-                }
-                Err(e) => return Err(AgentError::Receive("agent wake", format!("{e:?}"))),
-            };
-            if woke > 0 {
+    /// `control`: `Some(Some(start))`, `Some(None)` for stop, `None` if nothing.
+    fn take_control(&mut self) -> Result<Option<Option<(u64, u64)>>, AgentError> {
+        let tag = self.stamp.tag();
+        while let Some(s) = self
+            .control
+            .receive()
+            .map_err(|e| AgentError::Receive("control", format!("{e:?}")))?
+        {
+            let c: Control = *s;
+            if c.header.run != tag {
                 continue;
             }
-            if wire::termination_requested(&self.node) {
-                return Ok(Next::Exit(Exit::Signal));
+            match c.kind {
+                Control::START => return Ok(Some(Some((c.header.episode, c.seed)))),
+                Control::STOP => return Ok(Some(None)),
+                _ => {}
             }
-            if std::os::unix::process::parent_id() != self.parent {
-                return Ok(Next::Exit(Exit::CoordinatorGone));
+        }
+        Ok(None)
+    }
+
+    /// THE wait of the agent: poll, then block on the wake-up event until
+    /// `poll` yields something. Interrupted waits resume (`Waiter`); a
+    /// silence is checked against whom we await.
+    fn wait_until<T>(
+        &mut self,
+        awaiting: Awaiting,
+        mut poll: impl FnMut(&mut Self) -> Result<Option<T>, AgentError>,
+    ) -> Result<Waited<T>, AgentError> {
+        loop {
+            if let Some(v) = poll(self)? {
+                return Ok(Waited::Got(v));
             }
-            match wire::liveness(self.node.config(), COORDINATOR_NODE) {
-                Liveness::Alive => *seen_coordinator = true,
-                Liveness::Missing if !*seen_coordinator => {}
-                Liveness::Dead | Liveness::Missing => return Ok(Next::Exit(Exit::CoordinatorGone)),
+            let timeout = match awaiting {
+                Awaiting::Coordinator => IDLE_CHECK,
+                Awaiting::Slot { .. } => SLOT_CHECK,
+            };
+            match self.waiter.wait(&self.node, timeout)? {
+                Wake::Notified { .. } => continue,
+                Wake::Terminate => return Ok(Waited::Exit(Exit::Signal)),
+                Wake::Silence => {}
+            }
+            match awaiting {
+                Awaiting::Coordinator => {
+                    if self.watchdog.gone(self.node.config(), false) {
+                        return Ok(Waited::Exit(Exit::CoordinatorGone));
+                    }
+                }
+                Awaiting::Slot {
+                    sensor,
+                    since,
+                    since_wall,
+                } => {
+                    if self.watchdog.parent_gone() {
+                        return Ok(Waited::Exit(Exit::CoordinatorGone));
+                    }
+                    let late = self.slot_deadline.is_some_and(|d| since.elapsed() >= d);
+                    let name = wire::sensor_node_name(sensor);
+                    if late || wire::peek_liveness(self.node.config(), &name) != Liveness::Alive {
+                        // The verdict's time, before the dead node's cleanup,
+                        // which can take tens of milliseconds.
+                        let fault = Fault {
+                            sensor: sensor as u32,
+                            detect_us: since.elapsed().as_micros() as u64,
+                            wait_started_unix_ns: unix_ns(since_wall),
+                            detected_unix_ns: unix_ns(SystemTime::now()),
+                        };
+                        // One last look: the slot may have closed just before.
+                        if let Some(v) = poll(self)? {
+                            return Ok(Waited::Got(v));
+                        }
+                        return Ok(Waited::DeadLink(fault));
+                    }
+                }
             }
         }
     }
 
-    /// Wait for the coordinator to open `leg` of `episode`: (δ, serving sensor).
-    fn wait_open(
+    /// One slot at `sensor` for (episode, leg, step k).
+    fn slot(
         &mut self,
         episode: u64,
         leg: u32,
-        seen: &mut bool,
-    ) -> Result<Next<(f64, usize)>, AgentError> {
-        self.wait(seen, |a| {
-            while let Some(s) = a
-                .threshold
-                .receive()
-                .map_err(|e| AgentError::Receive("threshold", format!("{e:?}")))?
-            {
-                let t: Threshold = *s;
-                if t.header.run != a.tag {
-                    continue;
-                }
-                match t.kind {
-                    Threshold::STOP => return Ok(Some(Next::Exit(Exit::Stopped))),
-                    Threshold::OPEN if t.header.episode == episode && t.header.leg == leg => {
-                        return Ok(Some(Next::Go((t.delta, t.sensor as usize))));
-                    }
-                    _ => {}
-                }
+        k: u32,
+        sensor: usize,
+        x: &etp_shared::etkf::Vector<N>,
+        prior: &etp_shared::etkf::Belief<N>,
+    ) -> Result<Result<(SlotResult, Option<Fault>), Exit>, AgentError> {
+        if !self.links.alive[sensor] {
+            return Ok(Ok((SlotResult::Dead(None), None)));
+        }
+        let th = self.stamp.header(episode, leg, k);
+        let ph = self.stamp.header(episode, leg, k);
+        self.links.open_slot(sensor, th, ph, x, prior)?;
+        let who = sensor as u32;
+        let awaiting = Awaiting::Slot {
+            sensor,
+            since: Instant::now(),
+            since_wall: SystemTime::now(),
+        };
+        match self.wait_until(awaiting, |a| a.links.take_slot(episode, k, who))? {
+            Waited::Got(y) => Ok(Ok((SlotResult::Closed(y), None))),
+            Waited::Exit(e) => Ok(Err(e)),
+            Waited::DeadLink(fault) => {
+                self.links.alive[sensor] = false;
+                let y = self.links.take_measurement(episode, k, who)?;
+                tracing::warn!(
+                    episode,
+                    leg,
+                    step = k,
+                    sensor,
+                    detect_us = fault.detect_us,
+                    "dead link: prediction only from here"
+                );
+                // Its ports go, so the others' counts drop and listeners get
+                // the dead-notifier event.
+                wire::remove_dead_nodes(self.node.config());
+                Ok(Ok((SlotResult::Dead(y), Some(fault))))
             }
-            Ok(None)
-        })
+        }
     }
 
     /// One episode; `Some(exit)` if the process must stop.
-    fn episode(
-        &mut self,
-        episode: u64,
-        seed: u64,
-        seen: &mut bool,
-    ) -> Result<Option<Exit>, AgentError> {
+    fn episode(&mut self, episode: u64, seed: u64) -> Result<Option<Exit>, AgentError> {
+        tracing::debug!(episode, "episode start");
         let mut rng = stream_rng(seed, streams::AGENT, episode);
         let mut state = self.c.initial_state(&mut rng);
         let mut k: u32 = 0;
@@ -238,10 +286,11 @@ impl<const N: usize> Agent<N> {
             ..Outcome::default()
         };
         let legs = self.c.legs.len();
+        let tag = self.stamp.tag();
         for leg in 0..legs {
             let leg32 = leg as u32;
             let (mean, cov) = belief_to_wire(&state.belief);
-            let header = self.header(episode, leg32, k);
+            let header = self.stamp.header(episode, leg32, k);
             self.waypoint
                 .send_copy(Waypoint {
                     header,
@@ -254,9 +303,19 @@ impl<const N: usize> Agent<N> {
                 })
                 .map_err(|e| AgentError::Send("waypoint", format!("{e:?}")))?;
             self.notify_coordinator()?;
-            let (delta, sensor) = match self.wait_open(episode, leg32, seen)? {
-                Next::Go(v) => v,
-                Next::Exit(e) => return Ok(Some(e)),
+            let opened = self.wait_until(Awaiting::Coordinator, |a| {
+                // The coordinator starts an episode only after the previous
+                // one's outcome: a control message now is its stop.
+                if a.take_control()?.is_some() {
+                    return Ok(Some(None));
+                }
+                Ok(a.links.take_open(tag, episode, leg32)?.map(Some))
+            })?;
+            let (delta, sensor) = match opened {
+                Waited::Got(Some(v)) => v,
+                Waited::Got(None) => return Ok(Some(Exit::Stopped)),
+                Waited::Exit(e) => return Ok(Some(e)),
+                Waited::DeadLink(_) => unreachable!("no slot awaited"),
             };
             if sensor != self.c.legs[leg].sensor {
                 return Err(AgentError::Protocol(format!(
@@ -264,65 +323,56 @@ impl<const N: usize> Agent<N> {
                     self.c.legs[leg].sensor
                 )));
             }
-            let th = Th::new(delta);
-            let w = self.c.legs[leg].waypoint;
+            let beta = Th::new(delta).beta;
             let mut counts = LegCounts::default();
             loop {
-                // MODEL.md §3, steps 1–5, in this order.
-                let u = waypoint_input(&state.belief.mean, &w, self.c.u_max);
-                state.x = self.c.plant.step(&state.x, &u, &mut rng);
+                // docs/MODEL.md §3 through episode::step, in this order.
+                let u = self.c.input(leg, &state.belief);
+                let collided = self.c.move_plant(&mut state.x, &u, &mut rng);
                 k += 1;
                 counts.steps += 1;
                 totals.steps += 1;
-                if first_containing(&self.c.obstacles, &state.x).is_some() {
+                if collided.is_some() {
                     totals.outcome = Outcome::COLLISION;
                     return self
                         .finish(episode, leg32, k, counts, totals)
                         .map(|()| None);
                 }
-                let prior = self.c.plant.predict(&state.belief, &u);
-                let result = if self.links.alive[sensor] {
-                    let h = self.header(episode, leg32, k);
-                    let wake = &self.wake;
-                    let (r, fault) = self.links.exchange(wake, h, sensor, &state.x, &prior)?;
-                    if let Some(f) = fault {
-                        record_fault(&mut totals, &f);
-                    }
-                    r
-                } else {
-                    SlotResult::Dead(None)
-                };
+                let prior = self.c.prior(&state.belief, &u);
+                let (result, fault) =
+                    match self.slot(episode, leg32, k, sensor, &state.x, &prior)? {
+                        Ok(r) => r,
+                        Err(exit) => return Ok(Some(exit)),
+                    };
+                if let Some(f) = fault {
+                    record_fault(&mut totals, &f);
+                }
                 totals.slots += 1;
-                state.belief = match result {
-                    SlotResult::Closed(y) => {
-                        counts.received += u32::from(y.is_some());
-                        self.c.filters[sensor].posterior(
-                            &prior,
-                            y.as_ref().map(|y| &y[..]),
-                            th.beta,
-                        )
-                    }
+                let (slot, y) = match result {
+                    SlotResult::Closed(Some(y)) => (true, Some(y)),
+                    SlotResult::Closed(None) => (true, None),
                     SlotResult::Dead(y) => {
                         counts.degraded = true;
                         totals.degraded = 1;
                         totals.dead_slots += 1;
-                        counts.received += u32::from(y.is_some());
-                        match y {
-                            Some(y) => self.c.filters[sensor].posterior(&prior, Some(&y[..]), 0.0),
-                            // Silence from a dead link carries no information.
-                            None => prior,
-                        }
+                        (false, y)
                     }
                 };
-                if reached(&state.belief.mean, &w, self.c.eps_x) || counts.steps >= self.c.k_max {
+                counts.received += u32::from(y.is_some());
+                let outcome = match (&y, slot) {
+                    (Some(y), _) => SlotOutcome::Transmitted(&y[..]),
+                    (None, true) => SlotOutcome::Silent,
+                    (None, false) => SlotOutcome::Dead,
+                };
+                state.belief = self.c.close_slot(leg, &prior, outcome, beta);
+                if self.c.leg_ends(leg, &state.belief, counts.steps) {
                     break;
                 }
             }
             if leg + 1 == legs {
-                totals.outcome = if self.c.target.contains(&state.x) {
-                    Outcome::TARGET
-                } else {
-                    Outcome::FREE
+                totals.outcome = match self.c.classify_end(&state.x) {
+                    etp_shared::episode::Outcome::Target => Outcome::TARGET,
+                    _ => Outcome::FREE,
                 };
                 return self
                     .finish(episode, leg32, k, counts, totals)
@@ -342,7 +392,7 @@ impl<const N: usize> Agent<N> {
         last: LegCounts,
         mut o: Outcome,
     ) -> Result<(), AgentError> {
-        o.header = self.header(episode, leg, k);
+        o.header = self.stamp.header(episode, leg, k);
         o.last_steps = last.steps;
         o.last_received = last.received;
         o.received += last.received;
@@ -350,6 +400,14 @@ impl<const N: usize> Agent<N> {
         self.stats.steps += u64::from(o.steps);
         self.stats.received += u64::from(o.received);
         self.stats.dead_slots += u64::from(o.dead_slots);
+        tracing::debug!(
+            episode,
+            outcome = o.outcome,
+            steps = o.steps,
+            received = o.received,
+            degraded = o.degraded,
+            "episode end"
+        );
         self.outcome
             .send_copy(o)
             .map_err(|e| AgentError::Send("outcome", format!("{e:?}")))?;

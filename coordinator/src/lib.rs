@@ -95,13 +95,21 @@ where
     use std::process::ExitCode;
     // Prints help or the usage error and exits (0 or 2), as `main` would.
     let args = Args::parse_from(args);
-    etp_shared::wire::init_process_logging();
+    etp_shared::wire::init_process_logging("etp-coordinator");
+    let _span = tracing::info_span!("coordinator").entered();
     let result = crate::run(&args)
         .context("coordinator")
         .and_then(|r| serde_json::to_string(&r).context("encoding the report"));
     match result {
         Ok(json) => {
-            println!("{json}");
+            // The supervisor reads the report; if it is gone (its end of the
+            // pipe closed), there is no one to tell: exit quietly, no panic.
+            use std::io::Write;
+            let mut out = std::io::stdout().lock();
+            if writeln!(out, "{json}").and_then(|()| out.flush()).is_err() {
+                tracing::warn!("report not delivered: stdout closed");
+                return ExitCode::FAILURE;
+            }
             ExitCode::SUCCESS
         }
         Err(e) => {

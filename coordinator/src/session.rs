@@ -11,8 +11,8 @@ use etp_shared::wire::report::{EpisodeRecord, FaultRecord, LegRecord, RunReport,
 use etp_shared::wire::sensor_to_coordinator::Ledger;
 use etp_shared::wire::to_coordinator::Hello;
 use etp_shared::wire::{
-    self, AGENT_NODE, COORDINATOR_NODE, Header, Listener, Liveness, Notifier, Ports, Pub, RunId,
-    SENDER_AGENT, SENDER_COORDINATOR, ServiceId, Sub, to_wire_vec,
+    self, AGENT_NODE, COORDINATOR_NODE, Liveness, Notifier, Ports, Pub, RunId, SENDER_AGENT,
+    SENDER_COORDINATOR, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, to_wire_vec,
 };
 use iceoryx2::prelude::*;
 use nalgebra::DMatrix;
@@ -22,7 +22,8 @@ use std::time::{Duration, Instant};
 
 /// Silence after which the coordinator checks that the agent lives.
 const IDLE_CHECK: Duration = Duration::from_millis(250);
-/// After the last episode: how long to wait for outstanding ledgers.
+/// After a termination request: how long to wait for outstanding ledgers
+/// (without one, the ledgers of live sensors are waited for, however slow).
 const LEDGER_GRACE: Duration = Duration::from_secs(2);
 
 pub struct Coordinator<'a> {
@@ -31,11 +32,12 @@ pub struct Coordinator<'a> {
     strategy: &'a Strategy,
     seed: u64,
     node: Node<ipc::Service>,
-    tag: u64,
-    seq: u32,
-    wake: Listener,
+    stamp: Stamper,
+    waiter: Waiter,
+    watchdog: Watchdog,
     control: Pub<Control>,
-    threshold: Pub<Threshold>,
+    /// One `threshold` service per sensor (read by it and by the agent).
+    threshold: Vec<Pub<Threshold>>,
     waypoint: Sub<Waypoint>,
     outcome: Sub<Outcome>,
     ledger: Sub<Ledger>,
@@ -43,7 +45,8 @@ pub struct Coordinator<'a> {
     agent_wake: Notifier,
     sensor_wake: Vec<Notifier>,
     ledgers: HashMap<(u64, u32), Ledger>,
-    parent: u32,
+    /// A termination signal was received: finish the report, do not wait.
+    terminating: bool,
 }
 
 impl<'a> Coordinator<'a> {
@@ -61,9 +64,12 @@ impl<'a> Coordinator<'a> {
             sensors,
         };
         Ok(Self {
-            wake: ports.listener(ServiceId::CoordinatorWake)?,
+            waiter: Waiter::new(ports.listener(ServiceId::CoordinatorWake)?),
+            watchdog: Watchdog::new(AGENT_NODE, false, 1),
             control: ports.publisher(ServiceId::Control)?,
-            threshold: ports.publisher(ServiceId::Threshold)?,
+            threshold: (0..sensors)
+                .map(|i| ports.publisher(ServiceId::Threshold(i)))
+                .collect::<Result<_, _>>()?,
             waypoint: ports.subscriber(ServiceId::Waypoint)?,
             outcome: ports.subscriber(ServiceId::Outcome)?,
             ledger: ports.subscriber(ServiceId::Ledger)?,
@@ -76,23 +82,24 @@ impl<'a> Coordinator<'a> {
             scenario,
             strategy,
             seed,
-            tag: run.tag(),
-            seq: 0,
+            stamp: Stamper::new(run, SENDER_COORDINATOR),
             ledgers: HashMap::new(),
-            parent: std::os::unix::process::parent_id(),
+            terminating: false,
             node,
         })
     }
 
-    fn header(&mut self, episode: u64, leg: u32) -> Header {
-        self.seq = self.seq.wrapping_add(1);
-        Header {
-            run: self.tag,
-            episode,
-            step: 0,
-            leg,
-            sender: SENDER_COORDINATOR,
-            seq: self.seq,
+    /// THE wait of the coordinator: until notified (`true`) or a silence of
+    /// `timeout` (`false`). Interrupted waits resume; a termination request
+    /// is remembered in `self.terminating` and ends the wait.
+    fn wait(&mut self, timeout: Duration) -> Result<bool, CoordinatorError> {
+        match self.waiter.wait(&self.node, timeout)? {
+            Wake::Notified { .. } => Ok(true),
+            Wake::Silence => Ok(false),
+            Wake::Terminate => {
+                self.terminating = true;
+                Ok(false)
+            }
         }
     }
 
@@ -109,7 +116,7 @@ impl<'a> Coordinator<'a> {
                 .map_err(|e| CoordinatorError::Receive("hello", format!("{e:?}")))?
             {
                 let h = s.header;
-                if h.run != self.tag {
+                if h.run != self.stamp.tag() {
                     continue;
                 }
                 if h.sender == SENDER_AGENT {
@@ -133,9 +140,13 @@ impl<'a> Coordinator<'a> {
                 }
                 return Err(CoordinatorError::Startup(timeout, missing.join(", ")));
             }
-            self.wake
-                .timed_wait(|_| {}, Duration::from_millis(50))
-                .map_err(|e| CoordinatorError::Receive("coordinator wake", format!("{e:?}")))?;
+            self.wait(Duration::from_millis(50))?;
+            if self.terminating {
+                return Err(CoordinatorError::Startup(
+                    start.elapsed(),
+                    "interrupted before every process was ready".into(),
+                ));
+            }
         }
     }
 
@@ -148,8 +159,8 @@ impl<'a> Coordinator<'a> {
         delta_index: u32,
         delta: f64,
     ) -> Result<(), CoordinatorError> {
-        let header = self.header(episode, leg);
-        self.threshold
+        let header = self.stamp.header(episode, leg, 0);
+        self.threshold[sensor as usize]
             .send_copy(Threshold {
                 header,
                 kind,
@@ -182,7 +193,7 @@ impl<'a> Coordinator<'a> {
             .map_err(|e| CoordinatorError::Receive("ledger", format!("{e:?}")))?
         {
             let l: Ledger = *s;
-            if l.header.run == self.tag {
+            if l.header.run == self.stamp.tag() {
                 self.ledgers.insert((l.header.episode, l.header.leg), l);
             }
         }
@@ -225,6 +236,10 @@ impl<'a> Coordinator<'a> {
     }
 
     /// Run `episodes` episodes, stop every process, return the report.
+    ///
+    /// A termination request (SIGINT/SIGTERM) or the supervisor's death ends
+    /// the run after the episodes completed so far: their ledgers are still
+    /// collected and reported, the others stopped.
     pub fn run_episodes(&mut self, episodes: u64) -> Result<RunReport, CoordinatorError> {
         let mut records: Vec<EpisodeRecord> = Vec::new();
         let mut faults: Vec<FaultRecord> = Vec::new();
@@ -232,8 +247,13 @@ impl<'a> Coordinator<'a> {
         let started = Instant::now();
         let initial = initial_wire(&self.scenario.plant);
         'episodes: for episode in 0..episodes {
+            if self.terminating || self.watchdog.parent_gone() {
+                aborted = Some(self.abort_reason(episode));
+                break;
+            }
+            tracing::debug!(episode, "episode start");
             let mut rng = stream_rng(self.seed, streams::COORDINATOR, episode);
-            let header = self.header(episode, 0);
+            let header = self.stamp.header(episode, 0, 0);
             self.control
                 .send_copy(Control {
                     header,
@@ -247,80 +267,21 @@ impl<'a> Coordinator<'a> {
             Self::notify(&self.agent_wake, "agent wake")?;
             let mut legs = Vec::new();
             loop {
-                let mut progressed = false;
-                while let Some(s) = self
-                    .waypoint
-                    .receive()
-                    .map_err(|e| CoordinatorError::Receive("waypoint", format!("{e:?}")))?
-                {
-                    let w: Waypoint = *s;
-                    if w.header.run == self.tag && w.header.episode == episode {
-                        progressed = true;
-                        self.decide(&w, &mut rng, &mut legs)?;
-                    }
-                }
-                let mut done = None;
-                while let Some(s) = self
-                    .outcome
-                    .receive()
-                    .map_err(|e| CoordinatorError::Receive("outcome", format!("{e:?}")))?
-                {
-                    let o: Outcome = *s;
-                    if o.header.run == self.tag && o.header.episode == episode {
-                        done = Some(o);
-                    }
-                }
-                self.drain_ledgers()?;
+                let (progressed, done) =
+                    self.take_episode_messages(episode, &mut rng, &mut legs)?;
                 if let Some(o) = done {
-                    if let Some(last) = legs.last_mut() {
-                        last.steps = o.last_steps;
-                        last.received = o.last_received;
-                    }
-                    self.close(episode, o.header.leg)?;
-                    if o.dead_sensor != u32::MAX {
-                        faults.push(FaultRecord {
-                            episode,
-                            sensor: self.sensor_name(o.dead_sensor),
-                            detect_ms: o.detect_us as f64 / 1000.0,
-                            wait_started_unix_ns: o.wait_started_unix_ns,
-                            detected_unix_ns: o.detected_unix_ns,
-                            dead_slots: o.dead_slots,
-                        });
-                    }
-                    records.push(EpisodeRecord {
-                        episode,
-                        outcome: match o.outcome {
-                            Outcome::TARGET => "target",
-                            Outcome::COLLISION => "collision",
-                            _ => "free",
-                        }
-                        .to_string(),
-                        degraded: o.degraded != 0,
-                        steps: o.steps,
-                        energy: 0.0,
-                        legs,
-                    });
+                    records.push(self.end_episode(episode, &o, legs, &mut faults)?);
                     break;
                 }
-                if progressed {
+                if progressed || self.wait(IDLE_CHECK)? {
                     continue;
                 }
-                let woke = self
-                    .wake
-                    .timed_wait(|_| {}, IDLE_CHECK)
-                    .map_err(|e| CoordinatorError::Receive("coordinator wake", format!("{e:?}")))?;
-                if woke > 0 {
-                    continue;
-                }
-                if wire::termination_requested(&self.node) {
-                    aborted = Some(format!("interrupted during episode {episode}"));
+                if self.terminating || self.watchdog.parent_gone() {
+                    aborted = Some(self.abort_reason(episode));
                     break 'episodes;
                 }
-                if std::os::unix::process::parent_id() != self.parent {
-                    aborted = Some(format!("supervisor gone during episode {episode}"));
-                    break 'episodes;
-                }
-                if wire::liveness(self.node.config(), AGENT_NODE) != Liveness::Alive {
+                // A live agent is waited for, however slow or paused.
+                if self.watchdog.gone(self.node.config(), true) {
                     self.stop()?;
                     return Err(CoordinatorError::AgentDied(episode));
                 }
@@ -329,7 +290,95 @@ impl<'a> Coordinator<'a> {
         let seconds = started.elapsed().as_secs_f64();
         self.collect_ledgers(&records)?;
         self.stop()?;
+        if let Some(why) = &aborted {
+            tracing::warn!(episodes = records.len(), "{why}");
+        }
         Ok(self.report(episodes, records, faults, seconds, aborted))
+    }
+
+    fn abort_reason(&self, episode: u64) -> String {
+        if self.terminating {
+            format!("interrupted during episode {episode}")
+        } else {
+            format!("supervisor gone during episode {episode}")
+        }
+    }
+
+    /// Drain waypoints (decide each), outcomes and ledgers; (anything
+    /// decided, the episode's outcome if it came).
+    fn take_episode_messages(
+        &mut self,
+        episode: u64,
+        rng: &mut SimRng,
+        legs: &mut Vec<LegRecord>,
+    ) -> Result<(bool, Option<Outcome>), CoordinatorError> {
+        let tag = self.stamp.tag();
+        let mut progressed = false;
+        while let Some(s) = self
+            .waypoint
+            .receive()
+            .map_err(|e| CoordinatorError::Receive("waypoint", format!("{e:?}")))?
+        {
+            let w: Waypoint = *s;
+            if w.header.run == tag && w.header.episode == episode {
+                progressed = true;
+                self.decide(&w, rng, legs)?;
+            }
+        }
+        let mut done = None;
+        while let Some(s) = self
+            .outcome
+            .receive()
+            .map_err(|e| CoordinatorError::Receive("outcome", format!("{e:?}")))?
+        {
+            let o: Outcome = *s;
+            if o.header.run == tag && o.header.episode == episode {
+                done = Some(o);
+            }
+        }
+        self.drain_ledgers()?;
+        Ok((progressed, done))
+    }
+
+    /// The episode's outcome came: close its last leg, record it.
+    fn end_episode(
+        &mut self,
+        episode: u64,
+        o: &Outcome,
+        mut legs: Vec<LegRecord>,
+        faults: &mut Vec<FaultRecord>,
+    ) -> Result<EpisodeRecord, CoordinatorError> {
+        if let Some(last) = legs.last_mut() {
+            last.steps = o.last_steps;
+            last.received = o.last_received;
+        }
+        self.close(episode, o.header.leg)?;
+        if o.dead_sensor != u32::MAX {
+            let sensor = self.sensor_name(o.dead_sensor);
+            tracing::warn!(episode, %sensor, detect_us = o.detect_us, "dead link");
+            faults.push(FaultRecord {
+                episode,
+                sensor,
+                detect_ms: o.detect_us as f64 / 1000.0,
+                wait_started_unix_ns: o.wait_started_unix_ns,
+                detected_unix_ns: o.detected_unix_ns,
+                dead_slots: o.dead_slots,
+            });
+        }
+        let outcome = match o.outcome {
+            Outcome::TARGET => "target",
+            Outcome::COLLISION => "collision",
+            _ => "free",
+        };
+        tracing::debug!(episode, outcome, steps = o.steps, "episode end");
+        Ok(EpisodeRecord {
+            episode,
+            outcome: outcome.to_string(),
+            degraded: o.degraded != 0,
+            steps: o.steps,
+            energy: 0.0,
+            legs,
+        })
     }
 
     fn sensor_name(&self, i: u32) -> String {
@@ -339,43 +388,54 @@ impl<'a> Coordinator<'a> {
             .map_or_else(|| format!("#{i}"), |s| s.name.clone())
     }
 
-    /// Wait (bounded) for the ledgers of every leg of every episode, skipping
-    /// sensors that are dead.
+    /// Wait for the ledgers of every leg of every recorded episode: as long
+    /// as their sensors live, however slow (a ledger is never given up on a
+    /// live sensor), except after a termination request, which leaves
+    /// [`LEDGER_GRACE`]. A dead sensor's ledgers are missing.
     fn collect_ledgers(&mut self, records: &[EpisodeRecord]) -> Result<(), CoordinatorError> {
-        let deadline = Instant::now() + LEDGER_GRACE;
+        let mut grace_end = None;
         loop {
             self.drain_ledgers()?;
-            let missing: Vec<u32> = records
+            let mut missing: Vec<u32> = records
                 .iter()
                 .flat_map(|r| r.legs.iter().map(move |l| (r.episode, l)))
                 .filter(|(e, l)| !self.ledgers.contains_key(&(*e, l.leg)))
                 .map(|(_, l)| l.sensor)
                 .collect();
-            if missing.is_empty() || Instant::now() >= deadline {
+            if missing.is_empty() {
                 return Ok(());
             }
-            let cfg = self.node.config().clone();
-            let all_dead = missing.iter().all(|s| {
-                wire::liveness(&cfg, &wire::sensor_node_name(*s as usize)) != Liveness::Alive
-            });
-            if all_dead {
-                return Ok(());
+            if self.terminating || self.watchdog.parent_gone() {
+                let end = *grace_end.get_or_insert_with(|| Instant::now() + LEDGER_GRACE);
+                if Instant::now() >= end {
+                    return Ok(());
+                }
             }
-            self.wake
-                .timed_wait(|_| {}, Duration::from_millis(20))
-                .map_err(|e| CoordinatorError::Receive("coordinator wake", format!("{e:?}")))?;
+            if !self.wait(Duration::from_millis(50))? {
+                missing.sort_unstable();
+                missing.dedup();
+                let cfg = self.node.config().clone();
+                let all_dead = missing.iter().all(|s| {
+                    wire::liveness(&cfg, &wire::sensor_node_name(*s as usize)) != Liveness::Alive
+                });
+                if all_dead {
+                    return Ok(());
+                }
+            }
         }
     }
 
     /// Tell the agent and every sensor to exit.
     fn stop(&mut self) -> Result<(), CoordinatorError> {
-        let header = self.header(u64::MAX, 0);
+        let header = self.stamp.header(u64::MAX, 0, 0);
         let _ = self.control.send_copy(Control {
             header,
             kind: Control::STOP,
             ..Control::default()
         });
-        self.send_threshold(u64::MAX, 0, Threshold::STOP, u32::MAX, 0, 0.0)?;
+        for sensor in 0..self.threshold.len() {
+            self.send_threshold(u64::MAX, 0, Threshold::STOP, sensor as u32, 0, 0.0)?;
+        }
         let _ = self.agent_wake.notify();
         for n in &self.sensor_wake {
             let _ = n.notify();

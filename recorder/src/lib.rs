@@ -225,7 +225,7 @@ where
 {
     // Prints help or the usage error and exits (0 or 2), as `main` would.
     let cli = Cli::parse_from(args);
-    wire::init_process_logging();
+    wire::init_process_logging("etp-recorder");
     match run(&cli) {
         Ok(v) => {
             println!("{v}");

@@ -7,23 +7,25 @@
 //! * [`run`] — opens the sensor's ports (see `etp_shared::wire`), says hello
 //!   to the coordinator and serves until `threshold` says stop or the
 //!   coordinator dies.
-//! * [`Node`](node::SensorNode) — the per-slot work: on a wake-up from the
-//!   agent it takes `truth` x_k and `prior` (x̂⁻_k, P⁻_k), measures
-//!   y_k = H x_k + v_k (noise from `streams::SENSOR`, keyed by episode and
-//!   step), whitens the innovation, triggers on ‖ε‖∞ > δ, publishes
-//!   `measurement` if it triggers and always `slot`. Its energy
-//!   [`Ledger`](node::LegLedger) per leg goes to the coordinator when the
-//!   coordinator closes the leg.
+//! * [`SensorCore`](core::SensorCore) — what each message means, as pure
+//!   functions (unit-tested without processes): `threshold` opens or closes a
+//!   leg (a close yields the leg's [`LegLedger`]); a slot takes `truth` x_k
+//!   and `prior` (x̂⁻_k, P⁻_k), measures y_k = H x_k + v_k (noise from
+//!   `streams::SENSOR`, keyed by episode and step), whitens the innovation and
+//!   triggers on ‖ε‖∞ > δ.
+//! * `node` — the thin iceoryx2 adapter: receive, call the core, publish
+//!   `measurement` (only if it triggers), `slot` and `ledger`.
 //!
-//! Waiting is a blocking `Listener::timed_wait` on the sensor's own wake-up
-//! event: an idle sensor sleeps in the kernel and wakes only every
-//! [`IDLE_CHECK`] to check its signals and its parent, and every
-//! [`LIST_EVERY`] periods (or on iceoryx2's dead-notifier event) that the
-//! coordinator still lives.
+//! The sensor waits in one place, its wake-up event (`wire::Waiter`): an idle
+//! sensor sleeps in the kernel and wakes only every [`IDLE_CHECK`] to check
+//! its parent, and every [`LIST_EVERY`] periods (or on iceoryx2's
+//! dead-notifier event) that the coordinator still lives. A SIGSTOP/SIGCONT
+//! only delays it; SIGINT/SIGTERM end it.
 
+pub mod core;
 mod node;
 
-pub use node::{LegLedger, SensorStats};
+pub use core::{LegLedger, SensorStats};
 
 use etp_shared::wire::{self, RunId, WireError};
 use std::time::Duration;
@@ -109,7 +111,8 @@ where
     use std::process::ExitCode;
     // Prints help or the usage error and exits (0 or 2), as `main` would.
     let args = Args::parse_from(args);
-    etp_shared::wire::init_process_logging();
+    etp_shared::wire::init_process_logging("etp-sensor-node");
+    let _span = tracing::info_span!("sensor", name = %args.sensor).entered();
     match crate::run(&args).with_context(|| format!("sensor `{}`", args.sensor)) {
         Ok((exit, stats)) => {
             tracing::info!(?exit, ?stats, "sensor node done");

@@ -16,11 +16,19 @@
 //!
 //! Random numbers are drawn in a fixed order per step (process noise, then
 //! measurement noise), so a seed fixes an episode completely.
+//!
+//! The pieces of one step (input, move, prior, slot update, leg end) are
+//! defined once in [`step`] and shared with the runtime agent and
+//! `etp replay --verify`.
 
-use crate::controller::{reached, waypoint_input};
+pub mod step;
+
+pub use step::SlotOutcome;
+
+use crate::controller::reached;
 use crate::etkf::{Belief, EtKalmanFilter, LinearPlant, Matrix, Threshold, Vector, sample_belief};
 use crate::gaussian;
-use crate::geometry::{StaticBox, first_containing};
+use crate::geometry::StaticBox;
 use crate::linalg::to_static_vec;
 use crate::scenario::Scenario;
 use rand::Rng;
@@ -308,10 +316,10 @@ impl<const N: usize> CompiledScenario<N> {
         };
         let mut expected_rate = gaussian::expected_rate(threshold.delta, M);
         loop {
-            let u = waypoint_input(&state.belief.mean, &w, self.u_max);
-            state.x = self.plant.step(&state.x, &u, rng);
+            let u = self.input(leg, &state.belief);
+            let collided = self.move_plant(&mut state.x, &u, rng);
             r.steps += 1;
-            if let Some(obstacle) = first_containing(&self.obstacles, &state.x) {
+            if let Some(obstacle) = collided {
                 observer.on_step(&StepEvent {
                     leg,
                     x: &state.x,
@@ -338,19 +346,20 @@ impl<const N: usize> CompiledScenario<N> {
                 transmitted: sent,
                 collided: false,
             });
-            let near = reached(&state.belief.mean, &w, self.eps_x);
             let done = match kf {
-                None => near,
+                None => self.leg_ends(leg, &state.belief, r.steps),
                 Some((eps_kf, eps_p, p_kf)) => {
+                    let near = reached(&state.belief.mean, &w, self.eps_x);
                     if !in_kf_phase && reached(&state.belief.mean, &w, eps_kf) {
                         in_kf_phase = true;
                         threshold = full_kf;
                         expected_rate = 1.0;
                     }
-                    in_kf_phase && near && (state.belief.cov - p_kf).amax() <= eps_p
+                    (in_kf_phase && near && (state.belief.cov - p_kf).amax() <= eps_p)
+                        || r.steps >= self.k_max
                 }
             };
-            if done || r.steps >= self.k_max {
+            if done {
                 return r;
             }
         }
@@ -391,11 +400,7 @@ impl<const N: usize> CompiledScenario<N> {
                 return total;
             }
         }
-        total.outcome = if self.target.contains(&state.x) {
-            Outcome::Target
-        } else {
-            Outcome::Free
-        };
+        total.outcome = self.classify_end(&state.x);
         total
     }
 }

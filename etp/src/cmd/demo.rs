@@ -172,8 +172,10 @@ pub fn run(a: Args) -> Result<()> {
         record: None,
         record_default: true,
         force: false,
+        allow_degraded: false,
+        slot_deadline: None,
     };
-    let mp = run_cmd::execute(&rargs)?;
+    let (mp, problems) = run_cmd::execute(&rargs)?;
 
     let p = &strategy.predicted;
     let num = |v: &Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
@@ -192,7 +194,7 @@ pub fn run(a: Args) -> Result<()> {
     });
     if a.json {
         println!("{}", serde_json::to_string_pretty(&result)?);
-        return Ok(());
+        return run_cmd::exit_for(&problems);
     }
     println!("\netp demo — {} — {}", scenario.name, strategy.label);
     println!(
@@ -275,5 +277,5 @@ pub fn run(a: Args) -> Result<()> {
         println!("    recording      {r}  (etp replay {r})");
     }
     println!("  finished in {:.1} s", started.elapsed().as_secs_f64());
-    Ok(())
+    run_cmd::exit_for(&problems)
 }

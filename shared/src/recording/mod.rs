@@ -124,7 +124,7 @@ impl Kind {
 pub fn channel(service: ServiceId) -> Option<(String, Kind)> {
     Some(match service {
         ServiceId::Control => ("control".into(), Kind::Control),
-        ServiceId::Threshold => ("threshold".into(), Kind::Threshold),
+        ServiceId::Threshold(i) => (format!("sensor/{i}/threshold"), Kind::Threshold),
         ServiceId::Truth(i) => (format!("sensor/{i}/truth"), Kind::Truth),
         ServiceId::Prior(i) => (format!("sensor/{i}/prior"), Kind::Prior),
         ServiceId::Measurement => ("measurement".into(), Kind::Measurement),
@@ -150,7 +150,6 @@ pub fn service_of_topic(topic: &str) -> Option<ServiceId> {
     };
     Some(match topic {
         "control" => ServiceId::Control,
-        "threshold" => ServiceId::Threshold,
         "measurement" => ServiceId::Measurement,
         "slot" => ServiceId::Slot,
         "waypoint" => ServiceId::Waypoint,
@@ -160,6 +159,8 @@ pub fn service_of_topic(topic: &str) -> Option<ServiceId> {
         _ => {
             if let Some(i) = sensor("/truth") {
                 ServiceId::Truth(i)
+            } else if let Some(i) = sensor("/threshold") {
+                ServiceId::Threshold(i)
             } else {
                 ServiceId::Prior(sensor("/prior")?)
             }

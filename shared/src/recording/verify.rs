@@ -4,10 +4,9 @@
 //! The estimator's inputs are all in the file: the scenario (metadata), the
 //! threshold δ of each leg (`threshold` OPEN), the transmitted measurements
 //! (`measurement`) and the closed slots (`slot`). From the initial belief
-//! (x̂₀, P₀) the re-run applies MODEL.md §3 exactly as the agent does — input
-//! from the posterior mean, prediction, the slot's update through
-//! [`SensorFilter::posterior`] (the agent's own function), the leg's end
-//! rule — and compares, with `f64::to_bits`, every belief the agent
+//! (x̂₀, P₀) the re-run applies docs/MODEL.md §3 through the agent's own step
+//! functions (`episode::step`: input from the posterior, prior, the slot's
+//! update, the leg's end rule) and compares, with `f64::to_bits`, every belief the agent
 //! published: the prior of each slot (`sensor/<i>/prior`) and the posterior at
 //! each decision point (`waypoint`). It also checks that legs and episodes
 //! end at the recorded steps.
@@ -18,8 +17,7 @@
 //! up to its last complete slot and counted as incomplete.
 
 use super::{META_RUN, META_SCENARIO, Recorded, RecordingError, decode, read::Contents};
-use crate::controller::{reached, waypoint_input};
-use crate::episode::CompiledScenario;
+use crate::episode::{CompiledScenario, SlotOutcome};
 use crate::etkf::{Belief, Threshold as Th};
 use crate::scenario::Scenario;
 use crate::wire::agent_to_coordinator::{Outcome, Waypoint};
@@ -271,8 +269,7 @@ fn rerun<const N: usize>(
             return missing(leg, k, "no threshold opened this leg");
         };
         let beta = Th::new(delta).beta;
-        let compiled_leg = c.legs[leg as usize];
-        let (w, sensor) = (compiled_leg.waypoint, compiled_leg.sensor);
+        let sensor = c.legs[leg as usize].sensor;
         // The step at which the record ends this leg, if it is in the file.
         let recorded_end = match (r.waypoints.get(&(leg + 1)), outcome) {
             (Some(next), _) => Some(next.header.step),
@@ -283,7 +280,7 @@ fn rerun<const N: usize>(
         loop {
             // MODEL.md §3 in the agent's order: input, plant step, collision
             // check (ends the episode before the slot), prediction, slot.
-            let u = waypoint_input(&belief.mean, &w, c.u_max);
+            let u = c.input(leg as usize, &belief);
             k += 1;
             steps_in_leg += 1;
             rep.steps += 1;
@@ -302,7 +299,7 @@ fn rerun<const N: usize>(
                     ))
                 };
             }
-            let prior = c.plant.predict(&belief, &u);
+            let prior = c.prior(&belief, &u);
             let Some(p) = r.priors.get(&k) else {
                 return missing(leg, k, "no prior recorded");
             };
@@ -349,8 +346,12 @@ fn rerun<const N: usize>(
                 Some(_) => rep.explicit_updates += 1,
                 None => rep.implicit_updates += 1,
             }
-            belief = c.filters[sensor].posterior(&prior, y.map(|m| &m.y[..]), beta);
-            let ends = reached(&belief.mean, &w, c.eps_x) || steps_in_leg >= c.k_max;
+            let slot = match y {
+                Some(m) => SlotOutcome::Transmitted(&m.y[..]),
+                None => SlotOutcome::Silent,
+            };
+            belief = c.close_slot(leg as usize, &prior, slot, beta);
+            let ends = c.leg_ends(leg as usize, &belief, steps_in_leg);
             match recorded_end {
                 Some(end) if ends && end != k => {
                     return Err(miss(

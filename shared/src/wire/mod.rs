@@ -23,9 +23,11 @@ pub mod cleanup;
 pub mod messages;
 pub mod report;
 pub mod services;
+pub mod waiter;
 
 pub use messages::*;
 pub use services::*;
+pub use waiter::{Stamper, Waiter, Wake, Watchdog, termination_requested};
 
 use crate::etkf::{Belief, Matrix, Vector};
 
@@ -42,6 +44,8 @@ pub enum WireError {
     Service(String, String),
     #[error("iceoryx2 port on `{0}`: {1}")]
     Port(String, String),
+    #[error("waiting for a wake-up: {0}")]
+    Wait(String),
 }
 
 /// A belief as wire arrays (mean, covariance).
@@ -76,10 +80,20 @@ pub fn load_scenario(arg: &str) -> Result<crate::scenario::Scenario, String> {
     crate::scenario::Scenario::from_toml(&text).map_err(|e| format!("scenario `{arg}`: {e}"))
 }
 
-/// Logging setup for the runtime processes: iceoryx2 only reports errors
-/// (its "no config file" warning is noise: the config is built in code).
-pub fn init_process_logging() {
+/// Logging setup for the runtime processes: a `tracing` subscriber on
+/// stderr filtered by `RUST_LOG` (default `warn`); the caller enters a span
+/// named after the process so every line says who wrote it. iceoryx2 only reports errors (its "no config file"
+/// warning is noise: the config is built in code).
+pub fn init_process_logging(process: &str) {
     iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .try_init();
+    tracing::debug!(process, pid = std::process::id(), "logging ready");
 }
 
 #[cfg(test)]
@@ -108,7 +122,11 @@ mod tests {
             assert!(l.max_subscribers >= 2);
         }
         assert!(limits(ServiceId::Measurement, 32).max_publishers >= 33);
-        assert!(limits(ServiceId::Threshold, 32).max_subscribers >= 34);
+        assert!(limits(ServiceId::Threshold(31), 32).max_subscribers >= 2 + 1);
+        // Nothing that carries data or accounting may overwrite an unread sample.
+        for s in ServiceId::all_pubsub(32) {
+            assert!(!limits(s, 32).safe_overflow, "{s:?}");
+        }
         assert!(limits(ServiceId::AgentWake, 32).max_publishers >= 34);
     }
 

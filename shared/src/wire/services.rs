@@ -94,8 +94,11 @@ pub fn config(run: &RunId) -> Result<Config, WireError> {
 pub enum ServiceId {
     /// coordinator → agent: start episode / stop.
     Control,
-    /// coordinator → agent and sensors: open / close a leg with δ, stop.
-    Threshold,
+    /// coordinator → sensor i (and the agent, which reads every sensor's):
+    /// open / close a leg of sensor i with δ, stop. One service per sensor,
+    /// so nothing is ever overwritten: an idle sensor's buffer only holds
+    /// the few messages of legs it serves.
+    Threshold(usize),
     /// agent → sensor i: true state.
     Truth(usize),
     /// agent → sensor i: prior x̂⁻, P⁻.
@@ -125,7 +128,7 @@ impl ServiceId {
     pub fn name(&self, run: &RunId) -> String {
         let tail = match self {
             Self::Control => "control".to_string(),
-            Self::Threshold => "threshold".to_string(),
+            Self::Threshold(i) => format!("sensor/{i}/threshold"),
             Self::Truth(i) => format!("sensor/{i}/truth"),
             Self::Prior(i) => format!("sensor/{i}/prior"),
             Self::Measurement => "measurement".to_string(),
@@ -146,7 +149,6 @@ impl ServiceId {
     pub fn all_pubsub(sensors: usize) -> Vec<Self> {
         let mut v = vec![
             Self::Control,
-            Self::Threshold,
             Self::Measurement,
             Self::Slot,
             Self::Waypoint,
@@ -155,6 +157,7 @@ impl ServiceId {
             Self::Hello,
         ];
         for i in 0..sensors {
+            v.push(Self::Threshold(i));
             v.push(Self::Truth(i));
             v.push(Self::Prior(i));
         }
@@ -174,10 +177,10 @@ pub struct Limits {
     /// maximum is the larger of the two.
     pub observer_buffer: usize,
     pub history: usize,
-    /// Off for every recorded service but `threshold`: a full buffer (the
-    /// recorder lagging) makes the publisher wait instead of dropping.
-    /// `threshold` keeps it on because idle sensors never drain it; the
-    /// recorder's large buffer there makes an overflow practically impossible.
+    /// Off for every service that carries data, control or accounting: a
+    /// full buffer (a slow, paused or lagging reader, the recorder included)
+    /// makes the publisher wait instead of overwriting an unread sample. On
+    /// only for the wake-up events, which carry nothing.
     pub safe_overflow: bool,
 }
 
@@ -219,15 +222,11 @@ pub fn limits(service: ServiceId, sensors: usize) -> Limits {
         ServiceId::Measurement | ServiceId::Slot => many_to_one(16),
         // Ledgers are drained at leg boundaries; a generous buffer per sensor.
         ServiceId::Ledger => many_to_one(256),
-        // Sensors that do not serve never drain: they keep the newest entries.
-        ServiceId::Threshold => Limits {
-            max_publishers: 1 + OBSERVERS,
-            max_subscribers: sensors + 1 + OBSERVERS,
-            max_nodes: nodes,
-            buffer: 16,
-            observer_buffer: 8 * OBSERVER_BUFFER,
-            history: 0,
-            safe_overflow: true,
+        // Read by its sensor and by the agent; at most an OPEN and a CLOSE
+        // per leg the sensor serves are ever outstanding.
+        ServiceId::Threshold(_) => Limits {
+            max_subscribers: 2 + OBSERVERS,
+            ..one_to_one(16)
         },
         // Late subscribers (the coordinator starts in parallel) get the history.
         ServiceId::Hello => Limits {
@@ -460,12 +459,6 @@ impl Ports<'_> {
             .create()
             .map_err(|e| WireError::Port(s.name(self.run), format!("{e:?}")))
     }
-}
-
-/// Was SIGINT/SIGTERM received? (iceoryx2's default signal handling records
-/// termination requests; `Node::wait` reports them.)
-pub fn termination_requested(node: &Node<ipc::Service>) -> bool {
-    node.wait(std::time::Duration::ZERO).is_err()
 }
 
 /// Announce a process to the coordinator: wait (bounded, sleeping) until the

@@ -24,11 +24,6 @@ pub struct Plan {
     pub predict_episodes: u64,
 }
 
-/// Where a run keeps its files (removed at the end).
-pub fn run_dir(run: &RunId) -> PathBuf {
-    std::env::temp_dir().join("etp-run").join(run.as_str())
-}
-
 fn scenario_text(arg: &str) -> Result<String> {
     match builtin_text(arg) {
         Some(t) => Ok(t.to_string()),
@@ -42,8 +37,8 @@ fn scenario_text(arg: &str) -> Result<String> {
 /// round robin. The maths of every step is unchanged when the sensors are
 /// identical, so step rates with 1 and with 32 sensor processes compare.
 fn clone_sensors(text: &str, k: usize) -> Result<String> {
-    if k == 0 {
-        bail!("--clone-sensors must be at least 1");
+    if k == 0 || k > MAX_SENSORS {
+        bail!("--clone-sensors must be between 1 and {MAX_SENSORS}, got {k}");
     }
     let mut v: toml::Table =
         toml::from_str(text).context("parsing the scenario for --clone-sensors")?;
@@ -76,7 +71,14 @@ fn clone_sensors(text: &str, k: usize) -> Result<String> {
     toml::to_string(&v).context("writing the cloned scenario")
 }
 
-pub fn prepare(a: &Args, run_id: &RunId) -> Result<Plan> {
+/// Most sensor processes a run may have (the service limits and the two
+/// cores of the reference machine are sized for 32; beyond 64 a run only
+/// loads the machine before failing).
+pub const MAX_SENSORS: usize = 64;
+
+/// Decide everything about a run; its files go into `dir` (the claimed run
+/// folder).
+pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> {
     let (mut text, strategy_in) = match (&a.strategy, &a.scenario, a.delta) {
         (Some(path), _, None) => {
             let s = std::fs::read_to_string(path)
@@ -111,6 +113,12 @@ pub fn prepare(a: &Args, run_id: &RunId) -> Result<Plan> {
         text = clone_sensors(&text, k)?;
     }
     let scenario = Scenario::from_toml(&text).context("scenario")?;
+    if scenario.sensors.len() > MAX_SENSORS {
+        bail!(
+            "the scenario has {} sensors; a run supports at most {MAX_SENSORS} sensor processes",
+            scenario.sensors.len()
+        );
+    }
     let mut strategy = match strategy_in {
         Some(st) => {
             st.check_scenario(&scenario)
@@ -162,8 +170,7 @@ pub fn prepare(a: &Args, run_id: &RunId) -> Result<Plan> {
     }
     strategy.scenario_toml = Some(text.clone());
 
-    let dir = run_dir(run_id);
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let dir = dir.to_path_buf();
     let scenario_path = dir.join("scenario.toml");
     let strategy_path = dir.join("strategy.json");
     std::fs::write(&scenario_path, &text)

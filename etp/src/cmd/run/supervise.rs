@@ -11,6 +11,9 @@ use tokio::process::{Child, Command};
 
 /// How long the agent and sensors get to exit after the coordinator ended.
 const GRACE: Duration = Duration::from_secs(2);
+/// After SIGINT/SIGTERM: how long the coordinator gets to stop the episodes,
+/// collect the ledgers of the complete ones and report.
+const STOP_GRACE: Duration = Duration::from_secs(15);
 
 /// How one process ended.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -29,6 +32,9 @@ pub struct Supervised {
     pub wall_seconds: f64,
     /// `--record`: what the recorder wrote.
     pub recording: Option<super::record::Recording>,
+    /// SIGINT/SIGTERM stopped the run early (the report covers the
+    /// complete episodes).
+    pub interrupted: bool,
 }
 
 /// How to start one of the run's processes.
@@ -92,8 +98,12 @@ pub(super) fn status_text(s: &std::process::ExitStatus) -> String {
     }
 }
 
+/// Spawn one of the run's processes in a process group of its own: a
+/// terminal's Ctrl-C (or Ctrl-Z) reaches `etp run` only, which stops the run
+/// gracefully through the coordinator instead of every process dying at once.
 fn spawn(bin: &Launcher, args: &[String], stdout: bool) -> Result<Child> {
     let mut c = bin.command(args);
+    c.process_group(0);
     c.stdin(Stdio::null())
         .stdout(if stdout {
             Stdio::piped()
@@ -119,6 +129,7 @@ pub async fn supervise(
     plan: &Plan,
     deadline: Duration,
     record: Option<&Path>,
+    slot_deadline_ms: Option<u64>,
 ) -> Result<Supervised> {
     let started = Instant::now();
     // The recorder first: every subscriber exists before anything is sent.
@@ -153,9 +164,13 @@ pub async fn supervise(
             spawn(&sensor_bin, &args, false)?,
         ));
     }
+    let agent_args = match slot_deadline_ms {
+        Some(ms) => common(&["--slot-deadline".into(), ms.to_string()]),
+        None => common(&[]),
+    };
     children.push((
         "agent".into(),
-        spawn(&sibling_binary("etp-agent")?, &common(&[]), false)?,
+        spawn(&sibling_binary("etp-agent")?, &agent_args, false)?,
     ));
     let coord_args = common(&[
         "--strategy".into(),
@@ -174,13 +189,24 @@ pub async fn supervise(
     });
 
     let mut failure: Option<String> = None;
+    let mut interrupted = false;
+    let mut sigterm = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+        .context("installing the SIGTERM handler")?;
     let coord_status = tokio::select! {
         st = coordinator.wait() => Some(st.context("waiting for the coordinator")?),
-        _ = tokio::signal::ctrl_c() => {
-            failure = Some("interrupted (ctrl-c)".into());
-            // The coordinator stops the episodes and still reports.
+        name = async {
+            tokio::select! {
+                _ = tokio::signal::ctrl_c() => "SIGINT",
+                _ = sigterm.recv() => "SIGTERM",
+            }
+        } => {
+            failure = Some(format!("interrupted ({name})"));
+            interrupted = true;
+            tracing::warn!("{name}: stopping the run after the complete episodes");
+            // SIGTERM = Ctrl-C: the coordinator stops the episodes, collects
+            // the ledgers of the complete ones and still reports.
             signal(coord_pid, "-INT");
-            tokio::time::timeout(GRACE, coordinator.wait()).await.ok().and_then(Result::ok)
+            tokio::time::timeout(STOP_GRACE, coordinator.wait()).await.ok().and_then(Result::ok)
         }
         _ = tokio::time::sleep(deadline) => {
             failure = Some(format!("deadline of {:.0} s passed", deadline.as_secs_f64()));
@@ -256,6 +282,7 @@ pub async fn supervise(
         processes,
         wall_seconds: started.elapsed().as_secs_f64(),
         recording,
+        interrupted,
     })
 }
 

@@ -1,0 +1,129 @@
+//! The run's private folder (`$TMPDIR/etp-run/<run-id>/`: the scenario,
+//! strategy and recording metadata its processes read), owned by exactly one
+//! live `etp run`.
+//!
+//! The owner holds an exclusive lock on `<folder>/owner.lock` for the whole
+//! run. The kernel drops the lock when the owner dies, kill -9 included, so
+//! a folder whose lock can be taken belongs to a dead run: it is removed at
+//! the next start ([`remove_stale`]), together with that run's iceoryx2
+//! files. A run id whose folder is locked is in use ([`RunDir::claim`]
+//! refuses it with a clear error instead of a raw iceoryx2 one).
+
+use anyhow::{Context, Result, bail};
+use etp_shared::wire::{RunId, cleanup};
+use std::fs::{File, OpenOptions, TryLockError};
+use std::path::{Path, PathBuf};
+
+const LOCK: &str = "owner.lock";
+
+/// Where every run keeps its folder.
+pub fn base() -> PathBuf {
+    std::env::temp_dir().join("etp-run")
+}
+
+/// A claimed run folder; removed on [`RunDir::remove`] (or by the next start
+/// if this process dies).
+#[derive(Debug)]
+pub struct RunDir {
+    pub path: PathBuf,
+    _lock: File,
+}
+
+fn open_lock(dir: &Path) -> std::io::Result<File> {
+    OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(dir.join(LOCK))
+}
+
+/// Is the folder's lock held by a live process?
+fn locked(dir: &Path) -> bool {
+    match OpenOptions::new().write(true).open(dir.join(LOCK)) {
+        Ok(f) => matches!(f.try_lock(), Err(TryLockError::WouldBlock)),
+        Err(_) => false,
+    }
+}
+
+impl RunDir {
+    /// Create and lock the folder of `run`; refused if another live run
+    /// (a locked folder, or live iceoryx2 nodes) uses this id.
+    pub fn claim(run: &RunId) -> Result<Self> {
+        let path = base().join(run.as_str());
+        std::fs::create_dir_all(&path).with_context(|| format!("creating {}", path.display()))?;
+        let lock =
+            open_lock(&path).with_context(|| format!("creating {}", path.join(LOCK).display()))?;
+        match lock.try_lock() {
+            Ok(()) => {}
+            Err(TryLockError::WouldBlock) => {
+                bail!("run id `{run}` is in use by another `etp run` (choose another --run-id)")
+            }
+            Err(TryLockError::Error(e)) => {
+                return Err(e).with_context(|| format!("locking {}", path.join(LOCK).display()));
+            }
+        }
+        // A recorder or a replay started by hand on this id also owns it.
+        let cfg = etp_shared::wire::config(run)?;
+        if etp_shared::wire::alive_nodes(&cfg) > 0 {
+            bail!(
+                "run id `{run}` is in use: iceoryx2 processes of that run are alive (choose another --run-id)"
+            );
+        }
+        Ok(Self { path, _lock: lock })
+    }
+
+    /// Remove the folder (the lock goes with the file handle).
+    pub fn remove(self) {
+        let _ = std::fs::remove_dir_all(&self.path);
+    }
+}
+
+/// Remove the folders of dead runs and their iceoryx2 files; the ids removed.
+/// A folder is stale when its lock is free and no iceoryx2 node of its run
+/// lives; one without a lock file only once it is a minute old (it may be a
+/// run being set up right now).
+pub fn remove_stale() -> Vec<String> {
+    let mut removed = Vec::new();
+    let Ok(dir) = std::fs::read_dir(base()) else {
+        return removed;
+    };
+    for e in dir.filter_map(Result::ok) {
+        let path = e.path();
+        let name = e.file_name().to_string_lossy().to_string();
+        let young = || {
+            e.metadata()
+                .and_then(|m| m.modified())
+                .ok()
+                .and_then(|t| t.elapsed().ok())
+                .is_none_or(|age| age.as_secs() < 60)
+        };
+        if locked(&path) || (!path.join(LOCK).exists() && young()) {
+            continue;
+        }
+        let iceoryx_clean = RunId::new(&name).map_or(true, |run| cleanup::remove_run(&run));
+        if iceoryx_clean && std::fs::remove_dir_all(&path).is_ok() {
+            removed.push(name);
+        }
+    }
+    removed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_claimed_id_is_refused_and_a_released_one_is_stale() {
+        let run = RunId::new(&format!("unit-rundir-{}", std::process::id())).expect("id");
+        let a = RunDir::claim(&run).expect("first claim");
+        let err = RunDir::claim(&run).expect_err("second claim of a live id");
+        assert!(err.to_string().contains("in use"), "{err}");
+        assert!(!remove_stale().contains(&run.to_string()));
+        // The owner dies without cleaning up: its lock goes with it.
+        let path = a.path.clone();
+        drop(a);
+        assert!(path.exists());
+        assert!(remove_stale().contains(&run.to_string()));
+        assert!(!path.exists());
+    }
+}

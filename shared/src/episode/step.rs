@@ -1,0 +1,97 @@
+//! One step of docs/MODEL.md §3, split where the runtime splits it: the
+//! agent's estimator side (input, prior, slot update, leg end) and the
+//! world's side (the plant's move and the collision test).
+//!
+//! These functions are the single definition of the step order used by the
+//! in-process simulation ([`CompiledScenario::run_leg`]), by the agent
+//! process (whose slot is served by a sensor process) and by
+//! `etp replay --verify` (which has no true state: it re-runs the estimator
+//! side on the recorded slots). So the bit-for-bit guarantee of `--verify`
+//! rests on this one piece of code:
+//!
+//! ```text
+//! u      = input(leg, posterior)                    step 1
+//! x      ← move_plant(x, u)  → collision? (ends)    steps 2–3
+//! prior  = prior(posterior, u)
+//! post   = close_slot(leg, prior, slot, β)          step 4: Transmitted(y) | Silent | Dead
+//! end?   = leg_ends(leg, post, steps in leg)        step 5
+//! ```
+
+use super::{CompiledScenario, Outcome};
+use crate::controller::{reached, waypoint_input};
+use crate::etkf::{Belief, Vector};
+use crate::geometry::first_containing;
+use rand::Rng;
+
+/// What the serving sensor's slot brought the agent.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SlotOutcome<'a> {
+    /// A transmitted measurement (its first m entries are y): explicit update.
+    Transmitted(&'a [f64]),
+    /// The slot closed without a transmission from a live sensor: silence is
+    /// information, the implicit update with β(δ).
+    Silent,
+    /// A dead link: no information at all, prediction only (never "silence
+    /// means a small innovation").
+    Dead,
+}
+
+impl<const N: usize> CompiledScenario<N> {
+    /// Step 1: the input `u = sat(w_i − x̂, u_max)` from the posterior.
+    #[inline]
+    pub fn input(&self, leg: usize, posterior: &Belief<N>) -> Vector<N> {
+        waypoint_input(&posterior.mean, &self.legs[leg].waypoint, self.u_max)
+    }
+
+    /// Steps 2–3: move the true state; `Some(obstacle)` if it collided (the
+    /// episode ends before any measurement).
+    #[inline]
+    pub fn move_plant<R: Rng + ?Sized>(
+        &self,
+        x: &mut Vector<N>,
+        u: &Vector<N>,
+        rng: &mut R,
+    ) -> Option<usize> {
+        *x = self.plant.step(x, u, rng);
+        first_containing(&self.obstacles, x)
+    }
+
+    /// The slot's prior `x̂⁻ = F x̂ + G u`, `P⁻ = F P Fᵀ + Q`.
+    #[inline]
+    pub fn prior(&self, posterior: &Belief<N>, u: &Vector<N>) -> Belief<N> {
+        self.plant.predict(posterior, u)
+    }
+
+    /// Step 4, the estimator's side: the posterior after leg `leg`'s slot.
+    #[inline]
+    pub fn close_slot(
+        &self,
+        leg: usize,
+        prior: &Belief<N>,
+        slot: SlotOutcome<'_>,
+        beta: f64,
+    ) -> Belief<N> {
+        let filter = &self.filters[self.legs[leg].sensor];
+        match slot {
+            SlotOutcome::Transmitted(y) => filter.posterior(prior, Some(y), beta),
+            SlotOutcome::Silent => filter.posterior(prior, None, beta),
+            SlotOutcome::Dead => *prior,
+        }
+    }
+
+    /// Step 5: the leg ends when `‖x̂ − w_i‖ ≤ ε_x` or after `k_max` steps.
+    #[inline]
+    pub fn leg_ends(&self, leg: usize, posterior: &Belief<N>, steps_in_leg: u32) -> bool {
+        reached(&posterior.mean, &self.legs[leg].waypoint, self.eps_x) || steps_in_leg >= self.k_max
+    }
+
+    /// After the last leg: target if the true state is in the target box.
+    #[inline]
+    pub fn classify_end(&self, x: &Vector<N>) -> Outcome {
+        if self.target.contains(x) {
+            Outcome::Target
+        } else {
+            Outcome::Free
+        }
+    }
+}

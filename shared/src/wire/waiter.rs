@@ -1,0 +1,195 @@
+//! The one place a runtime process blocks: its wake-up listener, with signals
+//! and interrupted waits handled once for every process.
+//!
+//! Every process of a run owns exactly one wake-up event (`agent/wake`,
+//! `coordinator/wake`, `sensor/<i>/wake`); peers publish, then notify it. A
+//! process therefore waits in one place, [`Waiter::wait`], and gets one of
+//! the closed set of [`Wake`] events:
+//!
+//! * a SIGSTOP/SIGCONT (or a debugger, or Ctrl-Z + `fg`) interrupts the
+//!   kernel wait with EINTR: that is *not* an event — the wait resumes for
+//!   the time that is left, so a paused process never fails or degrades;
+//! * SIGINT/SIGTERM (iceoryx2 records them) end the wait with
+//!   [`Wake::Terminate`];
+//! * silence for the whole timeout is [`Wake::Silence`]: the caller's
+//!   watchdog decides whether a peer is dead (node list), never the clock
+//!   alone (a live but slow process is waited for).
+
+use super::WireError;
+use super::services::{DEAD_NOTIFIER_EVENT, Listener};
+use iceoryx2::prelude::*;
+use std::time::{Duration, Instant};
+
+/// What ended one wait.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Wake {
+    /// The listener was notified: look at the subscribers. `dead_peer` is set
+    /// when iceoryx2's dead-notifier event was among the notifications (the
+    /// cleanup of a dead node's ports emits it).
+    Notified { dead_peer: bool },
+    /// Nothing for the whole timeout.
+    Silence,
+    /// SIGINT or SIGTERM was received.
+    Terminate,
+}
+
+/// A process's wake-up listener and its node (for the termination flag).
+pub struct Waiter {
+    listener: Listener,
+}
+
+impl Waiter {
+    pub fn new(listener: Listener) -> Self {
+        Self { listener }
+    }
+
+    /// Block until notified, `timeout` passes, or a termination signal.
+    /// Interrupted waits (EINTR after SIGCONT) resume with the time left.
+    /// The termination flag is read only when the wait ends without a
+    /// notification (a signal interrupts the wait), so the hot path — a
+    /// notified wait — costs no extra system call.
+    pub fn wait(&self, node: &Node<ipc::Service>, timeout: Duration) -> Result<Wake, WireError> {
+        let dead = EventId::new(DEAD_NOTIFIER_EVENT);
+        let until = Instant::now() + timeout;
+        loop {
+            let left = until.saturating_duration_since(Instant::now());
+            let mut dead_peer = false;
+            match self
+                .listener
+                .timed_wait(|ev| dead_peer |= ev.id == dead, left)
+            {
+                Ok(0) if termination_requested(node) => return Ok(Wake::Terminate),
+                Ok(0) if Instant::now() >= until => return Ok(Wake::Silence),
+                // A spurious early return: wait for the rest.
+                Ok(0) => {}
+                Ok(_) => return Ok(Wake::Notified { dead_peer }),
+                // SIGINT/SIGTERM interrupt the wait too: only they end it.
+                Err(e) if is_interrupt(&e) && termination_requested(node) => {
+                    return Ok(Wake::Terminate);
+                }
+                Err(e) if is_interrupt(&e) => {}
+                Err(e) => return Err(WireError::Wait(format!("{e:?}"))),
+            }
+        }
+    }
+
+    /// Consume pending notifications without blocking.
+    pub fn drain(&self) -> Result<(), WireError> {
+        loop {
+            match self.listener.try_wait(|_| {}) {
+                Ok(0) => return Ok(()),
+                Ok(_) => {}
+                Err(e) if is_interrupt(&e) => {}
+                Err(e) => return Err(WireError::Wait(format!("{e:?}"))),
+            }
+        }
+    }
+}
+
+fn is_interrupt(e: &iceoryx2::port::listener::ListenerWaitError) -> bool {
+    matches!(
+        e,
+        iceoryx2::port::listener::ListenerWaitError::InterruptSignal
+    )
+}
+
+/// Was SIGINT/SIGTERM received? (iceoryx2's default signal handling records
+/// termination requests; `Node::wait` reports them. An interrupted sleep —
+/// SIGCONT — is not a termination request.)
+pub fn termination_requested(node: &Node<ipc::Service>) -> bool {
+    matches!(
+        node.wait(Duration::ZERO),
+        Err(iceoryx2::node::NodeWaitFailure::TerminationRequest)
+    )
+}
+
+/// The one liveness watchdog of a process: is its supervisor (parent
+/// process) or its peer node gone? Consulted only after a silent wait (or
+/// iceoryx2's dead-notifier event), never on the hot path. Listing the nodes
+/// costs milliseconds, so a silent wait lists them only every `list_every`
+/// silences; a dead-notifier event lists them at once.
+#[derive(Debug, Clone)]
+pub struct Watchdog {
+    parent: u32,
+    peer: String,
+    /// The peer was seen alive once: from then on "missing" means gone.
+    seen: bool,
+    list_every: u32,
+    silences: u32,
+}
+
+impl Watchdog {
+    /// Watch `peer` (a node name of the run) and this process's parent. `seen`:
+    /// the peer is known to have been alive already (e.g. it answered hello).
+    pub fn new(peer: &str, seen: bool, list_every: u32) -> Self {
+        Self {
+            parent: std::os::unix::process::parent_id(),
+            peer: peer.to_string(),
+            seen,
+            list_every: list_every.max(1),
+            silences: 0,
+        }
+    }
+
+    /// After a wait that brought no message (`dead_event`: iceoryx2 said a
+    /// peer died): `true` when the supervisor or the peer is gone.
+    pub fn gone(&mut self, cfg: &iceoryx2::config::Config, dead_event: bool) -> bool {
+        if std::os::unix::process::parent_id() != self.parent {
+            return true;
+        }
+        self.silences = self.silences.wrapping_add(1);
+        if !dead_event && !self.silences.is_multiple_of(self.list_every) {
+            return false;
+        }
+        match super::services::liveness(cfg, &self.peer) {
+            super::services::Liveness::Alive => {
+                self.seen = true;
+                false
+            }
+            super::services::Liveness::Missing => self.seen,
+            super::services::Liveness::Dead => true,
+        }
+    }
+
+    /// The supervisor only (cheap: one system call).
+    pub fn parent_gone(&self) -> bool {
+        std::os::unix::process::parent_id() != self.parent
+    }
+}
+
+/// The one header stamper: every message a process publishes carries the
+/// run's tag, its sender id and a per-sender sequence number.
+#[derive(Debug, Clone)]
+pub struct Stamper {
+    tag: u64,
+    sender: u32,
+    seq: u32,
+}
+
+impl Stamper {
+    pub fn new(run: &super::RunId, sender: u32) -> Self {
+        Self {
+            tag: run.tag(),
+            sender,
+            seq: 0,
+        }
+    }
+
+    /// The run tag messages of this run carry.
+    pub fn tag(&self) -> u64 {
+        self.tag
+    }
+
+    /// The header of the next message.
+    pub fn header(&mut self, episode: u64, leg: u32, step: u32) -> super::Header {
+        self.seq = self.seq.wrapping_add(1);
+        super::Header {
+            run: self.tag,
+            episode,
+            step,
+            leg,
+            sender: self.sender,
+            seq: self.seq,
+        }
+    }
+}
