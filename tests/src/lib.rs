@@ -97,6 +97,17 @@ impl EtpRun {
         )
     }
 
+    /// Wait for the end; (exit code, stdout, stderr).
+    pub fn finish_code(mut self) -> (Option<i32>, String, String) {
+        let child = self.child.take().expect("child");
+        let out = child.wait_with_output().expect("waiting for the child");
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    }
+
     pub fn pid(&self) -> u32 {
         self.child.as_ref().map_or(0, Child::id)
     }
@@ -108,7 +119,15 @@ impl Drop for EtpRun {
             kill("-KILL", &format!("-{}", c.id()));
             let _ = c.wait();
         }
+        // The run's processes live in process groups of their own (so that
+        // a terminal's Ctrl-C reaches `etp run` only): kill them by run id.
+        for (pid, _) in processes_of_run(&self.run_id) {
+            kill("-KILL", &pid.to_string());
+        }
         // Whatever was left in /dev/shm and the root folder by killed nodes.
+        // (iceoryx2 warns about its global config while cleaning a dead
+        // node whose details are gone: noise, as in every etp process.)
+        iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
         if let Ok(run) = RunId::new(&self.run_id) {
             for _ in 0..50 {
                 if processes_of_run(&self.run_id).is_empty() {
@@ -179,6 +198,52 @@ pub fn find_process(run_id: &str, binary: &str, flag_value: Option<(&str, &str)>
         })
 }
 
+/// Send `sig` to every live process of a run (and to `extra` pids).
+pub fn signal_run(run_id: &str, sig: &str, extra: &[u32]) {
+    for (pid, _) in processes_of_run(run_id) {
+        kill(sig, &pid.to_string());
+    }
+    for pid in extra {
+        kill(sig, &pid.to_string());
+    }
+}
+
+/// Busy processes that saturate `n` cores until dropped (then killed and
+/// reaped): the CPU hog of the soak and fault tests.
+pub struct CpuHog(Vec<Child>);
+
+impl CpuHog {
+    pub fn start(n: usize) -> Self {
+        Self(
+            (0..n)
+                .map(|_| {
+                    Command::new("sh")
+                        .args(["-c", "while :; do :; done"])
+                        .stdin(Stdio::null())
+                        .stdout(Stdio::null())
+                        .stderr(Stdio::null())
+                        .spawn()
+                        .expect("spawning a CPU hog")
+                })
+                .collect(),
+        )
+    }
+}
+
+impl Drop for CpuHog {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// The run's private folder (`$TMPDIR/etp-run/<run-id>`).
+pub fn run_folder(run_id: &str) -> PathBuf {
+    std::env::temp_dir().join("etp-run").join(run_id)
+}
+
 /// No iceoryx2 file of the run is left in /dev/shm, nor its root folder.
 pub fn no_leftovers(run_id: &str) -> Result<(), String> {
     let run = RunId::new(run_id).map_err(|e| e.to_string())?;
@@ -188,6 +253,9 @@ pub fn no_leftovers(run_id: &str) -> Result<(), String> {
     }
     if run.root_dir().exists() {
         return Err(format!("left: {}", run.root_dir().display()));
+    }
+    if run_folder(run_id).exists() {
+        return Err(format!("left: {}", run_folder(run_id).display()));
     }
     Ok(())
 }

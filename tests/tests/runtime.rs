@@ -17,6 +17,9 @@ mod recording;
 #[path = "runtime/foxglove.rs"]
 mod foxglove;
 
+#[path = "runtime/faults.rs"]
+mod faults;
+
 const DELTA: &str = "1.4986";
 
 /// Multi-process runs take both cores; run them one at a time so the timing
@@ -208,6 +211,7 @@ fn a_killed_sensor_is_detected_the_episode_degraded_and_the_run_continues() {
             "--seed",
             "2",
             "--episode-details",
+            "--allow-degraded",
         ],
     );
     // s2 serves legs 3 and 4 of every episode that gets that far.

@@ -30,7 +30,7 @@ pub use read::{Contents, RawMessage, read_lenient};
 pub use verify::{Mismatch, VerifyReport, verify};
 
 /// Version of this format (metadata `etp.run` / `format_version`).
-pub const FORMAT_VERSION: &str = "1";
+pub const FORMAT_VERSION: &str = "2";
 /// MCAP profile string.
 pub const PROFILE: &str = "etpareto";
 /// Message encoding of every channel.

@@ -178,8 +178,11 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
     let victim = wait_for_process(&id, "etp-recorder", None);
     std::thread::sleep(Duration::from_millis(800));
     kill("-KILL", &victim.to_string());
-    let (ok, out, err) = run.finish();
-    assert!(ok, "the run goes on without its recorder: {err}");
+    let (code, out, err) = run.finish_code();
+    // The run goes on without its recorder, reports, and fails: the
+    // recording it was asked for did not finish.
+    assert_eq!(code, Some(4), "{err}");
+    assert!(err.contains("the recording did not finish"), "{err}");
     let v: Value = serde_json::from_str(&out).expect("JSON");
     assert_eq!(v["recording"]["finished"].as_bool(), Some(false));
     assert!(processes_of_run(&id).is_empty());

@@ -91,23 +91,56 @@ pub struct Args {
     pub slot_deadline: Option<u64>,
 }
 
-/// Why a completed run is not clean (empty: exit 0).
+/// Why a completed run is not clean (empty: exit 0), checked leg by leg: a
+/// ledger must equal what the agent received on that leg; a missing ledger
+/// is excused only for a sensor the run found dead (its episodes are then
+/// degraded), never for a live one.
 pub fn verdict(
     report: &etp_shared::wire::report::RunReport,
     recording_ok: bool,
     allow_degraded: bool,
 ) -> Vec<(u8, String)> {
+    let dead: std::collections::BTreeSet<&str> =
+        report.faults.iter().map(|f| f.sensor.as_str()).collect();
+    let name = |i: u32| {
+        report
+            .sensors
+            .get(i as usize)
+            .map_or_else(|| format!("#{i}"), |s| s.name.clone())
+    };
     let mut v = Vec::new();
-    for s in &report.sensors {
-        if s.transmitted != s.received || s.missing_ledgers > 0 {
-            v.push((
-                EXIT_ACCOUNTING,
-                format!(
-                    "sensor {}: ledger {} transmitted ≠ agent {} received ({} ledgers missing)",
-                    s.name, s.transmitted, s.received, s.missing_ledgers
-                ),
-            ));
+    let (mut unequal, mut lost) = (0u64, 0u64);
+    let mut first = None;
+    for e in &report.episode_results {
+        for l in &e.legs {
+            let sensor = name(l.sensor);
+            match l.transmitted {
+                Some(t) if t != l.received => {
+                    unequal += 1;
+                    first.get_or_insert(format!(
+                        "episode {} leg {}: sensor {sensor} ledger {t} ≠ agent received {}",
+                        e.episode, l.leg, l.received
+                    ));
+                }
+                None if !dead.contains(sensor.as_str()) => {
+                    lost += 1;
+                    first.get_or_insert(format!(
+                        "episode {} leg {}: no ledger from live sensor {sensor}",
+                        e.episode, l.leg
+                    ));
+                }
+                _ => {}
+            }
         }
+    }
+    if unequal + lost > 0 {
+        v.push((
+            EXIT_ACCOUNTING,
+            format!(
+                "accounting mismatch: {unequal} leg(s) with ledger ≠ received, {lost} ledger(s) of live sensors missing (first: {})",
+                first.unwrap_or_default()
+            ),
+        ));
     }
     if !recording_ok {
         v.push((EXIT_ACCOUNTING, "the recording did not finish".into()));
@@ -238,4 +271,120 @@ pub fn run(a: Args) -> Result<()> {
     let (plan, outcome) = execute_run(&a)?;
     report::print(&a, &plan, &outcome)?;
     exit_for(&problems(&a, &outcome))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use etp_shared::strategy::Prediction;
+    use etp_shared::wire::report::{
+        EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals,
+    };
+
+    fn leg(sensor: u32, received: u32, transmitted: Option<u32>) -> LegRecord {
+        LegRecord {
+            leg: sensor,
+            sensor,
+            delta: 1.0,
+            steps: 10,
+            received,
+            transmitted,
+            slots: transmitted.map(|_| 10),
+        }
+    }
+
+    fn report(legs: Vec<LegRecord>, degraded: bool, dead: Option<&str>) -> RunReport {
+        let sensor = |name: &str| SensorTotals {
+            name: name.into(),
+            transmitted: 0,
+            received: 0,
+            slots: 0,
+            energy: 0.0,
+            missing_ledgers: 0,
+        };
+        RunReport {
+            run_id: "r".into(),
+            scenario: "s".into(),
+            scenario_hash: "h".into(),
+            strategy_label: "l".into(),
+            seed: 0,
+            requested_episodes: 1,
+            episodes: 1,
+            target: 1,
+            collision: 0,
+            free: 0,
+            degraded: u64::from(degraded),
+            steps: 20,
+            seconds: 1.0,
+            predicted: Prediction {
+                p_target: 1.0,
+                p_collision: 0.0,
+                p_free: 0.0,
+                energy_mean: 1.0,
+            },
+            sensors: vec![sensor("s0"), sensor("s1")],
+            faults: dead
+                .map(|d| FaultRecord {
+                    episode: 0,
+                    sensor: d.into(),
+                    detect_ms: 1.0,
+                    wait_started_unix_ns: 0,
+                    detected_unix_ns: 0,
+                    dead_slots: 1,
+                })
+                .into_iter()
+                .collect(),
+            episode_results: vec![EpisodeRecord {
+                episode: 0,
+                outcome: "target".into(),
+                degraded,
+                steps: 20,
+                energy: 3.0,
+                legs,
+            }],
+            aborted: None,
+        }
+    }
+
+    fn codes(v: &[(u8, String)]) -> Vec<u8> {
+        v.iter().map(|p| p.0).collect()
+    }
+
+    #[test]
+    fn a_clean_run_has_no_problem() {
+        let r = report(vec![leg(0, 3, Some(3)), leg(1, 0, Some(0))], false, None);
+        assert!(verdict(&r, true, false).is_empty());
+    }
+
+    #[test]
+    fn a_lost_ledger_of_a_live_sensor_is_an_accounting_failure_even_if_marked_degraded() {
+        // Defect 1 of issue 12: reported as `degraded 1` with exit 0.
+        let r = report(vec![leg(0, 3, Some(3)), leg(1, 2, None)], true, None);
+        let v = verdict(&r, true, true);
+        assert_eq!(codes(&v), vec![EXIT_ACCOUNTING]);
+        assert!(
+            v[0].1.contains("no ledger from live sensor s1"),
+            "{}",
+            v[0].1
+        );
+    }
+
+    #[test]
+    fn a_ledger_unequal_to_received_fails() {
+        let r = report(vec![leg(0, 3, Some(2))], false, None);
+        assert_eq!(codes(&verdict(&r, true, true)), vec![EXIT_ACCOUNTING]);
+    }
+
+    #[test]
+    fn a_dead_sensor_degrades_and_is_accepted_only_on_request() {
+        let r = report(vec![leg(0, 3, Some(3)), leg(1, 1, None)], true, Some("s1"));
+        assert_eq!(codes(&verdict(&r, true, false)), vec![EXIT_DEGRADED]);
+        assert!(verdict(&r, true, true).is_empty());
+    }
+
+    #[test]
+    fn an_unfinished_recording_fails() {
+        let r = report(vec![leg(0, 3, Some(3))], false, None);
+        assert_eq!(codes(&verdict(&r, false, false)), vec![EXIT_ACCOUNTING]);
+    }
 }
