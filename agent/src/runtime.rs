@@ -21,8 +21,8 @@ use etp_shared::wire::agent_to_coordinator::{Outcome, Waypoint};
 use etp_shared::wire::coordinator_to_agent::Control;
 use etp_shared::wire::to_coordinator::Hello;
 use etp_shared::wire::{
-    self, AGENT_NODE, COORDINATOR_NODE, Liveness, Notifier, Ports, Pub, SENDER_AGENT, ServiceId,
-    Stamper, Sub, Waiter, Wake, Watchdog, belief_to_wire,
+    self, AGENT_NODE, COORDINATOR_NODE, ControlKind, Liveness, Notifier, OutcomeCode, Ports, Pub,
+    SENDER_AGENT, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, belief_to_wire,
 };
 use iceoryx2::prelude::*;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -164,10 +164,10 @@ impl<const N: usize> Agent<N> {
             if c.header.run != tag {
                 continue;
             }
-            match c.kind {
-                Control::START => return Ok(Some(Some((c.header.episode, c.seed)))),
-                Control::STOP => return Ok(Some(None)),
-                _ => {}
+            match ControlKind::try_from(c.kind) {
+                Ok(ControlKind::Start) => return Ok(Some(Some((c.header.episode, c.seed)))),
+                Ok(ControlKind::Stop) => return Ok(Some(None)),
+                Err(code) => tracing::warn!(code, "unknown control kind ignored"),
             }
         }
         Ok(None)
@@ -327,13 +327,13 @@ impl<const N: usize> Agent<N> {
             let mut counts = LegCounts::default();
             loop {
                 // docs/MODEL.md §3 through episode::step, in this order.
-                let u = self.c.input(leg, &state.belief);
+                let u = self.c.input(leg, &state.belief.mean);
                 let collided = self.c.move_plant(&mut state.x, &u, &mut rng);
                 k += 1;
                 counts.steps += 1;
                 totals.steps += 1;
                 if collided.is_some() {
-                    totals.outcome = Outcome::COLLISION;
+                    totals.outcome = OutcomeCode::Collision.code();
                     return self
                         .finish(episode, leg32, k, counts, totals)
                         .map(|()| None);
@@ -371,9 +371,10 @@ impl<const N: usize> Agent<N> {
             }
             if leg + 1 == legs {
                 totals.outcome = match self.c.classify_end(&state.x) {
-                    etp_shared::episode::Outcome::Target => Outcome::TARGET,
-                    _ => Outcome::FREE,
-                };
+                    etp_shared::episode::Outcome::Target => OutcomeCode::Target,
+                    _ => OutcomeCode::Free,
+                }
+                .code();
                 return self
                     .finish(episode, leg32, k, counts, totals)
                     .map(|()| None);

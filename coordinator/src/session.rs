@@ -11,8 +11,8 @@ use etp_shared::wire::report::{EpisodeRecord, FaultRecord, LegRecord, RunReport,
 use etp_shared::wire::sensor_to_coordinator::Ledger;
 use etp_shared::wire::to_coordinator::Hello;
 use etp_shared::wire::{
-    self, AGENT_NODE, COORDINATOR_NODE, Liveness, Notifier, Ports, Pub, RunId, SENDER_AGENT,
-    SENDER_COORDINATOR, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, to_wire_vec,
+    self, AGENT_NODE, COORDINATOR_NODE, Liveness, Notifier, OutcomeCode, Ports, Pub, RunId,
+    SENDER_AGENT, SENDER_COORDINATOR, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, to_wire_vec,
 };
 use iceoryx2::prelude::*;
 use nalgebra::DMatrix;
@@ -365,11 +365,9 @@ impl<'a> Coordinator<'a> {
                 dead_slots: o.dead_slots,
             });
         }
-        let outcome = match o.outcome {
-            Outcome::TARGET => "target",
-            Outcome::COLLISION => "collision",
-            _ => "free",
-        };
+        let outcome = OutcomeCode::try_from(o.outcome)
+            .map_err(|c| CoordinatorError::Receive("outcome", format!("unknown outcome code {c}")))?
+            .name();
         tracing::debug!(episode, outcome, steps = o.steps, "episode end");
         Ok(EpisodeRecord {
             episode,

@@ -61,23 +61,15 @@ where
 }
 
 fn subscribe(ports: &Ports<'_>, s: ServiceId, kind: Kind, topic: String) -> Result<Drain> {
-    use etp_shared::wire::{
-        agent_to_coordinator as a2c, agent_to_sensor as a2s, coordinator_to_agent as c2a,
-        coordinator_to_all as c2all, sensor_to_agent as s2a, sensor_to_coordinator as s2c,
-        to_coordinator as tc,
-    };
-    Ok(match kind {
-        Kind::Control => drainer(ports.observer::<c2a::Control>(s)?, topic),
-        Kind::Threshold => drainer(ports.observer::<c2all::Threshold>(s)?, topic),
-        Kind::Truth => drainer(ports.observer::<a2s::Truth>(s)?, topic),
-        Kind::Prior => drainer(ports.observer::<a2s::Prior>(s)?, topic),
-        Kind::Measurement => drainer(ports.observer::<s2a::Measurement>(s)?, topic),
-        Kind::Slot => drainer(ports.observer::<s2a::Slot>(s)?, topic),
-        Kind::Waypoint => drainer(ports.observer::<a2c::Waypoint>(s)?, topic),
-        Kind::Outcome => drainer(ports.observer::<a2c::Outcome>(s)?, topic),
-        Kind::Ledger => drainer(ports.observer::<s2c::Ledger>(s)?, topic),
-        Kind::Hello => drainer(ports.observer::<tc::Hello>(s)?, topic),
-    })
+    /// Open the recorder's subscriber of the service's payload type.
+    struct Subscribe<'a, 'p>(&'a Ports<'p>, ServiceId, String);
+    impl etp_shared::wire::KindVisitor for Subscribe<'_, '_> {
+        type Out = Result<Drain>;
+        fn visit<T: etp_shared::wire::Message>(self) -> Self::Out {
+            Ok(drainer(self.0.observer::<T>(self.1)?, self.2))
+        }
+    }
+    kind.visit(Subscribe(ports, s, topic))
 }
 
 fn now_ns() -> u64 {

@@ -7,7 +7,7 @@ use etp_shared::etkf::{EtKalmanFilter, Vector};
 use etp_shared::rng::{stream_rng, streams};
 use etp_shared::wire::agent_to_sensor::{Prior, Truth};
 use etp_shared::wire::coordinator_to_all::Threshold;
-use etp_shared::wire::{WireVec, belief_from_wire, to_wire_vec, vec_from_wire};
+use etp_shared::wire::{ThresholdKind, WireVec, belief_from_wire, to_wire_vec, vec_from_wire};
 
 /// What the sensor spent on one leg.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -106,9 +106,9 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
         if t.header.run != self.tag {
             return ControlAction::None;
         }
-        match t.kind {
-            Threshold::STOP => ControlAction::Stop,
-            Threshold::OPEN if t.sensor == self.index => {
+        match ThresholdKind::try_from(t.kind) {
+            Ok(ThresholdKind::Stop) => ControlAction::Stop,
+            Ok(ThresholdKind::Open) if t.sensor == self.index => {
                 self.open = Some(OpenLeg {
                     delta: t.delta,
                     ledger: LegLedger {
@@ -120,7 +120,7 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
                 });
                 ControlAction::None
             }
-            Threshold::CLOSE if t.sensor == self.index => {
+            Ok(ThresholdKind::Close) if t.sensor == self.index => {
                 let ledger = match self.open.take() {
                     Some(o)
                         if o.ledger.episode == t.header.episode && o.ledger.leg == t.header.leg =>

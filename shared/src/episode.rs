@@ -316,7 +316,7 @@ impl<const N: usize> CompiledScenario<N> {
         };
         let mut expected_rate = gaussian::expected_rate(threshold.delta, M);
         loop {
-            let u = self.input(leg, &state.belief);
+            let u = self.input(leg, &state.belief.mean);
             let collided = self.move_plant(&mut state.x, &u, rng);
             r.steps += 1;
             if let Some(obstacle) = collided {

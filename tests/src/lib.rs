@@ -127,7 +127,7 @@ impl Drop for EtpRun {
         // Whatever was left in /dev/shm and the root folder by killed nodes.
         // (iceoryx2 warns about its global config while cleaning a dead
         // node whose details are gone: noise, as in every etp process.)
-        iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
+        etp_shared::wire::quiet_iceoryx2();
         if let Ok(run) = RunId::new(&self.run_id) {
             for _ in 0..50 {
                 if processes_of_run(&self.run_id).is_empty() {

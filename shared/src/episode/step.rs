@@ -10,7 +10,7 @@
 //! rests on this one piece of code:
 //!
 //! ```text
-//! u      = input(leg, posterior)                    step 1
+//! u      = input(leg, posterior mean)               step 1
 //! x      ← move_plant(x, u)  → collision? (ends)    steps 2–3
 //! prior  = prior(posterior, u)
 //! post   = close_slot(leg, prior, slot, β)          step 4: Transmitted(y) | Silent | Dead
@@ -37,10 +37,10 @@ pub enum SlotOutcome<'a> {
 }
 
 impl<const N: usize> CompiledScenario<N> {
-    /// Step 1: the input `u = sat(w_i − x̂, u_max)` from the posterior.
+    /// Step 1: the input `u = sat(w_i − x̂, u_max)` from the posterior mean.
     #[inline]
-    pub fn input(&self, leg: usize, posterior: &Belief<N>) -> Vector<N> {
-        waypoint_input(&posterior.mean, &self.legs[leg].waypoint, self.u_max)
+    pub fn input(&self, leg: usize, mean: &Vector<N>) -> Vector<N> {
+        waypoint_input(mean, &self.legs[leg].waypoint, self.u_max)
     }
 
     /// Steps 2–3: move the true state; `Some(obstacle)` if it collided (the

@@ -17,11 +17,9 @@
 //! * `log_time`/`publish_time`: ns since the Unix epoch when the recorder took
 //!   the sample; `sequence`: per-channel count.
 
-use crate::wire::{
-    ServiceId, agent_to_coordinator as a2c, agent_to_sensor as a2s, coordinator_to_agent as c2a,
-    coordinator_to_all as c2all, sensor_to_agent as s2a, sensor_to_coordinator as s2c,
-    to_coordinator as tc,
-};
+use crate::wire::ServiceId;
+#[cfg(test)]
+use crate::wire::sensor_to_agent as s2a;
 
 mod read;
 mod verify;
@@ -34,7 +32,7 @@ pub const FORMAT_VERSION: &str = "2";
 /// MCAP profile string.
 pub const PROFILE: &str = "etpareto";
 /// Message encoding of every channel.
-pub const MESSAGE_ENCODING: &str = "bincode2-serde-legacy";
+pub const MESSAGE_ENCODING: &str = crate::wire::catalogue::PAYLOAD_ENCODING;
 /// Schema encoding of every schema.
 pub const SCHEMA_ENCODING: &str = "etp-field-list";
 /// Metadata record names.
@@ -58,134 +56,22 @@ pub enum RecordingError {
     NotMcap(String, String),
 }
 
-const HEADER_FIELDS: &str = "header.run: u64\nheader.episode: u64\nheader.step: u32\nheader.leg: u32\nheader.sender: u32\nheader.seq: u32\n";
-
-/// The kind of message a channel carries.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-pub enum Kind {
-    Control,
-    Threshold,
-    Truth,
-    Prior,
-    Measurement,
-    Slot,
-    Waypoint,
-    Outcome,
-    Ledger,
-    Hello,
-}
-
-impl Kind {
-    /// The schema name (the iceoryx2 type name).
-    pub fn schema_name(self) -> &'static str {
-        match self {
-            Self::Control => "etp::Control",
-            Self::Threshold => "etp::Threshold",
-            Self::Truth => "etp::Truth",
-            Self::Prior => "etp::Prior",
-            Self::Measurement => "etp::Measurement",
-            Self::Slot => "etp::Slot",
-            Self::Waypoint => "etp::Waypoint",
-            Self::Outcome => "etp::Outcome",
-            Self::Ledger => "etp::Ledger",
-            Self::Hello => "etp::Hello",
-        }
-    }
-
-    /// The schema data: the fields after the header, in wire order.
-    pub fn schema_text(self) -> String {
-        let tail = match self {
-            Self::Control => {
-                "kind: u32\ndim: u32\nseed: u64\ninitial_mean: [f64; 6]\ninitial_cov: [[f64; 6]; 6]\n"
-            }
-            Self::Threshold => "kind: u32\nsensor: u32\ndelta_index: u32\n_pad: u32\ndelta: f64\n",
-            Self::Truth => "dim: u32\n_pad: u32\nx: [f64; 6]\n",
-            Self::Prior => "dim: u32\n_pad: u32\nmean: [f64; 6]\ncov: [[f64; 6]; 6]\n",
-            Self::Measurement => "dim: u32\nsequence: u32\ny: [f64; 6]\n",
-            Self::Slot => "transmitted: u32\n_pad: u32\n",
-            Self::Waypoint => {
-                "dim: u32\nprev_steps: u32\nprev_received: u32\nprev_degraded: u32\nmean: [f64; 6]\ncov: [[f64; 6]; 6]\n"
-            }
-            Self::Outcome => {
-                "outcome: u32\ndegraded: u32\nsteps: u32\nslots: u32\nreceived: u32\nlast_steps: u32\nlast_received: u32\ndead_slots: u32\ndetect_us: u64\ndetected_unix_ns: u64\nwait_started_unix_ns: u64\ndead_sensor: u32\n_pad: u32\n"
-            }
-            Self::Ledger => "slots: u32\ntransmissions: u32\nenergy: f64\n",
-            Self::Hello => "pid: u32\n_pad: u32\n",
-        };
-        format!(
-            "# {} ({MESSAGE_ENCODING})\n{HEADER_FIELDS}{tail}",
-            self.schema_name()
-        )
-    }
-}
+pub use crate::wire::{Kind, Recorded};
 
 /// The channel topic of a service (its name without `etp/<run-id>/`), and
 /// the kind it carries; `None` for event services (not recorded).
 pub fn channel(service: ServiceId) -> Option<(String, Kind)> {
-    Some(match service {
-        ServiceId::Control => ("control".into(), Kind::Control),
-        ServiceId::Threshold(i) => (format!("sensor/{i}/threshold"), Kind::Threshold),
-        ServiceId::Truth(i) => (format!("sensor/{i}/truth"), Kind::Truth),
-        ServiceId::Prior(i) => (format!("sensor/{i}/prior"), Kind::Prior),
-        ServiceId::Measurement => ("measurement".into(), Kind::Measurement),
-        ServiceId::Slot => ("slot".into(), Kind::Slot),
-        ServiceId::Waypoint => ("waypoint".into(), Kind::Waypoint),
-        ServiceId::Outcome => ("outcome".into(), Kind::Outcome),
-        ServiceId::Ledger => ("ledger".into(), Kind::Ledger),
-        ServiceId::Hello => ("hello".into(), Kind::Hello),
-        ServiceId::AgentWake | ServiceId::CoordinatorWake | ServiceId::SensorWake(_) => {
-            return None;
-        }
-    })
+    Some((service.topic(), service.kind()?))
 }
 
 /// The service a channel topic was recorded from (the inverse of [`channel`]).
 pub fn service_of_topic(topic: &str) -> Option<ServiceId> {
-    let sensor = |tail: &str| -> Option<usize> {
-        topic
-            .strip_prefix("sensor/")?
-            .strip_suffix(tail)?
-            .parse()
-            .ok()
-    };
-    Some(match topic {
-        "control" => ServiceId::Control,
-        "measurement" => ServiceId::Measurement,
-        "slot" => ServiceId::Slot,
-        "waypoint" => ServiceId::Waypoint,
-        "outcome" => ServiceId::Outcome,
-        "ledger" => ServiceId::Ledger,
-        "hello" => ServiceId::Hello,
-        _ => {
-            if let Some(i) = sensor("/truth") {
-                ServiceId::Truth(i)
-            } else if let Some(i) = sensor("/threshold") {
-                ServiceId::Threshold(i)
-            } else {
-                ServiceId::Prior(sensor("/prior")?)
-            }
-        }
-    })
+    ServiceId::from_topic(topic)
 }
 
 /// The kind of a channel topic.
 pub fn kind_of_topic(topic: &str) -> Option<Kind> {
-    channel(service_of_topic(topic)?).map(|(_, kind)| kind)
-}
-
-/// One decoded message.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Recorded {
-    Control(c2a::Control),
-    Threshold(c2all::Threshold),
-    Truth(a2s::Truth),
-    Prior(a2s::Prior),
-    Measurement(s2a::Measurement),
-    Slot(s2a::Slot),
-    Waypoint(a2c::Waypoint),
-    Outcome(a2c::Outcome),
-    Ledger(s2c::Ledger),
-    Hello(tc::Hello),
+    service_of_topic(topic)?.kind()
 }
 
 fn cfg() -> bincode::config::Configuration<
@@ -216,19 +102,15 @@ fn dec<T: serde::de::DeserializeOwned>(topic: &str, data: &[u8]) -> Result<T, Re
 
 /// Decode one payload of a channel (THE decoder of the recording).
 pub fn decode(topic: &str, data: &[u8]) -> Result<Recorded, RecordingError> {
+    struct Decode<'a>(&'a str, &'a [u8]);
+    impl crate::wire::KindVisitor for Decode<'_> {
+        type Out = Result<Recorded, RecordingError>;
+        fn visit<T: crate::wire::Message>(self) -> Self::Out {
+            dec::<T>(self.0, self.1).map(T::into_recorded)
+        }
+    }
     let kind = kind_of_topic(topic).ok_or_else(|| RecordingError::UnknownTopic(topic.into()))?;
-    Ok(match kind {
-        Kind::Control => Recorded::Control(dec(topic, data)?),
-        Kind::Threshold => Recorded::Threshold(dec(topic, data)?),
-        Kind::Truth => Recorded::Truth(dec(topic, data)?),
-        Kind::Prior => Recorded::Prior(dec(topic, data)?),
-        Kind::Measurement => Recorded::Measurement(dec(topic, data)?),
-        Kind::Slot => Recorded::Slot(dec(topic, data)?),
-        Kind::Waypoint => Recorded::Waypoint(dec(topic, data)?),
-        Kind::Outcome => Recorded::Outcome(dec(topic, data)?),
-        Kind::Ledger => Recorded::Ledger(dec(topic, data)?),
-        Kind::Hello => Recorded::Hello(dec(topic, data)?),
-    })
+    kind.visit(Decode(topic, data))
 }
 
 #[cfg(test)]

@@ -280,7 +280,7 @@ fn rerun<const N: usize>(
         loop {
             // MODEL.md §3 in the agent's order: input, plant step, collision
             // check (ends the episode before the slot), prediction, slot.
-            let u = c.input(leg as usize, &belief);
+            let u = c.input(leg as usize, &belief.mean);
             k += 1;
             steps_in_leg += 1;
             rep.steps += 1;

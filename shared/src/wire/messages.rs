@@ -270,3 +270,82 @@ pub fn to_wire_mat(n: usize, get: impl Fn(usize, usize) -> f64) -> WireMat {
     }
     out
 }
+
+/// A `u32` code field of a payload as a closed enum: `TryFrom<u32>` refuses
+/// unknown codes, `code()` gives the wire value.
+macro_rules! code_enum {
+    ($(#[$m:meta])* $name:ident { $( $variant:ident = $value:expr ),* $(,)? }) => {
+        $(#[$m])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        pub enum $name { $( $variant, )* }
+
+        impl $name {
+            /// The value on the wire.
+            pub const fn code(self) -> u32 {
+                match self { $( Self::$variant => $value, )* }
+            }
+        }
+
+        impl TryFrom<u32> for $name {
+            /// The unknown code.
+            type Error = u32;
+            fn try_from(v: u32) -> Result<Self, u32> {
+                match v { $( x if x == $value => Ok(Self::$variant), )* other => Err(other) }
+            }
+        }
+    };
+}
+
+code_enum! {
+    /// `Control::kind`.
+    ControlKind { Start = coordinator_to_agent::Control::START, Stop = coordinator_to_agent::Control::STOP }
+}
+
+code_enum! {
+    /// `Threshold::kind`.
+    ThresholdKind {
+        Open = coordinator_to_all::Threshold::OPEN,
+        Close = coordinator_to_all::Threshold::CLOSE,
+        Stop = coordinator_to_all::Threshold::STOP,
+    }
+}
+
+code_enum! {
+    /// `Outcome::outcome`.
+    OutcomeCode {
+        Target = agent_to_coordinator::Outcome::TARGET,
+        Collision = agent_to_coordinator::Outcome::COLLISION,
+        Free = agent_to_coordinator::Outcome::FREE,
+    }
+}
+
+impl OutcomeCode {
+    /// The name used in reports ("target", "collision", "free").
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Target => "target",
+            Self::Collision => "collision",
+            Self::Free => "free",
+        }
+    }
+}
+
+#[cfg(test)]
+mod code_tests {
+    use super::*;
+
+    #[test]
+    fn codes_round_trip_and_unknown_ones_are_refused() {
+        for k in [
+            ThresholdKind::Open,
+            ThresholdKind::Close,
+            ThresholdKind::Stop,
+        ] {
+            assert_eq!(ThresholdKind::try_from(k.code()), Ok(k));
+        }
+        assert_eq!(ThresholdKind::try_from(0), Err(0));
+        assert_eq!(ControlKind::try_from(2), Ok(ControlKind::Stop));
+        assert_eq!(OutcomeCode::try_from(3).map(OutcomeCode::name), Ok("free"));
+        assert_eq!(OutcomeCode::try_from(9), Err(9));
+    }
+}

@@ -19,12 +19,14 @@
 //! the leg at the serving sensor, close the previous one, whose sensor answers
 //! on `ledger`). The episode ends with `outcome`.
 
+pub mod catalogue;
 pub mod cleanup;
 pub mod messages;
 pub mod report;
 pub mod services;
 pub mod waiter;
 
+pub use catalogue::{Kind, KindVisitor, Message, Recorded};
 pub use messages::*;
 pub use services::*;
 pub use waiter::{Stamper, Waiter, Wake, Watchdog, termination_requested};
@@ -80,12 +82,19 @@ pub fn load_scenario(arg: &str) -> Result<crate::scenario::Scenario, String> {
     crate::scenario::Scenario::from_toml(&text).map_err(|e| format!("scenario `{arg}`: {e}"))
 }
 
+/// iceoryx2 reports errors only: its warnings (no config file, the global
+/// config used while cleaning a dead node whose details are gone) are noise
+/// here, where every configuration is built in code.
+pub fn quiet_iceoryx2() {
+    iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
+}
+
 /// Logging setup for the runtime processes: a `tracing` subscriber on
 /// stderr filtered by `RUST_LOG` (default `warn`); the caller enters a span
 /// named after the process so every line says who wrote it. iceoryx2 only reports errors (its "no config file"
 /// warning is noise: the config is built in code).
 pub fn init_process_logging(process: &str) {
-    iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
+    quiet_iceoryx2();
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
     let _ = tracing_subscriber::fmt()

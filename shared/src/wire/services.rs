@@ -124,9 +124,15 @@ pub enum ServiceId {
 }
 
 impl ServiceId {
-    /// The service name `etp/<run-id>/…`.
+    /// The service name `etp/<run-id>/<topic>`.
     pub fn name(&self, run: &RunId) -> String {
-        let tail = match self {
+        format!("etp/{run}/{}", self.topic())
+    }
+
+    /// The service's name within its run (also its recording's channel
+    /// topic): `control`, `sensor/3/truth`, …
+    pub fn topic(&self) -> String {
+        match self {
             Self::Control => "control".to_string(),
             Self::Threshold(i) => format!("sensor/{i}/threshold"),
             Self::Truth(i) => format!("sensor/{i}/truth"),
@@ -140,8 +146,7 @@ impl ServiceId {
             Self::AgentWake => "agent/wake".to_string(),
             Self::CoordinatorWake => "coordinator/wake".to_string(),
             Self::SensorWake(i) => format!("sensor/{i}/wake"),
-        };
-        format!("etp/{run}/{tail}")
+        }
     }
 
     /// Every publish-subscribe service of a run with `sensors` sensors (what a

@@ -10,14 +10,8 @@
 use anyhow::{Context, Result, bail};
 use etp_shared::recording::{self, Contents, Recorded};
 use etp_shared::scenario::Scenario;
-use etp_shared::wire::{
-    self, Ports, Pub, RunId, ServiceId, agent_to_coordinator as a2c, agent_to_sensor as a2s,
-    coordinator_to_agent as c2a, coordinator_to_all as c2all, sensor_to_agent as s2a,
-    sensor_to_coordinator as s2c, to_coordinator as tc,
-};
-use iceoryx2::prelude::ZeroCopySend;
+use etp_shared::wire::{self, Ports, Pub, RunId, ServiceId};
 use std::collections::BTreeMap;
-use std::fmt::Debug;
 use std::time::{Duration, Instant};
 
 /// Node name of the replayer.
@@ -32,60 +26,31 @@ pub fn parse_rate(s: &str) -> Result<f64, String> {
     Ok(x)
 }
 
-/// A typed publisher of one channel.
-enum Sender {
-    Control(Pub<c2a::Control>),
-    Threshold(Pub<c2all::Threshold>),
-    Truth(Pub<a2s::Truth>),
-    Prior(Pub<a2s::Prior>),
-    Measurement(Pub<s2a::Measurement>),
-    Slot(Pub<s2a::Slot>),
-    Waypoint(Pub<a2c::Waypoint>),
-    Outcome(Pub<a2c::Outcome>),
-    Ledger(Pub<s2c::Ledger>),
-    Hello(Pub<tc::Hello>),
-}
-
-fn send<T: Debug + ZeroCopySend + Copy>(p: &Pub<T>, v: T) -> Result<usize> {
-    p.send_copy(v).map_err(|e| anyhow::anyhow!("{e:?}"))
-}
-
-impl Sender {
-    fn open(ports: &Ports<'_>, s: ServiceId) -> Result<Self> {
-        use recording::Kind;
-        let kind = recording::channel(s)
-            .map(|(_, k)| k)
-            .context("not a recorded service")?;
-        Ok(match kind {
-            Kind::Control => Self::Control(ports.publisher(s)?),
-            Kind::Threshold => Self::Threshold(ports.publisher(s)?),
-            Kind::Truth => Self::Truth(ports.publisher(s)?),
-            Kind::Prior => Self::Prior(ports.publisher(s)?),
-            Kind::Measurement => Self::Measurement(ports.publisher(s)?),
-            Kind::Slot => Self::Slot(ports.publisher(s)?),
-            Kind::Waypoint => Self::Waypoint(ports.publisher(s)?),
-            Kind::Outcome => Self::Outcome(ports.publisher(s)?),
-            Kind::Ledger => Self::Ledger(ports.publisher(s)?),
-            Kind::Hello => Self::Hello(ports.publisher(s)?),
-        })
-    }
-
+/// A typed publisher of one channel, behind the one method replay needs.
+trait Sender {
     /// Send one decoded payload; the number of subscribers it reached.
+    fn send(&self, r: Recorded) -> Result<usize>;
+}
+
+impl<T: etp_shared::wire::Message> Sender for Pub<T> {
     fn send(&self, r: Recorded) -> Result<usize> {
-        match (self, r) {
-            (Self::Control(p), Recorded::Control(v)) => send(p, v),
-            (Self::Threshold(p), Recorded::Threshold(v)) => send(p, v),
-            (Self::Truth(p), Recorded::Truth(v)) => send(p, v),
-            (Self::Prior(p), Recorded::Prior(v)) => send(p, v),
-            (Self::Measurement(p), Recorded::Measurement(v)) => send(p, v),
-            (Self::Slot(p), Recorded::Slot(v)) => send(p, v),
-            (Self::Waypoint(p), Recorded::Waypoint(v)) => send(p, v),
-            (Self::Outcome(p), Recorded::Outcome(v)) => send(p, v),
-            (Self::Ledger(p), Recorded::Ledger(v)) => send(p, v),
-            (Self::Hello(p), Recorded::Hello(v)) => send(p, v),
-            _ => bail!("payload of another channel"),
+        let v = T::from_recorded(r).context("payload of another channel")?;
+        self.send_copy(v).map_err(|e| anyhow::anyhow!("{e:?}"))
+    }
+}
+
+/// Open the publisher of a recorded service, typed by its kind.
+fn open_sender(ports: &Ports<'_>, s: ServiceId) -> Result<Box<dyn Sender>> {
+    struct Open<'a, 'p>(&'a Ports<'p>, ServiceId);
+    impl etp_shared::wire::KindVisitor for Open<'_, '_> {
+        type Out = Result<Box<dyn Sender>>;
+        fn visit<T: etp_shared::wire::Message>(self) -> Self::Out {
+            Ok(Box::new(self.0.publisher::<T>(self.1)?))
         }
     }
+    s.kind()
+        .context("not a recorded service")?
+        .visit(Open(ports, s))
 }
 
 /// What a replay published.
@@ -125,13 +90,13 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64) -> Result<Published> {
         run,
         sensors: scenario.sensors.len(),
     };
-    let mut senders: BTreeMap<&str, Sender> = BTreeMap::new();
+    let mut senders: BTreeMap<&str, Box<dyn Sender>> = BTreeMap::new();
     for topic in c.channels.keys() {
         let s = recording::service_of_topic(topic)
             .with_context(|| format!("unknown channel `{topic}` in the recording"))?;
         senders.insert(
             topic.as_str(),
-            Sender::open(&ports, s).with_context(|| format!("opening `{topic}`"))?,
+            open_sender(&ports, s).with_context(|| format!("opening `{topic}`"))?,
         );
     }
     let t0 = order.first().map_or(0, |(t, _, _)| *t);
