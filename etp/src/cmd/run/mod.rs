@@ -79,7 +79,7 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         bail!("--deadline must be a positive number of seconds");
     }
     if let Some(p) = &a.record {
-        crate::output::refuse_existing(p, a.force)?;
+        record::claim(p, a.force)?;
     }
     let run_id = match &a.run_id {
         Some(id) => RunId::new(id)?,
