@@ -2,7 +2,7 @@
 //! with any flipped bit, a `strategy.json` whose Δ was edited, a scenario
 //! named `../../escape`.
 
-use super::{Scratch, etp, fails_with, ok_json, s};
+use super::{Scratch, fails_with, ok_json, s};
 
 /// A small synthesis of open-2d (`DIR/mdp.bin`, `DIR/strategy.json`).
 fn synthesize(dir: &Scratch) -> std::path::PathBuf {

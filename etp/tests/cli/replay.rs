@@ -147,7 +147,7 @@ fn every_cut_of_a_recording_is_unfinished_and_repairs_to_a_verifying_copy() {
     // chunk: its placeholder header (length, sizes and CRC all ones) and
     // the part of its compressed data that reached the file.
     let (_, last_start, last_body) = chunks[chunks.len() - 1].clone();
-    let mut killed = bytes[..*last_start].to_vec();
+    let mut killed = bytes[..last_start].to_vec();
     killed.push(0x06);
     killed.extend_from_slice(&u64::MAX.to_le_bytes());
     killed.extend_from_slice(&0u64.to_le_bytes()); // message start time

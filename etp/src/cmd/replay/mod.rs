@@ -247,7 +247,6 @@ fn emit(text: &str) -> Result<()> {
 }
 
 fn render_verify(v: &recording::VerifyReport) -> String {
-    use std::fmt::Write;
     let mut t = String::new();
     // Writing into a String cannot fail.
     let _ = write_verify(&mut t, v);
