@@ -419,6 +419,9 @@ pub(crate) mod tests {
         let e = Mdp::decode(&bytes[..bytes.len() - 1])
             .expect_err("cut")
             .to_string();
-        assert!(e.starts_with("mdp.bin is corrupted: checksum mismatch"), "{e}");
+        assert!(
+            e.starts_with("mdp.bin is corrupted: checksum mismatch"),
+            "{e}"
+        );
     }
 }

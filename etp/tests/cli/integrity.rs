@@ -38,7 +38,14 @@ fn flipped_bits_in_mdp_bin_and_edited_deltas_are_refused() {
         flipped[at] ^= 1 << (i % 8);
         std::fs::write(broken.join("mdp.bin"), &flipped).expect("write");
         fails_with(
-            &["strategy", s(&broken), "--vertex", "0", "-o", s(&dir.path("x.json"))],
+            &[
+                "strategy",
+                s(&broken),
+                "--vertex",
+                "0",
+                "-o",
+                s(&dir.path("x.json")),
+            ],
             &["mdp.bin is corrupted: checksum mismatch"],
         );
         assert!(!dir.path("x.json").exists());
@@ -47,7 +54,10 @@ fn flipped_bits_in_mdp_bin_and_edited_deltas_are_refused() {
         let mut flipped = mdp.clone();
         flipped[at] ^= 0x10;
         std::fs::write(broken.join("mdp.bin"), &flipped).expect("write");
-        fails_with(&["export-prism", s(&broken), s(&dir.path("prism"))], &[needle]);
+        fails_with(
+            &["export-prism", s(&broken), s(&dir.path("prism"))],
+            &[needle],
+        );
     }
     assert!(!dir.path("prism").exists());
 
@@ -56,12 +66,14 @@ fn flipped_bits_in_mdp_bin_and_edited_deltas_are_refused() {
     // strategies, naming the field, before anything runs.
     let strategy = out.join("strategy.json");
     let mut v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&strategy).expect("strategy"))
-            .expect("JSON");
+        serde_json::from_str(&std::fs::read_to_string(&strategy).expect("strategy")).expect("JSON");
     v["deltas"][1] = serde_json::json!(3.5);
     let bent = dir.path("bent.json");
     std::fs::write(&bent, v.to_string()).expect("write");
-    fails_with(&["validate", s(&bent), "--episodes", "5"], &["`deltas`", "3.5"]);
+    fails_with(
+        &["validate", s(&bent), "--episodes", "5"],
+        &["`deltas`", "3.5"],
+    );
     let rec = dir.path("bent.mcap");
     fails_with(
         &["run", s(&bent), "--episodes", "2", "--record", s(&rec)],
@@ -110,7 +122,10 @@ fn walk(root: std::path::PathBuf) -> Vec<std::path::PathBuf> {
     let mut out = Vec::new();
     let mut todo = vec![root];
     while let Some(d) = todo.pop() {
-        for e in std::fs::read_dir(&d).expect("read_dir").filter_map(Result::ok) {
+        for e in std::fs::read_dir(&d)
+            .expect("read_dir")
+            .filter_map(Result::ok)
+        {
             let p = e.path();
             if p.is_dir() {
                 todo.push(p);

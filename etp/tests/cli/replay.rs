@@ -176,8 +176,14 @@ fn every_cut_of_a_recording_is_unfinished_and_repairs_to_a_verifying_copy() {
     // --repair: a finished copy of every complete record, which verifies.
     for (name, src) in [
         ("killed", file),
-        ("in-chunk", dir.path(&format!("cut-{}.mcap", mid(&chunks[chunks.len() - 1].2)))),
-        ("in-summary", dir.path(&format!("cut-{}.mcap", (data_end + bytes.len()) / 2))),
+        (
+            "in-chunk",
+            dir.path(&format!("cut-{}.mcap", mid(&chunks[chunks.len() - 1].2))),
+        ),
+        (
+            "in-summary",
+            dir.path(&format!("cut-{}.mcap", (data_end + bytes.len()) / 2)),
+        ),
     ] {
         let fixed = dir.path(&format!("fixed-{name}.mcap"));
         let r = ok_json(&["replay", s(&src), "--repair", s(&fixed), "--json"]);
@@ -216,7 +222,9 @@ fn forty_bit_flips_in_the_data_section_are_all_refused() {
         let (code, _, err) = replay_code(&f);
         assert_eq!(code, Some(1), "bit {} of byte {at} flipped: {err}", i % 8);
         assert!(err.contains("damaged"), "byte {at}: {err}");
-        *codes.entry(err.lines().next().map(str::to_string)).or_insert(0) += 1;
+        *codes
+            .entry(err.lines().next().map(str::to_string))
+            .or_insert(0) += 1;
     }
     assert!(codes.len() > 1, "{codes:?}");
 }
@@ -264,7 +272,10 @@ fn edited_metadata_is_refused() {
         std::fs::write(&cut, &edited[..edited.len() * 6 / 10]).expect("write");
         let (code, _, err) = replay_code(&cut);
         assert_eq!(code, Some(1), "{name}: {err}");
-        assert!(err.contains("damaged") && err.contains(needle), "{name}: {err}");
+        assert!(
+            err.contains("damaged") && err.contains(needle),
+            "{name}: {err}"
+        );
         // --repair still copies the records (with a warning).
         let fixed = dir.path(&format!("{name}-fixed.mcap"));
         let out = etp(&["replay", s(&cut), "--repair", s(&fixed), "--json"]);

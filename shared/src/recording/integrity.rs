@@ -21,7 +21,8 @@ pub const META_RUN_SCENARIO_HASH: &str = "scenario_hash";
 pub fn check_metadata(c: &Contents) -> Result<Option<Scenario>, RecordingError> {
     let bad = |m: String| Err(RecordingError::Metadata(m));
     let Some(text) = c.meta(META_SCENARIO, "toml") else {
-        if c.meta(META_RUN, META_RUN_SCENARIO_HASH).is_some() || c.metadata.contains_key(META_STRATEGY)
+        if c.meta(META_RUN, META_RUN_SCENARIO_HASH).is_some()
+            || c.metadata.contains_key(META_STRATEGY)
         {
             return bad(format!(
                 "the file names a scenario (`{META_RUN}` or `{META_STRATEGY}`) but holds no `{META_SCENARIO}` record"
@@ -31,7 +32,11 @@ pub fn check_metadata(c: &Contents) -> Result<Option<Scenario>, RecordingError> 
     };
     let scenario = match Scenario::from_toml(text) {
         Ok(s) => s,
-        Err(e) => return bad(format!("the recorded scenario (`{META_SCENARIO}`) is invalid: {e}")),
+        Err(e) => {
+            return bad(format!(
+                "the recorded scenario (`{META_SCENARIO}`) is invalid: {e}"
+            ));
+        }
     };
     if let Some(h) = c.meta(META_RUN, META_RUN_SCENARIO_HASH)
         && h != scenario.content_hash
@@ -87,8 +92,10 @@ mod tests {
         }
         c.metadata.insert(META_RUN.into(), run);
         if let Some(s) = strategy {
-            c.metadata
-                .insert(META_STRATEGY.into(), BTreeMap::from([("json".to_string(), s)]));
+            c.metadata.insert(
+                META_STRATEGY.into(),
+                BTreeMap::from([("json".to_string(), s)]),
+            );
         }
         c
     }
@@ -106,7 +113,9 @@ mod tests {
         let st = Strategy::constant(&s, 0, prediction).to_json();
         let ok = contents(text, Some(&s.content_hash), Some(st.clone()));
         assert_eq!(
-            check_metadata(&ok).expect("consistent").map(|s| s.content_hash),
+            check_metadata(&ok)
+                .expect("consistent")
+                .map(|s| s.content_hash),
             Some(s.content_hash.clone())
         );
         // The same file without the run record's hash (format 1 files before
@@ -131,7 +140,11 @@ mod tests {
             .to_string();
         assert!(e.contains("deltas"), "{e}");
         // No scenario at all: nothing to check, unless something names one.
-        assert!(check_metadata(&Contents::default()).expect("empty").is_none());
+        assert!(
+            check_metadata(&Contents::default())
+                .expect("empty")
+                .is_none()
+        );
         let mut orphan = contents(text, Some(&s.content_hash), None);
         orphan.metadata.remove(META_SCENARIO);
         assert!(check_metadata(&orphan).is_err());

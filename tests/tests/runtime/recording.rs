@@ -186,7 +186,16 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
         ],
     );
     let victim = wait_for_process(&id, "etp-recorder", None);
-    std::thread::sleep(Duration::from_millis(800));
+    // Kill it mid-run: once the file holds a few episodes (a fixed delay
+    // measured the machine's load, not the recorder).
+    let start = std::time::Instant::now();
+    while std::fs::metadata(&file).map_or(0, |m| m.len()) < 200 * 1024 {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "the recording never grew"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
     kill("-KILL", &victim.to_string());
     let (_, out, err) = run.finish();
     let v: Value = serde_json::from_str(&out)
@@ -284,7 +293,12 @@ fn two_runs_recording_to_one_path_do_not_both_write() {
     let c = read_finished(&file);
     assert_eq!(c.meta(recording::META_RUN, "run_id"), Some(winner.as_str()));
     let r = replay(&[&path, "--verify"]);
-    assert_eq!(r["verify"]["passed"].as_bool(), Some(true), "{}", r["verify"]);
+    assert_eq!(
+        r["verify"]["passed"].as_bool(),
+        Some(true),
+        "{}",
+        r["verify"]
+    );
     assert_eq!(r["episodes"].as_u64(), Some(20));
     let _ = std::fs::remove_file(&file);
 }
