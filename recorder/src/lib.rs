@@ -1,12 +1,18 @@
 //! The `etp-recorder` process: subscribes to every publish-subscribe service of a run and
 //! writes one MCAP file (format: `etp_shared::recording`).
 //!
-//! Spawned by `etp run --record` before the other processes; prints `ready`
-//! on stdout once every subscriber exists, then records until SIGTERM/SIGINT
-//! (or its parent's death), drains what is left, calls `finish()` and prints
-//! one JSON object `{"path", "counts": {topic: n}, "messages", "bytes"}`.
+//! Spawned by `etp run --record` before the other processes. It first creates
+//! its output exclusively (`create_new`: an existing file — another run's
+//! recording — is never opened, let alone truncated; the error names the path
+//! and nothing is started), prints `ready` on stdout once every subscriber
+//! exists, then records until SIGTERM/SIGINT (or its parent's death), drains
+//! what is left, calls `finish()` and prints one JSON object
+//! `{"path", "counts": {topic: n}, "messages", "bytes"}`. A closed stdout
+//! (its parent died) is not an error: the file is finished all the same.
 //! zstd chunks of 128 KiB plus a flush every 100 ms: a crash loses at most the
-//! last ~100 ms (read such a file with `etp replay`, repair it with `--repair`).
+//! last ~100 ms (`etp replay` calls such a file unfinished, exit 3, and
+//! `--repair` finishes it). Logs go to stderr through `tracing` (`RUST_LOG`,
+//! default `warn`; start, finish and counts at `info`).
 
 use anyhow::{Context, Result};
 use clap::Parser;
@@ -17,7 +23,7 @@ use mcap::records::{MessageHeader, Metadata};
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{BufWriter, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 /// Record every message of an etpareto run to MCAP (spawned by `etp run --record`).
@@ -29,7 +35,7 @@ struct Cli {
     /// Scenario (built-in name or TOML path): gives the number of sensors.
     #[arg(long)]
     scenario: String,
-    /// Output MCAP file.
+    /// Output MCAP file; must not exist (it is created exclusively).
     #[arg(long)]
     out: PathBuf,
     /// JSON object `{record name: {key: value}}` written as metadata records.
@@ -85,7 +91,23 @@ struct Channel {
     count: u32,
 }
 
-fn run(cli: &Cli) -> Result<serde_json::Value> {
+/// Create the output exclusively: fails if anything exists at `path`.
+fn create_output(path: &Path) -> Result<File> {
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)
+        .with_context(|| {
+            format!(
+                "cannot record to {}: the file could not be created exclusively \
+                 (another run recording to it? use a new path, or `etp run --force` to replace it)",
+                path.display()
+            )
+        })
+}
+
+/// Record to `file` (created by the caller) until told to stop.
+fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
     let run = RunId::new(&cli.run_id)?;
     let scenario = wire::load_scenario(&cli.scenario).map_err(anyhow::Error::msg)?;
     let sensors = scenario.sensors.len();
@@ -95,7 +117,6 @@ fn run(cli: &Cli) -> Result<serde_json::Value> {
         run: &run,
         sensors,
     };
-    let file = File::create(&cli.out).with_context(|| format!("creating {}", cli.out.display()))?;
     let mut w = mcap::WriteOptions::new()
         .compression(Some(mcap::Compression::Zstd))
         .chunk_size(Some(CHUNK))
@@ -148,9 +169,17 @@ fn run(cli: &Cli) -> Result<serde_json::Value> {
     w.flush().context("flushing the MCAP header")?;
     {
         let mut out = std::io::stdout().lock();
-        writeln!(out, "ready").context("stdout")?;
-        out.flush().context("stdout")?;
+        writeln!(out, "ready")
+            .and_then(|()| out.flush())
+            .context("telling the parent `ready` on stdout")?;
     }
+    *ready = true;
+    tracing::info!(
+        run = %run,
+        path = %cli.out.display(),
+        channels = channels.len(),
+        "recording"
+    );
     let parent = std::os::unix::process::parent_id();
     let mut last_flush = Instant::now();
     let mut batch: Vec<Vec<u8>> = Vec::new();
@@ -199,12 +228,30 @@ fn run(cli: &Cli) -> Result<serde_json::Value> {
         .map(|c| (c.topic.clone(), u64::from(c.count)))
         .collect();
     let bytes = std::fs::metadata(&cli.out).map_or(0, |m| m.len());
+    let messages = summary.stats.map_or(0, |s| s.message_count);
+    tracing::info!(
+        path = %cli.out.display(),
+        messages,
+        bytes,
+        ?counts,
+        "recording finished"
+    );
     Ok(serde_json::json!({
         "path": cli.out.display().to_string(),
-        "messages": summary.stats.map_or(0, |s| s.message_count),
+        "messages": messages,
         "counts": counts,
         "bytes": bytes,
     }))
+}
+
+/// Logs to stderr, filtered by `RUST_LOG` (default `warn`).
+/// Write one line to stdout. A closed stdout (the parent is gone) is not an
+/// error of the recording: it is logged and the line dropped.
+fn print_line(line: &str) {
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = writeln!(out, "{line}").and_then(|()| out.flush()) {
+        tracing::info!("stdout closed ({e}); the summary line is dropped");
+    }
 }
 
 /// The process entry point (`main` of `etp-recorder`, and `etp process
@@ -218,13 +265,24 @@ where
     // Prints help or the usage error and exits (0 or 2), as `main` would.
     let cli = Cli::parse_from(args);
     wire::init_process_logging("etp-recorder");
-    match run(&cli) {
+    let result = create_output(&cli.out).and_then(|file| {
+        let mut ready = false;
+        let r = run(&cli, file, &mut ready);
+        if r.is_err() && !ready {
+            // Nothing was recorded: remove the file this process created (and
+            // only it: create_new guarantees it is ours).
+            let _ = std::fs::remove_file(&cli.out);
+        }
+        r
+    });
+    match result {
         Ok(v) => {
-            println!("{v}");
+            print_line(&v.to_string());
             std::process::ExitCode::SUCCESS
         }
         Err(e) => {
-            eprintln!("etp-recorder: error: {e:#}");
+            // stderr may be closed too: never panic on it.
+            let _ = writeln!(std::io::stderr(), "etp-recorder: error: {e:#}");
             std::process::ExitCode::FAILURE
         }
     }

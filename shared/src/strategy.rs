@@ -178,6 +178,20 @@ impl Strategy {
                 scenario_hash: scenario.content_hash.clone(),
             });
         }
+        // Bit-for-bit: Δ are the MDP's actions; a strategy naming any other
+        // threshold (an edited file) would run thresholds nothing predicted.
+        if self.deltas.len() != scenario.deltas.len()
+            || self
+                .deltas
+                .iter()
+                .zip(&scenario.deltas)
+                .any(|(a, b)| a.to_bits() != b.to_bits())
+        {
+            return Err(StrategyError::Invalid(format!(
+                "its `deltas` {:?} are not the scenario's Δ {:?}",
+                self.deltas, scenario.deltas
+            )));
+        }
         if let Some(d) = &self.discretization
             && d.decision_points.len() != scenario.num_legs()
         {
@@ -321,6 +335,21 @@ mod tests {
         ));
         let cov = DMatrix::identity(2, 2);
         assert_eq!(back.draw(3, &cov, 0.7), 2);
+        // One δ edited (still a consistent file on its own): refused, naming the field.
+        let mut bent = back.clone();
+        bent.deltas[2] = 3.5;
+        let bent = Strategy::from_json(&bent.to_json()).expect("consistent on its own");
+        let e = bent.check_scenario(&s).expect_err("δ not in Δ").to_string();
+        assert!(e.contains("`deltas`") && e.contains("3.5"), "{e}");
+        let mut fewer = back.clone();
+        fewer.deltas.pop();
+        for st in &mut fewer.states {
+            st.omega.pop();
+        }
+        assert!(matches!(
+            fewer.check_scenario(&s),
+            Err(StrategyError::Invalid(_))
+        ));
     }
 
     #[test]

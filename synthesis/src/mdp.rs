@@ -6,15 +6,22 @@
 //! decision point i + 1 or to a terminal. Backward induction is therefore one
 //! pass over the states in reverse order.
 //!
-//! File: the 8-byte magic `ETPMDP\0\n`, a little-endian `u32` format version, then
-//! the bincode 2.0.1 (serde, standard config) encoding of [`Mdp`].
+//! File (format version 2): the 8-byte magic `ETPMDP\0\n`, a little-endian
+//! `u32` format version, the bincode 2.0.1 (serde, standard config) encoding
+//! of [`Mdp`], then the SHA-256 of everything before it (32 bytes), so a
+//! flipped bit or a cut file is refused before anything is decoded (version 1
+//! had no checksum: 4 of 8 random bit flips decoded into another valid MDP).
 
 use etp_shared::discretization::{Discretization, Region};
 use serde::{Deserialize, Serialize};
 
 /// Version of the `mdp.bin` layout.
-pub const MDP_FORMAT_VERSION: u32 = 1;
+pub const MDP_FORMAT_VERSION: u32 = 2;
 const MAGIC: &[u8; 8] = b"ETPMDP\0\n";
+/// Magic and version.
+const HEADER_LEN: usize = 12;
+/// The SHA-256 at the end of the file.
+const CHECKSUM_LEN: usize = 32;
 
 /// Why an MDP file was refused.
 #[derive(Debug, thiserror::Error)]
@@ -23,6 +30,11 @@ pub enum MdpError {
     Magic,
     #[error("MDP format version {found} is not supported (this etp reads version {expected})")]
     Version { found: u32, expected: u32 },
+    #[error(
+        "mdp.bin is corrupted: checksum mismatch (SHA-256 of its content {computed:.12}…, \
+         recorded {stored:.12}…): the file was truncated or changed; rerun `etp synthesize`"
+    )]
+    Checksum { stored: String, computed: String },
     #[error("MDP file is truncated or corrupted: {0}")]
     Decode(String),
     #[error("MDP is inconsistent: {0}")]
@@ -174,19 +186,30 @@ impl Mdp {
 
     /// The file bytes.
     pub fn encode(&self) -> Vec<u8> {
-        let mut out = Vec::with_capacity(1 << 16);
+        // Encoding plain data into a Vec cannot fail.
+        let body = bincode::serde::encode_to_vec(self, bincode_config()).unwrap_or_default();
+        Self::file_of_body(&body)
+    }
+
+    /// The file whose bincode body is `body` (header and checksum added): lets
+    /// the `mdp_decode` fuzz target reach the decoder behind the checksum.
+    #[doc(hidden)]
+    pub fn file_of_body(body: &[u8]) -> Vec<u8> {
+        use sha2::{Digest, Sha256};
+        let mut out = Vec::with_capacity(HEADER_LEN + body.len() + CHECKSUM_LEN);
         out.extend_from_slice(MAGIC);
         out.extend_from_slice(&MDP_FORMAT_VERSION.to_le_bytes());
-        // Encoding plain data into a Vec cannot fail.
-        if let Ok(body) = bincode::serde::encode_to_vec(self, bincode_config()) {
-            out.extend_from_slice(&body);
-        }
+        out.extend_from_slice(body);
+        let digest = Sha256::digest(&out);
+        out.extend_from_slice(&digest);
         out
     }
 
-    /// Parse and check a file's bytes.
+    /// Parse and check a file's bytes: magic, version, checksum, then the
+    /// content and its invariants.
     pub fn decode(bytes: &[u8]) -> Result<Self, MdpError> {
-        if bytes.len() < 12 || &bytes[..8] != MAGIC {
+        use sha2::{Digest, Sha256};
+        if bytes.len() < HEADER_LEN || &bytes[..8] != MAGIC {
             return Err(MdpError::Magic);
         }
         let version = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
@@ -196,13 +219,29 @@ impl Mdp {
                 expected: MDP_FORMAT_VERSION,
             });
         }
+        if bytes.len() < HEADER_LEN + CHECKSUM_LEN {
+            return Err(MdpError::Decode(format!(
+                "{} bytes: shorter than a header and a checksum",
+                bytes.len()
+            )));
+        }
+        let (content, stored) = bytes.split_at(bytes.len() - CHECKSUM_LEN);
+        let computed = Sha256::digest(content);
+        if computed.as_slice() != stored {
+            let hex = |b: &[u8]| b.iter().map(|x| format!("{x:02x}")).collect::<String>();
+            return Err(MdpError::Checksum {
+                stored: hex(stored),
+                computed: hex(&computed),
+            });
+        }
+        let body = &content[HEADER_LEN..];
         let (mdp, used): (Self, usize) =
-            bincode::serde::decode_from_slice(&bytes[12..], bincode_decode_config())
+            bincode::serde::decode_from_slice(body, bincode_decode_config())
                 .map_err(|e| MdpError::Decode(e.to_string()))?;
-        if used != bytes.len() - 12 {
+        if used != body.len() {
             return Err(MdpError::Decode(format!(
                 "{} trailing bytes after the MDP",
-                bytes.len() - 12 - used
+                body.len() - used
             )));
         }
         mdp.check()?;
@@ -339,6 +378,10 @@ pub(crate) mod tests {
         assert_eq!(Mdp::decode(&bytes).expect("round trip"), m);
         assert!(matches!(
             Mdp::decode(&bytes[..bytes.len() - 3]),
+            Err(MdpError::Checksum { .. })
+        ));
+        assert!(matches!(
+            Mdp::decode(&bytes[..20]),
             Err(MdpError::Decode(_))
         ));
         assert!(matches!(Mdp::decode(b"hello"), Err(MdpError::Magic)));
@@ -348,11 +391,37 @@ pub(crate) mod tests {
             Mdp::decode(&v),
             Err(MdpError::Version { found: 7, .. })
         ));
+        // The checksum passes, the content does not (a bug, not a flip).
         let mut broken = toy();
         broken.states[0].choices[0].transitions[0].next = Next::State(0);
         assert!(matches!(
             Mdp::decode(&broken.encode()),
             Err(MdpError::Invalid(_))
         ));
+    }
+
+    /// Every bit of the file, flipped alone, is refused: a header bit by the
+    /// magic or version check, any other by the checksum (version 1 accepted
+    /// 4 of 8 flips, one renaming the scenario).
+    #[test]
+    fn every_single_bit_flip_is_refused() {
+        let bytes = toy().encode();
+        for bit in 0..bytes.len() * 8 {
+            let mut v = bytes.clone();
+            v[bit / 8] ^= 1 << (bit % 8);
+            match Mdp::decode(&v) {
+                Err(MdpError::Magic) => assert!(bit < 64, "bit {bit}"),
+                Err(MdpError::Version { .. }) => assert!((64..96).contains(&bit), "bit {bit}"),
+                Err(MdpError::Checksum { .. }) => assert!(bit >= 96, "bit {bit}"),
+                other => panic!("bit {bit} flipped: {other:?}"),
+            }
+        }
+        let e = Mdp::decode(&bytes[..bytes.len() - 1])
+            .expect_err("cut")
+            .to_string();
+        assert!(
+            e.starts_with("mdp.bin is corrupted: checksum mismatch"),
+            "{e}"
+        );
     }
 }

@@ -143,7 +143,7 @@ fn pipeline_predicts_what_simulation_measures_and_refuses_bad_files() {
     std::fs::write(broken.join("mdp.bin"), &mdp[..mdp.len() / 3]).expect("write");
     fails_with(
         &["strategy", s(&broken), "--vertex", "0"],
-        &["truncated or corrupted"],
+        &["mdp.bin is corrupted: checksum mismatch"],
     );
     let mut flipped = mdp.clone();
     flipped[0] ^= 0xff;

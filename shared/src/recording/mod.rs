@@ -11,7 +11,8 @@
 //! * Schema encoding [`SCHEMA_ENCODING`]: the schema data is a text listing of
 //!   the fields (`name: type`), named after the iceoryx2 type name.
 //! * Metadata records: [`META_RUN`] (format version, software version, run
-//!   id, seed, episodes, scenario name), [`META_SCENARIO`] (`toml`),
+//!   id, seed, episodes, scenario name, scenario content hash
+//!   [`META_RUN_SCENARIO_HASH`]), [`META_SCENARIO`] (`toml`),
 //!   [`META_STRATEGY`] (`json`), [`META_PREDICTION`] (`json`: what the
 //!   strategy predicts, for "energy vs prediction").
 //! * `log_time`/`publish_time`: ns since the Unix epoch when the recorder took
@@ -21,9 +22,11 @@ use crate::wire::ServiceId;
 #[cfg(test)]
 use crate::wire::sensor_to_agent as s2a;
 
+mod integrity;
 mod read;
 mod verify;
 
+pub use integrity::{META_RUN_SCENARIO_HASH, check_metadata};
 pub use read::{Contents, RawMessage, read_lenient};
 pub use verify::{Mismatch, VerifyReport, verify};
 

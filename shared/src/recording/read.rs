@@ -67,6 +67,8 @@ impl<'a> Records<'a> {
         let options = mcap::sans_io::LinearReaderOptions::default()
             .with_skip_end_magic(true)
             .with_validate_chunk_crcs(true)
+            .with_validate_data_section_crc(true)
+            .with_validate_summary_section_crc(true)
             .with_record_length_limit(RECORD_LIMIT.max(buf.len()));
         Self {
             buf,
@@ -98,10 +100,105 @@ impl Iterator for Records<'_> {
     }
 }
 
-/// Read every complete record of a recording (finished or not): a linear
-/// read over the flattened chunks that does not need the end magic; where
-/// reading stops early is reported in [`Contents::truncated`] (and
-/// [`Contents::damaged`]).
+/// MCAP opcodes the framing scan needs.
+const OP_FOOTER: u8 = 0x02;
+const OP_CHUNK: u8 = 0x06;
+
+/// Where the top-level records of a file end, from their framing alone
+/// (opcode u8, length u64 LE, body).
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Framing {
+    /// Every record is complete, the footer is followed by the end magic.
+    Finished,
+    /// The records up to byte `intact` are complete; the file ends there
+    /// (`cut: None`) or inside the record that starts there (`cut: Some`).
+    Open { intact: usize, cut: Option<String> },
+    /// The footer is followed by something other than the end magic.
+    AfterFooter(String),
+}
+
+/// Walk the top-level records. A writer that dies leaves a prefix of a valid
+/// file: complete records, then at most one record that ends past the end of
+/// the file — a record header or body cut short by the write, or the chunk
+/// the mcap writer had open, whose length is still its placeholder
+/// `u64::MAX` (it seeks back to fill it in only when the chunk is finished).
+fn framing(buf: &[u8]) -> Framing {
+    let mut at = mcap::MAGIC.len();
+    while at < buf.len() {
+        let rest = buf.len() - at;
+        if rest < 9 {
+            return Framing::Open {
+                intact: at,
+                cut: Some(format!(
+                    "the file ends inside a record header at byte {at} ({rest} of 9 bytes)"
+                )),
+            };
+        }
+        let opcode = buf[at];
+        let mut len_bytes = [0u8; 8];
+        len_bytes.copy_from_slice(&buf[at + 1..at + 9]);
+        let len = u64::from_le_bytes(len_bytes);
+        if opcode == OP_CHUNK && len == u64::MAX {
+            return Framing::Open {
+                intact: at,
+                cut: Some(format!(
+                    "the last chunk (byte {at}) was never finished: its length is the \
+                     writer's placeholder 0x{len:X}"
+                )),
+            };
+        }
+        let end = u64::try_from(at + 9)
+            .ok()
+            .and_then(|start| start.checked_add(len))
+            .filter(|&end| end <= buf.len() as u64);
+        let Some(end) = end else {
+            return Framing::Open {
+                intact: at,
+                cut: Some(format!(
+                    "the record at byte {at} (opcode 0x{opcode:02x}) claims {len} bytes, \
+                     the file holds {}",
+                    rest - 9
+                )),
+            };
+        };
+        at = end as usize;
+        if opcode == OP_FOOTER {
+            let tail = &buf[at..];
+            return if tail == mcap::MAGIC {
+                Framing::Finished
+            } else if mcap::MAGIC.starts_with(tail) {
+                Framing::Open {
+                    intact: at,
+                    cut: Some(format!(
+                        "the file ends inside the end magic ({} of 8 bytes)",
+                        tail.len()
+                    )),
+                }
+            } else {
+                Framing::AfterFooter(format!(
+                    "{} bytes after the footer are not the end magic",
+                    tail.len()
+                ))
+            };
+        }
+    }
+    Framing::Open {
+        intact: at,
+        cut: None,
+    }
+}
+
+/// Read every complete record of a recording (finished or not).
+///
+/// A file is *unfinished* when it is a prefix of a valid file, cut anywhere
+/// (inside a record, inside a chunk, in the writer's open chunk, in the
+/// summary): every complete record before the cut is read (a cut chunk is
+/// skipped whole: its CRC cannot be checked), and the cut is reported in
+/// [`Contents::truncated`]. A file is *damaged* ([`Contents::damaged`]) when
+/// a complete record fails a check: a bad chunk, data-section or
+/// summary-section CRC, an undecodable record, a message on an undeclared
+/// channel, a finished file (end magic) whose records do not add up, or a
+/// footer without a data-end record.
 pub fn read_lenient(name: &str, buf: &[u8]) -> Result<Contents, RecordingError> {
     use mcap::records::Record;
     if buf.len() < 8 || &buf[..8] != mcap::MAGIC {
@@ -110,19 +207,36 @@ pub fn read_lenient(name: &str, buf: &[u8]) -> Result<Contents, RecordingError> 
             "no MCAP magic at the start".into(),
         ));
     }
-    let reader = Records::new(buf);
     let mut out = Contents::default();
+    let ends_with_magic = buf.len() >= 16 && buf[buf.len() - 8..] == *mcap::MAGIC;
+    let readable = match framing(buf) {
+        Framing::Finished => buf,
+        Framing::Open { intact, cut } => {
+            if let Some(cut) = cut {
+                // A finished file (end magic) whose records overrun it has a
+                // corrupted length, not a cut.
+                out.damaged = ends_with_magic;
+                out.truncated = Some(cut);
+            }
+            &buf[..intact]
+        }
+        Framing::AfterFooter(why) => {
+            out.damaged = true;
+            out.truncated = Some(why);
+            buf
+        }
+    };
+    let reader = Records::new(readable);
     let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
     let mut topics: BTreeMap<u16, String> = BTreeMap::new();
+    let mut data_end = false;
+    let mut footer = false;
     for rec in reader {
         let rec = match rec {
             Ok(r) => r,
             Err(e) => {
-                // A crashed writer leaves a record cut by the end of the file;
-                // anything else — or a cut record in a file that does end
-                // with the end magic (a corrupted length) — is damage.
-                let ends_with_magic = buf.len() >= 16 && buf[buf.len() - 8..] == *mcap::MAGIC;
-                out.damaged = !matches!(e, mcap::McapError::UnexpectedEof) || ends_with_magic;
+                // Every record fed to the reader is complete: any error is damage.
+                out.damaged = true;
                 out.truncated = Some(e.to_string());
                 break;
             }
@@ -154,11 +268,16 @@ pub fn read_lenient(name: &str, buf: &[u8]) -> Result<Contents, RecordingError> 
             Record::Metadata(m) => {
                 out.metadata.insert(m.name, m.metadata);
             }
-            Record::Footer(_) => out.finished = true,
+            Record::DataEnd(_) => data_end = true,
+            Record::Footer(_) => footer = true,
             _ => {}
         }
     }
-    out.finished &= buf.len() >= 8 && &buf[buf.len() - 8..] == mcap::MAGIC;
+    if footer && !data_end && !out.damaged {
+        out.damaged = true;
+        out.truncated = Some("the file has a footer but no data-end record".into());
+    }
+    out.finished = footer && !out.damaged && ends_with_magic;
     Ok(out)
 }
 
@@ -223,5 +342,90 @@ mod tests {
             read_lenient("short", &file[..5]),
             Err(RecordingError::NotMcap(..))
         ));
+    }
+
+    /// The committed fixture: a finished recording of a real 4-episode run.
+    const FIXTURE: &[u8] = include_bytes!("../../../recordings/fixtures/open-2d-4-episodes.mcap");
+
+    #[test]
+    fn every_prefix_of_a_recording_is_unfinished_never_damaged() {
+        let whole = read_lenient("whole", FIXTURE).expect("an MCAP file");
+        assert!(whole.finished && !whole.damaged && whole.truncated.is_none());
+        let mut last = 0;
+        let mut cut_reasons = std::collections::BTreeSet::new();
+        for at in (8..FIXTURE.len()).step_by(59) {
+            let c = read_lenient("prefix", &FIXTURE[..at]).expect("an MCAP file");
+            assert!(!c.damaged, "cut at {at}: {:?}", c.truncated);
+            assert!(!c.finished, "cut at {at}");
+            assert!(c.messages.len() >= last, "cut at {at}");
+            last = c.messages.len();
+            if let Some(t) = &c.truncated {
+                cut_reasons.insert(t.split(' ').take(5).collect::<Vec<_>>().join(" "));
+            }
+        }
+        assert_eq!(last, whole.messages.len(), "the summary holds no message");
+        assert!(cut_reasons.len() >= 2, "{cut_reasons:?}");
+    }
+
+    /// Bit flips anywhere in a finished file (every 89th byte, rotating
+    /// bits): each is damage (or not an MCAP file at all), never a clean
+    /// read — the data-section CRC covers the metadata and chunk headers,
+    /// the summary CRC the summary, the framing check the footer and magic.
+    #[test]
+    fn every_bit_flip_of_a_finished_recording_is_damage() {
+        for (i, at) in (0..FIXTURE.len()).step_by(89).enumerate() {
+            let mut bad = FIXTURE.to_vec();
+            bad[at] ^= 1 << (i % 8);
+            match read_lenient("flipped", &bad) {
+                Err(RecordingError::NotMcap(..)) => assert!(at < 8, "byte {at}"),
+                Err(e) => panic!("byte {at}: {e}"),
+                Ok(c) => assert!(
+                    c.damaged && !c.finished,
+                    "bit {} of byte {at} flipped: read as {} ({:?})",
+                    i % 8,
+                    if c.finished { "finished" } else { "unfinished" },
+                    c.truncated
+                ),
+            }
+        }
+        // The last byte of the end magic too.
+        let mut bad = FIXTURE.to_vec();
+        let last = bad.len() - 1;
+        bad[last] ^= 1;
+        assert!(read_lenient("magic", &bad).expect("an MCAP file").damaged);
+    }
+
+    #[test]
+    fn the_open_chunk_of_a_killed_writer_is_a_cut() {
+        // Complete records, then what the mcap writer leaves of the chunk it
+        // had open: its placeholder header (length, sizes, CRC all ones).
+        let mut file = mcap::MAGIC.to_vec();
+        file.extend(record(0x01, &[string("etpareto"), string("test")].concat()));
+        let complete = read_lenient("header", &file).expect("an MCAP file");
+        file.push(OP_CHUNK);
+        file.extend_from_slice(&u64::MAX.to_le_bytes());
+        file.extend_from_slice(&[0; 16]);
+        file.extend_from_slice(&u64::MAX.to_le_bytes());
+        file.extend_from_slice(&u32::MAX.to_le_bytes());
+        file.extend_from_slice(&string("zstd"));
+        file.extend_from_slice(&u64::MAX.to_le_bytes());
+        file.extend_from_slice(&[0x28, 0xb5, 0x2f, 0xfd, 0, 0, 0]);
+        let c = read_lenient("killed", &file).expect("an MCAP file");
+        assert!(!c.damaged && !c.finished, "{:?}", c.truncated);
+        assert!(
+            c.truncated
+                .as_deref()
+                .is_some_and(|t| t.contains("placeholder")),
+            "{:?}",
+            c.truncated
+        );
+        assert_eq!(c.messages.len(), complete.messages.len());
+        // The same bytes followed by an end magic claim to be finished: damage.
+        file.extend_from_slice(mcap::MAGIC);
+        assert!(
+            read_lenient("claims finished", &file)
+                .expect("mcap")
+                .damaged
+        );
     }
 }

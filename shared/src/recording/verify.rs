@@ -104,10 +104,32 @@ fn insert<T>(map: &mut BTreeMap<u32, T>, key: u32, v: T, dup: &mut Option<String
     }
 }
 
-fn group(c: &Contents) -> Result<BTreeMap<u64, EpisodeRecord>, RecordingError> {
+/// The messages of each episode, and the first episode that a cut file may
+/// hold only in part: the smallest, over the streams verify reads (one per
+/// channel and sender), of the last episode recorded on it. Each stream of a
+/// cut file is a prefix of what was published, but the recorder drains the
+/// streams at different moments, so one may stop an episode or more before
+/// another (a `slot` stream was seen an episode behind `measurement`); an
+/// episode before the horizon is whole on every stream.
+fn group(c: &Contents) -> Result<(BTreeMap<u64, EpisodeRecord>, u64), RecordingError> {
     let mut eps: BTreeMap<u64, EpisodeRecord> = BTreeMap::new();
+    let mut last_of_stream: BTreeMap<(&str, u32), u64> = BTreeMap::new();
     for m in &c.messages {
         let rec = decode(&m.topic, &m.data)?;
+        let header = match &rec {
+            Recorded::Control(x) => Some(x.header),
+            Recorded::Threshold(x) => Some(x.header),
+            Recorded::Prior(x) => Some(x.header),
+            Recorded::Measurement(x) => Some(x.header),
+            Recorded::Slot(x) => Some(x.header),
+            Recorded::Waypoint(x) => Some(x.header),
+            Recorded::Outcome(x) => Some(x.header),
+            _ => None,
+        };
+        if let Some(h) = header {
+            let last = last_of_stream.entry((&m.topic, h.sender)).or_default();
+            *last = (*last).max(h.episode);
+        }
         let r = match &rec {
             Recorded::Control(x) if x.kind == Control::START => eps.entry(x.header.episode),
             Recorded::Threshold(x) if x.kind == Threshold::OPEN => eps.entry(x.header.episode),
@@ -133,7 +155,8 @@ fn group(c: &Contents) -> Result<BTreeMap<u64, EpisodeRecord>, RecordingError> {
             _ => {}
         }
     }
-    Ok(eps)
+    let horizon = last_of_stream.values().copied().min().unwrap_or(0);
+    Ok((eps, horizon))
 }
 
 /// Re-run the estimator of every episode of a recording (see the module doc).
@@ -143,10 +166,9 @@ pub fn verify(c: &Contents) -> Result<VerifyReport, RecordingError> {
         .ok_or_else(|| RecordingError::Metadata(format!("no `{META_SCENARIO}` record")))?;
     let scenario = Scenario::from_toml(text)
         .map_err(|e| RecordingError::Metadata(format!("the recorded scenario: {e}")))?;
-    let episodes = group(c)?;
-    // Was the recording cut (recorder killed)? Then the run's last episodes
-    // may miss messages. The coordinator starts episode e + 1 only after the
-    // outcome of e, so only the last two episodes of the file can be affected.
+    let (episodes, horizon) = group(c)?;
+    // Was the recording cut (recorder killed)? Then the episodes from the
+    // horizon on (see `group`) may miss messages.
     let outcomes = episodes.values().filter(|r| r.outcome.is_some()).count() as u64;
     let cut = match c
         .meta(META_RUN, "episodes")
@@ -155,12 +177,11 @@ pub fn verify(c: &Contents) -> Result<VerifyReport, RecordingError> {
         Some(requested) => outcomes < requested,
         None => !c.finished,
     };
-    let last = episodes.keys().next_back().copied().unwrap_or(0);
     let mut report = VerifyReport::default();
     crate::with_dim!(scenario.dim, N => {
         let compiled = CompiledScenario::<N>::new(&scenario);
         for (e, r) in &episodes {
-            let may_be_cut = cut && e.saturating_add(1) >= last;
+            let may_be_cut = cut && *e >= horizon;
             verify_episode(&compiled, *e, r, may_be_cut, &mut report);
         }
     });

@@ -21,9 +21,7 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
             format!("must be between 1 and {MAX_DIM}, got {n}"),
         ));
     }
-    if raw.name.trim().is_empty() {
-        return Err(ScenarioError::invalid("name", "must not be empty"));
-    }
+    check_name(&raw.name)?;
 
     let m = &raw.model;
     let plant = Plant {
@@ -199,6 +197,32 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
     })
 }
 
+/// Longest scenario name.
+const NAME_MAX: usize = 64;
+
+/// A scenario's name becomes a folder and file name (`out/<name>/`,
+/// `recordings/<name>-<run>.mcap`): one path component of
+/// `[A-Za-z0-9][A-Za-z0-9._-]{0,63}`, so it can neither climb out of the
+/// output folder (`..`, `/`) nor be hidden (leading `.`) or read as an option
+/// (leading `-`).
+fn check_name(name: &str) -> Result<()> {
+    let mut chars = name.chars();
+    let ok = chars.next().is_some_and(|c| c.is_ascii_alphanumeric())
+        && chars.all(|c| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-'))
+        && name.len() <= NAME_MAX;
+    if ok {
+        Ok(())
+    } else {
+        Err(ScenarioError::invalid(
+            "name",
+            format!(
+                "must be 1 to {NAME_MAX} characters of A-Z a-z 0-9 . _ - starting with a letter \
+                 or digit (it names output folders), got {name:?}"
+            ),
+        ))
+    }
+}
+
 /// SHA-256 over the canonical (parsed, defaults filled) content, so comments and
 /// formatting do not change it but any value does.
 fn content_hash(raw: &RawScenario) -> String {
@@ -316,4 +340,31 @@ fn aabb(field: &str, raw: &RawBox, n: usize) -> Result<Aabb> {
         min: min.as_slice().to_vec(),
         max: max.as_slice().to_vec(),
     })
+}
+
+#[cfg(test)]
+mod name_tests {
+    use super::check_name;
+
+    #[test]
+    fn names_are_one_safe_path_component() {
+        for ok in ["open-2d", "a", "Winding_2D.v2", &"x".repeat(64)] {
+            assert!(check_name(ok).is_ok(), "{ok:?}");
+        }
+        for bad in [
+            "",
+            "../../escape",
+            "..",
+            ".hidden",
+            "-rf",
+            "a/b",
+            "a\\b",
+            "with space",
+            "é",
+            &"x".repeat(65),
+        ] {
+            let e = check_name(bad).expect_err(bad).to_string();
+            assert!(e.contains("field `name`"), "{bad:?}: {e}");
+        }
+    }
 }

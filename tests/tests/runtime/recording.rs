@@ -136,6 +136,16 @@ fn recording_counts_equal_the_report_and_measurements_equal_ledgers_and_received
     );
     assert_eq!(transmitted, received, "ledgers == agent received");
     assert_eq!(counts["outcome"] as f64, num(&v, "episodes"));
+    // The run record names the scenario's content hash, and it is that of
+    // the recorded scenario (what `etp replay` checks).
+    let c = read_finished(&file);
+    let scenario = recording::check_metadata(&c)
+        .expect("consistent metadata")
+        .expect("a recorded scenario");
+    assert_eq!(
+        c.meta(recording::META_RUN, recording::META_RUN_SCENARIO_HASH),
+        Some(scenario.content_hash.as_str())
+    );
     // The file alone.
     let r = replay(&[&file.display().to_string()]);
     assert_eq!(r["finished"].as_bool(), Some(true));
@@ -176,7 +186,16 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
         ],
     );
     let victim = wait_for_process(&id, "etp-recorder", None);
-    std::thread::sleep(Duration::from_millis(800));
+    // Kill it mid-run: once the file holds a few episodes (a fixed delay
+    // measured the machine's load, not the recorder).
+    let start = std::time::Instant::now();
+    while std::fs::metadata(&file).map_or(0, |m| m.len()) < 200 * 1024 {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "the recording never grew"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
     kill("-KILL", &victim.to_string());
     let (code, out, err) = run.finish_code();
     // The run goes on without its recorder, reports, and fails: the
@@ -186,6 +205,19 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
     let v: Value = serde_json::from_str(&out).expect("JSON");
     assert_eq!(v["recording"]["finished"].as_bool(), Some(false));
     assert!(processes_of_run(&id).is_empty());
+
+    // The file is unfinished (exit 3), not damaged: the open chunk's
+    // placeholder length (u64::MAX) is the cut, not corruption.
+    let plain = Command::new(bin_dir().join("etp"))
+        .args(["replay", &file.display().to_string(), "--json"])
+        .output()
+        .expect("etp replay");
+    let stderr = String::from_utf8_lossy(&plain.stderr);
+    assert_eq!(plain.status.code(), Some(3), "{stderr}");
+    assert!(
+        stderr.contains("unfinished") && !stderr.contains("damaged"),
+        "{stderr}"
+    );
 
     let r = replay(&[
         &file.display().to_string(),
@@ -216,6 +248,129 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
     }
     let _ = std::fs::remove_file(&file);
     let _ = std::fs::remove_file(&repaired);
+}
+
+/// Two runs recording to one path at once: the recorder creates the file
+/// exclusively, so exactly one run records; the other is refused before it
+/// starts anything, naming the path; the winner's file is whole and verifies.
+#[test]
+fn two_runs_recording_to_one_path_do_not_both_write() {
+    let _serial = serial();
+    let (a, b) = (unique_run_id("same-a"), unique_run_id("same-b"));
+    let file = out_file(&a);
+    let _ = std::fs::remove_file(&file);
+    let path = file.display().to_string();
+    let args = [
+        "--scenario",
+        "winding-2d",
+        "--delta",
+        DELTA,
+        "--episodes",
+        "20",
+        "--seed",
+        "5",
+        "--predict-episodes",
+        "50",
+        "--record",
+        &path,
+    ];
+    let (ra, rb) = (EtpRun::spawn(&a, &args), EtpRun::spawn(&b, &args));
+    let (ok_a, out_a, err_a) = ra.finish();
+    let (ok_b, out_b, err_b) = rb.finish();
+    assert!(
+        ok_a != ok_b,
+        "exactly one run may record to {path}: a {ok_a} ({err_a}), b {ok_b} ({err_b})"
+    );
+    let (winner, out, loser_err) = if ok_a {
+        (&a, out_a, err_b)
+    } else {
+        (&b, out_b, err_a)
+    };
+    assert!(
+        loser_err.contains(&path)
+            && (loser_err.contains("already exists") || loser_err.contains("exclusively")),
+        "{loser_err}"
+    );
+    let v: Value = serde_json::from_str(&out).expect("report of the recording run");
+    assert_eq!(v["recording"]["finished"].as_bool(), Some(true));
+    let c = read_finished(&file);
+    assert_eq!(c.meta(recording::META_RUN, "run_id"), Some(winner.as_str()));
+    let r = replay(&[&path, "--verify"]);
+    assert_eq!(
+        r["verify"]["passed"].as_bool(),
+        Some(true),
+        "{}",
+        r["verify"]
+    );
+    assert_eq!(r["episodes"].as_u64(), Some(20));
+    let _ = std::fs::remove_file(&file);
+}
+
+/// The recorder itself: a second recorder on the file of a first one fails
+/// at once (non-zero, naming the path) and leaves that file alone; a closed
+/// stdout does not stop the first from finishing its file (no panic, exit
+/// 0); `RUST_LOG=info` logs its start and finish on stderr.
+#[test]
+fn a_recorder_never_opens_an_existing_file_and_survives_a_closed_stdout() {
+    use std::io::{BufRead, BufReader};
+    let _serial = serial();
+    let (a, b) = (unique_run_id("rec-one"), unique_run_id("rec-two"));
+    let file = out_file(&a);
+    let _ = std::fs::remove_file(&file);
+    let path = file.display().to_string();
+    let recorder = |id: &str| {
+        Command::new(bin_dir().join("etp-recorder"))
+            .args(["--run-id", id, "--scenario", "winding-2d", "--out", &path])
+            .env("RUST_LOG", "info")
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("spawning etp-recorder")
+    };
+    let mut first = recorder(&a);
+    let guard = KillOnDrop(first.id());
+    let mut lines = BufReader::new(first.stdout.take().expect("stdout"));
+    let mut ready = String::new();
+    lines.read_line(&mut ready).expect("recorder output");
+    assert_eq!(ready.trim(), "ready");
+    let header = std::fs::read(&file).expect("the first recorder's file");
+
+    let second = recorder(&b).wait_with_output().expect("second recorder");
+    let err = String::from_utf8_lossy(&second.stderr);
+    assert!(!second.status.success(), "{err}");
+    assert!(err.contains(&path) && err.contains("exists"), "{err}");
+    assert!(second.stdout.is_empty(), "never ready");
+    assert_eq!(std::fs::read(&file).expect("still there"), header);
+
+    // Close the first recorder's stdout, then stop it: it finishes the file.
+    drop(lines);
+    kill("-TERM", &first.id().to_string());
+    let out = first.wait_with_output().expect("first recorder");
+    std::mem::forget(guard);
+    let log = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{:?}: {log}", out.status);
+    assert!(!log.contains("panicked"), "{log}");
+    assert!(
+        log.contains("recording") && log.contains("recording finished"),
+        "{log}"
+    );
+    let c = read_finished(&file);
+    assert!(c.messages.is_empty());
+    let _ = std::fs::remove_file(&file);
+    for id in [&a, &b] {
+        if let Ok(run) = etp_shared::wire::RunId::new(id) {
+            etp_shared::wire::cleanup::remove_run(&run);
+        }
+    }
+}
+
+/// Kills a process (by pid) if the test fails before it ended.
+struct KillOnDrop(u32);
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        kill("-KILL", &self.0.to_string());
+    }
 }
 
 /// Sorted payloads per channel without the run tag (the first 8 bytes: the header's

@@ -6,9 +6,11 @@
 //! (`etp_shared::recording::verify`); `--publish` puts the traffic back on
 //! iceoryx2 (`publish.rs`); `--foxglove OUT` writes a copy that Foxglove
 //! draws (`foxglove.rs`). Exit codes: 0 complete file, 3 unfinished file
-//! (summary of every complete record printed), 1 error — including a damaged
-//! file (bad CRC, undecodable record), which only `--repair` reads
-//! (salvaging the records before the damage).
+//! (cut anywhere by a crash or a copy: summary of every complete record
+//! printed), 1 error — including a damaged file (bad chunk, data or summary
+//! CRC, undecodable record, metadata whose scenario hashes disagree), which
+//! only `--repair` reads (salvaging the records before the damage). Output
+//! goes through [`emit`]: a closed stdout never panics.
 
 mod foxglove;
 mod publish;
@@ -133,6 +135,18 @@ pub fn run(a: Args) -> Result<()> {
             a.file.display()
         );
     }
+    // The metadata must describe one scenario (hashes of etp.run and of the
+    // strategy against the recorded scenario's content).
+    if let Err(e) = recording::check_metadata(&c) {
+        if a.repair.is_none() {
+            bail!(
+                "{} is damaged: {e}; `etp replay {} --repair OUT` copies its records anyway",
+                a.file.display(),
+                a.file.display()
+            );
+        }
+        eprintln!("warning: {e}; the repaired copy keeps this metadata");
+    }
     let s = summary::summarize(&c)?;
     if let Some(out) = &a.repair {
         let n = repair::repair(&c, out)?;
@@ -183,18 +197,19 @@ pub fn run(a: Args) -> Result<()> {
         if let Some(f) = &fox {
             s["foxglove"] = json!(f);
         }
-        println!("{s}");
+        emit(&format!("{s}\n"))?;
     } else {
-        summary::print(&a.file, &c, &s);
+        let mut text = summary::render(&a.file, &c, &s);
         if let Some(v) = &verified {
-            print_verify(v);
+            text.push_str(&render_verify(v));
         }
         if let Some(p) = &published {
-            println!(
-                "published {} messages on run {} in {:.2} s (recorded span {:.2} s, rate {}); {} reached no subscriber",
+            text.push_str(&format!(
+                "published {} messages on run {} in {:.2} s (recorded span {:.2} s, rate {}); {} reached no subscriber\n",
                 p.messages, p.run_id, p.wall_seconds, p.recorded_seconds, p.rate, p.undelivered
-            );
+            ));
         }
+        emit(&text)?;
     }
     if let Some(v) = verified
         && !v.passed()
@@ -218,14 +233,35 @@ pub fn run(a: Args) -> Result<()> {
     Ok(())
 }
 
-fn print_verify(v: &recording::VerifyReport) {
-    println!(
+/// Write `text` to stdout. A closed pipe (`etp replay F | head -1`) ends the
+/// output quietly; another write error is reported, never a panic.
+fn emit(text: &str) -> Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(e).context("writing to stdout"),
+        _ => Ok(()),
+    }
+}
+
+fn render_verify(v: &recording::VerifyReport) -> String {
+    let mut t = String::new();
+    // Writing into a String cannot fail.
+    let _ = write_verify(&mut t, v);
+    t
+}
+
+fn write_verify(out: &mut String, v: &recording::VerifyReport) -> std::fmt::Result {
+    use std::fmt::Write;
+    writeln!(
+        out,
         "verify: {} · {} priors and {} decision-point beliefs reproduced bit for bit",
         if v.passed() { "PASSED" } else { "FAILED" },
         v.priors_checked,
         v.waypoints_checked
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "  {} episodes re-run ({} steps: {} measurements, {} silent slots); {} incomplete (end of file), {} degraded skipped",
         v.episodes_checked,
         v.steps,
@@ -233,14 +269,16 @@ fn print_verify(v: &recording::VerifyReport) {
         v.implicit_updates,
         v.episodes_incomplete,
         v.episodes_degraded_skipped
-    );
+    )?;
     for m in &v.mismatches {
-        println!(
+        writeln!(
+            out,
             "  MISMATCH episode {} leg {} step {}: {} (max |diff| {:e})",
             m.episode, m.leg, m.step, m.what, m.max_abs_diff
-        );
+        )?;
     }
     if v.mismatch_count > v.mismatches.len() as u64 {
-        println!("  … {} mismatches in all", v.mismatch_count);
+        writeln!(out, "  … {} mismatches in all", v.mismatch_count)?;
     }
+    Ok(())
 }

@@ -122,25 +122,38 @@ pub fn summarize(c: &Contents) -> Result<Value> {
     }))
 }
 
-/// Print the summary `s` of the recording `c` read from `file` as a table.
-pub fn print(file: &Path, c: &Contents, s: &Value) {
+/// The summary `s` of the recording `c` read from `file`, as a table.
+pub fn render(file: &Path, c: &Contents, s: &Value) -> String {
+    let mut t = String::new();
+    // Writing into a String cannot fail.
+    let _ = write_table(&mut t, file, c, s);
+    t
+}
+
+fn write_table(out: &mut String, file: &Path, c: &Contents, s: &Value) -> std::fmt::Result {
+    use std::fmt::Write;
     let g = |k: &str| match s.get(k) {
         Some(Value::String(t)) => t.clone(),
         Some(v) => v.to_string(),
         None => "?".into(),
     };
-    println!(
+    writeln!(
+        out,
         "recording {} · run {} · scenario {} · seed {} · {}",
         file.display(),
         g("run_id"),
         g("scenario"),
         g("seed"),
         g("software_version")
-    );
+    )?;
     if let Some(t) = &c.truncated {
-        println!("  UNFINISHED file: read every complete record; stopped at: {t}");
+        writeln!(
+            out,
+            "  UNFINISHED file: read every complete record; stopped at: {t}"
+        )?;
     }
-    println!(
+    writeln!(
+        out,
         "  {} episodes (requested {}): target {} · collision {} · free {} · {} steps",
         g("episodes"),
         g("requested_episodes"),
@@ -148,37 +161,42 @@ pub fn print(file: &Path, c: &Contents, s: &Value) {
         g("collision"),
         g("free"),
         g("steps")
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "  transmissions: {} measurement messages · {} in ledgers · {} received by the agent",
         g("measurements"),
         g("ledger_transmissions"),
         g("agent_received")
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "  energy {} (predicted {})",
         g("energy"),
         g("predicted_energy")
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "  {:<10} {:>12} {:>12} {:>12} {:>12}",
         "sensor", "measurements", "ledgers", "energy", "predicted"
-    );
+    )?;
     if let Some(arr) = s.get("sensors").and_then(Value::as_array) {
         for x in arr {
             let f = |k: &str| x.get(k).cloned().unwrap_or(Value::Null);
-            println!(
+            writeln!(
+                out,
                 "  {:<10} {:>12} {:>12} {:>12.1} {:>12.1}",
                 f("name").as_str().unwrap_or("?"),
                 f("measurements").as_u64().unwrap_or(0),
                 f("ledger_transmissions").as_u64().unwrap_or(0),
                 f("ledger_energy").as_f64().unwrap_or(f64::NAN),
                 f("predicted_energy").as_f64().unwrap_or(f64::NAN)
-            );
+            )?;
         }
     }
-    println!("  messages per channel:");
+    writeln!(out, "  messages per channel:")?;
     for (t, n) in c.counts() {
-        println!("    {t:<20} {n}");
+        writeln!(out, "    {t:<20} {n}")?;
     }
+    Ok(())
 }

@@ -169,7 +169,7 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         bail!("--slot-deadline must be at least 1 ms");
     }
     if let Some(p) = &a.record {
-        crate::output::refuse_existing(p, a.force)?;
+        record::claim(p, a.force)?;
     }
     let run_id = match &a.run_id {
         Some(id) => RunId::new(id)?,

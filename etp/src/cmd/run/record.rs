@@ -1,6 +1,12 @@
 //! `etp run --record`: the recorder process (`etp-recorder`), started before
 //! the others and stopped (SIGTERM: it drains, calls `finish()` and reports
 //! its counts) after they ended.
+//!
+//! The output file is created exclusively by the recorder itself
+//! (`create_new`), before any other process of the run starts: of two runs
+//! recording to one path at once, the second's recorder cannot create it and
+//! that run fails before starting anything, leaving the first's file alone.
+//! [`claim`] is only the early, friendly check (and `--force`'s removal).
 
 use super::prepare::Plan;
 use super::supervise::{ProcessExit, sibling_binary, status_text};
@@ -26,6 +32,24 @@ pub struct Recording {
     pub bytes: u64,
     /// False when the recorder died (the file is unfinished: see `etp replay --repair`).
     pub finished: bool,
+}
+
+/// The early check of `--record PATH` (before the run is prepared): an
+/// existing file is refused unless `force`, which removes it now so that the
+/// recorder can create it exclusively. Not the guarantee: another run may
+/// create the file after this check; the recorder's `create_new` refuses then.
+pub fn claim(path: &Path, force: bool) -> Result<()> {
+    crate::output::refuse_existing(path, force)?;
+    if force {
+        match std::fs::remove_file(path) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => {
+                return Err(e).with_context(|| format!("--force: removing {}", path.display()));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The default file: `recordings/<scenario>-<run-id>.mcap`.
@@ -73,6 +97,10 @@ fn metadata(plan: &Plan) -> Result<BTreeMap<String, BTreeMap<String, String>>> {
                 ("seed".into(), plan.seed.to_string()),
                 ("episodes".into(), plan.episodes.to_string()),
                 ("scenario_name".into(), plan.scenario.name.clone()),
+                (
+                    recording::META_RUN_SCENARIO_HASH.into(),
+                    plan.scenario.content_hash.clone(),
+                ),
             ]),
         ),
         (recording::META_SCENARIO.into(), one("toml", scenario)),
@@ -124,8 +152,20 @@ pub async fn start(plan: &Plan, out: &Path) -> Result<Recorder> {
     let mut line = String::new();
     let ready = tokio::time::timeout(READY_TIMEOUT, stdout.read_line(&mut line)).await;
     if !matches!(ready, Ok(Ok(n)) if n > 0 && line.trim() == "ready") {
-        let _ = child.kill().await;
-        bail!("the recorder did not start (see its error above)");
+        // EOF: the recorder exited (its error is on stderr); else stop it.
+        let status = match ready {
+            Ok(Ok(0)) => child.wait().await.ok(),
+            _ => {
+                let _ = child.kill().await;
+                None
+            }
+        };
+        bail!(
+            "cannot record to {}: the recorder did not start ({}; its error is above); \
+             nothing of the run was started",
+            out.display(),
+            status.map_or_else(|| "killed".to_string(), |st| status_text(&st))
+        );
     }
     let stopping = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let flag = stopping.clone();
