@@ -336,7 +336,16 @@ fn a_recorder_never_opens_an_existing_file_and_survives_a_closed_stdout() {
     assert_eq!(ready.trim(), "ready");
     let header = std::fs::read(&file).expect("the first recorder's file");
 
-    let second = recorder(&b).wait_with_output().expect("second recorder");
+    let mut second = recorder(&b);
+    let start = std::time::Instant::now();
+    while second.try_wait().expect("second recorder").is_none() {
+        if start.elapsed() > Duration::from_secs(30) {
+            let _ = second.kill();
+            panic!("a second recorder on {path} did not refuse it (still running after 30 s)");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let second = second.wait_with_output().expect("second recorder");
     let err = String::from_utf8_lossy(&second.stderr);
     assert!(!second.status.success(), "{err}");
     assert!(err.contains(&path) && err.contains("exists"), "{err}");
