@@ -7,7 +7,7 @@
 //! * [`run`] — opens the sensor's ports (see `etp_shared::wire`), says hello
 //!   to the coordinator and serves until `threshold` says stop or the
 //!   coordinator dies.
-//! * [`Node`](node::SensorNode) — the per-slot work: on a wake-up from the
+//! * `node::serve` — the per-slot work: on a wake-up from the
 //!   agent it takes `truth` x_k and `prior` (x̂⁻_k, P⁻_k), measures
 //!   y_k = H x_k + v_k (noise from `streams::SENSOR`, keyed by episode and
 //!   step), whitens the innovation, triggers on ‖ε‖∞ > δ, publishes

@@ -99,11 +99,6 @@ pub fn symmetrize<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> 
     (m + m.transpose()) * 0.5
 }
 
-/// `max_ij |a_ij|`.
-pub fn max_abs<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> f64 {
-    m.amax()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -12,6 +12,7 @@
 //!   requested trade-off (vertex LP, occupation measures), `front.json`.
 //! * [`validate`] — simulating a strategy (belief → region → δ ~ ω), trajectories.
 //! * [`prism`] — PRISM explicit export.
+//! * [`synthetic`] — seeded synthetic layered MDPs for benchmarks at scale.
 //!
 //! Pure maths: no I/O, no clock. Progress is reported through a callback so the
 //! front end can draw a bar.
@@ -21,4 +22,5 @@ pub mod mdp;
 pub mod pareto;
 pub mod prism;
 pub mod simulate;
+pub mod synthetic;
 pub mod validate;

@@ -1,0 +1,285 @@
+//! The exact optimum of a request: the occupation-measure LP over the whole
+//! MDP (Etessami et al. 2007, what PRISM's multi-objective engine solves),
+//! realised as a memoryless randomised strategy (docs/MODEL.md §5).
+//!
+//! LP: variables `x(s, c) ≥ 0`, the probability of visiting state s and taking
+//! choice c; flow `Σ_c x(s, c) = [s = s₀] + Σ_{s', c'} x(s', c') T(s', c', s)`;
+//! objectives and constraints are linear in x (energy `Σ x·cost`, P_tar and
+//! P_coll the flow into the terminals). Realisation:
+//! `ω(s)(c) = x(s, c) / Σ_c' x(s, c')`; on an acyclic MDP ω visits (s, c) with
+//! probability exactly x(s, c), so it attains the LP's values. States the
+//! optimum never visits ([`UNVISITED`]) take their smallest δ.
+//!
+//! Constraints hold in the strategy's own exact evaluation, not just in the LP:
+//! if the evaluated ω misses a bound by rounding, the LP is solved again with
+//! the bound tightened by [`MARGINS`] in turn.
+
+use super::policy::{Objectives, RandomisedPolicy, evaluate, weighted_optimum};
+use super::select::SelectError;
+use crate::mdp::{CostModel, Mdp, Next};
+use good_lp::{Expression, Solution, SolverModel, Variable, constraint, microlp, variable, variables};
+
+/// What an exact strategy is asked to do.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LpRequest {
+    /// Least energy with `P_tar ≥ min_target` (and `P_coll ≤ max_collision`).
+    MinEnergy {
+        min_target: f64,
+        max_collision: Option<f64>,
+    },
+    /// Highest `P_tar` with expected energy `≤ max_energy`.
+    MaxTarget { max_energy: f64 },
+    /// Least `P_coll` with `P_tar ≥ min_target` (for infeasibility reports).
+    MinCollision { min_target: f64 },
+}
+
+impl std::fmt::Display for LpRequest {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::MinEnergy {
+                min_target,
+                max_collision: Some(c),
+            } => write!(f, "P_tar ≥ {min_target} and P_coll ≤ {c}"),
+            Self::MinEnergy { min_target, .. } => write!(f, "P_tar ≥ {min_target}"),
+            Self::MaxTarget { max_energy } => write!(f, "energy ≤ {max_energy}"),
+            Self::MinCollision { min_target } => write!(f, "least P_coll with P_tar ≥ {min_target}"),
+        }
+    }
+}
+
+/// Successive tightenings of the request's bounds (absolute for probabilities,
+/// relative for energy) tried until the realised strategy meets the request in
+/// its own evaluation. The first is the exact request.
+pub const MARGINS: [f64; 6] = [0.0, 1e-13, 1e-12, 1e-11, 1e-10, 1e-9];
+
+/// A choice whose occupation is below this fraction of its state's is dropped
+/// (solver round-off, not a decision).
+const NEGLIGIBLE: f64 = 1e-12;
+
+/// How unvisited states are set: their choice with the smallest δ (the one
+/// closest to the full Kalman filter, the cautious default should the runtime
+/// reach a region the optimum does not expect).
+pub const UNVISITED: &str = "smallest δ";
+
+/// The exact optimum of a request.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OptimalStrategy {
+    pub policy: RandomisedPolicy,
+    /// Exact evaluation of `policy` (what `strategy.json` predicts).
+    pub predicted: Objectives,
+    /// The LP's own objective value at the accepted margin.
+    pub lp_objective: f64,
+    /// The tightening that was needed (0: none).
+    pub margin: f64,
+    /// States at which ω randomises.
+    pub randomised_states: usize,
+}
+
+/// The whole-MDP occupation LP of a request: `x(s, c)` and the objective value.
+pub fn solve_occupation_lp(
+    mdp: &Mdp,
+    cost: CostModel,
+    request: LpRequest,
+) -> Result<(Vec<Vec<f64>>, f64), SelectError> {
+    let mut vars = variables!();
+    let x: Vec<Vec<Variable>> = mdp
+        .states
+        .iter()
+        .map(|s| {
+            s.choices
+                .iter()
+                .map(|_| vars.add(variable().min(0.0)))
+                .collect()
+        })
+        .collect();
+    let mut inflow: Vec<Expression> = vec![Expression::from(0.0); mdp.states.len()];
+    inflow[mdp.initial as usize] += 1.0;
+    let mut target = Expression::from(0.0);
+    let mut collision = Expression::from(0.0);
+    let mut energy = Expression::from(0.0);
+    for (s, st) in mdp.states.iter().enumerate() {
+        for (c, ch) in st.choices.iter().enumerate() {
+            energy += ch.cost(cost) * x[s][c];
+            for t in &ch.transitions {
+                match t.next {
+                    Next::State(j) => inflow[j as usize] += t.probability * x[s][c],
+                    Next::Target => target += t.probability * x[s][c],
+                    Next::Collision => collision += t.probability * x[s][c],
+                    Next::Free => {}
+                }
+            }
+        }
+    }
+    let objective = match request {
+        LpRequest::MinEnergy { .. } => energy.clone(),
+        LpRequest::MaxTarget { .. } => -target.clone(),
+        LpRequest::MinCollision { .. } => collision.clone(),
+    };
+    let mut problem = vars.minimise(objective.clone()).using(microlp);
+    for (s, row) in x.iter().enumerate() {
+        let out: Expression = row.iter().copied().sum();
+        problem = problem.with(constraint!(out == inflow[s].clone()));
+    }
+    match request {
+        LpRequest::MinEnergy {
+            min_target,
+            max_collision,
+        } => {
+            problem = problem.with(constraint!(target >= min_target));
+            if let Some(mc) = max_collision {
+                problem = problem.with(constraint!(collision <= mc));
+            }
+        }
+        LpRequest::MaxTarget { max_energy } => {
+            problem = problem.with(constraint!(energy <= max_energy));
+        }
+        LpRequest::MinCollision { min_target } => {
+            problem = problem.with(constraint!(target >= min_target));
+        }
+    }
+    match problem.solve() {
+        Ok(sol) => {
+            let values = x
+                .iter()
+                .map(|row| row.iter().map(|v| sol.value(*v).max(0.0)).collect())
+                .collect();
+            Ok((values, sol.eval(objective)))
+        }
+        Err(good_lp::ResolutionError::Infeasible) => Err(infeasible(mdp, cost, request)),
+        Err(e) => Err(SelectError::Solver(e.to_string())),
+    }
+}
+
+/// The infeasibility report: best achievable values by exact backward induction.
+fn infeasible(mdp: &Mdp, cost: CostModel, request: LpRequest) -> SelectError {
+    let best = |lambda| weighted_optimum(mdp, lambda, 1.0, cost).bound;
+    let best_target = 1.0 - best([0.0, 0.0, 1.0]);
+    let best_collision = best([0.0, 1.0, 0.0]);
+    let best_energy = best([1.0, 0.0, 0.0]);
+    let detail = match request {
+        LpRequest::MinEnergy {
+            min_target,
+            max_collision: Some(_),
+        } if min_target <= best_target => {
+            match solve_occupation_lp(mdp, cost, LpRequest::MinCollision { min_target }) {
+                Ok((_, c)) => format!("; with P_tar ≥ {min_target} the least P_coll is {c:.6}"),
+                Err(_) => String::new(),
+            }
+        }
+        _ => String::new(),
+    };
+    SelectError::Infeasible {
+        request: request.to_string(),
+        best_target,
+        best_collision,
+        best_energy,
+        detail,
+    }
+}
+
+/// `ω(s)(c) = x(s, c) / Σ_c' x(s, c')`; unvisited states take their smallest δ.
+pub fn realise_occupation(mdp: &Mdp, x: &[Vec<f64>]) -> RandomisedPolicy {
+    mdp.states
+        .iter()
+        .zip(x)
+        .map(|(s, row)| {
+            let total: f64 = row.iter().sum();
+            let kept: Vec<f64> = row
+                .iter()
+                .map(|&v| if v > NEGLIGIBLE * total { v } else { 0.0 })
+                .collect();
+            let kept_total: f64 = kept.iter().sum();
+            if kept_total > 0.0 {
+                kept.iter().map(|v| v / kept_total).collect()
+            } else {
+                let smallest = (0..s.choices.len())
+                    .min_by(|&a, &b| {
+                        let (da, db) = (
+                            mdp.deltas[s.choices[a].action as usize],
+                            mdp.deltas[s.choices[b].action as usize],
+                        );
+                        da.total_cmp(&db).then(a.cmp(&b))
+                    })
+                    .unwrap_or(0);
+                let mut w = vec![0.0; s.choices.len()];
+                w[smallest] = 1.0;
+                w
+            }
+        })
+        .collect()
+}
+
+fn tightened(request: LpRequest, margin: f64) -> LpRequest {
+    match request {
+        LpRequest::MinEnergy {
+            min_target,
+            max_collision,
+        } => LpRequest::MinEnergy {
+            min_target: min_target + margin,
+            max_collision: max_collision.map(|c| c - margin),
+        },
+        LpRequest::MaxTarget { max_energy } => LpRequest::MaxTarget {
+            max_energy: max_energy * (1.0 - margin),
+        },
+        LpRequest::MinCollision { min_target } => LpRequest::MinCollision {
+            min_target: min_target + margin,
+        },
+    }
+}
+
+/// Does the exact evaluation meet the request's bounds?
+fn meets(request: LpRequest, v: &Objectives) -> bool {
+    match request {
+        LpRequest::MinEnergy {
+            min_target,
+            max_collision,
+        } => v.p_target >= min_target && max_collision.is_none_or(|c| v.p_collision <= c),
+        LpRequest::MaxTarget { max_energy } => v.energy <= max_energy,
+        LpRequest::MinCollision { min_target } => v.p_target >= min_target,
+    }
+}
+
+/// The exact optimum of `request`, realised as ω, meeting the request in ω's
+/// own evaluation (tightening by [`MARGINS`] if rounding requires it).
+pub fn optimal_strategy(
+    mdp: &Mdp,
+    cost: CostModel,
+    request: LpRequest,
+) -> Result<OptimalStrategy, SelectError> {
+    let mut last = None;
+    for (k, &margin) in MARGINS.iter().enumerate() {
+        let (x, lp_objective) = match solve_occupation_lp(mdp, cost, tightened(request, margin)) {
+            Ok(r) => r,
+            // The exact request is infeasible: say so with the best values.
+            Err(e) if k == 0 => return Err(e),
+            // Tightening made it infeasible: the request sits on the boundary.
+            Err(_) => break,
+        };
+        let policy = realise_occupation(mdp, &x);
+        let predicted = evaluate(mdp, &policy, cost);
+        let randomised_states = policy
+            .iter()
+            .filter(|w| w.iter().filter(|&&p| p > 0.0).count() > 1)
+            .count();
+        let found = OptimalStrategy {
+            policy,
+            predicted,
+            lp_objective,
+            margin,
+            randomised_states,
+        };
+        if meets(request, &predicted) {
+            return Ok(found);
+        }
+        last = Some(found);
+    }
+    Err(SelectError::Solver(format!(
+        "no strategy meeting {request} in its own evaluation, even with the bounds tightened by {:e}{}",
+        MARGINS[MARGINS.len() - 1],
+        last.map(|l| format!(
+            " (closest: P_tar {:.15}, P_coll {:.15}, energy {:.12})",
+            l.predicted.p_target, l.predicted.p_collision, l.predicted.energy
+        ))
+        .unwrap_or_default()
+    )))
+}
