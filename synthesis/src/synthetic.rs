@@ -3,7 +3,7 @@
 //! front and the strategy LP at sizes the built-in scenarios do not reach.
 //!
 //! Shape: one initial state, then layers of decision points; every state offers
-//! a subset of Δ (`min_actions..=max_actions` of them, sorted); a choice leads to
+//! δ = 0 and a subset of the rest of Δ (`min_actions..=max_actions` in all); a choice leads to
 //! `successors − 3` states of the next layer plus the three terminals (the last
 //! layer: only the terminals). A state's position `r ∈ [0, 1)` in its layer plays
 //! the covariance region (0 = well localised); small δ costs more energy and
@@ -78,9 +78,11 @@ pub fn layered_mdp(p: &SyntheticParams) -> Mdp {
             let lo = p.min_actions.clamp(1, deltas.len());
             let hi = p.max_actions.clamp(lo, deltas.len());
             let k = rng.random_range(lo..=hi);
-            // A random k-subset of the actions, sorted.
+            // Action 0 (δ = 0, the full KF) and a random subset of the
+            // others, k in all, sorted: like the real abstraction, where every
+            // state offers δ = 0 (so the full-KF baseline exists).
             let mut actions: Vec<u16> = (0..deltas.len() as u16).collect();
-            for j in 0..k {
+            for j in 1..k {
                 let pick = rng.random_range(j..actions.len());
                 actions.swap(j, pick);
             }

@@ -194,7 +194,7 @@ fn front_and_strategy_are_byte_identical_on_one_and_two_threads() {
                 "--min-target",
                 "0.9",
                 "--max-collision",
-                "0.08",
+                "0.06",
             ],
             threads,
         );

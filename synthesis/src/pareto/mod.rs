@@ -91,14 +91,19 @@ impl ParetoFront {
 
     /// Parse `front.json`.
     pub fn from_json(text: &str) -> Result<Self, String> {
-        let f: Self = serde_json::from_str(text).map_err(|e| e.to_string())?;
-        if f.format_version != FRONT_FORMAT_VERSION {
+        // The version first, so an older file says so rather than naming a field.
+        #[derive(Deserialize)]
+        struct Version {
+            format_version: u32,
+        }
+        let v: Version = serde_json::from_str(text).map_err(|e| e.to_string())?;
+        if v.format_version != FRONT_FORMAT_VERSION {
             return Err(format!(
-                "front format version {} is not supported (expected {FRONT_FORMAT_VERSION})",
-                f.format_version
+                "front format version {} is not supported (expected {FRONT_FORMAT_VERSION}; run `etp synthesize` again)",
+                v.format_version
             ));
         }
-        Ok(f)
+        serde_json::from_str(text).map_err(|e| e.to_string())
     }
 
     /// Index of the vertex with the highest P_tar (least energy among ties).
