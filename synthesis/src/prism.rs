@@ -231,15 +231,25 @@ pub fn properties(mdp: &Mdp, front: &ParetoFront, cost: CostModel) -> String {
             o,
             "\n// INFEASIBLE on purpose: no strategy reaches P(reach target) >= {p_inf} (the highest is {max_target:.6}); PRISM answers NaN or false"
         );
-        let _ = writeln!(o, "multi(R{{\"energy\"}}min=? [ C ], P>={p_inf} [ F \"tar\" ])");
+        let _ = writeln!(
+            o,
+            "multi(R{{\"energy\"}}min=? [ C ], P>={p_inf} [ F \"tar\" ])"
+        );
     } else if min_collision >= 0.001 {
         let c_inf = floor3(min_collision) - 0.001;
-        let c_inf = if c_inf < min_collision { c_inf.max(0.0) } else { 0.0 };
+        let c_inf = if c_inf < min_collision {
+            c_inf.max(0.0)
+        } else {
+            0.0
+        };
         let _ = writeln!(
             o,
             "\n// INFEASIBLE on purpose: no strategy keeps P(collide) <= {c_inf} (the lowest is {min_collision:.6}); PRISM answers NaN or false"
         );
-        let _ = writeln!(o, "multi(R{{\"energy\"}}min=? [ C ], P<={c_inf} [ F \"coll\" ])");
+        let _ = writeln!(
+            o,
+            "multi(R{{\"energy\"}}min=? [ C ], P<={c_inf} [ F \"coll\" ])"
+        );
     }
     let _ = writeln!(o, "\n// Highest probability of reaching the target");
     let _ = writeln!(o, "Pmax=? [ F \"tar\" ]");
@@ -247,7 +257,10 @@ pub fn properties(mdp: &Mdp, front: &ParetoFront, cost: CostModel) -> String {
     let _ = writeln!(o, "\n// Lowest probability of colliding");
     let _ = writeln!(o, "Pmin=? [ F \"coll\" ]");
     let _ = writeln!(o, "// etp: {min_collision:.12}");
-    let _ = writeln!(o, "\n// Pareto curve: expected energy vs. probability of reaching the target");
+    let _ = writeln!(
+        o,
+        "\n// Pareto curve: expected energy vs. probability of reaching the target"
+    );
     let _ = writeln!(o, "multi(R{{\"energy\"}}min=? [ C ], Pmax=? [ F \"tar\" ])");
     o
 }

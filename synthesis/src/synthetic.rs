@@ -95,8 +95,7 @@ pub fn layered_mdp(p: &SyntheticParams) -> Mdp {
                     let d = deltas[a as usize];
                     let jitter = |rng: &mut etp_shared::rng::SimRng| rng.random_range(0.8..1.2);
                     let cost = 10.0 * (1.0 - 0.85 * d) * (1.0 + 0.5 * r) * jitter(&mut rng);
-                    let p_coll =
-                        (0.02 * (0.2 + r) * (0.2 + 2.0 * d) * jitter(&mut rng)).min(0.3);
+                    let p_coll = (0.02 * (0.2 + r) * (0.2 + 2.0 * d) * jitter(&mut rng)).min(0.3);
                     let p_free = 0.004 * jitter(&mut rng);
                     let mut out: Vec<(Next, f64)> = Vec::new();
                     if last {
@@ -114,7 +113,8 @@ pub fn layered_mdp(p: &SyntheticParams) -> Mdp {
                         // (worse with larger δ and worse regions).
                         let centre = ((0.6 * r + 0.5 * d) * next_size as f64) as usize;
                         let first = centre.saturating_sub(m / 2).min(next_size - m);
-                        let weights: Vec<f64> = (0..m).map(|_| rng.random_range(0.05..1.0)).collect();
+                        let weights: Vec<f64> =
+                            (0..m).map(|_| rng.random_range(0.05..1.0)).collect();
                         let total: f64 = weights.iter().sum();
                         let stay = 1.0 - p_coll - p_free;
                         for (j, w) in weights.iter().enumerate() {

@@ -6,10 +6,10 @@
 use crate::cmd::simulate::simulate_constant;
 use crate::input::load_scenario;
 use anyhow::Result;
-use serde_json::json;
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::optimal::{LpRequest, optimal_strategy};
 use etp_synthesis::synthetic::{SyntheticParams, layered_mdp};
+use serde_json::json;
 use std::time::Instant;
 
 #[derive(Debug, clap::Args)]
@@ -78,7 +78,8 @@ fn bench_front_row(name: &str, mdp: &Mdp, tolerance: f64) -> Result<serde_json::
     let start = Instant::now();
     let props = etp_synthesis::prism::properties(mdp, &front, CostModel::Counted);
     let props_secs = start.elapsed().as_secs_f64();
-    Ok(json!({"mdp": name, "states": mdp.states.len(), "transitions": mdp.num_transitions(),
+    Ok(
+        json!({"mdp": name, "states": mdp.states.len(), "transitions": mdp.num_transitions(),
               "choices": mdp.states.iter().map(|s| s.choices.len()).sum::<usize>(),
               "vertices": front.vertices.len(), "facets": front.facets.len(),
               "optimisations": front.optimisations, "rounds": front.rounds,
@@ -87,7 +88,8 @@ fn bench_front_row(name: &str, mdp: &Mdp, tolerance: f64) -> Result<serde_json::
               "strategy_min_target": min_target, "strategy_energy": strategy.predicted.energy,
               "strategy_margin": strategy.margin, "strategy_seconds": lp_secs,
               "prism_export_seconds": export_secs, "prism_export_bytes": export_bytes,
-              "prism_props_seconds": props_secs, "prism_props_bytes": props.len()}))
+              "prism_props_seconds": props_secs, "prism_props_bytes": props.len()}),
+    )
 }
 
 fn bench_front(dirs: &[std::path::PathBuf], a: &Args) -> Result<()> {

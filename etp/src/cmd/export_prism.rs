@@ -72,8 +72,8 @@ pub fn run(a: Args) -> Result<()> {
         }
         None => {
             let mdp = load_mdp(&a.dir)?;
-            let front = compute_front(&mdp, CostModel::Counted)
-                .context("computing the Pareto front")?;
+            let front =
+                compute_front(&mdp, CostModel::Counted).context("computing the Pareto front")?;
             (mdp, front)
         }
     };

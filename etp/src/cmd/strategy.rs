@@ -152,7 +152,10 @@ pub fn run(a: Args) -> Result<()> {
                 "  exact: occupation-measure LP over the whole MDP, realised as ω ({} randomising states; unvisited states: {UNVISITED}){}",
                 o.randomised_states,
                 if o.margin > 0.0 {
-                    format!("; bounds tightened by {:e} so that ω meets them in its own evaluation", o.margin)
+                    format!(
+                        "; bounds tightened by {:e} so that ω meets them in its own evaluation",
+                        o.margin
+                    )
                 } else {
                     String::new()
                 }

@@ -81,10 +81,9 @@ fn strategy_energy_agrees_with_an_independent_lp_on_every_scenario() {
         );
         let prism = dir.join("prism");
         run_ok(&["export-prism", s(&dir), s(&prism)], "2");
-        let front: Value = serde_json::from_slice(
-            &std::fs::read(dir.join("front.json")).expect("front.json"),
-        )
-        .expect("json");
+        let front: Value =
+            serde_json::from_slice(&std::fs::read(dir.join("front.json")).expect("front.json"))
+                .expect("json");
         let targets: Vec<f64> = front["vertices"]
             .as_array()
             .expect("vertices")
@@ -166,6 +165,13 @@ fn strategy_energy_agrees_with_an_independent_lp_on_every_scenario() {
         }
         assert!(feasible >= 5, "{name}: only {feasible} feasible queries");
     }
+    // export-prism refuses a front.json of another scenario.
+    let (a, b) = (scratch.path("winding-2d"), scratch.path("open-2d"));
+    std::fs::copy(a.join("front.json"), b.join("front.json")).expect("copy");
+    let out = etp_threads(&["export-prism", s(&b), s(&b.join("p2"))], "2");
+    assert!(!out.status.success(), "a foreign front.json was accepted");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("front.json"), "{err}");
 }
 
 #[test]
@@ -209,6 +215,9 @@ fn front_and_strategy_are_byte_identical_on_one_and_two_threads() {
         .iter()
         .enumerate()
     {
-        assert!(outputs[0][k] == outputs[1][k], "{f} differs between 1 and 2 threads");
+        assert!(
+            outputs[0][k] == outputs[1][k],
+            "{f} differs between 1 and 2 threads"
+        );
     }
 }

@@ -391,8 +391,7 @@ impl RecessionHull {
         points: &[FoundPoint],
         alive: &[usize],
     ) -> Result<Vec<HullFacet>, EnumerationError> {
-        let lifted_points: Vec<[f64; 3]> =
-            alive.iter().map(|&i| lifted(points[i].f, i)).collect();
+        let lifted_points: Vec<[f64; 3]> = alive.iter().map(|&i| lifted(points[i].f, i)).collect();
         let mut facets = match self.split(&lifted_points) {
             Ok(f) => f,
             Err(_) => self.explicit_cone(&lifted_points)?,

@@ -32,7 +32,9 @@ use super::policy::{
 };
 use super::select::SelectError;
 use crate::mdp::{CostModel, Mdp, Next};
-use good_lp::{Expression, Solution, SolverModel, Variable, constraint, microlp, variable, variables};
+use good_lp::{
+    Expression, Solution, SolverModel, Variable, constraint, microlp, variable, variables,
+};
 
 /// What an exact strategy is asked to do.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -57,7 +59,9 @@ impl std::fmt::Display for LpRequest {
             } => write!(f, "P_tar ≥ {min_target} and P_coll ≤ {c}"),
             Self::MinEnergy { min_target, .. } => write!(f, "P_tar ≥ {min_target}"),
             Self::MaxTarget { max_energy } => write!(f, "energy ≤ {max_energy}"),
-            Self::MinCollision { min_target } => write!(f, "least P_coll with P_tar ≥ {min_target}"),
+            Self::MinCollision { min_target } => {
+                write!(f, "least P_coll with P_tar ≥ {min_target}")
+            }
         }
     }
 }
@@ -246,7 +250,11 @@ fn master_primal(m: &Master, cols: &[Column]) -> Result<Option<(Vec<f64>, f64)>,
 fn master_dual(m: &Master, cols: &[Column]) -> Result<(f64, Vec<f64>), SelectError> {
     let mut vars = variables!();
     let z = vars.add(variable());
-    let y: Vec<Variable> = m.rows.iter().map(|_| vars.add(variable().min(0.0))).collect();
+    let y: Vec<Variable> = m
+        .rows
+        .iter()
+        .map(|_| vars.add(variable().min(0.0)))
+        .collect();
     let objective: Expression = Expression::from(z)
         - y.iter()
             .zip(&m.rows)
@@ -306,12 +314,7 @@ pub fn solve_by_columns(
     // whenever the request is: max P_tar, min P_coll, min energy) and the
     // objective's own optimum.
     let mut cols: Vec<Column> = Vec::new();
-    for g in [
-        [0.0, 0.0, -1.0],
-        [0.0, 1.0, 0.0],
-        [1.0, 0.0, 0.0],
-        master.w,
-    ] {
+    for g in [[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0], master.w] {
         let (c, _) = price(mdp, cost, g);
         add(&mut cols, c);
     }

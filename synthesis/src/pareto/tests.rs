@@ -167,7 +167,11 @@ fn the_certified_gap_bounds_every_weighted_optimum() {
         assert!(best >= v - 1e-12, "a vertex beats the exact optimum");
         worst = worst.max(best - v);
     }
-    assert!(worst <= en.epsilon + 1e-12, "gap {worst} > certified ε {}", en.epsilon);
+    assert!(
+        worst <= en.epsilon + 1e-12,
+        "gap {worst} > certified ε {}",
+        en.epsilon
+    );
     assert!(worst > 0.0, "the coarse front should leave some gap");
 }
 
@@ -196,7 +200,10 @@ fn exact_strategies_meet_their_request_in_their_own_evaluation() {
         let s = optimal_strategy(&m, CostModel::Counted, r).expect("feasible");
         assert!(s.predicted.p_target >= target);
         let (_, lp) = solve_occupation_lp(&m, CostModel::Counted, r).expect("lp");
-        assert!((s.predicted.energy - lp).abs() <= 1e-9 * lp, "{s:?} vs {lp}");
+        assert!(
+            (s.predicted.energy - lp).abs() <= 1e-9 * lp,
+            "{s:?} vs {lp}"
+        );
         // No mixture of deterministic policies does better (brute force).
         let f = compute_front(&m, CostModel::Counted).expect("front");
         let sel = select(
