@@ -4,7 +4,7 @@
 //!
 //! Shape: one initial state, then layers of decision points; every state offers
 //! δ = 0 and a subset of the rest of Δ (`min_actions..=max_actions` in all); a choice leads to
-//! `successors − 3` states of the next layer plus the three terminals (the last
+//! `successors − 2` states of the next layer plus `coll` and `free` (the last
 //! layer: only the terminals). A state's position `r ∈ [0, 1)` in its layer plays
 //! the covariance region (0 = well localised); small δ costs more energy and
 //! collides less and keeps the belief good, like the real abstraction.
@@ -108,7 +108,7 @@ pub fn layered_mdp(p: &SyntheticParams) -> Mdp {
                     } else {
                         let next_size = sizes[layer + 1];
                         let next_start = starts[layer + 1];
-                        let m = p.successors.saturating_sub(3).clamp(1, next_size);
+                        let m = p.successors.saturating_sub(2).clamp(1, next_size);
                         // Successor window: centred on where this belief drifts
                         // (worse with larger δ and worse regions).
                         let centre = ((0.6 * r + 0.5 * d) * next_size as f64) as usize;
