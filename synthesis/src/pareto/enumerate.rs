@@ -89,11 +89,14 @@ pub const TOLERANCE: f64 = 1e-6;
 /// lies inside the true one and the certificate stays valid (docs/MODEL.md §5).
 pub const LIFT: f64 = 1e-10;
 
+/// Lift indices of the recession-cone copies (beyond any found point's).
+const FAR_COPIES: usize = 1 << 40;
+
 /// The lifted hull coordinates of found point `index`.
 fn lifted(f: [f64; 3], index: usize) -> [f64; 3] {
     let mut out = f;
     for (k, x) in out.iter_mut().enumerate() {
-        let h = etp_shared::rng::mix64((index as u64) * 3 + k as u64);
+        let h = etp_shared::rng::mix64((index as u64).wrapping_mul(3).wrapping_add(k as u64));
         *x += LIFT * (h >> 11) as f64 / (1u64 << 53) as f64;
     }
     out
@@ -482,6 +485,10 @@ impl RecessionHull {
             for k in 0..3 {
                 let mut q = *p;
                 q[k] += self.far;
+                // Lifted too (with indices of their own): two points and
+                // their copies along an axis are coplanar, and the library
+                // triangulates coplanar faces in a run-dependent order.
+                let q = lifted(q, FAR_COPIES + 3 * i + k);
                 coords.push(q.to_vec());
                 owner.push(None);
             }
