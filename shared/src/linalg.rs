@@ -1,5 +1,5 @@
 //! Small dense linear algebra the model needs beyond nalgebra: a *deterministic*
-//! symmetric eigenbasis (the ∞-norm trigger depends on the basis, MODEL.md §2),
+//! symmetric eigenbasis (the ∞-norm trigger depends on the basis, docs/MODEL.md §2),
 //! conversions between dynamic and fixed-size matrices, and the Riccati steady state.
 
 use nalgebra::{DMatrix, SMatrix, SVector};

@@ -5,7 +5,7 @@
 //!   [`simulate::simulate`] runs any threshold policy, [`simulate::SimulationSummary`]
 //!   holds outcome frequencies, energy, steps and trigger rates with 95 % intervals.
 //!
-//! * [`abstraction`] — the belief-space MDP by layered Monte Carlo (MODEL.md §4,
+//! * [`abstraction`] — the belief-space MDP by layered Monte Carlo (docs/MODEL.md §4,
 //!   Method 2 discretized regions and Method 1 KF convergence).
 //! * [`mdp`] — the [`mdp::Mdp`] type and its versioned file `mdp.bin`.
 //! * [`pareto`] — every vertex and facet of the Pareto front, strategies for a

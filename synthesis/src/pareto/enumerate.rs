@@ -1,5 +1,5 @@
 //! All vertices and facets of the Pareto front by supporting hyperplanes
-//! (MODEL.md §5).
+//! (docs/MODEL.md §5).
 //!
 //! Randomised strategies make the achievable set `A` convex; its lower
 //! boundary is the front. Each round: take the convex hull of the points found

@@ -1,6 +1,6 @@
 //! The Pareto front of (expected energy, P_coll, 1 − P_tar) over randomised
 //! strategies on the acyclic MDP, strategies for requested trade-offs, and the
-//! `front.json` file (MODEL.md §5).
+//! `front.json` file (docs/MODEL.md §5).
 //!
 //! * [`policy`] — weighted backward induction (with the exact optimum as a
 //!   bound), evaluation of any memoryless randomised policy, occupation measures.

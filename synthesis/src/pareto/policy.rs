@@ -7,7 +7,7 @@
 use crate::mdp::{CostModel, Mdp, Next};
 use serde::{Deserialize, Serialize};
 
-/// The three objectives of a strategy (MODEL.md §3).
+/// The three objectives of a strategy (docs/MODEL.md §3).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Objectives {
     pub energy: f64,

@@ -1,6 +1,6 @@
 //! The vertex-mixture explanation of a requested trade-off: an LP over convex
 //! weights μ of the front's vertices, realised as a memoryless randomised
-//! strategy through occupation measures (MODEL.md §5). The exact optimum, which
+//! strategy through occupation measures (docs/MODEL.md §5). The exact optimum, which
 //! `etp strategy` writes, is [`super::optimal`]; the two differ by at most the
 //! front's certified gap.
 
