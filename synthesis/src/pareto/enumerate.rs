@@ -89,9 +89,6 @@ pub const TOLERANCE: f64 = 1e-6;
 /// lies inside the true one and the certificate stays valid (docs/MODEL.md §5).
 pub const LIFT: f64 = 1e-10;
 
-/// Lift indices of the recession-cone copies (beyond any found point's).
-const FAR_COPIES: usize = 1 << 40;
-
 /// The lifted hull coordinates of found point `index`.
 fn lifted(f: [f64; 3], index: usize) -> [f64; 3] {
     let mut out = f;
@@ -162,13 +159,15 @@ impl Finder<'_> {
         self.points.len() - 1
     }
 
-    /// The exact `min λ · f` (probing λ if it was not probed yet).
+    /// The exact `min λ · f` (probing λ if it was not probed yet; such
+    /// certificate-only probes are not counted in `optimisations`, whose count
+    /// would otherwise depend on how the hull library triangulated coplanar
+    /// recession-cone faces).
     fn bound(&mut self, lambda: [f64; 3]) -> f64 {
         let key = lambda.map(f64::to_bits);
         if let Some(&b) = self.bounds.get(&key) {
             return b;
         }
-        self.optimisations += 1;
         let b = weighted_optimum(self.mdp, lambda, self.scale, self.cost).bound;
         self.bounds.insert(key, b);
         b
@@ -225,6 +224,10 @@ pub fn enumerate_front_to(
     let facets = loop {
         rounds += 1;
         let facets = hull.lower_facets(&finder.points, &alive)?;
+        // The certificate needs every facet of the hull: none is a failure.
+        if facets.is_empty() {
+            return Err(EnumerationError::Hull("the hull has no lower facet".into()));
+        }
         let before = finder.points.len();
         let mut new_points = false;
         for fct in &facets {
@@ -485,10 +488,6 @@ impl RecessionHull {
             for k in 0..3 {
                 let mut q = *p;
                 q[k] += self.far;
-                // Lifted too (with indices of their own): two points and
-                // their copies along an axis are coplanar, and the library
-                // triangulates coplanar faces in a run-dependent order.
-                let q = lifted(q, FAR_COPIES + 3 * i + k);
                 coords.push(q.to_vec());
                 owner.push(None);
             }
