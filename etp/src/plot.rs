@@ -73,12 +73,13 @@ where
     let mut chart = ChartBuilder::on(root)
         .caption(
             format!(
-                "Pareto front of {} ({} vertices) — colour: P_coll (blue 0 → red {:.3})",
+                "Pareto front of {} ({} vertices, certified to ε = {:.1e}) — colour: P_coll (blue 0 → red {:.3})",
                 front.scenario_name,
                 front.vertices.len(),
+                front.epsilon,
                 c_max
             ),
-            ("sans-serif", 20),
+            ("sans-serif", 18),
         )
         .margin(15)
         .x_label_area_size(45)
@@ -121,7 +122,10 @@ where
             )
         }))
         .map_err(e)?
-        .label("front vertices")
+        .label(format!(
+            "front vertices (ε-front: within {:.1e} energy, {:.1e} probability)",
+            front.epsilon_energy, front.epsilon
+        ))
         .legend(|(x, y)| Circle::new((x, y), 4, heat(0.0).filled()));
     chart
         .draw_series(front.baselines.iter().map(|b| {

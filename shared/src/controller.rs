@@ -1,4 +1,4 @@
-//! The default waypoint controller of MODEL.md §3: `u = sat(w − x̂, u_max)`.
+//! The default waypoint controller of docs/MODEL.md §3: `u = sat(w − x̂, u_max)`.
 
 use crate::etkf::Vector;
 

@@ -1,4 +1,4 @@
-//! Method 2 of MODEL.md §4: the covariance region of a belief at a decision point.
+//! Method 2 of docs/MODEL.md §4: the covariance region of a belief at a decision point.
 //!
 //! `P = Σ_j λ_j v_j v_jᵀ` (λ descending, deterministic basis). Per axis j:
 //! * magnitude bin: uniform in log λ between `lambda_lo` and `lambda_hi`,

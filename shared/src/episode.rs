@@ -1,4 +1,4 @@
-//! The task of MODEL.md §3: legs, controller, collision, leg termination and the
+//! The task of docs/MODEL.md §3: legs, controller, collision, leg termination and the
 //! end-of-episode classification, over fixed-size state.
 //!
 //! [`CompiledScenario`] is a [`Scenario`] converted once to stack matrices.
@@ -6,7 +6,7 @@
 //! — the unit the Monte Carlo abstraction samples — and
 //! [`CompiledScenario::run_episode`] chains legs with a threshold policy.
 //!
-//! Step order inside leg i (exactly MODEL.md §3; a leg always runs at least one
+//! Step order inside leg i (exactly docs/MODEL.md §3; a leg always runs at least one
 //! step, termination is checked after the step):
 //! 1. `u = sat(w_i − x̂, u_max)`
 //! 2. `x ← F x + G u + w`
@@ -117,7 +117,7 @@ impl<const N: usize> SensorFilter<N> {
 pub enum LegMode<const N: usize> {
     /// Method 2 and constant-δ runs: one threshold for the whole leg.
     EventTriggered(Threshold),
-    /// Method 1 (MODEL.md §4): `threshold` until the estimate comes within
+    /// Method 1 (docs/MODEL.md §4): `threshold` until the estimate comes within
     /// `eps_kf` of the waypoint, then δ = 0 (sticky) and the leg ends only once
     /// `‖P − P_KF‖max ≤ eps_p` and the mean criterion hold (or at `k_max`).
     KfConvergence {

@@ -1,4 +1,4 @@
-//! The event-triggered Kalman filter of Wu et al. (2013), MODEL.md §2.
+//! The event-triggered Kalman filter of Wu et al. (2013), docs/MODEL.md §2.
 //!
 //! Fixed-size (`const N` state, `const M` measurement) so the per-step work is a
 //! few dozen flops on the stack. Pure: no I/O, no clock; randomness only through

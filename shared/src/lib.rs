@@ -4,12 +4,12 @@
 //!
 //! * [`scenario::Scenario`] — a validated scenario (plant, sensors, route, target,
 //!   obstacles, thresholds Δ), loaded from TOML or a built-in name.
-//! * [`etkf::EtKalmanFilter`] — the event-triggered Kalman filter of MODEL.md §2
+//! * [`etkf::EtKalmanFilter`] — the event-triggered Kalman filter of docs/MODEL.md §2
 //!   for fixed dimensions `N ≤ 6`, `M ≤ 6`: prediction, whitened innovation,
 //!   ∞-norm trigger, explicit (Joseph) and implicit (β(δ)) updates.
 //! * [`gaussian`] — φ, Φ, β(δ), the expected rate γ̄(δ) and its inverse.
 //! * [`episode::CompiledScenario`] — the scenario in fixed-size form with the
-//!   episode rules of MODEL.md §3 (controller, collision, leg termination,
+//!   episode rules of docs/MODEL.md §3 (controller, collision, leg termination,
 //!   target/free classification): [`episode::CompiledScenario::run_leg`] and
 //!   [`episode::CompiledScenario::run_episode`].
 //! * [`rng`] — reproducible per-episode random streams (`Xoshiro256++`).

@@ -1,5 +1,5 @@
 //! Small dense linear algebra the model needs beyond nalgebra: a *deterministic*
-//! symmetric eigenbasis (the ∞-norm trigger depends on the basis, MODEL.md §2),
+//! symmetric eigenbasis (the ∞-norm trigger depends on the basis, docs/MODEL.md §2),
 //! conversions between dynamic and fixed-size matrices, and the Riccati steady state.
 
 use nalgebra::{DMatrix, SMatrix, SVector};
@@ -97,11 +97,6 @@ pub fn cholesky_lower<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N,
 /// Symmetrise in place: `(A + Aᵀ)/2`.
 pub fn symmetrize<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
     (m + m.transpose()) * 0.5
-}
-
-/// `max_ij |a_ij|`.
-pub fn max_abs<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> f64 {
-    m.amax()
 }
 
 #[cfg(test)]

@@ -1,5 +1,5 @@
 //! A threshold strategy: at decision point i, the belief's covariance region s
-//! selects a distribution ω(s) over the thresholds Δ (MODEL.md §5).
+//! selects a distribution ω(s) over the thresholds Δ (docs/MODEL.md §5).
 //!
 //! Stored as `strategy.json`. It carries the scenario's content hash so it is
 //! never applied to another scenario, and its own discretization so the

@@ -5,13 +5,14 @@
 //!   [`simulate::simulate`] runs any threshold policy, [`simulate::SimulationSummary`]
 //!   holds outcome frequencies, energy, steps and trigger rates with 95 % intervals.
 //!
-//! * [`abstraction`] — the belief-space MDP by layered Monte Carlo (MODEL.md §4,
+//! * [`abstraction`] — the belief-space MDP by layered Monte Carlo (docs/MODEL.md §4,
 //!   Method 2 discretized regions and Method 1 KF convergence).
 //! * [`mdp`] — the [`mdp::Mdp`] type and its versioned file `mdp.bin`.
 //! * [`pareto`] — every vertex and facet of the Pareto front, strategies for a
 //!   requested trade-off (vertex LP, occupation measures), `front.json`.
 //! * [`validate`] — simulating a strategy (belief → region → δ ~ ω), trajectories.
 //! * [`prism`] — PRISM explicit export.
+//! * [`synthetic`] — seeded synthetic layered MDPs for benchmarks at scale.
 //!
 //! Pure maths: no I/O, no clock. Progress is reported through a callback so the
 //! front end can draw a bar.
@@ -21,4 +22,5 @@ pub mod mdp;
 pub mod pareto;
 pub mod prism;
 pub mod simulate;
+pub mod synthetic;
 pub mod validate;

@@ -1,4 +1,4 @@
-//! The finite, acyclic MDP of the belief abstraction (MODEL.md §4) and its file
+//! The finite, acyclic MDP of the belief abstraction (docs/MODEL.md §4) and its file
 //! format `mdp.bin`.
 //!
 //! Layout invariant (checked by [`Mdp::check`]): states are sorted by decision

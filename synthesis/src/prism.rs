@@ -12,13 +12,21 @@
 //! transition reward named `energy`: the choice's cost on each of its
 //! transitions, so its expectation is the choice's cost.
 //!
+//! `model.props` is written from the front ([`properties`]): thresholds the
+//! front shows to be feasible, the exact answer etp computes for each (so a
+//! PRISM run can be compared line by line), and one infeasible query marked
+//! as such (PRISM answers it with NaN or false).
+//!
 //! Formats: PRISM manual, appendix "Explicit Model Files" (MDP `.tra` lines
 //! `i k j p [action]`; `.lab` header `0="init" 1="deadlock" …`; a reward file's
 //! optional `# Reward structure "name"` comment names it).
 
 use crate::mdp::{CostModel, Mdp, Next};
+use crate::pareto::ParetoFront;
+use crate::pareto::optimal::{LpRequest, optimal_strategy};
+use crate::pareto::policy::weighted_optimum;
+use crate::pareto::select::{Request, least_collision_with_target, select};
 use std::fmt::Write as _;
-use std::io::{self, Write};
 
 /// The text of each exported file.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -42,11 +50,6 @@ impl PrismFiles {
             ("model.props", &self.props),
         ]
     }
-
-    /// Write one file's contents to `w`.
-    pub fn write_to(contents: &str, w: &mut impl Write) -> io::Result<()> {
-        w.write_all(contents.as_bytes())
-    }
 }
 
 /// PRISM index of a transition target.
@@ -60,8 +63,9 @@ fn target(mdp: &Mdp, next: Next) -> usize {
     }
 }
 
-/// Export `mdp`, with the energy reward from cost model `cost`.
-pub fn export(mdp: &Mdp, cost: CostModel) -> PrismFiles {
+/// Export `mdp`, with the energy reward from cost model `cost` and the
+/// properties `props` (e.g. from [`properties`]).
+pub fn export(mdp: &Mdp, cost: CostModel, props: String) -> PrismFiles {
     let n = mdp.states.len();
     let choices: usize = mdp.states.iter().map(|s| s.choices.len()).sum::<usize>() + 3;
     let transitions = mdp.num_transitions() + 3;
@@ -121,15 +125,6 @@ pub fn export(mdp: &Mdp, cost: CostModel) -> PrismFiles {
         let _ = writeln!(lab, "{t}: {}", k + 2);
     }
 
-    let props = String::from(
-        "// Least expected energy with P(reach target) >= 0.95\n\
-         multi(R{\"energy\"}min=? [ C ], P>=0.95 [ F \"tar\" ])\n\
-         // Highest probability of reaching the target, and of colliding\n\
-         Pmax=? [ F \"tar\" ]\n\
-         Pmin=? [ F \"coll\" ]\n\
-         // Pareto curve: energy vs. target probability\n\
-         multi(R{\"energy\"}min=? [ C ], Pmax=? [ F \"tar\" ])\n",
-    );
     PrismFiles {
         tra,
         sta,
@@ -137,6 +132,137 @@ pub fn export(mdp: &Mdp, cost: CostModel) -> PrismFiles {
         trew,
         props,
     }
+}
+
+/// `floor(x · 1000) / 1000`.
+fn floor3(x: f64) -> f64 {
+    (x * 1000.0).floor() / 1000.0
+}
+
+/// The smallest multiple of 0.001 strictly above `x`.
+fn above3(x: f64) -> f64 {
+    let mut k = (x * 1000.0).floor();
+    while k / 1000.0 <= x {
+        k += 1.0;
+    }
+    k / 1000.0
+}
+
+/// `model.props` for `mdp` from its front: two feasible multi-objective
+/// queries with thresholds read off the front (and etp's exact answer to each),
+/// one infeasible query marked as such, and the single-objective extremes.
+pub fn properties(mdp: &Mdp, front: &ParetoFront, cost: CostModel) -> String {
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "// Properties for the etp MDP of scenario \"{}\" (scenario hash {:.12}…),\n\
+         // thresholds taken from its Pareto front (front.json). Each \"etp:\" line is\n\
+         // the exact value etp computes (whole-MDP occupation LP, `etp strategy`).",
+        mdp.scenario_name, mdp.scenario_hash
+    );
+    // Exact extremes by backward induction.
+    let bound = |lambda| weighted_optimum(mdp, lambda, 1.0, cost).bound;
+    let max_target = 1.0 - bound([0.0, 0.0, 1.0]);
+    let min_collision = bound([0.0, 1.0, 0.0]);
+    let (lo, hi) = front
+        .vertices
+        .iter()
+        .map(|v| v.objectives.p_target)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p), hi.max(p))
+        });
+    let exact = |r: LpRequest| match optimal_strategy(mdp, cost, r) {
+        Ok(s) => format!("// etp: {:.12}", s.predicted.energy),
+        Err(e) => format!("// etp: {e}"),
+    };
+    if lo.is_finite() && hi.is_finite() {
+        // Three quarters of the way up the front's P_tar range, rounded down
+        // (feasible: a vertex reaches `hi`).
+        let p = floor3(lo + 0.75 * (hi - lo));
+        let _ = writeln!(
+            o,
+            "\n// Least expected energy with P(reach target) >= {p} (feasible: the front reaches P_tar = {hi:.6})"
+        );
+        let _ = writeln!(o, "multi(R{{\"energy\"}}min=? [ C ], P>={p} [ F \"tar\" ])");
+        let _ = writeln!(
+            o,
+            "{}",
+            exact(LpRequest::MinEnergy {
+                min_target: p,
+                max_collision: None
+            })
+        );
+        // A collision bound halfway between the least P_coll compatible with
+        // the target (feasible: a mixture of vertices attains it) and the
+        // P_coll of the least-energy strategy, rounded up.
+        let least = least_collision_with_target(front, p);
+        let unconstrained = select(
+            front,
+            Request::MinTarget {
+                min_target: p,
+                max_collision: None,
+            },
+        )
+        .ok()
+        .map(|s| s.predicted.p_collision);
+        if let (Some(least), Some(free)) = (least, unconstrained) {
+            let c = above3(least + 0.5 * (free - least).max(0.0)).min(1.0);
+            let _ = writeln!(
+                o,
+                "\n// Least expected energy with P(reach target) >= {p} and P(collide) <= {c} (feasible: the front reaches P_coll = {least:.6} there)"
+            );
+            let _ = writeln!(
+                o,
+                "multi(R{{\"energy\"}}min=? [ C ], P>={p} [ F \"tar\" ], P<={c} [ F \"coll\" ])"
+            );
+            let _ = writeln!(
+                o,
+                "{}",
+                exact(LpRequest::MinEnergy {
+                    min_target: p,
+                    max_collision: Some(c)
+                })
+            );
+        }
+    }
+    let p_inf = above3(max_target);
+    if p_inf <= 1.0 {
+        let _ = writeln!(
+            o,
+            "\n// INFEASIBLE on purpose: no strategy reaches P(reach target) >= {p_inf} (the highest is {max_target:.6}); PRISM answers NaN or false"
+        );
+        let _ = writeln!(
+            o,
+            "multi(R{{\"energy\"}}min=? [ C ], P>={p_inf} [ F \"tar\" ])"
+        );
+    } else if min_collision >= 0.001 {
+        let c_inf = floor3(min_collision) - 0.001;
+        let c_inf = if c_inf < min_collision {
+            c_inf.max(0.0)
+        } else {
+            0.0
+        };
+        let _ = writeln!(
+            o,
+            "\n// INFEASIBLE on purpose: no strategy keeps P(collide) <= {c_inf} (the lowest is {min_collision:.6}); PRISM answers NaN or false"
+        );
+        let _ = writeln!(
+            o,
+            "multi(R{{\"energy\"}}min=? [ C ], P<={c_inf} [ F \"coll\" ])"
+        );
+    }
+    let _ = writeln!(o, "\n// Highest probability of reaching the target");
+    let _ = writeln!(o, "Pmax=? [ F \"tar\" ]");
+    let _ = writeln!(o, "// etp: {max_target:.12}");
+    let _ = writeln!(o, "\n// Lowest probability of colliding");
+    let _ = writeln!(o, "Pmin=? [ F \"coll\" ]");
+    let _ = writeln!(o, "// etp: {min_collision:.12}");
+    let _ = writeln!(
+        o,
+        "\n// Pareto curve: expected energy vs. probability of reaching the target"
+    );
+    let _ = writeln!(o, "multi(R{{\"energy\"}}min=? [ C ], Pmax=? [ F \"tar\" ])");
+    o
 }
 
 #[cfg(test)]
@@ -147,7 +273,7 @@ mod tests {
     #[test]
     fn toy_export_is_consistent() {
         let m = toy();
-        let f = export(&m, CostModel::Counted);
+        let f = export(&m, CostModel::Counted, String::new());
         let mut lines = f.tra.lines();
         let header: Vec<usize> = lines
             .next()
@@ -182,5 +308,29 @@ mod tests {
         assert_eq!(rew[0], "# Reward structure \"energy\"");
         assert_eq!(rew[1], "6 9 12");
         assert!(rew.contains(&"0 0 1 10"));
+    }
+
+    #[test]
+    fn properties_take_thresholds_from_the_front() {
+        let m = toy();
+        let front = crate::pareto::compute_front(&m, CostModel::Counted).expect("front");
+        let props = properties(&m, &front, CostModel::Counted);
+        // The toy's P_tar ranges over [0.35, 0.855]: three quarters up is 0.728.
+        assert!(props.contains("P>=0.728 [ F \"tar\" ])"), "{props}");
+        // The highest P_tar is 0.855, so 0.856 is the infeasible example.
+        assert!(props.contains("INFEASIBLE"), "{props}");
+        assert!(props.contains("P>=0.856 [ F \"tar\" ])"), "{props}");
+        assert!(props.contains("// etp: 0.855000000000"), "{props}");
+        // Every feasible multi query is followed by etp's exact energy.
+        let lines: Vec<&str> = props.lines().collect();
+        for (k, l) in lines.iter().enumerate() {
+            if l.starts_with("multi(") && l.contains("P>=0.728") {
+                let answer = lines[k + 1].strip_prefix("// etp: ").expect("an answer");
+                assert!(answer.parse::<f64>().is_ok(), "{answer}");
+            }
+        }
+        // Comments name what the query computes.
+        assert!(props.contains("// Lowest probability of colliding\nPmin=?"));
+        assert!(props.contains("// Highest probability of reaching the target\nPmax=?"));
     }
 }

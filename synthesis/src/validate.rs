@@ -1,5 +1,5 @@
 //! In-process simulation of a strategy: at each decision point the belief's
-//! covariance is classified into its region and δ is drawn from ω (MODEL.md §5,
+//! covariance is classified into its region and δ is drawn from ω (docs/MODEL.md §5,
 //! "Validation"). Also collects sample trajectories for the map plot.
 
 use crate::simulate::{SimulationTotals, simulate};

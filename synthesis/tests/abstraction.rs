@@ -1,4 +1,4 @@
-//! The belief abstraction (MODEL.md §4) against cases with known answers, its
+//! The belief abstraction (docs/MODEL.md §4) against cases with known answers, its
 //! invariants on the built-in scenarios, and its determinism.
 
 use etp_shared::gaussian::normal_cdf;

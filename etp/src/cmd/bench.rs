@@ -1,9 +1,14 @@
 //! `etp bench`: throughput of the in-process simulator in episode-steps per
-//! second, on one thread and on all threads, at δ = 0 and at the largest δ.
+//! second, on one thread and on all threads, at δ = 0 and at the largest δ;
+//! with `--front`: the Pareto front, the strategy LP and the PRISM export of
+//! synthesized MDPs and of a synthetic layered MDP of thousands of states.
 
 use crate::cmd::simulate::simulate_constant;
 use crate::input::load_scenario;
 use anyhow::Result;
+use etp_synthesis::mdp::{CostModel, Mdp};
+use etp_synthesis::pareto::optimal::{LpRequest, optimal_strategy};
+use etp_synthesis::synthetic::{SyntheticParams, layered_mdp};
 use serde_json::json;
 use std::time::Instant;
 
@@ -18,41 +23,127 @@ pub struct Args {
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
-    /// Instead: time the Pareto front of DIR/mdp.bin (written by `etp synthesize`).
-    #[arg(long, value_name = "DIR")]
-    pub front: Option<std::path::PathBuf>,
+    /// Instead: time the Pareto front, the strategy LP and the PRISM export of
+    /// each DIR/mdp.bin (written by `etp synthesize`) and of a synthetic layered
+    /// MDP (`--synthetic-states`).
+    #[arg(long, value_name = "DIR", num_args = 0..)]
+    pub front: Option<Vec<std::path::PathBuf>>,
+    /// With --front: states of the synthetic layered MDP (0: no synthetic row).
+    #[arg(long, default_value_t = 5000, value_name = "N")]
+    pub synthetic_states: usize,
+    /// With --front: seed of the synthetic MDP.
+    #[arg(long, default_value_t = 0)]
+    pub synthetic_seed: u64,
+    /// With --front: stopping tolerance of the front's enumeration on the
+    /// synthesized MDPs (scaled units; the certified ε is reported).
+    #[arg(long, default_value_t = etp_synthesis::pareto::enumerate::TOLERANCE)]
+    pub tolerance: f64,
+    /// With --front: the same for the synthetic MDP (its front has many more
+    /// vertices; the certified ε is reported).
+    #[arg(long, default_value_t = SYNTHETIC_TOLERANCE)]
+    pub synthetic_tolerance: f64,
 }
 
-fn bench_front(dir: &std::path::Path, json_out: bool) -> Result<()> {
-    let (mdp, _) = crate::output::read_mdp(dir)?;
+/// Default stopping tolerance of the synthetic row: its front at 1e-6 has
+/// thousands of vertices (11211 at 1000 states, 98 s); 1e-3 certifies
+/// ε ≈ 1e-3 on 5000 states in a few seconds.
+pub const SYNTHETIC_TOLERANCE: f64 = 1e-3;
+
+/// One `--front` row: the front, a strategy and the PRISM export of one MDP.
+fn bench_front_row(name: &str, mdp: &Mdp, tolerance: f64) -> Result<serde_json::Value> {
     let start = Instant::now();
-    let front = etp_synthesis::pareto::compute_front(&mdp, Default::default())?;
-    let secs = start.elapsed().as_secs_f64();
-    let v = json!({"states": mdp.states.len(), "transitions": mdp.num_transitions(),
-                   "choices": mdp.states.iter().map(|s| s.choices.len()).sum::<usize>(),
-                   "vertices": front.vertices.len(), "facets": front.facets.len(),
-                   "optimisations": front.optimisations, "rounds": front.rounds, "seconds": secs});
-    if json_out {
-        println!("{}", serde_json::to_string_pretty(&v)?);
-    } else {
+    let front = etp_synthesis::pareto::compute_front_to(mdp, CostModel::Counted, tolerance)?;
+    let front_secs = start.elapsed().as_secs_f64();
+    // A request in the middle of the front's P_tar range.
+    let (lo, hi) = front
+        .vertices
+        .iter()
+        .map(|v| v.objectives.p_target)
+        .fold((1.0_f64, 0.0_f64), |(lo, hi), p| (lo.min(p), hi.max(p)));
+    let min_target = 0.5 * (lo + hi);
+    let start = Instant::now();
+    let strategy = optimal_strategy(
+        mdp,
+        CostModel::Counted,
+        LpRequest::MinEnergy {
+            min_target,
+            max_collision: None,
+        },
+    )?;
+    let lp_secs = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let files = etp_synthesis::prism::export(mdp, CostModel::Counted, String::new());
+    let export_secs = start.elapsed().as_secs_f64();
+    let export_bytes: usize = files.files().iter().map(|(_, t)| t.len()).sum();
+    let start = Instant::now();
+    let props = etp_synthesis::prism::properties(mdp, &front, CostModel::Counted);
+    let props_secs = start.elapsed().as_secs_f64();
+    Ok(
+        json!({"mdp": name, "states": mdp.states.len(), "transitions": mdp.num_transitions(),
+              "choices": mdp.states.iter().map(|s| s.choices.len()).sum::<usize>(),
+              "vertices": front.vertices.len(), "facets": front.facets.len(),
+              "optimisations": front.optimisations, "rounds": front.rounds,
+              "tolerance": tolerance, "epsilon": front.epsilon, "epsilon_energy": front.epsilon_energy,
+              "front_seconds": front_secs,
+              "strategy_min_target": min_target, "strategy_energy": strategy.predicted.energy,
+              "strategy_margin": strategy.margin, "strategy_seconds": lp_secs,
+              "prism_export_seconds": export_secs, "prism_export_bytes": export_bytes,
+              "prism_props_seconds": props_secs, "prism_props_bytes": props.len()}),
+    )
+}
+
+fn bench_front(dirs: &[std::path::PathBuf], a: &Args) -> Result<()> {
+    let mut rows = Vec::new();
+    for dir in dirs {
+        let (mdp, _) = crate::output::read_mdp(dir)?;
+        rows.push(bench_front_row(
+            &dir.display().to_string(),
+            &mdp,
+            a.tolerance,
+        )?);
+    }
+    if a.synthetic_states > 0 {
+        let p = SyntheticParams {
+            states: a.synthetic_states,
+            seed: a.synthetic_seed,
+            ..SyntheticParams::default()
+        };
+        let mdp = layered_mdp(&p);
+        rows.push(bench_front_row(
+            &mdp.scenario_name.clone(),
+            &mdp,
+            a.synthetic_tolerance,
+        )?);
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+        return Ok(());
+    }
+    for r in &rows {
         println!(
-            "Pareto front of {}: {} states, {} transitions → {} vertices, {} facets ({} optimisations, {} rounds) in {:.3} s",
-            dir.display(),
-            mdp.states.len(),
-            mdp.num_transitions(),
-            front.vertices.len(),
-            front.facets.len(),
-            front.optimisations,
-            front.rounds,
-            secs
+            "{}: {} states, {} transitions → front {} vertices, {} facets ({} optimisations, {} rounds, certified ε = {:.2e}) in {:.3} s; exact strategy LP (P_tar ≥ {:.4}) {:.3} s; PRISM export {:.3} s ({} bytes), model.props {:.3} s",
+            r["mdp"].as_str().unwrap_or("?"),
+            r["states"],
+            r["transitions"],
+            r["vertices"],
+            r["facets"],
+            r["optimisations"],
+            r["rounds"],
+            r["epsilon"].as_f64().unwrap_or(f64::NAN),
+            r["front_seconds"].as_f64().unwrap_or(f64::NAN),
+            r["strategy_min_target"].as_f64().unwrap_or(f64::NAN),
+            r["strategy_seconds"].as_f64().unwrap_or(f64::NAN),
+            r["prism_export_seconds"].as_f64().unwrap_or(f64::NAN),
+            r["prism_export_bytes"],
+            r["prism_props_seconds"].as_f64().unwrap_or(f64::NAN),
         );
     }
     Ok(())
 }
 
 pub fn run(a: Args) -> Result<()> {
-    if let Some(dir) = &a.front {
-        return bench_front(dir, a.json);
+    if let Some(dirs) = &a.front {
+        return bench_front(dirs, &a);
     }
     let s = load_scenario(&a.scenario)?;
     let max_delta = s.deltas.iter().copied().fold(0.0, f64::max);

@@ -1,9 +1,14 @@
 //! `etp export-prism DIR OUTDIR`: the MDP of `DIR/mdp.bin` as PRISM explicit
-//! files (`model.tra`, `.sta`, `.lab`, `.trew`, plus `model.props`), loadable
-//! with `prism -importmodel OUTDIR/model.all -mdp`.
+//! files (`model.tra`, `.sta`, `.lab`, `.trew`), loadable with
+//! `prism -importmodel OUTDIR/model.all -mdp`, plus `model.props` whose
+//! thresholds come from the front (`DIR/front.json`, refused if it belongs to
+//! another MDP; computed when absent).
 
+use crate::cmd::synthesize::MDP_FILE;
+use crate::output::{read_front, read_mdp};
 use anyhow::{Context, Result};
 use etp_synthesis::mdp::{CostModel, Mdp};
+use etp_synthesis::pareto::compute_front;
 use etp_synthesis::prism;
 use std::path::{Path, PathBuf};
 
@@ -42,14 +47,38 @@ pub fn load_mdp(path: &Path) -> Result<Mdp> {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    let mdp = load_mdp(&a.dir)?;
-    let files = prism::export(
-        &mdp,
-        match a.cost {
-            CostArg::Counted => CostModel::Counted,
-            CostArg::Paper => CostModel::Paper,
-        },
-    );
+    let cost = match a.cost {
+        CostArg::Counted => CostModel::Counted,
+        CostArg::Paper => CostModel::Paper,
+    };
+    // A directory (or its mdp.bin): the MDP, scenario.toml and front.json are
+    // checked to belong together. Any other MDP file: its front is computed.
+    let dir = if a.dir.is_dir() {
+        Some(a.dir.clone())
+    } else if a.dir.file_name().is_some_and(|n| n == MDP_FILE) {
+        Some(
+            a.dir
+                .parent()
+                .map_or_else(|| PathBuf::from("."), Path::to_path_buf),
+        )
+    } else {
+        None
+    };
+    let (mdp, front) = match &dir {
+        Some(d) => {
+            let (mdp, _) = read_mdp(d)?;
+            let front = read_front(d, &mdp)?;
+            (mdp, front)
+        }
+        None => {
+            let mdp = load_mdp(&a.dir)?;
+            let front =
+                compute_front(&mdp, CostModel::Counted).context("computing the Pareto front")?;
+            (mdp, front)
+        }
+    };
+    let props = prism::properties(&mdp, &front, cost);
+    let files = prism::export(&mdp, cost, props);
     let targets: Vec<(PathBuf, &str)> = files
         .files()
         .iter()

@@ -1,11 +1,15 @@
 //! `etp strategy DIR (--min-target P [--max-collision C] | --max-energy E | --vertex K)`:
-//! the least-energy (or highest-target) point meeting the constraints, realised
-//! as a memoryless randomised strategy, written as `strategy.json`.
+//! the exact least-energy (or highest-target) strategy meeting the constraints —
+//! the whole-MDP occupation-measure LP realised as a memoryless randomised
+//! strategy (docs/MODEL.md §5) — written as `strategy.json`. The mixture of
+//! front vertices closest to it is printed beside it as an explanation.
 
 use crate::output::{read_front, read_mdp, write_new};
 use anyhow::{Context, Result, bail};
 use clap::ArgGroup;
-use etp_synthesis::pareto::select::{Request, occupation_lp_min_energy, realise, select};
+use etp_synthesis::pareto::optimal::{LpRequest, UNVISITED, optimal_strategy};
+use etp_synthesis::pareto::policy::{Objectives, as_randomised, evaluate};
+use etp_synthesis::pareto::select::{Request, select};
 use etp_synthesis::pareto::to_strategy;
 use serde_json::json;
 use std::path::PathBuf;
@@ -45,6 +49,10 @@ fn probability(name: &str, v: f64) -> Result<f64> {
     Ok(v)
 }
 
+fn objectives_json(o: &Objectives) -> serde_json::Value {
+    json!({"p_target": o.p_target, "p_collision": o.p_collision, "energy_mean": o.energy})
+}
+
 pub fn run(a: Args) -> Result<()> {
     let request = match (a.min_target, a.max_energy, a.vertex) {
         (Some(p), None, None) => Request::MinTarget {
@@ -69,8 +77,35 @@ pub fn run(a: Args) -> Result<()> {
         .output
         .clone()
         .unwrap_or_else(|| a.dir.join("strategy.json"));
-    let selection = select(&front, request).context("selecting a point on the front")?;
-    let omega = realise(&mdp, &front, &selection);
+    let cost = front.cost_model;
+    let lp_request = match request {
+        Request::MinTarget {
+            min_target,
+            max_collision,
+        } => Some(LpRequest::MinEnergy {
+            min_target,
+            max_collision,
+        }),
+        Request::MaxEnergy { max_energy } => Some(LpRequest::MaxTarget { max_energy }),
+        Request::Vertex(_) => None,
+    };
+    // The exact optimum (a vertex is its own deterministic policy).
+    let (omega, predicted, exact) = match lp_request {
+        Some(r) => {
+            let opt = optimal_strategy(&mdp, cost, r).context("solving the occupation LP")?;
+            (opt.policy.clone(), opt.predicted, Some(opt))
+        }
+        None => {
+            let selection = select(&front, request).context("selecting a vertex")?;
+            let k = selection.weights[0].0;
+            let omega = as_randomised(&mdp, &front.vertices[k].policy);
+            let predicted = evaluate(&mdp, &omega, cost);
+            (omega, predicted, None)
+        }
+    };
+    // The explanation: the least-energy mixture of front vertices. It may be
+    // infeasible by up to the front's ε where the exact request is not.
+    let mixture = select(&front, request).ok();
     let label = match request {
         Request::MinTarget {
             min_target,
@@ -82,42 +117,77 @@ pub fn run(a: Args) -> Result<()> {
         Request::MaxEnergy { max_energy } => format!("highest P_tar with energy ≤ {max_energy}"),
         Request::Vertex(k) => format!("vertex {k} of the front"),
     };
-    let mut strategy = to_strategy(&mdp, &omega, label.clone(), selection.predicted);
+    let mut strategy = to_strategy(&mdp, &omega, label.clone(), predicted);
     strategy.scenario_toml = scenario_text;
-    // Cross-check with the whole-MDP occupation LP (independent of the enumeration).
-    let cross_check = match request {
-        Request::MinTarget {
-            min_target,
-            max_collision,
-        } => occupation_lp_min_energy(&mdp, front.cost_model, min_target, max_collision).ok(),
-        _ => None,
-    };
     write_new(&output, strategy.to_json().as_bytes(), a.force)?;
-    let p = &selection.predicted;
+    let p = &predicted;
+    let gap = mixture.as_ref().map(|m| match request {
+        Request::MaxEnergy { .. } => p.p_target - m.predicted.p_target,
+        _ => m.predicted.energy - p.energy,
+    });
     if a.json {
         let v = json!({
             "strategy": output, "label": label,
-            "predicted": {"p_target": p.p_target, "p_collision": p.p_collision, "energy_mean": p.energy},
-            "vertices": selection.weights.iter().map(|(k, w)| json!({"vertex": k, "weight": w})).collect::<Vec<_>>(),
-            "occupation_lp_energy": cross_check,
+            "predicted": objectives_json(p),
+            "exact": exact.as_ref().map(|o| json!({
+                "method": "occupation-measure LP over the whole MDP",
+                "lp_objective": o.lp_objective, "margin": o.margin,
+                "randomised_states": o.randomised_states, "unvisited_states": UNVISITED})),
+            "vertex_mixture": mixture.as_ref().map(|m| json!({
+                "predicted": objectives_json(&m.predicted),
+                "vertices": m.weights.iter().map(|(k, w)| json!({"vertex": k, "weight": w})).collect::<Vec<_>>(),
+                "gap": gap})),
+            "occupation_lp_energy": exact.as_ref().filter(|_| matches!(request, Request::MinTarget { .. })).map(|o| o.lp_objective),
+            "front_epsilon": front.epsilon,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!("{label}");
         println!(
-            "  predicted  P_tar {:.4}  P_coll {:.4}  energy {:.2}",
+            "  predicted  P_tar {:.6}  P_coll {:.6}  energy {:.6}",
             p.p_target, p.p_collision, p.energy
         );
-        for (k, w) in &selection.weights {
-            let o = &front.vertices[*k].objectives;
+        if let Some(o) = &exact {
             println!(
-                "  vertex {k:>3} weight {w:.4}  (P_tar {:.4}, P_coll {:.4}, energy {:.2})",
-                o.p_target, o.p_collision, o.energy
+                "  exact: occupation-measure LP over the whole MDP, realised as ω ({} randomising states; unvisited states: {UNVISITED}){}",
+                o.randomised_states,
+                if o.margin > 0.0 {
+                    format!(
+                        "; bounds tightened by {:e} so that ω meets them in its own evaluation",
+                        o.margin
+                    )
+                } else {
+                    String::new()
+                }
             );
         }
-        if let Some(lp) = cross_check {
+        if let Some(m) = &mixture {
             println!(
-                "  cross-check: occupation-measure LP over the whole MDP gives energy {lp:.4}"
+                "  explanation: mixture of front vertices  P_tar {:.6}  P_coll {:.6}  energy {:.6}",
+                m.predicted.p_target, m.predicted.p_collision, m.predicted.energy
+            );
+            for (k, w) in &m.weights {
+                let o = &front.vertices[*k].objectives;
+                println!(
+                    "    vertex {k:>4} weight {w:.4}  (P_tar {:.4}, P_coll {:.4}, energy {:.2})",
+                    o.p_target, o.p_collision, o.energy
+                );
+            }
+            if let Some(g) = gap {
+                let what = if matches!(request, Request::MaxEnergy { .. }) {
+                    "P_tar"
+                } else {
+                    "energy"
+                };
+                println!(
+                    "    gap to the exact optimum: {g:.3e} in {what} (the front is certified to ε = {:.2e} scaled, {:.3e} in energy)",
+                    front.epsilon, front.epsilon_energy
+                );
+            }
+        } else if lp_request.is_some() {
+            println!(
+                "  explanation: no mixture of front vertices meets the request (the front is certified to ε = {:.2e}); the exact LP does",
+                front.epsilon
             );
         }
         println!("wrote {}", output.display());

@@ -1,5 +1,5 @@
 //! `etp synthesize SCENARIO`: build the belief-space MDP by Monte Carlo
-//! (MODEL.md §4) and write `DIR/mdp.bin`.
+//! (docs/MODEL.md §4) and write `DIR/mdp.bin`.
 //!
 //! [`build_mdp`] is the MDP part (load, refuse to overwrite, simulate with a
 //! progress bar, write the file, measure); [`run`] prints its report. The Pareto

@@ -32,7 +32,7 @@ pub const SENDER_AGENT: u32 = 0xFFFF_0001;
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ZeroCopySend, Serialize, Deserialize)]
 pub struct Header {
-    /// Hash of the run id ([`super::run_tag`]): a message from another run is refused.
+    /// Hash of the run id ([`super::RunId::tag`]): a message from another run is refused.
     pub run: u64,
     /// Episode index (0-based).
     pub episode: u64,

@@ -1,4 +1,4 @@
-//! The magnitude range `[λ_lo, λ_hi]` of the log-uniform bins (MODEL.md §4).
+//! The magnitude range `[λ_lo, λ_hi]` of the log-uniform bins (docs/MODEL.md §4).
 //!
 //! * `λ_lo`: the smallest eigenvalue of `P_KF` over the sensors that serve a
 //!   leg (the best a filter can do);

@@ -1,4 +1,4 @@
-//! The layered Monte Carlo engine shared by both methods (MODEL.md §4):
+//! The layered Monte Carlo engine shared by both methods (docs/MODEL.md §4):
 //!
 //! ```text
 //! pool_0 = { initial belief }

@@ -1,4 +1,4 @@
-//! The belief-space abstraction of MODEL.md §4: a finite, acyclic MDP estimated
+//! The belief-space abstraction of docs/MODEL.md §4: a finite, acyclic MDP estimated
 //! by layered Monte Carlo simulation of legs.
 //!
 //! * Method 2 ([`Method::Discretized`], the paper's contribution): the state at
@@ -116,7 +116,7 @@ pub fn progress_total(scenario: &Scenario, params: &AbstractionParams) -> u64 {
     scenario.num_legs() as u64 * scenario.deltas.len() as u64 * u64::from(params.samples)
 }
 
-/// Build the MDP of `scenario` by layered Monte Carlo (MODEL.md §4).
+/// Build the MDP of `scenario` by layered Monte Carlo (docs/MODEL.md §4).
 /// `progress(k)` is called as work finishes; the units add up to
 /// [`progress_total`].
 pub fn build(

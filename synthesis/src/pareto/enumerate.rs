@@ -1,5 +1,5 @@
 //! All vertices and facets of the Pareto front by supporting hyperplanes
-//! (MODEL.md §5).
+//! (docs/MODEL.md §5).
 //!
 //! Randomised strategies make the achievable set `A` convex; its lower
 //! boundary is the front. Each round: take the convex hull of the points found
@@ -9,11 +9,25 @@
 //! is new, otherwise the facet is a facet of the front. Stops when every lower
 //! facet is confirmed: then no weight vector can find a point outside the hull,
 //! so the hull's lower part *is* the front.
+//!
+//! Certificate (docs/MODEL.md §5): every probe also returns the exact minimum
+//! `v_λ` of `λ · f` over all strategies. When the loop stops, every facet of
+//! the final hull `conv(P) + R³₊` (bounded, unbounded and the three axis
+//! facets) has been probed, and `ε = max_facets (b_λ − v_λ)⁺` (`b_λ` the
+//! facet's plane) bounds how far any achievable point lies beyond the hull:
+//! `f + ε·(1, 1, 1)` is in the hull for every achievable `f`.
+//!
+//! Determinism: the hull is taken of the found points lifted by a tiny,
+//! index-seeded amount (at most [`LIFT`]) so that no four are coplanar and the
+//! hull is unique whatever order the hull library visits points in; facets are
+//! probed in the order of their sorted corner indices, and each facet's weight
+//! is computed from its corners in that order. The same MDP gives the same
+//! front, bit for bit, whatever the thread count or the run.
 
-use super::policy::{DeterministicPolicy, Objectives, backward_induction};
+use super::policy::{DeterministicPolicy, Objectives, backward_induction, weighted_optimum};
 use crate::mdp::{CostModel, Mdp};
 use chull::ConvexHullWrapper;
-use std::collections::{BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 
 /// A point found by a weighted optimisation, with its policy.
 #[derive(Debug, Clone)]
@@ -46,6 +60,10 @@ pub struct Enumeration {
     /// Weighted optimisations solved.
     pub optimisations: usize,
     pub rounds: usize,
+    /// Certified additive gap in scaled units: every achievable `f` has a
+    /// point of `conv(vertices) + R³₊` at most `epsilon` above it in every
+    /// objective (docs/MODEL.md §5).
+    pub epsilon: f64,
 }
 
 /// Errors of the enumeration.
@@ -61,7 +79,25 @@ pub enum EnumerationError {
 /// any weighted objective, i.e. 1e-4 percentage points of probability. Far below
 /// the Monte Carlo error of the abstraction, and it keeps winding-2d's front
 /// (≈ 1800 vertices) under a second instead of ≈ 3300 vertices in 2.5 s at 1e-9.
+/// The gap actually certified is computed after the loop (`Enumeration::epsilon`).
 pub const TOLERANCE: f64 = 1e-6;
+
+/// Largest lift of a point's hull coordinates (scaled units): far below
+/// [`TOLERANCE`], far above the 2.2e-16 grid of the exact hull, so ties and
+/// coplanar quadruples of found points are broken the same way in every run.
+/// The lift only moves points up (away from the front), so the lifted hull
+/// lies inside the true one and the certificate stays valid (docs/MODEL.md §5).
+pub const LIFT: f64 = 1e-10;
+
+/// The lifted hull coordinates of found point `index`.
+fn lifted(f: [f64; 3], index: usize) -> [f64; 3] {
+    let mut out = f;
+    for (k, x) in out.iter_mut().enumerate() {
+        let h = etp_shared::rng::mix64((index as u64).wrapping_mul(3).wrapping_add(k as u64));
+        *x += LIFT * (h >> 11) as f64 / (1u64 << 53) as f64;
+    }
+    out
+}
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
@@ -90,6 +126,8 @@ struct Finder<'a> {
     /// Exact objective bits → point, to recognise a point found again.
     index: HashMap<[i64; 3], usize>,
     optimisations: usize,
+    /// Exact `min λ · f` of every probed weight (by the bits of λ).
+    bounds: BTreeMap<[u64; 3], f64>,
 }
 
 impl Finder<'_> {
@@ -103,7 +141,9 @@ impl Finder<'_> {
     /// Optimise for λ; returns the index of the (possibly already known) point.
     fn probe(&mut self, lambda: [f64; 3]) -> usize {
         self.optimisations += 1;
-        let (policy, objectives) = backward_induction(self.mdp, lambda, self.scale, self.cost);
+        let opt = weighted_optimum(self.mdp, lambda, self.scale, self.cost);
+        self.bounds.insert(lambda.map(f64::to_bits), opt.bound);
+        let (policy, objectives) = (opt.policy, opt.objectives);
         let f = objectives.minimisation(self.scale);
         let key = quantise(f);
         if let Some(&i) = self.index.get(&key) {
@@ -118,6 +158,20 @@ impl Finder<'_> {
         });
         self.points.len() - 1
     }
+
+    /// The exact `min λ · f` (probing λ if it was not probed yet; such
+    /// certificate-only probes are not counted in `optimisations`, whose count
+    /// would otherwise depend on how the hull library triangulated coplanar
+    /// recession-cone faces).
+    fn bound(&mut self, lambda: [f64; 3]) -> f64 {
+        let key = lambda.map(f64::to_bits);
+        if let Some(&b) = self.bounds.get(&key) {
+            return b;
+        }
+        let b = weighted_optimum(self.mdp, lambda, self.scale, self.cost).bound;
+        self.bounds.insert(key, b);
+        b
+    }
 }
 
 /// Enumerate the front of `mdp` with energy divided by `scale` (e.g. the
@@ -127,6 +181,17 @@ pub fn enumerate_front(
     scale: f64,
     cost: CostModel,
 ) -> Result<Enumeration, EnumerationError> {
+    enumerate_front_to(mdp, scale, cost, TOLERANCE)
+}
+
+/// [`enumerate_front`] with another stopping tolerance (the certified gap is
+/// computed whatever it is).
+pub fn enumerate_front_to(
+    mdp: &Mdp,
+    scale: f64,
+    cost: CostModel,
+    tolerance: f64,
+) -> Result<Enumeration, EnumerationError> {
     let mut finder = Finder {
         mdp,
         scale: if scale > 0.0 { scale } else { 1.0 },
@@ -134,6 +199,7 @@ pub fn enumerate_front(
         points: Vec::new(),
         index: HashMap::new(),
         optimisations: 0,
+        bounds: BTreeMap::new(),
     };
     // Single-objective optima (ties broken towards the others) and a balanced weight.
     for l in [
@@ -151,9 +217,18 @@ pub fn enumerate_front(
     let mut hull = RecessionHull::new(far);
     let mut confirmed: BTreeSet<Vec<usize>> = BTreeSet::new();
     let mut rounds = 0;
+    // Points that may be corners of the hull: a point inside `conv(P) + R³₊`
+    // stays inside as P grows, so only the last hull's corners and the new
+    // points enter the next hull.
+    let mut alive: Vec<usize> = (0..finder.points.len()).collect();
     let facets = loop {
         rounds += 1;
-        let facets = hull.lower_facets(&finder.points)?;
+        let facets = hull.lower_facets(&finder.points, &alive)?;
+        // The certificate needs every facet of the hull: none is a failure.
+        if facets.is_empty() {
+            return Err(EnumerationError::Hull("the hull has no lower facet".into()));
+        }
+        let before = finder.points.len();
         let mut new_points = false;
         for fct in &facets {
             if confirmed.contains(&fct.key) {
@@ -163,7 +238,7 @@ pub fn enumerate_front(
             let i = finder.probe(fct.lambda);
             let plane = dot(fct.lambda, finder.points[fct.anchor].f);
             let value = dot(fct.lambda, finder.points[i].f);
-            if i >= known && value < plane - TOLERANCE {
+            if i >= known && value < plane - tolerance {
                 new_points = true;
             } else {
                 if i >= known {
@@ -176,6 +251,12 @@ pub fn enumerate_front(
         if !new_points {
             break facets;
         }
+        let corners: BTreeSet<usize> = facets
+            .iter()
+            .flat_map(|f| f.corners.iter().flatten().copied())
+            .chain(before..finder.points.len())
+            .collect();
+        alive = corners.into_iter().collect();
     };
     let mut vertices: BTreeSet<usize> = BTreeSet::new();
     let mut bounded = Vec::new();
@@ -197,13 +278,53 @@ pub fn enumerate_front(
     if vertices.is_empty() && !finder.points.is_empty() {
         vertices.insert(0);
     }
+    let epsilon = certify(&mut finder, &facets);
     Ok(Enumeration {
         vertices: vertices.into_iter().collect(),
         facets: bounded,
         optimisations: finder.optimisations,
         rounds,
         points: finder.points,
+        epsilon,
     })
+}
+
+/// The certified gap of the final hull: the largest amount by which the exact
+/// optimum of a facet's weight lies below the facet's plane, over every facet
+/// of `conv(P̃) + R³₊` (P̃ the lifted points): its bounded and unbounded lower
+/// facets and the three axis facets `f_k ≥ min_P̃ f_k`. Planes are taken at
+/// the highest of their corners (a conservative choice under rounding).
+fn certify(finder: &mut Finder<'_>, facets: &[HullFacet]) -> f64 {
+    let lifted_points: Vec<[f64; 3]> = finder
+        .points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| lifted(p.f, i))
+        .collect();
+    let mut gap = 0.0_f64;
+    for f in facets {
+        let plane = f
+            .corners
+            .iter()
+            .flatten()
+            .map(|&i| dot(f.lambda, lifted_points[i]))
+            .fold(f64::NEG_INFINITY, f64::max);
+        if plane.is_finite() {
+            gap = gap.max(plane - finder.bound(f.lambda));
+        }
+    }
+    for k in 0..3 {
+        let mut axis = [0.0; 3];
+        axis[k] = 1.0;
+        let lowest = lifted_points
+            .iter()
+            .map(|p| p[k])
+            .fold(f64::INFINITY, f64::min);
+        if lowest.is_finite() {
+            gap = gap.max(lowest - finder.bound(axis));
+        }
+    }
+    gap
 }
 
 struct HullFacet {
@@ -270,16 +391,36 @@ impl RecessionHull {
         Self { far }
     }
 
-    fn lower_facets(&mut self, points: &[FoundPoint]) -> Result<Vec<HullFacet>, EnumerationError> {
-        match self.split(points) {
-            Ok(f) => Ok(f),
-            Err(_) => self.explicit_cone(points),
+    /// The lower facets of the hull of the points `alive` (global indices).
+    fn lower_facets(
+        &mut self,
+        points: &[FoundPoint],
+        alive: &[usize],
+    ) -> Result<Vec<HullFacet>, EnumerationError> {
+        let lifted_points: Vec<[f64; 3]> = alive.iter().map(|&i| lifted(points[i].f, i)).collect();
+        let mut facets = match self.split(&lifted_points) {
+            Ok(f) => f,
+            Err(_) => self.explicit_cone(&lifted_points)?,
+        };
+        // Local (position in `alive`) to global indices; pseudo-indices of the
+        // recession directions (≥ alive.len()) stay.
+        let global = |i: usize| alive.get(i).copied().unwrap_or(i);
+        for f in &mut facets {
+            f.corners = f.corners.iter().map(|c| c.map(global)).collect();
+            f.key = f.key.iter().map(|&k| global(k)).collect();
+            f.key.sort_unstable();
+            f.anchor = global(f.anchor);
         }
+        // Canonical order (the hull library's facet order is not).
+        let bits = |l: [f64; 3]| l.map(f64::to_bits);
+        facets.sort_by(|a, b| a.key.cmp(&b.key).then(bits(a.lambda).cmp(&bits(b.lambda))));
+        facets.dedup_by(|a, b| a.key == b.key && a.lambda == b.lambda);
+        Ok(facets)
     }
 
     /// 3-D hull of P plus the three projected 2-D hulls.
-    fn split(&self, points: &[FoundPoint]) -> Result<Vec<HullFacet>, EnumerationError> {
-        let coords: Vec<Vec<f64>> = points.iter().map(|p| p.f.to_vec()).collect();
+    fn split(&self, points: &[[f64; 3]]) -> Result<Vec<HullFacet>, EnumerationError> {
+        let coords: Vec<Vec<f64>> = points.iter().map(|p| p.to_vec()).collect();
         if coords.len() < 4 {
             return Err(EnumerationError::Hull("too few points".into()));
         }
@@ -288,14 +429,13 @@ impl RecessionHull {
         let c = centroid(&coords);
         let mut out = Vec::new();
         for tri in idx.chunks_exact(3) {
-            let ids = [map[tri[0]], map[tri[1]], map[tri[2]]];
-            let Some(lambda) =
-                lower_weight([points[ids[0]].f, points[ids[1]].f, points[ids[2]].f], &c)
+            let mut ids = [map[tri[0]], map[tri[1]], map[tri[2]]];
+            ids.sort_unstable();
+            let Some(lambda) = lower_weight([points[ids[0]], points[ids[1]], points[ids[2]]], &c)
             else {
                 continue;
             };
-            let mut key = ids.to_vec();
-            key.sort_unstable();
+            let key = ids.to_vec();
             out.push(facet(key.iter().map(|&i| Some(i)).collect(), key, lambda));
         }
         if out.is_empty() {
@@ -303,12 +443,15 @@ impl RecessionHull {
         }
         for k in 0..3 {
             let (a, b) = ((k + 1) % 3, (k + 2) % 3);
-            let proj: Vec<Vec<f64>> = points.iter().map(|p| vec![p.f[a], p.f[b]]).collect();
+            let proj: Vec<Vec<f64>> = points.iter().map(|p| vec![p[a], p[b]]).collect();
             let (hv, idx) = hull(&proj)?;
             let map = map_back(&proj, &hv);
             let c = centroid(&proj);
             for edge in idx.chunks_exact(2) {
-                let (i, j) = (map[edge[0]], map[edge[1]]);
+                let (i, j) = (
+                    map[edge[0]].min(map[edge[1]]),
+                    map[edge[0]].max(map[edge[1]]),
+                );
                 let (p, q) = (&proj[i], &proj[j]);
                 let mut n = [q[1] - p[1], p[0] - q[0]];
                 let len = (n[0] * n[0] + n[1] * n[1]).sqrt();
@@ -327,7 +470,7 @@ impl RecessionHull {
                 lambda[b] = lb;
                 // Keys of unbounded facets: the axis (as a pseudo-index beyond
                 // every point) and the two points.
-                let mut key = vec![i.min(j), i.max(j)];
+                let mut key = vec![i, j];
                 key.push(usize::MAX - k);
                 out.push(facet(vec![Some(i), Some(j), None], key, lambda));
             }
@@ -336,14 +479,14 @@ impl RecessionHull {
     }
 
     /// Small or flat P: hull of P and its far-shifted copies.
-    fn explicit_cone(&self, points: &[FoundPoint]) -> Result<Vec<HullFacet>, EnumerationError> {
+    fn explicit_cone(&self, points: &[[f64; 3]]) -> Result<Vec<HullFacet>, EnumerationError> {
         let mut coords: Vec<Vec<f64>> = Vec::with_capacity(4 * points.len());
         let mut owner: Vec<Option<usize>> = Vec::with_capacity(4 * points.len());
         for (i, p) in points.iter().enumerate() {
-            coords.push(p.f.to_vec());
+            coords.push(p.to_vec());
             owner.push(Some(i));
             for k in 0..3 {
-                let mut q = p.f;
+                let mut q = *p;
                 q[k] += self.far;
                 coords.push(q.to_vec());
                 owner.push(None);
@@ -355,7 +498,8 @@ impl RecessionHull {
         let at = |i: usize| [coords[i][0], coords[i][1], coords[i][2]];
         let mut out = Vec::new();
         for tri in idx.chunks_exact(3) {
-            let ids = [map[tri[0]], map[tri[1]], map[tri[2]]];
+            let mut ids = [map[tri[0]], map[tri[1]], map[tri[2]]];
+            ids.sort_unstable();
             let Some(lambda) = lower_weight([at(ids[0]), at(ids[1]), at(ids[2])], &c) else {
                 continue;
             };

@@ -1,12 +1,16 @@
 //! The Pareto front of (expected energy, P_coll, 1 − P_tar) over randomised
 //! strategies on the acyclic MDP, strategies for requested trade-offs, and the
-//! `front.json` file (MODEL.md §5).
+//! `front.json` file (docs/MODEL.md §5).
 //!
-//! * [`policy`] — weighted backward induction, evaluation, occupation measures.
-//! * [`enumerate`] — every vertex and facet by supporting hyperplanes.
-//! * [`select`] — vertex-mixture LP, realisation as ω, whole-MDP LP cross-check.
+//! * [`policy`] — weighted backward induction (with the exact optimum as a
+//!   bound), evaluation of any memoryless randomised policy, occupation measures.
+//! * [`enumerate`] — the front by supporting hyperplanes, with a certified gap ε.
+//! * [`optimal`] — the exact strategy of a request: the whole-MDP occupation
+//!   LP realised as ω.
+//! * [`select`] — the vertex-mixture LP (the human-readable explanation).
 
 pub mod enumerate;
+pub mod optimal;
 pub mod policy;
 pub mod select;
 
@@ -17,8 +21,8 @@ use policy::{
 };
 use serde::{Deserialize, Serialize};
 
-/// Version of the `front.json` layout.
-pub const FRONT_FORMAT_VERSION: u32 = 1;
+/// Version of the `front.json` layout (2: certified `epsilon`, deterministic).
+pub const FRONT_FORMAT_VERSION: u32 = 2;
 
 /// A vertex of the front: a deterministic policy optimal for some weight λ.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -30,7 +34,8 @@ pub struct Vertex {
     pub policy: DeterministicPolicy,
 }
 
-/// A bounded facet of the front: its vertices (a polygon) and weight vector.
+/// A bounded facet of the (lifted, triangulated) lower hull: its vertices and
+/// weight vector.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Facet {
     pub vertices: Vec<usize>,
@@ -56,7 +61,16 @@ pub struct ParetoFront {
     pub cost_model: CostModel,
     /// Energy normalisation: the full-KF (δ = 0) energy on this MDP.
     pub energy_scale: f64,
-    /// Sorted by increasing energy.
+    /// Certified gap in scaled units (energy / `energy_scale`, probabilities):
+    /// every strategy's objective vector, raised by `epsilon` in each
+    /// coordinate, is dominated by a mixture of `vertices` (docs/MODEL.md §5).
+    /// The front is exact up to this ε, not exact.
+    pub epsilon: f64,
+    /// `epsilon · energy_scale`: the certified gap in energy units.
+    pub epsilon_energy: f64,
+    /// Stopping tolerance of the enumeration (scaled units).
+    pub tolerance: f64,
+    /// Corners of the lower hull, sorted by increasing energy.
     pub vertices: Vec<Vertex>,
     pub facets: Vec<Facet>,
     /// Each constant δ (the smallest δ is the full KF when δ = 0 is in Δ).
@@ -77,14 +91,19 @@ impl ParetoFront {
 
     /// Parse `front.json`.
     pub fn from_json(text: &str) -> Result<Self, String> {
-        let f: Self = serde_json::from_str(text).map_err(|e| e.to_string())?;
-        if f.format_version != FRONT_FORMAT_VERSION {
+        // The version first, so an older file says so rather than naming a field.
+        #[derive(Deserialize)]
+        struct Version {
+            format_version: u32,
+        }
+        let v: Version = serde_json::from_str(text).map_err(|e| e.to_string())?;
+        if v.format_version != FRONT_FORMAT_VERSION {
             return Err(format!(
-                "front format version {} is not supported (expected {FRONT_FORMAT_VERSION})",
-                f.format_version
+                "front format version {} is not supported (expected {FRONT_FORMAT_VERSION}; run `etp synthesize` again)",
+                v.format_version
             ));
         }
-        Ok(f)
+        serde_json::from_str(text).map_err(|e| e.to_string())
     }
 
     /// Index of the vertex with the highest P_tar (least energy among ties).
@@ -102,6 +121,16 @@ impl ParetoFront {
 pub fn compute_front(
     mdp: &Mdp,
     cost: CostModel,
+) -> Result<ParetoFront, enumerate::EnumerationError> {
+    compute_front_to(mdp, cost, enumerate::TOLERANCE)
+}
+
+/// [`compute_front`] with another stopping tolerance of the enumeration
+/// (coarser: fewer vertices, faster, a larger certified ε).
+pub fn compute_front_to(
+    mdp: &Mdp,
+    cost: CostModel,
+    tolerance: f64,
 ) -> Result<ParetoFront, enumerate::EnumerationError> {
     let mut baselines = Vec::new();
     for (a, &delta) in mdp.deltas.iter().enumerate() {
@@ -127,7 +156,7 @@ pub fn compute_front(
         })
         .map(|b| b.objectives.energy);
     let scale = full_kf.filter(|e| *e > 0.0).unwrap_or(1.0);
-    let en = enumerate::enumerate_front(mdp, scale, cost)?;
+    let en = enumerate::enumerate_front_to(mdp, scale, cost, tolerance)?;
     let mut order: Vec<usize> = en.vertices.clone();
     order.sort_by(|&a, &b| {
         let (x, y) = (&en.points[a].objectives, &en.points[b].objectives);
@@ -165,6 +194,9 @@ pub fn compute_front(
         method: mdp.method,
         cost_model: cost,
         energy_scale: scale,
+        epsilon: en.epsilon,
+        epsilon_energy: en.epsilon * scale,
+        tolerance,
         vertices,
         facets,
         baselines,

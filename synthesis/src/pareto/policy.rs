@@ -7,7 +7,7 @@
 use crate::mdp::{CostModel, Mdp, Next};
 use serde::{Deserialize, Serialize};
 
-/// The three objectives of a strategy (MODEL.md §3).
+/// The three objectives of a strategy (docs/MODEL.md §3).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Objectives {
     pub energy: f64,
@@ -92,16 +92,51 @@ pub fn backward_induction(
     scale: f64,
     cost: CostModel,
 ) -> (DeterministicPolicy, Objectives) {
+    let o = weighted_optimum(mdp, lambda, scale, cost);
+    (o.policy, o.objectives)
+}
+
+/// What one weighted backward induction finds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WeightedOptimum {
+    /// The optimal deterministic policy (tie-broken, see [`backward_induction`]).
+    pub policy: DeterministicPolicy,
+    /// Its exact values.
+    pub objectives: Objectives,
+    /// `min λ · f` over *all* strategies, by the same pass without the
+    /// tie-breaking weight: every achievable `f` has `λ · f ≥ bound` (up to
+    /// floating-point rounding). The certificate of the front rests on it
+    /// (docs/MODEL.md §5).
+    pub bound: f64,
+}
+
+/// [`backward_induction`] with the exact lower bound of `λ · f`.
+pub fn weighted_optimum(
+    mdp: &Mdp,
+    lambda: [f64; 3],
+    scale: f64,
+    cost: CostModel,
+) -> WeightedOptimum {
     const TIE: f64 = 1e-9;
     let n = mdp.states.len();
     let mut values = vec![Objectives::default(); n];
+    // Pure optimum of λ · f from each state (no tie term).
+    let mut pure = vec![0.0_f64; n];
     let mut policy = vec![0_u16; n];
     let score = |o: &Objectives, l: [f64; 3]| {
         let m = o.minimisation(scale);
         l[0] * m[0] + l[1] * m[1] + l[2] * m[2]
     };
+    // λ · f of the terminals: f = (0, 1, 1) at coll, (0, 0, 0) at tar, (0, 0, 1) at free.
+    let terminal = |next: Next| match next {
+        Next::Collision => lambda[1] + lambda[2],
+        Next::Target => 0.0,
+        Next::Free => lambda[2],
+        Next::State(_) => 0.0,
+    };
     for s in (0..n).rev() {
         let mut best: Option<(f64, f64, usize, Objectives)> = None;
+        let mut best_pure = f64::INFINITY;
         for c in 0..mdp.states[s].choices.len() {
             let v = choice_value(mdp, s, c, &values, cost);
             let primary = score(&v, lambda);
@@ -113,13 +148,28 @@ pub fn backward_induction(
             {
                 best = Some((key, secondary, c, v));
             }
+            let ch = &mdp.states[s].choices[c];
+            let mut w = lambda[0] * ch.cost(cost) / scale;
+            for t in &ch.transitions {
+                w += t.probability
+                    * match t.next {
+                        Next::State(j) => pure[j as usize],
+                        other => terminal(other),
+                    };
+            }
+            best_pure = best_pure.min(w);
         }
         if let Some((_, _, c, v)) = best {
             policy[s] = c as u16;
             values[s] = v;
         }
+        pure[s] = best_pure;
     }
-    (policy, values[mdp.initial as usize])
+    WeightedOptimum {
+        policy,
+        objectives: values[mdp.initial as usize],
+        bound: pure[mdp.initial as usize],
+    }
 }
 
 /// Values of a randomised policy at the initial state.

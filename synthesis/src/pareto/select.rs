@@ -1,11 +1,12 @@
-//! A strategy for a requested trade-off: an LP over convex weights μ of the
-//! front's vertices, realised as a memoryless randomised strategy through
-//! occupation measures (MODEL.md §5), and the whole-MDP occupation-measure LP
-//! used as a cross-check.
+//! The vertex-mixture explanation of a requested trade-off: an LP over convex
+//! weights μ of the front's vertices, realised as a memoryless randomised
+//! strategy through occupation measures (docs/MODEL.md §5). The exact optimum, which
+//! `etp strategy` writes, is [`super::optimal`]; the two differ by at most the
+//! front's certified gap.
 
 use super::ParetoFront;
 use super::policy::{Objectives, RandomisedPolicy, as_randomised, occupation};
-use crate::mdp::{CostModel, Mdp, Next};
+use crate::mdp::Mdp;
 use good_lp::{Expression, Solution, SolverModel, constraint, microlp, variable, variables};
 
 /// What the user asks for.
@@ -153,7 +154,7 @@ pub fn select(front: &ParetoFront, request: Request) -> Result<Selection, Select
     }
 }
 
-fn least_collision_with_target(front: &ParetoFront, min_target: f64) -> Option<f64> {
+pub fn least_collision_with_target(front: &ParetoFront, min_target: f64) -> Option<f64> {
     let v = &front.vertices;
     let mut vars = variables!();
     let mu: Vec<_> = v.iter().map(|_| vars.add(variable().min(0.0))).collect();
@@ -212,65 +213,4 @@ pub fn realise(mdp: &Mdp, front: &ParetoFront, selection: &Selection) -> Randomi
             }
         })
         .collect()
-}
-
-/// The occupation-measure LP over the whole MDP (Etessami et al. 2007) for a
-/// [`Request::MinTarget`]: the least energy with `P_tar ≥ min_target`
-/// (and `P_coll ≤ max_collision`). Independent of the vertex enumeration, so it
-/// cross-checks it. Returns the optimal energy.
-pub fn occupation_lp_min_energy(
-    mdp: &Mdp,
-    cost: CostModel,
-    min_target: f64,
-    max_collision: Option<f64>,
-) -> Result<f64, SelectError> {
-    let mut vars = variables!();
-    let x: Vec<Vec<_>> = mdp
-        .states
-        .iter()
-        .map(|s| {
-            s.choices
-                .iter()
-                .map(|_| vars.add(variable().min(0.0)))
-                .collect()
-        })
-        .collect();
-    let mut inflow: Vec<Expression> = vec![Expression::from(0.0); mdp.states.len()];
-    inflow[mdp.initial as usize] += 1.0;
-    let mut target = Expression::from(0.0);
-    let mut collision = Expression::from(0.0);
-    let mut energy = Expression::from(0.0);
-    for (s, st) in mdp.states.iter().enumerate() {
-        for (c, ch) in st.choices.iter().enumerate() {
-            energy += ch.cost(cost) * x[s][c];
-            for t in &ch.transitions {
-                match t.next {
-                    Next::State(j) => inflow[j as usize] += t.probability * x[s][c],
-                    Next::Target => target += t.probability * x[s][c],
-                    Next::Collision => collision += t.probability * x[s][c],
-                    Next::Free => {}
-                }
-            }
-        }
-    }
-    let mut problem = vars.minimise(energy.clone()).using(microlp);
-    for (s, row) in x.iter().enumerate() {
-        let out: Expression = row.iter().copied().sum();
-        problem = problem.with(constraint!(out == inflow[s].clone()));
-    }
-    problem = problem.with(constraint!(target >= min_target));
-    if let Some(mc) = max_collision {
-        problem = problem.with(constraint!(collision <= mc));
-    }
-    match problem.solve() {
-        Ok(sol) => Ok(sol.eval(energy)),
-        Err(good_lp::ResolutionError::Infeasible) => Err(SelectError::Infeasible {
-            request: format!("P_tar ≥ {min_target}"),
-            best_target: f64::NAN,
-            best_collision: f64::NAN,
-            best_energy: f64::NAN,
-            detail: " (occupation LP)".into(),
-        }),
-        Err(e) => Err(SelectError::Solver(e.to_string())),
-    }
 }

@@ -94,7 +94,15 @@ fn realised_strategy_attains_the_mixture_and_matches_the_occupation_lp() {
             sel.predicted
         );
         assert!((v.p_target - sel.predicted.p_target).abs() < 1e-9);
-        let lp = occupation_lp_min_energy(&m, CostModel::Counted, target, None).expect("feasible");
+        let (_, lp) = super::optimal::solve_occupation_lp(
+            &m,
+            CostModel::Counted,
+            super::optimal::LpRequest::MinEnergy {
+                min_target: target,
+                max_collision: None,
+            },
+        )
+        .expect("feasible");
         assert!(
             (lp - sel.predicted.energy).abs() < 1e-6,
             "occupation LP {lp} vs vertex LP {}",
@@ -124,4 +132,99 @@ fn infeasible_requests_name_the_best_achievable() {
         select(&f, Request::Vertex(99)),
         Err(SelectError::NoSuchVertex(99, _))
     ));
+}
+
+#[test]
+fn the_certified_gap_bounds_every_weighted_optimum() {
+    use crate::synthetic::{SyntheticParams, layered_mdp};
+    // A coarse tolerance leaves real gaps for the certificate to cover.
+    let m = layered_mdp(&SyntheticParams {
+        states: 300,
+        layers: 6,
+        ..SyntheticParams::default()
+    });
+    let scale = 100.0;
+    let en = enumerate::enumerate_front_to(&m, scale, CostModel::Counted, 1e-3).expect("front");
+    assert!(en.epsilon > 0.0 && en.epsilon < 2e-3, "ε = {}", en.epsilon);
+    // For every weight λ ≥ 0 (Σλ = 1) the exact optimum v_λ is within ε of the
+    // best vertex: min_k λ·f_k ≤ v_λ + ε, a consequence of the certificate.
+    let mut worst = 0.0_f64;
+    let mut rng = etp_shared::rng::stream_rng(9, 99, 0);
+    use rand::RngExt;
+    for _ in 0..400 {
+        let raw: [f64; 3] = [rng.random(), rng.random(), rng.random()];
+        let total: f64 = raw.iter().sum();
+        let lambda = raw.map(|x| x / total);
+        let v = weighted_optimum(&m, lambda, scale, CostModel::Counted).bound;
+        let best = en
+            .vertices
+            .iter()
+            .map(|&i| {
+                let f = en.points[i].f;
+                lambda[0] * f[0] + lambda[1] * f[1] + lambda[2] * f[2]
+            })
+            .fold(f64::INFINITY, f64::min);
+        assert!(best >= v - 1e-12, "a vertex beats the exact optimum");
+        worst = worst.max(best - v);
+    }
+    assert!(
+        worst <= en.epsilon + 1e-12,
+        "gap {worst} > certified ε {}",
+        en.epsilon
+    );
+    assert!(worst > 0.0, "the coarse front should leave some gap");
+}
+
+#[test]
+fn the_front_is_reproducible_bit_for_bit() {
+    use crate::synthetic::{SyntheticParams, layered_mdp};
+    let m = layered_mdp(&SyntheticParams {
+        states: 400,
+        layers: 8,
+        ..SyntheticParams::default()
+    });
+    let a = compute_front(&m, CostModel::Counted).expect("front");
+    let b = compute_front(&m, CostModel::Counted).expect("front");
+    assert_eq!(a.to_json(), b.to_json());
+}
+
+#[test]
+fn exact_strategies_meet_their_request_in_their_own_evaluation() {
+    use super::optimal::{LpRequest, optimal_strategy, solve_occupation_lp};
+    let m = toy();
+    for target in [0.4, 0.6, 0.8, 0.855] {
+        let r = LpRequest::MinEnergy {
+            min_target: target,
+            max_collision: None,
+        };
+        let s = optimal_strategy(&m, CostModel::Counted, r).expect("feasible");
+        assert!(s.predicted.p_target >= target);
+        let (_, lp) = solve_occupation_lp(&m, CostModel::Counted, r).expect("lp");
+        assert!(
+            (s.predicted.energy - lp).abs() <= 1e-9 * lp,
+            "{s:?} vs {lp}"
+        );
+        // No mixture of deterministic policies does better (brute force).
+        let f = compute_front(&m, CostModel::Counted).expect("front");
+        let sel = select(
+            &f,
+            Request::MinTarget {
+                min_target: target,
+                max_collision: None,
+            },
+        )
+        .expect("feasible");
+        assert!(s.predicted.energy <= sel.predicted.energy + 1e-9);
+    }
+    // Beyond the highest P_tar (0.855): infeasible, with the best values.
+    let e = optimal_strategy(
+        &m,
+        CostModel::Counted,
+        LpRequest::MinEnergy {
+            min_target: 0.9,
+            max_collision: None,
+        },
+    )
+    .expect_err("beyond 0.855");
+    assert!(e.to_string().contains("0.8550"), "{e}");
 }
