@@ -6,7 +6,8 @@
 
 use crate::gaussian;
 use crate::linalg::{
-    cholesky_lower, deterministic_eigen, symmetrize, to_dynamic, to_static, to_static_vec,
+    cholesky_lower, deterministic_eigen, symmetrize, to_dynamic, to_static, to_static_padded,
+    to_static_vec,
 };
 use crate::scenario::{Plant, Sensor};
 use nalgebra::{SMatrix, SVector};
@@ -34,6 +35,7 @@ pub fn standard_normal<const D: usize, R: Rng + ?Sized>(rng: &mut R) -> Vector<D
 #[derive(Debug, Clone, Copy)]
 pub struct LinearPlant<const N: usize> {
     pub f: Matrix<N, N>,
+    /// G (n×p, MODEL.md §7) padded with zero columns past p; inputs carry zeros there.
     pub g: Matrix<N, N>,
     pub q: Matrix<N, N>,
     q_chol: Matrix<N, N>,
@@ -44,7 +46,7 @@ impl<const N: usize> LinearPlant<N> {
         let q = to_static::<N, N>(&p.q);
         Self {
             f: to_static(&p.f),
-            g: to_static(&p.g),
+            g: to_static_padded(&p.g),
             q,
             q_chol: cholesky_lower(&q),
         }

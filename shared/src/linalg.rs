@@ -74,6 +74,18 @@ pub fn to_static<const R: usize, const C: usize>(m: &DMatrix<f64>) -> SMatrix<f6
     SMatrix::<f64, R, C>::from_fn(|i, j| m[(i, j)])
 }
 
+/// Dynamic → fixed-size copy of a matrix that may be smaller (n×p inputs,
+/// d×n workspace maps): entries outside it are zero.
+pub fn to_static_padded<const R: usize, const C: usize>(m: &DMatrix<f64>) -> SMatrix<f64, R, C> {
+    SMatrix::<f64, R, C>::from_fn(|i, j| {
+        if i < m.nrows() && j < m.ncols() {
+            m[(i, j)]
+        } else {
+            0.0
+        }
+    })
+}
+
 /// Dynamic vector → fixed-size vector.
 pub fn to_static_vec<const N: usize>(v: &nalgebra::DVector<f64>) -> SVector<f64, N> {
     debug_assert_eq!(v.len(), N);

@@ -89,7 +89,7 @@ fn run_task<const N: usize>(
         match r.end {
             LegEnd::Collision { .. } => c.collisions += 1,
             LegEnd::Terminated if last => {
-                if cs.target.contains(&st.x) {
+                if cs.in_target(&st.x) {
                     c.target += 1;
                 } else {
                     c.free += 1;
