@@ -6,7 +6,7 @@
 
 use crate::gaussian;
 use crate::linalg::{
-    cholesky_lower, deterministic_eigen, symmetrize, to_dynamic, to_static, to_static_padded,
+    cholesky_lower, deterministic_eigen_static, symmetrize, to_static, to_static_padded,
     to_static_vec,
 };
 use crate::scenario::{Plant, Sensor};
@@ -115,7 +115,7 @@ pub enum Whitener<const M: usize> {
     /// Z is diagonal (the common case, every built-in scenario): V = I, so ε_i = z_i / √Z_ii.
     Diagonal(Vector<M>),
     /// General Z: the rows of `Λ^{-1/2} Vᵀ` with the deterministic basis of
-    /// [`deterministic_eigen`].
+    /// [`deterministic_eigen_static`].
     Basis(Matrix<M, M>),
 }
 
@@ -127,8 +127,7 @@ impl<const M: usize> Whitener<M> {
             // Coordinate axes are eigenvectors; order and sign do not change ‖ε‖∞.
             return Self::Diagonal(Vector::<M>::from_fn(|i, _| 1.0 / z[(i, i)].sqrt()));
         }
-        let (values, v) = deterministic_eigen(&to_dynamic(z));
-        let v = to_static::<M, M>(&v);
+        let (values, v) = deterministic_eigen_static(z);
         let inv_sqrt = Matrix::<M, M>::from_diagonal(&Vector::<M>::from_fn(|i, _| {
             1.0 / values[i].max(f64::MIN_POSITIVE).sqrt()
         }));

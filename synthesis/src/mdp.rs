@@ -12,8 +12,9 @@
 use etp_shared::discretization::{Discretization, Region};
 use serde::{Deserialize, Serialize};
 
-/// Version of the `mdp.bin` layout.
-pub const MDP_FORMAT_VERSION: u32 = 1;
+/// Version of the `mdp.bin` layout (2: decision-point bins carry the optional
+/// workspace-marginal descriptor).
+pub const MDP_FORMAT_VERSION: u32 = 2;
 const MAGIC: &[u8; 8] = b"ETPMDP\0\n";
 
 /// Why an MDP file was refused.

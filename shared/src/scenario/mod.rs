@@ -31,7 +31,9 @@ pub enum ScenarioError {
     #[error("scenario field `{field}`: {reason}")]
     Invalid { field: String, reason: String },
     /// Neither a built-in name nor a readable file.
-    #[error("unknown built-in scenario `{0}` (built-ins: winding-2d, open-2d, superg-3d)")]
+    #[error(
+        "unknown built-in scenario `{0}` (built-ins: winding-2d, open-2d, superg-3d, inertia-2d, inertia-3d)"
+    )]
     UnknownBuiltin(String),
 }
 
@@ -142,7 +144,8 @@ impl Scenario {
         validate::validate(raw)
     }
 
-    /// A built-in scenario by name (`winding-2d`, `open-2d`, `superg-3d`).
+    /// A built-in scenario by name (`winding-2d`, `open-2d`, `superg-3d`,
+    /// `inertia-2d`, `inertia-3d`).
     pub fn builtin(name: &str) -> Result<Self, ScenarioError> {
         let text =
             builtin_text(name).ok_or_else(|| ScenarioError::UnknownBuiltin(name.to_string()))?;
