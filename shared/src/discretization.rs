@@ -311,4 +311,33 @@ mod tests {
         let rotated = &rot * aligned * rot.transpose();
         assert_eq!(b.classify(&rotated).0[0].1, 2);
     }
+
+    #[test]
+    fn workspace_marginal_sees_the_position_block_and_bins_the_rest() {
+        // Double integrator, C = [I 0]: Π projects onto the velocities.
+        let c = DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
+        let w = WorkspaceMarginal::new(&c, 1e-4, 1e-1, 3);
+        let p = DMatrix::from_row_slice(
+            4,
+            4,
+            &[
+                4e-3, 1e-3, 2e-3, 0.0, 1e-3, 2e-3, 0.0, 1e-3, 2e-3, 0.0, 2.5e-3, 0.0, 0.0, 1e-3,
+                0.0, 2.5e-3,
+            ],
+        );
+        let m = w.marginal(&p);
+        assert_eq!(m, p.view((0, 0), (2, 2)).clone_owned());
+        assert!(
+            (w.rest(&p) - 5e-3).abs() < 1e-15,
+            "tr of the velocity block"
+        );
+        // log-uniform thirds of [1e-4, 1e-1]: 5e-3 lies in the middle one.
+        assert_eq!(w.rest_bin(&p), 1);
+        let mut b = bins();
+        b.workspace = Some(w);
+        let r = b.classify(&p);
+        assert_eq!(r.0.len(), 3, "d = 2 axes of C P Cᵀ plus the rest bin");
+        assert_eq!(r.0[2], (1, 0));
+        assert_eq!(r.0[..2], b.classify_axes(&m).0[..]);
+    }
 }
