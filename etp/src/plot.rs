@@ -214,14 +214,20 @@ where
             scenario,
             trajectories,
             (0, 1),
-            &format!("{title}\ntop view: projection onto (q₁, q₂), q₃ dropped"),
+            &format!(
+                "{} — top view: projection onto (q₁, q₂), q₃ dropped",
+                scenario.name
+            ),
         )?;
         draw_map(
             &panels[1],
             scenario,
             trajectories,
             (0, 2),
-            "side view: projection onto (q₁, q₃), q₂ dropped",
+            &format!(
+                "side view: (q₁, q₃), q₂ dropped — {} episodes, colour γ̄(δ) blue 0 → red 1",
+                trajectories.len()
+            ),
         )?;
         Ok(())
     } else {

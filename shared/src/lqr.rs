@@ -88,7 +88,7 @@ pub fn solve_dare(
         if change <= CONVERGED_RTOL * h.amax().max(f64::MIN_POSITIVE) {
             let s = (&h + h.transpose()) * 0.5;
             let residual = dare_residual(f, g, q, r, &s);
-            if !(residual <= RESIDUAL_RTOL) {
+            if residual.is_nan() || residual > RESIDUAL_RTOL {
                 return Err(LqrError::NoStabilisingSolution(format!(
                     "relative residual {residual:e}"
                 )));
@@ -114,7 +114,7 @@ pub fn lqr_gain(
         .solve(&(g.transpose() * &s * f))
         .ok_or_else(|| LqrError::NoStabilisingSolution("GᵀSG + R_u is singular".into()))?;
     let rho = spectral_radius(&(f - g * &k));
-    if !(rho < 1.0) {
+    if rho.is_nan() || rho >= 1.0 {
         return Err(LqrError::Unstable(rho));
     }
     Ok(k)

@@ -13,6 +13,9 @@ use std::collections::HashMap;
 
 type Result<T> = std::result::Result<T, ScenarioError>;
 
+/// Parses a workspace point (d entries) of a named field.
+type WorkspacePoint<'a> = dyn Fn(&str, &[f64]) -> Result<DVector<f64>> + 'a;
+
 pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
     let content_hash = content_hash(&raw);
     let n = raw.dim;
@@ -347,11 +350,7 @@ pub(super) fn spd(field: &str, raw: &RawMatrix, n: usize) -> Result<DMatrix<f64>
     Ok(sym)
 }
 
-fn aabb(
-    field: &str,
-    raw: &RawBox,
-    point: &dyn Fn(&str, &[f64]) -> Result<DVector<f64>>,
-) -> Result<Aabb> {
+fn aabb(field: &str, raw: &RawBox, point: &WorkspacePoint<'_>) -> Result<Aabb> {
     let min = point(&format!("{field}.min"), &raw.min)?;
     let max = point(&format!("{field}.max"), &raw.max)?;
     for i in 0..min.len() {
