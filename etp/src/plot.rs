@@ -170,25 +170,33 @@ where
     Ok(())
 }
 
-/// Write the map plot (first two state coordinates) to `stem.png` and `stem.svg`.
+/// Write the map plot to `stem.png` and `stem.svg`. The map is drawn in the
+/// workspace (MODEL.md §7: `q = C x`, d coordinates): d ≤ 2 in one panel; d ≥ 3
+/// in two projections side by side, top view (q₁, q₂) and side view (q₁, q₃),
+/// each named in its caption.
 pub fn map_plot(scenario: &Scenario, trajectories: &[Trajectory], stem: &Path) -> Result<()> {
     register_font();
     let png = stem.with_extension("png");
     let svg = stem.with_extension("svg");
+    let size = if scenario.workspace_dim() >= 3 {
+        (1800, 800)
+    } else {
+        (1200, 900)
+    };
     {
-        let root = BitMapBackend::new(&png, (1200, 900)).into_drawing_area();
-        draw_map(&root, scenario, trajectories)?;
+        let root = BitMapBackend::new(&png, size).into_drawing_area();
+        draw_maps(&root, scenario, trajectories)?;
         root.present()
             .with_context(|| format!("writing {}", png.display()))?;
     }
-    let root = SVGBackend::new(&svg, (1200, 900)).into_drawing_area();
-    draw_map(&root, scenario, trajectories)?;
+    let root = SVGBackend::new(&svg, size).into_drawing_area();
+    draw_maps(&root, scenario, trajectories)?;
     root.present()
         .with_context(|| format!("writing {}", svg.display()))?;
     Ok(())
 }
 
-fn draw_map<DB: DrawingBackend>(
+fn draw_maps<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     scenario: &Scenario,
     trajectories: &[Trajectory],
@@ -198,62 +206,111 @@ where
 {
     let e = |x: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {x:?}");
     root.fill(&WHITE).map_err(e)?;
-    let y_of = |v: &[f64]| if v.len() > 1 { v[1] } else { 0.0 };
-    let mut xs: Vec<f64> = vec![scenario.plant.x0[0]];
-    let mut ys: Vec<f64> = vec![y_of(scenario.plant.x0.as_slice())];
-    for l in &scenario.legs {
-        xs.push(l.to[0]);
-        ys.push(y_of(l.to.as_slice()));
-    }
-    for o in &scenario.obstacles {
-        xs.extend([o.bounds.min[0], o.bounds.max[0]]);
-        ys.extend([y_of(&o.bounds.min), y_of(&o.bounds.max)]);
-    }
-    let (x0, x1) = (
-        xs.iter().copied().fold(f64::INFINITY, f64::min),
-        xs.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    let title = format!(
+        "{} — {} sampled episodes, colour: expected rate γ̄(δ) (blue 0 → red 1)",
+        scenario.name,
+        trajectories.len()
     );
-    let (y0, y1) = (
-        ys.iter().copied().fold(f64::INFINITY, f64::min),
-        ys.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-    );
-    let pad = 0.05 * (x1 - x0).max(y1 - y0).max(1e-3);
-    let mut chart = ChartBuilder::on(root)
-        .caption(
-            format!(
-                "{} — {} sampled episodes, colour: expected rate γ̄(δ) (blue 0 → red 1)",
-                scenario.name,
+    if scenario.workspace_dim() >= 3 {
+        let panels = root.split_evenly((1, 2));
+        draw_map(
+            &panels[0],
+            scenario,
+            trajectories,
+            (0, 1),
+            &format!(
+                "{} — top view: projection onto (q₁, q₂), q₃ dropped",
+                scenario.name
+            ),
+        )?;
+        draw_map(
+            &panels[1],
+            scenario,
+            trajectories,
+            (0, 2),
+            &format!(
+                "side view: (q₁, q₃), q₂ dropped — {} episodes, colour γ̄(δ) blue 0 → red 1",
                 trajectories.len()
             ),
-            ("sans-serif", 20),
-        )
+        )?;
+        Ok(())
+    } else {
+        draw_map(root, scenario, trajectories, (0, 1), &title)
+    }
+}
+
+/// One panel: the projection of the workspace onto coordinates `axes`.
+fn draw_map<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    scenario: &Scenario,
+    trajectories: &[Trajectory],
+    axes: (usize, usize),
+    caption: &str,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let e = |x: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {x:?}");
+    let (a, b) = axes;
+    let at = |v: &[f64], i: usize| v.get(i).copied().unwrap_or(0.0);
+    let pt = |v: &[f64]| (at(v, a), at(v, b));
+    let start = scenario.route_start.as_slice();
+    let mut pts: Vec<(f64, f64)> = vec![pt(start)];
+    for l in &scenario.legs {
+        pts.push(pt(l.to.as_slice()));
+    }
+    for o in &scenario.obstacles {
+        pts.extend([pt(&o.bounds.min), pt(&o.bounds.max)]);
+    }
+    let (x0, x1) = (
+        pts.iter().map(|p| p.0).fold(f64::INFINITY, f64::min),
+        pts.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max),
+    );
+    let (y0, y1) = (
+        pts.iter().map(|p| p.1).fold(f64::INFINITY, f64::min),
+        pts.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max),
+    );
+    let pad = 0.05 * (x1 - x0).max(y1 - y0).max(1e-3);
+    let lines: Vec<&str> = caption.lines().collect();
+    let mut chart = ChartBuilder::on(root)
+        .caption(lines.join(" — "), ("sans-serif", 18))
         .margin(15)
         .x_label_area_size(40)
         .y_label_area_size(50)
         .build_cartesian_2d((x0 - pad)..(x1 + pad), (y0 - pad)..(y1 + pad))
         .map_err(e)?;
+    let name = |i: usize| {
+        if scenario.workspace.is_some() {
+            format!("q{} (workspace C x)", i + 1)
+        } else {
+            format!("x{}", i + 1)
+        }
+    };
     chart
         .configure_mesh()
-        .x_desc("x₁")
-        .y_desc("x₂")
+        .x_desc(name(a))
+        .y_desc(name(b))
         .label_style(("sans-serif", 14))
         .draw()
         .map_err(e)?;
+    // Projected boxes overlap in 3-D: translucent so the ones behind show.
+    let obstacle_style = if scenario.workspace_dim() >= 3 {
+        RGBColor(90, 90, 90).mix(0.35).filled()
+    } else {
+        RGBColor(90, 90, 90).filled()
+    };
     chart
-        .draw_series(scenario.obstacles.iter().map(|o| {
-            Rectangle::new(
-                [
-                    (o.bounds.min[0], y_of(&o.bounds.min)),
-                    (o.bounds.max[0], y_of(&o.bounds.max)),
-                ],
-                RGBColor(90, 90, 90).filled(),
-            )
-        }))
+        .draw_series(
+            scenario
+                .obstacles
+                .iter()
+                .map(|o| Rectangle::new([pt(&o.bounds.min), pt(&o.bounds.max)], obstacle_style)),
+        )
         .map_err(e)?;
     let t = &scenario.target;
     chart
         .draw_series(std::iter::once(Rectangle::new(
-            [(t.min[0], y_of(&t.min)), (t.max[0], y_of(&t.max))],
+            [pt(&t.min), pt(&t.max)],
             RGBColor(0, 170, 0).filled(),
         )))
         .map_err(e)?;
@@ -261,7 +318,7 @@ where
         for w in tr.points.windows(2) {
             chart
                 .draw_series(std::iter::once(PathElement::new(
-                    vec![(w[0].x[0], y_of(&w[0].x)), (w[1].x[0], y_of(&w[1].x))],
+                    vec![pt(&w[0].x), pt(&w[1].x)],
                     heat(w[1].expected_rate).stroke_width(1),
                 )))
                 .map_err(e)?;
@@ -271,7 +328,7 @@ where
         {
             chart
                 .draw_series(std::iter::once(Cross::new(
-                    (last.x[0], y_of(&last.x)),
+                    pt(&last.x),
                     6,
                     RED.stroke_width(2),
                 )))
@@ -281,27 +338,18 @@ where
     // The target on top of the trajectories, as an outline.
     chart
         .draw_series(std::iter::once(Rectangle::new(
-            [(t.min[0], y_of(&t.min)), (t.max[0], y_of(&t.max))],
+            [pt(&t.min), pt(&t.max)],
             RGBColor(0, 140, 0).stroke_width(3),
         )))
         .map_err(e)?;
-    let mut route = vec![(scenario.plant.x0[0], y_of(scenario.plant.x0.as_slice()))];
-    route.extend(
-        scenario
-            .legs
-            .iter()
-            .map(|l| (l.to[0], y_of(l.to.as_slice()))),
-    );
+    let mut route = vec![pt(start)];
+    route.extend(scenario.legs.iter().map(|l| pt(l.to.as_slice())));
     chart
         .draw_series(route.iter().map(|&p| Circle::new(p, 4, BLACK.filled())))
         .map_err(e)?;
     chart
         .draw_series(scenario.sensors.iter().map(|s| {
-            TriangleMarker::new(
-                (s.position[0], y_of(s.position.as_slice())),
-                8,
-                RGBColor(128, 0, 128).filled(),
-            )
+            TriangleMarker::new(pt(s.position.as_slice()), 8, RGBColor(128, 0, 128).filled())
         }))
         .map_err(e)?;
     Ok(())

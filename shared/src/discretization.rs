@@ -9,6 +9,15 @@
 //! The region is the tuple of (magnitude bin, angle bin) per axis. The same
 //! classification runs offline (abstraction, validation) and at run time
 //! (coordinator), so it lives here, in the shared vocabulary.
+//!
+//! **Workspace-marginal descriptor** (MODEL.md §7, beyond the paper): for an
+//! agent with a workspace map C (d×n), the per-axis tuple over all n axes grows
+//! as (bins)^n and spreads the samples thin. What decides collisions and
+//! arrival is the workspace marginal `C P Cᵀ` (d×d); the rest of P matters only
+//! through how it feeds the workspace later. With [`WorkspaceMarginal`] the
+//! region is the per-axis tuple of `C P Cᵀ` (d axes, same magnitude/angle
+//! rule) followed by one coarse log-magnitude bin of `tr(Π P Π)`, Π = I − C⁺C
+//! the projector onto what C does not see (the velocity of a double integrator).
 
 use crate::linalg::deterministic_eigen;
 use nalgebra::DMatrix;
@@ -49,6 +58,76 @@ impl Default for BinCounts {
     }
 }
 
+/// The workspace-marginal descriptor of one decision point (see the module doc).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WorkspaceMarginal {
+    /// C, d rows of n.
+    pub c: Vec<Vec<f64>>,
+    /// Π = I − C⁺C, n rows of n.
+    pub rest_projector: Vec<Vec<f64>>,
+    /// Log-uniform range and bin count of `tr(Π P Π)`.
+    pub rest_lo: f64,
+    pub rest_hi: f64,
+    pub rest_bins: u16,
+}
+
+impl WorkspaceMarginal {
+    /// The descriptor of workspace map `c` with `rest_bins` bins on `[rest_lo, rest_hi]`.
+    pub fn new(c: &DMatrix<f64>, rest_lo: f64, rest_hi: f64, rest_bins: u16) -> Self {
+        let n = c.ncols();
+        let pinv = crate::scenario::pseudo_inverse(c);
+        let proj = DMatrix::<f64>::identity(n, n) - pinv * c;
+        Self {
+            c: rows(c),
+            rest_projector: rows(&proj),
+            rest_lo,
+            rest_hi,
+            rest_bins,
+        }
+    }
+
+    fn c_matrix(&self) -> DMatrix<f64> {
+        from_rows(&self.c)
+    }
+
+    /// `C P Cᵀ`.
+    pub fn marginal(&self, cov: &DMatrix<f64>) -> DMatrix<f64> {
+        let c = self.c_matrix();
+        &c * cov * c.transpose()
+    }
+
+    /// `tr(Π P Π)`: the uncertainty C does not see.
+    pub fn rest(&self, cov: &DMatrix<f64>) -> f64 {
+        let p = from_rows(&self.rest_projector);
+        (&p * cov * &p).trace()
+    }
+
+    /// Coarse log-uniform bin of [`Self::rest`], clamped.
+    pub fn rest_bin(&self, cov: &DMatrix<f64>) -> u16 {
+        log_bin(self.rest(cov), self.rest_lo, self.rest_hi, self.rest_bins)
+    }
+}
+
+fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
+    m.row_iter().map(|r| r.iter().copied().collect()).collect()
+}
+
+fn from_rows(r: &[Vec<f64>]) -> DMatrix<f64> {
+    let cols = r.first().map_or(0, Vec::len);
+    DMatrix::from_fn(r.len(), cols, |i, j| r[i][j])
+}
+
+/// Bin of `v` among `bins` log-uniform bins on `[lo, hi]`, clamped.
+fn log_bin(v: f64, lo: f64, hi: f64, bins: u16) -> u16 {
+    let b = bins.max(1);
+    if v.is_nan() || v <= 0.0 || lo <= 0.0 || hi <= lo {
+        return 0;
+    }
+    let t = (v.ln() - lo.ln()) / (hi.ln() - lo.ln());
+    let k = (t * f64::from(b)).floor();
+    k.clamp(0.0, f64::from(b - 1)) as u16
+}
+
 /// The bins of one decision point.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DecisionPointBins {
@@ -57,6 +136,11 @@ pub struct DecisionPointBins {
     pub counts: BinCounts,
     /// Nominal unit vector per axis (λ descending), from the samples seen here.
     pub nominal: Vec<Vec<f64>>,
+    /// `Some`: regions describe `C P Cᵀ` plus a coarse bin of the rest, and
+    /// `lambda_lo`, `lambda_hi`, `nominal` refer to `C P Cᵀ`; `None`: the
+    /// paper's per-axis regions of P.
+    #[serde(default)]
+    pub workspace: Option<WorkspaceMarginal>,
 }
 
 impl DecisionPointBins {
@@ -91,18 +175,18 @@ impl DecisionPointBins {
             lambda_hi,
             counts,
             nominal,
+            workspace: None,
         }
     }
 
     /// Magnitude bin of an eigenvalue (log-uniform, clamped).
     pub fn magnitude_bin(&self, lambda: f64) -> u16 {
-        let b = self.counts.magnitude.max(1);
-        if lambda.is_nan() || lambda <= 0.0 || self.lambda_hi <= self.lambda_lo {
-            return 0;
-        }
-        let t = (lambda.ln() - self.lambda_lo.ln()) / (self.lambda_hi.ln() - self.lambda_lo.ln());
-        let k = (t * f64::from(b)).floor();
-        k.clamp(0.0, f64::from(b - 1)) as u16
+        log_bin(
+            lambda,
+            self.lambda_lo,
+            self.lambda_hi,
+            self.counts.magnitude,
+        )
     }
 
     /// Angle bin of `θ = arccos |v·v_nom|` on [0, π/2].
@@ -124,6 +208,18 @@ impl DecisionPointBins {
 
     /// The region of a covariance at this decision point.
     pub fn classify(&self, cov: &DMatrix<f64>) -> Region {
+        match &self.workspace {
+            None => self.classify_axes(cov),
+            Some(w) => {
+                let mut r = self.classify_axes(&w.marginal(cov));
+                r.0.push((w.rest_bin(cov), 0));
+                r
+            }
+        }
+    }
+
+    /// The per-axis (magnitude, angle) tuple of a symmetric matrix.
+    fn classify_axes(&self, cov: &DMatrix<f64>) -> Region {
         let (values, v) = deterministic_eigen(cov);
         let n = values.len();
         let scale = values
@@ -214,5 +310,34 @@ mod tests {
         let rot = DMatrix::from_row_slice(2, 2, &[c, -s, s, c]);
         let rotated = &rot * aligned * rot.transpose();
         assert_eq!(b.classify(&rotated).0[0].1, 2);
+    }
+
+    #[test]
+    fn workspace_marginal_sees_the_position_block_and_bins_the_rest() {
+        // Double integrator, C = [I 0]: Π projects onto the velocities.
+        let c = DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
+        let w = WorkspaceMarginal::new(&c, 1e-4, 1e-1, 3);
+        let p = DMatrix::from_row_slice(
+            4,
+            4,
+            &[
+                4e-3, 1e-3, 2e-3, 0.0, 1e-3, 2e-3, 0.0, 1e-3, 2e-3, 0.0, 2.5e-3, 0.0, 0.0, 1e-3,
+                0.0, 2.5e-3,
+            ],
+        );
+        let m = w.marginal(&p);
+        assert_eq!(m, p.view((0, 0), (2, 2)).clone_owned());
+        assert!(
+            (w.rest(&p) - 5e-3).abs() < 1e-15,
+            "tr of the velocity block"
+        );
+        // log-uniform thirds of [1e-4, 1e-1]: 5e-3 lies in the middle one.
+        assert_eq!(w.rest_bin(&p), 1);
+        let mut b = bins();
+        b.workspace = Some(w);
+        let r = b.classify(&p);
+        assert_eq!(r.0.len(), 3, "d = 2 axes of C P Cᵀ plus the rest bin");
+        assert_eq!(r.0[2], (1, 0));
+        assert_eq!(r.0[..2], b.classify_axes(&m).0[..]);
     }
 }

@@ -6,13 +6,13 @@
 //! — the unit the Monte Carlo abstraction samples — and
 //! [`CompiledScenario::run_episode`] chains legs with a threshold policy.
 //!
-//! Step order inside leg i (exactly docs/MODEL.md §3; a leg always runs at least one
-//! step, termination is checked after the step):
-//! 1. `u = sat(w_i − x̂, u_max)`
+//! Step order inside leg i (exactly docs/MODEL.md §3 in the general form of §7; a
+//! leg always runs at least one step, termination is checked after the step):
+//! 1. `u = sat(K (C⁺w_i − x̂), u_max)` (K = C = I: `sat(w_i − x̂, u_max)`)
 //! 2. `x ← F x + G u + w`
-//! 3. `x` in a closed obstacle box → collision (terminal, no measurement)
+//! 3. `C x` in a closed obstacle box → collision (terminal, no measurement)
 //! 4. the serving sensor measures, triggers, the filter updates
-//! 5. `k_i += 1`; the leg ends if `‖x̂ − w_i‖ ≤ ε_x` or `k_i ≥ k_max`
+//! 5. `k_i += 1`; the leg ends if `‖C x̂ − w_i‖ ≤ ε_x` or `k_i ≥ k_max`
 //!
 //! Random numbers are drawn in a fixed order per step (process noise, then
 //! measurement noise), so a seed fixes an episode completely.
@@ -25,10 +25,10 @@ pub mod step;
 
 pub use step::SlotOutcome;
 
-use crate::controller::reached;
+use crate::controller::{FeedbackController, reached};
 use crate::etkf::{Belief, EtKalmanFilter, LinearPlant, Matrix, Threshold, Vector, sample_belief};
 use crate::gaussian;
-use crate::geometry::StaticBox;
+use crate::geometry::{StaticBox, WorkspaceMap, first_containing, pad_point};
 use crate::linalg::to_static_vec;
 use crate::scenario::Scenario;
 use rand::Rng;
@@ -207,7 +207,10 @@ impl<const N: usize> EpisodeObserver<N> for () {}
 /// One leg of the route in fixed-size form.
 #[derive(Debug, Clone, Copy)]
 pub struct CompiledLeg<const N: usize> {
+    /// The workspace waypoint w_i, padded to N (zero past d).
     pub waypoint: Vector<N>,
+    /// The controller's reference `C⁺ w_i` (= w_i when C = I).
+    pub reference: Vector<N>,
     pub sensor: usize,
 }
 
@@ -223,6 +226,10 @@ pub struct CompiledScenario<const N: usize> {
     pub u_max: f64,
     pub eps_x: f64,
     pub k_max: u32,
+    /// `u = sat(K (r − x̂), u_max)` (MODEL.md §7).
+    pub controller: FeedbackController<N>,
+    /// `q = C x`: collisions, leg ends and the target are decided on it.
+    pub workspace: WorkspaceMap<N>,
 }
 
 impl<const N: usize> CompiledScenario<N> {
@@ -244,7 +251,8 @@ impl<const N: usize> CompiledScenario<N> {
                 .legs
                 .iter()
                 .map(|l| CompiledLeg {
-                    waypoint: to_static_vec(&l.to),
+                    waypoint: pad_point(l.to.as_slice()),
+                    reference: to_static_vec(&scenario.reference(&l.to)),
                     sensor: l.sensor,
                 })
                 .collect(),
@@ -257,7 +265,33 @@ impl<const N: usize> CompiledScenario<N> {
             u_max: scenario.controller.u_max,
             eps_x: scenario.controller.eps_x,
             k_max: scenario.controller.k_max,
+            controller: FeedbackController::new(scenario),
+            workspace: WorkspaceMap::new(scenario.workspace.as_ref()),
         }
+    }
+
+    /// The input at step k of leg `leg` for estimate `mean` (MODEL.md §7 step 1).
+    #[inline]
+    pub fn input(&self, leg: usize, mean: &Vector<N>) -> Vector<N> {
+        self.controller.input(&self.legs[leg].reference, mean)
+    }
+
+    /// The obstacle the true state `x` lies in, judged on `C x`.
+    #[inline]
+    pub fn collision(&self, x: &Vector<N>) -> Option<usize> {
+        first_containing(&self.obstacles, &self.workspace.point(x))
+    }
+
+    /// `‖C x̂ − w_leg‖₂ ≤ eps` (the leg-end test with `eps = eps_x`).
+    #[inline]
+    pub fn near_waypoint(&self, leg: usize, mean: &Vector<N>, eps: f64) -> bool {
+        reached(&self.workspace.point(mean), &self.legs[leg].waypoint, eps)
+    }
+
+    /// The end-of-episode test: `C x` in the target box.
+    #[inline]
+    pub fn in_target(&self, x: &Vector<N>) -> bool {
+        self.target.contains(&self.workspace.point(x))
     }
 
     /// Draw the initial true state `x0 ~ N(x̂0, P0)`; the belief is `(x̂0, P0)`.
@@ -293,7 +327,6 @@ impl<const N: usize> CompiledScenario<N> {
         rng: &mut R,
         observer: &mut O,
     ) -> LegResult {
-        let w = self.legs[leg].waypoint;
         let (initial_threshold, kf) = match *mode {
             LegMode::EventTriggered(t) => (t, None),
             LegMode::KfConvergence {
@@ -349,8 +382,8 @@ impl<const N: usize> CompiledScenario<N> {
             let done = match kf {
                 None => self.leg_ends(leg, &state.belief, r.steps),
                 Some((eps_kf, eps_p, p_kf)) => {
-                    let near = reached(&state.belief.mean, &w, self.eps_x);
-                    if !in_kf_phase && reached(&state.belief.mean, &w, eps_kf) {
+                    let near = self.near_waypoint(leg, &state.belief.mean, self.eps_x);
+                    if !in_kf_phase && self.near_waypoint(leg, &state.belief.mean, eps_kf) {
                         in_kf_phase = true;
                         threshold = full_kf;
                         expected_rate = 1.0;
@@ -407,3 +440,6 @@ impl<const N: usize> CompiledScenario<N> {
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod higher_tests;

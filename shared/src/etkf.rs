@@ -6,7 +6,8 @@
 
 use crate::gaussian;
 use crate::linalg::{
-    cholesky_lower, deterministic_eigen, symmetrize, to_dynamic, to_static, to_static_vec,
+    cholesky_lower, deterministic_eigen_static, symmetrize, to_static, to_static_padded,
+    to_static_vec,
 };
 use crate::scenario::{Plant, Sensor};
 use nalgebra::{SMatrix, SVector};
@@ -34,6 +35,7 @@ pub fn standard_normal<const D: usize, R: Rng + ?Sized>(rng: &mut R) -> Vector<D
 #[derive(Debug, Clone, Copy)]
 pub struct LinearPlant<const N: usize> {
     pub f: Matrix<N, N>,
+    /// G (n×p, MODEL.md §7) padded with zero columns past p; inputs carry zeros there.
     pub g: Matrix<N, N>,
     pub q: Matrix<N, N>,
     q_chol: Matrix<N, N>,
@@ -44,7 +46,7 @@ impl<const N: usize> LinearPlant<N> {
         let q = to_static::<N, N>(&p.q);
         Self {
             f: to_static(&p.f),
-            g: to_static(&p.g),
+            g: to_static_padded(&p.g),
             q,
             q_chol: cholesky_lower(&q),
         }
@@ -113,7 +115,7 @@ pub enum Whitener<const M: usize> {
     /// Z is diagonal (the common case, every built-in scenario): V = I, so ε_i = z_i / √Z_ii.
     Diagonal(Vector<M>),
     /// General Z: the rows of `Λ^{-1/2} Vᵀ` with the deterministic basis of
-    /// [`deterministic_eigen`].
+    /// [`deterministic_eigen_static`].
     Basis(Matrix<M, M>),
 }
 
@@ -125,8 +127,7 @@ impl<const M: usize> Whitener<M> {
             // Coordinate axes are eigenvectors; order and sign do not change ‖ε‖∞.
             return Self::Diagonal(Vector::<M>::from_fn(|i, _| 1.0 / z[(i, i)].sqrt()));
         }
-        let (values, v) = deterministic_eigen(&to_dynamic(z));
-        let v = to_static::<M, M>(&v);
+        let (values, v) = deterministic_eigen_static(z);
         let inv_sqrt = Matrix::<M, M>::from_diagonal(&Vector::<M>::from_fn(|i, _| {
             1.0 / values[i].max(f64::MIN_POSITIVE).sqrt()
         }));

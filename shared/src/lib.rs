@@ -28,6 +28,7 @@ pub mod etkf;
 pub mod gaussian;
 pub mod geometry;
 pub mod linalg;
+pub mod lqr;
 pub mod recording;
 pub mod rng;
 pub mod scenario;

@@ -15,8 +15,9 @@
 use etp_shared::discretization::{Discretization, Region};
 use serde::{Deserialize, Serialize};
 
-/// Version of the `mdp.bin` layout.
-pub const MDP_FORMAT_VERSION: u32 = 2;
+/// Version of the `mdp.bin` layout (2: a SHA-256 of the content at the end;
+/// 3: decision-point bins carry the optional workspace-marginal descriptor).
+pub const MDP_FORMAT_VERSION: u32 = 3;
 const MAGIC: &[u8; 8] = b"ETPMDP\0\n";
 /// Magic and version.
 const HEADER_LEN: usize = 12;

@@ -39,12 +39,13 @@ pub fn simulate_strategy(
     })
 }
 
-/// One point of a sampled trajectory.
+/// One point of a sampled trajectory, in the workspace (MODEL.md §7: `C x`,
+/// d entries; the state itself when there is no workspace map).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrajectoryPoint {
-    /// True state.
+    /// True workspace point `C x`.
     pub x: Vec<f64>,
-    /// Estimate.
+    /// Estimated workspace point `C x̂`.
     pub mean: Vec<f64>,
     /// γ̄(δ) of the threshold in force (the colour of the paper's Fig. 4).
     pub expected_rate: f64,
@@ -61,14 +62,22 @@ pub struct Trajectory {
 struct Recorder<'a, const N: usize> {
     points: Vec<TrajectoryPoint>,
     scenario: &'a CompiledScenario<N>,
+    /// Workspace dimension d.
+    d: usize,
 }
 
 impl<const N: usize> EpisodeObserver<N> for Recorder<'_, N> {
     fn on_step(&mut self, e: &StepEvent<'_, N>) {
         let m = self.scenario.filters[self.scenario.legs[e.leg].sensor].dim();
+        let w = &self.scenario.workspace;
         self.points.push(TrajectoryPoint {
-            x: e.x.iter().copied().collect(),
-            mean: e.belief.mean.iter().copied().collect(),
+            x: w.point(e.x).iter().take(self.d).copied().collect(),
+            mean: w
+                .point(&e.belief.mean)
+                .iter()
+                .take(self.d)
+                .copied()
+                .collect(),
             expected_rate: expected_rate(e.delta, m),
             transmitted: e.transmitted,
         });
@@ -88,8 +97,8 @@ pub fn sample_trajectories(
         (0..count)
             .map(|e| {
                 let mut rng = stream_rng(seed, streams::VALIDATE, e);
-                let mut rec = Recorder { points: Vec::new(), scenario: &c };
-                let start = c.initial.mean.iter().copied().collect::<Vec<f64>>();
+                let mut rec = Recorder { points: Vec::new(), scenario: &c, d: scenario.workspace_dim() };
+                let start = scenario.route_start.as_slice().to_vec();
                 rec.points.push(TrajectoryPoint { x: start.clone(), mean: start, expected_rate: 1.0, transmitted: false });
                 let r = c.run_episode(&policy, &mut rng, &mut rec);
                 Trajectory { points: rec.points, outcome: r.outcome }

@@ -8,7 +8,7 @@ use serde_json::json;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Built-in name (winding-2d, open-2d, superg-3d) or path to a scenario TOML.
+    /// Built-in name (winding-2d, open-2d, superg-3d, inertia-2d, inertia-3d) or path to a scenario TOML.
     pub scenario: String,
     /// Print one JSON object instead of tables.
     #[arg(long)]
@@ -70,14 +70,35 @@ fn describe_json(s: &Scenario) -> serde_json::Value {
     json!({"name": s.name, "description": s.description, "dim": s.dim, "content_hash": s.content_hash,
            "legs": legs, "sensors": sensors, "obstacles": obstacles,
            "target": {"min": s.target.min, "max": s.target.max}, "thresholds": thresholds,
-           "controller": {"u_max": s.controller.u_max, "eps_x": s.controller.eps_x, "k_max": s.controller.k_max}})
+           "controller": {"u_max": s.controller.u_max, "eps_x": s.controller.eps_x, "k_max": s.controller.k_max,
+                          "K": s.gain.as_ref().map(rows)},
+           "workspace_dim": s.workspace_dim(), "input_dim": s.input_dim(),
+           "C": s.workspace.as_ref().map(rows), "warnings": s.warnings})
+}
+
+fn rows(m: &nalgebra::DMatrix<f64>) -> Vec<Vec<f64>> {
+    m.row_iter().map(|r| r.iter().copied().collect()).collect()
 }
 
 /// The human-readable description printed by `etp check`.
 pub fn describe(s: &Scenario) -> String {
     use std::fmt::Write;
     let mut o = String::new();
-    let _ = writeln!(o, "scenario {} ({}-D) — ok", s.name, s.dim);
+    if s.workspace.is_some() || s.gain.is_some() {
+        let _ = writeln!(
+            o,
+            "scenario {} (n = {}, workspace d = {}, input p = {}) — ok",
+            s.name,
+            s.dim,
+            s.workspace_dim(),
+            s.input_dim()
+        );
+    } else {
+        let _ = writeln!(o, "scenario {} ({}-D) — ok", s.name, s.dim);
+    }
+    for w in &s.warnings {
+        let _ = writeln!(o, "  warning: {w}");
+    }
     if !s.description.is_empty() {
         let _ = writeln!(o, "  {}", s.description);
     }
@@ -87,6 +108,13 @@ pub fn describe(s: &Scenario) -> String {
         "  controller: u_max {}, eps_x {}, k_max {}",
         s.controller.u_max, s.controller.eps_x, s.controller.k_max
     );
+    if let Some(k) = &s.gain {
+        let _ = writeln!(o, "  feedback gain K ({}×{}):", k.nrows(), k.ncols());
+        for r in k.row_iter() {
+            let v: Vec<f64> = r.iter().copied().collect();
+            let _ = writeln!(o, "    {}", fmt_vec(&v));
+        }
+    }
     let _ = writeln!(o, "\nlegs ({}):", s.num_legs());
     let _ = writeln!(
         o,

@@ -90,6 +90,8 @@ pub fn run(a: Args) -> Result<()> {
         magnitude_bins: etp_shared::discretization::BinCounts::default().magnitude,
         angle_bins: etp_shared::discretization::BinCounts::default().angle,
         pool: etp_synthesis::abstraction::DEFAULT_POOL_PER_REGION,
+        descriptor: synthesize::DescriptorArg::Auto,
+        rest_bins: etp_synthesis::abstraction::DEFAULT_REST_BINS,
         eps_kf: None,
         eps_p: None,
         out: Some(dir.clone()),

@@ -14,7 +14,7 @@ use serde_json::{Map, Value, json};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Built-in name (winding-2d, open-2d, superg-3d) or path to a scenario TOML.
+    /// Built-in name (winding-2d, open-2d, superg-3d, inertia-2d, inertia-3d) or path to a scenario TOML.
     pub scenario: String,
     /// The constant threshold δ ≥ 0 used on every leg (0 = full Kalman filter).
     #[arg(long)]

@@ -12,7 +12,8 @@ use anyhow::{Context, Result, bail};
 use etp_shared::discretization::BinCounts;
 use etp_shared::scenario::Scenario;
 use etp_synthesis::abstraction::{
-    self, AbstractionParams, DEFAULT_POOL_PER_REGION, DEFAULT_SAMPLES, default_kf_params,
+    self, AbstractionParams, DEFAULT_POOL_PER_REGION, DEFAULT_REST_BINS, DEFAULT_SAMPLES,
+    Descriptor, default_kf_params,
 };
 use etp_synthesis::mdp::{KfConvergenceParams, Mdp, Method};
 use serde::Serialize;
@@ -21,6 +22,28 @@ use std::time::Instant;
 
 /// Name of the MDP file inside the output directory.
 pub const MDP_FILE: &str = "mdp.bin";
+
+/// Method 2's belief descriptor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum DescriptorArg {
+    /// `workspace` for scenarios with a workspace map `[model] C`, else `per-axis`.
+    Auto,
+    /// The paper's per-axis (magnitude, angle) bins of all n eigen-axes of P.
+    PerAxis,
+    /// Per-axis bins of the workspace marginal C P Cᵀ plus coarse bins of the
+    /// uncertainty C does not see (MODEL.md §7).
+    Workspace,
+}
+
+impl From<DescriptorArg> for Descriptor {
+    fn from(d: DescriptorArg) -> Self {
+        match d {
+            DescriptorArg::Auto => Descriptor::Auto,
+            DescriptorArg::PerAxis => Descriptor::PerAxis,
+            DescriptorArg::Workspace => Descriptor::WorkspaceMarginal,
+        }
+    }
+}
 
 /// Which abstraction to build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -42,7 +65,7 @@ impl From<MethodArg> for Method {
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Built-in name (winding-2d, open-2d, superg-3d) or path to a scenario TOML.
+    /// Built-in name (winding-2d, open-2d, superg-3d, inertia-2d, inertia-3d) or path to a scenario TOML.
     pub scenario: String,
     /// Abstraction method.
     #[arg(long, value_enum, default_value_t = MethodArg::Discretized)]
@@ -59,6 +82,13 @@ pub struct Args {
     /// Angle bins per eigenvector on [0, π/2] (Method 2; unused for repeated eigenvalues).
     #[arg(long, default_value_t = BinCounts::default().angle)]
     pub angle_bins: u16,
+    /// Method 2's belief descriptor.
+    #[arg(long, value_enum, default_value_t = DescriptorArg::Auto)]
+    pub descriptor: DescriptorArg,
+    /// Coarse log-uniform bins of tr(Π P Π), the uncertainty the workspace map
+    /// does not see (`--descriptor workspace`).
+    #[arg(long, default_value_t = DEFAULT_REST_BINS)]
+    pub rest_bins: u16,
     /// Pool particles kept per region and decision point.
     #[arg(long, default_value_t = DEFAULT_POOL_PER_REGION)]
     pub pool: u32,
@@ -140,6 +170,8 @@ pub fn params(a: &Args, s: &Scenario) -> Result<AbstractionParams> {
         },
         pool_per_region: a.pool,
         kf,
+        descriptor: a.descriptor.into(),
+        rest_bins: a.rest_bins,
     })
 }
 

@@ -1,4 +1,4 @@
-//! One step of docs/MODEL.md §3, split where the runtime splits it: the
+//! One step of docs/MODEL.md §3 (general form §7), split where the runtime splits it: the
 //! agent's estimator side (input, prior, slot update, leg end) and the
 //! world's side (the plant's move and the collision test).
 //!
@@ -10,7 +10,7 @@
 //! rests on this one piece of code:
 //!
 //! ```text
-//! u      = input(leg, posterior mean)               step 1
+//! u      = input(leg, posterior mean)               step 1 (CompiledScenario::input)
 //! x      ← move_plant(x, u)  → collision? (ends)    steps 2–3
 //! prior  = prior(posterior, u)
 //! post   = close_slot(leg, prior, slot, β)          step 4: Transmitted(y) | Silent | Dead
@@ -18,9 +18,7 @@
 //! ```
 
 use super::{CompiledScenario, Outcome};
-use crate::controller::{reached, waypoint_input};
 use crate::etkf::{Belief, Vector};
-use crate::geometry::first_containing;
 use rand::Rng;
 
 /// What the serving sensor's slot brought the agent.
@@ -37,12 +35,6 @@ pub enum SlotOutcome<'a> {
 }
 
 impl<const N: usize> CompiledScenario<N> {
-    /// Step 1: the input `u = sat(w_i − x̂, u_max)` from the posterior mean.
-    #[inline]
-    pub fn input(&self, leg: usize, mean: &Vector<N>) -> Vector<N> {
-        waypoint_input(mean, &self.legs[leg].waypoint, self.u_max)
-    }
-
     /// Steps 2–3: move the true state; `Some(obstacle)` if it collided (the
     /// episode ends before any measurement).
     #[inline]
@@ -53,7 +45,7 @@ impl<const N: usize> CompiledScenario<N> {
         rng: &mut R,
     ) -> Option<usize> {
         *x = self.plant.step(x, u, rng);
-        first_containing(&self.obstacles, x)
+        self.collision(x)
     }
 
     /// The slot's prior `x̂⁻ = F x̂ + G u`, `P⁻ = F P Fᵀ + Q`.
@@ -82,13 +74,13 @@ impl<const N: usize> CompiledScenario<N> {
     /// Step 5: the leg ends when `‖x̂ − w_i‖ ≤ ε_x` or after `k_max` steps.
     #[inline]
     pub fn leg_ends(&self, leg: usize, posterior: &Belief<N>, steps_in_leg: u32) -> bool {
-        reached(&posterior.mean, &self.legs[leg].waypoint, self.eps_x) || steps_in_leg >= self.k_max
+        self.near_waypoint(leg, &posterior.mean, self.eps_x) || steps_in_leg >= self.k_max
     }
 
     /// After the last leg: target if the true state is in the target box.
     #[inline]
     pub fn classify_end(&self, x: &Vector<N>) -> Outcome {
-        if self.target.contains(x) {
+        if self.in_target(x) {
             Outcome::Target
         } else {
             Outcome::Free

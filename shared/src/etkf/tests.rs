@@ -188,3 +188,42 @@ fn whitening_is_basis_independent_in_distribution_but_deterministic() {
         panic!("full matrix must not take the diagonal path");
     }
 }
+
+#[test]
+fn position_only_whitening_gives_identity_covariance() {
+    // MODEL.md §7: a double integrator seen through H = [I 0] with a rotated
+    // anisotropic R. Draw x ~ N(x̂⁻, P⁻) and y ~ N(Hx, R): ε = W(y − Hx̂⁻) must
+    // have identity covariance. 20 000 draws: each entry of the sample
+    // covariance has standard error ≤ √(2/20000) = 0.01; tolerance 5 s.e.
+    let s = Scenario::from_toml(include_str!("../testdata/double-integrator.toml")).expect("valid");
+    let f = EtKalmanFilter::<4, 2>::new(&s.plant, &s.sensors[0]);
+    let mut prior = f.predict(
+        &Belief {
+            mean: Vector::<4>::new(1.0, 2.0, 0.3, -0.1),
+            cov: f.steady_state_posterior(),
+        },
+        &Vector::<4>::zeros(),
+    );
+    // Correlate position and velocity more strongly than the filter would.
+    prior.cov[(0, 3)] += 2e-4;
+    prior.cov[(3, 0)] += 2e-4;
+    let inn = f.innovation(&prior);
+    assert!(
+        matches!(inn.whitener, Whitener::Basis(_)),
+        "Z is a full matrix"
+    );
+    let mut rng = stream_rng(11, streams::SIMULATE, 0);
+    let n = 20_000;
+    let mut acc = Matrix::<2, 2>::zeros();
+    let mut mean = Vector::<2>::zeros();
+    for _ in 0..n {
+        let x = sample_belief(&prior, &mut rng);
+        let y = f.sensor.measure(&x, &mut rng);
+        let e = inn.whitened(&y);
+        acc += e * e.transpose();
+        mean += e;
+    }
+    let cov = acc / f64::from(n);
+    assert!((cov - Matrix::<2, 2>::identity()).amax() < 0.05, "{cov}");
+    assert!((mean / f64::from(n)).amax() < 0.05);
+}

@@ -7,10 +7,12 @@
 //! symmetric positive definite, numbers are finite.
 
 mod builtin;
+mod higher;
 mod raw;
 mod validate;
 
 pub use builtin::{BUILTIN_NAMES, DEFAULT_SCENARIO, builtin_text};
+pub use higher::pseudo_inverse;
 
 use crate::geometry::Aabb;
 use nalgebra::{DMatrix, DVector};
@@ -29,7 +31,9 @@ pub enum ScenarioError {
     #[error("scenario field `{field}`: {reason}")]
     Invalid { field: String, reason: String },
     /// Neither a built-in name nor a readable file.
-    #[error("unknown built-in scenario `{0}` (built-ins: winding-2d, open-2d, superg-3d)")]
+    #[error(
+        "unknown built-in scenario `{0}` (built-ins: winding-2d, open-2d, superg-3d, inertia-2d, inertia-3d)"
+    )]
     UnknownBuiltin(String),
 }
 
@@ -42,7 +46,8 @@ impl ScenarioError {
     }
 }
 
-/// Linear-Gaussian plant: `x' = F x + G u + w`, `w ~ N(0, Q)`, `x0 ~ N(x0, P0)`.
+/// Linear-Gaussian plant: `x' = F x + G u + w`, `w ~ N(0, Q)`, `x0 ~ N(x0, P0)`;
+/// G is n×p (MODEL.md §7).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Plant {
     pub f: DMatrix<f64>,
@@ -52,18 +57,20 @@ pub struct Plant {
     pub p0: DMatrix<f64>,
 }
 
-/// The waypoint controller `u = sat(w - x̂, u_max)` and its leg termination rule.
+/// The waypoint controller `u = sat(K (C⁺w − x̂), u_max)` (MODEL.md §7; K and C
+/// live in [`Scenario::gain`] and [`Scenario::workspace`]) and its leg termination rule.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ControllerParams {
     /// Euclidean saturation of the input.
     pub u_max: f64,
-    /// A leg ends when `‖x̂ − w‖₂ ≤ eps_x` ...
+    /// A leg ends when `‖C x̂ − w‖₂ ≤ eps_x` ...
     pub eps_x: f64,
     /// ... or after `k_max` steps in the leg.
     pub k_max: u32,
 }
 
-/// A remote sensor: `y = H x + v`, `v ~ N(0, R)`, `cost` per transmitted measurement.
+/// A remote sensor: `y = H x + v`, `v ~ N(0, R)`, `cost` per transmitted
+/// measurement; `position` is a workspace point (R^d).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Sensor {
     pub name: String,
@@ -80,7 +87,8 @@ impl Sensor {
     }
 }
 
-/// One leg of the route: drive to `to`, served by sensor index `sensor`.
+/// One leg of the route: drive to the workspace point `to` (R^d), served by
+/// sensor index `sensor`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Leg {
     pub to: DVector<f64>,
@@ -112,6 +120,20 @@ pub struct Scenario {
     /// SHA-256 (hex) of the scenario's canonical content: files made from this
     /// scenario (MDP, strategy, recording) carry it so a mismatch is refused.
     pub content_hash: String,
+    /// The workspace map C (d×n, full row rank; MODEL.md §7); `None` = I_n.
+    /// Legs, sensor positions, target and obstacles live in R^d.
+    #[serde(default)]
+    pub workspace: Option<DMatrix<f64>>,
+    /// The feedback gain K (p×n; given or from `[controller.lqr]`); `None` = I.
+    #[serde(default)]
+    pub gain: Option<DMatrix<f64>>,
+    /// Where the route starts: `w₀ = C x̂₀`.
+    #[serde(default)]
+    pub route_start: DVector<f64>,
+    /// Valid but probably unintended settings (e.g. a reference that is not a
+    /// rest point), for `etp check` to show.
+    #[serde(default)]
+    pub warnings: Vec<String>,
 }
 
 impl Scenario {
@@ -122,7 +144,8 @@ impl Scenario {
         validate::validate(raw)
     }
 
-    /// A built-in scenario by name (`winding-2d`, `open-2d`, `superg-3d`).
+    /// A built-in scenario by name (`winding-2d`, `open-2d`, `superg-3d`,
+    /// `inertia-2d`, `inertia-3d`).
     pub fn builtin(name: &str) -> Result<Self, ScenarioError> {
         let text =
             builtin_text(name).ok_or_else(|| ScenarioError::UnknownBuiltin(name.to_string()))?;
@@ -139,12 +162,40 @@ impl Scenario {
         &self.sensors[self.legs[leg].sensor]
     }
 
-    /// Where leg `i` starts: the initial mean for leg 0, else the previous waypoint.
+    /// Where leg `i` starts, in the workspace: `C x̂₀` for leg 0, else the
+    /// previous waypoint.
     pub fn leg_start(&self, leg: usize) -> &DVector<f64> {
         if leg == 0 {
-            &self.plant.x0
+            &self.route_start
         } else {
             &self.legs[leg - 1].to
+        }
+    }
+
+    /// Workspace dimension d (rows of C; n without C).
+    pub fn workspace_dim(&self) -> usize {
+        self.workspace.as_ref().map_or(self.dim, DMatrix::nrows)
+    }
+
+    /// Input dimension p (columns of G).
+    pub fn input_dim(&self) -> usize {
+        self.plant.g.ncols()
+    }
+
+    /// The workspace point `C x` of a state.
+    pub fn workspace_point(&self, x: &[f64]) -> DVector<f64> {
+        let x = DVector::from_column_slice(x);
+        match &self.workspace {
+            Some(c) => c * x,
+            None => x,
+        }
+    }
+
+    /// The controller's reference for waypoint `w`: `C⁺ w` (MODEL.md §7).
+    pub fn reference(&self, w: &DVector<f64>) -> DVector<f64> {
+        match &self.workspace {
+            Some(c) => pseudo_inverse(c) * w,
+            None => w.clone(),
         }
     }
 }

@@ -35,6 +35,10 @@ pub(crate) struct RawModel {
     pub x0: Vec<f64>,
     #[serde(rename = "P0")]
     pub p0: RawMatrix,
+    /// Workspace map (MODEL.md §7); absent = I_n. Skipped when absent so the
+    /// content hash of a scenario without it is what it was before §7.
+    #[serde(rename = "C", default, skip_serializing_if = "Option::is_none")]
+    pub c: Option<RawMatrix>,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -43,6 +47,21 @@ pub(crate) struct RawController {
     pub u_max: f64,
     pub eps_x: f64,
     pub k_max: i64,
+    /// Feedback gain p×n (MODEL.md §7); absent = I (p = n) unless `lqr` is given.
+    #[serde(rename = "K", default, skip_serializing_if = "Option::is_none")]
+    pub k: Option<RawMatrix>,
+    /// LQR weights from which K is computed (MODEL.md §7).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lqr: Option<RawLqr>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawLqr {
+    /// n×n, symmetric positive semi-definite.
+    pub state: RawMatrix,
+    /// p×p, symmetric positive definite.
+    pub input: RawMatrix,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]

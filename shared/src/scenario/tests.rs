@@ -235,3 +235,198 @@ fn controller_limits() {
         "",
     );
 }
+
+// ---- MODEL.md §7: workspace map, n×p input, feedback gain -------------------
+
+fn double_integrator() -> String {
+    include_str!("../testdata/double-integrator.toml").to_string()
+}
+
+const LQR: &str = "[controller.lqr]\nstate = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.2, 0.0], [0.0, 0.0, 0.0, 0.2]]\ninput = [[0.5, 0.0], [0.0, 0.5]]\n";
+
+#[test]
+fn double_integrator_loads_with_an_lqr_gain() {
+    let s = Scenario::from_toml(&double_integrator()).expect("valid");
+    assert_eq!((s.dim, s.workspace_dim(), s.input_dim()), (4, 2, 2));
+    let k = s.gain.as_ref().expect("K from the DARE");
+    assert_eq!((k.nrows(), k.ncols()), (2, 4));
+    let rho = crate::lqr::spectral_radius(&(&s.plant.f - &s.plant.g * k));
+    assert!(rho < 1.0);
+    assert_eq!(s.route_start.as_slice(), &[0.0, 0.0]);
+    assert_eq!(s.leg_start(0).as_slice(), &[0.0, 0.0]);
+    assert_eq!(s.reference(&s.legs[0].to).as_slice(), &[2.0, 0.0, 0.0, 0.0]);
+    assert_eq!(
+        s.workspace_point(&[1.0, 2.0, 3.0, 4.0]).as_slice(),
+        &[1.0, 2.0]
+    );
+}
+
+#[test]
+fn absent_fields_keep_the_paper_model_and_its_hash() {
+    // The content hash of a scenario without the §7 fields is computed as
+    // before §7 (new fields are not serialised when absent): this is the hash
+    // winding-2d had before, so existing strategies and recordings still match.
+    let raw: raw::RawScenario = toml::from_str(&winding()).expect("toml");
+    let canonical = serde_json::to_string(&raw).expect("json");
+    for key in ["\"C\"", "\"K\"", "\"lqr\""] {
+        assert!(!canonical.contains(key), "{key} serialised when absent");
+    }
+    let w = Scenario::builtin("winding-2d").expect("valid");
+    assert!(w.workspace.is_none() && w.gain.is_none() && w.warnings.is_empty());
+    assert_eq!(w.route_start, w.plant.x0);
+    assert_eq!((w.workspace_dim(), w.input_dim()), (2, 2));
+}
+
+#[test]
+fn workspace_map_shape_and_rank() {
+    let t = replace_once(
+        &double_integrator(),
+        "C = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]]",
+        "C = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]",
+    );
+    refused(&t, "model.C", "shape");
+    let t = replace_once(
+        &double_integrator(),
+        "C = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]]",
+        "C = [[1.0, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 0.0]]",
+    );
+    refused(&t, "model.C", "full row rank");
+    let t = replace_once(
+        &double_integrator(),
+        "C = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]]",
+        "C = []",
+    );
+    refused(&t, "model.C", "1 <= d");
+}
+
+#[test]
+fn points_and_boxes_live_in_the_workspace() {
+    let t = replace_once(
+        &double_integrator(),
+        "to = [2.0, 0.0]",
+        "to = [2.0, 0.0, 0.0, 0.0]",
+    );
+    refused(&t, "leg[0].to", "2 entries");
+    let t = replace_once(
+        &double_integrator(),
+        "position = [0.0, 0.0]",
+        "position = [0.0, 0.0, 0.0]",
+    );
+    refused(&t, "sensor[0] \"a\".position", "workspace point");
+    let t = replace_once(
+        &double_integrator(),
+        "min = [1.8, 1.8]",
+        "min = [1.8, 1.8, 0.0, 0.0]",
+    );
+    refused(&t, "target.min", "");
+    let t = replace_once(&double_integrator(), "min = [2.12, -1.0]", "min = [2.12]");
+    refused(&t, "obstacle[0]", "");
+    // x0 stays in R^n; the start is judged on C x0.
+    let t = replace_once(
+        &double_integrator(),
+        "x0 = [0.0, 0.0, 0.0, 0.0]",
+        "x0 = [2.2, 0.0, 0.0, 0.0]",
+    );
+    refused(&t, "model.x0", "obstacle");
+}
+
+#[test]
+fn input_matrix_and_gain_shapes() {
+    let t = replace_once(
+        &double_integrator(),
+        "G = [[0.005, 0.0], [0.0, 0.005], [0.1, 0.0], [0.0, 0.1]]",
+        "G = [[0.005, 0.0, 0.0, 0.0, 0.0], [0.0, 0.005, 0.0, 0.0, 0.0], [0.1, 0.0, 0.0, 0.0, 0.0], [0.0, 0.1, 0.0, 0.0, 0.0]]",
+    );
+    refused(&t, "model.G", "1 <= p <= n");
+    let t = replace_once(
+        &double_integrator(),
+        "G = [[0.005, 0.0], [0.0, 0.005], [0.1, 0.0], [0.0, 0.1]]",
+        "G = [[0.005, 0.0], [0.0, 0.005], [0.1, 0.0], [0.0]]",
+    );
+    refused(&t, "model.G", "shape");
+    // p ≠ n without a gain.
+    let t = replace_once(&double_integrator(), LQR, "");
+    refused(&t, "controller.K", "p = 2");
+    // Both a gain and LQR weights.
+    let t = replace_once(
+        &double_integrator(),
+        "k_max = 150\n",
+        "k_max = 150\nK = [[1.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0, 1.0]]\n",
+    );
+    refused(&t, "controller.K", "not both");
+    // A gain of the wrong shape (n×n instead of p×n).
+    let t = replace_once(
+        &double_integrator(),
+        LQR,
+        "",
+    )
+    .replace("k_max = 150\n", "k_max = 150\nK = [[1.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0, 1.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]\n");
+    refused(&t, "controller.K", "shape");
+    // A given gain of the right shape is taken as is.
+    let t = replace_once(&double_integrator(), LQR, "").replace(
+        "k_max = 150\n",
+        "k_max = 150\nK = [[1.0, 0.0, 1.5, 0.0], [0.0, 1.0, 0.0, 1.5]]\n",
+    );
+    let s = Scenario::from_toml(&t).expect("valid");
+    assert_eq!(s.gain.as_ref().map(|k| k[(0, 2)]), Some(1.5));
+}
+
+#[test]
+fn lqr_weights_are_checked_and_a_missing_solution_is_named() {
+    let t = replace_once(
+        &double_integrator(),
+        "input = [[0.5, 0.0], [0.0, 0.5]]",
+        "input = [[0.5, 0.0], [0.0, 0.0]]",
+    );
+    refused(&t, "controller.lqr.input", "positive definite");
+    let t = replace_once(
+        &double_integrator(),
+        "state = [[1.0, 0.0, 0.0, 0.0]",
+        "state = [[-1.0, 0.0, 0.0, 0.0]",
+    );
+    refused(&t, "controller.lqr.state", "semi-definite");
+    // The input cannot reach the y axis (G's second column zero) and y is
+    // unstable (F_yy = 1.1): no stabilising solution.
+    let t = replace_once(
+        &double_integrator(),
+        "G = [[0.005, 0.0], [0.0, 0.005], [0.1, 0.0], [0.0, 0.1]]",
+        "G = [[0.005, 0.0], [0.0, 0.0], [0.1, 0.0], [0.0, 0.0]]",
+    )
+    .replace(
+        "F = [[1.0, 0.0, 0.1, 0.0], [0.0, 1.0, 0.0, 0.1]",
+        "F = [[1.0, 0.0, 0.1, 0.0], [0.0, 1.1, 0.0, 0.1]",
+    );
+    refused(&t, "controller.lqr", "stabilising");
+    // Weights that ignore an unstable mode: the DARE has a solution (S = 0 on
+    // that mode) but the closed loop is unstable.
+    let t = replace_once(
+        &double_integrator(),
+        "F = [[1.0, 0.0, 0.1, 0.0], [0.0, 1.0, 0.0, 0.1], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]",
+        "F = [[1.0, 0.0, 0.1, 0.0], [0.0, 1.0, 0.0, 0.1], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.2]]",
+    )
+    .replace(
+        "state = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.2, 0.0], [0.0, 0.0, 0.0, 0.2]]",
+        "state = [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.2, 0.0], [0.0, 0.0, 0.0, 0.0]]",
+    );
+    refused(&t, "controller.lqr", "");
+}
+
+#[test]
+fn a_reference_that_is_not_a_rest_point_is_warned_about() {
+    // A damped velocity (F_vv = 0.9) is still a rest point at zero velocity...
+    let t = replace_once(
+        &double_integrator(),
+        "[0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]",
+        "[0.0, 0.0, 0.9, 0.0], [0.0, 0.0, 0.0, 0.9]]",
+    );
+    assert!(Scenario::from_toml(&t).expect("valid").warnings.is_empty());
+    // ... a position that decays (F_xx = 0.99) is not.
+    let t = replace_once(
+        &double_integrator(),
+        "F = [[1.0, 0.0, 0.1, 0.0]",
+        "F = [[0.99, 0.0, 0.1, 0.0]",
+    );
+    let s = Scenario::from_toml(&t).expect("valid, with a warning");
+    assert_eq!(s.warnings.len(), 2, "{:?}", s.warnings);
+    assert!(s.warnings[0].contains("leg[0].to") && s.warnings[0].contains("rest point"));
+}

@@ -3,6 +3,7 @@
 //! Every check names the field (`sensor[1] "s1".R`, `leg[3].sensor`, ...) and the
 //! reason, so a user can fix the file without reading code.
 
+use super::higher;
 use super::raw::{RawBox, RawMatrix, RawScenario};
 use super::{ControllerParams, Leg, MAX_DIM, Obstacle, Plant, Scenario, ScenarioError, Sensor};
 use crate::geometry::Aabb;
@@ -11,6 +12,9 @@ use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 
 type Result<T> = std::result::Result<T, ScenarioError>;
+
+/// Parses a workspace point (d entries) of a named field.
+type WorkspacePoint<'a> = dyn Fn(&str, &[f64]) -> Result<DVector<f64>> + 'a;
 
 pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
     let content_hash = content_hash(&raw);
@@ -24,12 +28,43 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
     check_name(&raw.name)?;
 
     let m = &raw.model;
+    // G is n×p (MODEL.md §7): its first row fixes p, 1 ≤ p ≤ n.
+    let p = m.g.first().map_or(0, Vec::len);
+    if p == 0 || p > n {
+        return Err(ScenarioError::invalid(
+            "model.G",
+            format!("must be n×p with n = dim = {n} and 1 <= p <= n, got {p} columns"),
+        ));
+    }
     let plant = Plant {
         f: matrix("model.F", &m.f, Some(n), n)?,
-        g: matrix("model.G", &m.g, Some(n), n)?,
+        g: matrix("model.G", &m.g, Some(n), p)?,
         q: spd("model.Q", &m.q, n)?,
         x0: vector("model.x0", &m.x0, n)?,
         p0: spd("model.P0", &m.p0, n)?,
+    };
+    let workspace = match &m.c {
+        Some(c) => Some(higher::workspace_map(c, n)?),
+        None => None,
+    };
+    let d = workspace.as_ref().map_or(n, DMatrix::nrows);
+    let gain = higher::feedback_gain(&raw.controller, &plant)?;
+    // Workspace points (legs, sensor positions, boxes) have d entries.
+    let point = |field: &str, raw: &[f64]| -> Result<DVector<f64>> {
+        if workspace.is_some() && raw.len() != d {
+            return Err(ScenarioError::invalid(
+                field,
+                format!(
+                    "a workspace point must have d = {d} entries (the rows of model.C), got {}",
+                    raw.len()
+                ),
+            ));
+        }
+        vector(field, raw, d)
+    };
+    let route_start = match &workspace {
+        Some(c) => c * &plant.x0,
+        None => plant.x0.clone(),
     };
 
     let c = &raw.controller;
@@ -87,7 +122,7 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
         }
         sensors.push(Sensor {
             name: s.name.clone(),
-            position: vector(&format!("{at}.position"), &s.position, n)?,
+            position: point(&format!("{at}.position"), &s.position)?,
             h: matrix(&format!("{at}.H"), &s.h, Some(rows), n)?,
             r: spd(&format!("{at}.R"), &s.r, rows)?,
             cost,
@@ -107,7 +142,7 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
                     min: o.min.clone(),
                     max: o.max.clone(),
                 },
-                n,
+                &point,
             )?;
             Ok(Obstacle { name, bounds })
         })
@@ -119,7 +154,7 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
             .enumerate()
             .find(|(_, o)| o.bounds.contains(p.as_slice()))
     };
-    if let Some((j, o)) = inside(&plant.x0) {
+    if let Some((j, o)) = inside(&route_start) {
         return Err(ScenarioError::invalid(
             "model.x0",
             format!("the start lies inside obstacle[{j}] \"{}\"", o.name),
@@ -134,7 +169,7 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
     }
     let mut legs = Vec::with_capacity(raw.legs.len());
     for (i, l) in raw.legs.iter().enumerate() {
-        let to = vector(&format!("leg[{i}].to"), &l.to, n)?;
+        let to = point(&format!("leg[{i}].to"), &l.to)?;
         let sensor = *by_name.get(&l.sensor).ok_or_else(|| {
             ScenarioError::invalid(
                 format!("leg[{i}].sensor"),
@@ -158,7 +193,7 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
         legs.push(Leg { to, sensor });
     }
 
-    let target = aabb("target", &raw.target, n)?;
+    let target = aabb("target", &raw.target, &point)?;
 
     let deltas = raw.triggering.deltas.clone();
     if deltas.is_empty() {
@@ -182,6 +217,11 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
         }
     }
 
+    let mut warnings = Vec::new();
+    if let Some(c) = &workspace {
+        warnings.extend(higher::rest_point_warnings(c, &plant.f, &legs));
+    }
+
     Ok(Scenario {
         name: raw.name,
         description: raw.description,
@@ -194,6 +234,10 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
         obstacles,
         deltas,
         content_hash,
+        workspace,
+        gain,
+        route_start,
+        warnings,
     })
 }
 
@@ -232,7 +276,7 @@ fn content_hash(raw: &RawScenario) -> String {
     digest.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-fn finite(field: &str, v: f64) -> Result<f64> {
+pub(super) fn finite(field: &str, v: f64) -> Result<f64> {
     if v.is_finite() {
         Ok(v)
     } else {
@@ -243,7 +287,7 @@ fn finite(field: &str, v: f64) -> Result<f64> {
     }
 }
 
-fn positive(field: &str, v: f64) -> Result<f64> {
+pub(super) fn positive(field: &str, v: f64) -> Result<f64> {
     finite(field, v)?;
     if v > 0.0 {
         Ok(v)
@@ -255,7 +299,7 @@ fn positive(field: &str, v: f64) -> Result<f64> {
     }
 }
 
-fn vector(field: &str, raw: &[f64], n: usize) -> Result<DVector<f64>> {
+pub(super) fn vector(field: &str, raw: &[f64], n: usize) -> Result<DVector<f64>> {
     if raw.len() != n {
         return Err(ScenarioError::invalid(
             field,
@@ -269,7 +313,12 @@ fn vector(field: &str, raw: &[f64], n: usize) -> Result<DVector<f64>> {
 }
 
 /// A `rows × cols` matrix (rows `None`: any non-zero count).
-fn matrix(field: &str, raw: &RawMatrix, rows: Option<usize>, cols: usize) -> Result<DMatrix<f64>> {
+pub(super) fn matrix(
+    field: &str,
+    raw: &RawMatrix,
+    rows: Option<usize>,
+    cols: usize,
+) -> Result<DMatrix<f64>> {
     let r = raw.len();
     if let Some(want) = rows
         && r != want
@@ -297,7 +346,7 @@ fn matrix(field: &str, raw: &RawMatrix, rows: Option<usize>, cols: usize) -> Res
 }
 
 /// A symmetric positive definite `n × n` matrix.
-fn spd(field: &str, raw: &RawMatrix, n: usize) -> Result<DMatrix<f64>> {
+pub(super) fn spd(field: &str, raw: &RawMatrix, n: usize) -> Result<DMatrix<f64>> {
     let a = matrix(field, raw, Some(n), n)?;
     let scale = a.amax().max(f64::MIN_POSITIVE);
     for i in 0..n {
@@ -325,10 +374,10 @@ fn spd(field: &str, raw: &RawMatrix, n: usize) -> Result<DMatrix<f64>> {
     Ok(sym)
 }
 
-fn aabb(field: &str, raw: &RawBox, n: usize) -> Result<Aabb> {
-    let min = vector(&format!("{field}.min"), &raw.min, n)?;
-    let max = vector(&format!("{field}.max"), &raw.max, n)?;
-    for i in 0..n {
+fn aabb(field: &str, raw: &RawBox, point: &WorkspacePoint<'_>) -> Result<Aabb> {
+    let min = point(&format!("{field}.min"), &raw.min)?;
+    let max = point(&format!("{field}.max"), &raw.max)?;
+    for i in 0..min.len() {
         if min[i] > max[i] {
             return Err(ScenarioError::invalid(
                 field,

@@ -11,6 +11,7 @@ use etp_shared::episode::CompiledScenario;
 use etp_shared::etkf::Matrix;
 use etp_shared::gaussian;
 use etp_shared::linalg::to_dynamic;
+use nalgebra::DMatrix;
 
 /// `[λ_lo, λ_hi]` of the magnitude bins.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -34,38 +35,94 @@ pub fn magnitude_range<const N: usize>(
     deltas: &[f64],
     p_kf: &[Matrix<N, N>],
 ) -> MagnitudeRange {
-    let delta_max = deltas.iter().copied().fold(0.0_f64, f64::max);
-    let beta = gaussian::beta(delta_max);
-    let mut used: Vec<usize> = cs.legs.iter().map(|l| l.sensor).collect();
-    used.sort_unstable();
-    used.dedup();
-    let (_, p0_hi) = eigenvalues(&cs.initial.cov);
     let mut lo = f64::INFINITY;
-    let mut hi = p0_hi;
-    for &s in &used {
-        let f = &cs.filters[s];
-        let p_kf = p_kf[s];
-        let (kf_lo, kf_hi) = eigenvalues(&p_kf);
-        lo = lo.min(kf_lo);
-        hi = hi.max(kf_hi);
-        for start in [p_kf, cs.initial.cov] {
-            let mut cov = start;
-            for _ in 0..cs.k_max {
-                let next = f.silent_covariance_step(&cov, beta);
-                let change = (next - cov).amax();
-                cov = next;
-                hi = hi.max(eigenvalues(&cov).1);
-                if change <= 1e-12 * cov.amax().max(f64::MIN_POSITIVE) {
-                    break;
-                }
-            }
+    let mut hi = eigenvalues(&cs.initial.cov).1;
+    visit_covariances(cs, deltas, p_kf, |cov, is_kf| {
+        let (l, h) = eigenvalues(cov);
+        if is_kf {
+            lo = lo.min(l);
         }
-    }
+        hi = hi.max(h);
+    });
     if !lo.is_finite() {
         lo = eigenvalues(&cs.initial.cov).0;
     }
     MagnitudeRange {
         lambda_lo: lo,
         lambda_hi: hi,
+    }
+}
+
+/// The ranges of the workspace-marginal descriptor: eigenvalues of `C P Cᵀ`
+/// and `tr(Π P Π)`, over the same covariances as [`magnitude_range`] (lower
+/// ends from `P_KF`, upper ends from silent propagation and `P0`).
+pub fn workspace_ranges<const N: usize>(
+    cs: &CompiledScenario<N>,
+    deltas: &[f64],
+    p_kf: &[Matrix<N, N>],
+    marginal: &dyn Fn(&Matrix<N, N>) -> DMatrix<f64>,
+    rest: &dyn Fn(&Matrix<N, N>) -> f64,
+) -> (MagnitudeRange, (f64, f64)) {
+    let eig = |m: DMatrix<f64>| {
+        let e = ((&m + m.transpose()) * 0.5).symmetric_eigenvalues();
+        (e.min(), e.max())
+    };
+    let (mut lo, mut hi) = (f64::INFINITY, eig(marginal(&cs.initial.cov)).1);
+    let (mut rlo, mut rhi) = (f64::INFINITY, rest(&cs.initial.cov));
+    visit_covariances(cs, deltas, p_kf, |cov, is_kf| {
+        let (l, h) = eig(marginal(cov));
+        let r = rest(cov);
+        if is_kf {
+            lo = lo.min(l);
+            rlo = rlo.min(r);
+        }
+        hi = hi.max(h);
+        rhi = rhi.max(r);
+    });
+    if !lo.is_finite() {
+        lo = eig(marginal(&cs.initial.cov)).0;
+    }
+    if !rlo.is_finite() {
+        rlo = rest(&cs.initial.cov);
+    }
+    (
+        MagnitudeRange {
+            lambda_lo: lo,
+            lambda_hi: hi,
+        },
+        (rlo, rhi),
+    )
+}
+
+/// Call `visit(cov, is_kf)` on `P_KF` of every sensor serving a leg (`is_kf`)
+/// and on every covariance of the silent propagation (γ = 0 at the largest δ)
+/// from `P_KF` and from `P0`, until it settles or for `k_max` steps.
+fn visit_covariances<const N: usize>(
+    cs: &CompiledScenario<N>,
+    deltas: &[f64],
+    p_kf: &[Matrix<N, N>],
+    mut visit: impl FnMut(&Matrix<N, N>, bool),
+) {
+    let delta_max = deltas.iter().copied().fold(0.0_f64, f64::max);
+    let beta = gaussian::beta(delta_max);
+    let mut used: Vec<usize> = cs.legs.iter().map(|l| l.sensor).collect();
+    used.sort_unstable();
+    used.dedup();
+    for &s in &used {
+        let f = &cs.filters[s];
+        let p_kf = p_kf[s];
+        visit(&p_kf, true);
+        for start in [p_kf, cs.initial.cov] {
+            let mut cov = start;
+            for _ in 0..cs.k_max {
+                let next = f.silent_covariance_step(&cov, beta);
+                let change = (next - cov).amax();
+                cov = next;
+                visit(&cov, false);
+                if change <= 1e-12 * cov.amax().max(f64::MIN_POSITIVE) {
+                    break;
+                }
+            }
+        }
     }
 }

@@ -12,12 +12,12 @@
 //!     pool_{i+1} = per-region bottom-k reservoir of the arrivals
 //! ```
 
-use super::bounds::magnitude_range;
+use super::bounds::{magnitude_range, workspace_ranges};
 use super::pool::{bottom_k, key};
 use super::tally::{Arrival, ChoiceTally, ChunkTally};
-use super::{AbstractionError, AbstractionParams};
+use super::{AbstractionError, AbstractionParams, Descriptor, resolve_descriptor};
 use crate::mdp::{KfConvergenceParams, Mdp, Method, State};
-use etp_shared::discretization::{DecisionPointBins, Discretization, Region};
+use etp_shared::discretization::{DecisionPointBins, Discretization, Region, WorkspaceMarginal};
 use etp_shared::episode::{AgentState, CompiledScenario, LegEnd, LegMode};
 use etp_shared::etkf::{Belief, Matrix, Threshold, sample_belief};
 use etp_shared::linalg::to_dynamic;
@@ -89,7 +89,7 @@ fn run_task<const N: usize>(
         match r.end {
             LegEnd::Collision { .. } => c.collisions += 1,
             LegEnd::Terminated if last => {
-                if cs.target.contains(&st.x) {
+                if cs.in_target(&st.x) {
                     c.target += 1;
                 } else {
                     c.free += 1;
@@ -122,10 +122,12 @@ impl Classifier {
 }
 
 /// Bins of a decision point from the covariances that arrived there (their
-/// mean's eigenvectors are the nominal axes).
+/// mean's eigenvectors are the nominal axes; with the workspace descriptor,
+/// the eigenvectors of the mean's workspace marginal `C P̄ Cᵀ`).
 fn bins_from<const N: usize>(
     params: &AbstractionParams,
     lambda: (f64, f64),
+    workspace: Option<&WorkspaceMarginal>,
     covs: impl Iterator<Item = Matrix<N, N>>,
 ) -> DecisionPointBins {
     let mut sum = Matrix::<N, N>::zeros();
@@ -134,8 +136,16 @@ fn bins_from<const N: usize>(
         sum += c;
         n += 1;
     }
-    let mean = (n > 0).then(|| to_dynamic(&(sum / n as f64)));
-    DecisionPointBins::from_samples(lambda.0, lambda.1, params.bins, mean.iter())
+    let mean = (n > 0).then(|| {
+        let m = to_dynamic(&(sum / n as f64));
+        match workspace {
+            Some(w) => w.marginal(&m),
+            None => m,
+        }
+    });
+    let mut b = DecisionPointBins::from_samples(lambda.0, lambda.1, params.bins, mean.iter());
+    b.workspace = workspace.cloned();
+    b
 }
 
 pub(super) fn build<const N: usize>(
@@ -160,12 +170,40 @@ pub(super) fn build<const N: usize>(
             }
         })
         .collect();
-    let range = magnitude_range(cs, deltas, &p_kf);
+    let descriptor = resolve_descriptor(scenario, params.descriptor);
+    let workspace = match (descriptor, &scenario.workspace) {
+        (Descriptor::WorkspaceMarginal, c) => {
+            // Without a map the workspace is the state itself (C = I).
+            let c = c
+                .clone()
+                .unwrap_or_else(|| nalgebra::DMatrix::identity(N, N));
+            let probe = WorkspaceMarginal::new(&c, 1.0, 1.0, params.rest_bins);
+            let (range, rest) = workspace_ranges(
+                cs,
+                deltas,
+                &p_kf,
+                &|m| probe.marginal(&to_dynamic(m)),
+                &|m| probe.rest(&to_dynamic(m)),
+            );
+            Some((
+                range,
+                WorkspaceMarginal::new(&c, rest.0, rest.1, params.rest_bins),
+            ))
+        }
+        _ => None,
+    };
+    let range = match &workspace {
+        Some((r, _)) => *r,
+        None => magnitude_range(cs, deltas, &p_kf),
+    };
+    let workspace = workspace.map(|(_, w)| w);
     let lambda = (range.lambda_lo, range.lambda_hi);
     let legs = cs.legs.len();
 
     let classifier_for = |covs: &mut dyn Iterator<Item = Matrix<N, N>>| match params.method {
-        Method::Discretized => Classifier::Bins(bins_from(params, lambda, covs)),
+        Method::Discretized => {
+            Classifier::Bins(bins_from(params, lambda, workspace.as_ref(), covs))
+        }
         Method::KfConvergence => Classifier::Single,
     };
     let mut classifier = classifier_for(&mut std::iter::once(cs.initial.cov));

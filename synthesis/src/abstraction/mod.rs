@@ -27,7 +27,7 @@ mod layers;
 mod pool;
 mod tally;
 
-pub use bounds::{MagnitudeRange, magnitude_range};
+pub use bounds::{MagnitudeRange, magnitude_range, workspace_ranges};
 
 use crate::mdp::{KfConvergenceParams, Mdp, Method};
 use etp_shared::discretization::BinCounts;
@@ -39,6 +39,22 @@ use etp_shared::with_dim;
 pub const DEFAULT_SAMPLES: u32 = 6000;
 /// Default bound on the pool particles kept per region and decision point.
 pub const DEFAULT_POOL_PER_REGION: u32 = 2048;
+/// Default coarse bins of the uncertainty C does not see (workspace descriptor).
+pub const DEFAULT_REST_BINS: u16 = 3;
+
+/// How Method 2 describes a belief covariance at a decision point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Descriptor {
+    /// The workspace marginal for scenarios with a workspace map `[model] C`,
+    /// the paper's per-axis regions otherwise (so their MDPs do not change).
+    #[default]
+    Auto,
+    /// The paper's per-axis (magnitude, angle) bins of all n eigen-axes of P.
+    PerAxis,
+    /// Per-axis bins of `C P Cᵀ` (d axes) plus `rest_bins` coarse bins of
+    /// `tr(Π P Π)` (MODEL.md §7; `etp_shared::discretization::WorkspaceMarginal`).
+    WorkspaceMarginal,
+}
 
 /// Why an abstraction could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -47,8 +63,14 @@ pub enum AbstractionError {
     NoSamples,
     #[error("the pool bound must be at least 1")]
     NoPool,
-    #[error("bin counts must be at least 1 (got {magnitude} magnitude, {angle} angle bins)")]
-    Bins { magnitude: u16, angle: u16 },
+    #[error(
+        "bin counts must be at least 1 (got {magnitude} magnitude, {angle} angle, {rest} rest bins)"
+    )]
+    Bins {
+        magnitude: u16,
+        angle: u16,
+        rest: u16,
+    },
     #[error("the scenario has no thresholds")]
     NoActions,
     #[error("the scenario has {0} thresholds; at most 65535 are supported")]
@@ -73,6 +95,10 @@ pub struct AbstractionParams {
     pub pool_per_region: u32,
     /// Method 1's parameters; `None` = [`default_kf_params`] of the scenario.
     pub kf: Option<KfConvergenceParams>,
+    /// Method 2's belief descriptor.
+    pub descriptor: Descriptor,
+    /// Coarse bins of the rest (workspace descriptor only).
+    pub rest_bins: u16,
 }
 
 impl Default for AbstractionParams {
@@ -84,6 +110,8 @@ impl Default for AbstractionParams {
             bins: BinCounts::default(),
             pool_per_region: DEFAULT_POOL_PER_REGION,
             kf: None,
+            descriptor: Descriptor::Auto,
+            rest_bins: DEFAULT_REST_BINS,
         }
     }
 }
@@ -116,6 +144,15 @@ pub fn progress_total(scenario: &Scenario, params: &AbstractionParams) -> u64 {
     scenario.num_legs() as u64 * scenario.deltas.len() as u64 * u64::from(params.samples)
 }
 
+/// The descriptor [`Descriptor::Auto`] stands for on `scenario`.
+pub fn resolve_descriptor(scenario: &Scenario, d: Descriptor) -> Descriptor {
+    match (d, &scenario.workspace) {
+        (Descriptor::Auto, Some(_)) => Descriptor::WorkspaceMarginal,
+        (Descriptor::Auto, None) => Descriptor::PerAxis,
+        (other, _) => other,
+    }
+}
+
 /// Build the MDP of `scenario` by layered Monte Carlo (docs/MODEL.md §4).
 /// `progress(k)` is called as work finishes; the units add up to
 /// [`progress_total`].
@@ -130,10 +167,11 @@ pub fn build(
     if params.pool_per_region == 0 {
         return Err(AbstractionError::NoPool);
     }
-    if params.bins.magnitude == 0 || params.bins.angle == 0 {
+    if params.bins.magnitude == 0 || params.bins.angle == 0 || params.rest_bins == 0 {
         return Err(AbstractionError::Bins {
             magnitude: params.bins.magnitude,
             angle: params.bins.angle,
+            rest: params.rest_bins,
         });
     }
     if scenario.deltas.is_empty() {
