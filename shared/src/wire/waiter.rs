@@ -33,7 +33,8 @@ pub enum Wake {
     Terminate,
 }
 
-/// A process's wake-up listener and its node (for the termination flag).
+/// A process's wake-up listener (the node is passed to each wait for its
+/// termination flag).
 pub struct Waiter {
     listener: Listener,
 }
@@ -67,18 +68,6 @@ impl Waiter {
                 Err(e) if is_interrupt(&e) && termination_requested(node) => {
                     return Ok(Wake::Terminate);
                 }
-                Err(e) if is_interrupt(&e) => {}
-                Err(e) => return Err(WireError::Wait(format!("{e:?}"))),
-            }
-        }
-    }
-
-    /// Consume pending notifications without blocking.
-    pub fn drain(&self) -> Result<(), WireError> {
-        loop {
-            match self.listener.try_wait(|_| {}) {
-                Ok(0) => return Ok(()),
-                Ok(_) => {}
                 Err(e) if is_interrupt(&e) => {}
                 Err(e) => return Err(WireError::Wait(format!("{e:?}"))),
             }
