@@ -8,6 +8,11 @@
 //! the next start ([`remove_stale`]), together with that run's iceoryx2
 //! files. A run id whose folder is locked is in use ([`RunDir::claim`]
 //! refuses it with a clear error instead of a raw iceoryx2 one).
+//!
+//! Claiming (create folder, create lock file, lock it) is three steps, and a
+//! second run's sweep between them would see an unlocked folder and remove
+//! it. Both therefore run under one base-wide lock (`<base>/.guard`), held
+//! only for those few milliseconds.
 
 use anyhow::{Context, Result, bail};
 use etp_shared::wire::{RunId, cleanup};
@@ -15,6 +20,20 @@ use std::fs::{File, OpenOptions, TryLockError};
 use std::path::{Path, PathBuf};
 
 const LOCK: &str = "owner.lock";
+const GUARD: &str = ".guard";
+
+/// The base-wide lock that serialises claims and sweeps (see module doc).
+fn guard() -> std::io::Result<File> {
+    let base = base();
+    std::fs::create_dir_all(&base)?;
+    let g = OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(base.join(GUARD))?;
+    g.lock()?;
+    Ok(g)
+}
 
 /// Where every run keeps its folder.
 pub fn base() -> PathBuf {
@@ -49,6 +68,7 @@ impl RunDir {
     /// Create and lock the folder of `run`; refused if another live run
     /// (a locked folder, or live iceoryx2 nodes) uses this id.
     pub fn claim(run: &RunId) -> Result<Self> {
+        let _guard = guard().with_context(|| format!("locking {}", base().join(GUARD).display()))?;
         let path = base().join(run.as_str());
         std::fs::create_dir_all(&path).with_context(|| format!("creating {}", path.display()))?;
         let lock =
@@ -84,11 +104,18 @@ impl RunDir {
 /// run being set up right now).
 pub fn remove_stale() -> Vec<String> {
     let mut removed = Vec::new();
+    // Without the guard a sweep could take a folder being claimed right now.
+    let Ok(_guard) = guard() else {
+        return removed;
+    };
     let Ok(dir) = std::fs::read_dir(base()) else {
         return removed;
     };
     for e in dir.filter_map(Result::ok) {
         let path = e.path();
+        if !path.is_dir() {
+            continue;
+        }
         let name = e.file_name().to_string_lossy().to_string();
         let young = || {
             e.metadata()
@@ -125,5 +152,33 @@ mod tests {
         assert!(path.exists());
         assert!(remove_stale().contains(&run.to_string()));
         assert!(!path.exists());
+    }
+
+    /// Sweeps running beside claims never take a folder being claimed (a
+    /// sweep between "create folder" and "lock it" used to remove it).
+    #[test]
+    fn a_sweep_never_removes_a_folder_being_claimed() {
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let sweeper = {
+            let stop = stop.clone();
+            std::thread::spawn(move || {
+                while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                    remove_stale();
+                }
+            })
+        };
+        let mut held = Vec::new();
+        for i in 0..200 {
+            let run = RunId::new(&format!("unit-race-{}-{i}", std::process::id())).expect("id");
+            let dir = RunDir::claim(&run).expect("claim");
+            std::fs::write(dir.path.join("scenario.toml"), "x").expect("the claimed folder exists");
+            held.push(dir);
+        }
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        sweeper.join().expect("sweeper");
+        for d in held {
+            assert!(d.path.join("scenario.toml").exists(), "{}", d.path.display());
+            d.remove();
+        }
     }
 }
