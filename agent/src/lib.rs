@@ -4,7 +4,7 @@
 //! A short tour:
 //!
 //! * [`Args`] — run id, scenario, seed (what `etp run` passes).
-//! * [`run`] — opens the agent's ports (`etp_shared::wire`), says hello and
+//! * [`run`] — opens the agent's ports (`etp_runtime::wire`), says hello and
 //!   runs episodes when `control` says start, until stop.
 //! * [`runtime::Agent`] — one episode, step by step through
 //!   `etp_shared::episode::step` (input, plant move from `streams::AGENT`,
@@ -21,7 +21,7 @@
 pub mod link;
 pub mod runtime;
 
-use etp_shared::wire::{self, RunId, WireError};
+use etp_runtime::wire::{self, RunId, WireError};
 use std::time::Duration;
 
 /// Silence on a slot after which the agent asks the node list whether the
@@ -101,7 +101,7 @@ where
     use std::process::ExitCode;
     // Prints help or the usage error and exits (0 or 2), as `main` would.
     let args = Args::parse_from(args);
-    etp_shared::wire::init_process_logging("etp-agent");
+    etp_runtime::wire::init_process_logging("etp-agent");
     let _span = tracing::info_span!("agent").entered();
     match crate::run(&args) {
         Ok((exit, stats)) => {

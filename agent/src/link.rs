@@ -6,13 +6,13 @@
 //! [`Links::take_slot`] after each wake-up.
 
 use crate::AgentError;
-use etp_shared::etkf::{Belief, Vector};
-use etp_shared::wire::agent_to_sensor::{Prior, Truth};
-use etp_shared::wire::coordinator_to_all::Threshold;
-use etp_shared::wire::sensor_to_agent::{Measurement, Slot};
-use etp_shared::wire::{
+use etp_runtime::wire::agent_to_sensor::{Prior, Truth};
+use etp_runtime::wire::coordinator_to_all::Threshold;
+use etp_runtime::wire::sensor_to_agent::{Measurement, Slot};
+use etp_runtime::wire::{
     Header, Notifier, Ports, Pub, ServiceId, Sub, WireVec, belief_to_wire, to_wire_vec,
 };
+use etp_shared::etkf::{Belief, Vector};
 
 /// What one slot brought.
 #[derive(Debug, Clone, Copy, PartialEq)]

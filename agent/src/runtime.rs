@@ -13,17 +13,17 @@
 
 use crate::link::{Fault, Links, SlotResult};
 use crate::{AgentError, AgentStats, Exit, IDLE_CHECK, SLOT_CHECK};
+use etp_runtime::wire::agent_to_coordinator::{Outcome, Waypoint};
+use etp_runtime::wire::coordinator_to_agent::Control;
+use etp_runtime::wire::to_coordinator::Hello;
+use etp_runtime::wire::{
+    self, AGENT_NODE, COORDINATOR_NODE, ControlKind, Liveness, Notifier, OutcomeCode, Ports, Pub,
+    SENDER_AGENT, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, belief_to_wire,
+};
 use etp_shared::episode::{CompiledScenario, SlotOutcome};
 use etp_shared::etkf::Threshold as Th;
 use etp_shared::rng::{stream_rng, streams};
 use etp_shared::scenario::Scenario;
-use etp_shared::wire::agent_to_coordinator::{Outcome, Waypoint};
-use etp_shared::wire::coordinator_to_agent::Control;
-use etp_shared::wire::to_coordinator::Hello;
-use etp_shared::wire::{
-    self, AGENT_NODE, COORDINATOR_NODE, ControlKind, Liveness, Notifier, OutcomeCode, Ports, Pub,
-    SENDER_AGENT, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, belief_to_wire,
-};
 use iceoryx2::prelude::*;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 

@@ -17,10 +17,10 @@
 
 mod session;
 
-pub use etp_shared::wire::report::RunReport;
+pub use etp_runtime::wire::report::RunReport;
 
+use etp_runtime::wire::{self, RunId, WireError};
 use etp_shared::strategy::Strategy;
-use etp_shared::wire::{self, RunId, WireError};
 use std::time::Duration;
 
 /// Why the coordinator failed.
@@ -95,7 +95,7 @@ where
     use std::process::ExitCode;
     // Prints help or the usage error and exits (0 or 2), as `main` would.
     let args = Args::parse_from(args);
-    etp_shared::wire::init_process_logging("etp-coordinator");
+    etp_runtime::wire::init_process_logging("etp-coordinator");
     let _span = tracing::info_span!("coordinator").entered();
     let result = crate::run(&args)
         .context("coordinator")

@@ -1,19 +1,19 @@
 //! The coordinator's ports, episode loop and bookkeeping.
 
 use crate::CoordinatorError;
-use etp_shared::rng::{SimRng, stream_rng, streams};
-use etp_shared::scenario::Scenario;
-use etp_shared::strategy::Strategy;
-use etp_shared::wire::agent_to_coordinator::{Outcome, Waypoint};
-use etp_shared::wire::coordinator_to_agent::Control;
-use etp_shared::wire::coordinator_to_all::Threshold;
-use etp_shared::wire::report::{EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals};
-use etp_shared::wire::sensor_to_coordinator::Ledger;
-use etp_shared::wire::to_coordinator::Hello;
-use etp_shared::wire::{
+use etp_runtime::wire::agent_to_coordinator::{Outcome, Waypoint};
+use etp_runtime::wire::coordinator_to_agent::Control;
+use etp_runtime::wire::coordinator_to_all::Threshold;
+use etp_runtime::wire::report::{EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals};
+use etp_runtime::wire::sensor_to_coordinator::Ledger;
+use etp_runtime::wire::to_coordinator::Hello;
+use etp_runtime::wire::{
     self, AGENT_NODE, COORDINATOR_NODE, Liveness, Notifier, OutcomeCode, Ports, Pub, RunId,
     SENDER_AGENT, SENDER_COORDINATOR, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, to_wire_vec,
 };
+use etp_shared::rng::{SimRng, stream_rng, streams};
+use etp_shared::scenario::Scenario;
+use etp_shared::strategy::Strategy;
 use iceoryx2::prelude::*;
 use nalgebra::DMatrix;
 use rand::RngExt;

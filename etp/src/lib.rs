@@ -58,5 +58,5 @@ pub fn run(cli: cli::Cli) -> ExitCode {
 
 fn init_tracing() {
     // A second init (tests calling run twice) is harmless.
-    etp_shared::wire::init_process_logging("etp");
+    etp_runtime::wire::init_process_logging("etp");
 }

@@ -3,7 +3,7 @@
 //! estimator re-run of `etp replay --verify` terminates without panicking on
 //! whatever the file holds (seed: `recordings/fixtures/*.mcap`).
 #![no_main]
-use etp_shared::recording;
+use etp_runtime::recording;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

@@ -1,5 +1,5 @@
 //! The `etp-recorder` process: subscribes to every publish-subscribe service of a run and
-//! writes one MCAP file (format: `etp_shared::recording`).
+//! writes one MCAP file (format: `etp_runtime::recording`).
 //!
 //! Spawned by `etp run --record` before the other processes. It first creates
 //! its output exclusively (`create_new`: an existing file — another run's
@@ -16,8 +16,8 @@
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use etp_shared::recording::{self, Kind};
-use etp_shared::wire::{self, Ports, RunId, ServiceId, Sub};
+use etp_runtime::recording::{self, Kind};
+use etp_runtime::wire::{self, Ports, RunId, ServiceId, Sub};
 use iceoryx2::prelude::ZeroCopySend;
 use mcap::records::{MessageHeader, Metadata};
 use std::collections::BTreeMap;
@@ -69,9 +69,9 @@ where
 fn subscribe(ports: &Ports<'_>, s: ServiceId, kind: Kind, topic: String) -> Result<Drain> {
     /// Open the recorder's subscriber of the service's payload type.
     struct Subscribe<'a, 'p>(&'a Ports<'p>, ServiceId, String);
-    impl etp_shared::wire::KindVisitor for Subscribe<'_, '_> {
+    impl etp_runtime::wire::KindVisitor for Subscribe<'_, '_> {
         type Out = Result<Drain>;
-        fn visit<T: etp_shared::wire::Message>(self) -> Self::Out {
+        fn visit<T: etp_runtime::wire::Message>(self) -> Self::Out {
             Ok(drainer(self.0.observer::<T>(self.1)?, self.2))
         }
     }

@@ -3,11 +3,11 @@
 //! (receive, call, publish), so every decision here is unit-tested without
 //! processes.
 
+use etp_runtime::wire::agent_to_sensor::{Prior, Truth};
+use etp_runtime::wire::coordinator_to_all::Threshold;
+use etp_runtime::wire::{ThresholdKind, WireVec, belief_from_wire, to_wire_vec, vec_from_wire};
 use etp_shared::etkf::{EtKalmanFilter, Vector};
 use etp_shared::rng::{stream_rng, streams};
-use etp_shared::wire::agent_to_sensor::{Prior, Truth};
-use etp_shared::wire::coordinator_to_all::Threshold;
-use etp_shared::wire::{ThresholdKind, WireVec, belief_from_wire, to_wire_vec, vec_from_wire};
 
 /// What the sensor spent on one leg.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -199,8 +199,8 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use etp_runtime::wire::{Header, belief_to_wire};
     use etp_shared::scenario::Scenario;
-    use etp_shared::wire::{Header, belief_to_wire};
 
     const TAG: u64 = 7;
 

@@ -4,7 +4,7 @@
 //!
 //! * [`Args`] — what the supervisor (`etp run`) passes: run id, scenario,
 //!   sensor name, seed.
-//! * [`run`] — opens the sensor's ports (see `etp_shared::wire`), says hello
+//! * [`run`] — opens the sensor's ports (see `etp_runtime::wire`), says hello
 //!   to the coordinator and serves until `threshold` says stop or the
 //!   coordinator dies.
 //! * [`SensorCore`](core::SensorCore) — what each message means, as pure
@@ -27,7 +27,7 @@ mod node;
 
 pub use core::{LegLedger, SensorStats};
 
-use etp_shared::wire::{self, RunId, WireError};
+use etp_runtime::wire::{self, RunId, WireError};
 use std::time::Duration;
 
 /// How often an idle sensor checks its coordinator and its termination flag.
@@ -111,7 +111,7 @@ where
     use std::process::ExitCode;
     // Prints help or the usage error and exits (0 or 2), as `main` would.
     let args = Args::parse_from(args);
-    etp_shared::wire::init_process_logging("etp-sensor-node");
+    etp_runtime::wire::init_process_logging("etp-sensor-node");
     let _span = tracing::info_span!("sensor", name = %args.sensor).entered();
     match crate::run(&args).with_context(|| format!("sensor `{}`", args.sensor)) {
         Ok((exit, stats)) => {

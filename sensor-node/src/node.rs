@@ -3,16 +3,16 @@
 
 use crate::core::{ControlAction, SensorCore, SensorStats, SlotError};
 use crate::{Exit, IDLE_CHECK, LIST_EVERY, SensorError};
-use etp_shared::etkf::EtKalmanFilter;
-use etp_shared::scenario::Scenario;
-use etp_shared::wire::agent_to_sensor::{Prior, Truth};
-use etp_shared::wire::coordinator_to_all::Threshold;
-use etp_shared::wire::sensor_to_agent::{Measurement, Slot};
-use etp_shared::wire::sensor_to_coordinator::Ledger;
-use etp_shared::wire::to_coordinator::Hello;
-use etp_shared::wire::{
+use etp_runtime::wire::agent_to_sensor::{Prior, Truth};
+use etp_runtime::wire::coordinator_to_all::Threshold;
+use etp_runtime::wire::sensor_to_agent::{Measurement, Slot};
+use etp_runtime::wire::sensor_to_coordinator::Ledger;
+use etp_runtime::wire::to_coordinator::Hello;
+use etp_runtime::wire::{
     self, COORDINATOR_NODE, Notifier, Ports, Pub, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog,
 };
+use etp_shared::etkf::EtKalmanFilter;
+use etp_shared::scenario::Scenario;
 use iceoryx2::prelude::*;
 
 /// The sensor's ports.

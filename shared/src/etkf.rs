@@ -10,14 +10,12 @@ use crate::linalg::{
     to_static_vec,
 };
 use crate::scenario::{Plant, Sensor};
-use nalgebra::{SMatrix, SVector};
 use rand::{Rng, RngExt};
 use rand_distr::StandardNormal;
 
-/// Column vector of dimension N.
-pub type Vector<const N: usize> = SVector<f64, N>;
-/// R×C matrix.
-pub type Matrix<const R: usize, const C: usize> = SMatrix<f64, R, C>;
+// The fixed-size aliases live in `linalg` (geometry needs them without
+// depending on the filter); re-exported here where most callers look.
+pub use crate::linalg::{Matrix, Vector};
 
 /// A Gaussian belief `N(mean, cov)` over the state.
 #[derive(Debug, Clone, Copy, PartialEq)]

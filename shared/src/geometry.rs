@@ -1,8 +1,7 @@
 //! Closed axis-aligned boxes (obstacles and the target) and the workspace map
 //! `q = C x` in which they live (MODEL.md §7).
 
-use crate::etkf::{Matrix, Vector};
-use crate::linalg::to_static_padded;
+use crate::linalg::{Matrix, Vector, to_static_padded};
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 

@@ -14,8 +14,9 @@
 //!   [`episode::CompiledScenario::run_episode`].
 //! * [`rng`] — reproducible per-episode random streams (`Xoshiro256++`).
 //! * [`stats`] — confidence intervals for means and proportions.
-//! * [`wire`] — the multi-process runtime's payloads, service names, per-run
-//!   iceoryx2 configuration and service limits (the one part that does I/O).
+//!
+//! The runtime's payloads, services and recordings live in `etp-runtime`,
+//! which depends on this crate and never the other way round.
 //!
 //! Everything here is pure: no I/O, no clock, randomness only through the RNG
 //! the caller passes in, so every result is reproducible from a seed.
@@ -29,9 +30,7 @@ pub mod gaussian;
 pub mod geometry;
 pub mod linalg;
 pub mod lqr;
-pub mod recording;
 pub mod rng;
 pub mod scenario;
 pub mod stats;
 pub mod strategy;
-pub mod wire;

@@ -4,6 +4,11 @@
 
 use nalgebra::{DMatrix, SMatrix, SVector};
 
+/// Column vector of dimension N.
+pub type Vector<const N: usize> = SVector<f64, N>;
+/// R×C matrix.
+pub type Matrix<const R: usize, const C: usize> = SMatrix<f64, R, C>;
+
 /// Relative tolerance under which two eigenvalues count as repeated.
 pub const REPEATED_EIGENVALUE_RTOL: f64 = 1e-9;
 

@@ -17,6 +17,9 @@ mod recording;
 #[path = "runtime/foxglove.rs"]
 mod foxglove;
 
+#[path = "runtime/layering.rs"]
+mod layering;
+
 #[path = "runtime/faults.rs"]
 mod faults;
 

@@ -3,7 +3,7 @@
 //! SIGKILL, and determinism of the recorded payloads.
 
 use super::{DELTA, num, serial};
-use etp_shared::recording;
+use etp_runtime::recording;
 use etp_tests::{EtpRun, bin_dir, kill, processes_of_run, unique_run_id, wait_for_process};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -368,8 +368,8 @@ fn a_recorder_never_opens_an_existing_file_and_survives_a_closed_stdout() {
     assert!(c.messages.is_empty());
     let _ = std::fs::remove_file(&file);
     for id in [&a, &b] {
-        if let Ok(run) = etp_shared::wire::RunId::new(id) {
-            etp_shared::wire::cleanup::remove_run(&run);
+        if let Ok(run) = etp_runtime::wire::RunId::new(id) {
+            etp_runtime::wire::cleanup::remove_run(&run);
         }
     }
 }
@@ -447,7 +447,7 @@ fn the_same_seed_records_identical_payloads() {
 /// `--verify` is not vacuous: one ulp on one recorded measurement, or one
 /// lost slot, is found at the step it affects.
 fn verify_detects_tampering(file: &Path) {
-    use etp_shared::recording::Recorded;
+    use etp_runtime::recording::Recorded;
     let buf = std::fs::read(file).expect("recording");
     let clean = recording::read_lenient("rec", &buf).expect("readable");
     assert!(recording::verify(&clean).expect("verify").passed());

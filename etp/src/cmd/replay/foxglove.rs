@@ -31,11 +31,11 @@ mod scene;
 mod tests;
 
 use anyhow::{Context, Result};
-use etp_shared::recording::{self, Contents, Recorded};
+use etp_runtime::recording::{self, Contents, Recorded};
+use etp_runtime::wire::coordinator_to_agent::Control;
+use etp_runtime::wire::coordinator_to_all::Threshold;
+use etp_runtime::wire::{Header, agent_to_coordinator::Outcome, sensor_to_agent::Measurement};
 use etp_shared::scenario::Scenario;
-use etp_shared::wire::coordinator_to_agent::Control;
-use etp_shared::wire::coordinator_to_all::Threshold;
-use etp_shared::wire::{Header, agent_to_coordinator::Outcome, sensor_to_agent::Measurement};
 use geometry::{block3, point3};
 use msg::{Log, Time};
 use scene::AgentView;
@@ -133,7 +133,7 @@ fn earliest(slot: &mut Option<u64>, t: u64) {
 
 /// `sensor/<i>/truth` → i.
 fn sensor_of_topic(topic: &str) -> Option<u32> {
-    use etp_shared::wire::ServiceId;
+    use etp_runtime::wire::ServiceId;
     match recording::service_of_topic(topic)? {
         ServiceId::Truth(i) | ServiceId::Prior(i) => u32::try_from(i).ok(),
         _ => None,

@@ -3,7 +3,7 @@
 //! sensors' ledgers and what the agent received, energy vs prediction). Works
 //! on an unfinished file (crashed recorder): every complete record is read.
 //! `--repair OUT` writes a finished copy; `--verify` re-runs the estimator
-//! (`etp_shared::recording::verify`); `--publish` puts the traffic back on
+//! (`etp_runtime::recording::verify`); `--publish` puts the traffic back on
 //! iceoryx2 (`publish.rs`); `--foxglove OUT` writes a copy that Foxglove
 //! draws (`foxglove.rs`). Exit codes: 0 complete file, 3 unfinished file
 //! (cut anywhere by a crash or a copy: summary of every complete record
@@ -18,8 +18,8 @@ mod repair;
 mod summary;
 
 use anyhow::{Context, Result, bail};
-use etp_shared::recording::{self, Contents};
-use etp_shared::wire::RunId;
+use etp_runtime::recording::{self, Contents};
+use etp_runtime::wire::RunId;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 

@@ -8,9 +8,9 @@
 //! present at send time.
 
 use anyhow::{Context, Result, bail};
-use etp_shared::recording::{self, Contents, Recorded};
+use etp_runtime::recording::{self, Contents, Recorded};
+use etp_runtime::wire::{self, Ports, Pub, RunId, ServiceId};
 use etp_shared::scenario::Scenario;
-use etp_shared::wire::{self, Ports, Pub, RunId, ServiceId};
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
@@ -32,7 +32,7 @@ trait Sender {
     fn send(&self, r: Recorded) -> Result<usize>;
 }
 
-impl<T: etp_shared::wire::Message> Sender for Pub<T> {
+impl<T: etp_runtime::wire::Message> Sender for Pub<T> {
     fn send(&self, r: Recorded) -> Result<usize> {
         let v = T::from_recorded(r).context("payload of another channel")?;
         self.send_copy(v).map_err(|e| anyhow::anyhow!("{e:?}"))
@@ -42,9 +42,9 @@ impl<T: etp_shared::wire::Message> Sender for Pub<T> {
 /// Open the publisher of a recorded service, typed by its kind.
 fn open_sender(ports: &Ports<'_>, s: ServiceId) -> Result<Box<dyn Sender>> {
     struct Open<'a, 'p>(&'a Ports<'p>, ServiceId);
-    impl etp_shared::wire::KindVisitor for Open<'_, '_> {
+    impl etp_runtime::wire::KindVisitor for Open<'_, '_> {
         type Out = Result<Box<dyn Sender>>;
-        fn visit<T: etp_shared::wire::Message>(self) -> Self::Out {
+        fn visit<T: etp_runtime::wire::Message>(self) -> Self::Out {
             Ok(Box::new(self.0.publisher::<T>(self.1)?))
         }
     }

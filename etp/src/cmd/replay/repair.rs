@@ -2,7 +2,7 @@
 //! unfinished recording, holding every complete record of it.
 
 use anyhow::{Context, Result, bail};
-use etp_shared::recording::{self, Contents};
+use etp_runtime::recording::{self, Contents};
 use std::collections::BTreeMap;
 
 /// Write a finished copy of a (possibly unfinished) recording.

@@ -3,8 +3,8 @@
 //! the agent received), energy vs prediction.
 
 use anyhow::{Context, Result};
-use etp_shared::recording::{self, Contents, Recorded};
-use etp_shared::wire::agent_to_coordinator::Outcome;
+use etp_runtime::recording::{self, Contents, Recorded};
+use etp_runtime::wire::agent_to_coordinator::Outcome;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::path::Path;

@@ -14,13 +14,14 @@
 //! * [`report`] — the table and the `--json` object.
 
 mod prepare;
+mod process;
 mod record;
 mod report;
 mod rundir;
 mod supervise;
 
 use anyhow::{Context, Result, bail};
-use etp_shared::wire::{RunId, cleanup};
+use etp_runtime::wire::{RunId, cleanup};
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -96,7 +97,7 @@ pub struct Args {
 /// is excused only for a sensor the run found dead (its episodes are then
 /// degraded), never for a live one.
 pub fn verdict(
-    report: &etp_shared::wire::report::RunReport,
+    report: &etp_runtime::wire::report::RunReport,
     recording_ok: bool,
     allow_degraded: bool,
 ) -> Vec<(u8, String)> {
@@ -276,10 +277,10 @@ pub fn run(a: Args) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use etp_shared::strategy::Prediction;
-    use etp_shared::wire::report::{
+    use etp_runtime::wire::report::{
         EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals,
     };
+    use etp_shared::strategy::Prediction;
 
     fn leg(sensor: u32, received: u32, transmitted: Option<u32>) -> LegRecord {
         LegRecord {

@@ -2,9 +2,9 @@
 
 use super::Args;
 use anyhow::{Context, Result, bail};
+use etp_runtime::wire::RunId;
 use etp_shared::scenario::{Scenario, builtin_text};
 use etp_shared::strategy::{Prediction, Strategy};
-use etp_shared::wire::RunId;
 use etp_synthesis::validate::simulate_strategy;
 use std::path::PathBuf;
 

@@ -9,9 +9,9 @@
 //! [`claim`] is only the early, friendly check (and `--force`'s removal).
 
 use super::prepare::Plan;
-use super::supervise::{ProcessExit, sibling_binary, status_text};
+use super::process::{ProcessExit, sibling_binary, signal, status_text};
 use anyhow::{Context, Result, anyhow, bail};
-use etp_shared::recording;
+use etp_runtime::recording;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Stdio;
@@ -169,14 +169,14 @@ pub async fn start(plan: &Plan, out: &Path) -> Result<Recorder> {
     }
     let stopping = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let flag = stopping.clone();
-    let cfg = etp_shared::wire::config(&plan.run_id)?;
+    let cfg = etp_runtime::wire::config(&plan.run_id)?;
     // If the recorder dies during the run, its ports are removed at once so
     // that publishers waiting on its full buffers go on.
     let waiter = tokio::spawn(async move {
         let st = child.wait().await.ok();
         if !flag.load(std::sync::atomic::Ordering::SeqCst) {
             eprintln!("etp run: the recorder died ({st:?}); the run goes on unrecorded");
-            etp_shared::wire::remove_dead_nodes(&cfg);
+            etp_runtime::wire::remove_dead_nodes(&cfg);
         }
         st
     });
@@ -194,13 +194,13 @@ impl Recorder {
     pub async fn stop(mut self) -> Result<(Recording, ProcessExit)> {
         self.stopping
             .store(true, std::sync::atomic::Ordering::SeqCst);
-        super::supervise::signal(self.pid, "-TERM");
+        signal(self.pid, "-TERM");
         let mut out = String::new();
         let read = tokio::time::timeout(FINISH_TIMEOUT, self.stdout.read_to_string(&mut out)).await;
         let status = match tokio::time::timeout(FINISH_TIMEOUT, &mut self.waiter).await {
             Ok(Ok(Some(st))) => status_text(&st),
             _ => {
-                super::supervise::signal(self.pid, "-KILL");
+                signal(self.pid, "-KILL");
                 "killed by supervisor".to_string()
             }
         };

@@ -15,7 +15,7 @@
 //! only for those few milliseconds.
 
 use anyhow::{Context, Result, bail};
-use etp_shared::wire::{RunId, cleanup};
+use etp_runtime::wire::{RunId, cleanup};
 use std::fs::{File, OpenOptions, TryLockError};
 use std::path::{Path, PathBuf};
 
@@ -68,7 +68,8 @@ impl RunDir {
     /// Create and lock the folder of `run`; refused if another live run
     /// (a locked folder, or live iceoryx2 nodes) uses this id.
     pub fn claim(run: &RunId) -> Result<Self> {
-        let _guard = guard().with_context(|| format!("locking {}", base().join(GUARD).display()))?;
+        let _guard =
+            guard().with_context(|| format!("locking {}", base().join(GUARD).display()))?;
         let path = base().join(run.as_str());
         std::fs::create_dir_all(&path).with_context(|| format!("creating {}", path.display()))?;
         let lock =
@@ -83,8 +84,8 @@ impl RunDir {
             }
         }
         // A recorder or a replay started by hand on this id also owns it.
-        let cfg = etp_shared::wire::config(run)?;
-        if etp_shared::wire::alive_nodes(&cfg) > 0 {
+        let cfg = etp_runtime::wire::config(run)?;
+        if etp_runtime::wire::alive_nodes(&cfg) > 0 {
             bail!(
                 "run id `{run}` is in use: iceoryx2 processes of that run are alive (choose another --run-id)"
             );
@@ -177,7 +178,11 @@ mod tests {
         stop.store(true, std::sync::atomic::Ordering::Relaxed);
         sweeper.join().expect("sweeper");
         for d in held {
-            assert!(d.path.join("scenario.toml").exists(), "{}", d.path.display());
+            assert!(
+                d.path.join("scenario.toml").exists(),
+                "{}",
+                d.path.display()
+            );
             d.remove();
         }
     }

@@ -7,9 +7,9 @@ use super::msg::{
     Color, CubePrimitive, LinePrimitive, Pose, SceneEntity, SceneUpdate, SpherePrimitive,
     TextPrimitive, Time, Vector3, kv, rgba,
 };
+use etp_runtime::wire::agent_to_coordinator::Outcome;
 use etp_shared::geometry::Aabb;
 use etp_shared::scenario::Scenario;
-use etp_shared::wire::agent_to_coordinator::Outcome;
 use nalgebra::{Matrix3, Vector3 as V3};
 
 /// Ellipses and ellipsoids are drawn at this many standard deviations.

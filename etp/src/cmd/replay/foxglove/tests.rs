@@ -175,7 +175,7 @@ fn logs_satisfy_the_log_schema() {
 /// sensor 1, one transmission, an outcome) whose last truths are stamped
 /// after episode 1 has started; episode 1 cut off without an outcome.
 fn synthetic() -> Contents {
-    use etp_shared::wire::{agent_to_sensor as a2s, sensor_to_agent as s2a, to_wire_vec};
+    use etp_runtime::wire::{agent_to_sensor as a2s, sensor_to_agent as s2a, to_wire_vec};
     let mut c = Contents::default();
     c.metadata.insert(
         recording::META_SCENARIO.into(),

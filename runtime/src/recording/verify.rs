@@ -17,15 +17,15 @@
 //! up to its last complete slot and counted as incomplete.
 
 use super::{META_RUN, META_SCENARIO, Recorded, RecordingError, decode, read::Contents};
-use crate::episode::{CompiledScenario, SlotOutcome};
-use crate::etkf::{Belief, Threshold as Th};
-use crate::scenario::Scenario;
 use crate::wire::agent_to_coordinator::{Outcome, Waypoint};
 use crate::wire::agent_to_sensor::Prior;
 use crate::wire::coordinator_to_agent::Control;
 use crate::wire::coordinator_to_all::Threshold;
 use crate::wire::sensor_to_agent::{Measurement, Slot};
 use crate::wire::{WireMat, WireVec};
+use etp_shared::episode::{CompiledScenario, SlotOutcome};
+use etp_shared::etkf::{Belief, Threshold as Th};
+use etp_shared::scenario::Scenario;
 use std::collections::BTreeMap;
 
 /// Mismatches kept in the report (the count is always exact).
@@ -178,7 +178,7 @@ pub fn verify(c: &Contents) -> Result<VerifyReport, RecordingError> {
         None => !c.finished,
     };
     let mut report = VerifyReport::default();
-    crate::with_dim!(scenario.dim, N => {
+    etp_shared::with_dim!(scenario.dim, N => {
         let compiled = CompiledScenario::<N>::new(&scenario);
         for (e, r) in &episodes {
             let may_be_cut = cut && *e >= horizon;

@@ -42,7 +42,7 @@ impl RunId {
         let nanos = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.as_nanos() as u64);
-        let mixed = crate::rng::mix64(nanos ^ (u64::from(std::process::id()) << 32));
+        let mixed = etp_shared::rng::mix64(nanos ^ (u64::from(std::process::id()) << 32));
         Self(format!("r{:012x}", mixed & 0xFFFF_FFFF_FFFF))
     }
 
@@ -52,9 +52,9 @@ impl RunId {
 
     /// The 64-bit tag carried in every [`super::Header`].
     pub fn tag(&self) -> u64 {
-        self.0
-            .bytes()
-            .fold(0x45_54_50_u64, |h, b| crate::rng::mix64(h ^ u64::from(b)))
+        self.0.bytes().fold(0x45_54_50_u64, |h, b| {
+            etp_shared::rng::mix64(h ^ u64::from(b))
+        })
     }
 
     /// Shared-memory file prefix (`_` cannot occur in an id, so no prefix of

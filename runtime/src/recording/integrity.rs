@@ -9,8 +9,8 @@
 //! content) is what ties a changed cost, noise or threshold to a refusal.
 
 use super::{META_RUN, META_SCENARIO, META_STRATEGY, RecordingError, read::Contents};
-use crate::scenario::Scenario;
-use crate::strategy::Strategy;
+use etp_shared::scenario::Scenario;
+use etp_shared::strategy::Strategy;
 
 /// Key of the scenario's content hash in the `etp.run` record.
 pub const META_RUN_SCENARIO_HASH: &str = "scenario_hash";
@@ -102,9 +102,9 @@ mod tests {
 
     #[test]
     fn an_edited_scenario_strategy_or_hash_is_refused() {
-        let text = crate::scenario::builtin_text("open-2d").expect("built-in");
+        let text = etp_shared::scenario::builtin_text("open-2d").expect("built-in");
         let s = Scenario::from_toml(text).expect("valid");
-        let prediction = crate::strategy::Prediction {
+        let prediction = etp_shared::strategy::Prediction {
             p_target: 1.0,
             p_collision: 0.0,
             p_free: 0.0,

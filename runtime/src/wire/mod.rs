@@ -31,7 +31,7 @@ pub use messages::*;
 pub use services::*;
 pub use waiter::{Stamper, Waiter, Wake, Watchdog, termination_requested};
 
-use crate::etkf::{Belief, Matrix, Vector};
+use etp_shared::etkf::{Belief, Matrix, Vector};
 
 /// Why a runtime service could not be set up.
 #[derive(Debug, thiserror::Error)]
@@ -73,13 +73,13 @@ pub fn vec_from_wire<const D: usize>(v: &WireVec) -> Vector<D> {
 
 /// Resolve a runtime process's `--scenario` argument: a built-in name or a
 /// TOML path (the supervisor passes the same argument to every process).
-pub fn load_scenario(arg: &str) -> Result<crate::scenario::Scenario, String> {
-    if let Some(text) = crate::scenario::builtin_text(arg) {
-        return crate::scenario::Scenario::from_toml(text).map_err(|e| e.to_string());
+pub fn load_scenario(arg: &str) -> Result<etp_shared::scenario::Scenario, String> {
+    if let Some(text) = etp_shared::scenario::builtin_text(arg) {
+        return etp_shared::scenario::Scenario::from_toml(text).map_err(|e| e.to_string());
     }
     let text =
         std::fs::read_to_string(arg).map_err(|e| format!("reading scenario `{arg}`: {e}"))?;
-    crate::scenario::Scenario::from_toml(&text).map_err(|e| format!("scenario `{arg}`: {e}"))
+    etp_shared::scenario::Scenario::from_toml(&text).map_err(|e| format!("scenario `{arg}`: {e}"))
 }
 
 /// iceoryx2 reports errors only: its warnings (no config file, the global

@@ -1,7 +1,7 @@
 //! The coordinator's run report (JSON on its stdout), read by `etp run` and the
 //! end-to-end tests.
 
-use crate::strategy::Prediction;
+use etp_shared::strategy::Prediction;
 use serde::{Deserialize, Serialize};
 
 /// One leg of one episode, as the coordinator saw it.
