@@ -7,7 +7,8 @@
 //! result by exact robust backward induction, and raises each margin by its
 //! shortfall (`p − P_tar_low`, `P_coll_high − c`). The first certified strategy
 //! is then improved by bisection between the last failing and the first
-//! succeeding margins. The bounds of the returned strategy are exact for it
+//! succeeding margins. When the tightened request is nominally infeasible
+//! the robust max-P_tar policy (exact for P_tar alone) is the candidate. The bounds of the returned strategy are exact for it
 //! and meet the request; the strategy is *conservative*, not proven optimal:
 //! the least-energy strategy over the interval MDP with several objectives
 //! (each against its own adversary) is a non-convex problem this does not solve.
@@ -17,12 +18,14 @@ use super::intervals::IntervalMdp;
 use super::robust::{Certified, best_certified_target, certify};
 use crate::mdp::{CostModel, Mdp};
 use crate::pareto::optimal::{LpRequest, OptimalStrategy, optimal_strategy};
+use crate::pareto::policy::{as_randomised, evaluate};
 
 /// How [`certified_strategy`] solves: reported beside the result.
-pub const METHOD: &str = "iterative conservative tightening of the nominal occupation LP, \
-     each candidate certified by exact robust backward induction on the interval MDP \
-     (bounds exact for the returned strategy; its energy is an upper estimate of the \
-     certified optimum, not proven least)";
+pub const METHOD: &str = "iterative conservative tightening of the nominal occupation LP \
+     (falling back to the robust max-P_tar policy when the tightened request is nominally \
+     infeasible), each candidate certified by exact robust backward induction on the \
+     interval MDP (bounds exact for the returned strategy; its energy is an upper estimate \
+     of the certified optimum, not proven least)";
 
 /// Rounds of margin raising, then of bisection.
 const RAISE_ROUNDS: usize = 40;
@@ -91,7 +94,26 @@ pub fn certified_strategy(
     let mut m = (0.0, 0.0);
     for _ in 0..RAISE_ROUNDS {
         let Some(c) = attempt(m)? else {
-            return Err(infeasible());
+            // The tightened nominal request is infeasible: the robust
+            // max-P_tar policy is the candidate left (exact for P_tar alone).
+            let (det, _) = best_certified_target(mdp, im);
+            let policy = as_randomised(mdp, &det);
+            let cert = certify(mdp, im, &policy);
+            if meets(&cert) {
+                let predicted = evaluate(mdp, &policy, cost);
+                found = Some(Candidate {
+                    opt: OptimalStrategy {
+                        policy,
+                        predicted,
+                        lp_objective: predicted.energy,
+                        margin: 0.0,
+                        randomised_states: 0,
+                    },
+                    cert,
+                    margins: m,
+                });
+            }
+            break;
         };
         if meets(&c.cert) {
             found = Some(c);
