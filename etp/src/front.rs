@@ -3,8 +3,8 @@
 
 use crate::output::write_new;
 use anyhow::{Context, Result};
-use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::certify::front::{FRONT_CONFIDENCE, certified_front};
+use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::{ParetoFront, compute_front};
 use std::path::{Path, PathBuf};
 use std::time::Instant;

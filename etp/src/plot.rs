@@ -182,7 +182,10 @@ where
                 certified
                     .iter()
                     .filter(|p| p.1 >= y_lo)
-                    .map(|&(x, y)| Rectangle::new([(x, y), (x, y)], purple.stroke_width(3))),
+                    .map(|&(x, y)| {
+                        EmptyElement::at((x, y))
+                            + Rectangle::new([(-2, -2), (2, 2)], purple.stroke_width(1))
+                    }),
             )
             .map_err(e)?
             .label(format!(

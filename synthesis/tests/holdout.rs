@@ -77,7 +77,11 @@ fn synthesis_and_holdout_streams_share_no_generator() {
 fn extra_segments_change_only_their_choice() {
     let s = Scenario::builtin("winding-2d").expect("built-in");
     let base = build(0);
-    let mut extra: Vec<Vec<u32>> = base.states.iter().map(|s| vec![0; s.choices.len()]).collect();
+    let mut extra: Vec<Vec<u32>> = base
+        .states
+        .iter()
+        .map(|s| vec![0; s.choices.len()])
+        .collect();
     extra[0][1] = 60;
     let more = build_with_extra(&s, &params_of(&base), &extra, &|_| {}).expect("builds");
     assert_eq!(more.states.len(), base.states.len());

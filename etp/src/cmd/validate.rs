@@ -98,12 +98,21 @@ pub fn run(a: Args) -> Result<()> {
 fn honest_checks(strategy: &Strategy, sum: &SimulationSummary) -> Vec<(&'static str, bool)> {
     let within = |x: f64, e: &etp_shared::stats::Estimate| (x - e.value).abs() <= e.ci95;
     let mut v = vec![
-        ("selection-time P_tar", within(strategy.predicted.p_target, &sum.p_target)),
-        ("selection-time P_coll", within(strategy.predicted.p_collision, &sum.p_collision)),
+        (
+            "selection-time P_tar",
+            within(strategy.predicted.p_target, &sum.p_target),
+        ),
+        (
+            "selection-time P_coll",
+            within(strategy.predicted.p_collision, &sum.p_collision),
+        ),
     ];
     if let Some(c) = &strategy.crossfit {
         v.push(("cross-fitted P_tar", within(c.p_target, &sum.p_target)));
-        v.push(("cross-fitted P_coll", within(c.p_collision, &sum.p_collision)));
+        v.push((
+            "cross-fitted P_coll",
+            within(c.p_collision, &sum.p_collision),
+        ));
     }
     if let Some(c) = &strategy.certified {
         // Simulated ≥ lower bound (resp. ≤ upper) within the simulation's interval.

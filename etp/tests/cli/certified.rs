@@ -27,7 +27,9 @@ fn certified_strategy_meets_its_bounds_and_reports_all_three_predictions() {
         serde_json::from_str(&std::fs::read_to_string(out.join("front.json")).expect("front"))
             .expect("json");
     let vertices = front["vertices"].as_array().map(Vec::len).unwrap_or(0);
-    let points = front["certified"]["points"].as_array().expect("certified front");
+    let points = front["certified"]["points"]
+        .as_array()
+        .expect("certified front");
     assert_eq!(points.len(), vertices);
     assert_eq!(front["certified"]["confidence"].as_f64(), Some(0.95));
     let best_low = points
@@ -58,9 +60,21 @@ fn certified_strategy_meets_its_bounds_and_reports_all_three_predictions() {
         "--json",
     ]);
     let cert = &sel["predictions"]["certified"];
-    assert!(cert["p_target_low"].as_f64().unwrap_or(0.0) >= request, "{sel}");
-    assert!(sel["predictions"]["crossfit"]["p_target"].as_f64().is_some());
-    assert!(sel["method"].as_str().unwrap_or("").contains("conservative"));
+    assert!(
+        cert["p_target_low"].as_f64().unwrap_or(0.0) >= request,
+        "{sel}"
+    );
+    assert!(
+        sel["predictions"]["crossfit"]["p_target"]
+            .as_f64()
+            .is_some()
+    );
+    assert!(
+        sel["method"]
+            .as_str()
+            .unwrap_or("")
+            .contains("conservative")
+    );
     let file: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&strategy).expect("strategy")).expect("json");
     assert_eq!(file["certified"]["confidence"].as_f64(), Some(0.95));
@@ -69,7 +83,11 @@ fn certified_strategy_meets_its_bounds_and_reports_all_three_predictions() {
     let v = ok_json(&["validate", s(&strategy), "--episodes", "500", "--json"]);
     let checks = v["checks"].as_array().expect("checks");
     assert!(checks.len() >= 7, "{v}");
-    assert!(v["predictions"]["optimizer_bias"]["p_target"].as_f64().is_some());
+    assert!(
+        v["predictions"]["optimizer_bias"]["p_target"]
+            .as_f64()
+            .is_some()
+    );
 
     // Beyond the best certified P_tar: refused, naming the best bound.
     fails_with(

@@ -28,7 +28,8 @@ pub struct RefineRound {
     /// Selection-time P_tar and certified lower bound of the round's strategy.
     pub p_target: f64,
     pub p_target_low: f64,
-    /// Segments of the MDP (main + extra) at this round.
+    /// Main and extra segments of the MDP at this round (Σ of the choices'
+    /// samples; the held-out set is not counted).
     pub segments: u64,
     /// Choices whose samples were doubled after this round.
     pub doubled: usize,
@@ -90,7 +91,12 @@ pub fn refine(
         let mut r = RefineRound {
             p_target: p,
             p_target_low: low,
-            segments: current.total_segments,
+            segments: current
+                .states
+                .iter()
+                .flat_map(|s| &s.choices)
+                .map(|c| u64::from(c.samples))
+                .sum(),
             doubled: 0,
         };
         if gap <= target_gap || round == rounds {

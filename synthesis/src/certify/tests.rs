@@ -65,7 +65,11 @@ fn vertices(ch: &ChoiceIntervals) -> Vec<Vec<f64>> {
             let mut bit = 0;
             for (i, pi) in p.iter_mut().enumerate() {
                 if i != free {
-                    *pi = if mask & (1 << bit) != 0 { b[i].1 } else { b[i].0 };
+                    *pi = if mask & (1 << bit) != 0 {
+                        b[i].1
+                    } else {
+                        b[i].0
+                    };
                     bit += 1;
                 }
             }
@@ -337,11 +341,7 @@ fn crossfit_evaluates_on_the_held_out_counts() {
     };
     for s in &mut mdp.states {
         for c in &mut s.choices {
-            c.holdout = h(c
-                .transitions
-                .iter()
-                .map(|t| (t.next, t.count))
-                .collect());
+            c.holdout = h(c.transitions.iter().map(|t| (t.next, t.count)).collect());
         }
     }
     mdp.states[0].choices[0].holdout = h(vec![(Next::State(1), 80), (Next::Collision, 20)]);

@@ -80,8 +80,8 @@ pub fn run(
         let text = scenario_text
             .as_deref()
             .context("sample allocation needs DIR/scenario.toml (written by `etp synthesize`)")?;
-        let scenario = etp_shared::scenario::Scenario::from_toml(text)
-            .context("parsing DIR/scenario.toml")?;
+        let scenario =
+            etp_shared::scenario::Scenario::from_toml(text).context("parsing DIR/scenario.toml")?;
         let prepared = prepare(mdp, a.refine_rounds);
         let mut p = etp_synthesis::abstraction::params_of(mdp);
         p.holdout_samples = 0;
@@ -121,9 +121,9 @@ pub fn run(
     )
     .ok();
     let label = match a.max_collision {
-        Some(c) => format!(
-            "least energy with certified P_tar ≥ {min_target} and P_coll ≤ {c} at {level}"
-        ),
+        Some(c) => {
+            format!("least energy with certified P_tar ≥ {min_target} and P_coll ≤ {c} at {level}")
+        }
         None => format!("least energy with certified P_tar ≥ {min_target} at {level}"),
     };
     let policy = &chosen.strategy.policy;
@@ -207,7 +207,11 @@ pub fn run(
             r.added_segments,
             refine_seconds,
             100.0 * refine_gap.unwrap_or(0.0),
-            if r.converged { "reached" } else { "NOT reached" }
+            if r.converged {
+                "reached"
+            } else {
+                "NOT reached"
+            }
         );
         for (k, x) in r.rounds.iter().enumerate() {
             println!(
