@@ -361,7 +361,9 @@ impl Mdp {
                     }
                     sum += t.probability;
                 }
-                if !c.transitions.is_empty() && (sum - 1.0).abs() > 1e-9 {
+                // No transition at all only when every segment was unmatched.
+                let all_unmatched = c.unmatched > 0 && c.unmatched == c.samples;
+                if !(c.transitions.is_empty() && all_unmatched) && (sum - 1.0).abs() > 1e-9 {
                     return bad(format!(
                         "state {i}, action {}: probabilities sum to {sum}",
                         c.action
