@@ -28,10 +28,12 @@ mod verify;
 
 pub use integrity::{META_RUN_SCENARIO_HASH, check_metadata};
 pub use read::{Contents, RawMessage, read_lenient};
-pub use verify::{Mismatch, VerifyReport, verify};
+pub use verify::{Mismatch, PriorTable, VerifyReport, priors, verify};
 
-/// Version of this format (metadata `etp.run` / `format_version`).
-pub const FORMAT_VERSION: &str = "2";
+/// Version of this format (metadata `etp.run` / `format_version`). 3: the
+/// per-leg `handover` replaces the per-step `prior`, and `slot` carries the
+/// sensor replica's prior digest.
+pub const FORMAT_VERSION: &str = "3";
 /// MCAP profile string.
 pub const PROFILE: &str = "etpareto";
 /// Message encoding of every channel.
@@ -132,7 +134,7 @@ mod tests {
             "",
             "sensor/x/truth",
             "sensor/1/wake",
-            "sensor//prior",
+            "sensor//handover",
             "nope",
         ] {
             assert_eq!(service_of_topic(bad), None, "{bad}");

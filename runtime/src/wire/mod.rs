@@ -12,7 +12,9 @@
 //!   under [`ROOT_BASE`].
 //!
 //! One step of an episode (one blocking round trip): the agent publishes
-//! `truth` and `prior` to the serving sensor and wakes it; the sensor measures,
+//! `truth` to the serving sensor and wakes it; the sensor computes the prior
+//! with its replica of the agent's estimator (handed over once per leg on
+//! `handover`), measures,
 //! whitens, triggers, publishes `measurement` if it triggers, then `slot`, and
 //! wakes the agent. One decision point (one more round trip per leg): the
 //! agent publishes `waypoint`; the coordinator answers on `threshold` (open

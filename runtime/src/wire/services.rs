@@ -101,8 +101,8 @@ pub enum ServiceId {
     Threshold(usize),
     /// agent → sensor i: true state.
     Truth(usize),
-    /// agent → sensor i: prior x̂⁻, P⁻.
-    Prior(usize),
+    /// agent → sensor i: its belief at the start of a leg i serves (radio).
+    Handover(usize),
     /// sensors → agent: transmitted measurements (costed).
     Measurement,
     /// sensors → agent: slot closed.
@@ -136,7 +136,7 @@ impl ServiceId {
             Self::Control => "control".to_string(),
             Self::Threshold(i) => format!("sensor/{i}/threshold"),
             Self::Truth(i) => format!("sensor/{i}/truth"),
-            Self::Prior(i) => format!("sensor/{i}/prior"),
+            Self::Handover(i) => format!("sensor/{i}/handover"),
             Self::Measurement => "measurement".to_string(),
             Self::Slot => "slot".to_string(),
             Self::Waypoint => "waypoint".to_string(),
@@ -155,7 +155,7 @@ impl ServiceId {
     pub fn reader_wake(self) -> Self {
         match self {
             Self::Control | Self::Measurement | Self::Slot => Self::AgentWake,
-            Self::Threshold(i) | Self::Truth(i) | Self::Prior(i) => Self::SensorWake(i),
+            Self::Threshold(i) | Self::Truth(i) | Self::Handover(i) => Self::SensorWake(i),
             Self::Waypoint | Self::Outcome | Self::Ledger | Self::Hello => Self::CoordinatorWake,
             e @ (Self::AgentWake | Self::CoordinatorWake | Self::SensorWake(_)) => e,
         }
@@ -185,7 +185,7 @@ impl ServiceId {
         for i in 0..sensors {
             v.push(Self::Threshold(i));
             v.push(Self::Truth(i));
-            v.push(Self::Prior(i));
+            v.push(Self::Handover(i));
         }
         v
     }
@@ -243,7 +243,7 @@ pub fn limits(service: ServiceId, sensors: usize) -> Limits {
     };
     match service {
         ServiceId::Control => one_to_one(8),
-        ServiceId::Truth(_) | ServiceId::Prior(_) => one_to_one(8),
+        ServiceId::Truth(_) | ServiceId::Handover(_) => one_to_one(8),
         ServiceId::Waypoint | ServiceId::Outcome => one_to_one(16),
         ServiceId::Measurement | ServiceId::Slot => many_to_one(16),
         // Ledgers are drained at leg boundaries; a generous buffer per sensor.

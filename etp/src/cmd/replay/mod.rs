@@ -255,10 +255,12 @@ fn write_verify(out: &mut String, v: &recording::VerifyReport) -> std::fmt::Resu
     use std::fmt::Write;
     writeln!(
         out,
-        "verify: {} · {} priors and {} decision-point beliefs reproduced bit for bit",
+        "verify: {} · {} decision-point beliefs and {} handovers reproduced bit for bit; \
+         the sensors' replicas triggered on the agent's prior in all {} slots checked",
         if v.passed() { "PASSED" } else { "FAILED" },
-        v.priors_checked,
-        v.waypoints_checked
+        v.waypoints_checked,
+        v.handovers_checked,
+        v.priors_checked
     )?;
     writeln!(
         out,
