@@ -344,9 +344,9 @@ impl<const N: usize> Agent<N> {
                 }
                 let prior = self.c.prior(&state.belief, &u);
                 let (result, fault) = match self.slot(episode, leg32, k, sensor, &state.x)? {
-                        Ok(r) => r,
-                        Err(exit) => return Ok(Some(exit)),
-                    };
+                    Ok(r) => r,
+                    Err(exit) => return Ok(Some(exit)),
+                };
                 if let Some(f) = fault {
                     record_fault(&mut totals, &f);
                 }

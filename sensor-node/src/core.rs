@@ -194,13 +194,18 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
             .ok_or(SlotError::LegNotOpen { episode, leg, open })
     }
 
+    /// Has leg (episode, leg) been closed here (a message of it is stale)?
+    pub fn is_closed(&self, episode: u64, leg: u32) -> bool {
+        self.closed.is_some_and(|c| (episode, leg) <= c)
+    }
+
     /// The agent's belief at the start of the open leg: start the replica.
     pub fn on_handover(&mut self, h: &Handover) -> Result<(), SlotError> {
         if h.header.run != self.tag {
             return Ok(());
         }
         let (episode, leg) = (h.header.episode, h.header.leg);
-        if self.closed.is_some_and(|c| (episode, leg) <= c) {
+        if self.is_closed(episode, leg) {
             return Ok(());
         }
         let open = self.open_leg(episode, leg)?;

@@ -99,6 +99,7 @@ pub(crate) fn serve<const N: usize, const M: usize>(
     );
     // `say_hello` waited for the coordinator's subscriber: it was alive.
     let mut watchdog = Watchdog::new(COORDINATOR_NODE, true, LIST_EVERY);
+    let mut pending = Pending::default();
     tracing::info!(sensor = %scenario.sensors[index].name, "sensor ready");
     loop {
         match waiter.wait(&node, IDLE_CHECK)? {
@@ -116,36 +117,61 @@ pub(crate) fn serve<const N: usize, const M: usize>(
             }
         }
         core.stats.wakeups += 1;
-        if let Some(exit) = serve_pending(&p, &mut core, &mut stamp)? {
+        if let Some(exit) = serve_pending(&p, &mut core, &mut stamp, &mut pending)? {
             return Ok((exit, core.stats));
         }
     }
 }
 
+/// Messages that arrived before what they depend on (over a bridge the
+/// services of one sensor travel separately: a handover may land before its
+/// leg's OPEN, a truth before its handover). They wait here, in order.
+#[derive(Default)]
+struct Pending {
+    handovers: std::collections::VecDeque<Handover>,
+    truths: std::collections::VecDeque<Truth>,
+}
+
 /// Everything that arrived, in causal order: thresholds (the coordinator
 /// opens a leg before the agent hands over), handovers (the agent hands over
-/// before the leg's first truth), then each truth: one slot each. Over a
-/// bridge the services may land in one wake-up in any order, so a message
-/// whose predecessor is not read yet makes one more pass over the others.
+/// before the leg's first truth), then each truth: one slot each. A message
+/// whose predecessor has not arrived waits in `pending` for the next
+/// wake-up; one that can never be served is a protocol error.
 fn serve_pending<const N: usize, const M: usize>(
     p: &SensorPorts,
     core: &mut SensorCore<N, M>,
     stamp: &mut Stamper,
+    pending: &mut Pending,
 ) -> Result<Option<Exit>, SensorError> {
-    if let Some(exit) = drain_control(p, core, stamp)? {
+    if let Some(exit) = drain_thresholds(p, core, stamp)? {
         return Ok(Some(exit));
     }
-    while let Some(truth) = receive(&p.truth, "truth")? {
-        let decision = match core.on_slot(&truth) {
-            Err(SlotError::LegNotOpen { .. } | SlotError::NoHandover { .. }) => {
-                if let Some(exit) = drain_control(p, core, stamp)? {
-                    return Ok(Some(exit));
-                }
-                core.on_slot(&truth)
+    while let Some(h) = receive(&p.handover, "handover")? {
+        pending.handovers.push_back(h);
+    }
+    while let Some(h) = pending.handovers.front() {
+        match core.on_handover(h) {
+            Ok(()) => {
+                pending.handovers.pop_front();
             }
-            other => other,
+            Err(SlotError::LegNotOpen { .. }) => break,
+            Err(e) => return Err(SensorError::Protocol(e.to_string())),
         }
-        .map_err(|e| SensorError::Protocol(e.to_string()))?;
+    }
+    while let Some(t) = receive(&p.truth, "truth")? {
+        pending.truths.push_back(t);
+    }
+    while let Some(truth) = pending.truths.front() {
+        let decision = match core.on_slot(truth) {
+            Ok(d) => d,
+            Err(SlotError::LegNotOpen { .. } | SlotError::NoHandover { .. })
+                if !core.is_closed(truth.header.episode, truth.header.leg) =>
+            {
+                break;
+            }
+            Err(e) => return Err(SensorError::Protocol(e.to_string())),
+        };
+        pending.truths.pop_front();
         if let Some((y, sequence)) = decision.transmit {
             let header = stamp.header(decision.episode, decision.leg, decision.step);
             send(
@@ -171,28 +197,6 @@ fn serve_pending<const N: usize, const M: usize>(
             },
         )?;
         notify(&p.agent_wake, "agent wake")?;
-    }
-    Ok(None)
-}
-
-/// Thresholds, then handovers (a handover of a leg whose OPEN is not read
-/// yet drains the thresholds once more).
-fn drain_control<const N: usize, const M: usize>(
-    p: &SensorPorts,
-    core: &mut SensorCore<N, M>,
-    stamp: &mut Stamper,
-) -> Result<Option<Exit>, SensorError> {
-    if let Some(exit) = drain_thresholds(p, core, stamp)? {
-        return Ok(Some(exit));
-    }
-    while let Some(h) = receive(&p.handover, "handover")? {
-        if let Err(SlotError::LegNotOpen { .. }) = core.on_handover(&h) {
-            if let Some(exit) = drain_thresholds(p, core, stamp)? {
-                return Ok(Some(exit));
-            }
-            core.on_handover(&h)
-                .map_err(|e| SensorError::Protocol(e.to_string()))?;
-        }
     }
     Ok(None)
 }

@@ -179,6 +179,9 @@ pub fn run(a: Args) -> Result<()> {
         force: false,
         allow_degraded: false,
         slot_deadline: None,
+        listen: None,
+        remote: Vec::new(),
+        join_timeout: 60.0,
     };
     let (mp, problems) = run_cmd::execute(&rargs)?;
 

@@ -23,6 +23,7 @@ use crate::wire::ServiceId;
 use crate::wire::sensor_to_agent as s2a;
 
 mod integrity;
+pub mod ports;
 mod read;
 mod verify;
 
@@ -59,6 +60,8 @@ pub enum RecordingError {
     Metadata(String),
     #[error("{0}: not an MCAP recording: {1}")]
     NotMcap(String, String),
+    #[error(transparent)]
+    Port(#[from] crate::wire::PortError),
 }
 
 pub use crate::wire::{Kind, Recorded};

@@ -23,7 +23,9 @@ use serde::de::DeserializeOwned;
 use std::fmt::Debug;
 
 /// A payload of the runtime.
-pub trait Message: Debug + Copy + ZeroCopySend + Serialize + DeserializeOwned + 'static {
+pub trait Message:
+    Debug + Copy + Default + ZeroCopySend + Serialize + DeserializeOwned + 'static
+{
     const KIND: Kind;
     /// This payload as the decoded union.
     fn into_recorded(self) -> Recorded;
@@ -274,7 +276,11 @@ mod tests {
             "{t}"
         );
         assert!(t.contains("header.run: u64\nheader.episode: u64\nheader.step: u32\nheader.leg: u32\nheader.sender: u32\nheader.seq: u32\ndim: u32\nsequence: u32\ny: [f64; 6]\n"), "{t}");
-        assert!(Kind::Handover.schema_text().contains("cov: [[f64; 6]; 6]\n"));
+        assert!(
+            Kind::Handover
+                .schema_text()
+                .contains("cov: [[f64; 6]; 6]\n")
+        );
         assert!(Kind::Outcome.schema_text().contains("1 = TARGET"));
         for k in Kind::ALL {
             let t = k.schema_text();

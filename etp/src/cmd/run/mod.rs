@@ -16,8 +16,10 @@
 mod prepare;
 mod process;
 mod record;
+mod remote;
 mod report;
 mod rundir;
+pub mod sensor_host;
 mod supervise;
 
 use anyhow::{Context, Result, bail};
@@ -90,6 +92,23 @@ pub struct Args {
     /// live process is waited for, however slow or paused.
     #[arg(long, value_name = "MS")]
     pub slot_deadline: Option<u64>,
+    /// Across hosts: listen on this Zenoh endpoint (e.g. `tcp/10.0.0.1:7447`)
+    /// for sensor hosts (`etp sensor-host --connect …`). Scouting is off:
+    /// only this endpoint is used.
+    #[arg(long, value_name = "ENDPOINT", requires = "remote")]
+    pub listen: Option<String>,
+    /// Sensors served from other hosts (names, comma-separated); the run
+    /// waits until they joined.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        requires = "listen",
+        value_name = "SENSORS"
+    )]
+    pub remote: Vec<String>,
+    /// Seconds to wait for the remote sensors to join.
+    #[arg(long, default_value_t = 60.0)]
+    pub join_timeout: f64,
 }
 
 /// Why a completed run is not clean (empty: exit 0), checked leg by leg: a
@@ -198,11 +217,26 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         (None, true) => Some(record::default_path(&plan)),
         (None, false) => None,
     };
+    let remote = match &a.listen {
+        Some(listen) => match remote::remote_indices(&plan, &a.remote) {
+            Ok(r) => Some(remote::RemoteSpec {
+                listen: listen.clone(),
+                remote: r,
+                join_timeout: a.join_timeout,
+            }),
+            Err(e) => {
+                dir.remove();
+                return Err(e);
+            }
+        },
+        None => None,
+    };
     let outcome = rt.block_on(supervise::supervise(
         &plan,
         Duration::from_secs_f64(a.deadline),
         record.as_deref(),
         a.slot_deadline,
+        remote.as_ref(),
     ));
     // Whatever happened: no iceoryx2 leftovers of this run.
     let cleaned = cleanup::remove_run(&run_id);
