@@ -77,7 +77,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let (tx, rx) = std::sync::mpsc::channel();
     let _subs = subscribe(
         &session,
-        &data_keys(run.as_str(), false),
+        &[data_keys(run.as_str(), false)],
         &format!("etp/{run}/alive/sensor/*"),
         tx,
     )?;

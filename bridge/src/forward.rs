@@ -222,25 +222,37 @@ impl Inbound {
     }
 }
 
-/// Subscribe to every data key of one direction and to liveliness tokens
-/// under `alive` (with the tokens already there); both feed `tx`.
+/// Subscribers of `data` keys and of liveliness tokens under `alive` (with
+/// the tokens already there); all feed `tx`.
+pub type Subscriptions = (
+    Vec<zenoh::pubsub::Subscriber<()>>,
+    zenoh::pubsub::Subscriber<()>,
+);
+
+/// Subscribe to the data keys `data` (one direction: only what this end
+/// delivers) and to liveliness tokens under `alive`.
 pub fn subscribe(
     session: &zenoh::Session,
-    data: &str,
+    data: &[String],
     alive: &str,
     tx: std::sync::mpsc::Sender<Incoming>,
-) -> Result<(zenoh::pubsub::Subscriber<()>, zenoh::pubsub::Subscriber<()>), BridgeError> {
-    let t = tx.clone();
-    let data_sub = session
-        .declare_subscriber(data)
-        .callback(move |s| {
-            let _ = t.send(Incoming::Data {
-                key: s.key_expr().to_string(),
-                bytes: s.payload().to_bytes().into_owned(),
-            });
-        })
-        .wait()
-        .map_err(|e| BridgeError::Zenoh(format!("subscriber {data}: {e}")))?;
+) -> Result<Subscriptions, BridgeError> {
+    let mut data_subs = Vec::new();
+    for key in data {
+        let t = tx.clone();
+        data_subs.push(
+            session
+                .declare_subscriber(key.as_str())
+                .callback(move |s| {
+                    let _ = t.send(Incoming::Data {
+                        key: s.key_expr().to_string(),
+                        bytes: s.payload().to_bytes().into_owned(),
+                    });
+                })
+                .wait()
+                .map_err(|e| BridgeError::Zenoh(format!("subscriber {key}: {e}")))?,
+        );
+    }
     let alive_sub = session
         .liveliness()
         .declare_subscriber(alive)
@@ -253,5 +265,5 @@ pub fn subscribe(
         })
         .wait()
         .map_err(|e| BridgeError::Zenoh(format!("liveliness subscriber {alive}: {e}")))?;
-    Ok((data_sub, alive_sub))
+    Ok((data_subs, alive_sub))
 }

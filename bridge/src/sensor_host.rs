@@ -8,9 +8,7 @@
 //! sensors see their coordinator gone and exit.
 
 use crate::forward::{Counters, Inbound, Incoming, Outbound, subscribe};
-use crate::session::{
-    SESSION_KEY, SessionInfo, agent_host_alive_key, config, data_keys, sensor_alive_key,
-};
+use crate::session::{SESSION_KEY, SessionInfo, agent_host_alive_key, config, sensor_alive_key};
 use crate::{BridgeError, emit};
 use etp_runtime::wire::{self, AGENT_NODE, COORDINATOR_NODE, Ports, RunId, ServiceId};
 use iceoryx2::prelude::*;
@@ -140,7 +138,10 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let (tx, rx) = std::sync::mpsc::channel();
     let _subs = subscribe(
         &session,
-        &data_keys(run.as_str(), true),
+        &served
+            .iter()
+            .map(|i| format!("etp/{run}/down/sensor/{i}/**"))
+            .collect::<Vec<_>>(),
         &agent_host_alive_key(run.as_str()),
         tx.clone(),
     )?;

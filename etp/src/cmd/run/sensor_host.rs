@@ -189,6 +189,7 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
             "killed by supervisor".into()
         }
     };
+    ok &= status == "exit 0";
     processes.push(ProcessExit {
         name: "bridge".into(),
         pid: bridge_pid,
