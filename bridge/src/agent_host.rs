@@ -187,7 +187,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                     proxies.insert(i, wire::create_node(&run, &sensor_node_name(i))?);
                     tracing::info!(sensor = %name(i), "remote sensor alive");
                 } else if !alive && proxies.remove(&i).is_some() {
-                    tracing::warn!(sensor = %name(i), "remote sensor lost (host gone or link cut)");
+                    tracing::info!(sensor = %name(i), "remote sensor lost (host gone, link cut, or run over)");
                     emit(&serde_json::json!({"event": "lost", "sensor": name(i),
                         "unix_ns": wire_now_ns()}));
                 }

@@ -38,6 +38,10 @@ pub struct Args {
     pub lease_ms: u64,
 }
 
+/// How often the local sensors' liveness is checked (a dead one's token is
+/// withdrawn, so the agent host sees a dead link).
+const LIVENESS_CHECK: Duration = Duration::from_millis(50);
+
 /// Ask the agent host for the run until it answers or `timeout` passes.
 fn fetch(
     session: &zenoh::Session,
@@ -201,18 +205,23 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     // host, for as long as its process lives here.
     let mut tokens: std::collections::BTreeMap<usize, zenoh::liveliness::LivelinessToken> =
         std::collections::BTreeMap::new();
+    let mut last_check = Instant::now();
     let result = loop {
         if wire::termination_requested(&node) || std::os::unix::process::parent_id() != parent {
             break Ok(());
         }
-        tokens.retain(|&i, _| {
-            let alive =
-                wire::liveness(node.config(), &wire::sensor_node_name(i)) == wire::Liveness::Alive;
-            if !alive {
-                tracing::warn!(sensor = i, "local sensor gone: its token is withdrawn");
-            }
-            alive
-        });
+        // Listing the nodes costs about a millisecond: not on every message.
+        if last_check.elapsed() >= LIVENESS_CHECK {
+            last_check = Instant::now();
+            tokens.retain(|&i, _| {
+                let alive = wire::liveness(node.config(), &wire::sensor_node_name(i))
+                    == wire::Liveness::Alive;
+                if !alive {
+                    tracing::info!(sensor = i, "local sensor gone: its token is withdrawn");
+                }
+                alive
+            });
+        }
         match rx.recv_timeout(Duration::from_millis(20)) {
             Ok(Incoming::Hello(i)) => {
                 let t = session
