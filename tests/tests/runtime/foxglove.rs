@@ -24,7 +24,7 @@ try:
 except ImportError:
     jsonschema = None
 out = {"channels": [], "counts": {}, "bad_json": 0, "time_order": True,
-       "trajectory_ids": [], "validated": 0, "errors": [],
+       "trajectory_ids": [], "validated": 0, "errors": [], "ellipses": 0,
        "jsonschema": jsonschema is not None}
 with open(sys.argv[1], "rb") as f:
     r = make_reader(f)
@@ -49,6 +49,8 @@ with open(sys.argv[1], "rb") as f:
             continue
         if channel.topic == "/trajectories":
             out["trajectory_ids"] += [e["id"] for e in v["entities"]]
+        if channel.topic == "/agent" and len(v["entities"][0].get("spheres", [])) >= 3:
+            out["ellipses"] += 1
         if jsonschema is not None and (n < 20 or n % 97 == 0):
             sid = schema.id
             if sid not in seen:
@@ -107,6 +109,9 @@ fn the_foxglove_copy_is_json_with_foxglove_schemas_and_matches_the_recording() {
                 "{c}"
             );
         }
+        // Every slot's prior (re-run from the recorded inputs: the agent no
+        // longer sends it) is drawn as an ellipse with its mean.
+        assert_eq!(p["ellipses"].as_u64(), Some(counts["slot"]), "{p}");
         let py: BTreeMap<String, u64> =
             serde_json::from_value(p["counts"].clone()).expect("counts");
         let ours: BTreeMap<String, u64> =

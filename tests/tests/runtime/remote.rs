@@ -307,6 +307,16 @@ fn a_run_across_three_hosts_counts_exactly_and_verifies() {
     assert!(out.status.success(), "{out:?}");
     let r: Value = serde_json::from_slice(&out.stdout).expect("JSON");
     assert_eq!(r["verify"]["episodes_checked"].as_u64(), Some(60), "{r}");
+    // Recorded on the agent host == the sensors' ledgers == agent received.
+    let ledgers: u64 = v["sensors"]
+        .as_array()
+        .expect("sensors")
+        .iter()
+        .filter_map(|s| s["transmitted"].as_u64())
+        .sum();
+    assert_eq!(r["measurements"].as_u64(), Some(ledgers), "{r}");
+    assert_eq!(r["ledger_transmissions"].as_u64(), Some(ledgers), "{r}");
+    assert_eq!(r["agent_received"].as_u64(), Some(ledgers), "{r}");
     assert_eq!(r["verify"]["mismatch_count"].as_u64(), Some(0), "{r}");
     drop(h);
     let _ = std::fs::remove_dir_all(&dir);
