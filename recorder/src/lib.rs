@@ -221,6 +221,9 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
             std::thread::sleep(IDLE_SLEEP);
         }
     }
+    if cli.meta.is_none() {
+        write_handed_over_metadata(&mut w, &run)?;
+    }
     let summary = w.finish().context("finishing the recording")?;
     drop(w);
     let counts: BTreeMap<String, u64> = channels
@@ -242,6 +245,28 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
         "counts": counts,
         "bytes": bytes,
     }))
+}
+
+/// The metadata that `etp replay --publish` left for this run (if any): a
+/// recorder started by hand without `--meta` on a replay's run id makes a
+/// copy that carries the original's scenario, strategy and run record, so it
+/// passes `etp replay --verify`.
+fn write_handed_over_metadata<W: std::io::Write + std::io::Seek>(
+    w: &mut mcap::Writer<W>,
+    run: &RunId,
+) -> Result<()> {
+    let path = recording::handover_path(run);
+    let Ok(text) = std::fs::read_to_string(&path) else {
+        return Ok(());
+    };
+    let records: BTreeMap<String, BTreeMap<String, String>> =
+        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    tracing::info!(path = %path.display(), records = records.len(), "metadata of the replay");
+    for (name, metadata) in records {
+        w.write_metadata(&Metadata { name, metadata })
+            .context("writing metadata")?;
+    }
+    Ok(())
 }
 
 /// Logs to stderr, filtered by `RUST_LOG` (default `warn`).

@@ -23,15 +23,22 @@ use crate::wire::ServiceId;
 use crate::wire::sensor_to_agent as s2a;
 
 mod integrity;
+mod layout;
 mod read;
+pub mod table;
 mod verify;
 
 pub use integrity::{META_RUN_SCENARIO_HASH, check_metadata};
+pub use layout::{ChunkStats, Layout, layout};
 pub use read::{Contents, RawMessage, read_lenient};
 pub use verify::{Mismatch, VerifyReport, verify};
 
-/// Version of this format (metadata `etp.run` / `format_version`).
-pub const FORMAT_VERSION: &str = "2";
+/// Version of this format (metadata `etp.run` / `format_version`). 3 added
+/// the `etp.config` record (the run's launch file) and the payload size and
+/// Python `struct` format to the schema text; version 2 files read the same.
+pub const FORMAT_VERSION: &str = "3";
+/// Oldest format version this code reads.
+pub const OLDEST_FORMAT_VERSION: u32 = 2;
 /// MCAP profile string.
 pub const PROFILE: &str = "etpareto";
 /// Message encoding of every channel.
@@ -43,6 +50,17 @@ pub const META_RUN: &str = "etp.run";
 pub const META_SCENARIO: &str = "etp.scenario";
 pub const META_STRATEGY: &str = "etp.strategy";
 pub const META_PREDICTION: &str = "etp.prediction";
+/// The run's configuration (`toml`: the `etp run --config` file, or the
+/// flags of the run written as one).
+pub const META_CONFIG: &str = "etp.config";
+
+/// Where `etp replay --publish` leaves the metadata of the recording it
+/// publishes, for a recorder of that run started without `--meta` (it
+/// writes them when it finishes): a file in the run's iceoryx2 folder, which
+/// lives as long as one of the run's processes does.
+pub fn handover_path(run: &crate::wire::RunId) -> std::path::PathBuf {
+    run.root_dir().join("etp-metadata.json")
+}
 
 /// Why a recording could not be encoded, decoded or read.
 #[derive(Debug, thiserror::Error)]
