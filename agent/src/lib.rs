@@ -37,10 +37,8 @@ pub enum AgentError {
     Wire(#[from] WireError),
     #[error("{0}")]
     Scenario(String),
-    #[error("sending on `{0}` failed: {1}")]
-    Send(&'static str, String),
-    #[error("receiving on `{0}` failed: {1}")]
-    Receive(&'static str, String),
+    #[error(transparent)]
+    Port(#[from] etp_runtime::wire::PortError),
     #[error("protocol error: {0}")]
     Protocol(String),
 }

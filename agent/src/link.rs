@@ -6,6 +6,7 @@
 //! [`Links::take_slot`] after each wake-up.
 
 use crate::AgentError;
+use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_sensor::{Prior, Truth};
 use etp_runtime::wire::coordinator_to_all::Threshold;
 use etp_runtime::wire::sensor_to_agent::{Measurement, Slot};
@@ -91,7 +92,7 @@ impl Links {
                 _pad: 0,
                 x: to_wire_vec(x.as_slice()),
             })
-            .map_err(|e| AgentError::Send("truth", format!("{e:?}")))?;
+            .map_err(|e| PortError::send("truth", e))?;
         self.prior[sensor]
             .send_copy(Prior {
                 header: prior_header,
@@ -100,11 +101,11 @@ impl Links {
                 mean,
                 cov,
             })
-            .map_err(|e| AgentError::Send("prior", format!("{e:?}")))?;
+            .map_err(|e| PortError::send("prior", e))?;
         self.wake[sensor]
             .notify()
             .map(|_| ())
-            .map_err(|e| AgentError::Send("sensor wake", format!("{e:?}")))
+            .map_err(|e| PortError::notify("sensor wake", e).into())
     }
 
     /// The slot of (episode, step, sensor) if it closed, with its measurement.
@@ -119,7 +120,7 @@ impl Links {
         while let Some(s) = self
             .slot
             .receive()
-            .map_err(|e| AgentError::Receive("slot", format!("{e:?}")))?
+            .map_err(|e| PortError::receive("slot", e))?
         {
             let h = s.header;
             if h.episode == episode && h.step == step && h.sender == sensor {
@@ -149,7 +150,7 @@ impl Links {
         while let Some(s) = self
             .measurement
             .receive()
-            .map_err(|e| AgentError::Receive("measurement", format!("{e:?}")))?
+            .map_err(|e| PortError::receive("measurement", e))?
         {
             let h = s.header;
             if h.episode == episode && h.step == step && h.sender == sensor {
@@ -171,7 +172,7 @@ impl Links {
         for sub in &self.threshold {
             while let Some(s) = sub
                 .receive()
-                .map_err(|e| AgentError::Receive("threshold", format!("{e:?}")))?
+                .map_err(|e| PortError::receive("threshold", e))?
             {
                 let t: Threshold = *s;
                 if t.header.run == tag

@@ -13,6 +13,7 @@
 
 use crate::link::{Fault, Links, SlotResult};
 use crate::{AgentError, AgentStats, Exit, IDLE_CHECK, SLOT_CHECK};
+use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_coordinator::{Outcome, Waypoint};
 use etp_runtime::wire::coordinator_to_agent::Control;
 use etp_runtime::wire::to_coordinator::Hello;
@@ -92,7 +93,7 @@ impl<const N: usize> Agent<N> {
             sensors,
         };
         let links = Links::new(&ports)?;
-        let waiter = Waiter::new(ports.listener(ServiceId::AgentWake)?);
+        let waiter = Waiter::new(ports.listener(ServiceId::AgentWake)?)?;
         let control = ports.subscriber::<Control>(ServiceId::Control)?;
         let waypoint = ports.publisher::<Waypoint>(ServiceId::Waypoint)?;
         let outcome = ports.publisher::<Outcome>(ServiceId::Outcome)?;
@@ -129,7 +130,7 @@ impl<const N: usize> Agent<N> {
         self.coordinator_wake
             .notify()
             .map(|_| ())
-            .map_err(|e| AgentError::Send("coordinator wake", format!("{e:?}")))
+            .map_err(|e| PortError::notify("coordinator wake", e).into())
     }
 
     /// Serve episodes until stopped.
@@ -158,7 +159,7 @@ impl<const N: usize> Agent<N> {
         while let Some(s) = self
             .control
             .receive()
-            .map_err(|e| AgentError::Receive("control", format!("{e:?}")))?
+            .map_err(|e| PortError::receive("control", e))?
         {
             let c: Control = *s;
             if c.header.run != tag {
@@ -301,7 +302,7 @@ impl<const N: usize> Agent<N> {
                     mean,
                     cov,
                 })
-                .map_err(|e| AgentError::Send("waypoint", format!("{e:?}")))?;
+                .map_err(|e| PortError::send("waypoint", e))?;
             self.notify_coordinator()?;
             let opened = self.wait_until(Awaiting::Coordinator, |a| {
                 // The coordinator starts an episode only after the previous
@@ -411,7 +412,7 @@ impl<const N: usize> Agent<N> {
         );
         self.outcome
             .send_copy(o)
-            .map_err(|e| AgentError::Send("outcome", format!("{e:?}")))?;
+            .map_err(|e| PortError::send("outcome", e))?;
         self.notify_coordinator()
     }
 }

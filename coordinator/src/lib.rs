@@ -30,12 +30,12 @@ pub enum CoordinatorError {
     Wire(#[from] WireError),
     #[error("{0}")]
     Input(String),
-    #[error("sending on `{0}` failed: {1}")]
-    Send(&'static str, String),
-    #[error("receiving on `{0}` failed: {1}")]
-    Receive(&'static str, String),
+    #[error(transparent)]
+    Port(#[from] etp_runtime::wire::PortError),
     #[error("processes not ready after {0:?}: missing {1}")]
     Startup(Duration, String),
+    #[error("protocol error: {0}")]
+    Protocol(String),
     #[error("the agent died during episode {0}")]
     AgentDied(u64),
 }

@@ -1,6 +1,7 @@
 //! The coordinator's ports, episode loop and bookkeeping.
 
 use crate::CoordinatorError;
+use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_coordinator::{Outcome, Waypoint};
 use etp_runtime::wire::coordinator_to_agent::Control;
 use etp_runtime::wire::coordinator_to_all::Threshold;
@@ -64,7 +65,7 @@ impl<'a> Coordinator<'a> {
             sensors,
         };
         Ok(Self {
-            waiter: Waiter::new(ports.listener(ServiceId::CoordinatorWake)?),
+            waiter: Waiter::new(ports.listener(ServiceId::CoordinatorWake)?)?,
             watchdog: Watchdog::new(AGENT_NODE, false, 1),
             control: ports.publisher(ServiceId::Control)?,
             threshold: (0..sensors)
@@ -113,7 +114,7 @@ impl<'a> Coordinator<'a> {
             while let Some(s) = self
                 .hello
                 .receive()
-                .map_err(|e| CoordinatorError::Receive("hello", format!("{e:?}")))?
+                .map_err(|e| PortError::receive("hello", e))?
             {
                 let h = s.header;
                 if h.run != self.stamp.tag() {
@@ -170,13 +171,13 @@ impl<'a> Coordinator<'a> {
                 delta,
             })
             .map(|_| ())
-            .map_err(|e| CoordinatorError::Send("threshold", format!("{e:?}")))
+            .map_err(|e| PortError::send("threshold", e).into())
     }
 
     fn notify(n: &Notifier, what: &'static str) -> Result<(), CoordinatorError> {
         n.notify()
             .map(|_| ())
-            .map_err(|e| CoordinatorError::Send(what, format!("{e:?}")))
+            .map_err(|e| PortError::notify(what, e).into())
     }
 
     /// Close `leg` at its sensor (the sensor answers with its ledger).
@@ -190,7 +191,7 @@ impl<'a> Coordinator<'a> {
         while let Some(s) = self
             .ledger
             .receive()
-            .map_err(|e| CoordinatorError::Receive("ledger", format!("{e:?}")))?
+            .map_err(|e| PortError::receive("ledger", e))?
         {
             let l: Ledger = *s;
             if l.header.run == self.stamp.tag() {
@@ -263,7 +264,7 @@ impl<'a> Coordinator<'a> {
                     initial_mean: initial.0,
                     initial_cov: initial.1,
                 })
-                .map_err(|e| CoordinatorError::Send("control", format!("{e:?}")))?;
+                .map_err(|e| PortError::send("control", e))?;
             Self::notify(&self.agent_wake, "agent wake")?;
             let mut legs = Vec::new();
             loop {
@@ -317,7 +318,7 @@ impl<'a> Coordinator<'a> {
         while let Some(s) = self
             .waypoint
             .receive()
-            .map_err(|e| CoordinatorError::Receive("waypoint", format!("{e:?}")))?
+            .map_err(|e| PortError::receive("waypoint", e))?
         {
             let w: Waypoint = *s;
             if w.header.run == tag && w.header.episode == episode {
@@ -329,7 +330,7 @@ impl<'a> Coordinator<'a> {
         while let Some(s) = self
             .outcome
             .receive()
-            .map_err(|e| CoordinatorError::Receive("outcome", format!("{e:?}")))?
+            .map_err(|e| PortError::receive("outcome", e))?
         {
             let o: Outcome = *s;
             if o.header.run == tag && o.header.episode == episode {
@@ -366,7 +367,7 @@ impl<'a> Coordinator<'a> {
             });
         }
         let outcome = OutcomeCode::try_from(o.outcome)
-            .map_err(|c| CoordinatorError::Receive("outcome", format!("unknown outcome code {c}")))?
+            .map_err(|c| CoordinatorError::Protocol(format!("outcome: unknown outcome code {c}")))?
             .name();
         tracing::debug!(episode, outcome, steps = o.steps, "episode end");
         Ok(EpisodeRecord {

@@ -3,6 +3,7 @@
 
 use crate::output::write_new;
 use anyhow::{Context, Result};
+use etp_synthesis::certify::front::{FRONT_CONFIDENCE, certified_front};
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::{ParetoFront, compute_front};
 use std::path::{Path, PathBuf};
@@ -28,6 +29,10 @@ pub fn write_front(
     let start = Instant::now();
     let mut front = compute_front(mdp, CostModel::Counted).context("computing the Pareto front")?;
     let seconds = start.elapsed().as_secs_f64();
+    front.certified = Some(
+        certified_front(mdp, &front, CostModel::Counted, FRONT_CONFIDENCE)
+            .context("certifying the front")?,
+    );
     if let Some(m1) = method1 {
         let f1 = compute_front(m1, CostModel::Counted).context("computing the Method 1 front")?;
         front.kf_convergence = Some(Box::new(f1));

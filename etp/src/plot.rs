@@ -66,8 +66,27 @@ where
         .chain(front.baselines.iter().map(|b| &b.objectives))
         .map(|o| (o.energy, o.p_target, o.p_collision))
         .collect();
-    let e_max = all.iter().map(|p| p.0).fold(1.0, f64::max) * 1.05;
-    let t_min = all.iter().map(|p| p.1).fold(1.0, f64::min);
+    // The certified front (docs/MODEL.md §4.1): its non-dominated points.
+    let certified: Vec<(f64, f64)> = front
+        .certified
+        .iter()
+        .flat_map(|c| &c.points)
+        .filter(|p| !p.dominated)
+        .map(|p| (p.energy_high, p.p_target_low))
+        .collect();
+    let e_max = all
+        .iter()
+        .map(|p| p.0)
+        .chain(certified.iter().map(|p| p.0))
+        .fold(1.0, f64::max)
+        * 1.05;
+    // The certified points' P_tar is shown down to 0.2 below the nominal range.
+    let t_nominal = all.iter().map(|p| p.1).fold(1.0, f64::min);
+    let t_min = certified
+        .iter()
+        .map(|p| p.1)
+        .fold(t_nominal, f64::min)
+        .max(t_nominal - 0.2);
     let c_max = all.iter().map(|p| p.2).fold(1e-9, f64::max);
     let y_lo = (t_min - 0.02).max(0.0);
     let mut chart = ChartBuilder::on(root)
@@ -145,6 +164,38 @@ where
             )
         }))
         .map_err(e)?;
+    if let Some(c) = &front.certified {
+        let mut env: Vec<(f64, f64)> = certified.clone();
+        env.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut envelope: Vec<(f64, f64)> = Vec::new();
+        for p in env {
+            if envelope.last().is_none_or(|l| p.1 > l.1) {
+                envelope.push(p);
+            }
+        }
+        let purple = RGBColor(120, 0, 160);
+        chart
+            .draw_series(LineSeries::new(envelope, purple.stroke_width(1)))
+            .map_err(e)?;
+        chart
+            .draw_series(
+                certified
+                    .iter()
+                    .filter(|p| p.1 >= y_lo)
+                    .map(|&(x, y)| {
+                        EmptyElement::at((x, y))
+                            + Rectangle::new([(-2, -2), (2, 2)], purple.stroke_width(1))
+                    }),
+            )
+            .map_err(e)?
+            .label(format!(
+                "certified front, {:.0} % confidence (upper energy, lower P_tar; sampling error only)",
+                100.0 * c.confidence
+            ))
+            .legend(move |(x, y)| {
+                Rectangle::new([(x - 3, y - 3), (x + 3, y + 3)], purple.stroke_width(2))
+            });
+    }
     if let Some(m1) = &front.kf_convergence {
         chart
             .draw_series(m1.vertices.iter().map(|v| {

@@ -9,6 +9,9 @@
 //! what is left, calls `finish()` and prints one JSON object
 //! `{"path", "counts": {topic: n}, "messages", "bytes"}`. A closed stdout
 //! (its parent died) is not an error: the file is finished all the same.
+//! It never polls: it listens to every wake-up event of the run (each
+//! publication is followed by one) in an iceoryx2 `WaitSet`, with a 100 ms
+//! interval for the flush, and drains its subscribers when woken.
 //! zstd chunks of 128 KiB plus a flush every 100 ms: a crash loses at most the
 //! last ~100 ms (`etp replay` calls such a file unfinished, exit 3, and
 //! `--repair` finishes it). Logs go to stderr through `tracing` (`RUST_LOG`,
@@ -18,7 +21,8 @@ use anyhow::{Context, Result};
 use clap::Parser;
 use etp_runtime::recording::{self, Kind};
 use etp_runtime::wire::{self, Ports, RunId, ServiceId, Sub};
-use iceoryx2::prelude::ZeroCopySend;
+use iceoryx2::prelude::*;
+use iceoryx2::waitset::WaitSetRunResult;
 use mcap::records::{MessageHeader, Metadata};
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -43,8 +47,9 @@ struct Cli {
     meta: Option<PathBuf>,
 }
 
+/// Flush period, and the longest the recorder sleeps without a notification
+/// (a publication not followed by a wake-up would wait at most this long).
 const FLUSH_EVERY: Duration = Duration::from_millis(100);
-const IDLE_SLEEP: Duration = Duration::from_micros(500);
 const CHUNK: u64 = 128 * 1024;
 
 type Drain = Box<dyn FnMut(&mut Vec<Vec<u8>>) -> Result<()>>;
@@ -166,6 +171,21 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
             count: 0,
         });
     }
+    let listeners = ServiceId::all_events(sensors)
+        .into_iter()
+        .map(|s| ports.listener(s))
+        .collect::<Result<Vec<_>, _>>()?;
+    let waitset = WaitSetBuilder::new()
+        .create::<ipc::Service>()
+        .map_err(|e| anyhow::anyhow!("creating the wait set: {e:?}"))?;
+    let guards = listeners
+        .iter()
+        .map(|l| waitset.attach_notification(l))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| anyhow::anyhow!("attaching the wake-up listeners: {e:?}"))?;
+    let _tick = waitset
+        .attach_interval(FLUSH_EVERY)
+        .map_err(|e| anyhow::anyhow!("attaching the flush interval: {e:?}"))?;
     w.flush().context("flushing the MCAP header")?;
     {
         let mut out = std::io::stdout().lock();
@@ -209,16 +229,34 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
             w.flush().context("flushing the recording")?;
             last_flush = Instant::now();
         }
-        if stopping && got == 0 {
-            break;
-        }
-        if got == 0 {
-            if wire::termination_requested(&node) || std::os::unix::process::parent_id() != parent {
-                // One more pass drains what arrived meanwhile.
-                stopping = true;
-                continue;
+        if stopping {
+            if got == 0 {
+                break;
             }
-            std::thread::sleep(IDLE_SLEEP);
+            // One more pass drains what arrived meanwhile.
+            continue;
+        }
+        let woke = waitset.wait_and_process_once(|id| {
+            for (g, l) in guards.iter().zip(&listeners) {
+                if id.has_event_from(g) {
+                    // Consume the notifications, or the wait set fires again.
+                    let _ = l.try_wait(|_| {});
+                }
+            }
+            CallbackProgression::Continue
+        });
+        match woke {
+            Ok(WaitSetRunResult::TerminationRequest) => {
+                wire::note_termination();
+                stopping = true;
+            }
+            // SIGINT, or SIGCONT after a pause: only a termination request stops.
+            Ok(WaitSetRunResult::Interrupt) => stopping = wire::termination_requested(&node),
+            Ok(_) => {}
+            Err(e) => anyhow::bail!("waiting for messages: {e:?}"),
+        }
+        if std::os::unix::process::parent_id() != parent {
+            stopping = true;
         }
     }
     if cli.meta.is_none() {

@@ -47,8 +47,8 @@ pub enum SensorError {
     Scenario(String),
     #[error("unknown sensor `{0}` in scenario `{1}`")]
     UnknownSensor(String, String),
-    #[error("sending on `{0}` failed: {1}")]
-    Send(&'static str, String),
+    #[error(transparent)]
+    Port(#[from] etp_runtime::wire::PortError),
     #[error("protocol error: {0}")]
     Protocol(String),
 }

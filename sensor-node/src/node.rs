@@ -3,6 +3,7 @@
 
 use crate::core::{ControlAction, SensorCore, SensorStats, SlotError};
 use crate::{Exit, IDLE_CHECK, LIST_EVERY, SensorError};
+use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_sensor::{Prior, Truth};
 use etp_runtime::wire::coordinator_to_all::Threshold;
 use etp_runtime::wire::sensor_to_agent::{Measurement, Slot};
@@ -34,13 +35,13 @@ fn send<T: std::fmt::Debug + ZeroCopySend + Copy>(
 ) -> Result<(), SensorError> {
     p.send_copy(v)
         .map(|_| ())
-        .map_err(|e| SensorError::Send(what, format!("{e:?}")))
+        .map_err(|e| PortError::send(what, e).into())
 }
 
 fn notify(n: &Notifier, what: &'static str) -> Result<(), SensorError> {
     n.notify()
         .map(|_| ())
-        .map_err(|e| SensorError::Send(what, format!("{e:?}")))
+        .map_err(|e| PortError::notify(what, e).into())
 }
 
 fn receive<T: std::fmt::Debug + ZeroCopySend + Copy>(
@@ -49,7 +50,7 @@ fn receive<T: std::fmt::Debug + ZeroCopySend + Copy>(
 ) -> Result<Option<T>, SensorError> {
     s.receive()
         .map(|o| o.map(|x| *x))
-        .map_err(|e| SensorError::Protocol(format!("{what}: {e:?}")))
+        .map_err(|e| PortError::receive(what, e).into())
 }
 
 pub(crate) fn serve<const N: usize, const M: usize>(
@@ -76,7 +77,7 @@ pub(crate) fn serve<const N: usize, const M: usize>(
         agent_wake: ports.notifier(ServiceId::AgentWake)?,
         coordinator_wake: ports.notifier(ServiceId::CoordinatorWake)?,
     };
-    let waiter = Waiter::new(ports.listener(ServiceId::SensorWake(index))?);
+    let waiter = Waiter::new(ports.listener(ServiceId::SensorWake(index))?)?;
     let mut stamp = Stamper::new(run, index as u32);
     let _hello = wire::say_hello(
         &ports,

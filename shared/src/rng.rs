@@ -35,4 +35,8 @@ pub mod streams {
     pub const SENSOR: u64 = 5;
     /// Coordinator threshold draws.
     pub const COORDINATOR: u64 = 6;
+    /// Held-out abstraction samples (cross-fitting, docs/MODEL.md §4.1): the
+    /// same segment indices as [`SYNTHESIS`] under another stream, so the two
+    /// sample sets share no random numbers.
+    pub const HOLDOUT: u64 = 7;
 }

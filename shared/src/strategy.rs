@@ -42,6 +42,19 @@ pub struct Prediction {
     pub energy_mean: f64,
 }
 
+/// Certified bounds of a strategy (docs/MODEL.md §4.1): with probability at
+/// least `confidence` over the abstraction's sampling, the abstraction's true
+/// P_tar ≥ `p_target_low`, P_coll ≤ `p_collision_high`, energy ≤ `energy_high`.
+/// They cover sampling error in the abstraction, not the aggregation of
+/// beliefs into regions (which `etp validate` measures).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CertifiedPrediction {
+    pub confidence: f64,
+    pub p_target_low: f64,
+    pub p_collision_high: f64,
+    pub energy_high: f64,
+}
+
 /// ω for one abstract state.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StrategyState {
@@ -65,7 +78,16 @@ pub struct Strategy {
     /// the decision point only, e.g. a constant δ).
     pub discretization: Option<Discretization>,
     pub states: Vec<StrategyState>,
+    /// Selection-time prediction: the strategy's exact value on the MDP whose
+    /// samples chose it (optimistic by the optimizer's bias).
     pub predicted: Prediction,
+    /// Cross-fitted prediction: the same strategy evaluated on held-out
+    /// transitions sampled independently of those that chose it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crossfit: Option<Prediction>,
+    /// Certified bounds at a confidence level.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub certified: Option<CertifiedPrediction>,
     /// The scenario's TOML text, so a strategy file is self-contained
     /// (`etp validate` / `etp run` need nothing else). Optional: without it the
     /// scenario is looked up among the built-ins by name and hash.
@@ -93,6 +115,8 @@ impl Strategy {
                 })
                 .collect(),
             predicted,
+            crossfit: None,
+            certified: None,
             scenario_toml: None,
         }
     }

@@ -18,6 +18,7 @@
 //! front end can draw a bar.
 
 pub mod abstraction;
+pub mod certify;
 pub mod mdp;
 pub mod pareto;
 pub mod prism;

@@ -16,8 +16,10 @@ use etp_shared::discretization::{Discretization, Region};
 use serde::{Deserialize, Serialize};
 
 /// Version of the `mdp.bin` layout (2: a SHA-256 of the content at the end;
-/// 3: decision-point bins carry the optional workspace-marginal descriptor).
-pub const MDP_FORMAT_VERSION: u32 = 3;
+/// 3: decision-point bins carry the optional workspace-marginal descriptor;
+/// 4: per choice the energy's second moment and range (certified bounds) and
+/// the held-out sample set (cross-fitting), docs/MODEL.md §4.1).
+pub const MDP_FORMAT_VERSION: u32 = 4;
 const MAGIC: &[u8; 8] = b"ETPMDP\0\n";
 /// Magic and version.
 const HEADER_LEN: usize = 12;
@@ -94,8 +96,46 @@ pub struct Choice {
     pub cost_model: f64,
     /// Mean steps of a segment (k̄).
     pub mean_steps: f64,
-    /// Sorted by `next`; probabilities sum to 1.
+    /// Sorted by `next`; probabilities sum to 1 (over the matched segments).
     pub transitions: Vec<Transition>,
+    /// Segments (of `samples`) that arrived in a region without a state: only
+    /// extra segments of sample allocation (`certify::refine`), which must not
+    /// change the state space. The probabilities are over the others; the
+    /// certified bounds count these as the worst outcome.
+    pub unmatched: u32,
+    /// Mean of the squared counted energy of a segment (its second moment).
+    pub cost_sq_counted: f64,
+    /// Mean of the squared paper-model energy of a segment.
+    pub cost_sq_model: f64,
+    /// A-priori bound on one segment's energy (`k_max · c_m`): every segment's
+    /// cost lies in `[0, cost_range]` (the certified energy bound needs it).
+    pub cost_range: f64,
+    /// The held-out estimate of this choice from segments independent of
+    /// those above (cross-fitting, docs/MODEL.md §4.1); `None` when the MDP was
+    /// built without a held-out set.
+    pub holdout: Option<Holdout>,
+}
+
+/// A choice re-estimated on held-out segments (stream `HOLDOUT`), over the
+/// same states: used only to evaluate a strategy chosen on the main sample.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Holdout {
+    pub samples: u32,
+    pub cost_counted: f64,
+    pub cost_model: f64,
+    /// Segment counts per outcome, sorted by `next`.
+    pub counts: Vec<(Next, u32)>,
+    /// Segments that arrived in a region no state of the main sample occupies.
+    pub unmatched: u32,
+}
+
+impl Holdout {
+    pub fn cost(&self, model: CostModel) -> f64 {
+        match model {
+            CostModel::Counted => self.cost_counted,
+            CostModel::Paper => self.cost_model,
+        }
+    }
 }
 
 impl Choice {
@@ -103,6 +143,14 @@ impl Choice {
         match model {
             CostModel::Counted => self.cost_counted,
             CostModel::Paper => self.cost_model,
+        }
+    }
+
+    /// Mean of the squared segment energy under `model`.
+    pub fn cost_sq(&self, model: CostModel) -> f64 {
+        match model {
+            CostModel::Counted => self.cost_sq_counted,
+            CostModel::Paper => self.cost_sq_model,
         }
     }
 }
@@ -123,6 +171,17 @@ pub struct KfConvergenceParams {
     pub eps_p: f64,
 }
 
+/// Settings of the abstraction not otherwise stored in the MDP.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct BuildSettings {
+    pub magnitude_bins: u16,
+    pub angle_bins: u16,
+    pub pool_per_region: u32,
+    /// 0 auto, 1 per-axis, 2 workspace marginal.
+    pub descriptor: u8,
+    pub rest_bins: u16,
+}
+
 /// The abstraction.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Mdp {
@@ -139,6 +198,15 @@ pub struct Mdp {
     pub initial: u32,
     /// Monte Carlo settings and totals.
     pub samples_per_choice: u32,
+    /// Held-out segments per (state, action) (0: none; docs/MODEL.md §4.1).
+    pub holdout_samples: u32,
+    /// How many sample sizes per choice the union bound of the certified
+    /// bounds must cover: 1, or 1 + the rounds of sample allocation (each
+    /// round may double a choice's samples; docs/MODEL.md §4.1).
+    pub looks: u32,
+    /// The remaining settings of the build, so it can be repeated (sample
+    /// allocation re-runs it with extra segments).
+    pub build: BuildSettings,
     pub seed: u64,
     pub total_segments: u64,
     pub total_steps: u64,
@@ -268,6 +336,9 @@ impl Mdp {
                 return bad(format!("state {i} has no action"));
             }
             for c in &s.choices {
+                if c.unmatched > c.samples {
+                    return bad(format!("state {i}: more unmatched segments than samples"));
+                }
                 if c.action as usize >= self.deltas.len() {
                     return bad(format!("state {i}: action {} out of range", c.action));
                 }
@@ -290,7 +361,9 @@ impl Mdp {
                     }
                     sum += t.probability;
                 }
-                if (sum - 1.0).abs() > 1e-9 {
+                // No transition at all only when every segment was unmatched.
+                let all_unmatched = c.unmatched > 0 && c.unmatched == c.samples;
+                if !(c.transitions.is_empty() && all_unmatched) && (sum - 1.0).abs() > 1e-9 {
                     return bad(format!(
                         "state {i}, action {}: probabilities sum to {sum}",
                         c.action
@@ -322,6 +395,11 @@ pub(crate) mod tests {
             cost_model: cost,
             mean_steps: 10.0,
             transitions,
+            cost_sq_counted: cost * cost,
+            cost_sq_model: cost * cost,
+            cost_range: 20.0,
+            holdout: None,
+            unmatched: 0,
         };
         Mdp {
             scenario_name: "toy".into(),
@@ -366,6 +444,9 @@ pub(crate) mod tests {
             ],
             initial: 0,
             samples_per_choice: 100,
+            holdout_samples: 0,
+            looks: 1,
+            build: BuildSettings::default(),
             seed: 0,
             total_segments: 600,
             total_steps: 6000,

@@ -143,6 +143,11 @@ pub fn layered_mdp(p: &SyntheticParams) -> Mdp {
                                 ci_high: probability,
                             })
                             .collect(),
+                        cost_sq_counted: cost * cost,
+                        cost_sq_model: cost * cost,
+                        cost_range: 4.0 * cost.max(1.0),
+                        holdout: None,
+                        unmatched: 0,
                     }
                 })
                 .collect();
@@ -163,6 +168,9 @@ pub fn layered_mdp(p: &SyntheticParams) -> Mdp {
         states,
         initial: 0,
         samples_per_choice: 1000,
+        holdout_samples: 0,
+        looks: 1,
+        build: crate::mdp::BuildSettings::default(),
         seed: p.seed,
         total_segments: 0,
         total_steps: 0,

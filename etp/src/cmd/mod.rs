@@ -4,6 +4,7 @@ pub mod bench;
 pub mod check;
 pub mod demo;
 pub mod export_prism;
+pub mod honest;
 pub mod process;
 pub mod replay;
 pub mod run;

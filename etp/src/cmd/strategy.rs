@@ -3,6 +3,11 @@
 //! the whole-MDP occupation-measure LP realised as a memoryless randomised
 //! strategy (docs/MODEL.md §5) — written as `strategy.json`. The mixture of
 //! front vertices closest to it is printed beside it as an explanation.
+//!
+//! Every strategy is reported with its selection-time value, its cross-fitted
+//! value (held-out transitions) and their gap, and its certified bounds
+//! (docs/MODEL.md §4.1). `--confidence` with `--min-target` selects on the
+//! certified bounds instead; `--refine-gap` allocates samples first.
 
 use crate::output::{read_front, read_mdp, write_new};
 use anyhow::{Context, Result, bail};
@@ -13,6 +18,8 @@ use etp_synthesis::pareto::select::{Request, select};
 use etp_synthesis::pareto::to_strategy;
 use serde_json::json;
 use std::path::PathBuf;
+
+mod certified;
 
 #[derive(Debug, clap::Args)]
 #[command(group(ArgGroup::new("request").required(true).args(["min_target", "max_energy", "vertex"])))]
@@ -40,6 +47,20 @@ pub struct Args {
     /// Print the selection as JSON.
     #[arg(long)]
     pub json: bool,
+    /// With --min-target: choose the least-energy strategy found whose
+    /// *certified* bounds (at this confidence, e.g. 0.95) meet the request.
+    /// Otherwise only the level of the reported certified bounds (default 0.95).
+    #[arg(long, value_name = "LEVEL")]
+    pub confidence: Option<f64>,
+    /// With --confidence and --min-target: add samples on the strategy's
+    /// support (doubling them, at most --refine-rounds times) until the
+    /// certified P_tar gap (selection-time − certified lower bound) is ≤ G;
+    /// writes DIR/mdp-refined.bin.
+    #[arg(long, value_name = "G", requires_all = ["confidence", "min_target"])]
+    pub refine_gap: Option<f64>,
+    /// Rounds of sample allocation at most (each re-runs the abstraction).
+    #[arg(long, default_value_t = 3, requires = "refine_gap")]
+    pub refine_rounds: u32,
 }
 
 fn probability(name: &str, v: f64) -> Result<f64> {
@@ -89,6 +110,19 @@ pub fn run(a: Args) -> Result<()> {
         Request::MaxEnergy { max_energy } => Some(LpRequest::MaxTarget { max_energy }),
         Request::Vertex(_) => None,
     };
+    let level = match a.confidence {
+        Some(c) if !(c > 0.0 && c < 1.0) => {
+            bail!("--confidence must lie strictly between 0 and 1, got {c}")
+        }
+        Some(c) => c,
+        None => certified::DEFAULT_LEVEL,
+    };
+    if a.confidence.is_some() && a.refine_gap.is_none() && a.min_target.is_some() {
+        return certified::run(&a, &mdp, scenario_text, &front, &output, level, None);
+    }
+    if let Some(g) = a.refine_gap {
+        return certified::run(&a, &mdp, scenario_text, &front, &output, level, Some(g));
+    }
     // The exact optimum (a vertex is its own deterministic policy).
     let (omega, predicted, exact) = match lp_request {
         Some(r) => {
@@ -119,6 +153,8 @@ pub fn run(a: Args) -> Result<()> {
     };
     let mut strategy = to_strategy(&mdp, &omega, label.clone(), predicted);
     strategy.scenario_toml = scenario_text;
+    let honest = certified::assess(&mdp, &omega, cost, level)?;
+    super::honest::attach(&mut strategy, honest.crossfit.as_ref(), &honest.certified);
     write_new(&output, strategy.to_json().as_bytes(), a.force)?;
     let p = &predicted;
     let gap = mixture.as_ref().map(|m| match request {
@@ -139,6 +175,8 @@ pub fn run(a: Args) -> Result<()> {
                 "gap": gap})),
             "occupation_lp_energy": exact.as_ref().filter(|_| matches!(request, Request::MinTarget { .. })).map(|o| o.lp_objective),
             "front_epsilon": front.epsilon,
+            "predictions": super::honest::json_of(&strategy),
+            "crossfit_unmatched_mass": honest.crossfit.as_ref().map(|c| c.unmatched_mass),
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
@@ -147,6 +185,7 @@ pub fn run(a: Args) -> Result<()> {
             "  predicted  P_tar {:.6}  P_coll {:.6}  energy {:.6}",
             p.p_target, p.p_collision, p.energy
         );
+        print!("{}", super::honest::text_of(&strategy));
         if let Some(o) = &exact {
             println!(
                 "  exact: occupation-measure LP over the whole MDP, realised as ω ({} randomising states; unvisited states: {UNVISITED}){}",

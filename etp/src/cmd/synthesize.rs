@@ -73,6 +73,11 @@ pub struct Args {
     /// Simulated segments per (state, action).
     #[arg(long, default_value_t = DEFAULT_SAMPLES)]
     pub samples: u32,
+    /// Held-out segments per (state, action) for cross-fitted predictions
+    /// (stream `HOLDOUT`, independent of the main samples; default: as many as
+    /// --samples; 0 skips them and halves the simulation time).
+    #[arg(long)]
+    pub holdout_samples: Option<u32>,
     /// Seed of the random streams (same seed, same mdp.bin bytes, any thread count).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -121,6 +126,7 @@ pub struct MdpReport {
     pub method: String,
     pub path: PathBuf,
     pub samples: u32,
+    pub holdout_samples: u32,
     pub seed: u64,
     pub states: usize,
     pub states_per_decision_point: Vec<usize>,
@@ -163,6 +169,7 @@ pub fn params(a: &Args, s: &Scenario) -> Result<AbstractionParams> {
     Ok(AbstractionParams {
         method: a.method.into(),
         samples: a.samples,
+        holdout_samples: a.holdout_samples.unwrap_or(a.samples),
         seed: a.seed,
         bins: BinCounts {
             magnitude: a.magnitude_bins,
@@ -200,6 +207,7 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
         method: format!("{:?}", mdp.method),
         path: path.clone(),
         samples: mdp.samples_per_choice,
+        holdout_samples: mdp.holdout_samples,
         seed: mdp.seed,
         states: mdp.states.len(),
         states_per_decision_point: mdp.states_per_decision_point(),
@@ -222,7 +230,7 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
 /// A readable summary of the MDP step.
 pub fn report_text(r: &MdpReport) -> String {
     format!(
-        "{} · {} · {} samples per state-action · seed {}\n\
+        "{} · {} · {} samples per state-action (+{} held out) · seed {}\n\
          \x20 wrote {}\n\
          \x20 states {} (+3 terminal) per decision point {:?}\n\
          \x20 choices {} · transitions {}\n\
@@ -230,6 +238,7 @@ pub fn report_text(r: &MdpReport) -> String {
         r.scenario,
         r.method,
         r.samples,
+        r.holdout_samples,
         r.seed,
         r.path.display(),
         r.states,
@@ -261,6 +270,8 @@ pub fn run(a: Args) -> Result<()> {
         let mut p = params(&a, &built.scenario)?;
         p.method = Method::KfConvergence;
         p.kf = Some(d);
+        // The baseline is only drawn; it needs no cross-fitting.
+        p.holdout_samples = 0;
         let m1 = abstraction::build(&built.scenario, &p, &|_| {})
             .context("building the Method 1 baseline")?;
         write_new(&dir.join("mdp-kf-convergence.bin"), &m1.encode(), true)?;

@@ -79,6 +79,9 @@ pub fn run(a: Args) -> Result<()> {
     } else {
         println!("{} — {}", scenario.name, strategy.label);
         print!("{}", comparison_table(&strategy, &sum));
+        println!("\npredictions of the strategy file:");
+        print!("{}", super::honest::text_of(&strategy));
+        print!("{}", honest_check_text(&strategy, &sum));
         println!(
             "\nsimulation details ({} episodes, seed {}):",
             sum.episodes, a.seed
@@ -91,11 +94,63 @@ pub fn run(a: Args) -> Result<()> {
     Ok(())
 }
 
+/// Each prediction against the simulation's 95 % interval: (name, inside).
+fn honest_checks(strategy: &Strategy, sum: &SimulationSummary) -> Vec<(&'static str, bool)> {
+    let within = |x: f64, e: &etp_shared::stats::Estimate| (x - e.value).abs() <= e.ci95;
+    let mut v = vec![
+        (
+            "selection-time P_tar",
+            within(strategy.predicted.p_target, &sum.p_target),
+        ),
+        (
+            "selection-time P_coll",
+            within(strategy.predicted.p_collision, &sum.p_collision),
+        ),
+    ];
+    if let Some(c) = &strategy.crossfit {
+        v.push(("cross-fitted P_tar", within(c.p_target, &sum.p_target)));
+        v.push((
+            "cross-fitted P_coll",
+            within(c.p_collision, &sum.p_collision),
+        ));
+    }
+    if let Some(c) = &strategy.certified {
+        // Simulated ≥ lower bound (resp. ≤ upper) within the simulation's interval.
+        v.push((
+            "certified P_tar ≤ simulated (+95 %)",
+            c.p_target_low <= sum.p_target.value + sum.p_target.ci95,
+        ));
+        v.push((
+            "certified P_coll ≥ simulated (−95 %)",
+            c.p_collision_high >= sum.p_collision.value - sum.p_collision.ci95,
+        ));
+        v.push((
+            "certified energy ≥ simulated (−95 %)",
+            c.energy_high >= sum.energy_mean.value - sum.energy_mean.ci95,
+        ));
+    }
+    v
+}
+
+fn honest_check_text(strategy: &Strategy, sum: &SimulationSummary) -> String {
+    let mut o = String::from("  against the simulation's 95 % interval:\n");
+    for (name, ok) in honest_checks(strategy, sum) {
+        o.push_str(&format!(
+            "    {name:<38} {}\n",
+            if ok { "holds" } else { "FAILS" }
+        ));
+    }
+    o
+}
+
 /// `predicted` and `simulated` objects.
 pub fn comparison_json(strategy: &Strategy, sum: &SimulationSummary) -> serde_json::Value {
     let p = &strategy.predicted;
     json!({
         "label": strategy.label,
+        "predictions": super::honest::json_of(strategy),
+        "checks": honest_checks(strategy, sum).into_iter()
+            .map(|(k, ok)| json!({"check": k, "holds": ok})).collect::<Vec<_>>(),
         "predicted": {"p_target": p.p_target, "p_collision": p.p_collision, "p_free": p.p_free, "energy_mean": p.energy_mean},
         "simulated": {
             "episodes": sum.episodes,

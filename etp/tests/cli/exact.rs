@@ -188,12 +188,6 @@ fn front_and_strategy_are_byte_identical_on_one_and_two_threads() {
                 "200",
                 "--seed",
                 "2",
-                // Method 2's front only: the Method 1 baseline front is not
-                // reproducible yet (its degenerate hull falls back to
-                // coplanar far copies whose triangulation order varies, so
-                // its optimisation count differs in ~1 run in 4) — a known
-                // open defect, not hidden by a tolerance.
-                "--no-kf-baseline",
                 "-o",
                 s(&dir),
             ],

@@ -1,6 +1,7 @@
 //! End-to-end tests of the `etp` binary (one integration-test binary per crate;
 //! one module per area).
 
+mod certified;
 mod exact;
 mod integrity;
 mod pipeline;

@@ -22,14 +22,16 @@
 pub mod catalogue;
 pub mod cleanup;
 pub mod messages;
+pub mod port;
 pub mod report;
 pub mod services;
 pub mod waiter;
 
 pub use catalogue::{Kind, KindVisitor, Message, Recorded};
 pub use messages::*;
+pub use port::PortError;
 pub use services::*;
-pub use waiter::{Stamper, Waiter, Wake, Watchdog, termination_requested};
+pub use waiter::{Stamper, Waiter, Wake, Watchdog, note_termination, termination_requested};
 
 use etp_shared::etkf::{Belief, Matrix, Vector};
 

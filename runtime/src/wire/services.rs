@@ -90,7 +90,7 @@ pub fn config(run: &RunId) -> Result<Config, WireError> {
 
 /// Every service of a run (DESIGN.md "Runtime"). Per-sensor services keep
 /// idle sensors asleep: the agent wakes only the serving sensor.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum ServiceId {
     /// coordinator → agent: start episode / stop.
     Control,
@@ -149,6 +149,27 @@ impl ServiceId {
         }
     }
 
+    /// The wake-up event its reader is notified on after a publication
+    /// (itself for an event). `replay --publish` notifies the same events as
+    /// the live processes did, so observers (the recorder) wake alike.
+    pub fn reader_wake(self) -> Self {
+        match self {
+            Self::Control | Self::Measurement | Self::Slot => Self::AgentWake,
+            Self::Threshold(i) | Self::Truth(i) | Self::Prior(i) => Self::SensorWake(i),
+            Self::Waypoint | Self::Outcome | Self::Ledger | Self::Hello => Self::CoordinatorWake,
+            e @ (Self::AgentWake | Self::CoordinatorWake | Self::SensorWake(_)) => e,
+        }
+    }
+
+    /// Every wake-up event of a run: every publication is followed by a
+    /// notification on one of them, so an observer (the recorder) listening
+    /// to all of them wakes whenever there is something to read.
+    pub fn all_events(sensors: usize) -> Vec<Self> {
+        let mut v = vec![Self::AgentWake, Self::CoordinatorWake];
+        v.extend((0..sensors).map(Self::SensorWake));
+        v
+    }
+
     /// Every publish-subscribe service of a run with `sensors` sensors (what a
     /// recorder subscribes to).
     pub fn all_pubsub(sensors: usize) -> Vec<Self> {
@@ -189,7 +210,7 @@ pub struct Limits {
     pub safe_overflow: bool,
 }
 
-/// Buffer of the recorder's subscribers (it drains every ~0.5 ms).
+/// Buffer of the recorder's subscribers (it drains whenever a wake-up event fires).
 const OBSERVER_BUFFER: usize = 512;
 
 /// Extra ports and nodes every service allows beyond the run's own processes:
@@ -328,11 +349,15 @@ pub fn sensor_node_name(i: usize) -> String {
 pub fn create_node(run: &RunId, name: &str) -> Result<Node<ipc::Service>, WireError> {
     let cfg = config(run)?;
     let nname = NodeName::new(name).map_err(|e| WireError::Node(format!("name {name}: {e:?}")))?;
-    NodeBuilder::new()
+    let node = NodeBuilder::new()
         .name(&nname)
         .config(&cfg)
         .create::<ipc::Service>()
-        .map_err(|e| WireError::Node(format!("{e:?}")))
+        .map_err(|e| WireError::Node(format!("{e:?}")))?;
+    // Installs iceoryx2's SIGINT/SIGTERM handler now (it is lazy): until a
+    // process's first wait, a SIGTERM would otherwise kill it outright.
+    super::termination_requested(&node);
+    Ok(node)
 }
 
 /// What the node list says about a named node.

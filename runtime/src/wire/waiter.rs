@@ -3,7 +3,8 @@
 //!
 //! Every process of a run owns exactly one wake-up event (`agent/wake`,
 //! `coordinator/wake`, `sensor/<i>/wake`); peers publish, then notify it. A
-//! process therefore waits in one place, [`Waiter::wait`], and gets one of
+//! process therefore waits in one place, [`Waiter::wait`] (its listener
+//! attached to an iceoryx2 `WaitSet`), and gets one of
 //! the closed set of [`Wake`] events:
 //!
 //! * a SIGSTOP/SIGCONT (or a debugger, or Ctrl-Z + `fg`) interrupts the
@@ -18,6 +19,8 @@
 use super::WireError;
 use super::services::{DEAD_NOTIFIER_EVENT, Listener};
 use iceoryx2::prelude::*;
+use iceoryx2::waitset::WaitSetRunResult;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// What ended one wait.
@@ -33,15 +36,31 @@ pub enum Wake {
     Terminate,
 }
 
-/// A process's wake-up listener (the node is passed to each wait for its
-/// termination flag).
+/// The one wait of a process: its wake-up listener attached to an iceoryx2
+/// [`WaitSet`] for the process's whole life.
+///
+/// Why the attachment guard is forgotten: it borrows both the wait set and
+/// the listener, which live side by side here (a process stores its `Waiter`
+/// beside its ports), and re-attaching for every wait costs two `epoll_ctl`
+/// calls per wake-up — measured 40 % fewer steps/s over IPC. Forgetting the
+/// guard leaves the listener's descriptor registered until the wait set (its
+/// epoll instance) is dropped with the `Waiter`; the wait set has this one
+/// attachment, so every notification it reports is the listener's.
 pub struct Waiter {
+    waitset: WaitSet<ipc::Service>,
     listener: Listener,
 }
 
 impl Waiter {
-    pub fn new(listener: Listener) -> Self {
-        Self { listener }
+    pub fn new(listener: Listener) -> Result<Self, WireError> {
+        let waitset = WaitSetBuilder::new()
+            .create::<ipc::Service>()
+            .map_err(|e| WireError::Wait(format!("creating the wait set: {e:?}")))?;
+        let guard = waitset
+            .attach_notification(&listener)
+            .map_err(|e| WireError::Wait(format!("attaching the wake-up listener: {e:?}")))?;
+        std::mem::forget(guard);
+        Ok(Self { waitset, listener })
     }
 
     /// Block until notified, `timeout` passes, or a termination signal.
@@ -54,42 +73,71 @@ impl Waiter {
         let until = Instant::now() + timeout;
         loop {
             let left = until.saturating_duration_since(Instant::now());
+            let mut notified = false;
             let mut dead_peer = false;
-            match self
-                .listener
-                .timed_wait(|ev| dead_peer |= ev.id == dead, left)
-            {
-                Ok(0) if termination_requested(node) => return Ok(Wake::Terminate),
-                Ok(0) if Instant::now() >= until => return Ok(Wake::Silence),
-                // A spurious early return: wait for the rest.
-                Ok(0) => {}
-                Ok(_) => return Ok(Wake::Notified { dead_peer }),
-                // SIGINT/SIGTERM interrupt the wait too: only they end it.
-                Err(e) if is_interrupt(&e) && termination_requested(node) => {
+            let mut drain_error = None;
+            let run = self.waitset.wait_and_process_once_with_timeout(
+                |_listener_fired| {
+                    // Consume every pending notification: an unconsumed one
+                    // would wake the wait set again at once.
+                    if let Err(e) = self.listener.try_wait(|ev| {
+                        notified = true;
+                        dead_peer |= ev.id == dead;
+                    }) {
+                        drain_error = Some(format!("{e:?}"));
+                    }
+                    CallbackProgression::Continue
+                },
+                left,
+            );
+            if let Some(e) = drain_error {
+                return Err(WireError::Wait(e));
+            }
+            match run {
+                Ok(_) if notified => return Ok(Wake::Notified { dead_peer }),
+                Ok(WaitSetRunResult::TerminationRequest) => {
+                    note_termination();
                     return Ok(Wake::Terminate);
                 }
-                Err(e) if is_interrupt(&e) => {}
+                // SIGINT/SIGTERM and SIGCONT all interrupt the wait; only the
+                // first two end it.
+                Ok(_) if termination_requested(node) => return Ok(Wake::Terminate),
+                Ok(WaitSetRunResult::Interrupt) => {}
+                Ok(_) if Instant::now() >= until => return Ok(Wake::Silence),
+                // A spurious early return: wait for the rest.
+                Ok(_) => {}
                 Err(e) => return Err(WireError::Wait(format!("{e:?}"))),
             }
         }
     }
 }
 
-fn is_interrupt(e: &iceoryx2::port::listener::ListenerWaitError) -> bool {
-    matches!(
-        e,
-        iceoryx2::port::listener::ListenerWaitError::InterruptSignal
-    )
-}
+/// A termination request, once seen, stays seen: iceoryx2's signal handler
+/// hands the last signal out only once (a read swaps it out).
+static TERMINATING: AtomicBool = AtomicBool::new(false);
 
 /// Was SIGINT/SIGTERM received? (iceoryx2's default signal handling records
 /// termination requests; `Node::wait` reports them. An interrupted sleep —
-/// SIGCONT — is not a termination request.)
+/// SIGCONT — is not a termination request.) The first call installs the
+/// handler: [`super::create_node`] makes it, so a SIGTERM arriving before a
+/// process first waits is recorded instead of killing it.
 pub fn termination_requested(node: &Node<ipc::Service>) -> bool {
-    matches!(
+    if TERMINATING.load(Ordering::Relaxed) {
+        return true;
+    }
+    let requested = matches!(
         node.wait(Duration::ZERO),
         Err(iceoryx2::node::NodeWaitFailure::TerminationRequest)
-    )
+    );
+    if requested {
+        note_termination();
+    }
+    requested
+}
+
+/// Remember a termination request reported by a wait set.
+pub fn note_termination() {
+    TERMINATING.store(true, Ordering::Relaxed);
 }
 
 /// The one liveness watchdog of a process: is its supervisor (parent

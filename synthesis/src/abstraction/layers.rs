@@ -44,6 +44,37 @@ struct Task {
     action: usize,
     lo: u32,
     hi: u32,
+    /// A held-out segment (stream `HOLDOUT`, cross-fitting) instead of a main one.
+    holdout: bool,
+}
+
+/// Extra segments of sample allocation: segment indices from `samples` on
+/// (same stream as the main ones, fresh indices), counted into the choice but
+/// kept out of the pools and the region set, so the state space is unchanged.
+#[derive(Debug, Clone, Copy)]
+struct ExtraTask {
+    state: usize,
+    action: usize,
+    lo: u32,
+    hi: u32,
+}
+
+/// The tasks of every (state, action) of a layer: `samples` segments each,
+/// in chunks, in (state, action, chunk) order.
+fn tasks_of(states: usize, actions: usize, samples: u32, holdout: bool) -> Vec<Task> {
+    (0..states)
+        .flat_map(|state| {
+            (0..actions).flat_map(move |action| {
+                (0..samples.div_ceil(CHUNK)).map(move |c| Task {
+                    state,
+                    action,
+                    lo: c * CHUNK,
+                    hi: ((c + 1) * CHUNK).min(samples),
+                    holdout,
+                })
+            })
+        })
+        .collect()
 }
 
 /// A state of the current layer: its region and its pool particles.
@@ -70,9 +101,14 @@ fn run_task<const N: usize>(
     if !last {
         c.arrivals.reserve((t.hi - t.lo) as usize);
     }
+    let stream = if t.holdout {
+        streams::HOLDOUT
+    } else {
+        streams::SYNTHESIS
+    };
     for m in t.lo..t.hi {
         let id = segment_id(dp, t.state, t.action, m);
-        let mut rng = stream_rng(seed, streams::SYNTHESIS, id);
+        let mut rng = stream_rng(seed, stream, id);
         let start = if particles.len() == 1 {
             particles[0]
         } else {
@@ -85,7 +121,9 @@ fn run_task<const N: usize>(
         let r = cs.run_leg(dp, &mut st, mode, &mut rng, &mut ());
         c.steps += u64::from(r.steps);
         c.transmissions += u64::from(r.transmissions);
+        c.transmissions_sq += u64::from(r.transmissions) * u64::from(r.transmissions);
         c.expected_transmissions += r.expected_transmissions;
+        c.expected_sq += r.expected_transmissions * r.expected_transmissions;
         match r.end {
             LegEnd::Collision { .. } => c.collisions += 1,
             LegEnd::Terminated if last => {
@@ -153,10 +191,12 @@ pub(super) fn build<const N: usize>(
     cs: &CompiledScenario<N>,
     params: &AbstractionParams,
     kf: Option<KfConvergenceParams>,
+    extra: &[Vec<u32>],
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Mdp, AbstractionError> {
     let deltas = &scenario.deltas;
     let samples = params.samples;
+    let holdout = params.holdout_samples;
     let cap = params.pool_per_region as usize;
     // P_KF per sensor, once (the Riccati iteration is not free).
     // Only the sensors serving a leg are needed; computed in parallel.
@@ -221,12 +261,14 @@ pub(super) fn build<const N: usize>(
         }
         if layer.is_empty() {
             // Every segment collided before this decision point.
-            progress(deltas.len() as u64 * u64::from(samples));
+            progress(deltas.len() as u64 * u64::from(samples + holdout));
             classifier = classifier_for(&mut std::iter::empty());
             continue;
         }
         let last = dp + 1 == legs;
         let cost = cs.filters[cs.legs[dp].sensor].cost();
+        // A leg lasts at most k_max steps, one transmission each.
+        let cost_range = f64::from(cs.k_max) * cost;
         let modes: Vec<LegMode<N>> = deltas
             .iter()
             .map(|&d| {
@@ -242,23 +284,16 @@ pub(super) fn build<const N: usize>(
                 }
             })
             .collect();
-        let tasks: Vec<Task> = (0..layer.len())
-            .flat_map(|state| {
-                (0..deltas.len()).flat_map(move |action| {
-                    (0..samples.div_ceil(CHUNK)).map(move |c| Task {
-                        state,
-                        action,
-                        lo: c * CHUNK,
-                        hi: ((c + 1) * CHUNK).min(samples),
-                    })
-                })
-            })
-            .collect();
+        // Main and held-out segments in one parallel pass (the held-out ones
+        // start from the same pool particles, with their own stream).
+        let mut tasks = tasks_of(layer.len(), deltas.len(), samples, false);
+        let n_main = tasks.len();
+        tasks.extend(tasks_of(layer.len(), deltas.len(), holdout, true));
         let n_states = layer.len() as u64;
-        let m = u64::from(samples);
-        let results: Vec<ChunkTally<N>> = tasks
+        let mut results: Vec<ChunkTally<N>> = tasks
             .par_iter()
             .map(|&t| {
+                let m = u64::from(if t.holdout { holdout } else { samples });
                 let r = run_task(
                     cs,
                     dp,
@@ -273,6 +308,46 @@ pub(super) fn build<const N: usize>(
                 let g = t.state as u64 * m;
                 progress((g + u64::from(t.hi)) / n_states - (g + u64::from(t.lo)) / n_states);
                 r
+            })
+            .collect();
+        let held: Vec<ChunkTally<N>> = results.split_off(n_main);
+        // Extra segments of sample allocation for this layer's states.
+        let extra_tasks: Vec<ExtraTask> = (0..layer.len())
+            .flat_map(|state| {
+                let global = states.len() + state;
+                (0..deltas.len()).flat_map(move |action| {
+                    let e = extra
+                        .get(global)
+                        .and_then(|v| v.get(action))
+                        .copied()
+                        .unwrap_or(0);
+                    (0..e.div_ceil(CHUNK)).map(move |c| ExtraTask {
+                        state,
+                        action,
+                        lo: samples + c * CHUNK,
+                        hi: samples + ((c + 1) * CHUNK).min(e),
+                    })
+                })
+            })
+            .collect();
+        let extra_results: Vec<ChunkTally<N>> = extra_tasks
+            .par_iter()
+            .map(|t| {
+                run_task(
+                    cs,
+                    dp,
+                    last,
+                    &layer[t.state].particles,
+                    &modes[t.action],
+                    params.seed,
+                    Task {
+                        state: t.state,
+                        action: t.action,
+                        lo: t.lo,
+                        hi: t.hi,
+                        holdout: false,
+                    },
+                )
             })
             .collect();
 
@@ -306,8 +381,37 @@ pub(super) fn build<const N: usize>(
             *v = u32::try_from(next_offset + k).map_err(|_| AbstractionError::TooManyStates)?;
         }
 
+        // The held-out arrivals' regions (same bins; a region the main sample
+        // did not reach has no state and is counted as unmatched).
+        let held_regions: Vec<Vec<Region>> = match &next_classifier {
+            Some(c) => held
+                .par_iter()
+                .map(|r| {
+                    r.arrivals
+                        .iter()
+                        .map(|a| c.classify(&a.belief.cov))
+                        .collect()
+                })
+                .collect(),
+            None => Vec::new(),
+        };
+
+        let extra_regions: Vec<Vec<Region>> = match &next_classifier {
+            Some(c) => extra_results
+                .par_iter()
+                .map(|r| {
+                    r.arrivals
+                        .iter()
+                        .map(|a| c.classify(&a.belief.cov))
+                        .collect()
+                })
+                .collect(),
+            None => Vec::new(),
+        };
+
         // Transitions and costs per (state, action), chunks merged in order.
         let per_choice = samples.div_ceil(CHUNK) as usize;
+        let per_holdout = holdout.div_ceil(CHUNK) as usize;
         for (s, ls) in layer.iter().enumerate() {
             let mut choices = Vec::with_capacity(deltas.len());
             for a in 0..deltas.len() {
@@ -316,17 +420,47 @@ pub(super) fn build<const N: usize>(
                 for (k, r) in results[first..first + per_choice].iter().enumerate() {
                     let regions = arrival_regions.get(first + k);
                     tally.add(r, |j| {
-                        regions
-                            .and_then(|rs| rs.get(j))
-                            .and_then(|reg| region_index.get(reg))
-                            .copied()
-                            .unwrap_or(u32::MAX)
+                        Some(
+                            regions
+                                .and_then(|rs| rs.get(j))
+                                .and_then(|reg| region_index.get(reg))
+                                .copied()
+                                .unwrap_or(u32::MAX),
+                        )
                     });
+                }
+                for (k, (t, r)) in extra_tasks.iter().zip(&extra_results).enumerate() {
+                    if t.state == s && t.action == a {
+                        let regions = extra_regions.get(k);
+                        tally.add(r, |j| {
+                            regions
+                                .and_then(|rs| rs.get(j))
+                                .and_then(|reg| region_index.get(reg))
+                                .copied()
+                        });
+                    }
                 }
                 total_segments += u64::from(tally.samples);
                 total_steps += tally.steps;
                 // `a` < |Δ| ≤ u16::MAX, checked by the caller.
-                choices.push(tally.into_choice(a as u16, cost));
+                let mut choice = tally.into_choice(a as u16, cost, cost_range);
+                if holdout > 0 {
+                    let mut h = ChoiceTally::default();
+                    let first = (s * deltas.len() + a) * per_holdout;
+                    for (k, r) in held[first..first + per_holdout].iter().enumerate() {
+                        let regions = held_regions.get(first + k);
+                        h.add(r, |j| {
+                            regions
+                                .and_then(|rs| rs.get(j))
+                                .and_then(|reg| region_index.get(reg))
+                                .copied()
+                        });
+                    }
+                    total_segments += u64::from(h.samples);
+                    total_steps += h.steps;
+                    choice.holdout = Some(h.into_holdout(cost));
+                }
+                choices.push(choice);
             }
             states.push(State {
                 decision_point: dp as u32,
@@ -374,6 +508,19 @@ pub(super) fn build<const N: usize>(
         states,
         initial: 0,
         samples_per_choice: samples,
+        holdout_samples: holdout,
+        looks: 1,
+        build: crate::mdp::BuildSettings {
+            magnitude_bins: params.bins.magnitude,
+            angle_bins: params.bins.angle,
+            pool_per_region: params.pool_per_region,
+            descriptor: match params.descriptor {
+                Descriptor::Auto => 0,
+                Descriptor::PerAxis => 1,
+                Descriptor::WorkspaceMarginal => 2,
+            },
+            rest_bins: params.rest_bins,
+        },
         seed: params.seed,
         total_segments,
         total_steps,

@@ -87,6 +87,9 @@ pub struct AbstractionParams {
     pub method: Method,
     /// Segments simulated per (state, action).
     pub samples: u32,
+    /// Held-out segments per (state, action), from the independent stream
+    /// `HOLDOUT`, for cross-fitted predictions (0: none; docs/MODEL.md §4.1).
+    pub holdout_samples: u32,
     /// Seed of the random streams.
     pub seed: u64,
     /// Method 2's bins.
@@ -106,6 +109,7 @@ impl Default for AbstractionParams {
         Self {
             method: Method::Discretized,
             samples: DEFAULT_SAMPLES,
+            holdout_samples: 0,
             seed: 0,
             bins: BinCounts::default(),
             pool_per_region: DEFAULT_POOL_PER_REGION,
@@ -139,9 +143,11 @@ pub fn default_kf_params(scenario: &Scenario) -> KfConvergenceParams {
 }
 
 /// Total units the progress callback of [`build`] reports: decision points ×
-/// actions × samples (each (decision point, action) pair is worth `samples`).
+/// actions × (samples + held-out samples).
 pub fn progress_total(scenario: &Scenario, params: &AbstractionParams) -> u64 {
-    scenario.num_legs() as u64 * scenario.deltas.len() as u64 * u64::from(params.samples)
+    scenario.num_legs() as u64
+        * scenario.deltas.len() as u64
+        * (u64::from(params.samples) + u64::from(params.holdout_samples))
 }
 
 /// The descriptor [`Descriptor::Auto`] stands for on `scenario`.
@@ -159,6 +165,41 @@ pub fn resolve_descriptor(scenario: &Scenario, d: Descriptor) -> Descriptor {
 pub fn build(
     scenario: &Scenario,
     params: &AbstractionParams,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Mdp, AbstractionError> {
+    build_with_extra(scenario, params, &[], progress)
+}
+
+/// The parameters an MDP was built with (to repeat the build).
+pub fn params_of(mdp: &Mdp) -> AbstractionParams {
+    AbstractionParams {
+        method: mdp.method,
+        samples: mdp.samples_per_choice,
+        holdout_samples: mdp.holdout_samples,
+        seed: mdp.seed,
+        bins: BinCounts {
+            magnitude: mdp.build.magnitude_bins,
+            angle: mdp.build.angle_bins,
+        },
+        pool_per_region: mdp.build.pool_per_region,
+        kf: mdp.kf_convergence,
+        descriptor: match mdp.build.descriptor {
+            1 => Descriptor::PerAxis,
+            2 => Descriptor::WorkspaceMarginal,
+            _ => Descriptor::Auto,
+        },
+        rest_bins: mdp.build.rest_bins,
+    }
+}
+
+/// [`build`] with `extra[s][a]` more segments for state s and action index a
+/// (sample allocation): the same states, pools and main segments as [`build`]
+/// with the same parameters, plus the extra segments counted into their
+/// choices (an extra arrival in a region without a state is `unmatched`).
+pub fn build_with_extra(
+    scenario: &Scenario,
+    params: &AbstractionParams,
+    extra: &[Vec<u32>],
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Mdp, AbstractionError> {
     if params.samples == 0 {
@@ -196,6 +237,6 @@ pub fn build(
     };
     with_dim!(scenario.dim, N => {
         let cs = CompiledScenario::<N>::new(scenario);
-        layers::build::<N>(scenario, &cs, params, kf, progress)
+        layers::build::<N>(scenario, &cs, params, kf, extra, progress)
     })
 }

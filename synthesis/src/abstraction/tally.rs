@@ -1,7 +1,7 @@
 //! Counting the segments of one (state, action) and turning the counts into a
 //! [`Choice`] with probabilities, Wilson 95 % intervals and both cost models.
 
-use crate::mdp::{Choice, Next, Transition};
+use crate::mdp::{Choice, Holdout, Next, Transition};
 use etp_shared::etkf::Belief;
 use etp_shared::stats::wilson_interval;
 use std::collections::BTreeMap;
@@ -19,8 +19,12 @@ pub(super) struct ChunkTally<const N: usize> {
     pub samples: u32,
     pub steps: u64,
     pub transmissions: u64,
+    /// Σ over segments of transmissions² (the energy's second moment).
+    pub transmissions_sq: u64,
     /// Σ over slots of γ̄(δ, m) (the paper's cost model).
     pub expected_transmissions: f64,
+    /// Σ over segments of (Σ over its slots of γ̄)².
+    pub expected_sq: f64,
     pub collisions: u32,
     /// Last leg only: segments ending with the true state in the target box.
     pub target: u32,
@@ -36,17 +40,28 @@ pub(super) struct ChoiceTally {
     pub samples: u32,
     pub steps: u64,
     pub transmissions: u64,
+    pub transmissions_sq: u64,
     pub expected_transmissions: f64,
+    pub expected_sq: f64,
     pub counts: BTreeMap<Next, u32>,
+    /// Arrivals in a region without a state (held-out sets only).
+    pub unmatched: u32,
 }
 
 impl ChoiceTally {
-    /// Add a chunk; `next_of(k)` is the next state of the chunk's k-th arrival.
-    pub fn add<const N: usize>(&mut self, c: &ChunkTally<N>, next_of: impl Fn(usize) -> u32) {
+    /// Add a chunk; `next_of(k)` is the next state of the chunk's k-th
+    /// arrival (`None`: a region without a state).
+    pub fn add<const N: usize>(
+        &mut self,
+        c: &ChunkTally<N>,
+        next_of: impl Fn(usize) -> Option<u32>,
+    ) {
         self.samples += c.samples;
         self.steps += c.steps;
         self.transmissions += c.transmissions;
+        self.transmissions_sq += c.transmissions_sq;
         self.expected_transmissions += c.expected_transmissions;
+        self.expected_sq += c.expected_sq;
         let mut bump = |n: Next, k: u32| {
             if k > 0 {
                 *self.counts.entry(n).or_insert(0) += k;
@@ -56,14 +71,32 @@ impl ChoiceTally {
         bump(Next::Target, c.target);
         bump(Next::Free, c.free);
         for k in 0..c.arrivals.len() {
-            bump(Next::State(next_of(k)), 1);
+            match next_of(k) {
+                Some(j) => bump(Next::State(j), 1),
+                None => self.unmatched += 1,
+            }
+        }
+    }
+
+    /// The held-out estimate (same cost conventions as [`Self::into_choice`]).
+    pub fn into_holdout(self, cost: f64) -> Holdout {
+        let n = f64::from(self.samples.max(1));
+        Holdout {
+            samples: self.samples,
+            cost_counted: self.transmissions as f64 * cost / n,
+            cost_model: self.expected_transmissions * cost / n,
+            counts: self.counts.into_iter().collect(),
+            unmatched: self.unmatched,
         }
     }
 
     /// The MDP choice: frequencies, Wilson intervals, counted and model costs
-    /// (`cost` = energy per transmission c_m of the leg's sensor).
-    pub fn into_choice(self, action: u16, cost: f64) -> Choice {
+    /// (`cost` = energy per transmission c_m of the leg's sensor) with their
+    /// second moments, and `cost_range` = `k_max · c_m`.
+    pub fn into_choice(self, action: u16, cost: f64, cost_range: f64) -> Choice {
         let n = f64::from(self.samples.max(1));
+        // Probabilities over the segments that reached a state or terminal.
+        let matched = f64::from((self.samples - self.unmatched.min(self.samples)).max(1));
         let transitions = self
             .counts
             .into_iter()
@@ -72,7 +105,7 @@ impl ChoiceTally {
                 Transition {
                     next,
                     count,
-                    probability: f64::from(count) / n,
+                    probability: f64::from(count) / matched,
                     ci_low,
                     ci_high,
                 }
@@ -85,6 +118,11 @@ impl ChoiceTally {
             cost_model: self.expected_transmissions * cost / n,
             mean_steps: self.steps as f64 / n,
             transitions,
+            cost_sq_counted: self.transmissions_sq as f64 * cost * cost / n,
+            cost_sq_model: self.expected_sq * cost * cost / n,
+            cost_range,
+            holdout: None,
+            unmatched: self.unmatched,
         }
     }
 }

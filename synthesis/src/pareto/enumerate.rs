@@ -89,6 +89,14 @@ pub const TOLERANCE: f64 = 1e-6;
 /// lies inside the true one and the certificate stays valid (docs/MODEL.md §5).
 pub const LIFT: f64 = 1e-10;
 
+/// Lift indices of the far copies of the explicit recession cone (apart
+/// from every found point's).
+const FAR_COPY_INDEX: usize = 1 << 40;
+
+/// Largest |λ_k| a recession facet of the explicit cone gets from the lift of
+/// its far copies (LIFT over `far` ≥ 8), with room to spare.
+const FAR_TILT: f64 = 1e-9;
+
 /// The lifted hull coordinates of found point `index`.
 fn lifted(f: [f64; 3], index: usize) -> [f64; 3] {
     let mut out = f;
@@ -431,7 +439,8 @@ impl RecessionHull {
         for tri in idx.chunks_exact(3) {
             let mut ids = [map[tri[0]], map[tri[1]], map[tri[2]]];
             ids.sort_unstable();
-            let Some(lambda) = lower_weight([points[ids[0]], points[ids[1]], points[ids[2]]], &c)
+            let Some(lambda) =
+                lower_weight([points[ids[0]], points[ids[1]], points[ids[2]]], &c, 1e-12)
             else {
                 continue;
             };
@@ -488,6 +497,12 @@ impl RecessionHull {
             for k in 0..3 {
                 let mut q = *p;
                 q[k] += self.far;
+                // Lifted too: unlifted, the copies of two points along one
+                // axis are coplanar with them, and the hull library (which
+                // iterates randomly seeded hash sets) splits that
+                // parallelogram either way — a different λ in the last bits
+                // from run to run. Lifted, the hull is unique.
+                let q = lifted(q, FAR_COPY_INDEX + 3 * i + k);
                 coords.push(q.to_vec());
                 owner.push(None);
             }
@@ -500,7 +515,10 @@ impl RecessionHull {
         for tri in idx.chunks_exact(3) {
             let mut ids = [map[tri[0]], map[tri[1]], map[tri[2]]];
             ids.sort_unstable();
-            let Some(lambda) = lower_weight([at(ids[0]), at(ids[1]), at(ids[2])], &c) else {
+            // The lifted far copies tilt a recession facet by ~LIFT/far:
+            // its zero weight may come out as -1e-11.
+            let Some(lambda) = lower_weight([at(ids[0]), at(ids[1]), at(ids[2])], &c, FAR_TILT)
+            else {
                 continue;
             };
             let corners: Vec<Option<usize>> = ids.iter().map(|&i| owner[i]).collect();
@@ -521,7 +539,7 @@ impl RecessionHull {
 /// The weight λ ≥ 0 of a hull triangle if it is a lower facet: its outward
 /// normal (away from the interior point `inside`) is `−λ`. `None` for upper or
 /// degenerate triangles.
-fn lower_weight([a, b, d]: [[f64; 3]; 3], inside: &[f64]) -> Option<[f64; 3]> {
+fn lower_weight([a, b, d]: [[f64; 3]; 3], inside: &[f64], slack: f64) -> Option<[f64; 3]> {
     let mut normal = cross(sub(b, a), sub(d, a));
     let len = dot(normal, normal).sqrt();
     if len == 0.0 {
@@ -531,7 +549,7 @@ fn lower_weight([a, b, d]: [[f64; 3]; 3], inside: &[f64]) -> Option<[f64; 3]> {
         normal = normal.map(|x| -x);
     }
     let lambda = normal.map(|x| -x / len);
-    lambda.iter().all(|&l| l >= -1e-12).then_some(lambda)
+    lambda.iter().all(|&l| l >= -slack).then_some(lambda)
 }
 
 fn facet(corners: Vec<Option<usize>>, key: Vec<usize>, lambda: [f64; 3]) -> HullFacet {
@@ -560,4 +578,47 @@ fn nearest(coords: &[Vec<f64>], v: &[f64]) -> usize {
         }
     }
     best.1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A front with one flat objective (no collision at all, as the Method 1
+    /// baseline often is): the 3-D split fails and the explicit recession cone
+    /// is used, whose far copies form coplanar quadruples.
+    fn flat_front() -> Vec<[f64; 3]> {
+        (0..12)
+            .map(|i| {
+                let t = f64::from(i) / 11.0;
+                lifted([0.2 + 3.0 * t * t, 1.0 - t, 0.0], i as usize)
+            })
+            .collect()
+    }
+
+    fn signature(facets: &[HullFacet]) -> Vec<(Vec<usize>, [u64; 3])> {
+        let mut v: Vec<_> = facets
+            .iter()
+            .map(|f| (f.key.clone(), f.lambda.map(f64::to_bits)))
+            .collect();
+        v.sort();
+        v
+    }
+
+    /// The hull library iterates hash sets with a fresh random state per
+    /// instance, so each call below triangulates in its own order: the facets
+    /// must not depend on it (front.json was not reproducible).
+    #[test]
+    fn the_explicit_cone_is_the_same_whatever_the_hull_library_order() {
+        let points = flat_front();
+        let hull = RecessionHull::new(4.0 * (3.2 + 2.0));
+        let first = signature(&hull.explicit_cone(&points).expect("hull"));
+        assert!(first.len() >= 3, "{first:?}");
+        for _ in 0..40 {
+            assert_eq!(
+                signature(&hull.explicit_cone(&points).expect("hull")),
+                first
+            );
+        }
+    }
 }

@@ -21,8 +21,9 @@ use policy::{
 };
 use serde::{Deserialize, Serialize};
 
-/// Version of the `front.json` layout (2: certified `epsilon`, deterministic).
-pub const FRONT_FORMAT_VERSION: u32 = 2;
+/// Version of the `front.json` layout (2: certified `epsilon`, deterministic;
+/// 3: the certified front `certified` beside the nominal vertices).
+pub const FRONT_FORMAT_VERSION: u32 = 3;
 
 /// A vertex of the front: a deterministic policy optimal for some weight λ.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -77,6 +78,9 @@ pub struct ParetoFront {
     pub baselines: Vec<Baseline>,
     /// Method 1's front, when both methods were built.
     pub kf_convergence: Option<Box<ParetoFront>>,
+    /// The nominal vertices with their certified bounds and cross-fitted
+    /// values (docs/MODEL.md §4.1); `None` for the Method 1 baseline.
+    pub certified: Option<crate::certify::front::CertifiedFront>,
     /// Weighted optimisations and hull rounds of the enumeration.
     pub optimisations: usize,
     pub rounds: usize,
@@ -201,6 +205,7 @@ pub fn compute_front_to(
         facets,
         baselines,
         kf_convergence: None,
+        certified: None,
         optimisations: en.optimisations,
         rounds: en.rounds,
         mdp_states: mdp.states.len(),
@@ -250,6 +255,8 @@ pub fn to_strategy(
             p_free: (1.0 - predicted.p_target - predicted.p_collision).max(0.0),
             energy_mean: predicted.energy,
         },
+        crossfit: None,
+        certified: None,
         scenario_toml: None,
     }
 }

@@ -9,7 +9,7 @@
 
 use anyhow::{Context, Result, bail};
 use etp_runtime::recording::{self, Contents, Recorded};
-use etp_runtime::wire::{self, Ports, Pub, RunId, ServiceId};
+use etp_runtime::wire::{self, Notifier, Ports, Pub, RunId, ServiceId};
 use etp_shared::scenario::Scenario;
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
@@ -90,13 +90,24 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64) -> Result<Published> {
         run,
         sensors: scenario.sensors.len(),
     };
-    let mut senders: BTreeMap<&str, Box<dyn Sender>> = BTreeMap::new();
+    let mut senders: BTreeMap<&str, (Box<dyn Sender>, ServiceId)> = BTreeMap::new();
+    let mut wakes: BTreeMap<ServiceId, Notifier> = BTreeMap::new();
     for topic in c.channels.keys() {
         let s = recording::service_of_topic(topic)
             .with_context(|| format!("unknown channel `{topic}` in the recording"))?;
+        let wake = s.reader_wake();
+        if !wakes.contains_key(&wake) {
+            let n = ports
+                .notifier(wake)
+                .with_context(|| format!("opening the wake-up of `{topic}`"))?;
+            wakes.insert(wake, n);
+        }
         senders.insert(
             topic.as_str(),
-            open_sender(&ports, s).with_context(|| format!("opening `{topic}`"))?,
+            (
+                open_sender(&ports, s).with_context(|| format!("opening `{topic}`"))?,
+                wake,
+            ),
         );
     }
     let t0 = order.first().map_or(0, |(t, _, _)| *t);
@@ -113,18 +124,24 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64) -> Result<Published> {
         if let Some(wait) = due.checked_sub(start.elapsed()) {
             std::thread::sleep(wait);
         }
-        let Some(sender) = senders.get(topic) else {
+        let Some((sender, wake)) = senders.get(topic) else {
             bail!("message on unknown channel `{topic}`");
         };
         let reached = sender
             .send(r)
             .with_context(|| format!("publishing on `{topic}`"))?;
+        // As the live publisher did: readers (and the recorder) wake on it.
+        if let Some(n) = wakes.get(wake) {
+            n.notify()
+                .map_err(|e| anyhow::anyhow!("notifying the readers of `{topic}`: {e:?}"))?;
+        }
         undelivered += u64::from(reached == 0);
         messages += 1;
         *counts.entry(topic.to_string()).or_default() += 1;
     }
     let wall_seconds = start.elapsed().as_secs_f64();
     drop(senders);
+    drop(wakes);
     drop(node);
     // Leaves the run's folder to any subscriber still alive.
     wire::cleanup::remove_run(run);

@@ -139,9 +139,15 @@ pub fn remove_stale() -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::sync::Mutex;
+
+    /// The sweeps of one test remove the stale folders of another test in
+    /// the same process; tests that sweep take turns.
+    static SWEEPING: Mutex<()> = Mutex::new(());
 
     #[test]
     fn a_claimed_id_is_refused_and_a_released_one_is_stale() {
+        let _turn = SWEEPING.lock().unwrap_or_else(|e| e.into_inner());
         let run = RunId::new(&format!("unit-rundir-{}", std::process::id())).expect("id");
         let a = RunDir::claim(&run).expect("first claim");
         let err = RunDir::claim(&run).expect_err("second claim of a live id");
@@ -159,6 +165,7 @@ mod tests {
     /// sweep between "create folder" and "lock it" used to remove it).
     #[test]
     fn a_sweep_never_removes_a_folder_being_claimed() {
+        let _turn = SWEEPING.lock().unwrap_or_else(|e| e.into_inner());
         let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
         let sweeper = {
             let stop = stop.clone();

@@ -1,0 +1,230 @@
+//! `etp strategy --min-target P [--max-collision C] --confidence L
+//! [--refine-gap G]`: the least-energy strategy found whose certified bounds
+//! meet the request (docs/MODEL.md §4.1), with optional sample allocation.
+
+use super::Args;
+use crate::cmd::honest;
+use crate::output::{refuse_existing, write_new};
+use crate::progress;
+use anyhow::{Context, Result, bail};
+use etp_synthesis::certify::crossfit::{CrossFit, crossfit};
+use etp_synthesis::certify::intervals::interval_mdp;
+use etp_synthesis::certify::refine::{Refined, prepare, refine};
+use etp_synthesis::certify::robust::{Certified, certify};
+use etp_synthesis::certify::select::{METHOD, certified_strategy};
+use etp_synthesis::mdp::{CostModel, Mdp};
+use etp_synthesis::pareto::ParetoFront;
+use etp_synthesis::pareto::optimal::{LpRequest, optimal_strategy};
+use etp_synthesis::pareto::policy::RandomisedPolicy;
+use etp_synthesis::pareto::to_strategy;
+use serde_json::json;
+use std::path::Path;
+use std::time::Instant;
+
+/// Level of the certified bounds reported without `--confidence`.
+pub const DEFAULT_LEVEL: f64 = 0.95;
+
+/// Cross-fitted values and certified bounds of a strategy.
+pub struct Assessment {
+    pub crossfit: Option<CrossFit>,
+    pub certified: etp_shared::strategy::CertifiedPrediction,
+}
+
+pub fn assess(
+    mdp: &Mdp,
+    policy: &RandomisedPolicy,
+    cost: CostModel,
+    level: f64,
+) -> Result<Assessment> {
+    let im = interval_mdp(mdp, level, cost).context("building the interval MDP")?;
+    let c = certify(mdp, &im, policy);
+    Ok(Assessment {
+        crossfit: crossfit(mdp, policy, cost),
+        certified: honest::certified_prediction(&c, level),
+    })
+}
+
+pub fn run(
+    a: &Args,
+    mdp: &Mdp,
+    scenario_text: Option<String>,
+    front: &ParetoFront,
+    output: &Path,
+    level: f64,
+    refine_gap: Option<f64>,
+) -> Result<()> {
+    let Some(min_target) = a.min_target else {
+        bail!("--confidence selects a certified strategy with --min-target only");
+    };
+    if !(0.0..=1.0).contains(&min_target) {
+        bail!("--min-target must be a probability in [0, 1], got {min_target}");
+    }
+    if let Some(c) = a.max_collision
+        && !(0.0..=1.0).contains(&c)
+    {
+        bail!("--max-collision must be a probability in [0, 1], got {c}");
+    }
+    refuse_existing(output, a.force)?;
+    let cost = front.cost_model;
+    let select = |m: &Mdp| {
+        let im = interval_mdp(m, level, cost)?;
+        certified_strategy(m, &im, cost, min_target, a.max_collision)
+    };
+    // Sample allocation first, if asked.
+    let started = Instant::now();
+    let mut refined: Option<Refined> = None;
+    let mut work = mdp.clone();
+    if let Some(g) = refine_gap {
+        let refined_path = a.dir.join("mdp-refined.bin");
+        refuse_existing(&refined_path, a.force)?;
+        let text = scenario_text
+            .as_deref()
+            .context("sample allocation needs DIR/scenario.toml (written by `etp synthesize`)")?;
+        let scenario =
+            etp_shared::scenario::Scenario::from_toml(text).context("parsing DIR/scenario.toml")?;
+        let prepared = prepare(mdp, a.refine_rounds);
+        let mut p = etp_synthesis::abstraction::params_of(mdp);
+        p.holdout_samples = 0;
+        let units = etp_synthesis::abstraction::progress_total(&scenario, &p);
+        let pb = progress::bar(units * u64::from(a.refine_rounds), "allocate", a.json);
+        let r = refine(
+            &scenario,
+            &prepared,
+            g,
+            a.refine_rounds,
+            &|m| {
+                let c = select(m)?;
+                Ok((
+                    c.strategy.policy.clone(),
+                    c.strategy.predicted.p_target,
+                    c.certified.p_target_low,
+                ))
+            },
+            &|k| pb.inc(k),
+        )
+        .context("allocating samples")?;
+        pb.finish_and_clear();
+        write_new(&refined_path, &r.mdp.encode(), a.force)?;
+        work = r.mdp.clone();
+        refined = Some(r);
+    }
+    let refine_seconds = started.elapsed().as_secs_f64();
+    let chosen = select(&work).context("selecting a certified strategy")?;
+    // The nominal optimum of the same request, for the price of certification.
+    let nominal = optimal_strategy(
+        &work,
+        cost,
+        LpRequest::MinEnergy {
+            min_target,
+            max_collision: a.max_collision,
+        },
+    )
+    .ok();
+    let label = match a.max_collision {
+        Some(c) => {
+            format!("least energy with certified P_tar ≥ {min_target} and P_coll ≤ {c} at {level}")
+        }
+        None => format!("least energy with certified P_tar ≥ {min_target} at {level}"),
+    };
+    let policy = &chosen.strategy.policy;
+    let mut strategy = to_strategy(&work, policy, label.clone(), chosen.strategy.predicted);
+    strategy.scenario_toml = scenario_text;
+    let xf = crossfit(&work, policy, cost);
+    honest::attach(
+        &mut strategy,
+        xf.as_ref(),
+        &honest::certified_prediction(&chosen.certified, level),
+    );
+    write_new(output, strategy.to_json().as_bytes(), a.force)?;
+    let nominal_cert: Option<Certified> = nominal.as_ref().and_then(|n| {
+        interval_mdp(&work, level, cost)
+            .ok()
+            .map(|im| certify(&work, &im, &n.policy))
+    });
+    let energy_paid = nominal
+        .as_ref()
+        .map(|n| chosen.strategy.predicted.energy - n.predicted.energy);
+    if a.json {
+        let v = json!({
+            "strategy": output, "label": label,
+            "method": METHOD,
+            "exact": false,
+            "confidence": level,
+            "margins": {"p_target": chosen.margins.0, "p_collision": chosen.margins.1},
+            "nominal_lp_solves": chosen.solves,
+            "predictions": honest::json_of(&strategy),
+            "crossfit_unmatched_mass": xf.as_ref().map(|c| c.unmatched_mass),
+            "nominal_same_request": nominal.as_ref().map(|n| json!({
+                "p_target": n.predicted.p_target, "p_collision": n.predicted.p_collision,
+                "energy_mean": n.predicted.energy,
+                "certified": nominal_cert.map(|c| json!({"p_target_low": c.p_target_low,
+                    "p_collision_high": c.p_collision_high, "energy_high": c.energy_high}))})),
+            "energy_paid_for_certification": energy_paid,
+            "refinement": refined.as_ref().map(|r| json!({
+                "converged": r.converged,
+                "added_segments": r.added_segments,
+                "seconds": refine_seconds,
+                "mdp": a.dir.join("mdp-refined.bin"),
+                "rounds": r.rounds.iter().map(|x| json!({"p_target": x.p_target,
+                    "p_target_low": x.p_target_low, "gap": x.p_target - x.p_target_low,
+                    "segments": x.segments, "doubled_choices": x.doubled})).collect::<Vec<_>>(),
+            })),
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    println!("{label}");
+    println!("  method: {METHOD}");
+    println!(
+        "  nominal thresholds tightened by {:.3e} (P_tar){}; {} nominal LPs solved",
+        chosen.margins.0,
+        if a.max_collision.is_some() {
+            format!(", {:.3e} (P_coll)", chosen.margins.1)
+        } else {
+            String::new()
+        },
+        chosen.solves
+    );
+    print!("{}", honest::text_of(&strategy));
+    if let Some(n) = &nominal {
+        println!(
+            "  nominal optimum of the same request: P_tar {:.6}  P_coll {:.6}  energy {:.4}{}",
+            n.predicted.p_target,
+            n.predicted.p_collision,
+            n.predicted.energy,
+            nominal_cert
+                .map(|c| format!(" (certified P_tar ≥ {:.6})", c.p_target_low))
+                .unwrap_or_default()
+        );
+        if let Some(p) = energy_paid {
+            println!("  energy paid for certification: {p:+.4}");
+        }
+    }
+    if let Some(r) = &refined {
+        println!(
+            "  sample allocation: {} rounds, {} extra segments, {:.1} s (each round re-runs the main abstraction), gap target {} pt {}",
+            r.rounds.len().saturating_sub(1),
+            r.added_segments,
+            refine_seconds,
+            100.0 * refine_gap.unwrap_or(0.0),
+            if r.converged {
+                "reached"
+            } else {
+                "NOT reached"
+            }
+        );
+        for (k, x) in r.rounds.iter().enumerate() {
+            println!(
+                "    round {k}: P_tar {:.6}  certified ≥ {:.6}  gap {:.4} pt  segments {}  doubled {}",
+                x.p_target,
+                x.p_target_low,
+                100.0 * (x.p_target - x.p_target_low),
+                x.segments,
+                x.doubled
+            );
+        }
+        println!("  wrote {}", a.dir.join("mdp-refined.bin").display());
+    }
+    println!("wrote {}", output.display());
+    Ok(())
+}
