@@ -6,6 +6,9 @@ mod exact;
 mod integrity;
 mod pipeline;
 mod replay;
+mod replay_tools;
+mod run_config;
+mod schemas;
 mod synthesize;
 
 use serde_json::Value;

@@ -58,13 +58,13 @@ fn pipeline_predicts_what_simulation_measures_and_refuses_bad_files() {
     for (k, tol) in [("p_target", 0.02), ("p_collision", 0.02)] {
         let (p, m) = (
             v["predicted"][k].as_f64().unwrap_or(-1.0),
-            v["simulated"][k].as_f64().unwrap_or(9.0),
+            v[k].as_f64().unwrap_or(9.0),
         );
         assert!((p - m).abs() <= tol, "{k}: predicted {p}, simulated {m}");
     }
     let (pe, me) = (
         v["predicted"]["energy_mean"].as_f64().unwrap_or(-1.0),
-        v["simulated"]["energy_mean"].as_f64().unwrap_or(-1.0),
+        v["energy_mean"].as_f64().unwrap_or(-1.0),
     );
     assert!(
         (pe - me).abs() <= 0.05 * pe,

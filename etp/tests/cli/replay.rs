@@ -18,8 +18,8 @@ fn the_fixture_summarises_and_verifies() {
     assert_eq!(v["scenario"].as_str(), Some("open-2d"));
     // The three-way count: sent = costed = received.
     assert!(v["measurements"].as_u64() > Some(0));
-    assert_eq!(v["measurements"], v["ledger_transmissions"]);
-    assert_eq!(v["measurements"], v["agent_received"]);
+    assert_eq!(v["measurements"], v["transmissions"]);
+    assert_eq!(v["measurements"], v["received"]);
     assert_eq!(
         v["verify"]["passed"].as_bool(),
         Some(true),
@@ -409,7 +409,7 @@ fn etp_alone_runs_the_processes_itself() {
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON report");
     assert_eq!(v["episodes"].as_u64(), Some(3));
     for sensor in v["sensors"].as_array().expect("sensors") {
-        assert_eq!(sensor["transmitted"], sensor["received"], "{sensor}");
+        assert_eq!(sensor["transmissions"], sensor["received"], "{sensor}");
     }
     let r = ok_json(&["replay", s(&rec), "--json", "--verify"]);
     assert_eq!(

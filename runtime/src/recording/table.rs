@@ -12,7 +12,7 @@
 use super::{Kind, Recorded};
 use crate::wire::catalogue::{Field, HEADER_NAMES, Named, Scalar};
 use crate::wire::{
-    ControlKind, OutcomeCode, SENDER_AGENT, SENDER_COORDINATOR, ThresholdKind,
+    ControlKind, MAX_DIM, OutcomeCode, SENDER_AGENT, SENDER_COORDINATOR, ThresholdKind,
 };
 use serde_json::Value;
 
@@ -146,8 +146,11 @@ fn column_type(scalar: Scalar, named: Option<Named>) -> ColumnType {
 }
 
 impl Table {
-    /// The layout of `kind`'s table.
-    pub fn of(kind: Kind) -> Result<Self, String> {
+    /// The layout of `kind`'s table. With `dim = Some(n)` (the scenario's
+    /// state dimension), arrays keep their first n entries per axis (the
+    /// entries past the dimension are always 0): `y_0 … y_{n-1}`,
+    /// `cov_0_0 … cov_{n-1}_{n-1}`.
+    pub fn of(kind: Kind, dim: Option<usize>) -> Result<Self, String> {
         let fields: Vec<Field> = kind.fields()?;
         let mut columns = vec![Column {
             name: "log_time_ns".into(),
@@ -166,7 +169,15 @@ impl Table {
                 Some("header") => f.path[1..].join("_"),
                 _ => f.path.join("_"),
             };
-            for index in all_indexes(&f.shape) {
+            let shape: Vec<usize> = f
+                .shape
+                .iter()
+                .map(|&n| match dim {
+                    Some(d) if n == MAX_DIM => d.min(n),
+                    _ => n,
+                })
+                .collect();
+            for index in all_indexes(&shape) {
                 let mut name = base.clone();
                 for i in &index {
                     name.push_str(&format!("_{i}"));
@@ -287,12 +298,12 @@ mod tests {
     #[test]
     fn every_kind_has_a_table_and_codes_become_names() {
         for k in Kind::ALL {
-            let t = Table::of(*k).expect("traced");
+            let t = Table::of(*k, None).expect("traced");
             assert_eq!(t.columns[0].name, "log_time_ns");
             assert!(t.columns.iter().any(|c| c.name == "episode"), "{k:?}");
             assert!(!t.columns.iter().any(|c| c.name.contains("pad")), "{k:?}");
         }
-        let t = Table::of(Kind::Outcome).expect("outcome");
+        let t = Table::of(Kind::Outcome, None).expect("outcome");
         let o = Outcome {
             header: Header {
                 episode: 3,
@@ -319,9 +330,20 @@ mod tests {
         assert_eq!(get("degraded"), Cell::Bool(true));
         assert_eq!(get("dead_sensor"), Cell::Null);
         let line = t.json_line(&[("topic", Value::from("outcome"))], &row);
-        assert!(line.starts_with("{\"topic\":\"outcome\",\"log_time_ns\":42,"), "{line}");
-        let p = Table::of(Kind::Prior).expect("prior");
+        assert!(
+            line.starts_with("{\"topic\":\"outcome\",\"log_time_ns\":42,"),
+            "{line}"
+        );
+        let p = Table::of(Kind::Prior, None).expect("prior");
         assert!(p.columns.iter().any(|c| c.name == "cov_5_5"));
+        let p2 = Table::of(Kind::Prior, Some(2)).expect("prior");
+        let names: Vec<&str> = p2.columns.iter().skip(8).map(|c| c.name.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "mean_0", "mean_1", "cov_0_0", "cov_0_1", "cov_1_0", "cov_1_1"
+            ]
+        );
         assert_eq!(csv_quote("a,b"), "\"a,b\"");
     }
 }

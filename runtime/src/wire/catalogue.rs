@@ -368,9 +368,10 @@ impl Kind {
                     format!("# size: {size} bytes; python: struct.unpack(\"{s}\", data)\n"),
                 )
             }
-            (Err(e), _) | (_, Err(e)) => {
-                (format!("# fields could not be traced: {e}\n"), String::new())
-            }
+            (Err(e), _) | (_, Err(e)) => (
+                format!("# fields could not be traced: {e}\n"),
+                String::new(),
+            ),
         };
         let named: Vec<String> = HEADER_NAMES
             .iter()
@@ -471,7 +472,11 @@ mod tests {
             t.contains("# size: 88 bytes; python: struct.unpack(\"<QQIIIIII6d\", data)\n"),
             "{t}"
         );
-        assert!(Kind::Outcome.schema_text().contains("dead_sensor (the sensor's name, or null for none)"));
+        assert!(
+            Kind::Outcome
+                .schema_text()
+                .contains("dead_sensor (the sensor's name, or null for none)")
+        );
         for k in Kind::ALL {
             let t = k.schema_text();
             assert!(!t.contains("could not be traced"), "{t}");

@@ -122,7 +122,7 @@ fn recording_counts_equal_the_report_and_measurements_equal_ledgers_and_received
         .as_array()
         .expect("sensors")
         .iter()
-        .map(|s| s["transmitted"].as_u64().expect("transmitted"))
+        .map(|s| s["transmissions"].as_u64().expect("transmissions"))
         .sum();
     let received: u64 = v["sensors"]
         .as_array()
@@ -152,8 +152,8 @@ fn recording_counts_equal_the_report_and_measurements_equal_ledgers_and_received
     let rc: BTreeMap<String, u64> = serde_json::from_value(r["counts"].clone()).expect("counts");
     assert_eq!(rc, counts);
     assert_eq!(r["measurements"].as_u64(), Some(transmitted));
-    assert_eq!(r["ledger_transmissions"].as_u64(), Some(transmitted));
-    assert_eq!(r["agent_received"].as_u64(), Some(received));
+    assert_eq!(r["transmissions"].as_u64(), Some(transmitted));
+    assert_eq!(r["received"].as_u64(), Some(received));
     assert_eq!(r["episodes"].as_f64(), Some(num(&v, "episodes")));
     // The independent reader.
     if python_mcap() {
@@ -599,4 +599,71 @@ fn publish_replays_every_message_and_a_recorder_gets_the_same_file() {
     for f in [&fa, &fb, &meta] {
         let _ = std::fs::remove_file(f);
     }
+}
+
+/// A recorder started by hand without `--meta` on the run id of a
+/// `etp replay --publish` gets the recording's metadata from the replay
+/// (`recording::handover_path`): its copy names the run and scenario and
+/// passes `--verify`, like the original.
+#[test]
+fn a_copy_recorded_from_publish_without_meta_verifies() {
+    use std::io::{BufRead, BufReader};
+    let _serial = serial();
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../recordings/fixtures/open-2d-4-episodes.mcap");
+    let b = unique_run_id("pub-nometa");
+    let fb = out_file(&b);
+    let mut rec = EtpRun::spawn_binary(
+        &b,
+        "etp-recorder",
+        &[
+            "--run-id",
+            &b,
+            "--scenario",
+            "open-2d",
+            "--out",
+            &fb.display().to_string(),
+        ],
+    );
+    let stdout = rec
+        .child
+        .as_mut()
+        .and_then(|c| c.stdout.take())
+        .expect("recorder stdout");
+    let mut ready = String::new();
+    BufReader::new(stdout)
+        .read_line(&mut ready)
+        .expect("recorder output");
+    assert_eq!(ready.trim(), "ready");
+    let p = replay(&[
+        &fixture.display().to_string(),
+        "--publish",
+        "--rate",
+        "inf",
+        "--run-id",
+        &b,
+    ]);
+    assert_eq!(p["published"]["undelivered"].as_u64(), Some(0), "{p}");
+    kill("-TERM", &rec.pid().to_string());
+    let (ok, _, err) = rec.finish();
+    assert!(ok, "recorder: {err}");
+    let original = replay(&[&fixture.display().to_string()]);
+    let copy = replay(&[&fb.display().to_string(), "--verify"]);
+    assert_eq!(
+        copy["verify"]["passed"].as_bool(),
+        Some(true),
+        "{}",
+        copy["verify"]
+    );
+    for k in [
+        "run_id",
+        "scenario",
+        "seed",
+        "strategy",
+        "counts",
+        "transmissions",
+    ] {
+        assert_eq!(copy[k], original[k], "{k}");
+    }
+    let _ = std::fs::remove_file(&fb);
 }

@@ -22,6 +22,8 @@ pub struct Plan {
     /// Predicted energy per episode of each sensor (in-process simulation).
     pub sensor_energy_per_episode: Vec<f64>,
     pub predict_episodes: u64,
+    /// The resolved run as a run file (`etp.config` of the recording).
+    pub config_toml: String,
 }
 
 fn scenario_text(arg: &str) -> Result<String> {
@@ -148,8 +150,9 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
     };
     // In-process simulation of the same strategy: per-sensor energy, and the
     // whole prediction for a constant strategy made here.
-    let predict_episodes = a.predict_episodes.max(1);
-    let sim = simulate_strategy(&scenario, &strategy, predict_episodes, a.seed, &|_| {}).summary();
+    let predict_episodes = a.predict_episodes().max(1);
+    let sim =
+        simulate_strategy(&scenario, &strategy, predict_episodes, a.seed(), &|_| {}).summary();
     let sensor_energy_per_episode = scenario
         .sensors
         .iter()
@@ -179,13 +182,14 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         .with_context(|| format!("writing {}", strategy_path.display()))?;
     Ok(Plan {
         run_id: run_id.clone(),
-        seed: a.seed,
-        episodes: a.episodes,
+        seed: a.seed(),
+        episodes: a.episodes(),
         scenario,
         dir,
         scenario_path,
         strategy_path,
         sensor_energy_per_episode,
         predict_episodes,
+        config_toml: String::new(),
     })
 }

@@ -38,15 +38,16 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         .iter()
         .zip(&plan.sensor_energy_per_episode)
         .map(|(t, per_ep)| {
-            json!({"name": t.name, "transmitted": t.transmitted, "received": t.received,
-                   "predicted_energy": per_ep * r.episodes as f64, "energy": t.energy,
-                   "slots": t.slots, "missing_ledgers": t.missing_ledgers})
+            json!({"name": t.name, "transmissions": t.transmitted, "received": t.received,
+                   "predicted_energy": crate::vocab::round_energy(per_ep * r.episodes as f64),
+                   "energy": t.energy, "slots": t.slots, "missing_ledgers": t.missing_ledgers})
         })
         .collect();
     let mut v = json!({
         "run_id": r.run_id,
         "scenario": r.scenario,
         "strategy": r.strategy_label,
+        "delta": a.delta,
         "seed": r.seed,
         "episodes": r.episodes,
         "requested_episodes": r.requested_episodes,
@@ -54,10 +55,11 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         "p_collision": e.p_collision.value, "p_collision_ci95": e.p_collision.ci95,
         "p_free": e.p_free.value, "p_free_ci95": e.p_free.ci95,
         "energy_mean": e.energy.value, "energy_mean_ci95": e.energy.ci95,
-        "predicted": {"p_target": r.predicted.p_target, "p_collision": r.predicted.p_collision,
-                      "energy_mean": r.predicted.energy_mean},
+        "predicted": crate::vocab::prediction(&r.predicted),
+        "transmissions": r.sensors.iter().map(|t| t.transmitted).sum::<u64>(),
+        "received": r.sensors.iter().map(|t| t.received).sum::<u64>(),
         "sensors": sensors,
-        "predicted_energy_from": format!("in-process simulation, {} episodes", plan.predict_episodes),
+        "predicted_energy_from": super::record::prediction_source(plan),
         "processes": s.processes.len(),
         "process_exits": s.processes,
         "degraded": r.degraded,
@@ -134,6 +136,10 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
             per_ep * r.episodes as f64
         );
     }
+    println!(
+        "  predicted energy per sensor: {}",
+        super::record::prediction_source(plan)
+    );
     if r.degraded > 0 {
         println!(
             "  DEGRADED: {} episode(s) ran with a dead link (prediction only on its slots)",
