@@ -71,7 +71,6 @@ pub fn run(a: Args) -> Result<()> {
             m.insert("delta".into(), json!(a.delta));
             // No model prediction for a plain simulation.
             m.insert("predicted".into(), Value::Null);
-            m.insert("seconds".into(), json!(secs));
         }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
