@@ -153,6 +153,16 @@ pub fn comparison_json(
     seed: u64,
 ) -> serde_json::Value {
     let mut v = crate::cmd::simulate::summary_json(scenario, sum);
+    // The per-sensor prediction of the strategy file (the MDP's), if it has one.
+    if let (Some(per_ep), Some(sensors)) = (
+        strategy.sensor_energy(scenario),
+        v.get_mut("sensors")
+            .and_then(serde_json::Value::as_array_mut),
+    ) {
+        for (x, e) in sensors.iter_mut().zip(per_ep) {
+            x["predicted_energy"] = json!(crate::vocab::round_energy(e * sum.episodes as f64));
+        }
+    }
     if let Some(m) = v.as_object_mut() {
         m.insert("scenario".into(), json!(scenario.name));
         m.insert("seed".into(), json!(seed));

@@ -360,3 +360,31 @@ fn publish_loop_repeats_the_traffic() {
     assert_eq!(v["published"]["loops"].as_u64(), Some(3));
     fails_with(&["replay", s(&f), "--loop", "2"], &["--publish"]);
 }
+
+#[test]
+fn replay_plot_draws_measured_against_predicted() {
+    let dir = Scratch::new("replay-plot");
+    let f = dir.path("run.mcap");
+    std::fs::copy(fixture(), &f).expect("copy fixture");
+    let v = ok_json(&["replay", s(&f), "--plot", "--json"]);
+    let png = dir.path("run-report.png");
+    assert_eq!(v["plot"].as_str(), Some(s(&png)));
+    assert!(std::fs::metadata(&png).expect("png").len() > 10_000);
+    let svg = std::fs::read_to_string(dir.path("run-report.svg")).expect("svg");
+    for needle in [
+        "s0",
+        "s4",
+        "P_tar",
+        "P_coll",
+        "measured, 95 % interval",
+        "predicted",
+    ] {
+        assert!(svg.contains(needle), "{needle} missing in the figure");
+    }
+    let before = std::fs::read(&png).expect("png");
+    fails_with(
+        &["replay", s(&f), "--plot"],
+        &["run-report", "already exists", "--force"],
+    );
+    assert_eq!(std::fs::read(&png).expect("png"), before);
+}

@@ -37,8 +37,6 @@ pub use verify::{Mismatch, VerifyReport, verify};
 /// the `etp.config` record (the run's launch file) and the payload size and
 /// Python `struct` format to the schema text; version 2 files read the same.
 pub const FORMAT_VERSION: &str = "3";
-/// Oldest format version this code reads.
-pub const OLDEST_FORMAT_VERSION: u32 = 2;
 /// MCAP profile string.
 pub const PROFILE: &str = "etpareto";
 /// Message encoding of every channel.

@@ -119,10 +119,7 @@ fn metadata(plan: &Plan) -> Result<BTreeMap<String, BTreeMap<String, String>>> {
 
 /// Where the per-sensor predicted energy comes from (report and recording).
 pub fn prediction_source(plan: &Plan) -> String {
-    format!(
-        "in-process simulation of the same strategy: {} episodes, seed {} (--predict-episodes)",
-        plan.predict_episodes, plan.seed
-    )
+    plan.prediction_from.clone()
 }
 
 /// A started recorder.

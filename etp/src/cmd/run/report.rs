@@ -47,7 +47,7 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         "run_id": r.run_id,
         "scenario": r.scenario,
         "strategy": r.strategy_label,
-        "delta": a.delta,
+        "delta": plan.delta,
         "seed": r.seed,
         "episodes": r.episodes,
         "requested_episodes": r.requested_episodes,
