@@ -31,7 +31,8 @@ pub enum Command {
     Bench(crate::cmd::bench::Args),
     /// Run a strategy as processes (coordinator, agent, one per sensor) over iceoryx2.
     Run(crate::cmd::run::Args),
-    /// Summarise an MCAP recording of a run (finished or not); `--repair OUT` writes a finished copy.
+    /// Summarise an MCAP recording of a run (finished or not); `--info`, `--cat`,
+    /// `--export DIR`, `--plot`, `--verify`, `--repair OUT`, `--publish`, `--foxglove OUT`.
     Replay(crate::cmd::replay::Args),
     /// Run one process of a run (used by `etp run` when the process binaries
     /// are not installed beside `etp`).

@@ -5,7 +5,9 @@
 //! `--repair OUT` writes a finished copy; `--verify` re-runs the estimator
 //! (`etp_runtime::recording::verify`); `--publish` puts the traffic back on
 //! iceoryx2 (`publish.rs`); `--foxglove OUT` writes a copy that Foxglove
-//! draws (`foxglove.rs`). Exit codes: 0 complete file, 3 unfinished file
+//! draws (`foxglove.rs`); `--info` (`info.rs`), `--cat` and `--export DIR`
+//! (`export.rs`), `--plot` (`figure.rs`), on the messages selected by
+//! `--topics`, `--episodes`, `--start`/`--end` (`select.rs`). Exit codes: 0 complete file, 3 unfinished file
 //! (cut anywhere by a crash or a copy: summary of every complete record
 //! printed), 1 error — including a damaged file (bad chunk, data or summary
 //! CRC, undecodable record, metadata whose scenario hashes disagree), which
