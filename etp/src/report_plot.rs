@@ -87,19 +87,18 @@ where
     panel(
         &left,
         &fig.sensors,
-        "energy per episode, per sensor",
         &format!(
-            "energy per episode (predicted: {})",
+            "energy per episode, per sensor — predicted by {}",
             short(&fig.prediction_note)
         ),
+        "energy per episode (transmissions × cost)",
         0.0..top,
     )?;
     panel(&right, &fig.outcomes, "outcomes", "probability", 0.0..1.05)?;
     Ok(())
 }
 
-/// A strategy label without its parenthesised details (they are in the
-/// axis label), at most 50 characters.
+/// A strategy label without its parenthesised details, at most 50 characters.
 pub fn short_label(label: &str) -> String {
     let head = label.split(" (").next().unwrap_or(label);
     short_to(head, 50)
@@ -114,14 +113,10 @@ fn short_to(s: &str, n: usize) -> String {
     }
 }
 
-/// The note shortened to fit an axis label.
+/// The note shortened to fit a panel caption (the part before `(` or `:`).
 fn short(note: &str) -> String {
-    let n: String = note.chars().take(60).collect();
-    if n.len() < note.len() {
-        format!("{n}…")
-    } else {
-        n
-    }
+    let head = note.split([':', '(']).next().unwrap_or(note).trim_end();
+    short_to(head, 64)
 }
 
 fn panel<DB: DrawingBackend>(
@@ -138,7 +133,7 @@ where
     let n = bars.len().max(1);
     let names: Vec<String> = bars.iter().map(|b| b.name.clone()).collect();
     let mut chart = ChartBuilder::on(area)
-        .caption(caption, ("sans-serif", 16))
+        .caption(caption, ("sans-serif", 14))
         .margin(15)
         .x_label_area_size(40)
         .y_label_area_size(70)

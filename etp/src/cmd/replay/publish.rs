@@ -108,11 +108,12 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Res
         let s = recording::service_of_topic(topic)
             .with_context(|| format!("unknown channel `{topic}` in the recording"))?;
         let wake = s.reader_wake();
-        if !wakes.contains_key(&wake) {
-            let n = ports
-                .notifier(wake)
-                .with_context(|| format!("opening the wake-up of `{topic}`"))?;
-            wakes.insert(wake, n);
+        if let std::collections::btree_map::Entry::Vacant(slot) = wakes.entry(wake) {
+            slot.insert(
+                ports
+                    .notifier(wake)
+                    .with_context(|| format!("opening the wake-up of `{topic}`"))?,
+            );
         }
         senders.insert(
             topic.as_str(),
