@@ -14,6 +14,9 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 #[path = "runtime/recording.rs"]
 mod recording;
 
+#[path = "runtime/publish.rs"]
+mod publish;
+
 #[path = "runtime/foxglove.rs"]
 mod foxglove;
 
