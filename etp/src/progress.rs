@@ -2,7 +2,8 @@
 //! stderr is not a terminal (a pipe, a log file, CI) one plain line every
 //! [`LINE_EVERY`] (`synthesize: 1200/6000 (20 %) after 10 s, ~40 s left`),
 //! so piped output is never silent for long. `quiet` (`--json`) hides both:
-//! machine output stays clean.
+//! machine output stays clean. `ETP_PROGRESS_SECONDS` sets the interval of
+//! the plain lines (tests use a short one).
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
@@ -25,7 +26,13 @@ pub fn bar(len: u64, message: &str, quiet: bool) -> ProgressBar {
     );
     pb.set_message(message.to_string());
     if !quiet && !terminal {
-        lines(&pb, message.to_string(), LINE_EVERY);
+        let every = std::env::var("ETP_PROGRESS_SECONDS")
+            .ok()
+            .and_then(|v| v.parse::<f64>().ok())
+            .and_then(|s| Duration::try_from_secs_f64(s).ok())
+            .filter(|d| !d.is_zero())
+            .unwrap_or(LINE_EVERY);
+        lines(&pb, message.to_string(), every);
     }
     pb
 }
@@ -54,7 +61,7 @@ fn lines(pb: &ProgressBar, what: String, every: Duration) {
     let weak = pb.downgrade();
     let started = Instant::now();
     std::thread::spawn(move || {
-        let tick = Duration::from_millis(200);
+        let tick = Duration::from_millis(200).min(every);
         let mut next = every;
         loop {
             std::thread::sleep(tick);
