@@ -39,3 +39,14 @@ pub enum Command {
     #[command(hide = true, disable_help_flag = true)]
     Process(crate::cmd::process::Args),
 }
+
+#[cfg(test)]
+mod tests {
+    /// clap's own consistency checks (ids in `requires`/`conflicts_with`,
+    /// duplicate flags) on every subcommand; release builds skip them.
+    #[test]
+    fn the_interface_is_consistent() {
+        use clap::CommandFactory;
+        super::Cli::command().debug_assert();
+    }
+}

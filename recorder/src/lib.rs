@@ -34,6 +34,8 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 #[derive(Debug, Parser)]
 #[command(name = "etp-recorder", version, about)]
 struct Cli {
+    /// Run id: records the services `etp/<run-id>/…` (of an `etp run
+    /// --run-id ID`, or of an `etp replay FILE --publish --run-id ID`).
     #[arg(long)]
     run_id: String,
     /// Scenario (built-in name or TOML path): gives the number of sensors.
@@ -42,8 +44,13 @@ struct Cli {
     /// Output MCAP file; must not exist (it is created exclusively).
     #[arg(long)]
     out: PathBuf,
-    /// JSON object `{record name: {key: value}}` written as metadata records.
-    #[arg(long)]
+    /// A JSON file `{record name: {key: value}}` written as the file's
+    /// metadata records (`etp run --record` passes the run's: `etp.run`,
+    /// `etp.scenario`, `etp.strategy`, `etp.prediction`, `etp.config`; see
+    /// recordings/README.md). Without it, the metadata that `etp replay
+    /// --publish` left for this run id is written when the recording ends, so
+    /// a re-recorded replay summarises and verifies like the original.
+    #[arg(long, value_name = "FILE")]
     meta: Option<PathBuf>,
 }
 
