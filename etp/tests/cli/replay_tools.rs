@@ -388,3 +388,61 @@ fn replay_plot_draws_measured_against_predicted() {
     );
     assert_eq!(std::fs::read(&png).expect("png"), before);
 }
+
+/// The recording decodes outside etp: Python's `mcap` reader and the
+/// `struct` format each channel's schema text states unpack every message
+/// (sizes agree), and the values are those `--cat` prints.
+#[test]
+fn schema_text_unpacks_every_message_in_python() {
+    let ok = Command::new("python3")
+        .args(["-c", "import mcap"])
+        .status()
+        .is_ok_and(|st| st.success());
+    if !ok {
+        assert!(std::env::var_os("CI").is_none(), "CI without python mcap");
+        eprintln!("SKIPPED: python3 has no `mcap` package");
+        return;
+    }
+    let script = r#"
+import sys, json, re, struct
+from mcap.reader import make_reader
+sizes, first = {}, None
+with open(sys.argv[1], "rb") as f:
+    for schema, channel, msg in make_reader(f).iter_messages():
+        fmt = re.search(r'struct\.unpack\("([^"]+)"', schema.data.decode()).group(1)
+        assert struct.calcsize(fmt) == len(msg.data), (channel.topic, fmt, len(msg.data))
+        vals = struct.unpack(fmt, msg.data)
+        sizes[schema.name] = len(msg.data)
+        if channel.topic == "measurement" and first is None:
+            first = {"episode": vals[1], "step": vals[2], "sender": vals[4], "y_0": vals[8]}
+print(json.dumps({"sizes": sizes, "first": first}))
+"#;
+    let f = fixture();
+    let out = Command::new("python3")
+        .args(["-c", script, s(&f)])
+        .output()
+        .expect("python3");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let py: Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(py["sizes"].as_object().map(|m| m.len()), Some(10), "{py}");
+    let cat = etp(&["replay", s(&f), "--topics", "measurement", "--cat"]);
+    let line: Value = serde_json::from_str(
+        String::from_utf8_lossy(&cat.stdout)
+            .lines()
+            .next()
+            .expect("a measurement"),
+    )
+    .expect("json line");
+    let first = &py["first"];
+    assert_eq!(first["episode"], line["episode"]);
+    assert_eq!(first["step"], line["step"]);
+    assert_eq!(first["y_0"].as_f64(), line["y_0"].as_f64());
+    assert_eq!(
+        line["sender"].as_str(),
+        Some(format!("s{}", first["sender"]).as_str())
+    );
+}
