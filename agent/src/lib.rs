@@ -10,9 +10,11 @@
 //!   `etp_shared::episode::step` (input, plant move from `streams::AGENT`,
 //!   collision check, prior, slot update, leg end — the functions the
 //!   in-process simulation and `replay --verify` use); at each decision point
-//!   it publishes `waypoint` and waits for the coordinator's `threshold`.
-//! * [`link`] — the ports of a slot: publish `truth` and `prior`, wake the
-//!   serving sensor, take its `slot` (and `measurement`). A sensor that is
+//!   it publishes `waypoint`, waits for the coordinator's `threshold` and
+//!   hands its belief over to the leg's sensor (`handover`, once per leg).
+//! * [`link`] — the ports of a slot: publish `truth`, wake the serving
+//!   sensor, take its `slot` (and `measurement`); the slot's prior digest
+//!   must equal the agent's prior (the sensor's replica is exact). A sensor that is
 //!   dead (iceoryx2 node list) — or, only with `--slot-deadline`, late — is a
 //!   *dead link*: the agent does prediction only, never the implicit update,
 //!   and marks the episode degraded. A live sensor is waited for, however
@@ -75,6 +77,8 @@ pub struct AgentStats {
     pub steps: u64,
     pub received: u64,
     pub dead_slots: u64,
+    /// Beliefs handed over to a serving sensor (one per leg with a live sensor).
+    pub handovers: u64,
     /// Time spent inside episodes (for the steps/s figure), seconds.
     pub busy_seconds: f64,
 }

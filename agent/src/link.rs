@@ -1,5 +1,5 @@
-//! The agent's ports towards the sensors: publish one slot's truth and prior,
-//! and take what came back.
+//! The agent's ports towards the sensors: hand the belief over at the start
+//! of a leg, publish each slot's truth, and take what came back.
 //!
 //! Waiting is not done here: the agent waits in one place
 //! ([`crate::runtime::Agent`] through `wire::Waiter`) and polls
@@ -7,7 +7,7 @@
 
 use crate::AgentError;
 use etp_runtime::wire::PortError;
-use etp_runtime::wire::agent_to_sensor::{Prior, Truth};
+use etp_runtime::wire::agent_to_sensor::{Handover, Truth};
 use etp_runtime::wire::coordinator_to_all::Threshold;
 use etp_runtime::wire::sensor_to_agent::{Measurement, Slot};
 use etp_runtime::wire::{
@@ -19,8 +19,9 @@ use etp_shared::etkf::{Belief, Vector};
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SlotResult {
     /// The slot closed: `Some(y)` if the sensor transmitted, `None` if silent
-    /// (silence from a live sensor is information: implicit update).
-    Closed(Option<WireVec>),
+    /// (silence from a live sensor is information: implicit update), with
+    /// the digest of the prior the sensor's replica triggered on.
+    Closed(Option<WireVec>, u64),
     /// The sensor is dead (or, with `--slot-deadline`, late): no information
     /// from silence. A measurement that did arrive before the verdict is
     /// still returned.
@@ -40,7 +41,7 @@ pub struct Fault {
 /// The agent's ports towards the sensors.
 pub struct Links {
     truth: Vec<Pub<Truth>>,
-    prior: Vec<Pub<Prior>>,
+    handover: Vec<Pub<Handover>>,
     wake: Vec<Notifier>,
     /// Every sensor's `threshold` service (the agent takes its δ from the
     /// OPEN of the serving sensor, and drains the others so they never fill).
@@ -58,8 +59,8 @@ impl Links {
             truth: (0..n)
                 .map(|i| ports.publisher::<Truth>(ServiceId::Truth(i)))
                 .collect::<Result<_, _>>()?,
-            prior: (0..n)
-                .map(|i| ports.publisher::<Prior>(ServiceId::Prior(i)))
+            handover: (0..n)
+                .map(|i| ports.publisher::<Handover>(ServiceId::Handover(i)))
                 .collect::<Result<_, _>>()?,
             wake: (0..n)
                 .map(|i| ports.notifier(ServiceId::SensorWake(i)))
@@ -73,49 +74,59 @@ impl Links {
         })
     }
 
-    /// Open slot `truth.step` at `sensor`: publish truth and prior (the truth
-    /// first: the sensor takes the prior as the signal that both are there),
-    /// then wake the sensor.
-    pub fn open_slot<const N: usize>(
+    /// Hand the belief at the start of leg `header.leg` over to its serving
+    /// sensor (radio: once per leg); its replica computes the leg's priors.
+    /// No wake-up: the leg's first truth follows at once.
+    pub fn hand_over<const N: usize>(
         &mut self,
         sensor: usize,
-        truth_header: Header,
-        prior_header: Header,
-        x: &Vector<N>,
-        prior: &Belief<N>,
+        header: Header,
+        belief: &Belief<N>,
     ) -> Result<(), AgentError> {
-        let (mean, cov) = belief_to_wire(prior);
-        self.truth[sensor]
-            .send_copy(Truth {
-                header: truth_header,
-                dim: N as u32,
-                _pad: 0,
-                x: to_wire_vec(x.as_slice()),
-            })
-            .map_err(|e| PortError::send("truth", e))?;
-        self.prior[sensor]
-            .send_copy(Prior {
-                header: prior_header,
+        let (mean, cov) = belief_to_wire(belief);
+        self.handover[sensor]
+            .send_copy(Handover {
+                header,
                 dim: N as u32,
                 _pad: 0,
                 mean,
                 cov,
             })
-            .map_err(|e| PortError::send("prior", e))?;
+            .map(|_| ())
+            .map_err(|e| PortError::send("handover", e).into())
+    }
+
+    /// Open slot `header.step` at `sensor`: publish the truth (simulation
+    /// plumbing: it stands in for the world the sensor measures), then wake
+    /// the sensor.
+    pub fn open_slot<const N: usize>(
+        &mut self,
+        sensor: usize,
+        header: Header,
+        x: &Vector<N>,
+    ) -> Result<(), AgentError> {
+        self.truth[sensor]
+            .send_copy(Truth {
+                header,
+                dim: N as u32,
+                _pad: 0,
+                x: to_wire_vec(x.as_slice()),
+            })
+            .map_err(|e| PortError::send("truth", e))?;
         self.wake[sensor]
             .notify()
             .map(|_| ())
             .map_err(|e| PortError::notify("sensor wake", e).into())
     }
 
-    /// The slot of (episode, step, sensor) if it closed, with its measurement.
-    /// Records of earlier slots are dropped.
+    /// The slot of (episode, step, sensor) if it closed: its measurement and
+    /// the replica's prior digest. Records of earlier slots are dropped.
     pub fn take_slot(
         &mut self,
         episode: u64,
         step: u32,
         sensor: u32,
-    ) -> Result<Option<Option<WireVec>>, AgentError> {
+    ) -> Result<Option<(Option<WireVec>, u64)>, AgentError> {
         let mut closed = None;
         while let Some(s) = self
             .slot
@@ -124,10 +135,10 @@ impl Links {
         {
             let h = s.header;
             if h.episode == episode && h.step == step && h.sender == sensor {
-                closed = Some(s.transmitted == 1);
+                closed = Some((s.transmitted == 1, s.prior_digest));
             }
         }
-        let Some(transmitted) = closed else {
+        let Some((transmitted, digest)) = closed else {
             return Ok(None);
         };
         let y = self.take_measurement(episode, step, sensor)?;
@@ -136,7 +147,7 @@ impl Links {
                 "sensor {sensor} closed slot {step} of episode {episode} as transmitted but no measurement arrived"
             )));
         }
-        Ok(Some(y))
+        Ok(Some((y, digest)))
     }
 
     /// The measurement of (episode, step, sensor), if one arrived.

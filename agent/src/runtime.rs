@@ -21,7 +21,7 @@ use etp_runtime::wire::{
     self, AGENT_NODE, COORDINATOR_NODE, ControlKind, Liveness, Notifier, OutcomeCode, Ports, Pub,
     SENDER_AGENT, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, belief_to_wire,
 };
-use etp_shared::episode::{CompiledScenario, SlotOutcome};
+use etp_shared::episode::{CompiledScenario, SlotOutcome, belief_digest};
 use etp_shared::etkf::Threshold as Th;
 use etp_shared::rng::{stream_rng, streams};
 use etp_shared::scenario::Scenario;
@@ -239,14 +239,12 @@ impl<const N: usize> Agent<N> {
         k: u32,
         sensor: usize,
         x: &etp_shared::etkf::Vector<N>,
-        prior: &etp_shared::etkf::Belief<N>,
     ) -> Result<Result<(SlotResult, Option<Fault>), Exit>, AgentError> {
         if !self.links.alive[sensor] {
             return Ok(Ok((SlotResult::Dead(None), None)));
         }
-        let th = self.stamp.header(episode, leg, k);
-        let ph = self.stamp.header(episode, leg, k);
-        self.links.open_slot(sensor, th, ph, x, prior)?;
+        let header = self.stamp.header(episode, leg, k);
+        self.links.open_slot(sensor, header, x)?;
         let who = sensor as u32;
         let awaiting = Awaiting::Slot {
             sensor,
@@ -254,7 +252,7 @@ impl<const N: usize> Agent<N> {
             since_wall: SystemTime::now(),
         };
         match self.wait_until(awaiting, |a| a.links.take_slot(episode, k, who))? {
-            Waited::Got(y) => Ok(Ok((SlotResult::Closed(y), None))),
+            Waited::Got((y, digest)) => Ok(Ok((SlotResult::Closed(y, digest), None))),
             Waited::Exit(e) => Ok(Err(e)),
             Waited::DeadLink(fault) => {
                 self.links.alive[sensor] = false;
@@ -325,6 +323,11 @@ impl<const N: usize> Agent<N> {
                 )));
             }
             let beta = Th::new(delta).beta;
+            if self.links.alive[sensor] {
+                let header = self.stamp.header(episode, leg32, k);
+                self.links.hand_over(sensor, header, &state.belief)?;
+                self.stats.handovers += 1;
+            }
             let mut counts = LegCounts::default();
             loop {
                 // docs/MODEL.md §3 through episode::step, in this order.
@@ -340,18 +343,27 @@ impl<const N: usize> Agent<N> {
                         .map(|()| None);
                 }
                 let prior = self.c.prior(&state.belief, &u);
-                let (result, fault) =
-                    match self.slot(episode, leg32, k, sensor, &state.x, &prior)? {
-                        Ok(r) => r,
-                        Err(exit) => return Ok(Some(exit)),
-                    };
+                let (result, fault) = match self.slot(episode, leg32, k, sensor, &state.x)? {
+                    Ok(r) => r,
+                    Err(exit) => return Ok(Some(exit)),
+                };
                 if let Some(f) = fault {
                     record_fault(&mut totals, &f);
                 }
                 totals.slots += 1;
                 let (slot, y) = match result {
-                    SlotResult::Closed(Some(y)) => (true, Some(y)),
-                    SlotResult::Closed(None) => (true, None),
+                    SlotResult::Closed(y, digest) => {
+                        // The sensor triggered on its replica's prior: it
+                        // must be ours, bit for bit (docs/MODEL.md §3.2).
+                        if digest != belief_digest(&prior) {
+                            return Err(AgentError::Protocol(format!(
+                                "sensor {sensor}'s replica diverged at episode {episode} step {k}: \
+                                 prior digest {digest:#018x}, the agent's {:#018x}",
+                                belief_digest(&prior)
+                            )));
+                        }
+                        (true, y)
+                    }
                     SlotResult::Dead(y) => {
                         counts.degraded = true;
                         totals.degraded = 1;

@@ -31,6 +31,8 @@ pub enum Command {
     Bench(crate::cmd::bench::Args),
     /// Run a strategy as processes (coordinator, agent, one per sensor) over iceoryx2.
     Run(crate::cmd::run::Args),
+    /// Serve remote sensors of a run on this host (`etp run --listen … --remote …` on the agent host).
+    SensorHost(crate::cmd::run::sensor_host::Args),
     /// Summarise an MCAP recording of a run (finished or not); `--info`, `--cat`,
     /// `--export DIR`, `--plot`, `--verify`, `--repair OUT`, `--publish`, `--foxglove OUT`.
     Replay(crate::cmd::replay::Args),

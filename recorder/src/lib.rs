@@ -20,7 +20,7 @@
 use anyhow::{Context, Result};
 use clap::Parser;
 use etp_runtime::recording::{self, Kind};
-use etp_runtime::wire::{self, Ports, RunId, ServiceId, Sub};
+use etp_runtime::wire::{self, Ports, RunId, ServiceId};
 use iceoryx2::prelude::*;
 use iceoryx2::waitset::WaitSetRunResult;
 use mcap::records::{MessageHeader, Metadata};
@@ -59,37 +59,6 @@ struct Cli {
 const FLUSH_EVERY: Duration = Duration::from_millis(100);
 const CHUNK: u64 = 128 * 1024;
 
-type Drain = Box<dyn FnMut(&mut Vec<Vec<u8>>) -> Result<()>>;
-
-/// A drain function for one subscriber: appends every waiting payload, encoded.
-fn drainer<T>(sub: Sub<T>, topic: String) -> Drain
-where
-    T: std::fmt::Debug + ZeroCopySend + serde::Serialize + Copy + 'static,
-{
-    Box::new(move |out: &mut Vec<Vec<u8>>| {
-        while let Some(s) = sub
-            .receive()
-            .map_err(|e| anyhow::anyhow!("receiving on {topic}: {e:?}"))?
-        {
-            let v: T = *s;
-            out.push(recording::encode(&v)?);
-        }
-        Ok(())
-    })
-}
-
-fn subscribe(ports: &Ports<'_>, s: ServiceId, kind: Kind, topic: String) -> Result<Drain> {
-    /// Open the recorder's subscriber of the service's payload type.
-    struct Subscribe<'a, 'p>(&'a Ports<'p>, ServiceId, String);
-    impl etp_runtime::wire::KindVisitor for Subscribe<'_, '_> {
-        type Out = Result<Drain>;
-        fn visit<T: etp_runtime::wire::Message>(self) -> Self::Out {
-            Ok(drainer(self.0.observer::<T>(self.1)?, self.2))
-        }
-    }
-    kind.visit(Subscribe(ports, s, topic))
-}
-
 fn now_ns() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
@@ -99,7 +68,7 @@ fn now_ns() -> u64 {
 struct Channel {
     id: u16,
     topic: String,
-    drain: Drain,
+    drain: Box<dyn recording::ports::EncodedSubscriber>,
     count: u32,
 }
 
@@ -170,7 +139,7 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
             recording::MESSAGE_ENCODING,
             &BTreeMap::from([("service".to_string(), s.name(&run))]),
         )?;
-        let drain = subscribe(&ports, s, kind, topic.clone())?;
+        let drain = recording::ports::encoded_subscriber(&ports, s, true)?;
         channels.push(Channel {
             id,
             topic,
@@ -209,15 +178,17 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
     );
     let parent = std::os::unix::process::parent_id();
     let mut last_flush = Instant::now();
-    let mut batch: Vec<Vec<u8>> = Vec::new();
+    let mut batch = Vec::new();
     let mut stopping = false;
     loop {
         let mut got = 0usize;
         for c in &mut channels {
             batch.clear();
-            (c.drain)(&mut batch)?;
+            c.drain
+                .drain(&mut batch)
+                .with_context(|| format!("receiving on {}", c.topic))?;
             let t = now_ns();
-            for data in &batch {
+            for (_, data) in &batch {
                 w.write_to_known_channel(
                     &MessageHeader {
                         channel_id: c.id,

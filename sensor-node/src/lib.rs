@@ -10,7 +10,9 @@
 //! * [`SensorCore`](core::SensorCore) — what each message means, as pure
 //!   functions (unit-tested without processes): `threshold` opens or closes a
 //!   leg (a close yields the leg's [`LegLedger`]); a slot takes `truth` x_k
-//!   and `prior` (x̂⁻_k, P⁻_k), measures y_k = H x_k + v_k (noise from
+//!   and the prior x̂⁻_k, P⁻_k of its replica of the agent's estimator
+//!   (handed over once per leg on `handover`, then advanced with the agent's
+//!   own step functions), measures y_k = H x_k + v_k (noise from
 //!   `streams::SENSOR`, keyed by episode and step), whitens the innovation and
 //!   triggers on ‖ε‖∞ > δ.
 //! * `node` — the thin iceoryx2 adapter: receive, call the core, publish

@@ -4,7 +4,7 @@
 use crate::core::{ControlAction, SensorCore, SensorStats, SlotError};
 use crate::{Exit, IDLE_CHECK, LIST_EVERY, SensorError};
 use etp_runtime::wire::PortError;
-use etp_runtime::wire::agent_to_sensor::{Prior, Truth};
+use etp_runtime::wire::agent_to_sensor::{Handover, Truth};
 use etp_runtime::wire::coordinator_to_all::Threshold;
 use etp_runtime::wire::sensor_to_agent::{Measurement, Slot};
 use etp_runtime::wire::sensor_to_coordinator::Ledger;
@@ -12,6 +12,7 @@ use etp_runtime::wire::to_coordinator::Hello;
 use etp_runtime::wire::{
     self, COORDINATOR_NODE, Notifier, Ports, Pub, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog,
 };
+use etp_shared::episode::CompiledScenario;
 use etp_shared::etkf::EtKalmanFilter;
 use etp_shared::scenario::Scenario;
 use iceoryx2::prelude::*;
@@ -19,7 +20,7 @@ use iceoryx2::prelude::*;
 /// The sensor's ports.
 struct SensorPorts {
     truth: Sub<Truth>,
-    prior: Sub<Prior>,
+    handover: Sub<Handover>,
     threshold: Sub<Threshold>,
     measurement: Pub<Measurement>,
     slot: Pub<Slot>,
@@ -69,7 +70,7 @@ pub(crate) fn serve<const N: usize, const M: usize>(
     };
     let p = SensorPorts {
         truth: ports.subscriber(ServiceId::Truth(index))?,
-        prior: ports.subscriber(ServiceId::Prior(index))?,
+        handover: ports.subscriber(ServiceId::Handover(index))?,
         threshold: ports.subscriber(ServiceId::Threshold(index))?,
         measurement: ports.publisher(ServiceId::Measurement)?,
         slot: ports.publisher(ServiceId::Slot)?,
@@ -89,6 +90,7 @@ pub(crate) fn serve<const N: usize, const M: usize>(
         wire::HELLO_TIMEOUT,
     )?;
     let mut core = SensorCore::new(
+        CompiledScenario::<N>::new(scenario),
         filter,
         scenario.sensors[index].cost,
         index as u32,
@@ -97,7 +99,7 @@ pub(crate) fn serve<const N: usize, const M: usize>(
     );
     // `say_hello` waited for the coordinator's subscriber: it was alive.
     let mut watchdog = Watchdog::new(COORDINATOR_NODE, true, LIST_EVERY);
-    let mut truth: Option<Truth> = None;
+    let mut pending = Pending::default();
     tracing::info!(sensor = %scenario.sensors[index].name, "sensor ready");
     loop {
         match waiter.wait(&node, IDLE_CHECK)? {
@@ -115,39 +117,61 @@ pub(crate) fn serve<const N: usize, const M: usize>(
             }
         }
         core.stats.wakeups += 1;
-        if let Some(exit) = serve_pending(&p, &mut core, &mut stamp, &mut truth)? {
+        if let Some(exit) = serve_pending(&p, &mut core, &mut stamp, &mut pending)? {
             return Ok((exit, core.stats));
         }
     }
 }
 
-/// Everything that arrived: thresholds first (the coordinator opens a leg
-/// before the agent can send its first prior), then each prior with the
-/// truth of its step (published before the prior): one slot each.
+/// Messages that arrived before what they depend on (over a bridge the
+/// services of one sensor travel separately: a handover may land before its
+/// leg's OPEN, a truth before its handover). They wait here, in order.
+#[derive(Default)]
+struct Pending {
+    handovers: std::collections::VecDeque<Handover>,
+    truths: std::collections::VecDeque<Truth>,
+}
+
+/// Everything that arrived, in causal order: thresholds (the coordinator
+/// opens a leg before the agent hands over), handovers (the agent hands over
+/// before the leg's first truth), then each truth: one slot each. A message
+/// whose predecessor has not arrived waits in `pending` for the next
+/// wake-up; one that can never be served is a protocol error.
 fn serve_pending<const N: usize, const M: usize>(
     p: &SensorPorts,
     core: &mut SensorCore<N, M>,
     stamp: &mut Stamper,
-    truth: &mut Option<Truth>,
+    pending: &mut Pending,
 ) -> Result<Option<Exit>, SensorError> {
     if let Some(exit) = drain_thresholds(p, core, stamp)? {
         return Ok(Some(exit));
     }
-    while let Some(prior) = receive(&p.prior, "prior")? {
-        while let Some(t) = receive(&p.truth, "truth")? {
-            *truth = Some(t);
-        }
-        let decision = match core.on_slot(&prior, truth.as_ref()) {
-            Err(SlotError::LegNotOpen { .. }) => {
-                // The leg's OPEN may have landed after the drain above.
-                if let Some(exit) = drain_thresholds(p, core, stamp)? {
-                    return Ok(Some(exit));
-                }
-                core.on_slot(&prior, truth.as_ref())
+    while let Some(h) = receive(&p.handover, "handover")? {
+        pending.handovers.push_back(h);
+    }
+    while let Some(h) = pending.handovers.front() {
+        match core.on_handover(h) {
+            Ok(()) => {
+                pending.handovers.pop_front();
             }
-            other => other,
+            Err(SlotError::LegNotOpen { .. }) => break,
+            Err(e) => return Err(SensorError::Protocol(e.to_string())),
         }
-        .map_err(|e| SensorError::Protocol(e.to_string()))?;
+    }
+    while let Some(t) = receive(&p.truth, "truth")? {
+        pending.truths.push_back(t);
+    }
+    while let Some(truth) = pending.truths.front() {
+        let decision = match core.on_slot(truth) {
+            Ok(d) => d,
+            Err(SlotError::LegNotOpen { .. } | SlotError::NoHandover { .. })
+                if !core.is_closed(truth.header.episode, truth.header.leg) =>
+            {
+                break;
+            }
+            Err(e) => return Err(SensorError::Protocol(e.to_string())),
+        };
+        pending.truths.pop_front();
         if let Some((y, sequence)) = decision.transmit {
             let header = stamp.header(decision.episode, decision.leg, decision.step);
             send(
@@ -169,6 +193,7 @@ fn serve_pending<const N: usize, const M: usize>(
                 header,
                 transmitted: u32::from(decision.transmit.is_some()),
                 _pad: 0,
+                prior_digest: decision.prior_digest,
             },
         )?;
         notify(&p.agent_wake, "agent wake")?;

@@ -21,8 +21,10 @@
 //! defined once in [`step`] and shared with the runtime agent and
 //! `etp replay --verify`.
 
+pub mod replica;
 pub mod step;
 
+pub use replica::{LegReplica, belief_digest};
 pub use step::SlotOutcome;
 
 use crate::controller::{FeedbackController, reached};

@@ -26,6 +26,9 @@ mod layering;
 #[path = "runtime/faults.rs"]
 mod faults;
 
+#[path = "runtime/remote.rs"]
+mod remote;
+
 const DELTA: &str = "1.4986";
 
 /// Multi-process runs take both cores; run them one at a time so the timing

@@ -181,6 +181,9 @@ pub fn run(a: Args) -> Result<()> {
         allow_degraded: false,
         slot_deadline: None,
         plot: false,
+        listen: None,
+        remote: Vec::new(),
+        join_timeout: None,
     };
     let (mp, problems) = run_cmd::execute(&rargs)?;
 

@@ -23,6 +23,7 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Simulate(a) => simulate::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Run(a) => run::run(a),
+        Command::SensorHost(a) => run::sensor_host::run(a),
         Command::Replay(a) => replay::run(a),
         Command::Synthesize(a) => synthesize::run(a),
         Command::ExportPrism(a) => export_prism::run(a),

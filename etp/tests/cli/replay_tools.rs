@@ -72,14 +72,14 @@ fn topics_episodes_and_time_select_messages() {
         "replay",
         s(&f),
         "--topics",
-        "outcome,sensor/*/prior",
+        "outcome,sensor/*/handover",
         "--json",
     ]);
     let c = counts(&only);
-    assert!(c.contains_key("outcome") && c.keys().any(|k| k.ends_with("/prior")));
+    assert!(c.contains_key("outcome") && c.keys().any(|k| k.ends_with("/handover")));
     assert!(
         c.keys()
-            .all(|k| k == "outcome" || (k.starts_with("sensor/") && k.ends_with("/prior"))),
+            .all(|k| k == "outcome" || (k.starts_with("sensor/") && k.ends_with("/handover"))),
         "{c:?}"
     );
     for (k, n) in &c {

@@ -20,6 +20,15 @@ pub const META_RUN_SCENARIO_HASH: &str = "scenario_hash";
 /// started by hand without `--meta`).
 pub fn check_metadata(c: &Contents) -> Result<Option<Scenario>, RecordingError> {
     let bad = |m: String| Err(RecordingError::Metadata(m));
+    if let Some(v) = c.meta(META_RUN, "format_version")
+        && v != super::FORMAT_VERSION
+    {
+        return bad(format!(
+            "format version {v}: this etp reads format {} (format 2 and older sent the agent's \
+             prior every step; since 3 a handover per leg and the sensor's replica digest in `slot`)",
+            super::FORMAT_VERSION
+        ));
+    }
     let Some(text) = c.meta(META_SCENARIO, "toml") else {
         if c.meta(META_RUN, META_RUN_SCENARIO_HASH).is_some()
             || c.metadata.contains_key(META_STRATEGY)

@@ -24,6 +24,7 @@ use crate::wire::sensor_to_agent as s2a;
 
 mod integrity;
 mod layout;
+pub mod ports;
 mod read;
 pub mod table;
 mod verify;
@@ -31,11 +32,13 @@ mod verify;
 pub use integrity::{META_RUN_SCENARIO_HASH, check_metadata};
 pub use layout::{ChunkStats, Layout, layout};
 pub use read::{Contents, RawMessage, read_lenient};
-pub use verify::{Mismatch, VerifyReport, verify};
+pub use verify::{Mismatch, PriorTable, VerifyReport, priors, verify};
 
-/// Version of this format (metadata `etp.run` / `format_version`). 3 added
-/// the `etp.config` record (the run's launch file) and the payload size and
-/// Python `struct` format to the schema text; version 2 files read the same.
+/// Version of this format (metadata `etp.run` / `format_version`). 3: the
+/// per-leg `handover` replaces the per-step `prior`, and `slot` carries the
+/// sensor replica's prior digest; files written since issue 16 also hold the
+/// `etp.config` record (the run's launch file) and schema texts with the
+/// payload's size and Python `struct` format (readers need neither).
 pub const FORMAT_VERSION: &str = "3";
 /// MCAP profile string.
 pub const PROFILE: &str = "etpareto";
@@ -73,6 +76,8 @@ pub enum RecordingError {
     Metadata(String),
     #[error("{0}: not an MCAP recording: {1}")]
     NotMcap(String, String),
+    #[error(transparent)]
+    Port(#[from] crate::wire::PortError),
 }
 
 pub use crate::wire::{Kind, Recorded};
@@ -148,7 +153,7 @@ mod tests {
             "",
             "sensor/x/truth",
             "sensor/1/wake",
-            "sensor//prior",
+            "sensor//handover",
             "nope",
         ] {
             assert_eq!(service_of_topic(bad), None, "{bad}");

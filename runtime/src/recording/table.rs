@@ -334,9 +334,9 @@ mod tests {
             line.starts_with("{\"topic\":\"outcome\",\"log_time_ns\":42,"),
             "{line}"
         );
-        let p = Table::of(Kind::Prior, None).expect("prior");
+        let p = Table::of(Kind::Handover, None).expect("handover");
         assert!(p.columns.iter().any(|c| c.name == "cov_5_5"));
-        let p2 = Table::of(Kind::Prior, Some(2)).expect("prior");
+        let p2 = Table::of(Kind::Handover, Some(2)).expect("handover");
         let names: Vec<&str> = p2.columns.iter().skip(8).map(|c| c.name.as_str()).collect();
         assert_eq!(
             names,

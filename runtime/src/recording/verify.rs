@@ -6,10 +6,13 @@
 //! (`measurement`) and the closed slots (`slot`). From the initial belief
 //! (x̂₀, P₀) the re-run applies docs/MODEL.md §3 through the agent's own step
 //! functions (`episode::step`: input from the posterior, prior, the slot's
-//! update, the leg's end rule) and compares, with `f64::to_bits`, every belief the agent
-//! published: the prior of each slot (`sensor/<i>/prior`) and the posterior at
-//! each decision point (`waypoint`). It also checks that legs and episodes
-//! end at the recorded steps.
+//! update, the leg's end rule) and compares, with `f64::to_bits`, every belief
+//! the agent published — the posterior at each decision point (`waypoint`)
+//! and the belief handed over to the serving sensor (`sensor/<i>/handover`) —
+//! and, through `episode::belief_digest`, the prior the sensor's replica
+//! triggered on in every slot (`slot.prior_digest`). It also checks that legs
+//! and episodes end at the recorded steps. [`priors`] gives the re-run's
+//! prior of every slot (what the agent believed, for drawing).
 //!
 //! Degraded episodes (a dead link) are skipped and counted: whether a late
 //! slot was taken as closed or dead depended on wall-clock timing the file
@@ -18,12 +21,12 @@
 
 use super::{META_RUN, META_SCENARIO, Recorded, RecordingError, decode, read::Contents};
 use crate::wire::agent_to_coordinator::{Outcome, Waypoint};
-use crate::wire::agent_to_sensor::Prior;
+use crate::wire::agent_to_sensor::Handover;
 use crate::wire::coordinator_to_agent::Control;
 use crate::wire::coordinator_to_all::Threshold;
 use crate::wire::sensor_to_agent::{Measurement, Slot};
-use crate::wire::{WireMat, WireVec};
-use etp_shared::episode::{CompiledScenario, SlotOutcome};
+use crate::wire::{WireMat, WireVec, belief_to_wire};
+use etp_shared::episode::{CompiledScenario, SlotOutcome, belief_digest};
 use etp_shared::etkf::{Belief, Threshold as Th};
 use etp_shared::scenario::Scenario;
 use std::collections::BTreeMap;
@@ -53,8 +56,10 @@ pub struct VerifyReport {
     pub episodes_incomplete: u64,
     /// Episodes with a dead link, not re-run.
     pub episodes_degraded_skipped: u64,
-    /// Recorded slot priors reproduced bit for bit.
+    /// Slots whose replica prior digest (the sensor's) equals the re-run's prior.
     pub priors_checked: u64,
+    /// Recorded handovers (belief at the start of a leg, to its sensor) reproduced bit for bit.
+    pub handovers_checked: u64,
     /// Recorded decision-point beliefs reproduced bit for bit.
     pub waypoints_checked: u64,
     /// Plant steps re-run.
@@ -89,8 +94,8 @@ struct EpisodeRecord {
     waypoints: BTreeMap<u32, Waypoint>,
     /// Leg → δ opened by the coordinator.
     opens: BTreeMap<u32, f64>,
-    /// Step → prior sent to the serving sensor.
-    priors: BTreeMap<u32, Prior>,
+    /// Leg → belief handed over to its serving sensor.
+    handovers: BTreeMap<u32, Handover>,
     measurements: BTreeMap<u32, Measurement>,
     slots: BTreeMap<u32, Slot>,
     outcome: Option<Outcome>,
@@ -119,7 +124,7 @@ fn group(c: &Contents) -> Result<(BTreeMap<u64, EpisodeRecord>, u64), RecordingE
         let header = match &rec {
             Recorded::Control(x) => Some(x.header),
             Recorded::Threshold(x) => Some(x.header),
-            Recorded::Prior(x) => Some(x.header),
+            Recorded::Handover(x) => Some(x.header),
             Recorded::Measurement(x) => Some(x.header),
             Recorded::Slot(x) => Some(x.header),
             Recorded::Waypoint(x) => Some(x.header),
@@ -133,7 +138,7 @@ fn group(c: &Contents) -> Result<(BTreeMap<u64, EpisodeRecord>, u64), RecordingE
         let r = match &rec {
             Recorded::Control(x) if x.kind == Control::START => eps.entry(x.header.episode),
             Recorded::Threshold(x) if x.kind == Threshold::OPEN => eps.entry(x.header.episode),
-            Recorded::Prior(x) => eps.entry(x.header.episode),
+            Recorded::Handover(x) => eps.entry(x.header.episode),
             Recorded::Measurement(x) => eps.entry(x.header.episode),
             Recorded::Slot(x) => eps.entry(x.header.episode),
             Recorded::Waypoint(x) => eps.entry(x.header.episode),
@@ -145,7 +150,7 @@ fn group(c: &Contents) -> Result<(BTreeMap<u64, EpisodeRecord>, u64), RecordingE
         match rec {
             Recorded::Control(x) => r.control = Some(x),
             Recorded::Threshold(x) => insert(&mut r.opens, x.header.leg, x.delta, dup, "open"),
-            Recorded::Prior(x) => insert(&mut r.priors, x.header.step, x, dup, "prior"),
+            Recorded::Handover(x) => insert(&mut r.handovers, x.header.leg, x, dup, "handover"),
             Recorded::Measurement(x) => {
                 insert(&mut r.measurements, x.header.step, x, dup, "measurement");
             }
@@ -161,6 +166,27 @@ fn group(c: &Contents) -> Result<(BTreeMap<u64, EpisodeRecord>, u64), RecordingE
 
 /// Re-run the estimator of every episode of a recording (see the module doc).
 pub fn verify(c: &Contents) -> Result<VerifyReport, RecordingError> {
+    verify_with(c, &mut |_, _, _, _| {})
+}
+
+/// The agent's prior (dim, mean, cov) of every re-run slot, by (episode,
+/// step), with the verification report: the recording holds the estimator's
+/// inputs, not its per-step outputs (the sensors compute those themselves).
+pub fn priors(c: &Contents) -> Result<(VerifyReport, PriorTable), RecordingError> {
+    let mut table = PriorTable::new();
+    let report = verify_with(c, &mut |e, k, dim, (mean, cov)| {
+        table.insert((e, k), (dim, mean, cov));
+    })?;
+    Ok((report, table))
+}
+
+/// (episode, step) → (dim, mean, cov) of the agent's prior.
+pub type PriorTable = BTreeMap<(u64, u32), (u32, WireVec, WireMat)>;
+
+/// Where the re-run reports each prior: (episode, step, dim, (mean, cov)).
+type PriorSink<'a> = dyn FnMut(u64, u32, u32, (WireVec, WireMat)) + 'a;
+
+fn verify_with(c: &Contents, sink: &mut PriorSink<'_>) -> Result<VerifyReport, RecordingError> {
     let text = c
         .meta(META_SCENARIO, "toml")
         .ok_or_else(|| RecordingError::Metadata(format!("no `{META_SCENARIO}` record")))?;
@@ -182,7 +208,7 @@ pub fn verify(c: &Contents) -> Result<VerifyReport, RecordingError> {
         let compiled = CompiledScenario::<N>::new(&scenario);
         for (e, r) in &episodes {
             let may_be_cut = cut && *e >= horizon;
-            verify_episode(&compiled, *e, r, may_be_cut, &mut report);
+            verify_episode(&compiled, *e, r, may_be_cut, &mut report, sink);
         }
     });
     Ok(report)
@@ -221,12 +247,13 @@ fn verify_episode<const N: usize>(
     r: &EpisodeRecord,
     may_be_cut: bool,
     rep: &mut VerifyReport,
+    sink: &mut PriorSink<'_>,
 ) {
     if r.outcome.is_some_and(|o| o.degraded != 0) {
         rep.episodes_degraded_skipped += 1;
         return;
     }
-    match rerun(c, episode, r, may_be_cut, rep) {
+    match rerun(c, episode, r, may_be_cut, rep, sink) {
         Ok(Ended::Done) => rep.episodes_checked += 1,
         Ok(Ended::Cut) => rep.episodes_incomplete += 1,
         Err(m) => {
@@ -242,6 +269,7 @@ fn rerun<const N: usize>(
     r: &EpisodeRecord,
     may_be_cut: bool,
     rep: &mut VerifyReport,
+    sink: &mut PriorSink<'_>,
 ) -> Result<Ended, Mismatch> {
     let miss = |leg: u32, step: u32, what: String, d: f64| Mismatch {
         episode,
@@ -291,6 +319,21 @@ fn rerun<const N: usize>(
         };
         let beta = Th::new(delta).beta;
         let sensor = c.legs[leg as usize].sensor;
+        let Some(h) = r.handovers.get(&leg) else {
+            return missing(leg, k, "no handover recorded for this leg");
+        };
+        if h.header.step != k {
+            return Err(miss(
+                leg,
+                k,
+                format!("handover recorded at step {}", h.header.step),
+                0.0,
+            ));
+        }
+        if let Some(d) = differs(&belief, h.dim, &h.mean, &h.cov) {
+            return Err(miss(leg, k, "belief handed over".into(), d));
+        }
+        rep.handovers_checked += 1;
         // The step at which the record ends this leg, if it is in the file.
         let recorded_end = match (r.waypoints.get(&(leg + 1)), outcome) {
             (Some(next), _) => Some(next.header.step),
@@ -321,13 +364,7 @@ fn rerun<const N: usize>(
                 };
             }
             let prior = c.prior(&belief, &u);
-            let Some(p) = r.priors.get(&k) else {
-                return missing(leg, k, "no prior recorded");
-            };
-            if let Some(d) = differs(&prior, p.dim, &p.mean, &p.cov) {
-                return Err(miss(leg, k, "prior".into(), d));
-            }
-            rep.priors_checked += 1;
+            sink(episode, k, N as u32, belief_to_wire(&prior));
             let y = r.measurements.get(&k);
             if let Some(m) = y
                 && m.header.sender as usize != sensor
@@ -345,6 +382,15 @@ fn rerun<const N: usize>(
             let Some(slot) = r.slots.get(&k) else {
                 return missing(leg, k, "slot not closed in the record");
             };
+            if slot.prior_digest != belief_digest(&prior) {
+                return Err(miss(
+                    leg,
+                    k,
+                    "the sensor's replica triggered on another prior (slot.prior_digest)".into(),
+                    0.0,
+                ));
+            }
+            rep.priors_checked += 1;
             if slot.transmitted == 1 && y.is_none() {
                 return missing(
                     leg,

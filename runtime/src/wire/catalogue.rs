@@ -23,7 +23,9 @@ use serde::de::DeserializeOwned;
 use std::fmt::Debug;
 
 /// A payload of the runtime.
-pub trait Message: Debug + Copy + ZeroCopySend + Serialize + DeserializeOwned + 'static {
+pub trait Message:
+    Debug + Copy + Default + ZeroCopySend + Serialize + DeserializeOwned + 'static
+{
     const KIND: Kind;
     /// This payload as the decoded union.
     fn into_recorded(self) -> Recorded;
@@ -119,12 +121,12 @@ catalogue! {
         codes "kind: 1 = OPEN (leg header.leg at `sensor` with delta), 2 = CLOSE (the sensor answers with its ledger), 3 = STOP (the sensor exits); delta_index: index of delta in the strategy's thresholds";
     Truth => a2s::Truth, owner "agent", names [],
         codes "x: the true state (simulation only: stands in for the physical world); entries past dim are 0";
-    Prior => a2s::Prior, owner "agent", names [],
-        codes "mean, cov: the agent's prior of slot header.step (row-major; entries past dim are 0)";
+    Handover => a2s::Handover, owner "agent", names [],
+        codes "radio, once per leg served: mean, cov = the agent's belief at the start of leg header.leg after header.step steps (row-major; entries past dim are 0); the sensor's replica computes the leg's priors from it";
     Measurement => s2a::Measurement, owner "sensor", names [],
         codes "costed: one transmission; sequence: transmissions of this sensor in this episode, this one included; y: entries past dim are 0";
     Slot => s2a::Slot, owner "sensor", names ["transmitted": Flag],
-        codes "transmitted: 1 if a measurement was sent for this slot, 0 if silent";
+        codes "transmitted: 1 if a measurement was sent for this slot, 0 if silent; prior_digest: FNV-1a of the bits of the replica's prior (mean, then cov row by row)";
     Waypoint => a2c::Waypoint, owner "agent", names ["prev_degraded": Flag],
         codes "decision point header.leg reached; prev_*: counts of the leg that just ended; prev_degraded: 1 if it had a dead link";
     Outcome => a2c::Outcome, owner "agent",
@@ -411,7 +413,7 @@ impl ServiceId {
             Self::Control => Kind::Control,
             Self::Threshold(_) => Kind::Threshold,
             Self::Truth(_) => Kind::Truth,
-            Self::Prior(_) => Kind::Prior,
+            Self::Handover(_) => Kind::Handover,
             Self::Measurement => Kind::Measurement,
             Self::Slot => Kind::Slot,
             Self::Waypoint => Kind::Waypoint,
@@ -442,8 +444,8 @@ impl ServiceId {
             _ => {
                 if let Some(i) = per_sensor("/truth") {
                     Self::Truth(i)
-                } else if let Some(i) = per_sensor("/prior") {
-                    Self::Prior(i)
+                } else if let Some(i) = per_sensor("/handover") {
+                    Self::Handover(i)
                 } else {
                     Self::Threshold(per_sensor("/threshold")?)
                 }
@@ -466,7 +468,11 @@ mod tests {
             "{t}"
         );
         assert!(t.contains("header.run: u64\nheader.episode: u64\nheader.step: u32\nheader.leg: u32\nheader.sender: u32\nheader.seq: u32\ndim: u32\nsequence: u32\ny: [f64; 6]\n"), "{t}");
-        assert!(Kind::Prior.schema_text().contains("cov: [[f64; 6]; 6]\n"));
+        assert!(
+            Kind::Handover
+                .schema_text()
+                .contains("cov: [[f64; 6]; 6]\n")
+        );
         assert!(Kind::Outcome.schema_text().contains("1 = TARGET"));
         assert!(
             t.contains("# size: 88 bytes; python: struct.unpack(\"<QQIIIIII6d\", data)\n"),
@@ -494,7 +500,7 @@ mod tests {
             "",
             "sensor/x/truth",
             "sensor/1/wake",
-            "sensor//prior",
+            "sensor//handover",
             "sensor/01/truth",
             "nope",
         ] {

@@ -42,7 +42,7 @@ pub fn remove_stale_runs() -> Vec<String> {
     };
     for e in dir.filter_map(Result::ok) {
         let name = e.file_name().to_string_lossy().to_string();
-        if let Ok(run) = RunId::new(&name)
+        if let Ok(run) = RunId::from_folder(&name)
             && remove_run(&run)
         {
             removed.push(name);

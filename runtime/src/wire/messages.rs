@@ -118,11 +118,14 @@ pub mod agent_to_sensor {
         pub x: WireVec,
     }
 
-    /// `prior`: the shared estimate x̂⁻_k, P⁻_k before the slot.
+    /// `handover` (radio: once per leg served): the agent's belief x̂, P at
+    /// the start of leg `header.leg` (after `header.step` steps). From it the
+    /// sensor's replica computes every prior of the leg itself
+    /// (`episode::LegReplica`), so no estimate is sent per step.
     #[repr(C)]
     #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
-    #[type_name("etp::Prior")]
-    pub struct Prior {
+    #[type_name("etp::Handover")]
+    pub struct Handover {
         pub header: Header,
         pub dim: u32,
         pub _pad: u32,
@@ -148,7 +151,8 @@ pub mod sensor_to_agent {
         pub y: WireVec,
     }
 
-    /// `slot`: "slot k closed" (sent after the measurement, if any).
+    /// `slot`: "slot k closed" (sent after the measurement, if any;
+    /// simulation plumbing: the slot clock).
     #[repr(C)]
     #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
     #[type_name("etp::Slot")]
@@ -157,6 +161,9 @@ pub mod sensor_to_agent {
         /// 1 if a measurement was transmitted for this slot.
         pub transmitted: u32,
         pub _pad: u32,
+        /// `episode::belief_digest` of the prior the sensor's replica
+        /// triggered on: the agent checks it against its own prior.
+        pub prior_digest: u64,
     }
 }
 

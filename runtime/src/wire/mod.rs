@@ -12,7 +12,9 @@
 //!   under [`ROOT_BASE`].
 //!
 //! One step of an episode (one blocking round trip): the agent publishes
-//! `truth` and `prior` to the serving sensor and wakes it; the sensor measures,
+//! `truth` to the serving sensor and wakes it; the sensor computes the prior
+//! with its replica of the agent's estimator (handed over once per leg on
+//! `handover`), measures,
 //! whitens, triggers, publishes `measurement` if it triggers, then `slot`, and
 //! wakes the agent. One decision point (one more round trip per leg): the
 //! agent publishes `waypoint`; the coordinator answers on `threshold` (open
@@ -25,6 +27,7 @@ pub mod messages;
 pub mod port;
 pub mod report;
 pub mod services;
+pub mod traffic;
 pub mod waiter;
 
 pub use catalogue::{Kind, KindVisitor, Message, Recorded};
@@ -98,7 +101,9 @@ pub fn quiet_iceoryx2() {
 pub fn init_process_logging(process: &str) {
     quiet_iceoryx2();
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+        // Zenoh's own warnings (e.g. that gossip, which we turn off, cannot
+        // de-duplicate across region gateways) are noise by default.
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,zenoh=error"));
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)

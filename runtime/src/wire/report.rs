@@ -88,3 +88,17 @@ pub struct RunReport {
     /// Why the run stopped early, if it did.
     pub aborted: Option<String>,
 }
+
+/// What a sensor host needs to take part in a run across hosts (served by
+/// the agent host's bridge): everything, so nothing is copied by hand.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SessionInfo {
+    pub run_id: String,
+    /// The scenario's TOML text.
+    pub scenario_toml: String,
+    pub seed: u64,
+    /// Names of every sensor of the scenario, in index order.
+    pub sensors: Vec<String>,
+    /// Indices of the sensors served from other hosts.
+    pub remote: Vec<usize>,
+}

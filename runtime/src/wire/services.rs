@@ -21,19 +21,56 @@ pub const DEAD_NOTIFIER_EVENT: usize = 200;
 /// A run id: 1–40 characters of `[a-z0-9-]`. It names the services
 /// (`etp/<run-id>/…`), the shared-memory prefix and the root folder, so two
 /// runs never see each other.
+///
+/// A run spanning hosts has one id everywhere (it is in every header), and
+/// each host its own iceoryx2 domain; two hosts' domains on one machine
+/// (`etp sensor-host` beside `etp run`) are kept apart by [`IPC_DOMAIN_ENV`],
+/// which suffixes the prefix and root folder, never the id or its tag.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
-pub struct RunId(String);
+pub struct RunId {
+    id: String,
+    domain: Option<String>,
+}
+
+/// Environment variable naming the iceoryx2 domain of this host's part of a
+/// run (`[a-z0-9-]`, set by `etp sensor-host` for itself and its sensors).
+pub const IPC_DOMAIN_ENV: &str = "ETP_IPC_DOMAIN";
+
+fn valid_id(s: &str) -> bool {
+    !s.is_empty()
+        && s.len() <= 40
+        && s.bytes()
+            .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-')
+}
 
 impl RunId {
+    /// The id `s` in this process's domain ([`IPC_DOMAIN_ENV`], if set).
     pub fn new(s: &str) -> Result<Self, WireError> {
-        let ok = !s.is_empty()
-            && s.len() <= 40
-            && s.bytes()
-                .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-');
-        if ok {
-            Ok(Self(s.to_string()))
-        } else {
-            Err(WireError::RunId(s.to_string()))
+        let domain = std::env::var(IPC_DOMAIN_ENV).ok().filter(|d| !d.is_empty());
+        Self::in_domain(s, domain.as_deref())
+    }
+
+    /// The id `s` in iceoryx2 domain `domain` (`None`: the default one).
+    pub fn in_domain(s: &str, domain: Option<&str>) -> Result<Self, WireError> {
+        if !valid_id(s) {
+            return Err(WireError::RunId(s.to_string()));
+        }
+        if let Some(d) = domain
+            && !valid_id(d)
+        {
+            return Err(WireError::RunId(format!("{s} (domain `{d}`)")));
+        }
+        Ok(Self {
+            id: s.to_string(),
+            domain: domain.map(str::to_string),
+        })
+    }
+
+    /// The run of a root folder name (`<id>` or `<id>.<domain>`).
+    pub fn from_folder(name: &str) -> Result<Self, WireError> {
+        match name.split_once('.') {
+            Some((id, d)) => Self::in_domain(id, Some(d)),
+            None => Self::in_domain(name, None),
         }
     }
 
@@ -43,35 +80,46 @@ impl RunId {
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.as_nanos() as u64);
         let mixed = etp_shared::rng::mix64(nanos ^ (u64::from(std::process::id()) << 32));
-        Self(format!("r{:012x}", mixed & 0xFFFF_FFFF_FFFF))
+        Self {
+            id: format!("r{:012x}", mixed & 0xFFFF_FFFF_FFFF),
+            domain: std::env::var(IPC_DOMAIN_ENV).ok().filter(|d| valid_id(d)),
+        }
     }
 
     pub fn as_str(&self) -> &str {
-        &self.0
+        &self.id
     }
 
-    /// The 64-bit tag carried in every [`super::Header`].
+    /// The 64-bit tag carried in every [`super::Header`] (of the id only:
+    /// the same on every host of the run).
     pub fn tag(&self) -> u64 {
-        self.0.bytes().fold(0x45_54_50_u64, |h, b| {
+        self.id.bytes().fold(0x45_54_50_u64, |h, b| {
             etp_shared::rng::mix64(h ^ u64::from(b))
         })
     }
 
-    /// Shared-memory file prefix (`_` cannot occur in an id, so no prefix of
-    /// one run is a prefix of another's).
+    fn local_name(&self) -> String {
+        match &self.domain {
+            Some(d) => format!("{}.{d}", self.id),
+            None => self.id.clone(),
+        }
+    }
+
+    /// Shared-memory file prefix (`_` and `.` cannot occur in an id, so no
+    /// prefix of one run or domain is a prefix of another's).
     pub fn shm_prefix(&self) -> String {
-        format!("etp_{}_", self.0)
+        format!("etp_{}_", self.local_name())
     }
 
     /// The run's iceoryx2 root folder.
     pub fn root_dir(&self) -> PathBuf {
-        PathBuf::from(ROOT_BASE).join(&self.0)
+        PathBuf::from(ROOT_BASE).join(self.local_name())
     }
 }
 
 impl std::fmt::Display for RunId {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
+        f.write_str(&self.id)
     }
 }
 
@@ -101,8 +149,8 @@ pub enum ServiceId {
     Threshold(usize),
     /// agent → sensor i: true state.
     Truth(usize),
-    /// agent → sensor i: prior x̂⁻, P⁻.
-    Prior(usize),
+    /// agent → sensor i: its belief at the start of a leg i serves (radio).
+    Handover(usize),
     /// sensors → agent: transmitted measurements (costed).
     Measurement,
     /// sensors → agent: slot closed.
@@ -136,7 +184,7 @@ impl ServiceId {
             Self::Control => "control".to_string(),
             Self::Threshold(i) => format!("sensor/{i}/threshold"),
             Self::Truth(i) => format!("sensor/{i}/truth"),
-            Self::Prior(i) => format!("sensor/{i}/prior"),
+            Self::Handover(i) => format!("sensor/{i}/handover"),
             Self::Measurement => "measurement".to_string(),
             Self::Slot => "slot".to_string(),
             Self::Waypoint => "waypoint".to_string(),
@@ -155,7 +203,7 @@ impl ServiceId {
     pub fn reader_wake(self) -> Self {
         match self {
             Self::Control | Self::Measurement | Self::Slot => Self::AgentWake,
-            Self::Threshold(i) | Self::Truth(i) | Self::Prior(i) => Self::SensorWake(i),
+            Self::Threshold(i) | Self::Truth(i) | Self::Handover(i) => Self::SensorWake(i),
             Self::Waypoint | Self::Outcome | Self::Ledger | Self::Hello => Self::CoordinatorWake,
             e @ (Self::AgentWake | Self::CoordinatorWake | Self::SensorWake(_)) => e,
         }
@@ -185,7 +233,7 @@ impl ServiceId {
         for i in 0..sensors {
             v.push(Self::Threshold(i));
             v.push(Self::Truth(i));
-            v.push(Self::Prior(i));
+            v.push(Self::Handover(i));
         }
         v
     }
@@ -243,7 +291,7 @@ pub fn limits(service: ServiceId, sensors: usize) -> Limits {
     };
     match service {
         ServiceId::Control => one_to_one(8),
-        ServiceId::Truth(_) | ServiceId::Prior(_) => one_to_one(8),
+        ServiceId::Truth(_) | ServiceId::Handover(_) => one_to_one(8),
         ServiceId::Waypoint | ServiceId::Outcome => one_to_one(16),
         ServiceId::Measurement | ServiceId::Slot => many_to_one(16),
         // Ledgers are drained at leg boundaries; a generous buffer per sensor.

@@ -8,8 +8,10 @@
 //! * `/agent` (`SceneUpdate`, one per slot): the true position (from
 //!   `sensor/<i>/truth`), coloured orange if the sensor transmitted in that
 //!   slot and blue if not, the belief mean and the 3σ ellipse of the
-//!   **prior** x̂⁻_k, P⁻_k (`sensor/<i>/prior`: the shared belief the sensor
-//!   triggered on, before slot k's update).
+//!   **prior** x̂⁻_k, P⁻_k (the belief the sensor's replica triggered on,
+//!   before slot k's update; not sent per step, so recomputed here by the
+//!   estimator re-run of `recording::priors`, which `--verify` checks
+//!   against every slot's digest).
 //! * `/trajectories` (`SceneUpdate`, one per finished episode): the true
 //!   path, green target / red collision / grey free; one id per episode, so
 //!   they accumulate.
@@ -135,7 +137,7 @@ fn earliest(slot: &mut Option<u64>, t: u64) {
 fn sensor_of_topic(topic: &str) -> Option<u32> {
     use etp_runtime::wire::ServiceId;
     match recording::service_of_topic(topic)? {
-        ServiceId::Truth(i) | ServiceId::Prior(i) => u32::try_from(i).ok(),
+        ServiceId::Truth(i) => u32::try_from(i).ok(),
         _ => None,
     }
 }
@@ -176,7 +178,8 @@ fn gather(c: &Contents) -> Result<BTreeMap<u64, Episode>> {
                 (x.header, Recorded::Threshold(x))
             }
             Recorded::Truth(x) => (x.header, Recorded::Truth(x)),
-            Recorded::Prior(x) => (x.header, Recorded::Prior(x)),
+            // The first message of a leg: it only dates the episode's start.
+            Recorded::Handover(x) => (x.header, Recorded::Handover(x)),
             Recorded::Slot(x) => (x.header, Recorded::Slot(x)),
             Recorded::Measurement(x) => (x.header, Recorded::Measurement(x)),
             Recorded::Outcome(x) => (x.header, Recorded::Outcome(x)),
@@ -192,13 +195,6 @@ fn gather(c: &Contents) -> Result<BTreeMap<u64, Episode>> {
                 let s = step_of(ep, &header, t, Some(x.dim), sensor_of_topic(&m.topic));
                 s.view.truth = Some(point3(&x.x, x.dim as usize));
             }
-            Recorded::Prior(x) => {
-                let s = step_of(ep, &header, t, Some(x.dim), sensor_of_topic(&m.topic));
-                s.view.prior = Some((
-                    point3(&x.mean, x.dim as usize),
-                    block3(&x.cov, (x.dim as usize).min(3)),
-                ));
-            }
             Recorded::Slot(x) => {
                 let s = step_of(ep, &header, t, None, Some(header.sender));
                 s.view.transmitted = Some(x.transmitted != 0);
@@ -206,6 +202,21 @@ fn gather(c: &Contents) -> Result<BTreeMap<u64, Episode>> {
             Recorded::Measurement(x) => ep.measurements.push((t, x)),
             Recorded::Outcome(x) => ep.outcome = Some((t, x)),
             _ => {}
+        }
+    }
+    // The agent's prior of every slot, re-run from the recorded inputs
+    // (episodes that cannot be re-run, e.g. degraded ones, have none).
+    let priors = match recording::priors(c) {
+        Ok((_, p)) => p,
+        Err(e) => {
+            eprintln!("warning: no belief ellipses: the estimator cannot be re-run ({e})");
+            Default::default()
+        }
+    };
+    for ((e, k), (dim, mean, cov)) in priors {
+        if let Some(s) = eps.get_mut(&e).and_then(|ep| ep.steps.get_mut(&k)) {
+            let d = dim as usize;
+            s.view.prior = Some((point3(&mean, d), block3(&cov, d.min(3))));
         }
     }
     Ok(eps)

@@ -84,7 +84,7 @@ pub struct Args {
     #[arg(long)]
     pub info: bool,
     /// Only these channels (comma-separated topics; `*` matches any text,
-    /// e.g. `outcome,sensor/*/prior`).
+    /// e.g. `outcome,sensor/*/handover`).
     #[arg(long, value_delimiter = ',', value_name = "TOPICS")]
     pub topics: Vec<String>,
     /// Only these episodes (`header.episode`, 0-based): `A..B` (B excluded),
@@ -402,10 +402,12 @@ fn write_verify(out: &mut String, v: &recording::VerifyReport) -> std::fmt::Resu
     use std::fmt::Write;
     writeln!(
         out,
-        "verify: {} · {} priors and {} decision-point beliefs reproduced bit for bit",
+        "verify: {} · {} decision-point beliefs and {} handovers reproduced bit for bit; \
+         the sensors' replicas triggered on the agent's prior in all {} slots checked",
         if v.passed() { "PASSED" } else { "FAILED" },
-        v.priors_checked,
-        v.waypoints_checked
+        v.waypoints_checked,
+        v.handovers_checked,
+        v.priors_checked
     )?;
     writeln!(
         out,

@@ -15,7 +15,7 @@
 
 use anyhow::{Context, Result, bail};
 use etp_runtime::recording::{self, Contents, Recorded};
-use etp_runtime::wire::{self, Notifier, Ports, Pub, RunId, ServiceId};
+use etp_runtime::wire::{self, Notifier, Ports, RunId, ServiceId};
 use etp_shared::scenario::Scenario;
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
@@ -33,33 +33,6 @@ pub fn parse_rate(s: &str) -> Result<f64, String> {
         return Err(format!("the rate must be > 0 (got {s})"));
     }
     Ok(x)
-}
-
-/// A typed publisher of one channel, behind the one method replay needs.
-trait Sender {
-    /// Send one decoded payload; the number of subscribers it reached.
-    fn send(&self, r: Recorded) -> Result<usize>;
-}
-
-impl<T: etp_runtime::wire::Message> Sender for Pub<T> {
-    fn send(&self, r: Recorded) -> Result<usize> {
-        let v = T::from_recorded(r).context("payload of another channel")?;
-        self.send_copy(v).map_err(|e| anyhow::anyhow!("{e:?}"))
-    }
-}
-
-/// Open the publisher of a recorded service, typed by its kind.
-fn open_sender(ports: &Ports<'_>, s: ServiceId) -> Result<Box<dyn Sender>> {
-    struct Open<'a, 'p>(&'a Ports<'p>, ServiceId);
-    impl etp_runtime::wire::KindVisitor for Open<'_, '_> {
-        type Out = Result<Box<dyn Sender>>;
-        fn visit<T: etp_runtime::wire::Message>(self) -> Self::Out {
-            Ok(Box::new(self.0.publisher::<T>(self.1)?))
-        }
-    }
-    s.kind()
-        .context("not a recorded service")?
-        .visit(Open(ports, s))
 }
 
 /// What a replay published.
@@ -102,7 +75,8 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Res
         run,
         sensors: scenario.sensors.len(),
     };
-    let mut senders: BTreeMap<&str, (Box<dyn Sender>, ServiceId)> = BTreeMap::new();
+    let mut senders: BTreeMap<&str, (Box<dyn recording::ports::DecodedPublisher>, ServiceId)> =
+        BTreeMap::new();
     let mut wakes: BTreeMap<ServiceId, Notifier> = BTreeMap::new();
     for topic in c.channels.keys() {
         let s = recording::service_of_topic(topic)
@@ -118,7 +92,8 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Res
         senders.insert(
             topic.as_str(),
             (
-                open_sender(&ports, s).with_context(|| format!("opening `{topic}`"))?,
+                recording::ports::decoded_publisher(&ports, s)
+                    .with_context(|| format!("opening `{topic}`"))?,
                 wake,
             ),
         );

@@ -67,7 +67,7 @@ pub fn parse_offset(s: &str) -> Result<f64, String> {
 /// The selection flags.
 #[derive(Debug, Clone, Default)]
 pub struct Selection {
-    /// Topics (`outcome`, `sensor/0/truth`); `*` matches any text (`sensor/*/prior`).
+    /// Topics (`outcome`, `sensor/0/truth`); `*` matches any text (`sensor/*/handover`).
     pub topics: Vec<String>,
     pub episodes: Option<Episodes>,
     pub start: Option<f64>,

@@ -1,6 +1,7 @@
 //! `etp run --config RUN.toml`: the launch file of a run. Its keys are the
 //! long flags of `etp run` (`strategy` or `scenario` + `delta`, `episodes`,
-//! `seed`, `record`, `slot_deadline`, …); a flag given on the command line
+//! `seed`, `record`, `slot_deadline`, `listen` + `remote` sensors, …); a flag
+//! given on the command line
 //! wins over the file. Relative paths in the file are relative to the file.
 //! The resolved configuration of every run — file or flags — is stored in the
 //! recording's metadata (`etp.config`, key `toml`).
@@ -22,6 +23,7 @@ pub const DEFAULT_EPISODES: u64 = 100;
 pub const DEFAULT_SEED: u64 = 0;
 pub const DEFAULT_DEADLINE: f64 = 3600.0;
 pub const DEFAULT_PREDICT_EPISODES: u64 = 2000;
+pub const DEFAULT_JOIN_TIMEOUT: f64 = 60.0;
 
 /// The keys of a run file (every one optional; unknown keys are refused).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -53,6 +55,15 @@ pub struct RunConfig {
     pub allow_degraded: Option<bool>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub slot_deadline: Option<u64>,
+    /// Across hosts: the Zenoh endpoint to listen on, the sensors served
+    /// from other hosts, how long to wait for them (`--listen`, `--remote`,
+    /// `--join-timeout`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub listen: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub remote: Option<Vec<String>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub join_timeout: Option<f64>,
 }
 
 /// Read a run file (errors name the file and the key).
@@ -103,6 +114,17 @@ pub fn resolve(mut a: Args) -> Result<Args> {
         a.clone_sensors = a.clone_sensors.or(c.clone_sensors);
         a.slot_deadline = a.slot_deadline.or(c.slot_deadline);
         a.allow_degraded |= c.allow_degraded.unwrap_or(false);
+        a.listen = a.listen.or(c.listen);
+        if a.remote.is_empty() {
+            a.remote = c.remote.unwrap_or_default();
+        }
+        a.join_timeout = a.join_timeout.or(c.join_timeout);
+        if a.listen.is_some() != !a.remote.is_empty() {
+            bail!(
+                "run file {}: `listen` and `remote` go together (sensors served from other hosts)",
+                path.display()
+            );
+        }
         if a.record.is_none() && !a.record_default {
             a.record = c.record;
             a.record_default = c.record_default.unwrap_or(false);
@@ -124,6 +146,7 @@ pub fn resolve(mut a: Args) -> Result<Args> {
     a.seed.get_or_insert(DEFAULT_SEED);
     a.deadline.get_or_insert(DEFAULT_DEADLINE);
     a.predict_episodes.get_or_insert(DEFAULT_PREDICT_EPISODES);
+    a.join_timeout.get_or_insert(DEFAULT_JOIN_TIMEOUT);
     Ok(a)
 }
 
@@ -143,6 +166,9 @@ pub fn of_args(a: &Args, record: Option<&Path>) -> RunConfig {
         record_default: None,
         allow_degraded: Some(a.allow_degraded),
         slot_deadline: a.slot_deadline,
+        listen: a.listen.clone(),
+        remote: (!a.remote.is_empty()).then(|| a.remote.clone()),
+        join_timeout: a.join_timeout,
     }
 }
 

@@ -19,8 +19,10 @@ mod figure;
 mod prepare;
 mod process;
 mod record;
+mod remote;
 mod report;
 mod rundir;
+pub mod sensor_host;
 mod supervise;
 
 use anyhow::{Context, Result, bail};
@@ -103,6 +105,23 @@ pub struct Args {
     /// (with `--record`), else `run-<run-id>-report.png` here.
     #[arg(long)]
     pub plot: bool,
+    /// Across hosts: listen on this Zenoh endpoint (e.g. `tcp/10.0.0.1:7447`)
+    /// for sensor hosts (`etp sensor-host --connect …`). Scouting is off:
+    /// only this endpoint is used.
+    #[arg(long, value_name = "ENDPOINT", requires = "remote")]
+    pub listen: Option<String>,
+    /// Sensors served from other hosts (names, comma-separated); the run
+    /// waits until they joined.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        requires = "listen",
+        value_name = "SENSORS"
+    )]
+    pub remote: Vec<String>,
+    /// Seconds to wait for the remote sensors to join [default: 60].
+    #[arg(long)]
+    pub join_timeout: Option<f64>,
 }
 
 /// Why a completed run is not clean (empty: exit 0), checked leg by leg: a
@@ -182,6 +201,9 @@ impl Args {
     pub fn deadline(&self) -> f64 {
         self.deadline.unwrap_or(config::DEFAULT_DEADLINE)
     }
+    pub fn join_timeout(&self) -> f64 {
+        self.join_timeout.unwrap_or(config::DEFAULT_JOIN_TIMEOUT)
+    }
     pub fn predict_episodes(&self) -> u64 {
         self.predict_episodes
             .unwrap_or(config::DEFAULT_PREDICT_EPISODES)
@@ -251,11 +273,26 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         (None, true) => Some(record::default_path(&plan)),
         (None, false) => None,
     };
+    let remote = match &a.listen {
+        Some(listen) => match remote::remote_indices(&plan, &a.remote) {
+            Ok(r) => Some(remote::RemoteSpec {
+                listen: listen.clone(),
+                remote: r,
+                join_timeout: a.join_timeout(),
+            }),
+            Err(e) => {
+                dir.remove();
+                return Err(e);
+            }
+        },
+        None => None,
+    };
     let outcome = rt.block_on(supervise::supervise(
         &plan,
         Duration::from_secs_f64(a.deadline()),
         record.as_deref(),
         a.slot_deadline,
+        remote.as_ref(),
         a.json,
     ));
     // Whatever happened: no iceoryx2 leftovers of this run.

@@ -81,7 +81,18 @@ pub fn status_text(s: &std::process::ExitStatus) -> String {
 /// terminal's Ctrl-C (or Ctrl-Z) reaches `etp run` only, which stops the run
 /// gracefully through the coordinator instead of every process dying at once.
 pub fn spawn(bin: &Launcher, args: &[String], stdout: bool) -> Result<Child> {
+    spawn_env(bin, args, stdout, &[])
+}
+
+/// [`spawn`] with extra environment variables.
+pub fn spawn_env(
+    bin: &Launcher,
+    args: &[String],
+    stdout: bool,
+    env: &[(&str, &str)],
+) -> Result<Child> {
     let mut c = bin.command(args);
+    c.envs(env.iter().copied());
     c.process_group(0);
     c.stdin(Stdio::null())
         .stdout(if stdout {

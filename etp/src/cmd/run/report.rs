@@ -4,6 +4,7 @@ use super::Args;
 use super::prepare::Plan;
 use super::supervise::Supervised;
 use anyhow::Result;
+use etp_runtime::wire::traffic::LinkTraffic;
 use etp_shared::stats::{Estimate, MeanAccumulator, proportion};
 use serde_json::{Value, json};
 
@@ -29,18 +30,62 @@ fn estimates(s: &Supervised) -> Estimates {
     }
 }
 
+/// Per sensor, what its link carried (derived from the run's counts: legs,
+/// handovers, slots, transmissions; `wire::traffic`).
+fn expected_traffic(s: &Supervised) -> Vec<LinkTraffic> {
+    let r = &s.report;
+    (0..r.sensors.len())
+        .map(|i| {
+            let (mut legs, mut handovers, mut slots, mut sent) = (0u64, 0u64, 0u64, 0u64);
+            for l in r
+                .episode_results
+                .iter()
+                .flat_map(|e| &e.legs)
+                .filter(|l| l.sensor as usize == i)
+            {
+                legs += 1;
+                // A leg whose sensor was alive at its start got a handover.
+                handovers += u64::from(l.transmitted.is_some());
+                slots += u64::from(l.slots.unwrap_or(0));
+                sent += u64::from(l.transmitted.unwrap_or(0));
+            }
+            LinkTraffic::expected(legs, handovers, slots, sent)
+        })
+        .collect()
+}
+
+/// The downlink of the estimator replica (one handover per leg) against the
+/// per-step prior it replaced.
+fn downlink(s: &Supervised, traffic: &[LinkTraffic]) -> Value {
+    let slots: u64 = s.report.sensors.iter().map(|t| t.slots).sum();
+    let handover: u64 = traffic.iter().map(|t| t.down_radio.bytes).sum();
+    let per_step = LinkTraffic::per_step_prior(slots).bytes;
+    json!({"handover_bytes": handover, "per_step_prior_bytes": per_step,
+           "saved_fraction": if per_step > 0 { 1.0 - handover as f64 / per_step as f64 } else { 0.0 }})
+}
+
 /// The `--json` object (keys of issue 5, plus details).
 pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
     let r = &s.report;
     let e = estimates(s);
+    let traffic = expected_traffic(s);
     let sensors: Vec<Value> = r
         .sensors
         .iter()
         .zip(&plan.sensor_energy_per_episode)
-        .map(|(t, per_ep)| {
-            json!({"name": t.name, "transmissions": t.transmitted, "received": t.received,
+        .zip(&traffic)
+        .map(|((t, per_ep), link)| {
+            let mut v = json!({"name": t.name, "transmissions": t.transmitted, "received": t.received,
                    "predicted_energy": crate::vocab::round_energy(per_ep * r.episodes as f64),
-                   "energy": t.energy, "slots": t.slots, "missing_ledgers": t.missing_ledgers})
+                   "energy": t.energy, "slots": t.slots, "missing_ledgers": t.missing_ledgers,
+                   "traffic": link});
+            if let Some(carried) = s.link.as_ref().and_then(|l| l.traffic.get(&t.name))
+                && let Some(m) = v.as_object_mut()
+            {
+                m.insert("remote".into(), json!(true));
+                m.insert("traffic_carried".into(), json!(carried));
+            }
+            v
         })
         .collect();
     let mut v = json!({
@@ -69,7 +114,13 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         "steps_per_second": if r.seconds > 0.0 { r.steps as f64 / r.seconds } else { 0.0 },
         "wall_seconds": s.wall_seconds,
         "aborted": r.aborted,
+        "downlink": downlink(s, &traffic),
     });
+    if let Some(link) = &s.link
+        && let Some(m) = v.as_object_mut()
+    {
+        m.insert("link".into(), json!(link));
+    }
     if let Some(rec) = &s.recording
         && let Some(m) = v.as_object_mut()
     {
@@ -139,6 +190,36 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
     println!(
         "  predicted energy per sensor: {}",
         super::record::prediction_source(plan)
+    );
+    let traffic = expected_traffic(s);
+    println!(
+        "  {:<8} {:>22} {:>22} {:>22} {:>22}",
+        "traffic", "radio down", "radio up", "plumbing down", "plumbing up"
+    );
+    let cell = |c: etp_runtime::wire::traffic::Count| format!("{} msg {} B", c.messages, c.bytes);
+    for (t, link) in r.sensors.iter().zip(&traffic) {
+        let carried = s.link.as_ref().and_then(|l| l.traffic.get(&t.name));
+        let shown = carried.unwrap_or(link);
+        println!(
+            "  {:<8} {:>22} {:>22} {:>22} {:>22}{}",
+            t.name,
+            cell(shown.down_radio),
+            cell(shown.up_radio),
+            cell(shown.down_plumbing),
+            cell(shown.up_plumbing),
+            if carried.is_some() {
+                "  (remote: as carried by the link)"
+            } else {
+                ""
+            }
+        );
+    }
+    let d = downlink(s, &traffic);
+    println!(
+        "  downlink: {} B of handovers (one per leg) vs {} B of per-step priors: {:.1} % saved",
+        d["handover_bytes"],
+        d["per_step_prior_bytes"],
+        100.0 * d["saved_fraction"].as_f64().unwrap_or(0.0)
     );
     if r.degraded > 0 {
         println!(

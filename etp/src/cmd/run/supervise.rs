@@ -26,6 +26,8 @@ pub struct Supervised {
     /// SIGINT/SIGTERM stopped the run early (the report covers the
     /// complete episodes).
     pub interrupted: bool,
+    /// `--listen`/`--remote`: what the link to the remote sensors carried.
+    pub link: Option<super::remote::LinkReport>,
 }
 
 pub async fn supervise(
@@ -33,12 +35,18 @@ pub async fn supervise(
     deadline: Duration,
     record: Option<&Path>,
     slot_deadline_ms: Option<u64>,
+    remote: Option<&super::remote::RemoteSpec>,
     quiet: bool,
 ) -> Result<Supervised> {
     let started = Instant::now();
     // The recorder first: every subscriber exists before anything is sent.
     let recorder = match record {
         Some(out) => Some(super::record::start(plan, out).await?),
+        None => None,
+    };
+    // Then the bridge of the remote sensors: it returns once they joined.
+    let bridge = match remote {
+        Some(spec) => Some(super::remote::start(plan, spec).await?),
         None => None,
     };
     let run = plan.run_id.as_str().to_string();
@@ -56,7 +64,10 @@ pub async fn supervise(
     // Sensors and agent first: the coordinator waits for their hello.
     let mut children: Vec<(String, Child)> = Vec::new();
     let sensor_bin = sibling_binary("etp-sensor-node")?;
-    for s in &plan.scenario.sensors {
+    for (i, s) in plan.scenario.sensors.iter().enumerate() {
+        if remote.is_some_and(|r| r.remote.contains(&i)) {
+            continue;
+        }
         let args = common(&[
             "--sensor".into(),
             s.name.clone(),
@@ -174,6 +185,14 @@ pub async fn supervise(
         };
         processes.push(ProcessExit { name, pid, status });
     }
+    let link = match bridge {
+        Some(b) => {
+            let (exit, report) = b.stop().await;
+            processes.push(exit);
+            Some(report)
+        }
+        None => None,
+    };
     let recording = match recorder {
         Some(r) => {
             let (rec, exit) = r.stop().await?;
@@ -207,6 +226,7 @@ pub async fn supervise(
         wall_seconds: started.elapsed().as_secs_f64(),
         recording,
         interrupted,
+        link,
     })
 }
 

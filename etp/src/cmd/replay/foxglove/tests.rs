@@ -210,16 +210,11 @@ fn synthetic() -> Contents {
             x: to_wire_vec(&[x, 1.0]),
         }))
     };
-    let prior = |e, k, x: f64| {
-        let mut cov = [[0.0; 6]; 6];
-        cov[0][0] = 0.01;
-        cov[1][1] = 0.04;
-        enc(recording::encode(&a2s::Prior {
-            header: h(e, k),
+    let handover = |e| {
+        enc(recording::encode(&a2s::Handover {
+            header: h(e, 0),
             dim: 2,
-            _pad: 0,
-            mean: to_wire_vec(&[x, 1.0]),
-            cov,
+            ..a2s::Handover::default()
         }))
     };
     let slot = |e, k, sent| {
@@ -227,14 +222,11 @@ fn synthetic() -> Contents {
             header: h(e, k),
             transmitted: sent,
             _pad: 0,
+            prior_digest: 0,
         }))
     };
+    push("sensor/1/handover", 101, handover(0));
     for k in 1..=3u32 {
-        push(
-            "sensor/1/prior",
-            100 + u64::from(k),
-            prior(0, k, f64::from(k)),
-        );
         push("slot", 110 + u64::from(k), slot(0, k, u32::from(k == 2)));
     }
     push(
@@ -259,7 +251,7 @@ fn synthetic() -> Contents {
             ..Outcome::default()
         })),
     );
-    push("sensor/1/prior", 118, prior(1, 1, 0.5));
+    push("sensor/1/handover", 118, handover(1));
     for k in 1..=3u32 {
         push("sensor/1/truth", 121, truth(0, k, f64::from(k)));
     }
@@ -309,10 +301,6 @@ fn a_drain_ordered_recording_becomes_a_time_ordered_copy() {
         .expect("episode 0 slot 2");
     assert_eq!(ep0_k2["entities"][0]["spheres"][2]["color"]["r"], 1.0);
     assert_eq!(ep0_k2["entities"][0]["timestamp"]["nsec"], 121);
-    let ellipse = &ep0_k2["entities"][0]["spheres"][0]["size"];
-    // 3σ diameters of variances 0.04 and 0.01: 1.2 and 0.6.
-    assert!((ellipse["x"].as_f64().expect("x") - 1.2).abs() < 1e-12);
-    assert!((ellipse["y"].as_f64().expect("y") - 0.6).abs() < 1e-12);
     let path: Value = back
         .messages
         .iter()
@@ -333,7 +321,8 @@ fn a_drain_ordered_recording_becomes_a_time_ordered_copy() {
 fn sensor_index_from_topic() {
     assert_eq!(sensor_of_topic("sensor/12/truth"), Some(12));
     assert_eq!(sensor_of_topic("measurement"), None);
-    assert_eq!(sensor_of_topic("sensor/x/prior"), None);
+    assert_eq!(sensor_of_topic("sensor/x/truth"), None);
+    assert_eq!(sensor_of_topic("sensor/1/handover"), None);
 }
 
 #[test]

@@ -1,0 +1,212 @@
+//! The agent host's end: listens, tells joining sensor hosts the run
+//! (queryable [`SESSION_KEY`]), waits (bounded) until every remote sensor
+//! has joined, then carries the remote sensors' services both ways.
+//!
+//! A remote sensor is alive on this host as long as its host's liveliness
+//! token is: the bridge keeps an iceoryx2 *proxy node* named like the sensor
+//! (`etp-sensor-<i>`) for exactly that time, so the agent's and the
+//! coordinator's existing dead-link detection (the node list) sees a
+//! killed host or a cut link like a dead local sensor, within the link lease.
+
+use crate::forward::{Counters, Inbound, Incoming, Outbound, subscribe};
+use crate::session::{SESSION_KEY, SessionInfo, agent_host_alive_key, config, data_keys};
+use crate::{BridgeError, emit};
+use etp_runtime::recording::Recorded;
+use etp_runtime::wire::to_coordinator::Hello;
+use etp_runtime::wire::{
+    self, COORDINATOR_NODE, Liveness, Ports, RECORDER_NODE, RunId, ServiceId, open_pubsub,
+    sensor_node_name,
+};
+use iceoryx2::prelude::*;
+use std::collections::{BTreeMap, BTreeSet};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+use zenoh::Wait;
+
+/// `etp-bridge agent-host`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// The run's description (JSON `SessionInfo`, written by `etp run`).
+    #[arg(long)]
+    pub session: std::path::PathBuf,
+    /// Zenoh endpoint to listen on, e.g. `tcp/10.0.0.1:7447`.
+    #[arg(long)]
+    pub listen: String,
+    /// Seconds to wait for every remote sensor to join.
+    #[arg(long, default_value_t = 60.0)]
+    pub join_timeout: f64,
+    /// Link lease, ms: a silent link is dead after this long.
+    #[arg(long, default_value_t = crate::session::DEFAULT_LEASE.as_millis() as u64)]
+    pub lease_ms: u64,
+}
+
+pub fn run(a: &Args) -> Result<(), BridgeError> {
+    let text = std::fs::read_to_string(&a.session)
+        .map_err(|e| BridgeError::Input(format!("reading {}: {e}", a.session.display())))?;
+    let info: SessionInfo = serde_json::from_str(&text)
+        .map_err(|e| BridgeError::Input(format!("{}: {e}", a.session.display())))?;
+    let run = RunId::new(&info.run_id)?;
+    let sensors = info.sensors.len();
+    let name = |i: usize| {
+        info.sensors
+            .get(i)
+            .cloned()
+            .unwrap_or_else(|| format!("#{i}"))
+    };
+    let session = zenoh::open(config(
+        Some(&a.listen),
+        None,
+        Duration::from_millis(a.lease_ms),
+    )?)
+    .wait()
+    .map_err(|e| BridgeError::Zenoh(format!("listening on {}: {e}", a.listen)))?;
+    let _alive = session
+        .liveliness()
+        .declare_token(agent_host_alive_key(run.as_str()))
+        .wait()
+        .map_err(|e| BridgeError::Zenoh(format!("liveliness token: {e}")))?;
+    let reply = serde_json::to_string(&info).map_err(|e| BridgeError::Input(e.to_string()))?;
+    let _queryable = session
+        .declare_queryable(SESSION_KEY)
+        .callback(move |q| {
+            let _ = q.reply(SESSION_KEY, reply.clone()).wait();
+        })
+        .wait()
+        .map_err(|e| BridgeError::Zenoh(format!("queryable: {e}")))?;
+    let (tx, rx) = std::sync::mpsc::channel();
+    let _subs = subscribe(
+        &session,
+        &[data_keys(run.as_str(), false)],
+        &format!("etp/{run}/alive/sensor/*"),
+        tx,
+    )?;
+    let counters = Counters::default();
+    let stop = Arc::new(AtomicBool::new(false));
+    let outbound = {
+        let mut services = Vec::new();
+        let mut events = Vec::new();
+        for &i in &info.remote {
+            // Causal order: the OPEN before the handover before the truth.
+            services.extend([
+                ServiceId::Threshold(i),
+                ServiceId::Handover(i),
+                ServiceId::Truth(i),
+            ]);
+            events.push(ServiceId::SensorWake(i));
+        }
+        let o = Outbound {
+            run: run.clone(),
+            sensors,
+            services,
+            events,
+            down: true,
+        };
+        let (session, counters, stop) = (session.clone(), counters.clone(), stop.clone());
+        std::thread::spawn(move || o.run("etp-bridge-out", &session, &counters, &stop, |_, _| {}))
+    };
+    let node = wire::create_node(&run, "etp-bridge-in")?;
+    let ports = Ports {
+        node: &node,
+        run: &run,
+        sensors,
+    };
+    let inbound = Inbound::new(
+        &ports,
+        &[
+            ServiceId::Measurement,
+            ServiceId::Slot,
+            ServiceId::Ledger,
+            ServiceId::Hello,
+        ],
+    )?;
+    let hello = open_pubsub::<Hello>(&node, &run, ServiceId::Hello, sensors)?;
+    let remote: BTreeSet<usize> = info.remote.iter().copied().collect();
+    let mut proxies: BTreeMap<usize, Node<ipc::Service>> = BTreeMap::new();
+    let mut hellos: Vec<(Recorded, usize)> = Vec::new();
+    let mut said_hello = BTreeSet::new();
+    let mut ready = false;
+    let started = Instant::now();
+    let timeout = Duration::from_secs_f64(a.join_timeout.max(0.0));
+    let parent = std::os::unix::process::parent_id();
+    let result = loop {
+        if wire::termination_requested(&node) || std::os::unix::process::parent_id() != parent {
+            break Ok(());
+        }
+        if !ready {
+            let joined: BTreeSet<usize> = proxies
+                .keys()
+                .copied()
+                .filter(|i| said_hello.contains(i))
+                .collect();
+            if joined == remote {
+                ready = true;
+                emit(
+                    &serde_json::json!({"event": "ready", "joined": info.remote.iter().map(|&i| name(i)).collect::<Vec<_>>()}),
+                );
+                tracing::info!(remote = ?info.remote, "every remote sensor joined");
+            } else if started.elapsed() >= timeout {
+                let missing: Vec<String> = remote.difference(&joined).map(|&i| name(i)).collect();
+                break Err(BridgeError::Join(format!(
+                    "sensor(s) {} did not join within {:.0} s (is `etp sensor-host --connect …` running on their host?)",
+                    missing.join(", "),
+                    timeout.as_secs_f64()
+                )));
+            }
+        }
+        // Remote hellos wait until the coordinator (and a recorder) subscribe.
+        if !hellos.is_empty() && wire::liveness(node.config(), COORDINATOR_NODE) == Liveness::Alive
+        {
+            let needed =
+                1 + usize::from(wire::liveness(node.config(), RECORDER_NODE) == Liveness::Alive);
+            if hello.dynamic_config().number_of_subscribers() >= needed {
+                for (r, bytes) in hellos.drain(..) {
+                    inbound.deliver(ServiceId::Hello, r, bytes, &counters)?;
+                }
+            }
+        }
+        let wait = if hellos.is_empty() { 100 } else { 5 };
+        match rx.recv_timeout(Duration::from_millis(wait)) {
+            Ok(Incoming::Data { key, bytes }) => {
+                let (s, r) = inbound.decode(&key, &bytes)?;
+                if s == ServiceId::Hello {
+                    said_hello.insert(r.header().sender as usize);
+                    hellos.push((r, bytes.len()));
+                } else {
+                    inbound.deliver(s, r, bytes.len(), &counters)?;
+                }
+            }
+            Ok(Incoming::Alive { key, alive }) => {
+                let Some(i) = key.rsplit('/').next().and_then(|x| x.parse::<usize>().ok()) else {
+                    continue;
+                };
+                if !remote.contains(&i) {
+                    continue;
+                }
+                if alive && !proxies.contains_key(&i) {
+                    proxies.insert(i, wire::create_node(&run, &sensor_node_name(i))?);
+                    tracing::info!(sensor = %name(i), "remote sensor alive");
+                } else if !alive && proxies.remove(&i).is_some() {
+                    tracing::warn!(sensor = %name(i), "remote sensor lost (host gone or link cut)");
+                    emit(&serde_json::json!({"event": "lost", "sensor": name(i),
+                        "unix_ns": wire_now_ns()}));
+                }
+            }
+            Ok(Incoming::Hello(_)) | Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break Ok(()),
+        }
+    };
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let out = outbound
+        .join()
+        .map_err(|_| BridgeError::Wire("the outbound thread panicked".into()))?;
+    crate::emit_traffic(&counters, &info.sensors);
+    drop(proxies);
+    result.and(out)
+}
+
+fn wire_now_ns() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}

@@ -1,0 +1,269 @@
+//! The two directions of a bridge. Outbound: the iceoryx2 services a remote
+//! reader needs, drained on their readers' wake-up events in causal order
+//! and put on Zenoh as the recording's bytes. Inbound: Zenoh samples decoded
+//! and published on the local iceoryx2 service, then its reader's wake-up
+//! event notified, exactly as a local publisher would.
+//!
+//! Both count what they carry per sensor (`wire::traffic`): the link's
+//! measured traffic, radio and plumbing, in each direction.
+
+use crate::BridgeError;
+use crate::session::{data_key, topic_of_key};
+use etp_runtime::recording::{
+    self,
+    ports::{DecodedPublisher, EncodedSubscriber, decoded_publisher, encoded_subscriber},
+};
+use etp_runtime::wire::traffic::LinkTraffic;
+use etp_runtime::wire::{self, Header, Notifier, Ports, RunId, ServiceId};
+use iceoryx2::prelude::*;
+use iceoryx2::waitset::WaitSetRunResult;
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+use zenoh::Wait;
+
+/// Per-sensor link traffic, shared by both directions.
+pub type Counters = Arc<Mutex<BTreeMap<usize, LinkTraffic>>>;
+
+/// The sensor a message of `s` belongs to.
+fn sensor_of(s: ServiceId, h: &Header) -> usize {
+    match s {
+        ServiceId::Threshold(i) | ServiceId::Truth(i) | ServiceId::Handover(i) => i,
+        _ => h.sender as usize,
+    }
+}
+
+fn count(counters: &Counters, s: ServiceId, h: &Header, bytes: usize) {
+    if let Ok(mut c) = counters.lock() {
+        c.entry(sensor_of(s, h))
+            .or_default()
+            .add(s, 1, bytes as u64);
+    }
+}
+
+/// How often the outbound loop looks at its stop flag without a wake-up.
+const TICK: Duration = Duration::from_millis(100);
+
+/// What the outbound direction carries.
+pub struct Outbound {
+    pub run: RunId,
+    pub sensors: usize,
+    /// Services in causal order (a message is put after those it depends on).
+    pub services: Vec<ServiceId>,
+    /// The wake-up events their publishers notify.
+    pub events: Vec<ServiceId>,
+    /// `true` on the agent host.
+    pub down: bool,
+}
+
+impl Outbound {
+    /// Forward until `stop` (or a termination request); `on_put` sees every
+    /// message put (service, header). Runs on its own thread: iceoryx2 ports
+    /// stay on the thread that made them.
+    pub fn run(
+        self,
+        node_name: &str,
+        session: &zenoh::Session,
+        counters: &Counters,
+        stop: &AtomicBool,
+        mut on_put: impl FnMut(ServiceId, &Header),
+    ) -> Result<(), BridgeError> {
+        let node = wire::create_node(&self.run, node_name)?;
+        let ports = Ports {
+            node: &node,
+            run: &self.run,
+            sensors: self.sensors,
+        };
+        let run = self.run.as_str().to_string();
+        let mut links: Vec<(
+            ServiceId,
+            Box<dyn EncodedSubscriber>,
+            zenoh::pubsub::Publisher<'static>,
+        )> = Vec::new();
+        for &s in &self.services {
+            let sub = encoded_subscriber(&ports, s, false)?;
+            let publisher = session
+                .declare_publisher(data_key(&run, s, self.down))
+                .congestion_control(zenoh::qos::CongestionControl::Block)
+                .express(true)
+                .wait()
+                .map_err(|e| BridgeError::Zenoh(format!("publisher {s:?}: {e}")))?;
+            links.push((s, sub, publisher));
+        }
+        let listeners = self
+            .events
+            .iter()
+            .map(|&e| ports.listener(e))
+            .collect::<Result<Vec<_>, _>>()?;
+        let waitset = WaitSetBuilder::new()
+            .create::<ipc::Service>()
+            .map_err(|e| BridgeError::Wire(format!("wait set: {e:?}")))?;
+        let guards = listeners
+            .iter()
+            .map(|l| waitset.attach_notification(l))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| BridgeError::Wire(format!("attaching listeners: {e:?}")))?;
+        let _tick = waitset
+            .attach_interval(TICK)
+            .map_err(|e| BridgeError::Wire(format!("attaching the tick: {e:?}")))?;
+        let mut batch = Vec::new();
+        loop {
+            for (s, sub, publisher) in &links {
+                batch.clear();
+                sub.drain(&mut batch)?;
+                for (h, bytes) in &batch {
+                    publisher
+                        .put(bytes.clone())
+                        .wait()
+                        .map_err(|e| BridgeError::Zenoh(format!("put {s:?}: {e}")))?;
+                    count(counters, *s, h, bytes.len());
+                    on_put(*s, h);
+                }
+            }
+            if stop.load(Ordering::Relaxed) {
+                return Ok(());
+            }
+            let woke = waitset.wait_and_process_once(|id| {
+                for (g, l) in guards.iter().zip(&listeners) {
+                    if id.has_event_from(g) {
+                        let _ = l.try_wait(|_| {});
+                    }
+                }
+                CallbackProgression::Continue
+            });
+            match woke {
+                Ok(WaitSetRunResult::TerminationRequest) => {
+                    wire::note_termination();
+                    stop.store(true, Ordering::Relaxed);
+                }
+                Ok(WaitSetRunResult::Interrupt) => {
+                    if wire::termination_requested(&node) {
+                        stop.store(true, Ordering::Relaxed);
+                    }
+                }
+                Ok(_) => {}
+                Err(e) => return Err(BridgeError::Wire(format!("waiting: {e:?}"))),
+            }
+        }
+    }
+}
+
+/// What arrives from Zenoh (through the subscribers' callbacks).
+#[derive(Debug)]
+pub enum Incoming {
+    Data {
+        key: String,
+        bytes: Vec<u8>,
+    },
+    /// A liveliness token appeared (`true`) or vanished.
+    Alive {
+        key: String,
+        alive: bool,
+    },
+    /// A local sensor said hello (it went up the link).
+    Hello(usize),
+}
+
+/// The inbound direction's local ports: one publisher and one wake-up
+/// notifier per service it delivers.
+pub struct Inbound {
+    publishers: BTreeMap<ServiceId, Box<dyn DecodedPublisher>>,
+    wakes: BTreeMap<ServiceId, Notifier>,
+}
+
+impl Inbound {
+    pub fn new(ports: &Ports<'_>, services: &[ServiceId]) -> Result<Self, BridgeError> {
+        let mut publishers = BTreeMap::new();
+        let mut wakes = BTreeMap::new();
+        for &s in services {
+            publishers.insert(s, decoded_publisher(ports, s)?);
+            let w = s.reader_wake();
+            if let std::collections::btree_map::Entry::Vacant(e) = wakes.entry(w) {
+                e.insert(ports.notifier(w)?);
+            }
+        }
+        Ok(Self { publishers, wakes })
+    }
+
+    /// Decode a sample of `key`; its service and payload (not delivered yet).
+    pub fn decode(
+        &self,
+        key: &str,
+        bytes: &[u8],
+    ) -> Result<(ServiceId, recording::Recorded), BridgeError> {
+        let topic = topic_of_key(key).ok_or_else(|| BridgeError::Protocol(format!("key {key}")))?;
+        let s = recording::service_of_topic(topic)
+            .filter(|s| self.publishers.contains_key(s))
+            .ok_or_else(|| BridgeError::Protocol(format!("no local service for {key}")))?;
+        Ok((s, recording::decode(topic, bytes)?))
+    }
+
+    /// Publish a decoded payload on its service and wake its reader; counted.
+    pub fn deliver(
+        &self,
+        s: ServiceId,
+        r: recording::Recorded,
+        bytes: usize,
+        counters: &Counters,
+    ) -> Result<(), BridgeError> {
+        let h = *r.header();
+        let publisher = self
+            .publishers
+            .get(&s)
+            .ok_or_else(|| BridgeError::Protocol(format!("no publisher for {s:?}")))?;
+        publisher.send(r)?;
+        if let Some(w) = self.wakes.get(&s.reader_wake()) {
+            w.notify()
+                .map_err(|e| BridgeError::Wire(format!("notify {:?}: {e:?}", s.reader_wake())))?;
+        }
+        count(counters, s, &h, bytes);
+        Ok(())
+    }
+}
+
+/// Subscribers of `data` keys and of liveliness tokens under `alive` (with
+/// the tokens already there); all feed `tx`.
+pub type Subscriptions = (
+    Vec<zenoh::pubsub::Subscriber<()>>,
+    zenoh::pubsub::Subscriber<()>,
+);
+
+/// Subscribe to the data keys `data` (one direction: only what this end
+/// delivers) and to liveliness tokens under `alive`.
+pub fn subscribe(
+    session: &zenoh::Session,
+    data: &[String],
+    alive: &str,
+    tx: std::sync::mpsc::Sender<Incoming>,
+) -> Result<Subscriptions, BridgeError> {
+    let mut data_subs = Vec::new();
+    for key in data {
+        let t = tx.clone();
+        data_subs.push(
+            session
+                .declare_subscriber(key.as_str())
+                .callback(move |s| {
+                    let _ = t.send(Incoming::Data {
+                        key: s.key_expr().to_string(),
+                        bytes: s.payload().to_bytes().into_owned(),
+                    });
+                })
+                .wait()
+                .map_err(|e| BridgeError::Zenoh(format!("subscriber {key}: {e}")))?,
+        );
+    }
+    let alive_sub = session
+        .liveliness()
+        .declare_subscriber(alive)
+        .history(true)
+        .callback(move |s| {
+            let _ = tx.send(Incoming::Alive {
+                key: s.key_expr().to_string(),
+                alive: s.kind() == zenoh::sample::SampleKind::Put,
+            });
+        })
+        .wait()
+        .map_err(|e| BridgeError::Zenoh(format!("liveliness subscriber {alive}: {e}")))?;
+    Ok((data_subs, alive_sub))
+}

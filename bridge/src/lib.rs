@@ -1,0 +1,112 @@
+//! `etp-bridge`: the services of remote sensors, carried between hosts over
+//! Zenoh (ARCHITECTURE.md "Runs across hosts").
+//!
+//! A short tour:
+//!
+//! * [`session`] — the Zenoh configuration (peer mode, scouting off, only
+//!   the given endpoints, a short link lease), the key expressions
+//!   `etp/<run-id>/{down,up}/<topic>` and liveliness tokens
+//!   `etp/<run-id>/alive/…`, and [`session::SessionInfo`], the run a sensor
+//!   host fetches when it joins.
+//! * [`forward`] — the two directions: iceoryx2 → Zenoh on the readers'
+//!   wake-up events, Zenoh → iceoryx2 with the reader's wake-up; the bytes
+//!   on the wire are the recording's encoding; per-sensor traffic counted as
+//!   radio or plumbing.
+//! * [`agent_host`] — `etp-bridge agent-host` (started by `etp run --listen`):
+//!   waits for the remote sensors, then forwards; a remote sensor's
+//!   liveliness is mirrored by a proxy iceoryx2 node, so its death is a dead
+//!   link to the agent like a local sensor's.
+//! * [`sensor_host`] — `etp-bridge sensor-host` (started by
+//!   `etp sensor-host`): joins, then forwards; the agent host's liveliness is
+//!   mirrored by proxies of the coordinator and agent nodes.
+//!
+//! The bridge prints one JSON object per line on stdout for its parent
+//! (`ready`, `joined`, `lost`, `agent-host-gone`, and `traffic` at the end).
+
+pub mod agent_host;
+pub mod forward;
+pub mod sensor_host;
+pub mod session;
+
+use std::io::Write;
+
+/// Why the bridge stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum BridgeError {
+    #[error("{0}")]
+    Input(String),
+    #[error("zenoh: {0}")]
+    Zenoh(String),
+    #[error("iceoryx2: {0}")]
+    Wire(String),
+    #[error(transparent)]
+    WireSetup(#[from] etp_runtime::wire::WireError),
+    #[error(transparent)]
+    Recording(#[from] etp_runtime::recording::RecordingError),
+    #[error("protocol error: {0}")]
+    Protocol(String),
+    #[error("{0}")]
+    Join(String),
+}
+
+/// One line of JSON to the parent. A closed stdout (the parent died) is not
+/// an error of the bridge.
+pub fn emit(v: &serde_json::Value) {
+    let mut out = std::io::stdout().lock();
+    let _ = writeln!(out, "{v}").and_then(|()| out.flush());
+}
+
+/// The final `traffic` line: per sensor name, what this end carried.
+pub fn emit_traffic(counters: &forward::Counters, names: &[String]) {
+    let map: serde_json::Map<String, serde_json::Value> = counters
+        .lock()
+        .map(|c| {
+            c.iter()
+                .map(|(i, t)| {
+                    (
+                        names.get(*i).cloned().unwrap_or_else(|| format!("#{i}")),
+                        serde_json::to_value(t).unwrap_or_default(),
+                    )
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    emit(&serde_json::json!({"event": "traffic", "sensors": map}));
+}
+
+/// The command line of `etp-bridge`.
+#[derive(Debug, clap::Parser)]
+#[command(
+    name = "etp-bridge",
+    version,
+    about = "Carry remote sensors' services over Zenoh"
+)]
+pub enum Cli {
+    /// The agent host's end (started by `etp run --listen`).
+    AgentHost(agent_host::Args),
+    /// A sensor host's end (started by `etp sensor-host`).
+    SensorHost(sensor_host::Args),
+}
+
+/// The process entry point: parse `args` (the first is the program name)
+/// and run.
+pub fn main_with<I, T>(args: I) -> std::process::ExitCode
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    use clap::Parser;
+    let cli = Cli::parse_from(args);
+    etp_runtime::wire::init_process_logging("etp-bridge");
+    let r = match &cli {
+        Cli::AgentHost(a) => agent_host::run(a),
+        Cli::SensorHost(a) => sensor_host::run(a),
+    };
+    match r {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("etp-bridge: error: {e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,3 @@
+fn main() -> std::process::ExitCode {
+    etp_bridge::main_with(std::env::args_os())
+}

@@ -1,0 +1,250 @@
+//! A sensor host's end: connects to the agent host, fetches the run
+//! ([`SessionInfo`]: scenario, seed, which sensors are remote), sets up the
+//! local side of those sensors' services and says `joined` (its parent,
+//! `etp sensor-host`, then starts the sensor processes). Each local sensor's
+//! hello goes up and is followed by its liveliness token; the agent host's
+//! token is watched: when it vanishes (run over, host dead, link cut) the
+//! proxies of the coordinator and agent on this host go, and the local
+//! sensors see their coordinator gone and exit.
+
+use crate::forward::{Counters, Inbound, Incoming, Outbound, subscribe};
+use crate::session::{SESSION_KEY, SessionInfo, agent_host_alive_key, config, sensor_alive_key};
+use crate::{BridgeError, emit};
+use etp_runtime::wire::{self, AGENT_NODE, COORDINATOR_NODE, Ports, RunId, ServiceId};
+use iceoryx2::prelude::*;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+use zenoh::Wait;
+
+/// `etp-bridge sensor-host`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// The agent host's Zenoh endpoint, e.g. `tcp/10.0.0.1:7447`.
+    #[arg(long)]
+    pub connect: String,
+    /// Sensors this host serves (names; default: every remote sensor of the run).
+    #[arg(long = "sensor")]
+    pub sensors: Vec<String>,
+    /// Folder for the run's scenario (created if missing).
+    #[arg(long)]
+    pub dir: PathBuf,
+    /// Seconds to wait for the agent host to answer.
+    #[arg(long, default_value_t = 60.0)]
+    pub join_timeout: f64,
+    /// Link lease, ms.
+    #[arg(long, default_value_t = crate::session::DEFAULT_LEASE.as_millis() as u64)]
+    pub lease_ms: u64,
+}
+
+/// Ask the agent host for the run until it answers or `timeout` passes.
+fn fetch(
+    session: &zenoh::Session,
+    a: &Args,
+    timeout: Duration,
+) -> Result<SessionInfo, BridgeError> {
+    let started = Instant::now();
+    loop {
+        let replies = session
+            .get(SESSION_KEY)
+            .timeout(Duration::from_millis(500))
+            .wait()
+            .map_err(|e| BridgeError::Zenoh(format!("query {SESSION_KEY}: {e}")))?;
+        while let Ok(r) = replies.recv() {
+            if let Ok(sample) = r.result() {
+                let bytes = sample.payload().to_bytes();
+                return serde_json::from_slice(&bytes)
+                    .map_err(|e| BridgeError::Protocol(format!("the run's description: {e}")));
+            }
+        }
+        if started.elapsed() >= timeout {
+            return Err(BridgeError::Join(format!(
+                "no agent host answered at {} within {:.0} s (is `etp run … --listen {}` running?)",
+                a.connect,
+                timeout.as_secs_f64(),
+                a.connect
+            )));
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+pub fn run(a: &Args) -> Result<(), BridgeError> {
+    let session = zenoh::open(config(
+        None,
+        Some(&a.connect),
+        Duration::from_millis(a.lease_ms),
+    )?)
+    .wait()
+    .map_err(|e| BridgeError::Zenoh(format!("connecting to {}: {e}", a.connect)))?;
+    let info = fetch(
+        &session,
+        a,
+        Duration::from_secs_f64(a.join_timeout.max(0.0)),
+    )?;
+    let served: Vec<usize> = if a.sensors.is_empty() {
+        info.remote.clone()
+    } else {
+        a.sensors
+            .iter()
+            .map(|n| {
+                info.sensors
+                    .iter()
+                    .position(|s| s == n)
+                    .filter(|i| info.remote.contains(i))
+                    .ok_or_else(|| {
+                        BridgeError::Input(format!(
+                            "sensor `{n}` is not a remote sensor of run {} (remote: {})",
+                            info.run_id,
+                            info.remote
+                                .iter()
+                                .filter_map(|&i| info.sensors.get(i).cloned())
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ))
+                    })
+            })
+            .collect::<Result<_, _>>()?
+    };
+    std::fs::create_dir_all(&a.dir)
+        .map_err(|e| BridgeError::Input(format!("creating {}: {e}", a.dir.display())))?;
+    let scenario = a.dir.join("scenario.toml");
+    std::fs::write(&scenario, &info.scenario_toml)
+        .map_err(|e| BridgeError::Input(format!("writing {}: {e}", scenario.display())))?;
+    let run = RunId::new(&info.run_id)?;
+    let sensors = info.sensors.len();
+    let node = wire::create_node(&run, "etp-bridge-in")?;
+    // The coordinator and the agent live on the agent host: their proxies
+    // live here while it does (the sensors' watchdog looks for them).
+    let mut proxies = Some((
+        wire::create_node(&run, COORDINATOR_NODE)?,
+        wire::create_node(&run, AGENT_NODE)?,
+    ));
+    let ports = Ports {
+        node: &node,
+        run: &run,
+        sensors,
+    };
+    let mut services = Vec::new();
+    for &i in &served {
+        services.extend([
+            ServiceId::Threshold(i),
+            ServiceId::Handover(i),
+            ServiceId::Truth(i),
+        ]);
+    }
+    let inbound = Inbound::new(&ports, &services)?;
+    let (tx, rx) = std::sync::mpsc::channel();
+    let _subs = subscribe(
+        &session,
+        &served
+            .iter()
+            .map(|i| format!("etp/{run}/down/sensor/{i}/**"))
+            .collect::<Vec<_>>(),
+        &agent_host_alive_key(run.as_str()),
+        tx.clone(),
+    )?;
+    let counters = Counters::default();
+    let stop = Arc::new(AtomicBool::new(false));
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel::<()>();
+    let outbound = {
+        let o = Outbound {
+            run: run.clone(),
+            sensors,
+            // A sensor publishes its measurement before its slot.
+            services: vec![
+                ServiceId::Hello,
+                ServiceId::Measurement,
+                ServiceId::Slot,
+                ServiceId::Ledger,
+            ],
+            events: vec![ServiceId::AgentWake, ServiceId::CoordinatorWake],
+            down: false,
+        };
+        let (session, counters, stop) = (session.clone(), counters.clone(), stop.clone());
+        let hello_tx = tx.clone();
+        std::thread::spawn(move || {
+            let _ = ready_tx.send(());
+            o.run("etp-bridge-out", &session, &counters, &stop, |s, h| {
+                if s == ServiceId::Hello {
+                    let _ = hello_tx.send(Incoming::Hello(h.sender as usize));
+                }
+            })
+        })
+    };
+    let _ = ready_rx.recv_timeout(Duration::from_secs(5));
+    // The outbound thread opens its `hello` subscriber before the sensors say
+    // hello: give it the moment it needs.
+    let started = Instant::now();
+    while started.elapsed() < Duration::from_secs(5) {
+        let h = wire::open_pubsub::<wire::to_coordinator::Hello>(
+            &node,
+            &run,
+            ServiceId::Hello,
+            sensors,
+        )?;
+        if h.dynamic_config().number_of_subscribers() >= 1 {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    emit(&serde_json::json!({
+        "event": "joined",
+        "run_id": info.run_id,
+        "seed": info.seed,
+        "scenario": scenario.display().to_string(),
+        "sensors": served.iter().filter_map(|&i| info.sensors.get(i).cloned()).collect::<Vec<_>>(),
+    }));
+    let parent = std::os::unix::process::parent_id();
+    // A sensor that said hello is up: its token announces it to the agent
+    // host, for as long as its process lives here.
+    let mut tokens: std::collections::BTreeMap<usize, zenoh::liveliness::LivelinessToken> =
+        std::collections::BTreeMap::new();
+    let result = loop {
+        if wire::termination_requested(&node) || std::os::unix::process::parent_id() != parent {
+            break Ok(());
+        }
+        tokens.retain(|&i, _| {
+            let alive =
+                wire::liveness(node.config(), &wire::sensor_node_name(i)) == wire::Liveness::Alive;
+            if !alive {
+                tracing::warn!(sensor = i, "local sensor gone: its token is withdrawn");
+            }
+            alive
+        });
+        match rx.recv_timeout(Duration::from_millis(20)) {
+            Ok(Incoming::Hello(i)) => {
+                let t = session
+                    .liveliness()
+                    .declare_token(sensor_alive_key(run.as_str(), i))
+                    .wait()
+                    .map_err(|e| {
+                        BridgeError::Zenoh(format!("liveliness token of sensor {i}: {e}"))
+                    })?;
+                tokens.insert(i, t);
+            }
+            Ok(Incoming::Data { key, bytes }) => {
+                let (s, r) = inbound.decode(&key, &bytes)?;
+                inbound.deliver(s, r, bytes.len(), &counters)?;
+            }
+            Ok(Incoming::Alive { alive: true, .. }) => {}
+            Ok(Incoming::Alive { alive: false, .. }) => {
+                tracing::warn!("the agent host is gone: the local sensors stop");
+                emit(&serde_json::json!({"event": "agent-host-gone"}));
+                proxies = None;
+                break Ok(());
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break Ok(()),
+        }
+    };
+    drop(proxies);
+    drop(tokens);
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let out = outbound
+        .join()
+        .map_err(|_| BridgeError::Wire("the outbound thread panicked".into()))?;
+    crate::emit_traffic(&counters, &info.sensors);
+    result.and(out)
+}

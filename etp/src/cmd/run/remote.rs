@@ -1,0 +1,177 @@
+//! `etp run --listen EP --remote s0,s3`: the agent host's bridge
+//! (`etp-bridge agent-host`, a process of its own so that `etp` itself does
+//! not link Zenoh). It is started after the recorder and before everyone
+//! else, answers joining sensor hosts with the run's description, and says
+//! `ready` once every remote sensor has joined (bounded by
+//! `--join-timeout`); its last line is the traffic it carried per sensor.
+
+use super::prepare::Plan;
+use super::process::{ProcessExit, sibling_binary, signal, spawn, status_text};
+use anyhow::{Context, Result, bail};
+use etp_runtime::wire::report::SessionInfo;
+use etp_runtime::wire::traffic::LinkTraffic;
+use std::collections::BTreeMap;
+use tokio::io::{AsyncBufReadExt, BufReader};
+use tokio::process::{Child, ChildStdout};
+
+/// The remote part of a run.
+#[derive(Debug, Clone)]
+pub struct RemoteSpec {
+    pub listen: String,
+    /// Indices of the sensors served from other hosts.
+    pub remote: Vec<usize>,
+    pub join_timeout: f64,
+}
+
+/// What the bridge saw.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct LinkReport {
+    /// Per remote sensor: what crossed the link, as carried.
+    pub traffic: BTreeMap<String, LinkTraffic>,
+    /// Remote sensors lost during the run (name, wall clock ns).
+    pub lost: Vec<(String, u64)>,
+}
+
+pub struct Bridge {
+    child: Child,
+    pid: u32,
+    lines: tokio::io::Lines<BufReader<ChildStdout>>,
+}
+
+/// Names → indices of `--remote`, refusing unknown names and duplicates.
+pub fn remote_indices(plan: &Plan, names: &[String]) -> Result<Vec<usize>> {
+    let mut v = Vec::new();
+    for n in names {
+        let i = plan
+            .scenario
+            .sensors
+            .iter()
+            .position(|s| &s.name == n)
+            .with_context(|| {
+                format!(
+                    "--remote: scenario `{}` has no sensor `{n}` (sensors: {})",
+                    plan.scenario.name,
+                    plan.scenario
+                        .sensors
+                        .iter()
+                        .map(|s| s.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            })?;
+        if v.contains(&i) {
+            bail!("--remote: sensor `{n}` named twice");
+        }
+        v.push(i);
+    }
+    Ok(v)
+}
+
+/// Start the bridge and wait until every remote sensor joined.
+pub async fn start(plan: &Plan, spec: &RemoteSpec) -> Result<Bridge> {
+    let info = SessionInfo {
+        run_id: plan.run_id.to_string(),
+        scenario_toml: std::fs::read_to_string(&plan.scenario_path)
+            .with_context(|| format!("reading {}", plan.scenario_path.display()))?,
+        seed: plan.seed,
+        sensors: plan
+            .scenario
+            .sensors
+            .iter()
+            .map(|s| s.name.clone())
+            .collect(),
+        remote: spec.remote.clone(),
+    };
+    let path = plan.dir.join("session.json");
+    std::fs::write(&path, serde_json::to_string(&info)?)
+        .with_context(|| format!("writing {}", path.display()))?;
+    let bin = sibling_binary("etp-bridge")?;
+    let mut child = spawn(
+        &bin,
+        &[
+            "agent-host".into(),
+            "--session".into(),
+            path.display().to_string(),
+            "--listen".into(),
+            spec.listen.clone(),
+            "--join-timeout".into(),
+            spec.join_timeout.to_string(),
+        ],
+        true,
+    )?;
+    let pid = child.id().unwrap_or(0);
+    let mut lines = BufReader::new(child.stdout.take().context("bridge stdout")?).lines();
+    eprintln!(
+        "etp run: listening on {} for remote sensor(s) {} (run {}; on their host: etp sensor-host --connect {})",
+        spec.listen,
+        spec.remote
+            .iter()
+            .map(|&i| info.sensors[i].as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
+        plan.run_id,
+        spec.listen
+    );
+    loop {
+        match lines.next_line().await.context("reading the bridge")? {
+            Some(l) => {
+                let v: serde_json::Value = serde_json::from_str(&l).unwrap_or_default();
+                if v["event"] == "ready" {
+                    return Ok(Bridge { child, pid, lines });
+                }
+            }
+            None => {
+                let st = child.wait().await.context("waiting for the bridge")?;
+                bail!(
+                    "the remote sensors did not join ({}; the bridge's error is above)",
+                    status_text(&st)
+                );
+            }
+        }
+    }
+}
+
+impl Bridge {
+    /// Stop the bridge (SIGTERM) and read what it carried.
+    pub async fn stop(mut self) -> (ProcessExit, LinkReport) {
+        signal(self.pid, "-TERM");
+        let mut report = LinkReport::default();
+        let read = async {
+            while let Ok(Some(l)) = self.lines.next_line().await {
+                let v: serde_json::Value = serde_json::from_str(&l).unwrap_or_default();
+                match v["event"].as_str() {
+                    Some("lost") => report.lost.push((
+                        v["sensor"].as_str().unwrap_or_default().to_string(),
+                        v["unix_ns"].as_u64().unwrap_or(0),
+                    )),
+                    Some("traffic") => {
+                        report.traffic =
+                            serde_json::from_value(v["sensors"].clone()).unwrap_or_default();
+                    }
+                    _ => {}
+                }
+            }
+        };
+        let _ = tokio::time::timeout(std::time::Duration::from_secs(5), read).await;
+        let status = match tokio::time::timeout(
+            std::time::Duration::from_secs(5),
+            self.child.wait(),
+        )
+        .await
+        {
+            Ok(Ok(st)) => status_text(&st),
+            _ => {
+                let _ = self.child.kill().await;
+                "killed by supervisor".into()
+            }
+        };
+        (
+            ProcessExit {
+                name: "bridge".into(),
+                pid: self.pid,
+                status,
+            },
+            report,
+        )
+    }
+}

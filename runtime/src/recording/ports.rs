@@ -1,0 +1,90 @@
+//! Ports of any kind of the catalogue, typed at run time: a subscriber that
+//! yields the payloads encoded in the recording's encoding, and a publisher
+//! that takes them decoded. The recorder (encoded subscribers), `etp replay
+//! --publish` (publishers) and the Zenoh bridge (both: what crosses a host
+//! boundary is exactly the bytes a recording holds) open their ports here.
+
+use super::{RecordingError, encode};
+use crate::wire::{
+    Header, Kind, KindVisitor, Message, PortError, Ports, Recorded, ServiceId, WireError,
+};
+
+/// A subscriber of one service, whatever its payload type.
+pub trait EncodedSubscriber {
+    /// Append every waiting payload, encoded, with its header.
+    fn drain(&self, out: &mut Vec<(Header, Vec<u8>)>) -> Result<(), RecordingError>;
+}
+
+impl<T: Message> EncodedSubscriber for crate::wire::Sub<T> {
+    fn drain(&self, out: &mut Vec<(Header, Vec<u8>)>) -> Result<(), RecordingError> {
+        while let Some(s) = self
+            .receive()
+            .map_err(|e| PortError::receive("subscriber", e))?
+        {
+            let v: T = *s;
+            out.push((*v.header(), encode(&v)?));
+        }
+        Ok(())
+    }
+}
+
+/// A publisher of one service, whatever its payload type.
+pub trait DecodedPublisher {
+    /// Send one decoded payload (of this service's kind); the number of
+    /// subscribers it reached.
+    fn send(&self, r: Recorded) -> Result<usize, RecordingError>;
+}
+
+impl<T: Message> DecodedPublisher for crate::wire::Pub<T> {
+    fn send(&self, r: Recorded) -> Result<usize, RecordingError> {
+        let kind = r.kind();
+        let v = T::from_recorded(r).ok_or_else(|| RecordingError::Decode {
+            topic: format!("{:?}", T::KIND),
+            reason: format!("a {kind:?} payload on a {:?} port", T::KIND),
+        })?;
+        self.send_copy(v)
+            .map_err(|e| PortError::send("publisher", e).into())
+    }
+}
+
+fn kind_of(s: ServiceId) -> Result<Kind, WireError> {
+    s.kind()
+        .ok_or_else(|| WireError::Port(format!("{s:?}"), "not a publish-subscribe service".into()))
+}
+
+/// Open a subscriber of `s` (an observer's, with the observer buffer, when
+/// `observer`: the recorder; else the reader's own port: the bridge stands
+/// in for a remote reader).
+pub fn encoded_subscriber(
+    ports: &Ports<'_>,
+    s: ServiceId,
+    observer: bool,
+) -> Result<Box<dyn EncodedSubscriber>, WireError> {
+    struct Open<'a, 'p>(&'a Ports<'p>, ServiceId, bool);
+    impl KindVisitor for Open<'_, '_> {
+        type Out = Result<Box<dyn EncodedSubscriber>, WireError>;
+        fn visit<T: Message>(self) -> Self::Out {
+            Ok(if self.2 {
+                Box::new(self.0.observer::<T>(self.1)?)
+            } else {
+                Box::new(self.0.subscriber::<T>(self.1)?)
+            })
+        }
+    }
+    kind_of(s)?.visit(Open(ports, s, observer))
+}
+
+/// Open a publisher of `s`, typed by its kind.
+pub fn decoded_publisher(
+    ports: &Ports<'_>,
+    s: ServiceId,
+) -> Result<Box<dyn DecodedPublisher>, WireError> {
+    struct Open<'a, 'p>(&'a Ports<'p>, ServiceId);
+    impl KindVisitor for Open<'_, '_> {
+        type Out = Result<Box<dyn DecodedPublisher>, WireError>;
+        fn visit<T: Message>(self) -> Self::Out {
+            Ok(Box::new(self.0.publisher::<T>(self.1)?))
+        }
+    }
+    kind_of(s)?.visit(Open(ports, s))
+}

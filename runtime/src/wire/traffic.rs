@@ -1,0 +1,159 @@
+//! What crosses the link between the agent's host and a sensor, split the
+//! way a deployment would see it: **radio** traffic a real sensor network
+//! transmits (measurements up; the belief handover down, once per leg) and
+//! **simulation plumbing** that stands in for the physical world or drives
+//! the simulation (the true state, the slot clock, thresholds and their
+//! ledgers, hello). Sizes are those of the encoded payload (the recording's
+//! encoding, which is also what the Zenoh bridge carries).
+
+use super::{Kind, KindVisitor, Message, ServiceId};
+use serde::{Deserialize, Serialize};
+
+/// Radio or plumbing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Class {
+    Radio,
+    Plumbing,
+}
+
+/// Direction relative to the sensor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Direction {
+    /// Agent host → sensor.
+    Down,
+    /// Sensor → agent host.
+    Up,
+}
+
+/// The sensor-link services: class and direction (`None`: the service never
+/// reaches a sensor — control, waypoint, outcome — and never crosses hosts).
+pub fn link_class(s: ServiceId) -> Option<(Class, Direction)> {
+    use ServiceId as S;
+    Some(match s {
+        S::Handover(_) => (Class::Radio, Direction::Down),
+        S::Measurement => (Class::Radio, Direction::Up),
+        S::Truth(_) | S::Threshold(_) => (Class::Plumbing, Direction::Down),
+        S::Slot | S::Ledger | S::Hello => (Class::Plumbing, Direction::Up),
+        _ => return None,
+    })
+}
+
+/// Bytes of one encoded payload of `kind` (fixed: every payload is a
+/// fixed-size struct and the encoding uses fixed-width integers).
+pub fn encoded_size(kind: Kind) -> usize {
+    struct Size;
+    impl KindVisitor for Size {
+        type Out = usize;
+        fn visit<T: Message>(self) -> usize {
+            // A default payload encodes to the same length as any other.
+            crate::recording::encode(&T::default()).map_or(0, |b| b.len())
+        }
+    }
+    kind.visit(Size)
+}
+
+/// Messages and bytes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Count {
+    pub messages: u64,
+    pub bytes: u64,
+}
+
+impl Count {
+    pub fn add(&mut self, messages: u64, bytes_each: u64) {
+        self.messages += messages;
+        self.bytes += messages * bytes_each;
+    }
+}
+
+/// One sensor's link traffic, per direction and class.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LinkTraffic {
+    pub down_radio: Count,
+    pub down_plumbing: Count,
+    pub up_radio: Count,
+    pub up_plumbing: Count,
+}
+
+impl LinkTraffic {
+    /// Count `messages` of service `s` (ignored if it is not a sensor link).
+    pub fn add(&mut self, s: ServiceId, messages: u64, bytes_each: u64) {
+        let slot = match link_class(s) {
+            Some((Class::Radio, Direction::Down)) => &mut self.down_radio,
+            Some((Class::Plumbing, Direction::Down)) => &mut self.down_plumbing,
+            Some((Class::Radio, Direction::Up)) => &mut self.up_radio,
+            Some((Class::Plumbing, Direction::Up)) => &mut self.up_plumbing,
+            None => return,
+        };
+        slot.add(messages, bytes_each);
+    }
+
+    /// What one sensor's link carries in a run, from its counts: `legs`
+    /// served (each: OPEN, CLOSE, ledger, and a handover when the sensor was
+    /// alive at its start), `slots` (each: truth, slot), `transmitted`
+    /// measurements, plus the hello and the final STOP.
+    pub fn expected(legs: u64, handovers: u64, slots: u64, transmitted: u64) -> Self {
+        let size = |s: ServiceId| s.kind().map_or(0, encoded_size) as u64;
+        let mut t = Self::default();
+        t.add(
+            ServiceId::Handover(0),
+            handovers,
+            size(ServiceId::Handover(0)),
+        );
+        t.add(ServiceId::Truth(0), slots, size(ServiceId::Truth(0)));
+        t.add(
+            ServiceId::Threshold(0),
+            2 * legs + 1,
+            size(ServiceId::Threshold(0)),
+        );
+        t.add(
+            ServiceId::Measurement,
+            transmitted,
+            size(ServiceId::Measurement),
+        );
+        t.add(ServiceId::Slot, slots, size(ServiceId::Slot));
+        t.add(ServiceId::Ledger, legs, size(ServiceId::Ledger));
+        t.add(ServiceId::Hello, 1, size(ServiceId::Hello));
+        t
+    }
+
+    /// The downlink a per-step prior (the design before the replica: the
+    /// agent sent x̂⁻, P⁻ every slot) would have needed instead of the
+    /// handovers: one belief per slot.
+    pub fn per_step_prior(slots: u64) -> Count {
+        let mut c = Count::default();
+        c.add(slots, encoded_size(Kind::Handover) as u64);
+        c
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_are_those_of_the_encoded_structs() {
+        // Header 32 B; handover: dim, pad, 6 + 36 f64.
+        assert_eq!(encoded_size(Kind::Handover), 32 + 8 + 42 * 8);
+        // Measurement: dim, sequence, 6 f64.
+        assert_eq!(encoded_size(Kind::Measurement), 32 + 8 + 48);
+        assert_eq!(encoded_size(Kind::Slot), 32 + 8 + 8);
+    }
+
+    #[test]
+    fn every_sensor_link_service_is_classed_and_the_rest_is_not() {
+        for s in ServiceId::all_pubsub(2) {
+            let classed = link_class(s).is_some();
+            let link = !matches!(
+                s,
+                ServiceId::Control | ServiceId::Waypoint | ServiceId::Outcome
+            );
+            assert_eq!(classed, link, "{s:?}");
+        }
+        let t = LinkTraffic::expected(3, 3, 40, 10);
+        assert_eq!(t.down_radio.messages, 3);
+        assert_eq!(t.up_radio.messages, 10);
+        assert_eq!(t.down_plumbing.messages, 40 + 7);
+        assert_eq!(t.up_plumbing.messages, 40 + 3 + 1);
+    }
+}
