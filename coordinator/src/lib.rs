@@ -62,6 +62,10 @@ pub struct Args {
     /// Seconds to wait for every process's hello.
     #[arg(long, default_value_t = 30.0)]
     pub startup_timeout: f64,
+    /// Keep the number of finished episodes in FILE (rewritten at most every
+    /// 100 ms and at the end; `etp run` draws its progress from it).
+    #[arg(long, value_name = "FILE")]
+    pub progress: Option<std::path::PathBuf>,
 }
 
 /// Run all episodes and return the report.
@@ -77,6 +81,9 @@ pub fn run(args: &Args) -> Result<RunReport, CoordinatorError> {
         .map_err(|e| CoordinatorError::Input(e.to_string()))?;
     let startup = Duration::from_secs_f64(args.startup_timeout.max(0.1));
     let mut c = session::Coordinator::new(&run, &scenario, &strategy, args.seed)?;
+    if let Some(p) = &args.progress {
+        c.report_progress_to(p.clone());
+    }
     c.wait_ready(startup)?;
     c.run_episodes(args.episodes)
 }

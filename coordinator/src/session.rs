@@ -48,6 +48,8 @@ pub struct Coordinator<'a> {
     ledgers: HashMap<(u64, u32), Ledger>,
     /// A termination signal was received: finish the report, do not wait.
     terminating: bool,
+    /// `--progress FILE` and when it was last written.
+    progress: Option<(std::path::PathBuf, Option<Instant>)>,
 }
 
 impl<'a> Coordinator<'a> {
@@ -86,6 +88,7 @@ impl<'a> Coordinator<'a> {
             stamp: Stamper::new(run, SENDER_COORDINATOR),
             ledgers: HashMap::new(),
             terminating: false,
+            progress: None,
             node,
         })
     }
@@ -272,6 +275,7 @@ impl<'a> Coordinator<'a> {
                     self.take_episode_messages(episode, &mut rng, &mut legs)?;
                 if let Some(o) = done {
                     records.push(self.end_episode(episode, &o, legs, &mut faults)?);
+                    self.note_progress(records.len(), episode + 1 == episodes);
                     break;
                 }
                 if progressed || self.wait(IDLE_CHECK)? {
@@ -295,6 +299,29 @@ impl<'a> Coordinator<'a> {
             tracing::warn!(episodes = records.len(), "{why}");
         }
         Ok(self.report(episodes, records, faults, seconds, aborted))
+    }
+
+    /// Progress goes to FILE (see [`Coordinator::note_progress`]).
+    pub fn report_progress_to(&mut self, file: std::path::PathBuf) {
+        self.progress = Some((file, None));
+    }
+
+    /// Write the number of finished episodes to the progress file, at most
+    /// every 100 ms unless `last`; best effort (a failed write is logged).
+    fn note_progress(&mut self, finished: usize, last: bool) {
+        let Some((file, when)) = &mut self.progress else {
+            return;
+        };
+        if !last && when.is_some_and(|t| t.elapsed() < Duration::from_millis(100)) {
+            return;
+        }
+        *when = Some(Instant::now());
+        let tmp = file.with_extension("tmp");
+        if let Err(e) =
+            std::fs::write(&tmp, finished.to_string()).and_then(|()| std::fs::rename(&tmp, &*file))
+        {
+            tracing::debug!(file = %file.display(), "progress not written: {e}");
+        }
     }
 
     fn abort_reason(&self, episode: u64) -> String {

@@ -33,10 +33,22 @@ pub enum Command {
     Run(crate::cmd::run::Args),
     /// Serve remote sensors of a run on this host (`etp run --listen … --remote …` on the agent host).
     SensorHost(crate::cmd::run::sensor_host::Args),
-    /// Summarise an MCAP recording of a run (finished or not); `--repair OUT` writes a finished copy.
+    /// Summarise an MCAP recording of a run (finished or not); `--info`, `--cat`,
+    /// `--export DIR`, `--plot`, `--verify`, `--repair OUT`, `--publish`, `--foxglove OUT`.
     Replay(crate::cmd::replay::Args),
     /// Run one process of a run (used by `etp run` when the process binaries
     /// are not installed beside `etp`).
     #[command(hide = true, disable_help_flag = true)]
     Process(crate::cmd::process::Args),
+}
+
+#[cfg(test)]
+mod tests {
+    /// clap's own consistency checks (ids in `requires`/`conflicts_with`,
+    /// duplicate flags) on every subcommand; release builds skip them.
+    #[test]
+    fn the_interface_is_consistent() {
+        use clap::CommandFactory;
+        super::Cli::command().debug_assert();
+    }
 }

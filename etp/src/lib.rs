@@ -5,6 +5,7 @@
 //! * [`cmd`] — one module per subcommand; each exposes `run(args) -> anyhow::Result<()>`.
 //! * [`input`] — resolving a `SCENARIO` argument (built-in name or path).
 //! * [`progress`] — indicatif bars that hide themselves when stderr is not a terminal.
+//! * [`vocab`] — the JSON vocabulary shared by simulate, validate, run and replay.
 //!
 //! Errors are `anyhow` with context; [`run`] prints them to stderr and exits non-zero.
 
@@ -15,6 +16,8 @@ pub mod input;
 pub mod output;
 pub mod plot;
 pub mod progress;
+pub mod report_plot;
+pub mod vocab;
 
 use std::process::ExitCode;
 

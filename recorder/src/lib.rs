@@ -34,6 +34,8 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 #[derive(Debug, Parser)]
 #[command(name = "etp-recorder", version, about)]
 struct Cli {
+    /// Run id: records the services `etp/<run-id>/…` (of an `etp run
+    /// --run-id ID`, or of an `etp replay FILE --publish --run-id ID`).
     #[arg(long)]
     run_id: String,
     /// Scenario (built-in name or TOML path): gives the number of sensors.
@@ -42,8 +44,13 @@ struct Cli {
     /// Output MCAP file; must not exist (it is created exclusively).
     #[arg(long)]
     out: PathBuf,
-    /// JSON object `{record name: {key: value}}` written as metadata records.
-    #[arg(long)]
+    /// A JSON file `{record name: {key: value}}` written as the file's
+    /// metadata records (`etp run --record` passes the run's: `etp.run`,
+    /// `etp.scenario`, `etp.strategy`, `etp.prediction`, `etp.config`; see
+    /// recordings/README.md). Without it, the metadata that `etp replay
+    /// --publish` left for this run id is written when the recording ends, so
+    /// a re-recorded replay summarises and verifies like the original.
+    #[arg(long, value_name = "FILE")]
     meta: Option<PathBuf>,
 }
 
@@ -230,6 +237,9 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
             stopping = true;
         }
     }
+    if cli.meta.is_none() {
+        write_handed_over_metadata(&mut w, &run)?;
+    }
     let summary = w.finish().context("finishing the recording")?;
     drop(w);
     let counts: BTreeMap<String, u64> = channels
@@ -251,6 +261,28 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
         "counts": counts,
         "bytes": bytes,
     }))
+}
+
+/// The metadata that `etp replay --publish` left for this run (if any): a
+/// recorder started by hand without `--meta` on a replay's run id makes a
+/// copy that carries the original's scenario, strategy and run record, so it
+/// passes `etp replay --verify`.
+fn write_handed_over_metadata<W: std::io::Write + std::io::Seek>(
+    w: &mut mcap::Writer<W>,
+    run: &RunId,
+) -> Result<()> {
+    let path = recording::handover_path(run);
+    let Ok(text) = std::fs::read_to_string(&path) else {
+        return Ok(());
+    };
+    let records: BTreeMap<String, BTreeMap<String, String>> =
+        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    tracing::info!(path = %path.display(), records = records.len(), "metadata of the replay");
+    for (name, metadata) in records {
+        w.write_metadata(&Metadata { name, metadata })
+            .context("writing metadata")?;
+    }
+    Ok(())
 }
 
 /// Logs to stderr, filtered by `RUST_LOG` (default `warn`).

@@ -93,9 +93,31 @@ pub struct Strategy {
     /// scenario is looked up among the built-ins by name and hash.
     #[serde(default)]
     pub scenario_toml: Option<String>,
+    /// Selection-time expected energy spent on each leg (the MDP's
+    /// occupation measure × mean segment energy, transmissions × cost): the
+    /// per-sensor prediction of `etp run` and `etp validate` (a sensor's
+    /// share = the legs it serves). Absent in older files and for strategies
+    /// made without an MDP.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub leg_energy: Option<Vec<f64>>,
 }
 
 impl Strategy {
+    /// Predicted energy per episode of each of `scenario`'s sensors, from
+    /// [`Strategy::leg_energy`]; `None` without it (or if it does not match
+    /// the scenario's legs).
+    pub fn sensor_energy(&self, scenario: &Scenario) -> Option<Vec<f64>> {
+        let legs = self.leg_energy.as_ref()?;
+        if legs.len() != scenario.legs.len() {
+            return None;
+        }
+        let mut out = vec![0.0; scenario.sensors.len()];
+        for (leg, e) in scenario.legs.iter().zip(legs) {
+            *out.get_mut(leg.sensor)? += e;
+        }
+        Some(out)
+    }
+
     /// The same δ on every leg (region-free).
     pub fn constant(scenario: &Scenario, delta_index: usize, predicted: Prediction) -> Self {
         let mut omega = vec![0.0; scenario.deltas.len()];
@@ -118,6 +140,7 @@ impl Strategy {
             crossfit: None,
             certified: None,
             scenario_toml: None,
+            leg_energy: None,
         }
     }
 
@@ -164,6 +187,16 @@ impl Strategy {
             return Err(StrategyError::Invalid(
                 "deltas must be non-empty, finite and ≥ 0".into(),
             ));
+        }
+        if let Some(i) = self
+            .leg_energy
+            .iter()
+            .flatten()
+            .position(|e| !(e.is_finite() && *e >= 0.0))
+        {
+            return Err(StrategyError::Invalid(format!(
+                "leg_energy[{i}] must be finite and ≥ 0"
+            )));
         }
         for (i, st) in self.states.iter().enumerate() {
             if st.omega.len() != self.deltas.len() {

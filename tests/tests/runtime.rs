@@ -14,6 +14,9 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 #[path = "runtime/recording.rs"]
 mod recording;
 
+#[path = "runtime/publish.rs"]
+mod publish;
+
 #[path = "runtime/foxglove.rs"]
 mod foxglove;
 
@@ -69,7 +72,7 @@ fn assert_ledgers_match(v: &Value, skip_degraded: bool) {
         assert_eq!(e["degraded"].as_bool(), Some(false), "episode {e}");
         for l in e["legs"].as_array().expect("legs") {
             let received = l["received"].as_u64().expect("received");
-            let transmitted = l["transmitted"]
+            let transmitted = l["transmissions"]
                 .as_u64()
                 .unwrap_or_else(|| panic!("no ledger: {l}"));
             assert_eq!(
@@ -87,7 +90,7 @@ fn assert_ledgers_match(v: &Value, skip_degraded: bool) {
     if !skip_degraded {
         for (i, s) in v["sensors"].as_array().expect("sensors").iter().enumerate() {
             let (t, r) = per_sensor.get(&(i as u64)).copied().unwrap_or_default();
-            assert_eq!(s["transmitted"].as_u64(), Some(t), "{s}");
+            assert_eq!(s["transmissions"].as_u64(), Some(t), "{s}");
             assert_eq!(s["received"].as_u64(), Some(r), "{s}");
         }
     }
@@ -126,7 +129,7 @@ fn ledgers_equal_received_and_outcomes_agree_with_in_process_simulation() {
         assert!(v["predicted"].get(k).is_some(), "predicted.{k} missing");
     }
     for s in v["sensors"].as_array().expect("sensors") {
-        for k in ["name", "transmitted", "received", "predicted_energy"] {
+        for k in ["name", "transmissions", "received", "predicted_energy"] {
             assert!(s.get(k).is_some(), "sensors[].{k} missing");
         }
     }

@@ -163,25 +163,27 @@ pub fn run(a: Args) -> Result<()> {
         ),
     );
     let rargs = run_cmd::Args {
+        config: None,
         strategy: Some(strategy_path.clone()),
         scenario: None,
         delta: None,
-        episodes: a.run_episodes,
-        seed: a.seed,
+        episodes: Some(a.run_episodes),
+        seed: Some(a.seed),
         json: true,
-        deadline: 600.0,
+        deadline: Some(600.0),
         run_id: None,
         episode_details: false,
-        predict_episodes: a.validate_episodes,
+        predict_episodes: Some(a.validate_episodes),
         clone_sensors: None,
         record: None,
         record_default: true,
         force: false,
         allow_degraded: false,
         slot_deadline: None,
+        plot: false,
         listen: None,
         remote: Vec::new(),
-        join_timeout: 60.0,
+        join_timeout: None,
     };
     let (mp, problems) = run_cmd::execute(&rargs)?;
 
@@ -191,7 +193,7 @@ pub fn run(a: Args) -> Result<()> {
         "scenario": scenario.name,
         "strategy": strategy_path,
         "vertices": front.front.vertices.len(),
-        "predicted": {"p_target": p.p_target, "p_collision": p.p_collision, "energy_mean": p.energy_mean},
+        "predicted": crate::vocab::prediction(p),
         "in_process": {"episodes": sim.episodes, "p_target": sim.p_target.value, "p_target_ci95": sim.p_target.ci95,
                         "p_collision": sim.p_collision.value, "p_collision_ci95": sim.p_collision.ci95,
                         "energy_mean": sim.energy_mean.value, "energy_mean_ci95": sim.energy_mean.ci95},
@@ -257,7 +259,7 @@ pub fn run(a: Args) -> Result<()> {
         println!(
             "  {:<8} {:>11} {:>11} {:>11.1}",
             s["name"].as_str().unwrap_or("?"),
-            s["transmitted"].as_u64().unwrap_or(0),
+            s["transmissions"].as_u64().unwrap_or(0),
             s["received"].as_u64().unwrap_or(0),
             s["predicted_energy"].as_f64().unwrap_or(f64::NAN)
         );
@@ -266,7 +268,7 @@ pub fn run(a: Args) -> Result<()> {
         .as_array()
         .into_iter()
         .flatten()
-        .map(|s| s["transmitted"].as_u64().unwrap_or(0))
+        .map(|s| s["transmissions"].as_u64().unwrap_or(0))
         .sum();
     if let Some(recorded) = mp["recording"]["counts"]["measurement"].as_u64() {
         println!(

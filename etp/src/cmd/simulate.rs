@@ -60,7 +60,19 @@ pub fn run(a: Args) -> Result<()> {
     pb.finish_and_clear();
     let secs = started.elapsed().as_secs_f64();
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&summary_json(&sum))?);
+        let mut v = summary_json(&s, &sum);
+        if let Some(m) = v.as_object_mut() {
+            m.insert("scenario".into(), json!(s.name));
+            m.insert("seed".into(), json!(a.seed));
+            m.insert(
+                "strategy".into(),
+                json!(format!("constant δ = {}", a.delta)),
+            );
+            m.insert("delta".into(), json!(a.delta));
+            // No model prediction for a plain simulation.
+            m.insert("predicted".into(), Value::Null);
+        }
+        println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!(
             "{} · δ = {} · {} episodes · seed {} · {:.2} s",
@@ -71,8 +83,9 @@ pub fn run(a: Args) -> Result<()> {
     Ok(())
 }
 
-/// The flat JSON object of a summary: `<key>` and `<key>_ci95` per estimate.
-pub fn summary_json(sum: &SimulationSummary) -> Value {
+/// The flat JSON object of a summary (`crate::vocab`): `<key>` and
+/// `<key>_ci95` per estimate, total and per-sensor transmissions and energy.
+pub fn summary_json(s: &Scenario, sum: &SimulationSummary) -> Value {
     let mut m = Map::new();
     m.insert("episodes".into(), json!(sum.episodes));
     for (k, e) in estimates(sum) {
@@ -80,7 +93,21 @@ pub fn summary_json(sum: &SimulationSummary) -> Value {
         m.insert(format!("{k}_ci95"), json!(e.ci95));
     }
     m.insert("total_steps".into(), json!(sum.total_steps));
-    m.insert("sensors".into(), json!(sum.sensors));
+    m.insert(
+        "transmissions".into(),
+        json!(sum.sensors.iter().map(|c| c.transmissions).sum::<u64>()),
+    );
+    let sensors: Vec<Value> = s
+        .sensors
+        .iter()
+        .zip(&sum.sensors)
+        .map(|(x, c)| {
+            json!({"name": x.name, "slots": c.slots, "transmissions": c.transmissions,
+                   "energy": crate::vocab::round_energy(x.cost * c.transmissions as f64),
+                   "predicted_energy": null})
+        })
+        .collect();
+    m.insert("sensors".into(), json!(sensors));
     Value::Object(m)
 }
 

@@ -74,7 +74,7 @@ pub fn run(a: Args) -> Result<()> {
     if a.json {
         println!(
             "{}",
-            serde_json::to_string_pretty(&comparison_json(&strategy, &sum))?
+            serde_json::to_string_pretty(&comparison_json(&scenario, &strategy, &sum, a.seed))?
         );
     } else {
         println!("{} — {}", scenario.name, strategy.label);
@@ -143,24 +143,48 @@ fn honest_check_text(strategy: &Strategy, sum: &SimulationSummary) -> String {
     o
 }
 
-/// `predicted` and `simulated` objects.
-pub fn comparison_json(strategy: &Strategy, sum: &SimulationSummary) -> serde_json::Value {
-    let p = &strategy.predicted;
-    json!({
-        "label": strategy.label,
-        "predictions": super::honest::json_of(strategy),
-        "checks": honest_checks(strategy, sum).into_iter()
-            .map(|(k, ok)| json!({"check": k, "holds": ok})).collect::<Vec<_>>(),
-        "predicted": {"p_target": p.p_target, "p_collision": p.p_collision, "p_free": p.p_free, "energy_mean": p.energy_mean},
-        "simulated": {
-            "episodes": sum.episodes,
-            "p_target": sum.p_target.value, "p_target_ci95": sum.p_target.ci95,
-            "p_collision": sum.p_collision.value, "p_collision_ci95": sum.p_collision.ci95,
-            "p_free": sum.p_free.value, "p_free_ci95": sum.p_free.ci95,
-            "energy_mean": sum.energy_mean.value, "energy_mean_ci95": sum.energy_mean.ci95,
-            "trigger_rate": sum.trigger_rate.value, "trigger_rate_expected": sum.trigger_rate_expected.value,
+/// The simulation in the vocabulary of `crate::vocab` (the flat keys of
+/// `etp simulate`), with the strategy's identity, its predictions and the
+/// checks of each prediction against the simulation.
+pub fn comparison_json(
+    scenario: &etp_shared::scenario::Scenario,
+    strategy: &Strategy,
+    sum: &SimulationSummary,
+    seed: u64,
+) -> serde_json::Value {
+    let mut v = crate::cmd::simulate::summary_json(scenario, sum);
+    // The per-sensor prediction of the strategy file (the MDP's), if it has one.
+    if let (Some(per_ep), Some(sensors)) = (
+        strategy.sensor_energy(scenario),
+        v.get_mut("sensors")
+            .and_then(serde_json::Value::as_array_mut),
+    ) {
+        for (x, e) in sensors.iter_mut().zip(per_ep) {
+            x["predicted_energy"] = json!(crate::vocab::round_energy(e * sum.episodes as f64));
         }
-    })
+    }
+    if let Some(m) = v.as_object_mut() {
+        m.insert("scenario".into(), json!(scenario.name));
+        m.insert("seed".into(), json!(seed));
+        m.insert("strategy".into(), json!(strategy.label));
+        m.insert(
+            "delta".into(),
+            json!(crate::vocab::constant_delta(strategy)),
+        );
+        m.insert(
+            "predicted".into(),
+            crate::vocab::prediction(&strategy.predicted),
+        );
+        m.insert("predictions".into(), super::honest::json_of(strategy));
+        m.insert(
+            "checks".into(),
+            honest_checks(strategy, sum)
+                .into_iter()
+                .map(|(k, ok)| json!({"check": k, "holds": ok}))
+                .collect(),
+        );
+    }
+    v
 }
 
 /// Predicted vs simulated, one row per quantity.

@@ -6,6 +6,9 @@ mod exact;
 mod integrity;
 mod pipeline;
 mod replay;
+mod replay_tools;
+mod run_config;
+mod schemas;
 mod synthesize;
 
 use serde_json::Value;
@@ -180,4 +183,45 @@ fn etp_shared_text() -> String {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/winding-2d.toml"),
     )
     .expect("scenario")
+}
+
+/// Piped stderr (not a terminal): a plain progress line every
+/// `ETP_PROGRESS_SECONDS` instead of a bar; `--json` keeps stderr quiet.
+#[test]
+fn piped_progress_prints_lines() {
+    let run = |json: bool| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_etp"));
+        c.args([
+            "simulate",
+            "winding-2d",
+            "--delta",
+            "1.4986",
+            "--episodes",
+            "3000",
+        ])
+        .env("ETP_PROGRESS_SECONDS", "0.05")
+        .env("RAYON_NUM_THREADS", "1");
+        if json {
+            c.arg("--json");
+        }
+        c.output().expect("spawn etp")
+    };
+    let out = run(false);
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("simulate: ") && l.contains("/3000 (") && l.contains(" s"))
+        .unwrap_or_else(|| panic!("no progress line in {err:?}"));
+    assert!(
+        line.contains("% ) after") || line.contains("%) after"),
+        "{line}"
+    );
+    let quiet = run(true);
+    assert!(quiet.status.success());
+    assert!(
+        quiet.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&quiet.stderr)
+    );
 }

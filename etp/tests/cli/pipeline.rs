@@ -58,18 +58,64 @@ fn pipeline_predicts_what_simulation_measures_and_refuses_bad_files() {
     for (k, tol) in [("p_target", 0.02), ("p_collision", 0.02)] {
         let (p, m) = (
             v["predicted"][k].as_f64().unwrap_or(-1.0),
-            v["simulated"][k].as_f64().unwrap_or(9.0),
+            v[k].as_f64().unwrap_or(9.0),
         );
         assert!((p - m).abs() <= tol, "{k}: predicted {p}, simulated {m}");
     }
     let (pe, me) = (
         v["predicted"]["energy_mean"].as_f64().unwrap_or(-1.0),
-        v["simulated"]["energy_mean"].as_f64().unwrap_or(-1.0),
+        v["energy_mean"].as_f64().unwrap_or(-1.0),
     );
     assert!(
         (pe - me).abs() <= 0.05 * pe,
         "energy: predicted {pe}, simulated {me}"
     );
+    // The per-sensor prediction is the MDP's (strategy.json `leg_energy`):
+    // it adds up to the predicted energy, and `etp run` prints the same.
+    let per_sensor: Vec<f64> = v["sensors"]
+        .as_array()
+        .expect("sensors")
+        .iter()
+        .map(|x| {
+            x["predicted_energy"]
+                .as_f64()
+                .expect("predicted_energy from the MDP")
+        })
+        .collect();
+    let episodes = v["episodes"].as_f64().expect("episodes");
+    assert!(
+        (per_sensor.iter().sum::<f64>() - pe * episodes).abs() <= 1e-4 * pe * episodes,
+        "{per_sensor:?} vs {pe} × {episodes}"
+    );
+    let run_id = format!("t{}-pipeline", std::process::id());
+    let r = ok_json(&[
+        "run",
+        s(&strategy),
+        "--episodes",
+        "2",
+        "--run-id",
+        &run_id,
+        "--json",
+    ]);
+    assert!(
+        r["predicted_energy_from"]
+            .as_str()
+            .is_some_and(|f| f.contains("MDP")),
+        "{}",
+        r["predicted_energy_from"]
+    );
+    for (x, want) in r["sensors"]
+        .as_array()
+        .expect("sensors")
+        .iter()
+        .zip(&per_sensor)
+    {
+        let got = x["predicted_energy"].as_f64().expect("predicted_energy");
+        assert!(
+            (got - want * 2.0 / episodes).abs() <= 1e-6 * want.max(1.0),
+            "{got} vs {want}"
+        );
+    }
 
     // No silent overwrite.
     let plot_args = [

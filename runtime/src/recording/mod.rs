@@ -23,17 +23,22 @@ use crate::wire::ServiceId;
 use crate::wire::sensor_to_agent as s2a;
 
 mod integrity;
+mod layout;
 pub mod ports;
 mod read;
+pub mod table;
 mod verify;
 
 pub use integrity::{META_RUN_SCENARIO_HASH, check_metadata};
+pub use layout::{ChunkStats, Layout, layout};
 pub use read::{Contents, RawMessage, read_lenient};
 pub use verify::{Mismatch, PriorTable, VerifyReport, priors, verify};
 
 /// Version of this format (metadata `etp.run` / `format_version`). 3: the
 /// per-leg `handover` replaces the per-step `prior`, and `slot` carries the
-/// sensor replica's prior digest.
+/// sensor replica's prior digest; files written since issue 16 also hold the
+/// `etp.config` record (the run's launch file) and schema texts with the
+/// payload's size and Python `struct` format (readers need neither).
 pub const FORMAT_VERSION: &str = "3";
 /// MCAP profile string.
 pub const PROFILE: &str = "etpareto";
@@ -46,6 +51,17 @@ pub const META_RUN: &str = "etp.run";
 pub const META_SCENARIO: &str = "etp.scenario";
 pub const META_STRATEGY: &str = "etp.strategy";
 pub const META_PREDICTION: &str = "etp.prediction";
+/// The run's configuration (`toml`: the `etp run --config` file, or the
+/// flags of the run written as one).
+pub const META_CONFIG: &str = "etp.config";
+
+/// Where `etp replay --publish` leaves the metadata of the recording it
+/// publishes, for a recorder of that run started without `--meta` (it
+/// writes them when it finishes): a file in the run's iceoryx2 folder, which
+/// lives as long as one of the run's processes does.
+pub fn handover_path(run: &crate::wire::RunId) -> std::path::PathBuf {
+    run.root_dir().join("etp-metadata.json")
+}
 
 /// Why a recording could not be encoded, decoded or read.
 #[derive(Debug, thiserror::Error)]

@@ -18,6 +18,8 @@ pub struct Contents {
     pub metadata: BTreeMap<String, BTreeMap<String, String>>,
     /// Channel topic → schema name.
     pub channels: BTreeMap<String, String>,
+    /// Schema name → schema encoding.
+    pub schemas: BTreeMap<String, String>,
     pub messages: Vec<RawMessage>,
     /// True when the file ends with a footer and the end magic.
     pub finished: bool,
@@ -243,6 +245,8 @@ pub fn read_lenient(name: &str, buf: &[u8]) -> Result<Contents, RecordingError> 
         };
         match rec {
             Record::Schema { header, .. } => {
+                out.schemas
+                    .insert(header.name.clone(), header.encoding.clone());
                 schemas.insert(header.id, header.name);
             }
             Record::Channel(c) => {

@@ -42,7 +42,8 @@ pub trait KindVisitor {
 }
 
 macro_rules! catalogue {
-    ($( $kind:ident => $ty:ty, owner $owner:literal, codes $codes:literal; )*) => {
+    ($( $kind:ident => $ty:ty, owner $owner:literal,
+        names [ $( $field:literal : $named:ident ),* ], codes $codes:literal; )*) => {
         /// The kind of a payload (one per message type).
         #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
         pub enum Kind { $( $kind, )* }
@@ -66,6 +67,12 @@ macro_rules! catalogue {
                 match self { $( Kind::$kind => $codes, )* }
             }
 
+            /// The fields of this kind whose numbers stand for names (the
+            /// header's `sender` aside: see [`HEADER_NAMES`]).
+            pub fn named_fields(self) -> &'static [(&'static str, Named)] {
+                match self { $( Kind::$kind => &[ $( ($field, Named::$named), )* ], )* }
+            }
+
             /// Run `v` with the Rust type of this kind.
             pub fn visit<V: KindVisitor>(self, v: V) -> V::Out {
                 match self { $( Kind::$kind => v.visit::<$ty>(), )* }
@@ -84,6 +91,14 @@ macro_rules! catalogue {
             pub fn header(&self) -> &Header {
                 match self { $( Recorded::$kind(m) => &m.header, )* }
             }
+
+            /// The payload as a JSON value (serde's view of the struct:
+            /// nested `header`, arrays as arrays).
+            pub fn to_json(&self) -> serde_json::Value {
+                let v = match self { $( Recorded::$kind(m) => serde_json::to_value(m), )* };
+                // Plain structs of numbers always serialize.
+                v.unwrap_or(serde_json::Value::Null)
+            }
         }
 
         $(
@@ -100,25 +115,26 @@ macro_rules! catalogue {
 }
 
 catalogue! {
-    Control => c2a::Control, owner "coordinator",
+    Control => c2a::Control, owner "coordinator", names ["kind": ControlKind],
         codes "kind: 1 = START (an episode), 2 = STOP (the agent exits)";
-    Threshold => c2all::Threshold, owner "coordinator",
+    Threshold => c2all::Threshold, owner "coordinator", names ["kind": ThresholdKind, "sensor": Sensor],
         codes "kind: 1 = OPEN (leg header.leg at `sensor` with delta), 2 = CLOSE (the sensor answers with its ledger), 3 = STOP (the sensor exits); delta_index: index of delta in the strategy's thresholds";
-    Truth => a2s::Truth, owner "agent",
+    Truth => a2s::Truth, owner "agent", names [],
         codes "x: the true state (simulation only: stands in for the physical world); entries past dim are 0";
-    Handover => a2s::Handover, owner "agent",
+    Handover => a2s::Handover, owner "agent", names [],
         codes "radio, once per leg served: mean, cov = the agent's belief at the start of leg header.leg after header.step steps (row-major; entries past dim are 0); the sensor's replica computes the leg's priors from it";
-    Measurement => s2a::Measurement, owner "sensor",
+    Measurement => s2a::Measurement, owner "sensor", names [],
         codes "costed: one transmission; sequence: transmissions of this sensor in this episode, this one included; y: entries past dim are 0";
-    Slot => s2a::Slot, owner "sensor",
+    Slot => s2a::Slot, owner "sensor", names ["transmitted": Flag],
         codes "transmitted: 1 if a measurement was sent for this slot, 0 if silent; prior_digest: FNV-1a of the bits of the replica's prior (mean, then cov row by row)";
-    Waypoint => a2c::Waypoint, owner "agent",
+    Waypoint => a2c::Waypoint, owner "agent", names ["prev_degraded": Flag],
         codes "decision point header.leg reached; prev_*: counts of the leg that just ended; prev_degraded: 1 if it had a dead link";
     Outcome => a2c::Outcome, owner "agent",
+        names ["outcome": Outcome, "degraded": Flag, "dead_sensor": SensorOrNone],
         codes "outcome: 1 = TARGET, 2 = COLLISION, 3 = FREE; degraded: 1 if a slot had a dead link; dead_sensor: 4294967295 = none";
-    Ledger => s2c::Ledger, owner "sensor",
+    Ledger => s2c::Ledger, owner "sensor", names [],
         codes "what the sensor spent on leg header.leg: slots served, transmissions, energy = transmissions x cost";
-    Hello => tc::Hello, owner "any",
+    Hello => tc::Hello, owner "any", names [],
         codes "a process is ready (pid)";
 }
 
@@ -130,86 +146,262 @@ pub const PAYLOAD_ENCODING: &str = "bincode2-serde-legacy";
 /// Codes of the header, common to every kind.
 pub const HEADER_CODES: &str = "header.run: hash of the run id; header.sender: the sensor's index, 4294901760 = coordinator, 4294901761 = agent; header.seq: per-sender sequence number";
 
-fn format_name(f: &serde_reflection::Format) -> String {
-    use serde_reflection::Format as F;
-    match f {
-        F::U8 => "u8".into(),
-        F::U16 => "u16".into(),
-        F::U32 => "u32".into(),
-        F::U64 => "u64".into(),
-        F::I32 => "i32".into(),
-        F::I64 => "i64".into(),
-        F::F32 => "f32".into(),
-        F::F64 => "f64".into(),
-        F::Bool => "bool".into(),
-        F::TupleArray { content, size } => format!("[{}; {size}]", format_name(content)),
-        F::TypeName(n) => n.clone(),
-        other => format!("{other:?}"),
+/// What the number of a code field stands for, in exports and `replay cat`
+/// (declared per kind in the catalogue; see [`Kind::named_fields`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Named {
+    /// 0 / 1 → false / true.
+    Flag,
+    /// [`super::ControlKind`]: `start`, `stop`.
+    ControlKind,
+    /// [`super::ThresholdKind`]: `open`, `close`, `stop`.
+    ThresholdKind,
+    /// [`super::OutcomeCode`]: `target`, `collision`, `free`.
+    Outcome,
+    /// A sensor index → the sensor's name.
+    Sensor,
+    /// A sensor index → its name; `u32::MAX` → none (null).
+    SensorOrNone,
+    /// `header.sender` → a sensor's name, `coordinator` or `agent`.
+    Sender,
+}
+
+/// Named fields of the header, common to every kind.
+pub const HEADER_NAMES: &[(&str, Named)] = &[("header.sender", Named::Sender)];
+
+/// The scalar type of a payload field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scalar {
+    U8,
+    U16,
+    U32,
+    U64,
+    I32,
+    I64,
+    F32,
+    F64,
+    Bool,
+}
+
+impl Scalar {
+    /// The Rust spelling (`u32`, `f64`, …).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::U8 => "u8",
+            Self::U16 => "u16",
+            Self::U32 => "u32",
+            Self::U64 => "u64",
+            Self::I32 => "i32",
+            Self::I64 => "i64",
+            Self::F32 => "f32",
+            Self::F64 => "f64",
+            Self::Bool => "bool",
+        }
+    }
+
+    /// The Python `struct` format character (little-endian, standard sizes).
+    pub fn struct_char(self) -> char {
+        match self {
+            Self::U8 => 'B',
+            Self::U16 => 'H',
+            Self::U32 => 'I',
+            Self::U64 => 'Q',
+            Self::I32 => 'i',
+            Self::I64 => 'q',
+            Self::F32 => 'f',
+            Self::F64 => 'd',
+            Self::Bool => '?',
+        }
+    }
+
+    /// Bytes on the wire.
+    pub fn size(self) -> usize {
+        match self {
+            Self::U8 | Self::Bool => 1,
+            Self::U16 => 2,
+            Self::U32 | Self::I32 | Self::F32 => 4,
+            Self::U64 | Self::I64 | Self::F64 => 8,
+        }
     }
 }
 
-/// The fields of `T` in wire order, `name: type` per line, nested structs
-/// (the header) flattened as `header.field`; traced from the type's serde
-/// implementation, so it is the layout bincode writes.
-fn fields_of<T: Message>() -> Result<String, String> {
+/// One field of a payload in wire order: its path (`header.seq`, `y`), its
+/// scalar type and array shape (`[]` scalar, `[6]` vector, `[6, 6]` matrix).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Field {
+    pub path: Vec<String>,
+    pub scalar: Scalar,
+    pub shape: Vec<usize>,
+}
+
+impl Field {
+    /// `header.seq`, `y`.
+    pub fn name(&self) -> String {
+        self.path.join(".")
+    }
+
+    /// A padding field (`_pad`): no information.
+    pub fn is_padding(&self) -> bool {
+        self.path.last().is_some_and(|p| p.starts_with('_'))
+    }
+
+    /// `u32`, `[f64; 6]`, `[[f64; 6]; 6]`.
+    pub fn type_name(&self) -> String {
+        self.shape
+            .iter()
+            .rev()
+            .fold(self.scalar.name().to_string(), |t, n| format!("[{t}; {n}]"))
+    }
+
+    /// Number of scalars.
+    pub fn len(&self) -> usize {
+        self.shape.iter().product()
+    }
+
+    /// True for a zero-sized array (none in the catalogue).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// The fields of `T` in wire order, nested structs (the header) flattened;
+/// traced from the type's serde implementation, so it is the layout bincode
+/// writes.
+fn fields_of<T: Message>() -> Result<Vec<Field>, String> {
     use serde_reflection::{ContainerFormat, Format, Tracer, TracerConfig};
-    let mut tracer = Tracer::new(TracerConfig::default());
-    tracer.trace_simple_type::<T>().map_err(|e| e.to_string())?;
-    let registry = tracer.registry().map_err(|e| e.to_string())?;
+    fn scalar(f: &Format, shape: &mut Vec<usize>) -> Result<Scalar, String> {
+        Ok(match f {
+            Format::U8 => Scalar::U8,
+            Format::U16 => Scalar::U16,
+            Format::U32 => Scalar::U32,
+            Format::U64 => Scalar::U64,
+            Format::I32 => Scalar::I32,
+            Format::I64 => Scalar::I64,
+            Format::F32 => Scalar::F32,
+            Format::F64 => Scalar::F64,
+            Format::Bool => Scalar::Bool,
+            Format::TupleArray { content, size } => {
+                shape.push(*size);
+                scalar(content, shape)?
+            }
+            other => return Err(format!("unsupported field format {other:?}")),
+        })
+    }
     fn walk(
         registry: &serde_reflection::Registry,
         name: &str,
-        prefix: &str,
-        out: &mut String,
+        prefix: &[String],
+        out: &mut Vec<Field>,
     ) -> Result<(), String> {
         let Some(ContainerFormat::Struct(fields)) = registry.get(name) else {
             return Err(format!("`{name}` is not a struct"));
         };
         for f in fields {
+            let mut path = prefix.to_vec();
+            path.push(f.name.clone());
             match &f.value {
-                Format::TypeName(inner) => {
-                    walk(registry, inner, &format!("{prefix}{}.", f.name), out)?;
-                }
+                Format::TypeName(inner) => walk(registry, inner, &path, out)?,
                 v => {
-                    out.push_str(&format!("{prefix}{}: {}\n", f.name, format_name(v)));
+                    let mut shape = Vec::new();
+                    let scalar = scalar(v, &mut shape)?;
+                    out.push(Field {
+                        path,
+                        scalar,
+                        shape,
+                    });
                 }
             }
         }
         Ok(())
     }
+    let mut tracer = Tracer::new(TracerConfig::default());
+    tracer.trace_simple_type::<T>().map_err(|e| e.to_string())?;
+    let registry = tracer.registry().map_err(|e| e.to_string())?;
     let name = std::any::type_name::<T>()
         .rsplit("::")
         .next()
         .unwrap_or_default()
         .to_string();
-    let mut out = String::new();
-    walk(&registry, &name, "", &mut out)?;
+    let mut out = Vec::new();
+    walk(&registry, &name, &[], &mut out)?;
     Ok(out)
 }
 
-struct SchemaText;
+struct Fields;
 
-impl KindVisitor for SchemaText {
-    type Out = Result<String, String>;
+impl KindVisitor for Fields {
+    type Out = Result<Vec<Field>, String>;
     fn visit<T: Message>(self) -> Self::Out {
         fields_of::<T>()
     }
 }
 
 impl Kind {
+    /// The payload's fields in wire order (traced from the type).
+    pub fn fields(self) -> Result<Vec<Field>, String> {
+        self.visit(Fields)
+    }
+
+    /// The Python `struct` format of a payload (`<` little-endian, standard
+    /// sizes, padding fields included), e.g. `<QQIIIIII6d`.
+    pub fn struct_format(self) -> Result<String, String> {
+        let mut f = String::from("<");
+        for x in self.fields()? {
+            match x.len() {
+                1 => f.push(x.scalar.struct_char()),
+                n => f.push_str(&format!("{n}{}", x.scalar.struct_char())),
+            }
+        }
+        Ok(f)
+    }
+
     /// The schema text of a recording's channel of this kind: a header line,
-    /// the fields in wire order (traced from the type), the codes.
+    /// the fields in wire order (traced from the type), the payload's size
+    /// and Python `struct` format, the codes and named fields.
     pub fn schema_text(self) -> String {
         let encoding = PAYLOAD_ENCODING;
-        let fields = self
-            .visit(SchemaText)
-            .unwrap_or_else(|e| format!("# fields could not be traced: {e}\n"));
+        let (fields, layout) = match (self.fields(), self.struct_format()) {
+            (Ok(f), Ok(s)) => {
+                let size: usize = f.iter().map(|x| x.len() * x.scalar.size()).sum();
+                (
+                    f.iter()
+                        .map(|x| format!("{}: {}\n", x.name(), x.type_name()))
+                        .collect::<String>(),
+                    format!("# size: {size} bytes; python: struct.unpack(\"{s}\", data)\n"),
+                )
+            }
+            (Err(e), _) | (_, Err(e)) => (
+                format!("# fields could not be traced: {e}\n"),
+                String::new(),
+            ),
+        };
+        let named: Vec<String> = HEADER_NAMES
+            .iter()
+            .chain(self.named_fields())
+            .map(|(f, n)| format!("{f} ({})", n.describe()))
+            .collect();
         format!(
-            "# {} ({encoding}), published by the {}\n{fields}# codes: {HEADER_CODES}\n# codes: {}\n",
+            "# {} ({encoding}), published by the {}\n{fields}{layout}# codes: {HEADER_CODES}\n# codes: {}\n# names in `etp replay --export` and `cat`: {}\n",
             self.schema_name(),
             self.owner(),
-            self.codes()
+            self.codes(),
+            named.join("; ")
         )
+    }
+}
+
+impl Named {
+    /// How an export shows the field.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Self::Flag => "bool",
+            Self::ControlKind => "start | stop",
+            Self::ThresholdKind => "open | close | stop",
+            Self::Outcome => "target | collision | free",
+            Self::Sensor => "the sensor's name",
+            Self::SensorOrNone => "the sensor's name, or null for none",
+            Self::Sender => "the sensor's name, coordinator or agent",
+        }
     }
 }
 
@@ -282,6 +474,15 @@ mod tests {
                 .contains("cov: [[f64; 6]; 6]\n")
         );
         assert!(Kind::Outcome.schema_text().contains("1 = TARGET"));
+        assert!(
+            t.contains("# size: 88 bytes; python: struct.unpack(\"<QQIIIIII6d\", data)\n"),
+            "{t}"
+        );
+        assert!(
+            Kind::Outcome
+                .schema_text()
+                .contains("dead_sensor (the sensor's name, or null for none)")
+        );
         for k in Kind::ALL {
             let t = k.schema_text();
             assert!(!t.contains("could not be traced"), "{t}");

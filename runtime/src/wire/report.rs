@@ -15,6 +15,7 @@ pub struct LegRecord {
     /// Measurements the agent received on this leg.
     pub received: u32,
     /// Transmissions in the sensor's ledger (`None`: no ledger, sensor dead).
+    #[serde(rename = "transmissions")]
     pub transmitted: Option<u32>,
     /// Slots in the sensor's ledger.
     pub slots: Option<u32>,

@@ -258,6 +258,7 @@ pub fn to_strategy(
         crossfit: None,
         certified: None,
         scenario_toml: None,
+        leg_energy: Some(policy::leg_energy(mdp, policy, CostModel::Counted)),
     }
 }
 

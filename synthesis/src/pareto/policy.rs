@@ -224,6 +224,23 @@ pub fn occupation(mdp: &Mdp, policy: &RandomisedPolicy) -> Vec<Vec<f64>> {
     x
 }
 
+/// Expected energy spent on each leg (decision point `i` starts leg `i`)
+/// under `policy`: Σ over the leg's states and choices of the occupation
+/// measure × the choice's mean segment energy. Sums to the policy's
+/// expected energy ([`evaluate`]) under the same cost model.
+pub fn leg_energy(mdp: &Mdp, policy: &RandomisedPolicy, cost: CostModel) -> Vec<f64> {
+    let x = occupation(mdp, policy);
+    let mut out = vec![0.0; mdp.num_decision_points()];
+    for (s, row) in mdp.states.iter().zip(&x) {
+        for (c, &xc) in s.choices.iter().zip(row) {
+            if let Some(e) = out.get_mut(s.decision_point as usize) {
+                *e += xc * c.cost(cost);
+            }
+        }
+    }
+    out
+}
+
 /// The constant-action policy: action index `a` of Δ in every state, if every
 /// state offers it.
 pub fn constant_action(mdp: &Mdp, action: u16) -> Option<DeterministicPolicy> {

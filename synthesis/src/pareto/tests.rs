@@ -29,6 +29,20 @@ fn occupation_of_a_policy_reproduces_its_values() {
         .sum();
     assert!((energy - v.energy).abs() < 1e-12);
     assert!((x[1].iter().sum::<f64>() - 0.45).abs() < 1e-12);
+    // Per leg: decision point 0 (state 0) spends its choices' mean energy,
+    // the legs add up to the whole.
+    let legs = leg_energy(&m, &pol, CostModel::Counted);
+    assert_eq!(legs.len(), m.num_decision_points());
+    let first: f64 = (0..2)
+        .map(|c| pol[0][c] * m.states[0].choices[c].cost_counted)
+        .sum();
+    assert!((legs[0] - first).abs() < 1e-12, "{legs:?}");
+    assert!(
+        (legs.iter().sum::<f64>() - v.energy).abs() < 1e-12,
+        "{legs:?}"
+    );
+    let s = to_strategy(&m, &pol, "t".into(), v);
+    assert_eq!(s.leg_energy.as_deref(), Some(legs.as_slice()));
 }
 
 #[test]

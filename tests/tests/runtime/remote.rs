@@ -272,7 +272,7 @@ fn a_run_across_three_hosts_counts_exactly_and_verifies() {
             );
             assert_eq!(
                 s["traffic_carried"]["up_radio"]["messages"].as_u64(),
-                s["transmitted"].as_u64(),
+                s["transmissions"].as_u64(),
                 "{name}"
             );
         }

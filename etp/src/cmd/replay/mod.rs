@@ -5,16 +5,22 @@
 //! `--repair OUT` writes a finished copy; `--verify` re-runs the estimator
 //! (`etp_runtime::recording::verify`); `--publish` puts the traffic back on
 //! iceoryx2 (`publish.rs`); `--foxglove OUT` writes a copy that Foxglove
-//! draws (`foxglove.rs`). Exit codes: 0 complete file, 3 unfinished file
+//! draws (`foxglove.rs`); `--info` (`info.rs`), `--cat` and `--export DIR`
+//! (`export.rs`), `--plot` (`figure.rs`), on the messages selected by
+//! `--topics`, `--episodes`, `--start`/`--end` (`select.rs`). Exit codes: 0 complete file, 3 unfinished file
 //! (cut anywhere by a crash or a copy: summary of every complete record
 //! printed), 1 error — including a damaged file (bad chunk, data or summary
 //! CRC, undecodable record, metadata whose scenario hashes disagree), which
 //! only `--repair` reads (salvaging the records before the damage). Output
 //! goes through [`emit`]: a closed stdout never panics.
 
+mod export;
+mod figure;
 mod foxglove;
+mod info;
 mod publish;
 mod repair;
+mod select;
 mod summary;
 
 use anyhow::{Context, Result, bail};
@@ -58,9 +64,57 @@ pub struct Args {
     /// playback at 1×) or `recorded` (the recorder's time stamps).
     #[arg(long, value_enum, default_value = "step", requires = "foxglove")]
     pub foxglove_clock: foxglove::Clock,
+    /// Repeat `--publish`: `--loop` until interrupted (Ctrl-C, SIGTERM),
+    /// `--loop N` N times in all.
+    #[arg(long = "loop", value_name = "N", num_args = 0..=1, default_missing_value = "0", requires = "publish")]
+    pub repeat: Option<u64>,
+    /// Write one table per channel into DIR (decoded, typed columns, codes
+    /// as names; `DIR/tables.json` describes them).
+    #[arg(long, value_name = "DIR")]
+    pub export: Option<PathBuf>,
+    /// Table format of `--export`.
+    #[arg(long, value_enum, default_value = "csv", requires = "export")]
+    pub format: export::Format,
+    /// Print every (selected) message decoded, as one JSON object per line,
+    /// in log-time order (instead of the summary).
+    #[arg(long, conflicts_with_all = ["json", "info"])]
+    pub cat: bool,
+    /// Print what the file holds (size, compression, time span, schemas,
+    /// messages per channel, metadata) instead of the summary.
+    #[arg(long)]
+    pub info: bool,
+    /// Only these channels (comma-separated topics; `*` matches any text,
+    /// e.g. `outcome,sensor/*/handover`).
+    #[arg(long, value_delimiter = ',', value_name = "TOPICS")]
+    pub topics: Vec<String>,
+    /// Only these episodes (`header.episode`, 0-based): `A..B` (B excluded),
+    /// `A..=B`, `A..`, `..B` or `N`.
+    #[arg(long, value_parser = select::parse_episodes, value_name = "RANGE")]
+    pub episodes: Option<select::Episodes>,
+    /// Only messages from this many seconds after the first message on.
+    #[arg(long, value_parser = select::parse_offset, value_name = "SECONDS")]
+    pub start: Option<f64>,
+    /// Only messages up to this many seconds after the first message.
+    #[arg(long, value_parser = select::parse_offset, value_name = "SECONDS")]
+    pub end: Option<f64>,
+    /// Draw measured vs predicted (per-sensor energy per episode, outcomes,
+    /// 95 % intervals) to `<FILE without .mcap>-report.png` and `.svg`.
+    #[arg(long)]
+    pub plot: bool,
     /// Overwrite output files that exist.
     #[arg(long)]
     pub force: bool,
+}
+
+impl Args {
+    fn selection(&self) -> select::Selection {
+        select::Selection {
+            topics: self.topics.clone(),
+            episodes: self.episodes,
+            start: self.start,
+            end: self.end,
+        }
+    }
 }
 
 /// The MCAP writer of `etp replay`'s copies (zstd, 1 MiB chunks), with the
@@ -91,8 +145,14 @@ fn copy_writer(
 
 /// Read a recording (finished or not).
 pub fn load(path: &Path) -> Result<Contents> {
+    Ok(load_bytes(path)?.0)
+}
+
+/// Read a recording and the file's bytes.
+fn load_bytes(path: &Path) -> Result<(Contents, Vec<u8>)> {
     let buf = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    Ok(recording::read_lenient(&path.display().to_string(), &buf)?)
+    let c = recording::read_lenient(&path.display().to_string(), &buf)?;
+    Ok((c, buf))
 }
 
 /// Refuse an output path that exists (unless `--force`) or is the input.
@@ -123,7 +183,22 @@ pub fn run(a: Args) -> Result<()> {
             bail!("--repair and --foxglove both write {}", out.display());
         }
     }
-    let c = load(&a.file)?;
+    let selection = a.selection();
+    if !selection.is_all() {
+        for (on, flag) in [
+            (a.verify, "--verify"),
+            (a.repair.is_some(), "--repair"),
+            (a.foxglove.is_some(), "--foxglove"),
+        ] {
+            if on {
+                bail!(
+                    "{flag} reads the whole recording: --topics, --episodes, --start and --end \
+                     select messages for the summary, --info, --cat, --export and --publish only"
+                );
+            }
+        }
+    }
+    let (mut c, buf) = load_bytes(&a.file)?;
     // A damaged file is refused unless the user asked to salvage it.
     if c.damaged && a.repair.is_none() {
         bail!(
@@ -147,7 +222,61 @@ pub fn run(a: Args) -> Result<()> {
         }
         eprintln!("warning: {e}; the repaired copy keeps this metadata");
     }
+    selection.apply(&mut c)?;
+    if a.info {
+        let v = info::info(&a.file, buf.len() as u64, &c, &recording::layout(&buf));
+        drop(buf);
+        emit(&if a.json {
+            format!("{v}\n")
+        } else {
+            info::render(&v)
+        })?;
+        return unfinished_exit(&a, &c);
+    }
+    drop(buf);
+    if a.cat {
+        let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+        match export::cat(&c, &mut out) {
+            Err(e) if is_broken_pipe(&e) => return Ok(()),
+            r => {
+                r.context("--cat")?;
+            }
+        }
+        return unfinished_exit(&a, &c);
+    }
+    let exported = match &a.export {
+        Some(dir) => {
+            let e = export::export(&c, &a.file, dir, a.format, a.force)
+                .with_context(|| format!("exporting to {}", dir.display()))?;
+            eprintln!(
+                "exported {} rows in {} tables to {} ({} bytes)",
+                e.rows, e.tables, e.dir, e.bytes
+            );
+            Some(e)
+        }
+        None => None,
+    };
     let s = summary::summarize(&c)?;
+    let plotted = match a.plot {
+        true => {
+            let stem = a.file.with_extension("").with_file_name(format!(
+                "{}-report",
+                a.file
+                    .file_stem()
+                    .and_then(|x| x.to_str())
+                    .unwrap_or("recording")
+            ));
+            let png = stem.with_extension("png");
+            for p in [&png, &stem.with_extension("svg")] {
+                crate::output::refuse_existing(p, a.force)?;
+            }
+            let names = export::names(&c).0.sensors;
+            crate::report_plot::report_plot(&figure::figure(&c, &names)?, &stem)?;
+            eprintln!("wrote {} and .svg", png.display());
+            Some(png)
+        }
+        false => None,
+    };
     if let Some(out) = &a.repair {
         let n = repair::repair(&c, out)?;
         eprintln!("repaired copy: {} ({n} messages)", out.display());
@@ -176,7 +305,7 @@ pub fn run(a: Args) -> Result<()> {
                 c.messages.len(),
                 a.rate
             );
-            Some(publish::publish(&c, &run, a.rate).context("--publish")?)
+            Some(publish::publish(&c, &run, a.rate, a.repeat).context("--publish")?)
         }
         false => None,
     };
@@ -196,6 +325,12 @@ pub fn run(a: Args) -> Result<()> {
         }
         if let Some(f) = &fox {
             s["foxglove"] = json!(f);
+        }
+        if let Some(e) = &exported {
+            s["exported"] = json!(e);
+        }
+        if let Some(p) = &plotted {
+            s["plot"] = json!(p);
         }
         emit(&format!("{s}\n"))?;
     } else {
@@ -219,6 +354,11 @@ pub fn run(a: Args) -> Result<()> {
             v.mismatch_count
         );
     }
+    unfinished_exit(&a, &c)
+}
+
+/// Exit code 3 (with a warning) for an unfinished file, unless repaired.
+fn unfinished_exit(a: &Args, c: &Contents) -> Result<()> {
     if !c.finished && a.repair.is_none() {
         return Err(crate::ExitWith {
             code: EXIT_UNFINISHED,
@@ -231,6 +371,13 @@ pub fn run(a: Args) -> Result<()> {
         .into());
     }
     Ok(())
+}
+
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
 }
 
 /// Write `text` to stdout. A closed pipe (`etp replay F | head -1`) ends the

@@ -6,6 +6,12 @@
 //! lose messages. Subscribers (`etp-recorder --run-id ID`, a test, a tool)
 //! should exist before the replay starts: iceoryx2 delivers to the subscribers
 //! present at send time.
+//!
+//! The recording's metadata records (scenario, strategy, run, prediction) are
+//! left in the run's folder (`recording::handover_path`) before the first
+//! message: a recorder of that run started without `--meta` writes them into
+//! its copy when it finishes, so the copy summarises and `--verify`s like the
+//! original. `--loop` repeats the traffic (the time offsets restart).
 
 use anyhow::{Context, Result, bail};
 use etp_runtime::recording::{self, Contents, Recorded};
@@ -16,6 +22,9 @@ use std::time::{Duration, Instant};
 
 /// Node name of the replayer.
 const REPLAY_NODE: &str = "etp-replay";
+/// How long a sample is re-sent to a subscriber whose buffer stays full
+/// before it counts as undelivered.
+const STALL_LIMIT: Duration = Duration::from_secs(5);
 
 /// `--rate`: a positive speed factor (`inf`: as fast as subscribers take it).
 pub fn parse_rate(s: &str) -> Result<f64, String> {
@@ -38,10 +47,13 @@ pub struct Published {
     /// Span of the recorded log times, and the wall time the replay took.
     pub recorded_seconds: f64,
     pub wall_seconds: f64,
+    /// Passes over the recording (`--loop`).
+    pub loops: u64,
 }
 
-/// Publish every message of `c` under `run` at `rate` × the recorded speed.
-pub fn publish(c: &Contents, run: &RunId, rate: f64) -> Result<Published> {
+/// Publish every message of `c` under `run` at `rate` × the recorded speed,
+/// `repeat` times in all (`None` once, `Some(0)` until interrupted).
+pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Result<Published> {
     let text = c
         .meta(recording::META_SCENARIO, "toml")
         .context("the recording has no scenario (metadata `etp.scenario`)")?;
@@ -70,11 +82,12 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64) -> Result<Published> {
         let s = recording::service_of_topic(topic)
             .with_context(|| format!("unknown channel `{topic}` in the recording"))?;
         let wake = s.reader_wake();
-        if !wakes.contains_key(&wake) {
-            let n = ports
-                .notifier(wake)
-                .with_context(|| format!("opening the wake-up of `{topic}`"))?;
-            wakes.insert(wake, n);
+        if let std::collections::btree_map::Entry::Vacant(slot) = wakes.entry(wake) {
+            slot.insert(
+                ports
+                    .notifier(wake)
+                    .with_context(|| format!("opening the wake-up of `{topic}`"))?,
+            );
         }
         senders.insert(
             topic.as_str(),
@@ -85,34 +98,67 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64) -> Result<Published> {
             ),
         );
     }
+    hand_over_metadata(c, run)?;
     let t0 = order.first().map_or(0, |(t, _, _)| *t);
     let t_end = order.last().map_or(0, |(t, _, _)| *t);
     let start = Instant::now();
     let mut counts: BTreeMap<String, u64> = BTreeMap::new();
-    let (mut messages, mut undelivered) = (0u64, 0u64);
-    for (t, topic, r) in order {
-        if messages % 256 == 0 && wire::termination_requested(&node) {
-            bail!("interrupted after {messages} messages");
+    let (mut messages, mut undelivered, mut loops) = (0u64, 0u64, 0u64);
+    let forever = repeat == Some(0);
+    // Channels that reached a subscriber at least once.
+    let mut delivered: std::collections::BTreeSet<&str> = std::collections::BTreeSet::new();
+    'passes: while forever || loops < repeat.unwrap_or(1) {
+        let pass_start = Instant::now();
+        for (t, topic, r) in &order {
+            if messages % 256 == 0 && wire::termination_requested(&node) {
+                if forever {
+                    break 'passes;
+                }
+                bail!("interrupted after {messages} messages");
+            }
+            let due = Duration::try_from_secs_f64((t - t0) as f64 * 1e-9 / rate)
+                .with_context(|| format!("--rate {rate}: the replay would take forever"))?;
+            if let Some(wait) = due.checked_sub(pass_start.elapsed()) {
+                std::thread::sleep(wait);
+            }
+            let Some((sender, wake)) = senders.get(topic) else {
+                bail!("message on unknown channel `{topic}`");
+            };
+            let notify = || -> Result<()> {
+                // As the live publisher did: readers (and the recorder) wake on it.
+                if let Some(n) = wakes.get(wake) {
+                    n.notify().map_err(|e| {
+                        anyhow::anyhow!("notifying the readers of `{topic}`: {e:?}")
+                    })?;
+                }
+                Ok(())
+            };
+            let mut reached = sender
+                .send(r.clone())
+                .with_context(|| format!("publishing on `{topic}`"))?;
+            notify()?;
+            // iceoryx2 returns 0 (a silent drop) when a subscriber's buffer
+            // is full: on a channel that has a subscriber, wait for it to
+            // drain and send again (nobody got this sample, so no duplicate).
+            let retry_until = Instant::now() + STALL_LIMIT;
+            while reached == 0 && delivered.contains(topic) && Instant::now() < retry_until {
+                std::thread::sleep(Duration::from_micros(200));
+                reached = sender
+                    .send(r.clone())
+                    .with_context(|| format!("publishing on `{topic}`"))?;
+                notify()?;
+            }
+            if reached > 0 {
+                delivered.insert(topic);
+            }
+            undelivered += u64::from(reached == 0);
+            messages += 1;
+            *counts.entry(topic.to_string()).or_default() += 1;
         }
-        let due = Duration::try_from_secs_f64((t - t0) as f64 * 1e-9 / rate)
-            .with_context(|| format!("--rate {rate}: the replay would take forever"))?;
-        if let Some(wait) = due.checked_sub(start.elapsed()) {
-            std::thread::sleep(wait);
+        loops += 1;
+        if order.is_empty() && forever {
+            bail!("--loop: nothing to publish");
         }
-        let Some((sender, wake)) = senders.get(topic) else {
-            bail!("message on unknown channel `{topic}`");
-        };
-        let reached = sender
-            .send(r)
-            .with_context(|| format!("publishing on `{topic}`"))?;
-        // As the live publisher did: readers (and the recorder) wake on it.
-        if let Some(n) = wakes.get(wake) {
-            n.notify()
-                .map_err(|e| anyhow::anyhow!("notifying the readers of `{topic}`: {e:?}"))?;
-        }
-        undelivered += u64::from(reached == 0);
-        messages += 1;
-        *counts.entry(topic.to_string()).or_default() += 1;
     }
     let wall_seconds = start.elapsed().as_secs_f64();
     drop(senders);
@@ -128,5 +174,13 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64) -> Result<Published> {
         counts,
         recorded_seconds: (t_end - t0) as f64 * 1e-9,
         wall_seconds,
+        loops,
     })
+}
+
+/// Leave the recording's metadata for the run's recorder (see the module doc).
+fn hand_over_metadata(c: &Contents, run: &RunId) -> Result<()> {
+    let path = recording::handover_path(run);
+    let text = serde_json::to_string(&c.metadata).context("encoding the metadata")?;
+    std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))
 }

@@ -5,18 +5,21 @@
 use anyhow::{Context, Result};
 use etp_runtime::recording::{self, Contents, Recorded};
 use etp_runtime::wire::agent_to_coordinator::Outcome;
+use etp_shared::strategy::Strategy;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::path::Path;
 
+/// One sensor, in the vocabulary of `crate::vocab`.
 #[derive(Debug, Default, Clone, serde::Serialize)]
 struct SensorSummary {
     name: String,
     /// `measurement` messages sent by this sensor.
     measurements: u64,
     /// Sum of the sensor's ledgers (transmissions).
-    ledger_transmissions: u64,
-    ledger_energy: f64,
+    transmissions: u64,
+    /// Sum of the sensor's ledgers (energy).
+    energy: f64,
     predicted_energy: Option<f64>,
 }
 
@@ -62,8 +65,8 @@ pub fn summarize(c: &Contents) -> Result<Value> {
             Recorded::Ledger(l) => {
                 sensor(&mut sensors, l.header.sender);
                 if let Some(s) = sensors.get_mut(&l.header.sender) {
-                    s.ledger_transmissions += u64::from(l.transmissions);
-                    s.ledger_energy += l.energy;
+                    s.transmissions += u64::from(l.transmissions);
+                    s.energy += l.energy;
                 }
             }
             Recorded::Outcome(o) => {
@@ -80,11 +83,18 @@ pub fn summarize(c: &Contents) -> Result<Value> {
             _ => {}
         }
     }
+    // Every sensor of the scenario, those that never sent anything included.
+    for i in 0..names.len().max(per_ep.len()) {
+        sensor(&mut sensors, i as u32);
+    }
     for (i, s) in &mut sensors {
-        s.predicted_energy = per_ep.get(*i as usize).map(|e| e * episodes as f64);
+        s.predicted_energy = per_ep
+            .get(*i as usize)
+            .map(|e| crate::vocab::round_energy(e * episodes as f64));
+        s.energy = crate::vocab::round_energy(s.energy);
     }
     let measurements: u64 = sensors.values().map(|s| s.measurements).sum();
-    let ledgers: u64 = sensors.values().map(|s| s.ledger_transmissions).sum();
+    let ledgers: u64 = sensors.values().map(|s| s.transmissions).sum();
     let frac = |n: u64| {
         if episodes > 0 {
             n as f64 / episodes as f64
@@ -92,19 +102,35 @@ pub fn summarize(c: &Contents) -> Result<Value> {
             0.0
         }
     };
-    let energy: f64 = sensors.values().map(|s| s.ledger_energy).sum();
-    let predicted: Option<f64> = if per_ep.is_empty() {
+    let energy: f64 = sensors.values().map(|s| s.energy).sum();
+    let predicted_energy: Option<f64> = if per_ep.is_empty() {
         None
     } else {
-        Some(per_ep.iter().sum::<f64>() * episodes as f64)
+        Some(crate::vocab::round_energy(
+            per_ep.iter().sum::<f64>() * episodes as f64,
+        ))
     };
+    let num = |k: &str| {
+        c.meta(recording::META_RUN, k)
+            .and_then(|v| v.parse::<u64>().ok())
+    };
+    let strategy: Option<Strategy> = c
+        .meta(recording::META_STRATEGY, "json")
+        .and_then(|t| Strategy::from_json(t).ok());
+    let scenario = c
+        .meta(recording::META_RUN, "scenario_name")
+        .map(str::to_string)
+        .or_else(|| strategy.as_ref().map(|s| s.scenario_name.clone()));
     Ok(json!({
         "run_id": c.meta(recording::META_RUN, "run_id"),
-        "scenario": c.meta(recording::META_RUN, "scenario_name"),
-        "seed": c.meta(recording::META_RUN, "seed"),
+        "scenario": scenario,
+        "seed": num("seed"),
+        "strategy": strategy.as_ref().map(|s| s.label.clone()),
+        "delta": strategy.as_ref().and_then(crate::vocab::constant_delta),
+        "predicted": strategy.as_ref().map(|s| crate::vocab::prediction(&s.predicted)),
         "software_version": c.meta(recording::META_RUN, "software_version"),
-        "format_version": c.meta(recording::META_RUN, "format_version"),
-        "requested_episodes": c.meta(recording::META_RUN, "episodes"),
+        "format_version": num("format_version"),
+        "requested_episodes": num("episodes"),
         "finished": c.finished,
         "truncated": c.truncated,
         "messages": c.messages.len(),
@@ -113,11 +139,12 @@ pub fn summarize(c: &Contents) -> Result<Value> {
         "target": target, "collision": collision, "free": free,
         "p_target": frac(target), "p_collision": frac(collision), "p_free": frac(free),
         "steps": steps,
+        "energy_mean": if episodes > 0 { json!(energy / episodes as f64) } else { Value::Null },
         "measurements": measurements,
-        "ledger_transmissions": ledgers,
-        "agent_received": received,
-        "energy": energy,
-        "predicted_energy": predicted,
+        "transmissions": ledgers,
+        "received": received,
+        "energy": crate::vocab::round_energy(energy),
+        "predicted_energy": predicted_energy,
         "sensors": sensors.values().collect::<Vec<_>>(),
     }))
 }
@@ -134,8 +161,8 @@ fn write_table(out: &mut String, file: &Path, c: &Contents, s: &Value) -> std::f
     use std::fmt::Write;
     let g = |k: &str| match s.get(k) {
         Some(Value::String(t)) => t.clone(),
+        Some(Value::Null) | None => "unknown".into(),
         Some(v) => v.to_string(),
-        None => "?".into(),
     };
     writeln!(
         out,
@@ -166,14 +193,19 @@ fn write_table(out: &mut String, file: &Path, c: &Contents, s: &Value) -> std::f
         out,
         "  transmissions: {} measurement messages · {} in ledgers · {} received by the agent",
         g("measurements"),
-        g("ledger_transmissions"),
-        g("agent_received")
+        g("transmissions"),
+        g("received")
     )?;
+    let h = |k: &str| {
+        s.get(k)
+            .and_then(Value::as_f64)
+            .map_or("–".into(), crate::vocab::human)
+    };
     writeln!(
         out,
         "  energy {} (predicted {})",
-        g("energy"),
-        g("predicted_energy")
+        h("energy"),
+        h("predicted_energy")
     )?;
     writeln!(
         out,
@@ -188,8 +220,8 @@ fn write_table(out: &mut String, file: &Path, c: &Contents, s: &Value) -> std::f
                 "  {:<10} {:>12} {:>12} {:>12.1} {:>12.1}",
                 f("name").as_str().unwrap_or("?"),
                 f("measurements").as_u64().unwrap_or(0),
-                f("ledger_transmissions").as_u64().unwrap_or(0),
-                f("ledger_energy").as_f64().unwrap_or(f64::NAN),
+                f("transmissions").as_u64().unwrap_or(0),
+                f("energy").as_f64().unwrap_or(f64::NAN),
                 f("predicted_energy").as_f64().unwrap_or(f64::NAN)
             )?;
         }

@@ -12,7 +12,10 @@
 //!   folder, `--clone-sensors K` for the scaling benchmark.
 //! * [`supervise`] — spawning and supervising the processes.
 //! * [`report`] — the table and the `--json` object.
+//! * [`config`] — `--config RUN.toml`, the launch file of a run.
 
+pub mod config;
+mod figure;
 mod prepare;
 mod process;
 mod record;
@@ -38,8 +41,13 @@ pub const EXIT_DEGRADED: u8 = 5;
 /// complete episodes.
 pub const EXIT_INTERRUPTED: u8 = 130;
 
-#[derive(Debug, clap::Args)]
+#[derive(Debug, Clone, clap::Args)]
 pub struct Args {
+    /// A run file (TOML; keys are the long flags: `strategy` or `scenario` +
+    /// `delta`, `episodes`, `seed`, `record`, `slot_deadline`, …). Flags on
+    /// the command line win over the file. Stored in the recording (`etp.config`).
+    #[arg(long, value_name = "RUN.toml")]
+    pub config: Option<PathBuf>,
     /// A strategy.json (from `etp strategy`). Omit it and give `--scenario` and
     /// `--delta` to run a constant threshold.
     pub strategy: Option<PathBuf>,
@@ -49,27 +57,27 @@ pub struct Args {
     /// The constant threshold δ (one of the scenario's Δ) for a constant-δ run.
     #[arg(long, requires = "scenario")]
     pub delta: Option<f64>,
-    /// Number of episodes.
-    #[arg(long, default_value_t = 100)]
-    pub episodes: u64,
-    /// Seed: the same seed gives the same episodes.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    /// Number of episodes [default: 100].
+    #[arg(long)]
+    pub episodes: Option<u64>,
+    /// Seed: the same seed gives the same episodes [default: 0].
+    #[arg(long)]
+    pub seed: Option<u64>,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
-    /// Kill everything and fail after this many seconds.
-    #[arg(long, default_value_t = 3600.0)]
-    pub deadline: f64,
+    /// Kill everything and fail after this many seconds [default: 3600].
+    #[arg(long)]
+    pub deadline: Option<f64>,
     /// Run id (default: generated). Names the services `etp/<run-id>/…`.
     #[arg(long)]
     pub run_id: Option<String>,
     /// Include every episode (legs, ledgers, received counts) in the JSON.
     #[arg(long)]
     pub episode_details: bool,
-    /// In-process episodes used to predict each sensor's energy.
-    #[arg(long, default_value_t = 2000)]
-    pub predict_episodes: u64,
+    /// In-process episodes used to predict each sensor's energy [default: 2000].
+    #[arg(long)]
+    pub predict_episodes: Option<u64>,
     /// Benchmark: replace the sensors by K copies of the first one, legs
     /// served round robin (same maths, K sensor processes).
     #[arg(long)]
@@ -92,6 +100,11 @@ pub struct Args {
     /// live process is waited for, however slow or paused.
     #[arg(long, value_name = "MS")]
     pub slot_deadline: Option<u64>,
+    /// Draw measured vs predicted (per-sensor energy per episode, outcomes,
+    /// 95 % intervals) to `<recording without .mcap>-report.png` and `.svg`
+    /// (with `--record`), else `run-<run-id>-report.png` here.
+    #[arg(long)]
+    pub plot: bool,
     /// Across hosts: listen on this Zenoh endpoint (e.g. `tcp/10.0.0.1:7447`)
     /// for sensor hosts (`etp sensor-host --connect …`). Scouting is off:
     /// only this endpoint is used.
@@ -106,9 +119,9 @@ pub struct Args {
         value_name = "SENSORS"
     )]
     pub remote: Vec<String>,
-    /// Seconds to wait for the remote sensors to join.
-    #[arg(long, default_value_t = 60.0)]
-    pub join_timeout: f64,
+    /// Seconds to wait for the remote sensors to join [default: 60].
+    #[arg(long)]
+    pub join_timeout: Option<f64>,
 }
 
 /// Why a completed run is not clean (empty: exit 0), checked leg by leg: a
@@ -177,12 +190,45 @@ pub fn verdict(
     v
 }
 
-/// Spawn, supervise and clean up one run; the report data.
+impl Args {
+    /// Episodes to run (after [`config::resolve`]).
+    pub fn episodes(&self) -> u64 {
+        self.episodes.unwrap_or(config::DEFAULT_EPISODES)
+    }
+    pub fn seed(&self) -> u64 {
+        self.seed.unwrap_or(config::DEFAULT_SEED)
+    }
+    pub fn deadline(&self) -> f64 {
+        self.deadline.unwrap_or(config::DEFAULT_DEADLINE)
+    }
+    pub fn join_timeout(&self) -> f64 {
+        self.join_timeout.unwrap_or(config::DEFAULT_JOIN_TIMEOUT)
+    }
+    pub fn predict_episodes(&self) -> u64 {
+        self.predict_episodes
+            .unwrap_or(config::DEFAULT_PREDICT_EPISODES)
+    }
+}
+
+/// Where `--plot` writes (`{run}` = the run id, known once the run starts).
+fn plot_stem(a: &Args) -> PathBuf {
+    match (&a.record, &a.run_id) {
+        (Some(r), _) => r.with_extension("").with_file_name(format!(
+            "{}-report",
+            r.file_stem().and_then(|x| x.to_str()).unwrap_or("run")
+        )),
+        (None, Some(id)) => PathBuf::from(format!("run-{id}-report")),
+        (None, None) => PathBuf::from("run-{run}-report"),
+    }
+}
+
+/// Spawn, supervise and clean up one run (`a` resolved: see
+/// [`config::resolve`]); the report data.
 fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
-    if a.episodes == 0 {
+    if a.episodes() == 0 {
         bail!("--episodes must be at least 1");
     }
-    if !(a.deadline.is_finite() && a.deadline > 0.0) {
+    if !(a.deadline().is_finite() && a.deadline() > 0.0) {
         bail!("--deadline must be a positive number of seconds");
     }
     if a.slot_deadline == Some(0) {
@@ -202,7 +248,17 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     }
     let dir = rundir::RunDir::claim(&run_id)?;
     let plan = match prepare::prepare(a, &run_id, &dir.path) {
-        Ok(p) => p,
+        Ok(mut p) => {
+            let record = match (&a.record, a.record_default) {
+                (Some(p), _) => Some(p.clone()),
+                (None, true) => Some(record::default_path(&p)),
+                (None, false) => None,
+            };
+            let mut c = config::of_args(a, record.as_deref());
+            c.run_id = Some(run_id.to_string());
+            p.config_toml = toml::to_string(&c).context("writing the run's configuration")?;
+            p
+        }
         Err(e) => {
             dir.remove();
             return Err(e);
@@ -222,7 +278,7 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
             Ok(r) => Some(remote::RemoteSpec {
                 listen: listen.clone(),
                 remote: r,
-                join_timeout: a.join_timeout,
+                join_timeout: a.join_timeout(),
             }),
             Err(e) => {
                 dir.remove();
@@ -233,10 +289,11 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     };
     let outcome = rt.block_on(supervise::supervise(
         &plan,
-        Duration::from_secs_f64(a.deadline),
+        Duration::from_secs_f64(a.deadline()),
         record.as_deref(),
         a.slot_deadline,
         remote.as_ref(),
+        a.json,
     ));
     // Whatever happened: no iceoryx2 leftovers of this run.
     let cleaned = cleanup::remove_run(&run_id);
@@ -287,6 +344,7 @@ pub fn exit_for(problems: &[(u8, String)]) -> Result<()> {
 /// A run's `--json` report object (used by `etp demo`) and its problems
 /// (pass them to [`exit_for`] once the report is shown).
 pub fn execute(a: &Args) -> Result<(serde_json::Value, Vec<(u8, String)>)> {
+    let a = &config::resolve(a.clone())?;
     let (plan, outcome) = execute_run(a)?;
     let problems = problems(a, &outcome);
     let mut v = report::json(a, &plan, &outcome);
@@ -303,8 +361,23 @@ pub fn execute(a: &Args) -> Result<(serde_json::Value, Vec<(u8, String)>)> {
 /// [`EXIT_INTERRUPTED`], [`EXIT_ACCOUNTING`] or [`EXIT_DEGRADED`] (the
 /// report and stderr say why).
 pub fn run(a: Args) -> Result<()> {
+    let a = config::resolve(a)?;
+    let stem = a.plot.then(|| plot_stem(&a));
+    if let Some(stem) = &stem {
+        for p in [stem.with_extension("png"), stem.with_extension("svg")] {
+            crate::output::refuse_existing(&p, a.force)?;
+        }
+    }
     let (plan, outcome) = execute_run(&a)?;
     report::print(&a, &plan, &outcome)?;
+    if let Some(stem) = &stem {
+        let stem = stem
+            .to_string_lossy()
+            .replace("{run}", plan.run_id.as_str());
+        let stem = std::path::Path::new(&stem);
+        crate::report_plot::report_plot(&figure::figure(&plan, &outcome), stem)?;
+        eprintln!("wrote {} and .svg", stem.with_extension("png").display());
+    }
     exit_for(&problems(&a, &outcome))
 }
 

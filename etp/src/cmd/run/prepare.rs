@@ -19,9 +19,15 @@ pub struct Plan {
     pub dir: PathBuf,
     pub scenario_path: PathBuf,
     pub strategy_path: PathBuf,
-    /// Predicted energy per episode of each sensor (in-process simulation).
+    /// Predicted energy per episode of each sensor.
     pub sensor_energy_per_episode: Vec<f64>,
+    /// Where [`Plan::sensor_energy_per_episode`] comes from (reports, recording).
+    pub prediction_from: String,
     pub predict_episodes: u64,
+    /// The resolved run as a run file (`etp.config` of the recording).
+    pub config_toml: String,
+    /// The strategy's constant threshold, if it is constant (`crate::vocab`).
+    pub delta: Option<f64>,
 }
 
 fn scenario_text(arg: &str) -> Result<String> {
@@ -146,28 +152,45 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
             Strategy::constant(&scenario, index, placeholder)
         }
     };
-    // In-process simulation of the same strategy: per-sensor energy, and the
-    // whole prediction for a constant strategy made here.
-    let predict_episodes = a.predict_episodes.max(1);
-    let sim = simulate_strategy(&scenario, &strategy, predict_episodes, a.seed, &|_| {}).summary();
-    let sensor_energy_per_episode = scenario
-        .sensors
-        .iter()
-        .zip(&sim.sensors)
-        .map(|(s, c)| s.cost * c.transmissions as f64 / predict_episodes as f64)
-        .collect();
-    if a.strategy.is_none() {
-        strategy.predicted = Prediction {
-            p_target: sim.p_target.value,
-            p_collision: sim.p_collision.value,
-            p_free: sim.p_free.value,
-            energy_mean: sim.energy_mean.value,
-        };
-        strategy.label = format!(
-            "{} (prediction: in-process simulation, {predict_episodes} episodes)",
-            strategy.label
-        );
-    }
+    // Per-sensor energy: the MDP's expected energy per leg when the strategy
+    // file carries it (`leg_energy`), else an in-process simulation of the
+    // same strategy (which also predicts everything for a constant strategy
+    // made here).
+    let predict_episodes = a.predict_episodes().max(1);
+    let (sensor_energy_per_episode, prediction_from) = match strategy.sensor_energy(&scenario) {
+        Some(e) if a.strategy.is_some() => (
+            e,
+            "the MDP: the strategy's expected energy per leg (strategy.json `leg_energy`, occupation measure × segment energy), summed over each sensor's legs".to_string(),
+        ),
+        _ => {
+            let sim =
+                simulate_strategy(&scenario, &strategy, predict_episodes, a.seed(), &|_| {}).summary();
+            if a.strategy.is_none() {
+                strategy.predicted = Prediction {
+                    p_target: sim.p_target.value,
+                    p_collision: sim.p_collision.value,
+                    p_free: sim.p_free.value,
+                    energy_mean: sim.energy_mean.value,
+                };
+                strategy.label = format!(
+                    "{} (prediction: in-process simulation, {predict_episodes} episodes)",
+                    strategy.label
+                );
+            }
+            (
+                scenario
+                    .sensors
+                    .iter()
+                    .zip(&sim.sensors)
+                    .map(|(s, c)| s.cost * c.transmissions as f64 / predict_episodes as f64)
+                    .collect(),
+                format!(
+                    "in-process simulation of the same strategy: {predict_episodes} episodes, seed {} (--predict-episodes)",
+                    a.seed()
+                ),
+            )
+        }
+    };
     strategy.scenario_toml = Some(text.clone());
 
     let dir = dir.to_path_buf();
@@ -179,13 +202,16 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         .with_context(|| format!("writing {}", strategy_path.display()))?;
     Ok(Plan {
         run_id: run_id.clone(),
-        seed: a.seed,
-        episodes: a.episodes,
+        seed: a.seed(),
+        episodes: a.episodes(),
         scenario,
         dir,
         scenario_path,
         strategy_path,
         sensor_energy_per_episode,
+        prediction_from,
         predict_episodes,
+        config_toml: String::new(),
+        delta: crate::vocab::constant_delta(&strategy),
     })
 }

@@ -79,6 +79,7 @@ fn metadata(plan: &Plan) -> Result<BTreeMap<String, BTreeMap<String, String>>> {
         "sensor_energy_per_episode": plan.sensor_energy_per_episode,
         "sensors": plan.scenario.sensors.iter().map(|s| s.name.clone()).collect::<Vec<_>>(),
         "predict_episodes": plan.predict_episodes,
+        "from": prediction_source(plan),
     });
     let one = |k: &str, v: String| BTreeMap::from([(k.to_string(), v)]);
     Ok(BTreeMap::from([
@@ -109,7 +110,16 @@ fn metadata(plan: &Plan) -> Result<BTreeMap<String, BTreeMap<String, String>>> {
             recording::META_PREDICTION.into(),
             one("json", prediction.to_string()),
         ),
+        (
+            recording::META_CONFIG.into(),
+            one("toml", plan.config_toml.clone()),
+        ),
     ]))
+}
+
+/// Where the per-sensor predicted energy comes from (report and recording).
+pub fn prediction_source(plan: &Plan) -> String {
+    plan.prediction_from.clone()
 }
 
 /// A started recorder.

@@ -75,9 +75,10 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         .zip(&plan.sensor_energy_per_episode)
         .zip(&traffic)
         .map(|((t, per_ep), link)| {
-            let mut v = json!({"name": t.name, "transmitted": t.transmitted, "received": t.received,
-                   "predicted_energy": per_ep * r.episodes as f64, "energy": t.energy,
-                   "slots": t.slots, "missing_ledgers": t.missing_ledgers, "traffic": link});
+            let mut v = json!({"name": t.name, "transmissions": t.transmitted, "received": t.received,
+                   "predicted_energy": crate::vocab::round_energy(per_ep * r.episodes as f64),
+                   "energy": t.energy, "slots": t.slots, "missing_ledgers": t.missing_ledgers,
+                   "traffic": link});
             if let Some(carried) = s.link.as_ref().and_then(|l| l.traffic.get(&t.name))
                 && let Some(m) = v.as_object_mut()
             {
@@ -91,6 +92,7 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         "run_id": r.run_id,
         "scenario": r.scenario,
         "strategy": r.strategy_label,
+        "delta": plan.delta,
         "seed": r.seed,
         "episodes": r.episodes,
         "requested_episodes": r.requested_episodes,
@@ -98,10 +100,11 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         "p_collision": e.p_collision.value, "p_collision_ci95": e.p_collision.ci95,
         "p_free": e.p_free.value, "p_free_ci95": e.p_free.ci95,
         "energy_mean": e.energy.value, "energy_mean_ci95": e.energy.ci95,
-        "predicted": {"p_target": r.predicted.p_target, "p_collision": r.predicted.p_collision,
-                      "energy_mean": r.predicted.energy_mean},
+        "predicted": crate::vocab::prediction(&r.predicted),
+        "transmissions": r.sensors.iter().map(|t| t.transmitted).sum::<u64>(),
+        "received": r.sensors.iter().map(|t| t.received).sum::<u64>(),
         "sensors": sensors,
-        "predicted_energy_from": format!("in-process simulation, {} episodes", plan.predict_episodes),
+        "predicted_energy_from": super::record::prediction_source(plan),
         "processes": s.processes.len(),
         "process_exits": s.processes,
         "degraded": r.degraded,
@@ -184,6 +187,10 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
             per_ep * r.episodes as f64
         );
     }
+    println!(
+        "  predicted energy per sensor: {}",
+        super::record::prediction_source(plan)
+    );
     let traffic = expected_traffic(s);
     println!(
         "  {:<8} {:>22} {:>22} {:>22} {:>22}",

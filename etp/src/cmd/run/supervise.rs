@@ -36,6 +36,7 @@ pub async fn supervise(
     record: Option<&Path>,
     slot_deadline_ms: Option<u64>,
     remote: Option<&super::remote::RemoteSpec>,
+    quiet: bool,
 ) -> Result<Supervised> {
     let started = Instant::now();
     // The recorder first: every subscriber exists before anything is sent.
@@ -86,6 +87,7 @@ pub async fn supervise(
         "agent".into(),
         spawn(&sibling_binary("etp-agent")?, &agent_args, false)?,
     ));
+    let progress_file = plan.dir.join("progress");
     let coord_args = common(&[
         "--strategy".into(),
         plan.strategy_path.display().to_string(),
@@ -93,8 +95,25 @@ pub async fn supervise(
         plan.episodes.to_string(),
         "--seed".into(),
         plan.seed.to_string(),
+        "--progress".into(),
+        progress_file.display().to_string(),
     ]);
     let mut coordinator = spawn(&sibling_binary("etp-coordinator")?, &coord_args, true)?;
+    // Episodes finished, from the coordinator's progress file.
+    let pb = crate::progress::bar(plan.episodes, "run", quiet);
+    let shown = pb.clone();
+    let progress = tokio::spawn(async move {
+        loop {
+            tokio::time::sleep(Duration::from_millis(200)).await;
+            // A few bytes from the page cache: a blocking read is fine here.
+            if let Some(n) = std::fs::read_to_string(&progress_file)
+                .ok()
+                .and_then(|t| t.trim().parse::<u64>().ok())
+            {
+                shown.set_position(n);
+            }
+        }
+    });
     let coord_pid = coordinator.id().unwrap_or(0);
     let mut stdout = coordinator.stdout.take().context("coordinator stdout")?;
     let reader = tokio::spawn(async move {
@@ -127,6 +146,8 @@ pub async fn supervise(
             None
         }
     };
+    progress.abort();
+    pb.finish_and_clear();
     let mut processes = Vec::new();
     match coord_status {
         Some(st) => processes.push(ProcessExit {

@@ -1,0 +1,229 @@
+//! `--export DIR [--format csv|jsonl]` and `--cat`: the recording's messages
+//! decoded into typed rows (`etp_runtime::recording::table`), readable with
+//! no etp code (pandas `read_csv` / `read_json(lines=True)`, polars, the
+//! Python csv and json modules).
+//!
+//! `--export` writes one file per channel, `DIR/<topic with / as ->.<ext>`
+//! (`outcome.csv`, `sensor-0-truth.csv`), rows in the channel's order, and
+//! `DIR/tables.json`: the source, the recording's metadata records and, per
+//! table, its topic, file, schema, row count and typed columns. `--cat`
+//! prints every message as one JSON object per line (`topic` first), in
+//! log-time order.
+
+use anyhow::{Context, Result, bail};
+use etp_runtime::recording::table::{Cell, Column, Names, Table, csv_quote};
+use etp_runtime::recording::{self, Contents, Kind};
+use etp_shared::scenario::Scenario;
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Table file format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    /// Comma-separated values with a header row (RFC 4180; empty cell = null).
+    Csv,
+    /// JSON Lines: one object per row, keys in column order.
+    Jsonl,
+}
+
+impl Format {
+    fn ext(self) -> &'static str {
+        match self {
+            Format::Csv => "csv",
+            Format::Jsonl => "jsonl",
+        }
+    }
+}
+
+/// The sensors' names (from the recorded scenario; `sensor-<i>` without
+/// one) and the scenario's state dimension (arrays are cut to it).
+pub fn names(c: &Contents) -> (Names, Option<usize>) {
+    let scenario = c
+        .meta(recording::META_SCENARIO, "toml")
+        .and_then(|t| Scenario::from_toml(t).ok());
+    let sensors = scenario
+        .as_ref()
+        .map(|s| s.sensors.iter().map(|x| x.name.clone()).collect())
+        .unwrap_or_default();
+    (Names { sensors }, scenario.map(|s| s.dim))
+}
+
+/// The file of a channel's table.
+pub fn table_file(topic: &str, format: Format) -> String {
+    format!("{}.{}", topic.replace('/', "-"), format.ext())
+}
+
+fn tables(c: &Contents, dim: Option<usize>) -> Result<BTreeMap<String, Table>> {
+    let mut out = BTreeMap::new();
+    for topic in c.channels.keys() {
+        let kind: Kind = recording::kind_of_topic(topic)
+            .with_context(|| format!("unknown channel `{topic}` in the recording"))?;
+        let t = Table::of(kind, dim)
+            .map_err(anyhow::Error::msg)
+            .with_context(|| format!("the table of `{topic}`"))?;
+        out.insert(topic.clone(), t);
+    }
+    Ok(out)
+}
+
+/// What `--export` wrote.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Exported {
+    pub dir: String,
+    pub format: &'static str,
+    pub tables: u64,
+    pub rows: u64,
+    pub bytes: u64,
+}
+
+fn header_line(cols: &[Column], format: Format) -> Option<String> {
+    match format {
+        Format::Csv => Some(
+            cols.iter()
+                .map(|c| csv_quote(&c.name))
+                .collect::<Vec<_>>()
+                .join(","),
+        ),
+        Format::Jsonl => None,
+    }
+}
+
+fn row_line(t: &Table, row: &[Cell], format: Format) -> String {
+    match format {
+        Format::Csv => row.iter().map(Cell::to_csv).collect::<Vec<_>>().join(","),
+        Format::Jsonl => t.json_line(&[], row),
+    }
+}
+
+/// Write the tables of `c` into `dir` (created if needed). Existing files of
+/// the export are refused unless `force`; nothing is written before that check.
+pub fn export(
+    c: &Contents,
+    source: &Path,
+    dir: &Path,
+    format: Format,
+    force: bool,
+) -> Result<Exported> {
+    let (names, dim) = names(c);
+    let tables = tables(c, dim)?;
+    let files: BTreeMap<&str, PathBuf> = tables
+        .keys()
+        .map(|t| (t.as_str(), dir.join(table_file(t, format))))
+        .collect();
+    let manifest = dir.join("tables.json");
+    for p in files.values().chain([&manifest]) {
+        crate::output::refuse_existing(p, force)?;
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let mut writers: BTreeMap<&str, (std::io::BufWriter<std::fs::File>, PathBuf, u64)> =
+        BTreeMap::new();
+    for (topic, path) in &files {
+        let tmp = path.with_extension("tmp-etp");
+        let f =
+            std::fs::File::create(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
+        let mut w = std::io::BufWriter::new(f);
+        if let Some(h) = header_line(&tables[*topic].columns, format) {
+            writeln!(w, "{h}").with_context(|| format!("writing {}", tmp.display()))?;
+        }
+        writers.insert(topic, (w, tmp, 0));
+    }
+    let result = (|| -> Result<()> {
+        for m in &c.messages {
+            let (Some(t), Some((w, tmp, n))) =
+                (tables.get(&m.topic), writers.get_mut(m.topic.as_str()))
+            else {
+                bail!("message on undeclared channel `{}`", m.topic);
+            };
+            let rec = recording::decode(&m.topic, &m.data)
+                .with_context(|| format!("message at log time {}", m.log_time))?;
+            let row = t.row(m.log_time, &rec, &names);
+            writeln!(w, "{}", row_line(t, &row, format))
+                .with_context(|| format!("writing {}", tmp.display()))?;
+            *n += 1;
+        }
+        Ok(())
+    })();
+    let mut rows = 0u64;
+    let mut bytes = 0u64;
+    let mut described = Vec::new();
+    for (topic, (mut w, tmp, n)) in writers {
+        let flushed = w
+            .flush()
+            .with_context(|| format!("writing {}", tmp.display()));
+        if result.is_err() || flushed.is_err() {
+            let _ = std::fs::remove_file(&tmp);
+            flushed?;
+            continue;
+        }
+        let path = &files[topic];
+        std::fs::rename(&tmp, path)
+            .with_context(|| format!("moving {} into place", path.display()))?;
+        bytes += std::fs::metadata(path).map_or(0, |m| m.len());
+        rows += n;
+        let t = &tables[topic];
+        described.push(json!({
+            "topic": topic,
+            "file": table_file(topic, format),
+            "schema": t.kind.schema_name(),
+            "rows": n,
+            "columns": t.columns,
+        }));
+    }
+    result?;
+    let text = serde_json::to_string_pretty(&json!({
+        "source": source.display().to_string(),
+        "format": format.ext(),
+        "metadata": c.metadata,
+        "codes": codes(),
+        "tables": described,
+    }))?;
+    crate::output::write_new(&manifest, format!("{text}\n").as_bytes(), force)?;
+    Ok(Exported {
+        dir: dir.display().to_string(),
+        format: format.ext(),
+        tables: tables.len() as u64,
+        rows,
+        bytes,
+    })
+}
+
+/// How the exported tables show the codes (also in `recordings/README.md`).
+fn codes() -> Value {
+    json!({
+        "sender": "a sensor's name, `coordinator` or `agent`",
+        "outcome": "target | collision | free",
+        "kind (control)": "start | stop",
+        "kind (threshold)": "open | close | stop",
+        "sensor, dead_sensor": "a sensor's name (dead_sensor: empty / null = none)",
+        "transmitted, degraded, prev_degraded": "true | false",
+        "arrays": "one column per entry up to the scenario's dimension n: y_<i>, x_<i>, mean_<i>, cov_<row>_<col> (row-major)",
+        "log_time_ns": "the recorder's time stamp (ns since the Unix epoch)",
+    })
+}
+
+/// `--cat`: every message of `c` as one JSON line, in log-time order.
+pub fn cat(c: &Contents, out: &mut impl Write) -> Result<u64> {
+    let (names, dim) = names(c);
+    let tables = tables(c, dim)?;
+    let mut order: Vec<&recording::RawMessage> = c.messages.iter().collect();
+    order.sort_by_key(|m| m.log_time);
+    let mut n = 0u64;
+    for m in order {
+        let Some(t) = tables.get(&m.topic) else {
+            bail!("message on undeclared channel `{}`", m.topic);
+        };
+        let rec = recording::decode(&m.topic, &m.data)
+            .with_context(|| format!("message at log time {}", m.log_time))?;
+        let row = t.row(m.log_time, &rec, &names);
+        writeln!(
+            out,
+            "{}",
+            t.json_line(&[("topic", Value::from(m.topic.as_str()))], &row)
+        )?;
+        n += 1;
+    }
+    out.flush()?;
+    Ok(n)
+}

@@ -1,0 +1,208 @@
+//! `--info`: what `ros2 bag info` / `mcap info` show, for an etp recording:
+//! size, profile and writer, whether it is finished, start, end and duration
+//! of the messages, chunk compression, schemas, messages per channel, the
+//! metadata records and the run they describe.
+
+use etp_runtime::recording::{self, Contents, Layout};
+use serde_json::{Value, json};
+use std::fmt::Write;
+use std::path::Path;
+
+/// `ns` since the Unix epoch as RFC 3339 UTC (`2026-11-27T02:26:03.123456789Z`).
+pub fn rfc3339(ns: u64) -> String {
+    let secs = ns / 1_000_000_000;
+    let (days, rem) = (secs / 86_400, secs % 86_400);
+    // Civil date from days since 1970-01-01 (H. Hinnant's algorithm).
+    let z = days as i64 + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{:09}Z",
+        rem / 3600,
+        rem % 3600 / 60,
+        rem % 60,
+        ns % 1_000_000_000
+    )
+}
+
+/// The info object.
+pub fn info(file: &Path, bytes: u64, c: &Contents, layout: &Layout) -> Value {
+    let start = c.messages.iter().map(|m| m.log_time).min();
+    let end = c.messages.iter().map(|m| m.log_time).max();
+    let counts = c.counts();
+    let channels: Vec<Value> = c
+        .channels
+        .iter()
+        .map(|(topic, schema)| {
+            json!({
+                "topic": topic,
+                "schema": schema,
+                "schema_encoding": c.schemas.get(schema),
+                "message_encoding": recording::MESSAGE_ENCODING,
+                "messages": counts.get(topic).copied().unwrap_or(0),
+            })
+        })
+        .collect();
+    let metadata: serde_json::Map<String, Value> = c
+        .metadata
+        .iter()
+        .map(|(k, v)| (k.clone(), json!(v.keys().collect::<Vec<_>>())))
+        .collect();
+    let outcomes = counts.get("outcome").copied().unwrap_or(0);
+    let num = |k: &str| {
+        c.meta(recording::META_RUN, k)
+            .and_then(|v| v.parse::<u64>().ok())
+    };
+    json!({
+        "file": file.display().to_string(),
+        "bytes": bytes,
+        "profile": layout.profile,
+        "library": layout.library,
+        "finished": c.finished,
+        "truncated": c.truncated,
+        "messages": c.messages.len(),
+        "start_ns": start,
+        "end_ns": end,
+        "start_time": start.map(rfc3339),
+        "end_time": end.map(rfc3339),
+        "duration_s": match (start, end) {
+            (Some(s), Some(e)) => json!((e - s) as f64 * 1e-9),
+            _ => Value::Null,
+        },
+        "compression": layout.compression,
+        "schemas": c.schemas,
+        "channels": channels,
+        "metadata": metadata,
+        "run_id": c.meta(recording::META_RUN, "run_id"),
+        "scenario": c.meta(recording::META_RUN, "scenario_name"),
+        "seed": num("seed"),
+        "requested_episodes": num("episodes"),
+        "format_version": num("format_version"),
+        "episodes": outcomes,
+    })
+}
+
+/// The info object as text.
+pub fn render(v: &Value) -> String {
+    let mut t = String::new();
+    // Writing into a String cannot fail.
+    let _ = write_info(&mut t, v);
+    t
+}
+
+fn s(v: &Value) -> String {
+    match v {
+        Value::String(t) => t.clone(),
+        Value::Null => "–".into(),
+        v => v.to_string(),
+    }
+}
+
+fn write_info(out: &mut String, v: &Value) -> std::fmt::Result {
+    writeln!(
+        out,
+        "file:        {} ({} bytes)",
+        s(&v["file"]),
+        s(&v["bytes"])
+    )?;
+    writeln!(
+        out,
+        "profile:     {} · written by {}",
+        s(&v["profile"]),
+        s(&v["library"])
+    )?;
+    writeln!(
+        out,
+        "state:       {}",
+        if v["finished"] == Value::Bool(true) {
+            "finished".to_string()
+        } else {
+            format!("UNFINISHED ({})", s(&v["truncated"]))
+        }
+    )?;
+    writeln!(
+        out,
+        "run:         {} · scenario {} · seed {} · {} episodes recorded (requested {}) · format {}",
+        s(&v["run_id"]),
+        s(&v["scenario"]),
+        s(&v["seed"]),
+        s(&v["episodes"]),
+        s(&v["requested_episodes"]),
+        s(&v["format_version"])
+    )?;
+    let dur = v["duration_s"]
+        .as_f64()
+        .map_or("–".into(), |d| format!("{d:.3} s"));
+    writeln!(out, "duration:    {dur}")?;
+    writeln!(out, "start:       {}", s(&v["start_time"]))?;
+    writeln!(out, "end:         {}", s(&v["end_time"]))?;
+    writeln!(out, "messages:    {}", s(&v["messages"]))?;
+    write!(out, "compression:")?;
+    if let Some(m) = v["compression"].as_object() {
+        for (k, c) in m {
+            let name = if k.is_empty() { "none" } else { k };
+            let (st, un) = (
+                c["stored_bytes"].as_f64().unwrap_or(0.0),
+                c["uncompressed_bytes"].as_f64().unwrap_or(0.0),
+            );
+            write!(
+                out,
+                " {name}: {} chunks, {} → {} bytes ({:.0} %)",
+                s(&c["chunks"]),
+                un,
+                st,
+                if un > 0.0 { 100.0 * st / un } else { 0.0 }
+            )?;
+        }
+    }
+    writeln!(out)?;
+    writeln!(out, "channels:")?;
+    if let Some(a) = v["channels"].as_array() {
+        for c in a {
+            writeln!(
+                out,
+                "  {:<22} {:>9} msgs  {} ({}, {})",
+                s(&c["topic"]),
+                s(&c["messages"]),
+                s(&c["schema"]),
+                s(&c["schema_encoding"]),
+                s(&c["message_encoding"])
+            )?;
+        }
+    }
+    writeln!(out, "metadata:")?;
+    if let Some(m) = v["metadata"].as_object() {
+        for (k, keys) in m {
+            let keys: Vec<String> = keys
+                .as_array()
+                .map_or(Vec::new(), |a| a.iter().map(s).collect());
+            writeln!(out, "  {k:<22} {}", keys.join(" "))?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rfc3339_of_known_instants() {
+        assert_eq!(rfc3339(0), "1970-01-01T00:00:00.000000000Z");
+        // 2000-02-29T12:34:56.5Z (a leap day).
+        assert_eq!(
+            rfc3339(951_827_696_500_000_000),
+            "2000-02-29T12:34:56.500000000Z"
+        );
+        assert_eq!(
+            rfc3339(1_798_761_600_000_000_001),
+            "2027-01-01T00:00:00.000000001Z"
+        );
+    }
+}

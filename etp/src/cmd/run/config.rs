@@ -1,0 +1,194 @@
+//! `etp run --config RUN.toml`: the launch file of a run. Its keys are the
+//! long flags of `etp run` (`strategy` or `scenario` + `delta`, `episodes`,
+//! `seed`, `record`, `slot_deadline`, `listen` + `remote` sensors, …); a flag
+//! given on the command line
+//! wins over the file. Relative paths in the file are relative to the file.
+//! The resolved configuration of every run — file or flags — is stored in the
+//! recording's metadata (`etp.config`, key `toml`).
+//!
+//! ```toml
+//! scenario = "open-2d"
+//! delta = 1.0518
+//! episodes = 50
+//! seed = 7
+//! record = "open-2d.mcap"
+//! ```
+
+use super::Args;
+use anyhow::{Context, Result, bail};
+use std::path::{Path, PathBuf};
+
+/// Defaults of the flags that have one.
+pub const DEFAULT_EPISODES: u64 = 100;
+pub const DEFAULT_SEED: u64 = 0;
+pub const DEFAULT_DEADLINE: f64 = 3600.0;
+pub const DEFAULT_PREDICT_EPISODES: u64 = 2000;
+pub const DEFAULT_JOIN_TIMEOUT: f64 = 60.0;
+
+/// The keys of a run file (every one optional; unknown keys are refused).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunConfig {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub strategy: Option<PathBuf>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scenario: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub delta: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub episodes: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub deadline: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub run_id: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub predict_episodes: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub clone_sensors: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub record: Option<PathBuf>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub record_default: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub allow_degraded: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slot_deadline: Option<u64>,
+    /// Across hosts: the Zenoh endpoint to listen on, the sensors served
+    /// from other hosts, how long to wait for them (`--listen`, `--remote`,
+    /// `--join-timeout`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub listen: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub remote: Option<Vec<String>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub join_timeout: Option<f64>,
+}
+
+/// Read a run file (errors name the file and the key).
+pub fn read(path: &Path) -> Result<RunConfig> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("reading the run file {}", path.display()))?;
+    let mut c: RunConfig =
+        toml::from_str(&text).with_context(|| format!("run file {}", path.display()))?;
+    let base = path.parent().unwrap_or(Path::new(""));
+    let rel = |p: &mut Option<PathBuf>| {
+        if let Some(x) = p.as_mut().filter(|x| x.is_relative()) {
+            *x = base.join(&*x);
+        }
+    };
+    rel(&mut c.strategy);
+    rel(&mut c.record);
+    // A scenario that is not a built-in name is a path, relative to the file.
+    if let Some(s) = &c.scenario
+        && etp_shared::scenario::builtin_text(s).is_none()
+        && Path::new(s).is_relative()
+    {
+        c.scenario = Some(base.join(s).display().to_string());
+    }
+    Ok(c)
+}
+
+/// Fill what the command line left open from `--config`, then the defaults.
+pub fn resolve(mut a: Args) -> Result<Args> {
+    if let Some(path) = a.config.clone() {
+        let c = read(&path)?;
+        if a.strategy.is_some() || a.scenario.is_some() {
+            // The command line names what to run: the file's choice is ignored whole.
+            if c.strategy.is_some() || c.scenario.is_some() || c.delta.is_some() {
+                tracing::info!("the command line's strategy/scenario overrides the run file's");
+            }
+        } else {
+            a.strategy = c.strategy;
+            a.scenario = c.scenario;
+            if a.delta.is_none() {
+                a.delta = c.delta;
+            }
+        }
+        a.episodes = a.episodes.or(c.episodes);
+        a.seed = a.seed.or(c.seed);
+        a.deadline = a.deadline.or(c.deadline);
+        a.run_id = a.run_id.or(c.run_id);
+        a.predict_episodes = a.predict_episodes.or(c.predict_episodes);
+        a.clone_sensors = a.clone_sensors.or(c.clone_sensors);
+        a.slot_deadline = a.slot_deadline.or(c.slot_deadline);
+        a.allow_degraded |= c.allow_degraded.unwrap_or(false);
+        a.listen = a.listen.or(c.listen);
+        if a.remote.is_empty() {
+            a.remote = c.remote.unwrap_or_default();
+        }
+        a.join_timeout = a.join_timeout.or(c.join_timeout);
+        if a.listen.is_some() != !a.remote.is_empty() {
+            bail!(
+                "run file {}: `listen` and `remote` go together (sensors served from other hosts)",
+                path.display()
+            );
+        }
+        if a.record.is_none() && !a.record_default {
+            a.record = c.record;
+            a.record_default = c.record_default.unwrap_or(false);
+        }
+        if a.record.is_some() && a.record_default {
+            bail!(
+                "run file {}: `record` and `record_default` exclude each other",
+                path.display()
+            );
+        }
+        if a.delta.is_some() && a.scenario.is_none() {
+            bail!(
+                "run file {}: `delta` needs `scenario` (a constant-δ run)",
+                path.display()
+            );
+        }
+    }
+    a.episodes.get_or_insert(DEFAULT_EPISODES);
+    a.seed.get_or_insert(DEFAULT_SEED);
+    a.deadline.get_or_insert(DEFAULT_DEADLINE);
+    a.predict_episodes.get_or_insert(DEFAULT_PREDICT_EPISODES);
+    a.join_timeout.get_or_insert(DEFAULT_JOIN_TIMEOUT);
+    Ok(a)
+}
+
+/// The resolved run as a run file (the `etp.config` record).
+pub fn of_args(a: &Args, record: Option<&Path>) -> RunConfig {
+    RunConfig {
+        strategy: a.strategy.clone(),
+        scenario: a.scenario.clone(),
+        delta: a.delta,
+        episodes: a.episodes,
+        seed: a.seed,
+        deadline: a.deadline,
+        run_id: a.run_id.clone(),
+        predict_episodes: a.predict_episodes,
+        clone_sensors: a.clone_sensors,
+        record: record.map(Path::to_path_buf),
+        record_default: None,
+        allow_degraded: Some(a.allow_degraded),
+        slot_deadline: a.slot_deadline,
+        listen: a.listen.clone(),
+        remote: (!a.remote.is_empty()).then(|| a.remote.clone()),
+        join_timeout: a.join_timeout,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_file_round_trips_and_refuses_unknown_keys() {
+        let c = RunConfig {
+            scenario: Some("open-2d".into()),
+            delta: Some(1.0518),
+            episodes: Some(50),
+            ..RunConfig::default()
+        };
+        let text = toml::to_string(&c).expect("toml");
+        assert_eq!(toml::from_str::<RunConfig>(&text).expect("back"), c);
+        let e = toml::from_str::<RunConfig>("episodez = 3").expect_err("unknown key");
+        assert!(e.to_string().contains("episodez"), "{e}");
+        let e = toml::from_str::<RunConfig>("episodes = \"ten\"").expect_err("bad type");
+        assert!(e.to_string().contains("episodes"), "{e}");
+    }
+}

@@ -1,0 +1,63 @@
+//! `etp run --plot`: the run's measured per-sensor energy per episode (the
+//! sensors' ledgers × cost) and outcomes with 95 % intervals, beside the
+//! prediction (strategy; per sensor: `record::prediction_source`).
+
+use super::prepare::Plan;
+use super::supervise::Supervised;
+use crate::report_plot::{Bar, RunFigure, mean_ci, proportion};
+
+/// The figure of a finished run.
+pub fn figure(plan: &Plan, s: &Supervised) -> RunFigure {
+    let r = &s.report;
+    let sensors = plan
+        .scenario
+        .sensors
+        .iter()
+        .enumerate()
+        .map(|(i, sensor)| {
+            let xs: Vec<f64> = r
+                .episode_results
+                .iter()
+                .map(|e| {
+                    e.legs
+                        .iter()
+                        .filter(|l| l.sensor as usize == i)
+                        .map(|l| f64::from(l.transmitted.unwrap_or(l.received)) * sensor.cost)
+                        .sum()
+                })
+                .collect();
+            let (measured, ci95) = mean_ci(&xs);
+            Bar {
+                name: sensor.name.clone(),
+                measured,
+                ci95,
+                predicted: plan.sensor_energy_per_episode.get(i).copied(),
+            }
+        })
+        .collect();
+    let outcome = |name: &str, k: u64, pred: f64| {
+        let (measured, ci95) = proportion(k, r.episodes);
+        Bar {
+            name: name.into(),
+            measured,
+            ci95,
+            predicted: Some(pred),
+        }
+    };
+    RunFigure {
+        title: format!(
+            "run {} · {} · {} · {} episodes: measured vs predicted",
+            r.run_id,
+            r.scenario,
+            crate::report_plot::short_label(&r.strategy_label),
+            r.episodes
+        ),
+        prediction_note: super::record::prediction_source(plan),
+        sensors,
+        outcomes: vec![
+            outcome("P_tar", r.target, r.predicted.p_target),
+            outcome("P_coll", r.collision, r.predicted.p_collision),
+            outcome("P_free", r.free, r.predicted.p_free),
+        ],
+    }
+}
