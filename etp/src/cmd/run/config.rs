@@ -119,7 +119,7 @@ pub fn resolve(mut a: Args) -> Result<Args> {
             a.remote = c.remote.unwrap_or_default();
         }
         a.join_timeout = a.join_timeout.or(c.join_timeout);
-        if a.listen.is_some() != !a.remote.is_empty() {
+        if a.listen.is_some() == a.remote.is_empty() {
             bail!(
                 "run file {}: `listen` and `remote` go together (sensors served from other hosts)",
                 path.display()
