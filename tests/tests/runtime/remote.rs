@@ -314,6 +314,9 @@ fn a_run_across_three_hosts_counts_exactly_and_verifies() {
         .iter()
         .filter_map(|s| s["transmissions"].as_u64())
         .sum();
+    assert!(ledgers > 0, "{v}");
+    // `measurements`: messages on the recorded channel; `transmissions`: the
+    // recorded ledgers; `received`: the agent's counts in the outcomes.
     assert_eq!(r["measurements"].as_u64(), Some(ledgers), "{r}");
     assert_eq!(r["transmissions"].as_u64(), Some(ledgers), "{r}");
     assert_eq!(r["received"].as_u64(), Some(ledgers), "{r}");
