@@ -32,6 +32,9 @@ fn ip(args: &[&str]) -> Result<(), String> {
     }
 }
 
+/// Where a namespace's process sees the test's output folder.
+const NS_OUT: &str = "/dev/shm/.etp-out";
+
 /// Network namespaces `<tag>a` (agent host) and one per sensor host, each
 /// joined to the agent host by a veth pair 10.77.<k>.1 ↔ 10.77.<k>.2;
 /// everything in them is killed and they are deleted on drop.
@@ -89,10 +92,30 @@ impl Hosts {
         (format!("va{p}{k}"), format!("vs{p}{k}"))
     }
 
-    /// Spawn `etp <args>` in namespace `ns` with private /dev/shm and /tmp.
     fn spawn(&self, ns: &str, args: &[&str]) -> Guard {
+        self.spawn_in(ns, None, args)
+    }
+
+    /// [`Hosts::spawn`] with `out` visible inside as [`NS_OUT`].
+    fn spawn_out(&self, ns: &str, out: &std::path::Path, args: &[&str]) -> Guard {
+        self.spawn_in(ns, Some(out), args)
+    }
+
+    /// Spawn `etp <args>` in namespace `ns` with private /dev/shm and /tmp.
+    /// The binaries (and `out`, for files the test reads afterwards) may
+    /// themselves live under /tmp (a clone there): they are bind-mounted to
+    /// `/dev/shm/.etp-bin` and [`NS_OUT`] before /tmp is covered.
+    fn spawn_in(&self, ns: &str, out: Option<&std::path::Path>, args: &[&str]) -> Guard {
         use std::os::unix::process::CommandExt;
-        let etp = bin_dir().join("etp");
+        let bin = bin_dir();
+        let out = out.map_or_else(|| bin.clone(), std::path::Path::to_path_buf);
+        let script = format!(
+            "set -e; mount -t tmpfs none /dev/shm; mkdir /dev/shm/.etp-bin {NS_OUT}; \
+             mount --bind '{}' /dev/shm/.etp-bin; mount --bind '{}' {NS_OUT}; \
+             mount -t tmpfs none /tmp; exec /dev/shm/.etp-bin/etp \"$@\"",
+            bin.display(),
+            out.display()
+        );
         let mut c = Command::new("ip");
         c.args([
             "netns",
@@ -105,8 +128,8 @@ impl Hosts {
             "sh",
             "-c",
         ])
-        .arg("mount -t tmpfs none /dev/shm && mount -t tmpfs none /tmp && exec \"$0\" \"$@\"")
-        .arg(etp)
+        .arg(script)
+        .arg("sh")
         .args(args)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -193,8 +216,9 @@ fn a_run_across_three_hosts_counts_exactly_and_verifies() {
     std::fs::create_dir_all(&dir).expect("scratch");
     let rec = dir.join("across.mcap");
     let _ = std::fs::remove_file(&rec);
-    let run = h.spawn(
+    let run = h.spawn_out(
         &h.agent,
+        &dir,
         &[
             "run",
             "--scenario",
@@ -210,7 +234,7 @@ fn a_run_across_three_hosts_counts_exactly_and_verifies() {
             "--remote",
             "s1,s3,s4",
             "--record",
-            &rec.display().to_string(),
+            &format!("{NS_OUT}/across.mcap"),
             "--episode-details",
             "--json",
             "--join-timeout",
