@@ -574,6 +574,19 @@ pub fn say_hello(
     publisher
         .send_copy(hello)
         .map_err(|e| WireError::Port(ServiceId::Hello.name(ports.run), format!("{e:?}")))?;
+    // A subscriber can be counted above before the publisher's connection to
+    // it exists; the hello then waits in the history (size 1) until the next
+    // connection update, which a process that sends nothing more never does
+    // (seen under load: a coordinator missing three sensors' hellos). Update
+    // the connections for a moment: a new connection gets the history, an
+    // existing one gets nothing twice.
+    {
+        use iceoryx2::port::update_connections::UpdateConnections;
+        for _ in 0..30 {
+            let _ = publisher.update_connections();
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+    }
     ports
         .notifier(ServiceId::CoordinatorWake)?
         .notify()
