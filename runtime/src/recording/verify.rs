@@ -302,17 +302,24 @@ fn rerun<const N: usize>(
         let Some(wp) = r.waypoints.get(&leg) else {
             return missing(leg, k, "no waypoint recorded for this leg");
         };
-        if wp.header.step != k {
-            return Err(miss(
-                leg,
-                k,
-                format!("waypoint recorded at step {}", wp.header.step),
-                0.0,
-            ));
-        }
-        if let Some(d) = differs(&belief, wp.dim, &wp.mean, &wp.cov) {
-            return Err(miss(leg, k, "belief at waypoint".into(), d));
-        }
+        // A belief the agent published at this decision point: at step k,
+        // with exactly the re-run's bits.
+        let same = |what: &str, step: u32, dim: u32, mean: &WireVec, cov: &WireMat| {
+            if step != k {
+                return Err(miss(leg, k, format!("{what} recorded at step {step}"), 0.0));
+            }
+            match differs(&belief, dim, mean, cov) {
+                Some(d) => Err(miss(leg, k, what.to_string(), d)),
+                None => Ok(()),
+            }
+        };
+        same(
+            "belief at waypoint",
+            wp.header.step,
+            wp.dim,
+            &wp.mean,
+            &wp.cov,
+        )?;
         rep.waypoints_checked += 1;
         let Some(&delta) = r.opens.get(&leg) else {
             return missing(leg, k, "no threshold opened this leg");
@@ -322,17 +329,7 @@ fn rerun<const N: usize>(
         let Some(h) = r.handovers.get(&leg) else {
             return missing(leg, k, "no handover recorded for this leg");
         };
-        if h.header.step != k {
-            return Err(miss(
-                leg,
-                k,
-                format!("handover recorded at step {}", h.header.step),
-                0.0,
-            ));
-        }
-        if let Some(d) = differs(&belief, h.dim, &h.mean, &h.cov) {
-            return Err(miss(leg, k, "belief handed over".into(), d));
-        }
+        same("belief handed over", h.header.step, h.dim, &h.mean, &h.cov)?;
         rep.handovers_checked += 1;
         // The step at which the record ends this leg, if it is in the file.
         let recorded_end = match (r.waypoints.get(&(leg + 1)), outcome) {
