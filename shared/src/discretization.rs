@@ -18,6 +18,8 @@
 //! region is the per-axis tuple of `C P Cᵀ` (d axes, same magnitude/angle
 //! rule) followed by one coarse log-magnitude bin of `tr(Π P Π)`, Π = I − C⁺C
 //! the projector onto what C does not see (the velocity of a double integrator).
+//! The synthesis passes `C F^h` as the map (the workspace marginal h silent
+//! steps ahead, MODEL.md §7.3); classification needs only the stored map.
 
 use crate::linalg::deterministic_eigen;
 use nalgebra::DMatrix;
@@ -61,7 +63,7 @@ impl Default for BinCounts {
 /// The workspace-marginal descriptor of one decision point (see the module doc).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct WorkspaceMarginal {
-    /// C, d rows of n.
+    /// The map, d rows of n: C, or `C F^h` with the lookahead of MODEL.md §7.3.
     pub c: Vec<Vec<f64>>,
     /// Π = I − C⁺C, n rows of n.
     pub rest_projector: Vec<Vec<f64>>,
@@ -106,6 +108,18 @@ impl WorkspaceMarginal {
     pub fn rest_bin(&self, cov: &DMatrix<f64>) -> u16 {
         log_bin(self.rest(cov), self.rest_lo, self.rest_hi, self.rest_bins)
     }
+}
+
+/// `C F^h`: the map whose marginal `C F^h P (C F^h)ᵀ` is the workspace
+/// covariance of the estimation error after h silent steps (`e' = F e + w`
+/// while nothing is received), less the process noise of those steps — the
+/// same for every belief, so it cannot separate two (MODEL.md §7.3).
+pub fn lookahead_map(c: &DMatrix<f64>, f: &DMatrix<f64>, h: u32) -> DMatrix<f64> {
+    let mut m = c.clone();
+    for _ in 0..h {
+        m = &m * f;
+    }
+    m
 }
 
 fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
@@ -339,5 +353,47 @@ mod tests {
         assert_eq!(r.0.len(), 3, "d = 2 axes of C P Cᵀ plus the rest bin");
         assert_eq!(r.0[2], (1, 0));
         assert_eq!(r.0[..2], b.classify_axes(&m).0[..]);
+    }
+
+    #[test]
+    fn the_lookahead_separates_beliefs_that_differ_only_in_velocity() {
+        // Double integrator, τ = 0.1: two beliefs with the same position
+        // covariance, one with 16× the velocity variance. Now (h = 0) they
+        // share a region; after h = 5 silent steps their position errors
+        // differ (Σ_pp + h²τ² Σ_vv: 1e-3 + 0.25·1e-3 vs 1e-3 + 0.25·1.6e-2),
+        // and so do their regions.
+        let tau = 0.1;
+        let f = DMatrix::from_row_slice(
+            4,
+            4,
+            &[
+                1.0, 0.0, tau, 0.0, 0.0, 1.0, 0.0, tau, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+            ],
+        );
+        let c = DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
+        let diag =
+            |v: f64| DMatrix::from_diagonal(&nalgebra::DVector::from_vec(vec![1e-3, 1e-3, v, v]));
+        let (slow, fast) = (diag(1e-3), diag(1.6e-2));
+        assert_eq!(lookahead_map(&c, &f, 0), c);
+        let c5 = lookahead_map(&c, &f, 5);
+        assert_eq!(
+            c5.row(0).iter().copied().collect::<Vec<_>>(),
+            vec![1.0, 0.0, 0.5, 0.0]
+        );
+        let classify = |map: &DMatrix<f64>, p: &DMatrix<f64>| {
+            let mut b = DecisionPointBins {
+                lambda_lo: 1e-4,
+                lambda_hi: 1e-1,
+                counts: BinCounts::default(),
+                nominal: vec![vec![1.0, 0.0], vec![0.0, 1.0]],
+                workspace: None,
+            };
+            b.workspace = Some(WorkspaceMarginal::new(map, 1e-4, 1.0, 1));
+            b.classify(p)
+        };
+        assert_eq!(classify(&c, &slow), classify(&c, &fast));
+        assert_ne!(classify(&c5, &slow), classify(&c5, &fast));
+        let m = WorkspaceMarginal::new(&c5, 1e-4, 1.0, 1).marginal(&fast);
+        assert!((m[(0, 0)] - (1e-3 + 0.25 * 1.6e-2)).abs() < 1e-15);
     }
 }

@@ -10,6 +10,7 @@ use crate::linalg::{
     to_static_vec,
 };
 use crate::scenario::{Plant, Sensor};
+use crate::structured::{Selection, SparseRows};
 use rand::{Rng, RngExt};
 use rand_distr::StandardNormal;
 
@@ -37,16 +38,20 @@ pub struct LinearPlant<const N: usize> {
     pub g: Matrix<N, N>,
     pub q: Matrix<N, N>,
     q_chol: Matrix<N, N>,
+    /// F's non-zeros: `F P Fᵀ` skips its zeros (same bits, `structured`).
+    f_sparse: SparseRows<N>,
 }
 
 impl<const N: usize> LinearPlant<N> {
     pub fn new(p: &Plant) -> Self {
         let q = to_static::<N, N>(&p.q);
+        let f = to_static(&p.f);
         Self {
-            f: to_static(&p.f),
+            f,
             g: to_static_padded(&p.g),
             q,
             q_chol: cholesky_lower(&q),
+            f_sparse: SparseRows::new(&f),
         }
     }
 
@@ -69,7 +74,7 @@ impl<const N: usize> LinearPlant<N> {
     pub fn predict(&self, post: &Belief<N>, u: &Vector<N>) -> Belief<N> {
         Belief {
             mean: self.f * post.mean + self.g * u,
-            cov: self.f * post.cov * self.f.transpose() + self.q,
+            cov: self.f_sparse.sandwich(&post.cov) + self.q,
         }
     }
 }
@@ -85,6 +90,9 @@ pub struct SensorModel<const N: usize, const M: usize> {
     pub h: Matrix<M, N>,
     pub r: Matrix<M, M>,
     r_chol: Matrix<M, M>,
+    /// `Some` when H only picks state entries (position-only, or H = I): the
+    /// products with H become gathers (same bits, `structured`).
+    selection: Option<Selection<M>>,
     /// Energy per transmitted measurement.
     pub cost: f64,
 }
@@ -92,10 +100,12 @@ pub struct SensorModel<const N: usize, const M: usize> {
 impl<const N: usize, const M: usize> SensorModel<N, M> {
     pub fn new(s: &Sensor) -> Self {
         let r = to_static::<M, M>(&s.r);
+        let h = to_static(&s.h);
         Self {
-            h: to_static(&s.h),
+            h,
             r,
             r_chol: cholesky_lower(&r),
+            selection: Selection::of(&h),
             cost: s.cost,
         }
     }
@@ -103,7 +113,49 @@ impl<const N: usize, const M: usize> SensorModel<N, M> {
     /// A noisy measurement of the true state.
     #[inline]
     pub fn measure<R: Rng + ?Sized>(&self, x: &Vector<N>, rng: &mut R) -> Vector<M> {
-        self.h * x + self.r_chol * standard_normal::<M, R>(rng)
+        self.observe(x) + self.r_chol * standard_normal::<M, R>(rng)
+    }
+
+    /// `H x`.
+    #[inline]
+    pub fn observe(&self, x: &Vector<N>) -> Vector<M> {
+        match &self.selection {
+            Some(s) => s.pick(x),
+            None => self.h * x,
+        }
+    }
+
+    /// `H P` (M×N).
+    #[inline]
+    fn h_times(&self, p: &Matrix<N, N>) -> Matrix<M, N> {
+        match &self.selection {
+            Some(s) => s.rows(p),
+            None => self.h * p,
+        }
+    }
+
+    /// `H P Hᵀ + R` and `P Hᵀ`.
+    #[inline]
+    fn innovation_cov(&self, p: &Matrix<N, N>) -> (Matrix<M, M>, Matrix<N, M>) {
+        match &self.selection {
+            Some(s) => {
+                let pht = s.columns_of(p);
+                (s.rows_of_tall(&pht) + self.r, pht)
+            }
+            None => {
+                let pht = p * self.h.transpose();
+                (self.h * pht + self.r, pht)
+            }
+        }
+    }
+
+    /// `K H` (N×N) for a gain K (N×M).
+    #[inline]
+    fn gain_times_h(&self, k: &Matrix<N, M>) -> Matrix<N, N> {
+        match &self.selection {
+            Some(s) => s.scatter(k),
+            None => k * self.h,
+        }
     }
 }
 
@@ -120,8 +172,7 @@ pub enum Whitener<const M: usize> {
 impl<const M: usize> Whitener<M> {
     /// The whitening transform of an innovation covariance.
     pub fn new(z: &Matrix<M, M>) -> Self {
-        let diagonal = (0..M).all(|i| (0..M).all(|j| i == j || z[(i, j)] == 0.0));
-        if diagonal {
+        if is_diagonal(z) {
             // Coordinate axes are eigenvectors; order and sign do not change ‖ε‖∞.
             return Self::Diagonal(Vector::<M>::from_fn(|i, _| 1.0 / z[(i, i)].sqrt()));
         }
@@ -151,21 +202,50 @@ pub struct Innovation<const N: usize, const M: usize> {
     pub cov: Matrix<M, M>,
     /// Kalman gain `K = P⁻ Hᵀ Z⁻¹`.
     pub gain: Matrix<N, M>,
-    pub whitener: Whitener<M>,
+    /// `Z⁻¹`, `None` if rounding made Z singular (then the gain is zero).
+    pub cov_inv: Option<Matrix<M, M>>,
 }
 
 impl<const N: usize, const M: usize> Innovation<N, M> {
+    /// The whitening transform of Z (an eigen-decomposition unless Z is
+    /// diagonal; computed on demand — the trigger rarely needs it).
+    pub fn whitener(&self) -> Whitener<M> {
+        Whitener::new(&self.cov)
+    }
+
     /// Whitened innovation of a measurement.
     #[inline]
     pub fn whitened(&self, y: &Vector<M>) -> Vector<M> {
-        self.whitener.whiten(&(y - self.predicted))
+        self.whitener().whiten(&(y - self.predicted))
     }
 
     /// The trigger: transmit iff ‖ε‖∞ > δ.
+    ///
+    /// For a non-diagonal Z the eigenbasis costs more than the rest of the
+    /// step, and most innovations are decided without it: with
+    /// `d² = zᵀ Z⁻¹ z = ‖ε‖₂²` and `‖ε‖₂/√M ≤ ‖ε‖∞ ≤ ‖ε‖₂`, `d² < δ²` means
+    /// silent and `d² > M δ²` means transmit, whatever the basis. Only the band
+    /// between needs the basis. The margins (1e-9 relative, far above the
+    /// rounding of either side) keep every decision the one the basis gives.
     #[inline]
     pub fn triggers(&self, y: &Vector<M>, delta: f64) -> bool {
-        self.whitened(y).amax() > delta
+        let z = y - self.predicted;
+        if let (Some(z_inv), false) = (&self.cov_inv, is_diagonal(&self.cov)) {
+            let d2 = z.dot(&(z_inv * z));
+            let d2_delta = delta * delta;
+            if d2 < d2_delta * (1.0 - 1e-9) {
+                return false;
+            }
+            if d2 > (M as f64) * d2_delta * (1.0 + 1e-9) {
+                return true;
+            }
+        }
+        self.whitener().whiten(&z).amax() > delta
     }
+}
+
+fn is_diagonal<const M: usize>(z: &Matrix<M, M>) -> bool {
+    (0..M).all(|i| (0..M).all(|j| i == j || z[(i, j)] == 0.0))
 }
 
 /// A threshold together with its precomputed implicit-information factor β(δ).
@@ -202,17 +282,15 @@ impl<const N: usize, const M: usize> EtKalmanFilter<N, M> {
     /// Innovation statistics for a prior.
     #[inline]
     pub fn innovation(&self, prior: &Belief<N>) -> Innovation<N, M> {
-        let h = &self.sensor.h;
-        let pht = prior.cov * h.transpose();
-        let cov = h * pht + self.sensor.r;
+        let (cov, pht) = self.sensor.innovation_cov(&prior.cov);
         // Z ⪰ R is SPD by validation, so the inverse exists; a zero gain (no
         // update) is the safe fallback should rounding ever make it singular.
-        let z_inv = cov.try_inverse().unwrap_or_else(Matrix::<M, M>::zeros);
+        let cov_inv = cov.try_inverse();
         Innovation {
-            predicted: h * prior.mean,
+            predicted: self.sensor.observe(&prior.mean),
             cov,
-            gain: pht * z_inv,
-            whitener: Whitener::new(&cov),
+            gain: pht * cov_inv.unwrap_or_else(Matrix::<M, M>::zeros),
+            cov_inv,
         }
     }
 
@@ -225,7 +303,7 @@ impl<const N: usize, const M: usize> EtKalmanFilter<N, M> {
         y: &Vector<M>,
     ) -> Belief<N> {
         let k = &inn.gain;
-        let ikh = Matrix::<N, N>::identity() - k * self.sensor.h;
+        let ikh = Matrix::<N, N>::identity() - self.sensor.gain_times_h(k);
         let cov = ikh * prior.cov * ikh.transpose() + k * self.sensor.r * k.transpose();
         Belief {
             mean: prior.mean + k * (y - inn.predicted),
@@ -241,7 +319,7 @@ impl<const N: usize, const M: usize> EtKalmanFilter<N, M> {
         inn: &Innovation<N, M>,
         beta: f64,
     ) -> Belief<N> {
-        let cov = prior.cov - inn.gain * (self.sensor.h * prior.cov) * beta;
+        let cov = prior.cov - inn.gain * self.sensor.h_times(&prior.cov) * beta;
         Belief {
             mean: prior.mean,
             cov: symmetrize(&cov),

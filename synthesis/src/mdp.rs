@@ -18,8 +18,9 @@ use serde::{Deserialize, Serialize};
 /// Version of the `mdp.bin` layout (2: a SHA-256 of the content at the end;
 /// 3: decision-point bins carry the optional workspace-marginal descriptor;
 /// 4: per choice the energy's second moment and range (certified bounds) and
-/// the held-out sample set (cross-fitting), docs/MODEL.md §4.1).
-pub const MDP_FORMAT_VERSION: u32 = 4;
+/// the held-out sample set (cross-fitting), docs/MODEL.md §4.1;
+/// 5: the workspace descriptor's lookahead in the build settings).
+pub const MDP_FORMAT_VERSION: u32 = 5;
 const MAGIC: &[u8; 8] = b"ETPMDP\0\n";
 /// Magic and version.
 const HEADER_LEN: usize = 12;
@@ -180,6 +181,8 @@ pub struct BuildSettings {
     /// 0 auto, 1 per-axis, 2 workspace marginal.
     pub descriptor: u8,
     pub rest_bins: u16,
+    /// Lookahead steps of the workspace descriptor.
+    pub lookahead: u32,
 }
 
 /// The abstraction.

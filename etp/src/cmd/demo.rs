@@ -95,6 +95,7 @@ pub fn run(a: Args) -> Result<()> {
         pool: etp_synthesis::abstraction::DEFAULT_POOL_PER_REGION,
         descriptor: synthesize::DescriptorArg::Auto,
         rest_bins: etp_synthesis::abstraction::DEFAULT_REST_BINS,
+        lookahead: etp_synthesis::abstraction::DEFAULT_LOOKAHEAD,
         eps_kf: None,
         eps_p: None,
         out: Some(dir.clone()),

@@ -12,8 +12,8 @@ use anyhow::{Context, Result, bail};
 use etp_shared::discretization::BinCounts;
 use etp_shared::scenario::Scenario;
 use etp_synthesis::abstraction::{
-    self, AbstractionParams, DEFAULT_POOL_PER_REGION, DEFAULT_REST_BINS, DEFAULT_SAMPLES,
-    Descriptor, default_kf_params,
+    self, AbstractionParams, DEFAULT_LOOKAHEAD, DEFAULT_POOL_PER_REGION, DEFAULT_REST_BINS,
+    DEFAULT_SAMPLES, Descriptor, default_kf_params,
 };
 use etp_synthesis::mdp::{KfConvergenceParams, Mdp, Method};
 use serde::Serialize;
@@ -94,6 +94,11 @@ pub struct Args {
     /// does not see (`--descriptor workspace`).
     #[arg(long, default_value_t = DEFAULT_REST_BINS)]
     pub rest_bins: u16,
+    /// Workspace descriptor: bin the workspace marginal predicted this many
+    /// silent steps ahead, C F^h P F^hᵀ Cᵀ, so velocity uncertainty counts
+    /// for what it will do to the position (0: the marginal now).
+    #[arg(long, default_value_t = DEFAULT_LOOKAHEAD)]
+    pub lookahead: u32,
     /// Pool particles kept per region and decision point.
     #[arg(long, default_value_t = DEFAULT_POOL_PER_REGION)]
     pub pool: u32,
@@ -179,6 +184,7 @@ pub fn params(a: &Args, s: &Scenario) -> Result<AbstractionParams> {
         kf,
         descriptor: a.descriptor.into(),
         rest_bins: a.rest_bins,
+        lookahead: a.lookahead,
     })
 }
 

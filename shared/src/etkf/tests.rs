@@ -121,7 +121,7 @@ fn whitened_innovation_of_the_full_filter_has_identity_covariance() {
         let prior = f.predict(&b, &u);
         let inn = f.innovation(&prior);
         assert!(
-            matches!(inn.whitener, Whitener::Basis(_)),
+            matches!(inn.whitener(), Whitener::Basis(_)),
             "full Z must use the eigenbasis"
         );
         let e = inn.whitened(&y);
@@ -209,7 +209,7 @@ fn position_only_whitening_gives_identity_covariance() {
     prior.cov[(3, 0)] += 2e-4;
     let inn = f.innovation(&prior);
     assert!(
-        matches!(inn.whitener, Whitener::Basis(_)),
+        matches!(inn.whitener(), Whitener::Basis(_)),
         "Z is a full matrix"
     );
     let mut rng = stream_rng(11, streams::SIMULATE, 0);

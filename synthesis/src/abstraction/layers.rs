@@ -217,6 +217,10 @@ pub(super) fn build<const N: usize>(
             let c = c
                 .clone()
                 .unwrap_or_else(|| nalgebra::DMatrix::identity(N, N));
+            // Bin the workspace marginal `lookahead` silent steps ahead:
+            // C F^h P F^hᵀ Cᵀ (MODEL.md §7.3).
+            let c =
+                etp_shared::discretization::lookahead_map(&c, &scenario.plant.f, params.lookahead);
             let probe = WorkspaceMarginal::new(&c, 1.0, 1.0, params.rest_bins);
             let (range, rest) = workspace_ranges(
                 cs,
@@ -520,6 +524,7 @@ pub(super) fn build<const N: usize>(
                 Descriptor::WorkspaceMarginal => 2,
             },
             rest_bins: params.rest_bins,
+            lookahead: params.lookahead,
         },
         seed: params.seed,
         total_segments,

@@ -41,6 +41,8 @@ pub const DEFAULT_SAMPLES: u32 = 6000;
 pub const DEFAULT_POOL_PER_REGION: u32 = 2048;
 /// Default coarse bins of the uncertainty C does not see (workspace descriptor).
 pub const DEFAULT_REST_BINS: u16 = 3;
+/// Default lookahead of the workspace descriptor, in steps (MODEL.md §7.3).
+pub const DEFAULT_LOOKAHEAD: u32 = 5;
 
 /// How Method 2 describes a belief covariance at a decision point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -102,6 +104,8 @@ pub struct AbstractionParams {
     pub descriptor: Descriptor,
     /// Coarse bins of the rest (workspace descriptor only).
     pub rest_bins: u16,
+    /// Workspace descriptor: bin `C F^h P F^hᵀ Cᵀ`, h = `lookahead` steps.
+    pub lookahead: u32,
 }
 
 impl Default for AbstractionParams {
@@ -116,6 +120,7 @@ impl Default for AbstractionParams {
             kf: None,
             descriptor: Descriptor::Auto,
             rest_bins: DEFAULT_REST_BINS,
+            lookahead: DEFAULT_LOOKAHEAD,
         }
     }
 }
@@ -189,6 +194,7 @@ pub fn params_of(mdp: &Mdp) -> AbstractionParams {
             _ => Descriptor::Auto,
         },
         rest_bins: mdp.build.rest_bins,
+        lookahead: mdp.build.lookahead,
     }
 }
 
