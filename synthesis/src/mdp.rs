@@ -6,7 +6,7 @@
 //! decision point i + 1 or to a terminal. Backward induction is therefore one
 //! pass over the states in reverse order.
 //!
-//! File (format version 2): the 8-byte magic `ETPMDP\0\n`, a little-endian
+//! File (format version [`MDP_FORMAT_VERSION`]): the 8-byte magic `ETPMDP\0\n`, a little-endian
 //! `u32` format version, the bincode 2.0.1 (serde, standard config) encoding
 //! of [`Mdp`], then the SHA-256 of everything before it (32 bytes), so a
 //! flipped bit or a cut file is refused before anything is decoded (version 1
@@ -248,6 +248,25 @@ impl Mdp {
     }
 
     /// States per decision point.
+    /// Per state, the sampled segments that arrived in it (Σ of the
+    /// transition counts into it; 0 for the initial state): how many beliefs
+    /// its region's statistics and pool rest on.
+    pub fn arrivals_per_state(&self) -> Vec<u64> {
+        let mut v = vec![0u64; self.states.len()];
+        for s in &self.states {
+            for c in &s.choices {
+                for t in &c.transitions {
+                    if let Next::State(i) = t.next
+                        && let Some(a) = v.get_mut(i as usize)
+                    {
+                        *a += u64::from(t.count);
+                    }
+                }
+            }
+        }
+        v
+    }
+
     pub fn states_per_decision_point(&self) -> Vec<usize> {
         let mut v = vec![0; self.num_decision_points()];
         for s in &self.states {

@@ -161,6 +161,29 @@ fn every_choice_is_a_distribution_with_counted_cost() {
         }
     }
     assert_eq!(segments, mdp.total_segments);
+    // Every segment leaving decision point i either arrives in a state of
+    // decision point i + 1 or ends: the arrivals balance the departures.
+    let arrivals = mdp.arrivals_per_state();
+    assert_eq!(arrivals[mdp.initial as usize], 0);
+    for dp in 0..mdp.num_decision_points() as u32 {
+        let leaving: u64 = mdp
+            .states
+            .iter()
+            .filter(|st| st.decision_point == dp)
+            .flat_map(|st| &st.choices)
+            .flat_map(|c| &c.transitions)
+            .filter(|t| matches!(t.next, Next::State(_)))
+            .map(|t| u64::from(t.count))
+            .sum();
+        let arriving: u64 = mdp
+            .states
+            .iter()
+            .zip(&arrivals)
+            .filter(|(st, _)| st.decision_point == dp + 1)
+            .map(|(_, &a)| a)
+            .sum();
+        assert_eq!(leaving, arriving, "decision point {dp}");
+    }
     // The full KF (δ = 0) transmits in every slot: cost = slots ≈ steps.
     for st in &mdp.states {
         let c = &st.choices[0];

@@ -135,6 +135,13 @@ pub struct MdpReport {
     pub seed: u64,
     pub states: usize,
     pub states_per_decision_point: Vec<usize>,
+    /// Sampled segments per state over its actions (`samples` × actions
+    /// unless sample allocation added some): smallest and largest.
+    pub samples_per_state: [u64; 2],
+    /// Sampled segments that arrived in each non-initial state: min, median, max.
+    pub arrivals_per_state: [u64; 3],
+    /// Non-initial states that fewer than 100 sampled segments arrived in.
+    pub states_under_100_arrivals: usize,
     pub choices: usize,
     pub transitions: usize,
     pub segments: u64,
@@ -217,6 +224,9 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
         seed: mdp.seed,
         states: mdp.states.len(),
         states_per_decision_point: mdp.states_per_decision_point(),
+        samples_per_state: samples_per_state(&mdp),
+        arrivals_per_state: arrivals_summary(&mdp).0,
+        states_under_100_arrivals: arrivals_summary(&mdp).1,
         choices: mdp.states.iter().map(|s| s.choices.len()).sum(),
         transitions: mdp.num_transitions(),
         segments: mdp.total_segments,
@@ -233,12 +243,42 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
     })
 }
 
+fn samples_per_state(mdp: &Mdp) -> [u64; 2] {
+    let per: Vec<u64> = mdp
+        .states
+        .iter()
+        .map(|s| s.choices.iter().map(|c| u64::from(c.samples)).sum())
+        .collect();
+    [
+        per.iter().copied().min().unwrap_or(0),
+        per.iter().copied().max().unwrap_or(0),
+    ]
+}
+
+/// `([min, median, max], states under 100)` of the arrivals into non-initial states.
+fn arrivals_summary(mdp: &Mdp) -> ([u64; 3], usize) {
+    let mut a: Vec<u64> = mdp
+        .arrivals_per_state()
+        .into_iter()
+        .zip(&mdp.states)
+        .filter(|(_, s)| s.decision_point > 0)
+        .map(|(n, _)| n)
+        .collect();
+    a.sort_unstable();
+    let under = a.iter().filter(|&&n| n < 100).count();
+    match (a.first(), a.last()) {
+        (Some(&lo), Some(&hi)) => ([lo, a[a.len() / 2], hi], under),
+        _ => ([0; 3], 0),
+    }
+}
+
 /// A readable summary of the MDP step.
 pub fn report_text(r: &MdpReport) -> String {
     format!(
         "{} · {} · {} samples per state-action (+{} held out) · seed {}\n\
          \x20 wrote {}\n\
          \x20 states {} (+3 terminal) per decision point {:?}\n\
+         \x20 samples per state {}–{} · arrivals per state min {} · median {} · max {} · {} states under 100\n\
          \x20 choices {} · transitions {}\n\
          \x20 segments {} · segment-steps {} · {:.2} s · {:.2} M steps/s on {} threads\n",
         r.scenario,
@@ -249,6 +289,12 @@ pub fn report_text(r: &MdpReport) -> String {
         r.path.display(),
         r.states,
         r.states_per_decision_point,
+        r.samples_per_state[0],
+        r.samples_per_state[1],
+        r.arrivals_per_state[0],
+        r.arrivals_per_state[1],
+        r.arrivals_per_state[2],
+        r.states_under_100_arrivals,
         r.choices,
         r.transitions,
         r.segments,
