@@ -101,6 +101,7 @@ impl<const N: usize> Agent<N> {
         let mut stamp = Stamper::new(run, SENDER_AGENT);
         let hello = wire::say_hello(
             &ports,
+            &coordinator_wake,
             Hello {
                 header: stamp.header(0, 0, 0),
                 pid: std::process::id(),

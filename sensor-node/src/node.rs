@@ -82,6 +82,7 @@ pub(crate) fn serve<const N: usize, const M: usize>(
     let mut stamp = Stamper::new(run, index as u32);
     let _hello = wire::say_hello(
         &ports,
+        &p.coordinator_wake,
         Hello {
             header: stamp.header(0, 0, 0),
             pid: std::process::id(),

@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 /// 3: decision-point bins carry the optional workspace-marginal descriptor;
 /// 4: per choice the energy's second moment and range (certified bounds) and
 /// the held-out sample set (cross-fitting), docs/MODEL.md §4.1;
-/// 5: the workspace descriptor's lookahead in the build settings).
+/// 5: the workspace descriptor's lookahead and range rule in the build settings).
 pub const MDP_FORMAT_VERSION: u32 = 5;
 const MAGIC: &[u8; 8] = b"ETPMDP\0\n";
 /// Magic and version.
@@ -183,6 +183,8 @@ pub struct BuildSettings {
     pub rest_bins: u16,
     /// Lookahead steps of the workspace descriptor.
     pub lookahead: u32,
+    /// The workspace descriptor's magnitude range: 0 propagation, 1 arrivals.
+    pub range: u8,
 }
 
 /// The abstraction.

@@ -341,3 +341,52 @@ fn constant_threshold_prediction_matches_simulation() {
         );
     }
 }
+
+#[test]
+fn arrival_range_puts_the_workspace_bins_where_the_beliefs_are() {
+    // MODEL.md §7.3: a double integrator's silent propagation grows without
+    // bound, so the propagation range reaches far past any arrival; the
+    // arrivals rule closes each decision point's range at the 99.5 %
+    // quantile of what arrived, inside the propagation range.
+    let s = Scenario::from_toml(include_str!(
+        "../../shared/src/testdata/double-integrator.toml"
+    ))
+    .expect("valid");
+    let build = |range| {
+        let p = AbstractionParams {
+            range,
+            ..params(200)
+        };
+        abstraction::build(&s, &p, &|_| {}).expect("builds")
+    };
+    let arrivals = build(abstraction::RangeRule::Arrivals);
+    let propagation = build(abstraction::RangeRule::Propagation);
+    let (a, p) = (
+        arrivals.discretization.as_ref().expect("Method 2"),
+        propagation.discretization.as_ref().expect("Method 2"),
+    );
+    assert!(a.decision_points.len() > 1, "needs a second decision point");
+    for (dp, (ba, bp)) in a
+        .decision_points
+        .iter()
+        .zip(&p.decision_points)
+        .enumerate()
+        .skip(1)
+    {
+        assert!(ba.workspace.is_some(), "the workspace descriptor");
+        assert!(
+            bp.lambda_lo <= ba.lambda_lo && ba.lambda_hi < bp.lambda_hi,
+            "dp {dp}: arrivals [{}, {}] inside propagation [{}, {}]",
+            ba.lambda_lo,
+            ba.lambda_hi,
+            bp.lambda_lo,
+            bp.lambda_hi
+        );
+    }
+    // The rule is recorded, and a rebuild from the file's parameters repeats it.
+    assert_eq!(arrivals.build.range, 1);
+    assert_eq!(
+        abstraction::params_of(&arrivals).range,
+        abstraction::RangeRule::Arrivals
+    );
+}

@@ -96,6 +96,7 @@ pub fn run(a: Args) -> Result<()> {
         descriptor: synthesize::DescriptorArg::Auto,
         rest_bins: etp_synthesis::abstraction::DEFAULT_REST_BINS,
         lookahead: etp_synthesis::abstraction::DEFAULT_LOOKAHEAD,
+        range: synthesize::RangeArg::Arrivals,
         eps_kf: None,
         eps_p: None,
         out: Some(dir.clone()),

@@ -99,6 +99,9 @@ pub struct Args {
     /// for what it will do to the position (0: the marginal now).
     #[arg(long, default_value_t = DEFAULT_LOOKAHEAD)]
     pub lookahead: u32,
+    /// Workspace descriptor: where its magnitude bins lie.
+    #[arg(long, value_enum, default_value_t = RangeArg::Arrivals)]
+    pub range: RangeArg,
     /// Pool particles kept per region and decision point.
     #[arg(long, default_value_t = DEFAULT_POOL_PER_REGION)]
     pub pool: u32,
@@ -161,6 +164,15 @@ pub struct BuiltMdp {
     pub report: MdpReport,
 }
 
+/// `--range`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum RangeArg {
+    /// Per decision point, from the arrivals' smallest workspace eigenvalue to the 99.5 % quantile of their largest
+    Arrivals,
+    /// From P_KF to silent propagation at the largest δ (the paper's rule)
+    Propagation,
+}
+
 /// The abstraction parameters of the command line.
 pub fn params(a: &Args, s: &Scenario) -> Result<AbstractionParams> {
     let kf = match a.method {
@@ -192,6 +204,10 @@ pub fn params(a: &Args, s: &Scenario) -> Result<AbstractionParams> {
         descriptor: a.descriptor.into(),
         rest_bins: a.rest_bins,
         lookahead: a.lookahead,
+        range: match a.range {
+            RangeArg::Arrivals => abstraction::RangeRule::Arrivals,
+            RangeArg::Propagation => abstraction::RangeRule::Propagation,
+        },
     })
 }
 

@@ -543,8 +543,14 @@ impl Ports<'_> {
 /// coordinator's `hello` subscriber exists, then send `hello` and wake it.
 /// Samples sent before a subscriber exists would be lost, and the processes
 /// start in parallel. Returns the publisher (keep it alive).
+///
+/// `coordinator_wake` is the caller's own notifier on `coordinator/wake`: a
+/// second, temporary one per process would exceed the service's notifier
+/// limit when several processes say hello at once (seen under load:
+/// `ExceedsMaxSupportedNotifiers` on a fresh run).
 pub fn say_hello(
     ports: &Ports<'_>,
+    coordinator_wake: &Notifier,
     hello: super::messages::to_coordinator::Hello,
     timeout: std::time::Duration,
 ) -> Result<Pub<super::messages::to_coordinator::Hello>, WireError> {
@@ -587,11 +593,8 @@ pub fn say_hello(
             std::thread::sleep(std::time::Duration::from_millis(10));
         }
     }
-    ports
-        .notifier(ServiceId::CoordinatorWake)?
-        .notify()
-        .map_err(|e| {
-            WireError::Port(ServiceId::CoordinatorWake.name(ports.run), format!("{e:?}"))
-        })?;
+    coordinator_wake.notify().map_err(|e| {
+        WireError::Port(ServiceId::CoordinatorWake.name(ports.run), format!("{e:?}"))
+    })?;
     Ok(publisher)
 }

@@ -15,7 +15,7 @@
 use super::bounds::{magnitude_range, workspace_ranges};
 use super::pool::{bottom_k, key};
 use super::tally::{Arrival, ChoiceTally, ChunkTally};
-use super::{AbstractionError, AbstractionParams, Descriptor, resolve_descriptor};
+use super::{AbstractionError, AbstractionParams, Descriptor, RangeRule, resolve_descriptor};
 use crate::mdp::{KfConvergenceParams, Mdp, Method, State};
 use etp_shared::discretization::{DecisionPointBins, Discretization, Region, WorkspaceMarginal};
 use etp_shared::episode::{AgentState, CompiledScenario, LegEnd, LegMode};
@@ -186,6 +186,45 @@ fn bins_from<const N: usize>(
     b
 }
 
+/// The quantile of the arrivals' largest workspace eigenvalue that closes the
+/// magnitude range of [`RangeRule::Arrivals`] (the top 0.5 % share the last bin).
+pub const ARRIVAL_QUANTILE: f64 = 0.995;
+
+/// The magnitude range of a decision point's workspace bins under
+/// [`RangeRule::Arrivals`]: from the smallest eigenvalue of the arrivals'
+/// marginals (not below the `P_KF` floor) to the [`ARRIVAL_QUANTILE`] of
+/// their largest. `None` (keep the propagation range) without arrivals or
+/// for a degenerate range. Main-sample arrivals only, so the held-out set
+/// stays independent of the states.
+fn arrival_range<const N: usize>(
+    results: &[ChunkTally<N>],
+    workspace: &WorkspaceMarginal,
+    floor: f64,
+) -> Option<(f64, f64)> {
+    let mut pairs: Vec<(f64, f64)> = results
+        .par_iter()
+        .flat_map_iter(|r| {
+            r.arrivals.iter().map(|a| {
+                let m = workspace.marginal(&to_dynamic(&a.belief.cov));
+                let e = ((&m + m.transpose()) * 0.5).symmetric_eigenvalues();
+                (e.min(), e.max())
+            })
+        })
+        .collect();
+    if pairs.is_empty() {
+        return None;
+    }
+    let lo = pairs
+        .iter()
+        .map(|p| p.0)
+        .fold(f64::INFINITY, f64::min)
+        .max(floor);
+    pairs.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let k = ((pairs.len() as f64 * ARRIVAL_QUANTILE) as usize).min(pairs.len() - 1);
+    let hi = pairs[k].1;
+    (lo.is_finite() && hi > lo * (1.0 + 1e-6)).then_some((lo, hi))
+}
+
 pub(super) fn build<const N: usize>(
     scenario: &Scenario,
     cs: &CompiledScenario<N>,
@@ -244,13 +283,14 @@ pub(super) fn build<const N: usize>(
     let lambda = (range.lambda_lo, range.lambda_hi);
     let legs = cs.legs.len();
 
-    let classifier_for = |covs: &mut dyn Iterator<Item = Matrix<N, N>>| match params.method {
-        Method::Discretized => {
-            Classifier::Bins(bins_from(params, lambda, workspace.as_ref(), covs))
-        }
-        Method::KfConvergence => Classifier::Single,
-    };
-    let mut classifier = classifier_for(&mut std::iter::once(cs.initial.cov));
+    let classifier_for =
+        |covs: &mut dyn Iterator<Item = Matrix<N, N>>, lambda: (f64, f64)| match params.method {
+            Method::Discretized => {
+                Classifier::Bins(bins_from(params, lambda, workspace.as_ref(), covs))
+            }
+            Method::KfConvergence => Classifier::Single,
+        };
+    let mut classifier = classifier_for(&mut std::iter::once(cs.initial.cov), lambda);
     let mut dp_bins: Vec<DecisionPointBins> = Vec::with_capacity(legs);
     let mut layer = vec![LayerState {
         region: classifier.classify(&cs.initial.cov),
@@ -266,7 +306,7 @@ pub(super) fn build<const N: usize>(
         if layer.is_empty() {
             // Every segment collided before this decision point.
             progress(deltas.len() as u64 * u64::from(samples + holdout));
-            classifier = classifier_for(&mut std::iter::empty());
+            classifier = classifier_for(&mut std::iter::empty(), lambda);
             continue;
         }
         let last = dp + 1 == legs;
@@ -359,10 +399,16 @@ pub(super) fn build<const N: usize>(
         let next_classifier = if last {
             None
         } else {
+            let range = match (&workspace, params.range) {
+                (Some(w), RangeRule::Arrivals) => {
+                    arrival_range(&results, w, lambda.0).unwrap_or(lambda)
+                }
+                _ => lambda,
+            };
             let mut covs = results
                 .iter()
                 .flat_map(|r| r.arrivals.iter().map(|a| a.belief.cov));
-            Some(classifier_for(&mut covs))
+            Some(classifier_for(&mut covs, range))
         };
         let arrival_regions: Vec<Vec<Region>> = match &next_classifier {
             Some(c) => results
@@ -525,6 +571,10 @@ pub(super) fn build<const N: usize>(
             },
             rest_bins: params.rest_bins,
             lookahead: params.lookahead,
+            range: match params.range {
+                RangeRule::Propagation => 0,
+                RangeRule::Arrivals => 1,
+            },
         },
         seed: params.seed,
         total_segments,

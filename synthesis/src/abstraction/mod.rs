@@ -58,6 +58,21 @@ pub enum Descriptor {
     WorkspaceMarginal,
 }
 
+/// Where the log-uniform magnitude bins of the workspace descriptor lie
+/// (MODEL.md §7.3). The paper's per-axis regions always use `Propagation`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum RangeRule {
+    /// From `P_KF` to the largest covariance of silent propagation at the
+    /// largest δ (the paper's rule: fixed before any sample).
+    Propagation,
+    /// Per decision point, from the smallest eigenvalue the main sample's
+    /// arrivals have to the 99.5 % quantile of their largest: the bins lie
+    /// where the beliefs are (a double integrator's silent propagation grows
+    /// without bound, and most of its range is never visited).
+    #[default]
+    Arrivals,
+}
+
 /// Why an abstraction could not be built.
 #[derive(Debug, thiserror::Error)]
 pub enum AbstractionError {
@@ -106,6 +121,8 @@ pub struct AbstractionParams {
     pub rest_bins: u16,
     /// Workspace descriptor: bin `C F^h P F^hᵀ Cᵀ`, h = `lookahead` steps.
     pub lookahead: u32,
+    /// Workspace descriptor: where its magnitude bins lie.
+    pub range: RangeRule,
 }
 
 impl Default for AbstractionParams {
@@ -121,6 +138,7 @@ impl Default for AbstractionParams {
             descriptor: Descriptor::Auto,
             rest_bins: DEFAULT_REST_BINS,
             lookahead: DEFAULT_LOOKAHEAD,
+            range: RangeRule::default(),
         }
     }
 }
@@ -195,6 +213,10 @@ pub fn params_of(mdp: &Mdp) -> AbstractionParams {
         },
         rest_bins: mdp.build.rest_bins,
         lookahead: mdp.build.lookahead,
+        range: match mdp.build.range {
+            0 => RangeRule::Propagation,
+            _ => RangeRule::Arrivals,
+        },
     }
 }
 
