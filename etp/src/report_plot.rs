@@ -93,8 +93,16 @@ where
         ),
         "energy per episode (transmissions × cost)",
         0.0..top,
+        f64::INFINITY,
     )?;
-    panel(&right, &fig.outcomes, "outcomes", "probability", 0.0..1.05)?;
+    panel(
+        &right,
+        &fig.outcomes,
+        "outcomes",
+        "probability",
+        0.0..1.05,
+        1.0,
+    )?;
     Ok(())
 }
 
@@ -125,6 +133,9 @@ fn panel<DB: DrawingBackend>(
     caption: &str,
     y_desc: &str,
     y: std::ops::Range<f64>,
+    // The largest value the quantity can take (1 for a probability): a
+    // normal-approximation interval is cut there, not drawn past it.
+    cap: f64,
 ) -> Result<()>
 where
     DB::ErrorType: 'static,
@@ -162,7 +173,10 @@ where
     chart
         .draw_series(bars.iter().enumerate().flat_map(|(i, b)| {
             let x = i as f64 - 0.12;
-            let (lo, hi) = (b.measured - b.ci95, b.measured + b.ci95);
+            let (lo, hi) = (
+                (b.measured - b.ci95).max(0.0),
+                (b.measured + b.ci95).min(cap),
+            );
             let w = 0.06;
             [
                 PathElement::new(vec![(x, lo), (x, hi)], blue.stroke_width(2)),
