@@ -20,6 +20,10 @@ pub struct Args {
     /// Episodes per measurement.
     #[arg(long, default_value_t = 4000)]
     pub episodes: u64,
+    /// Timed repetitions per row; the row reports their median rate and
+    /// range (this machine is shared: one run can lose a third to a neighbour).
+    #[arg(long, default_value_t = 5)]
+    pub repeats: u32,
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
@@ -152,27 +156,41 @@ pub fn run(a: Args) -> Result<()> {
     for delta in [0.0, max_delta] {
         for t in [1, threads] {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build()?;
-            // Warm-up run (page faults, caches), then the timed one.
+            // Warm-up run (page faults, caches), then the timed ones (the
+            // same episodes each time: same seed).
             pool.install(|| simulate_constant(&s, delta, a.episodes / 10 + 1, 1, &|_| {}));
-            let start = Instant::now();
-            let sum = pool.install(|| simulate_constant(&s, delta, a.episodes, 2, &|_| {}));
-            let secs = start.elapsed().as_secs_f64();
-            let rate = sum.total_steps as f64 / secs;
+            let mut secs = Vec::new();
+            let mut steps = 0;
+            for _ in 0..a.repeats.max(1) {
+                let start = Instant::now();
+                let sum = pool.install(|| simulate_constant(&s, delta, a.episodes, 2, &|_| {}));
+                secs.push(start.elapsed().as_secs_f64());
+                steps = sum.total_steps;
+            }
+            secs.sort_by(f64::total_cmp);
+            let median = secs[secs.len() / 2];
+            let rate = steps as f64 / median;
+            let (fastest, slowest) = (steps as f64 / secs[0], steps as f64 / secs[secs.len() - 1]);
             rows.push(
                 json!({"scenario": s.name, "delta": delta, "threads": t, "episodes": a.episodes,
-                             "steps": sum.total_steps, "seconds": secs, "steps_per_second": rate,
-                             "steps_per_second_per_thread": rate / t as f64}),
+                             "steps": steps, "repeats": secs.len(), "seconds": median,
+                             "steps_per_second": rate,
+                             "steps_per_second_per_thread": rate / t as f64,
+                             "steps_per_second_range": [slowest, fastest]}),
             );
             if !a.json {
                 println!(
-                    "{:<12} δ = {:<7.4} threads {}  {:>10} steps in {:>6.3} s  → {:>6.2} M steps/s ({:.2} M/s per thread)",
+                    "{:<12} δ = {:<7.4} threads {}  {:>10} steps in {:>6.3} s  → {:>6.2} M steps/s ({:.2} M/s per thread; median of {}, range {:.2}–{:.2} M/s)",
                     s.name,
                     delta,
                     t,
-                    sum.total_steps,
-                    secs,
+                    steps,
+                    median,
                     rate / 1e6,
-                    rate / 1e6 / t as f64
+                    rate / 1e6 / t as f64,
+                    secs.len(),
+                    slowest / 1e6,
+                    fastest / 1e6,
                 );
             }
         }
