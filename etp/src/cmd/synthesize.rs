@@ -231,6 +231,7 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
         .context("the built MDP failed its own consistency check (a bug)")?;
     // Checked above; `force` here only covers a file that appeared meanwhile.
     write_new(&path, &mdp.encode(), a.force)?;
+    let arrivals = arrivals_summary(&mdp);
     let report = MdpReport {
         scenario: s.name.clone(),
         method: format!("{:?}", mdp.method),
@@ -241,8 +242,8 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
         states: mdp.states.len(),
         states_per_decision_point: mdp.states_per_decision_point(),
         samples_per_state: samples_per_state(&mdp),
-        arrivals_per_state: arrivals_summary(&mdp).0,
-        states_under_100_arrivals: arrivals_summary(&mdp).1,
+        arrivals_per_state: arrivals.0,
+        states_under_100_arrivals: arrivals.1,
         choices: mdp.states.iter().map(|s| s.choices.len()).sum(),
         transitions: mdp.num_transitions(),
         segments: mdp.total_segments,

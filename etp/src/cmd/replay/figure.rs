@@ -5,7 +5,6 @@
 use crate::report_plot::{Bar, RunFigure, mean_ci, proportion};
 use anyhow::{Context, Result};
 use etp_runtime::recording::{self, Contents, Recorded};
-use etp_runtime::wire::agent_to_coordinator::Outcome;
 use etp_shared::strategy::Strategy;
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -13,7 +12,7 @@ use std::collections::{BTreeMap, BTreeSet};
 pub fn figure(c: &Contents, names: &[String]) -> Result<RunFigure> {
     let mut energy: BTreeMap<(u32, u64), f64> = BTreeMap::new();
     let mut episodes: BTreeSet<u64> = BTreeSet::new();
-    let (mut target, mut collision, mut free) = (0u64, 0u64, 0u64);
+    let mut counts = super::OutcomeCounts::default();
     for m in &c.messages {
         match recording::decode(&m.topic, &m.data)
             .with_context(|| format!("message at log time {}", m.log_time))?
@@ -25,12 +24,7 @@ pub fn figure(c: &Contents, names: &[String]) -> Result<RunFigure> {
             }
             Recorded::Outcome(o) => {
                 episodes.insert(o.header.episode);
-                match o.outcome {
-                    Outcome::TARGET => target += 1,
-                    Outcome::COLLISION => collision += 1,
-                    Outcome::FREE => free += 1,
-                    _ => {}
-                }
+                counts.add(&o);
             }
             _ => {}
         }
@@ -85,9 +79,9 @@ pub fn figure(c: &Contents, names: &[String]) -> Result<RunFigure> {
         }
     };
     let outcomes = vec![
-        outcome("P_tar", target, p.map(|p| p.p_target)),
-        outcome("P_coll", collision, p.map(|p| p.p_collision)),
-        outcome("P_free", free, p.map(|p| p.p_free)),
+        outcome("P_tar", counts.target, p.map(|p| p.p_target)),
+        outcome("P_coll", counts.collision, p.map(|p| p.p_collision)),
+        outcome("P_free", counts.free, p.map(|p| p.p_free)),
     ];
     let title = format!(
         "run {} · {} · {} · {n} episodes: measured vs predicted",

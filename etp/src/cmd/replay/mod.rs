@@ -29,6 +29,26 @@ use etp_runtime::wire::RunId;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
+/// Episodes by recorded outcome (summary and figure count the same way).
+#[derive(Debug, Default, Clone, Copy)]
+struct OutcomeCounts {
+    target: u64,
+    collision: u64,
+    free: u64,
+}
+
+impl OutcomeCounts {
+    fn add(&mut self, outcome: &etp_runtime::wire::agent_to_coordinator::Outcome) {
+        use etp_runtime::wire::agent_to_coordinator::Outcome;
+        match outcome.outcome {
+            Outcome::TARGET => self.target += 1,
+            Outcome::COLLISION => self.collision += 1,
+            Outcome::FREE => self.free += 1,
+            _ => {}
+        }
+    }
+}
+
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// An MCAP recording (`etp run --record`).

@@ -4,7 +4,6 @@
 
 use anyhow::{Context, Result};
 use etp_runtime::recording::{self, Contents, Recorded};
-use etp_runtime::wire::agent_to_coordinator::Outcome;
 use etp_shared::strategy::Strategy;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
@@ -49,8 +48,8 @@ pub fn summarize(c: &Contents) -> Result<Value> {
             ..SensorSummary::default()
         });
     };
-    let (mut target, mut collision, mut free, mut steps, mut received) =
-        (0u64, 0u64, 0u64, 0u64, 0u64);
+    let mut counts = super::OutcomeCounts::default();
+    let (mut steps, mut received) = (0u64, 0u64);
     let mut episodes = 0u64;
     for m in &c.messages {
         let rec = recording::decode(&m.topic, &m.data)
@@ -73,12 +72,7 @@ pub fn summarize(c: &Contents) -> Result<Value> {
                 episodes += 1;
                 steps += u64::from(o.steps);
                 received += u64::from(o.received);
-                match o.outcome {
-                    Outcome::TARGET => target += 1,
-                    Outcome::COLLISION => collision += 1,
-                    Outcome::FREE => free += 1,
-                    _ => {}
-                }
+                counts.add(&o);
             }
             _ => {}
         }
@@ -136,8 +130,9 @@ pub fn summarize(c: &Contents) -> Result<Value> {
         "messages": c.messages.len(),
         "counts": c.counts(),
         "episodes": episodes,
-        "target": target, "collision": collision, "free": free,
-        "p_target": frac(target), "p_collision": frac(collision), "p_free": frac(free),
+        "target": counts.target, "collision": counts.collision, "free": counts.free,
+        "p_target": frac(counts.target), "p_collision": frac(counts.collision),
+        "p_free": frac(counts.free),
         "steps": steps,
         "energy_mean": if episodes > 0 { json!(energy / episodes as f64) } else { Value::Null },
         "measurements": measurements,
