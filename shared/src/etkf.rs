@@ -10,7 +10,7 @@ use crate::linalg::{
     to_static_vec,
 };
 use crate::scenario::{Plant, Sensor};
-use crate::structured::{Selection, SparseRows};
+use crate::structured::Selection;
 use rand::{Rng, RngExt};
 use rand_distr::StandardNormal;
 
@@ -38,20 +38,16 @@ pub struct LinearPlant<const N: usize> {
     pub g: Matrix<N, N>,
     pub q: Matrix<N, N>,
     q_chol: Matrix<N, N>,
-    /// F's non-zeros: `F P Fᵀ` skips its zeros (same bits, `structured`).
-    f_sparse: SparseRows<N>,
 }
 
 impl<const N: usize> LinearPlant<N> {
     pub fn new(p: &Plant) -> Self {
         let q = to_static::<N, N>(&p.q);
-        let f = to_static(&p.f);
         Self {
-            f,
+            f: to_static(&p.f),
             g: to_static_padded(&p.g),
             q,
             q_chol: cholesky_lower(&q),
-            f_sparse: SparseRows::new(&f),
         }
     }
 
@@ -74,7 +70,7 @@ impl<const N: usize> LinearPlant<N> {
     pub fn predict(&self, post: &Belief<N>, u: &Vector<N>) -> Belief<N> {
         Belief {
             mean: self.f * post.mean + self.g * u,
-            cov: self.f_sparse.sandwich(&post.cov) + self.q,
+            cov: self.f * post.cov * self.f.transpose() + self.q,
         }
     }
 }

@@ -1,88 +1,20 @@
-//! Structure the filter's matrices often have, used to skip the zeros of the
-//! hot loop's products without changing a single bit of their results.
-//!
-//! A double integrator's `F = [[I, τI], [0, I]]` has 9 non-zeros of 36 at
-//! n = 6, and a position-only sensor's `H = [I 0]` only selects entries. The
-//! dense products spend most of the per-step flops multiplying by zero.
+//! A sensor matrix that only selects state entries (a position-only sensor's
+//! `H = [I 0]`, or `H = I`): its products become gathers and scatters, without
+//! changing a single bit of their results.
 //!
 //! **Bit-for-bit:** nalgebra's fixed-size product accumulates every entry
-//! `Σ_k a_ik b_kj` in ascending `k`. The sparse products below add the same
-//! non-zero terms in the same order and leave out terms that are exact zeros
-//! (`0 · b = ±0`, and `s + ±0 = s`), so the results are the dense results —
-//! except that an all-zero sum may come out `+0` where the dense one was `−0`,
-//! which no comparison, probability or decision can see. The unit tests hold
-//! the results equal on random inputs; the golden numbers of the built-in
-//! scenarios (whose `F` and `H` are identities) stay put.
+//! `Σ_k a_ik b_kj` in ascending `k`; with a selection exactly one term is
+//! non-zero and the others are exact zeros (`0 · b = ±0`, `s + ±0 = s`), so
+//! the gather is the dense result — except that an all-zero sum may come out
+//! `+0` where the dense one was `−0`, which no comparison, probability or
+//! decision can see. The unit tests hold the results equal on random inputs;
+//! the golden numbers of the built-in scenarios stay put.
+//!
+//! (A zero-skipping `F P Fᵀ` for a double integrator's sparse F was tried and
+//! removed: scalar loops over the non-zeros were no faster than nalgebra's
+//! vectorised dense product.)
 
 use crate::linalg::{Matrix, Vector};
-
-/// The non-zero entries of an N×N matrix, row by row, in ascending column order.
-#[derive(Debug, Clone, Copy)]
-pub struct SparseRows<const N: usize> {
-    cols: [[usize; N]; N],
-    vals: [[f64; N]; N],
-    len: [usize; N],
-}
-
-impl<const N: usize> SparseRows<N> {
-    pub fn new(a: &Matrix<N, N>) -> Self {
-        let mut s = Self {
-            cols: [[0; N]; N],
-            vals: [[0.0; N]; N],
-            len: [0; N],
-        };
-        for i in 0..N {
-            for j in 0..N {
-                let v = a[(i, j)];
-                if v != 0.0 {
-                    let l = s.len[i];
-                    s.cols[i][l] = j;
-                    s.vals[i][l] = v;
-                    s.len[i] = l + 1;
-                }
-            }
-        }
-        s
-    }
-
-    /// `A B`, entry `(i, j) = Σ_{k ∈ nz(i)} a_ik b_kj`.
-    #[inline]
-    pub fn mul(&self, b: &Matrix<N, N>) -> Matrix<N, N> {
-        let mut out = Matrix::<N, N>::zeros();
-        for i in 0..N {
-            for j in 0..N {
-                let mut acc = 0.0;
-                for t in 0..self.len[i] {
-                    acc += self.vals[i][t] * b[(self.cols[i][t], j)];
-                }
-                out[(i, j)] = acc;
-            }
-        }
-        out
-    }
-
-    /// `B Aᵀ`, entry `(i, j) = Σ_{k ∈ nz(j)} b_ik a_jk`.
-    #[inline]
-    pub fn mul_transposed_right(&self, b: &Matrix<N, N>) -> Matrix<N, N> {
-        let mut out = Matrix::<N, N>::zeros();
-        for j in 0..N {
-            for i in 0..N {
-                let mut acc = 0.0;
-                for t in 0..self.len[j] {
-                    acc += b[(i, self.cols[j][t])] * self.vals[j][t];
-                }
-                out[(i, j)] = acc;
-            }
-        }
-        out
-    }
-
-    /// `A P Aᵀ`, evaluated as `(A P) Aᵀ` like the dense expression.
-    #[inline]
-    pub fn sandwich(&self, p: &Matrix<N, N>) -> Matrix<N, N> {
-        self.mul_transposed_right(&self.mul(p))
-    }
-}
 
 /// An M×N matrix whose every row is a distinct unit coordinate vector `e_cᵀ`:
 /// `H x` picks entries of x (a position-only sensor, or `H = I`).
@@ -171,31 +103,6 @@ mod tests {
         Matrix::<R, C>::from_fn(|_, _| {
             rng.random_range(-3.0..3.0) * 10f64.powi(rng.random_range(-6..3))
         })
-    }
-
-    #[test]
-    fn sparse_sandwich_is_the_dense_product_bit_for_bit() {
-        let mut rng = SimRng::seed_from_u64(7);
-        let tau = 0.1;
-        let mut f = Matrix::<6, 6>::identity();
-        for i in 0..3 {
-            f[(i, i + 3)] = tau;
-        }
-        for _ in 0..2000 {
-            let p = random::<6, 6>(&mut rng);
-            let s = SparseRows::new(&f);
-            assert!(same_bits(&s.sandwich(&p), &(f * p * f.transpose())));
-            // A random pattern with random values, too.
-            let mut a = random::<6, 6>(&mut rng);
-            for v in a.iter_mut() {
-                if rng.random_bool(0.6) {
-                    *v = 0.0;
-                }
-            }
-            let s = SparseRows::new(&a);
-            assert!(same_bits(&s.mul(&p), &(a * p)));
-            assert!(same_bits(&s.mul_transposed_right(&p), &(p * a.transpose())));
-        }
     }
 
     #[test]
