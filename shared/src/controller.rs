@@ -1,12 +1,13 @@
 //! The waypoint controller: docs/MODEL.md §3's default `u = sat(w − x̂, u_max)` and
 //! its general form of §7, `u = sat(K (C⁺w − x̂), u_max)`.
 
+use crate::dense::mul;
 use crate::etkf::{Matrix, Vector};
 use crate::linalg::to_static_padded;
 use crate::scenario::Scenario;
 
 /// Drive the estimate toward the waypoint, saturated to Euclidean norm `u_max`.
-#[inline]
+#[inline(always)]
 pub fn waypoint_input<const N: usize>(
     mean: &Vector<N>,
     waypoint: &Vector<N>,
@@ -16,14 +17,14 @@ pub fn waypoint_input<const N: usize>(
 }
 
 /// Scale `d` to Euclidean norm `u_max` if it is longer.
-#[inline]
+#[inline(always)]
 fn saturate<const N: usize>(d: Vector<N>, u_max: f64) -> Vector<N> {
     let norm = d.norm();
     if norm > u_max { d * (u_max / norm) } else { d }
 }
 
 /// Leg termination on the estimate: `‖x̂ − w‖₂ ≤ eps_x` (pass `C x̂` for §7).
-#[inline]
+#[inline(always)]
 pub fn reached<const N: usize>(mean: &Vector<N>, waypoint: &Vector<N>, eps_x: f64) -> bool {
     (mean - waypoint).norm_squared() <= eps_x * eps_x
 }
@@ -50,11 +51,11 @@ impl<const N: usize> FeedbackController<N> {
     }
 
     /// The input for estimate `mean` and reference `reference` (= C⁺ w).
-    #[inline]
+    #[inline(always)]
     pub fn input(&self, reference: &Vector<N>, mean: &Vector<N>) -> Vector<N> {
         match &self.gain {
             None => waypoint_input(mean, reference, self.u_max),
-            Some(k) => saturate(k * (reference - mean), self.u_max),
+            Some(k) => saturate(mul(k, &(reference - mean)), self.u_max),
         }
     }
 }

@@ -4,6 +4,7 @@
 //! few dozen flops on the stack. Pure: no I/O, no clock; randomness only through
 //! the `Rng` passed in.
 
+use crate::dense::{mul, mul_transpose};
 use crate::gaussian;
 use crate::linalg::{
     cholesky_lower, deterministic_eigen_static, symmetrize, to_static, to_static_padded,
@@ -60,17 +61,17 @@ impl<const N: usize> LinearPlant<N> {
     }
 
     /// One step of the true dynamics.
-    #[inline]
+    #[inline(always)]
     pub fn step<R: Rng + ?Sized>(&self, x: &Vector<N>, u: &Vector<N>, rng: &mut R) -> Vector<N> {
-        self.f * x + self.g * u + self.q_chol * standard_normal::<N, R>(rng)
+        mul(&self.f, x) + mul(&self.g, u) + mul(&self.q_chol, &standard_normal::<N, R>(rng))
     }
 
     /// Prediction: `x̂⁻ = F x̂ + G u`, `P⁻ = F P Fᵀ + Q`.
-    #[inline]
+    #[inline(always)]
     pub fn predict(&self, post: &Belief<N>, u: &Vector<N>) -> Belief<N> {
         Belief {
-            mean: self.f * post.mean + self.g * u,
-            cov: self.f * post.cov * self.f.transpose() + self.q,
+            mean: mul(&self.f, &post.mean) + mul(&self.g, u),
+            cov: mul_transpose(&mul(&self.f, &post.cov), &self.f) + self.q,
         }
     }
 }
@@ -107,31 +108,31 @@ impl<const N: usize, const M: usize> SensorModel<N, M> {
     }
 
     /// A noisy measurement of the true state.
-    #[inline]
+    #[inline(always)]
     pub fn measure<R: Rng + ?Sized>(&self, x: &Vector<N>, rng: &mut R) -> Vector<M> {
-        self.observe(x) + self.r_chol * standard_normal::<M, R>(rng)
+        self.observe(x) + mul(&self.r_chol, &standard_normal::<M, R>(rng))
     }
 
     /// `H x`.
-    #[inline]
+    #[inline(always)]
     pub fn observe(&self, x: &Vector<N>) -> Vector<M> {
         match &self.selection {
             Some(s) => s.pick(x),
-            None => self.h * x,
+            None => mul(&self.h, x),
         }
     }
 
     /// `H P` (M×N).
-    #[inline]
+    #[inline(always)]
     fn h_times(&self, p: &Matrix<N, N>) -> Matrix<M, N> {
         match &self.selection {
             Some(s) => s.rows(p),
-            None => self.h * p,
+            None => mul(&self.h, p),
         }
     }
 
     /// `H P Hᵀ + R` and `P Hᵀ`.
-    #[inline]
+    #[inline(always)]
     fn innovation_cov(&self, p: &Matrix<N, N>) -> (Matrix<M, M>, Matrix<N, M>) {
         match &self.selection {
             Some(s) => {
@@ -139,18 +140,18 @@ impl<const N: usize, const M: usize> SensorModel<N, M> {
                 (s.rows_of_tall(&pht) + self.r, pht)
             }
             None => {
-                let pht = p * self.h.transpose();
-                (self.h * pht + self.r, pht)
+                let pht = mul_transpose(p, &self.h);
+                (mul(&self.h, &pht) + self.r, pht)
             }
         }
     }
 
     /// `K H` (N×N) for a gain K (N×M).
-    #[inline]
+    #[inline(always)]
     fn gain_times_h(&self, k: &Matrix<N, M>) -> Matrix<N, N> {
         match &self.selection {
             Some(s) => s.scatter(k),
-            None => k * self.h,
+            None => mul(k, &self.h),
         }
     }
 }
@@ -180,7 +181,7 @@ impl<const M: usize> Whitener<M> {
     }
 
     /// The whitened innovation ε (identity covariance under the Gaussian assumption).
-    #[inline]
+    #[inline(always)]
     pub fn whiten(&self, z: &Vector<M>) -> Vector<M> {
         match self {
             Self::Diagonal(s) => z.component_mul(s),
@@ -210,7 +211,7 @@ impl<const N: usize, const M: usize> Innovation<N, M> {
     }
 
     /// Whitened innovation of a measurement.
-    #[inline]
+    #[inline(always)]
     pub fn whitened(&self, y: &Vector<M>) -> Vector<M> {
         self.whitener().whiten(&(y - self.predicted))
     }
@@ -223,7 +224,7 @@ impl<const N: usize, const M: usize> Innovation<N, M> {
     /// silent and `d² > M δ²` means transmit, whatever the basis. Only the band
     /// between needs the basis. The margins (1e-9 relative, far above the
     /// rounding of either side) keep every decision the one the basis gives.
-    #[inline]
+    #[inline(always)]
     pub fn triggers(&self, y: &Vector<M>, delta: f64) -> bool {
         let z = y - self.predicted;
         if let (Some(z_inv), false) = (&self.cov_inv, is_diagonal(&self.cov)) {
@@ -276,7 +277,7 @@ impl<const N: usize, const M: usize> EtKalmanFilter<N, M> {
     }
 
     /// Innovation statistics for a prior.
-    #[inline]
+    #[inline(always)]
     pub fn innovation(&self, prior: &Belief<N>) -> Innovation<N, M> {
         let (cov, pht) = self.sensor.innovation_cov(&prior.cov);
         // Z ⪰ R is SPD by validation, so the inverse exists; a zero gain (no
@@ -285,13 +286,13 @@ impl<const N: usize, const M: usize> EtKalmanFilter<N, M> {
         Innovation {
             predicted: self.sensor.observe(&prior.mean),
             cov,
-            gain: pht * cov_inv.unwrap_or_else(Matrix::<M, M>::zeros),
+            gain: mul(&pht, &cov_inv.unwrap_or_else(Matrix::<M, M>::zeros)),
             cov_inv,
         }
     }
 
     /// Explicit update with a received measurement (Joseph form).
-    #[inline]
+    #[inline(always)]
     pub fn update_explicit(
         &self,
         prior: &Belief<N>,
@@ -300,22 +301,23 @@ impl<const N: usize, const M: usize> EtKalmanFilter<N, M> {
     ) -> Belief<N> {
         let k = &inn.gain;
         let ikh = Matrix::<N, N>::identity() - self.sensor.gain_times_h(k);
-        let cov = ikh * prior.cov * ikh.transpose() + k * self.sensor.r * k.transpose();
+        let cov =
+            mul_transpose(&mul(&ikh, &prior.cov), &ikh) + mul_transpose(&mul(k, &self.sensor.r), k);
         Belief {
-            mean: prior.mean + k * (y - inn.predicted),
+            mean: prior.mean + mul(k, &(y - inn.predicted)),
             cov: symmetrize(&cov),
         }
     }
 
     /// Implicit update after a silent slot: `P = P⁻ − β K H P⁻`, mean unchanged.
-    #[inline]
+    #[inline(always)]
     pub fn update_implicit(
         &self,
         prior: &Belief<N>,
         inn: &Innovation<N, M>,
         beta: f64,
     ) -> Belief<N> {
-        let cov = prior.cov - inn.gain * self.sensor.h_times(&prior.cov) * beta;
+        let cov = prior.cov - mul(&inn.gain, &self.sensor.h_times(&prior.cov)) * beta;
         Belief {
             mean: prior.mean,
             cov: symmetrize(&cov),
@@ -323,14 +325,14 @@ impl<const N: usize, const M: usize> EtKalmanFilter<N, M> {
     }
 
     /// Prediction only (no information at all, e.g. a dead sensor).
-    #[inline]
+    #[inline(always)]
     pub fn predict(&self, post: &Belief<N>, u: &Vector<N>) -> Belief<N> {
         self.plant.predict(post, u)
     }
 
     /// One full ET-KF step for a measurement `y` the sensor took: predict,
     /// trigger, update. Returns the posterior and whether `y` was transmitted.
-    #[inline]
+    #[inline(always)]
     pub fn step(
         &self,
         post: &Belief<N>,

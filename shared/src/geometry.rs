@@ -1,6 +1,7 @@
 //! Closed axis-aligned boxes (obstacles and the target) and the workspace map
 //! `q = C x` in which they live (MODEL.md §7).
 
+use crate::dense::mul;
 use crate::linalg::{Matrix, Vector, to_static_padded};
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
@@ -37,14 +38,14 @@ pub struct StaticBox<const N: usize> {
 }
 
 impl<const N: usize> StaticBox<N> {
-    #[inline]
+    #[inline(always)]
     pub fn contains(&self, p: &Vector<N>) -> bool {
         (0..N).all(|i| self.min[i] <= p[i] && p[i] <= self.max[i])
     }
 }
 
 /// Index of the first box containing `p`, if any.
-#[inline]
+#[inline(always)]
 pub fn first_containing<const N: usize>(boxes: &[StaticBox<N>], p: &Vector<N>) -> Option<usize> {
     boxes.iter().position(|b| b.contains(p))
 }
@@ -73,11 +74,11 @@ impl<const N: usize> WorkspaceMap<N> {
     }
 
     /// `C x` (padded to N).
-    #[inline]
+    #[inline(always)]
     pub fn point(&self, x: &Vector<N>) -> Vector<N> {
         match self {
             Self::Identity => *x,
-            Self::Linear(c) => c * x,
+            Self::Linear(c) => mul(c, x),
         }
     }
 }

@@ -22,6 +22,7 @@
 //! the caller passes in, so every result is reproducible from a seed.
 
 pub mod controller;
+pub mod dense;
 pub mod discretization;
 pub mod dispatch;
 pub mod episode;

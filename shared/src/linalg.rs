@@ -226,6 +226,7 @@ pub fn cholesky_lower<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N,
 }
 
 /// Symmetrise in place: `(A + Aᵀ)/2`.
+#[inline(always)]
 pub fn symmetrize<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
     (m + m.transpose()) * 0.5
 }

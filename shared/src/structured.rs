@@ -52,31 +52,31 @@ impl<const M: usize> Selection<M> {
     }
 
     /// `H x`.
-    #[inline]
+    #[inline(always)]
     pub fn pick<const N: usize>(&self, x: &Vector<N>) -> Vector<M> {
         Vector::<M>::from_fn(|r, _| x[self.columns[r]])
     }
 
     /// `H P` (M×N): the selected rows of P.
-    #[inline]
+    #[inline(always)]
     pub fn rows<const N: usize>(&self, p: &Matrix<N, N>) -> Matrix<M, N> {
         Matrix::<M, N>::from_fn(|r, j| p[(self.columns[r], j)])
     }
 
     /// `P Hᵀ` (N×M): the selected columns of P.
-    #[inline]
+    #[inline(always)]
     pub fn columns_of<const N: usize>(&self, p: &Matrix<N, N>) -> Matrix<N, M> {
         Matrix::<N, M>::from_fn(|i, c| p[(i, self.columns[c])])
     }
 
     /// `H A` for an N×M matrix A (M×M): the selected rows.
-    #[inline]
+    #[inline(always)]
     pub fn rows_of_tall<const N: usize>(&self, a: &Matrix<N, M>) -> Matrix<M, M> {
         Matrix::<M, M>::from_fn(|r, c| a[(self.columns[r], c)])
     }
 
     /// `K H` (N×N) for an N×M gain K: K's columns scattered to the selected columns.
-    #[inline]
+    #[inline(always)]
     pub fn scatter<const N: usize>(&self, k: &Matrix<N, M>) -> Matrix<N, N> {
         let mut out = Matrix::<N, N>::zeros();
         for (c, &j) in self.columns.iter().enumerate() {

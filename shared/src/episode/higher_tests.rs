@@ -146,3 +146,42 @@ fn the_reference_is_a_rest_point_and_the_agent_settles_there() {
     assert!((x - c.legs[0].reference).amax() < 1e-6, "{x}");
     assert!(c.input(0, &x).norm() < 1e-6);
 }
+
+/// `run_leg` takes the AVX2 build of the leg loop where the CPU has it; the
+/// portable build must give the same bits (true state, belief, counts) on
+/// every built-in scenario, at δ = 0 and at a large δ.
+#[test]
+fn the_avx2_leg_loop_is_the_portable_one_bit_for_bit() {
+    for name in crate::scenario::BUILTIN_NAMES {
+        let s = Scenario::builtin(name).expect("built-in");
+        crate::with_dim!(s.dim, N => {
+            let c = CompiledScenario::<N>::new(&s);
+            for delta in [0.0, 2.2365] {
+                let mode = LegMode::EventTriggered(Threshold::new(delta));
+                for e in 0..40u64 {
+                    let mut rng_a = stream_rng(3, streams::SIMULATE, e);
+                    let mut a = c.initial_state(&mut rng_a);
+                    let mut rng_b = rng_a.clone();
+                    let mut b = a;
+                    for leg in 0..c.legs.len() {
+                        let ra = c.run_leg(leg, &mut a, &mode, &mut rng_a, &mut ());
+                        let sensor = c.legs[leg].sensor;
+                        let rb = on_filter!(&c.filters[sensor], f => c.run_leg_with(f, leg, &mut b, &mode, &mut rng_b, &mut ()));
+                        assert_eq!(ra, rb, "{name} δ = {delta} episode {e} leg {leg}");
+                        let bits = |st: &AgentState<N>| {
+                            st.x.iter()
+                                .chain(st.belief.mean.iter())
+                                .chain(st.belief.cov.iter())
+                                .map(|v| v.to_bits())
+                                .collect::<Vec<u64>>()
+                        };
+                        assert_eq!(bits(&a), bits(&b), "{name} δ = {delta} episode {e} leg {leg}");
+                        if matches!(ra.end, LegEnd::Collision { .. }) {
+                            break;
+                        }
+                    }
+                }
+            }
+        });
+    }
+}

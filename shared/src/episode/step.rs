@@ -37,7 +37,7 @@ pub enum SlotOutcome<'a> {
 impl<const N: usize> CompiledScenario<N> {
     /// Steps 2–3: move the true state; `Some(obstacle)` if it collided (the
     /// episode ends before any measurement).
-    #[inline]
+    #[inline(always)]
     pub fn move_plant<R: Rng + ?Sized>(
         &self,
         x: &mut Vector<N>,
@@ -49,13 +49,13 @@ impl<const N: usize> CompiledScenario<N> {
     }
 
     /// The slot's prior `x̂⁻ = F x̂ + G u`, `P⁻ = F P Fᵀ + Q`.
-    #[inline]
+    #[inline(always)]
     pub fn prior(&self, posterior: &Belief<N>, u: &Vector<N>) -> Belief<N> {
         self.plant.predict(posterior, u)
     }
 
     /// Step 4, the estimator's side: the posterior after leg `leg`'s slot.
-    #[inline]
+    #[inline(always)]
     pub fn close_slot(
         &self,
         leg: usize,
@@ -72,13 +72,13 @@ impl<const N: usize> CompiledScenario<N> {
     }
 
     /// Step 5: the leg ends when `‖x̂ − w_i‖ ≤ ε_x` or after `k_max` steps.
-    #[inline]
+    #[inline(always)]
     pub fn leg_ends(&self, leg: usize, posterior: &Belief<N>, steps_in_leg: u32) -> bool {
         self.near_waypoint(leg, &posterior.mean, self.eps_x) || steps_in_leg >= self.k_max
     }
 
     /// After the last leg: target if the true state is in the target box.
-    #[inline]
+    #[inline(always)]
     pub fn classify_end(&self, x: &Vector<N>) -> Outcome {
         if self.in_target(x) {
             Outcome::Target
