@@ -20,7 +20,7 @@ use serde::{Deserialize, Serialize};
 /// 4: per choice the energy's second moment and range (certified bounds) and
 /// the held-out sample set (cross-fitting), docs/MODEL.md §4.1;
 /// 5: the workspace descriptor's lookahead and range rule in the build settings).
-pub const MDP_FORMAT_VERSION: u32 = 5;
+pub const MDP_FORMAT_VERSION: u32 = 6;
 const MAGIC: &[u8; 8] = b"ETPMDP\0\n";
 /// Magic and version.
 const HEADER_LEN: usize = 12;
@@ -161,6 +161,9 @@ impl Choice {
 pub struct State {
     pub decision_point: u32,
     pub region: Region,
+    /// Further regions lumped into this state (`etp synthesize --merge`,
+    /// [`crate::abstraction::merge_equivalent`]); empty unless merged.
+    pub merged: Vec<Region>,
     /// Available actions (at least one).
     pub choices: Vec<Choice>,
 }
@@ -185,6 +188,9 @@ pub struct BuildSettings {
     pub lookahead: u32,
     /// The workspace descriptor's magnitude range: 0 propagation, 1 arrivals.
     pub range: u8,
+    /// Level α at which statistically equivalent states were lumped
+    /// (`--merge`); 0: not merged.
+    pub merge_alpha: f64,
 }
 
 /// The abstraction.
@@ -436,6 +442,7 @@ pub(crate) mod tests {
                 State {
                     decision_point: 0,
                     region: Region(vec![(0, 0)]),
+                    merged: Vec::new(),
                     choices: vec![
                         choice(
                             0,
@@ -452,6 +459,7 @@ pub(crate) mod tests {
                 State {
                     decision_point: 1,
                     region: Region(vec![(0, 0)]),
+                    merged: Vec::new(),
                     choices: vec![
                         choice(0, 10.0, vec![t(Next::Target, 0.95), t(Next::Free, 0.05)]),
                         choice(1, 2.0, vec![t(Next::Target, 0.6), t(Next::Collision, 0.4)]),
@@ -460,6 +468,7 @@ pub(crate) mod tests {
                 State {
                     decision_point: 1,
                     region: Region(vec![(5, 0)]),
+                    merged: Vec::new(),
                     choices: vec![
                         choice(0, 12.0, vec![t(Next::Target, 0.9), t(Next::Free, 0.1)]),
                         choice(1, 2.0, vec![t(Next::Target, 0.5), t(Next::Collision, 0.5)]),

@@ -154,6 +154,7 @@ pub fn layered_mdp(p: &SyntheticParams) -> Mdp {
             states.push(State {
                 decision_point: layer as u32,
                 region: Region(vec![(i as u16, 0)]),
+                merged: Vec::new(),
                 choices,
             });
         }

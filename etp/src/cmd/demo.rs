@@ -103,6 +103,7 @@ pub fn run(a: Args) -> Result<()> {
         force: false,
         json: a.json,
         no_kf_baseline: true,
+        merge: None,
     };
     let built = synthesize::build_mdp(&sargs)?;
     let front = write_front(&built.dir, &built.mdp, None, &text, false)?;

@@ -125,6 +125,12 @@ pub struct Args {
     /// Skip the Method 1 (KF convergence) baseline front next to Method 2's.
     #[arg(long)]
     pub no_kf_baseline: bool,
+    /// Lump the states of each decision point that the samples cannot tell
+    /// apart at level ALPHA: for every action a χ² test of their outcomes
+    /// (successors by lump) and a z-test of their mean energies (docs/MODEL.md
+    /// §7.3). A smaller ALPHA lumps more. Off by default.
+    #[arg(long, value_name = "ALPHA")]
+    pub merge: Option<f64>,
 }
 
 /// What [`build_mdp`] did, for the summary.
@@ -138,6 +144,8 @@ pub struct MdpReport {
     pub seed: u64,
     pub states: usize,
     pub states_per_decision_point: Vec<usize>,
+    /// `--merge`: the level and the states per decision point before lumping.
+    pub merge: Option<MergeSummary>,
     /// Sampled segments per state over its actions (`samples` × actions
     /// unless sample allocation added some): smallest and largest.
     pub samples_per_state: [u64; 2],
@@ -152,6 +160,14 @@ pub struct MdpReport {
     pub seconds: f64,
     pub segment_steps_per_second: f64,
     pub threads: usize,
+}
+
+/// What `--merge` did.
+#[derive(Debug, Clone, Serialize)]
+pub struct MergeSummary {
+    pub alpha: f64,
+    pub states_before: usize,
+    pub states_per_decision_point_before: Vec<usize>,
 }
 
 /// The result of the MDP step of `synthesize`.
@@ -221,14 +237,34 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
         .unwrap_or_else(|| Path::new("out").join(&s.name));
     let path = dir.join(MDP_FILE);
     crate::output::refuse_existing(&path, a.force)?;
+    if let Some(alpha) = a.merge
+        && !(alpha > 0.0 && alpha < 1.0)
+    {
+        bail!("--merge: the level α must lie in (0, 1) (got {alpha})");
+    }
     let p = params(a, &s)?;
     let pb = progress::bar(abstraction::progress_total(&s, &p), "synthesize", a.json);
     let started = Instant::now();
     let mdp = abstraction::build(&s, &p, &|k| pb.inc(k)).context("building the abstraction")?;
-    let seconds = started.elapsed().as_secs_f64();
     pb.finish_and_clear();
     mdp.check()
         .context("the built MDP failed its own consistency check (a bug)")?;
+    let (mdp, merge) = match a.merge {
+        None => (mdp, None),
+        Some(alpha) => {
+            let (merged, r) = abstraction::merge_equivalent(&mdp, alpha).context("--merge")?;
+            merged
+                .check()
+                .context("the merged MDP failed its own consistency check (a bug)")?;
+            let summary = MergeSummary {
+                alpha,
+                states_before: mdp.states.len(),
+                states_per_decision_point_before: r.before,
+            };
+            (merged, Some(summary))
+        }
+    };
+    let seconds = started.elapsed().as_secs_f64();
     // Checked above; `force` here only covers a file that appeared meanwhile.
     write_new(&path, &mdp.encode(), a.force)?;
     let arrivals = arrivals_summary(&mdp);
@@ -241,6 +277,7 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
         seed: mdp.seed,
         states: mdp.states.len(),
         states_per_decision_point: mdp.states_per_decision_point(),
+        merge,
         samples_per_state: samples_per_state(&mdp),
         arrivals_per_state: arrivals.0,
         states_under_100_arrivals: arrivals.1,
@@ -291,10 +328,17 @@ fn arrivals_summary(mdp: &Mdp) -> ([u64; 3], usize) {
 
 /// A readable summary of the MDP step.
 pub fn report_text(r: &MdpReport) -> String {
+    let merge = match &r.merge {
+        Some(m) => format!(
+            "  lumped at α = {}: {} states → {} ({:?} per decision point before)\n",
+            m.alpha, m.states_before, r.states, m.states_per_decision_point_before
+        ),
+        None => String::new(),
+    };
     format!(
         "{} · {} · {} samples per state-action (+{} held out) · seed {}\n\
          \x20 wrote {}\n\
-         \x20 states {} (+3 terminal) per decision point {:?}\n\
+         \x20 states {} (+3 terminal) per decision point {:?}\n{}\
          \x20 samples per state {}–{} · arrivals per state min {} · median {} · max {} · {} states under 100\n\
          \x20 choices {} · transitions {}\n\
          \x20 segments {} · segment-steps {} · {:.2} s · {:.2} M steps/s on {} threads\n",
@@ -306,6 +350,7 @@ pub fn report_text(r: &MdpReport) -> String {
         r.path.display(),
         r.states,
         r.states_per_decision_point,
+        merge,
         r.samples_per_state[0],
         r.samples_per_state[1],
         r.arrivals_per_state[0],

@@ -91,3 +91,66 @@ fn bad_arguments_fail_cleanly() {
     let unknown = etp(&["synthesize", "no-such-scenario", "-o", s(&dir)], "1");
     assert!(!unknown.status.success());
 }
+
+#[test]
+fn merge_lumps_states_and_the_strategy_keeps_every_region() {
+    let dir = fresh_dir("m");
+    let out = etp(
+        &[
+            "synthesize",
+            "open-2d",
+            "--samples",
+            "100",
+            "--holdout-samples",
+            "0",
+            "--merge",
+            "0.05",
+            "--json",
+            "-o",
+            s(&dir),
+        ],
+        "2",
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let before = v["mdp"]["merge"]["states_before"]
+        .as_u64()
+        .expect("states_before");
+    let after = v["mdp"]["states"].as_u64().expect("states");
+    assert!(after < before, "{after} states after lumping {before}");
+    // Every region of the unlumped MDP is still in the strategy, with its lump's ω.
+    let st = etp(&["strategy", s(&dir), "--vertex", "0", "--json"], "2");
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let text = std::fs::read_to_string(dir.join("strategy.json")).expect("strategy.json");
+    let strategy: serde_json::Value = serde_json::from_str(&text).expect("strategy json");
+    let rows = strategy["states"].as_array().expect("states").len() as u64;
+    assert_eq!(rows, before);
+    // A level outside (0, 1) is refused, naming the flag, writing nothing.
+    let bad_dir = fresh_dir("m-bad");
+    let bad = etp(
+        &[
+            "synthesize",
+            "open-2d",
+            "--samples",
+            "20",
+            "--merge",
+            "1.5",
+            "-o",
+            s(&bad_dir),
+        ],
+        "1",
+    );
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("--merge") && err.contains("(0, 1)"), "{err}");
+    assert!(!bad_dir.join("mdp.bin").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -515,6 +515,7 @@ pub(super) fn build<const N: usize>(
             states.push(State {
                 decision_point: dp as u32,
                 region: ls.region.clone(),
+                merged: Vec::new(),
                 choices,
             });
         }
@@ -575,6 +576,7 @@ pub(super) fn build<const N: usize>(
                 RangeRule::Propagation => 0,
                 RangeRule::Arrivals => 1,
             },
+            merge_alpha: 0.0,
         },
         seed: params.seed,
         total_segments,

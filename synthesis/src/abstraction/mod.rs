@@ -24,10 +24,12 @@
 
 mod bounds;
 mod layers;
+mod merge;
 mod pool;
 mod tally;
 
 pub use bounds::{MagnitudeRange, magnitude_range, workspace_ranges};
+pub use merge::{MergeError, MergeReport, merge_equivalent};
 
 use crate::mdp::{KfConvergenceParams, Mdp, Method};
 use etp_shared::discretization::BinCounts;

@@ -221,11 +221,12 @@ pub fn to_strategy(
     label: String,
     predicted: Objectives,
 ) -> Strategy {
+    // A lumped state (`--merge`) is one row per region, all with its ω.
     let states = mdp
         .states
         .iter()
         .zip(policy)
-        .map(|(s, w)| {
+        .flat_map(|(s, w)| {
             let mut omega = vec![0.0; mdp.deltas.len()];
             for (c, p) in s.choices.iter().zip(w) {
                 omega[c.action as usize] += p;
@@ -234,11 +235,13 @@ pub fn to_strategy(
             if sum > 0.0 {
                 omega.iter_mut().for_each(|p| *p /= sum);
             }
-            StrategyState {
-                decision_point: s.decision_point as usize,
-                region: s.region.clone(),
-                omega,
-            }
+            std::iter::once(&s.region)
+                .chain(&s.merged)
+                .map(move |region| StrategyState {
+                    decision_point: s.decision_point as usize,
+                    region: region.clone(),
+                    omega: omega.clone(),
+                })
         })
         .collect();
     Strategy {

@@ -75,6 +75,12 @@ pub fn run(
     let mut refined: Option<Refined> = None;
     let mut work = mdp.clone();
     if let Some(g) = refine_gap {
+        if mdp.build.merge_alpha > 0.0 {
+            bail!(
+                "--refine-gap needs an MDP built without --merge (its extra samples are \
+                 allocated per state of the unmerged build)"
+            );
+        }
         let refined_path = a.dir.join("mdp-refined.bin");
         refuse_existing(&refined_path, a.force)?;
         let text = scenario_text
