@@ -20,25 +20,8 @@ pub fn mul<const R: usize, const K: usize, const C: usize>(
     a: &Matrix<R, K>,
     b: &Matrix<K, C>,
 ) -> Matrix<R, C> {
-    let a = &a.data.0;
     let b = &b.data.0;
-    let mut out = [[0.0f64; R]; C];
-    if K == 0 {
-        return Matrix::<R, C>::from_data(nalgebra::ArrayStorage(out));
-    }
-    for j in 0..C {
-        let bj = b[j];
-        let col = &mut out[j];
-        for i in 0..R {
-            col[i] = a[0][i] * bj[0];
-        }
-        for k in 1..K {
-            for i in 0..R {
-                col[i] += a[k][i] * bj[k];
-            }
-        }
-    }
-    Matrix::<R, C>::from_data(nalgebra::ArrayStorage(out))
+    accumulate(a, |k, j| b[j][k])
 }
 
 /// `A Bᵀ` (R×K times (C×K)ᵀ), exactly as nalgebra's `a * b.transpose()`
@@ -48,21 +31,30 @@ pub fn mul_transpose<const R: usize, const K: usize, const C: usize>(
     a: &Matrix<R, K>,
     b: &Matrix<C, K>,
 ) -> Matrix<R, C> {
-    let a = &a.data.0;
     let b = &b.data.0;
+    accumulate(a, |k, j| b[k][j])
+}
+
+/// `Σ_k a_ik b(k, j)` for every (i, j), in nalgebra's order: `a_i0 b(0, j)`,
+/// then `a_ik b(k, j) + acc` for k = 1, 2, ….
+#[inline(always)]
+fn accumulate<const R: usize, const K: usize, const C: usize>(
+    a: &Matrix<R, K>,
+    b: impl Fn(usize, usize) -> f64,
+) -> Matrix<R, C> {
+    let a = &a.data.0;
     let mut out = [[0.0f64; R]; C];
-    if K == 0 {
-        return Matrix::<R, C>::from_data(nalgebra::ArrayStorage(out));
-    }
-    for j in 0..C {
-        let col = &mut out[j];
-        for i in 0..R {
-            col[i] = a[0][i] * b[0][j];
-        }
-        for k in 1..K {
-            let bjk = b[k][j];
-            for i in 0..R {
-                col[i] += a[k][i] * bjk;
+    if let Some(a0) = a.first() {
+        for (j, col) in out.iter_mut().enumerate() {
+            let b0 = b(0, j);
+            for (c, &x) in col.iter_mut().zip(a0) {
+                *c = x * b0;
+            }
+            for (k, ak) in a.iter().enumerate().skip(1) {
+                let bk = b(k, j);
+                for (c, &x) in col.iter_mut().zip(ak) {
+                    *c += x * bk;
+                }
             }
         }
     }

@@ -22,9 +22,9 @@
 //! lump away from its first member. Pure and deterministic: states are
 //! visited in index order and join the first lump that accepts them.
 
-use crate::mdp::{Choice, Holdout, Mdp, Next, State, Transition};
+use super::tally::transitions_of;
+use crate::mdp::{Choice, Holdout, Mdp, Next, State};
 use etp_shared::gaussian;
-use etp_shared::stats::wilson_interval;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 use std::collections::BTreeMap;
 
@@ -306,20 +306,7 @@ fn lumped_choice(cs: &[&Choice], final_of: &[u32]) -> Choice {
             *counts.entry(rename(t.next, final_of)).or_insert(0) += t.count;
         }
     }
-    let matched = f64::from((samples - unmatched.min(samples)).max(1));
-    let transitions = counts
-        .into_iter()
-        .map(|(next, count)| {
-            let (ci_low, ci_high) = wilson_interval(u64::from(count), u64::from(samples));
-            Transition {
-                next,
-                count,
-                probability: f64::from(count) / matched,
-                ci_low,
-                ci_high,
-            }
-        })
-        .collect();
+    let transitions = transitions_of(counts, samples, unmatched);
     let holdout = cs
         .iter()
         .map(|c| c.holdout.as_ref())

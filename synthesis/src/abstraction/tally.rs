@@ -95,22 +95,7 @@ impl ChoiceTally {
     /// second moments, and `cost_range` = `k_max · c_m`.
     pub fn into_choice(self, action: u16, cost: f64, cost_range: f64) -> Choice {
         let n = f64::from(self.samples.max(1));
-        // Probabilities over the segments that reached a state or terminal.
-        let matched = f64::from((self.samples - self.unmatched.min(self.samples)).max(1));
-        let transitions = self
-            .counts
-            .into_iter()
-            .map(|(next, count)| {
-                let (ci_low, ci_high) = wilson_interval(u64::from(count), u64::from(self.samples));
-                Transition {
-                    next,
-                    count,
-                    probability: f64::from(count) / matched,
-                    ci_low,
-                    ci_high,
-                }
-            })
-            .collect();
+        let transitions = transitions_of(self.counts, self.samples, self.unmatched);
         Choice {
             action,
             samples: self.samples,
@@ -125,4 +110,28 @@ impl ChoiceTally {
             unmatched: self.unmatched,
         }
     }
+}
+
+/// Transitions from segment counts: probabilities over the segments that
+/// reached a state or terminal (`samples − unmatched`), Wilson 95 % intervals
+/// over all `samples`.
+pub(super) fn transitions_of(
+    counts: BTreeMap<Next, u32>,
+    samples: u32,
+    unmatched: u32,
+) -> Vec<Transition> {
+    let matched = f64::from((samples - unmatched.min(samples)).max(1));
+    counts
+        .into_iter()
+        .map(|(next, count)| {
+            let (ci_low, ci_high) = wilson_interval(u64::from(count), u64::from(samples));
+            Transition {
+                next,
+                count,
+                probability: f64::from(count) / matched,
+                ci_low,
+                ci_high,
+            }
+        })
+        .collect()
 }
