@@ -99,16 +99,7 @@ impl<const N: usize> Agent<N> {
         let outcome = ports.publisher::<Outcome>(ServiceId::Outcome)?;
         let coordinator_wake = ports.notifier(ServiceId::CoordinatorWake)?;
         let mut stamp = Stamper::new(run, SENDER_AGENT);
-        let hello = wire::say_hello(
-            &ports,
-            &coordinator_wake,
-            Hello {
-                header: stamp.header(0, 0, 0),
-                pid: std::process::id(),
-                _pad: 0,
-            },
-            wire::HELLO_TIMEOUT,
-        )?;
+        let hello = wire::say_hello(&ports, &coordinator_wake, &mut stamp)?;
         Ok(Self {
             c: CompiledScenario::<N>::new(scenario),
             stamp,

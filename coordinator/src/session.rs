@@ -1,11 +1,11 @@
 //! The coordinator's ports, episode loop and bookkeeping.
 
 use crate::CoordinatorError;
+use etp_runtime::report::{EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals};
 use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_coordinator::{Outcome, Waypoint};
 use etp_runtime::wire::coordinator_to_agent::Control;
 use etp_runtime::wire::coordinator_to_all::Threshold;
-use etp_runtime::wire::report::{EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals};
 use etp_runtime::wire::sensor_to_coordinator::Ledger;
 use etp_runtime::wire::to_coordinator::Hello;
 use etp_runtime::wire::{

@@ -61,5 +61,5 @@ pub fn run(cli: cli::Cli) -> ExitCode {
 
 fn init_tracing() {
     // A second init (tests calling run twice) is harmless.
-    etp_runtime::wire::init_process_logging("etp");
+    etp_runtime::shell::init_logging("etp");
 }

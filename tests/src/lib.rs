@@ -14,7 +14,8 @@
 //! * [`processes_of_run`] — the live processes whose command line names a run.
 //! * [`unique_run_id`] — a run id per test.
 
-use etp_runtime::wire::{RunId, cleanup};
+use etp_runtime::cleanup;
+use etp_runtime::wire::RunId;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 
@@ -127,7 +128,7 @@ impl Drop for EtpRun {
         // Whatever was left in /dev/shm and the root folder by killed nodes.
         // (iceoryx2 warns about its global config while cleaning a dead
         // node whose details are gone: noise, as in every etp process.)
-        etp_runtime::wire::quiet_iceoryx2();
+        etp_runtime::shell::quiet_iceoryx2();
         if let Ok(run) = RunId::new(&self.run_id) {
             for _ in 0..50 {
                 if processes_of_run(&self.run_id).is_empty() {

@@ -10,7 +10,8 @@
 //! `agent`, flags as booleans). The first column is `log_time_ns`.
 
 use super::{Kind, Recorded};
-use crate::wire::catalogue::{Field, HEADER_NAMES, Named, Scalar};
+use crate::wire::catalogue::{HEADER_NAMES, Named};
+use crate::wire::schema::{Field, Scalar};
 use crate::wire::{
     ControlKind, MAX_DIM, OutcomeCode, SENDER_AGENT, SENDER_COORDINATOR, ThresholdKind,
 };

@@ -369,7 +369,7 @@ fn a_recorder_never_opens_an_existing_file_and_survives_a_closed_stdout() {
     let _ = std::fs::remove_file(&file);
     for id in [&a, &b] {
         if let Ok(run) = etp_runtime::wire::RunId::new(id) {
-            etp_runtime::wire::cleanup::remove_run(&run);
+            etp_runtime::cleanup::remove_run(&run);
         }
     }
 }

@@ -26,7 +26,8 @@ pub mod sensor_host;
 mod supervise;
 
 use anyhow::{Context, Result, bail};
-use etp_runtime::wire::{RunId, cleanup};
+use etp_runtime::cleanup;
+use etp_runtime::wire::RunId;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -129,7 +130,7 @@ pub struct Args {
 /// is excused only for a sensor the run found dead (its episodes are then
 /// degraded), never for a live one.
 pub fn verdict(
-    report: &etp_runtime::wire::report::RunReport,
+    report: &etp_runtime::report::RunReport,
     recording_ok: bool,
     allow_degraded: bool,
 ) -> Vec<(u8, String)> {
@@ -384,9 +385,7 @@ pub fn run(a: Args) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use etp_runtime::wire::report::{
-        EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals,
-    };
+    use etp_runtime::report::{EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals};
     use etp_shared::strategy::Prediction;
 
     fn leg(sensor: u32, received: u32, transmitted: Option<u32>) -> LegRecord {
