@@ -14,40 +14,15 @@
 //! only `--repair` reads (salvaging the records before the damage). Output
 //! goes through [`emit`]: a closed stdout never panics.
 
-mod export;
-mod figure;
-mod foxglove;
-mod info;
-mod publish;
-mod repair;
-mod select;
-mod summary;
 
 use anyhow::{Context, Result, bail};
+use etp_recording_tools::{
+    check_output, export, figure, foxglove, info, load_bytes, publish, repair, select, summary,
+};
 use etp_runtime::recording::{self, Contents};
 use etp_runtime::wire::RunId;
 use serde_json::json;
 use std::path::{Path, PathBuf};
-
-/// Episodes by recorded outcome (summary and figure count the same way).
-#[derive(Debug, Default, Clone, Copy)]
-struct OutcomeCounts {
-    target: u64,
-    collision: u64,
-    free: u64,
-}
-
-impl OutcomeCounts {
-    fn add(&mut self, outcome: &etp_runtime::wire::agent_to_coordinator::Outcome) {
-        use etp_runtime::wire::agent_to_coordinator::Outcome;
-        match outcome.outcome {
-            Outcome::TARGET => self.target += 1,
-            Outcome::COLLISION => self.collision += 1,
-            Outcome::FREE => self.free += 1,
-            _ => {}
-        }
-    }
-}
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -135,59 +110,6 @@ impl Args {
             end: self.end,
         }
     }
-}
-
-/// The MCAP writer of `etp replay`'s copies (zstd, 1 MiB chunks), with the
-/// source's metadata records already written.
-fn copy_writer(
-    c: &Contents,
-    path: &Path,
-    profile: &str,
-    what: &str,
-) -> Result<mcap::Writer<std::io::BufWriter<std::fs::File>>> {
-    let file =
-        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-    let mut w = mcap::WriteOptions::new()
-        .compression(Some(mcap::Compression::Zstd))
-        .chunk_size(Some(1024 * 1024))
-        .profile(profile)
-        .library(format!("etp replay {what} {}", env!("CARGO_PKG_VERSION")))
-        .create(std::io::BufWriter::new(file))
-        .context("starting the MCAP writer")?;
-    for (name, metadata) in &c.metadata {
-        w.write_metadata(&mcap::records::Metadata {
-            name: name.clone(),
-            metadata: metadata.clone(),
-        })?;
-    }
-    Ok(w)
-}
-
-/// Read a recording (finished or not).
-pub fn load(path: &Path) -> Result<Contents> {
-    Ok(load_bytes(path)?.0)
-}
-
-/// Read a recording and the file's bytes.
-fn load_bytes(path: &Path) -> Result<(Contents, Vec<u8>)> {
-    let buf = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    let c = recording::read_lenient(&path.display().to_string(), &buf)?;
-    Ok((c, buf))
-}
-
-/// Refuse an output path that exists (unless `--force`) or is the input.
-fn check_output(input: &Path, out: &Path, force: bool) -> Result<()> {
-    if out == input
-        || std::fs::canonicalize(out)
-            .ok()
-            .is_some_and(|o| std::fs::canonicalize(input).ok() == Some(o))
-    {
-        bail!(
-            "{} is the recording being read: choose another output",
-            out.display()
-        );
-    }
-    crate::output::refuse_existing(out, force)
 }
 
 /// Exit code of `etp replay` on an unfinished recording (summary printed).
@@ -288,7 +210,7 @@ pub fn run(a: Args) -> Result<()> {
             ));
             let png = stem.with_extension("png");
             for p in [&png, &stem.with_extension("svg")] {
-                crate::output::refuse_existing(p, a.force)?;
+                etp_recording_tools::files::refuse_existing(p, a.force)?;
             }
             let names = export::names(&c).0.sensors;
             crate::report_plot::report_plot(&figure::figure(&c, &names)?, &stem)?;

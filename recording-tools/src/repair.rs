@@ -7,11 +7,11 @@ use std::collections::BTreeMap;
 
 /// Write a finished copy of a (possibly unfinished) recording.
 pub fn repair(c: &Contents, out: &std::path::Path) -> Result<u64> {
-    crate::output::write_via_temp(out, |tmp| write_copy(c, tmp))
+    crate::files::write_via_temp(out, |tmp| write_copy(c, tmp))
 }
 
 fn write_copy(c: &Contents, tmp: &std::path::Path) -> Result<u64> {
-    let mut w = super::copy_writer(c, tmp, recording::PROFILE, "--repair")?;
+    let mut w = crate::copy_writer(c, tmp, recording::PROFILE, "--repair")?;
     let mut ids: BTreeMap<&str, u16> = BTreeMap::new();
     for topic in c.channels.keys() {
         let Some(kind) = recording::kind_of_topic(topic) else {

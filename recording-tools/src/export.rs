@@ -114,7 +114,7 @@ pub fn export(
         .collect();
     let manifest = dir.join("tables.json");
     for p in files.values().chain([&manifest]) {
-        crate::output::refuse_existing(p, force)?;
+        crate::files::refuse_existing(p, force)?;
     }
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut writers: BTreeMap<&str, (std::io::BufWriter<std::fs::File>, PathBuf, u64)> =
@@ -179,7 +179,7 @@ pub fn export(
         "codes": codes(),
         "tables": described,
     }))?;
-    crate::output::write_new(&manifest, format!("{text}\n").as_bytes(), force)?;
+    crate::files::write_new(&manifest, format!("{text}\n").as_bytes(), force)?;
     Ok(Exported {
         dir: dir.display().to_string(),
         format: format.ext(),

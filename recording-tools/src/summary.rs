@@ -48,7 +48,7 @@ pub fn summarize(c: &Contents) -> Result<Value> {
             ..SensorSummary::default()
         });
     };
-    let mut counts = super::OutcomeCounts::default();
+    let mut counts = crate::OutcomeCounts::default();
     let (mut steps, mut received) = (0u64, 0u64);
     let mut episodes = 0u64;
     for m in &c.messages {
