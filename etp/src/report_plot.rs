@@ -1,31 +1,29 @@
-//! The figure of `etp run --plot` and `etp replay --plot`: measured against
+//! The figure of `etp run --plot` and `etp replay plot`: measured against
 //! predicted, per sensor (energy per episode) and per outcome (P_tar,
 //! P_coll, P_free), measured values with their 95 % intervals (PNG + SVG).
 
-use anyhow::{Context, Result, anyhow};
+use anyhow::{Result, anyhow};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
 
-pub use etp_recording_tools::figure::{Bar, RunFigure, mean_ci, proportion, short_label};
 use etp_recording_tools::figure::short_to;
+pub use etp_recording_tools::figure::{Bar, RunFigure, mean_ci, proportion, short_label};
 
 /// Write `stem.png` and `stem.svg`.
 pub fn report_plot(fig: &RunFigure, stem: &Path) -> Result<()> {
-    crate::plot::register_font();
-    let png = stem.with_extension("png");
-    let svg = stem.with_extension("svg");
+    crate::plot::png_and_svg(&ReportFigure(fig), stem, (1200, 560))
+}
+
+struct ReportFigure<'a>(&'a RunFigure);
+
+impl crate::plot::Figure for ReportFigure<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
     {
-        let root = BitMapBackend::new(&png, (1200, 560)).into_drawing_area();
-        draw(&root, fig)?;
-        root.present()
-            .with_context(|| format!("writing {}", png.display()))?;
+        draw(root, self.0)
     }
-    let root = SVGBackend::new(&svg, (1200, 560)).into_drawing_area();
-    draw(&root, fig)?;
-    root.present()
-        .with_context(|| format!("writing {}", svg.display()))?;
-    Ok(())
 }
 
 fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, fig: &RunFigure) -> Result<()>

@@ -20,9 +20,10 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Table file format.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Default)]
 pub enum Format {
     /// Comma-separated values with a header row (RFC 4180; empty cell = null).
+    #[default]
     Csv,
     /// JSON Lines: one object per row, keys in column order.
     Jsonl,
@@ -55,9 +56,37 @@ pub fn table_file(topic: &str, format: Format) -> String {
     format!("{}.{}", topic.replace('/', "-"), format.ext())
 }
 
+/// Is `topic` one of etp's channels in etp's encoding (decoded into typed
+/// rows), rather than a channel of another MCAP writer?
+pub fn is_etp_channel(c: &Contents, topic: &str) -> bool {
+    recording::kind_of_topic(topic).is_some()
+        && c.encodings
+            .get(topic)
+            .is_none_or(|e| e == recording::MESSAGE_ENCODING)
+}
+
+/// A message of a channel etp did not write, as `cat` shows it: `json`
+/// payloads decoded (`message`), any other encoding named with its size.
+fn foreign_line(c: &Contents, m: &recording::RawMessage) -> Value {
+    let encoding = c.encodings.get(&m.topic).map_or("", String::as_str);
+    let decoded = (encoding == "json")
+        .then(|| serde_json::from_slice::<Value>(&m.data).ok())
+        .flatten();
+    match decoded {
+        Some(v) => json!({"topic": m.topic, "log_time_ns": m.log_time, "message": v}),
+        None => json!({
+            "topic": m.topic,
+            "log_time_ns": m.log_time,
+            "message_encoding": encoding,
+            "schema": c.channels.get(&m.topic),
+            "bytes": m.data.len(),
+        }),
+    }
+}
+
 fn tables(c: &Contents, dim: Option<usize>) -> Result<BTreeMap<String, Table>> {
     let mut out = BTreeMap::new();
-    for topic in c.channels.keys() {
+    for topic in c.channels.keys().filter(|t| is_etp_channel(c, t)) {
         let kind: Kind = recording::kind_of_topic(topic)
             .with_context(|| format!("unknown channel `{topic}` in the recording"))?;
         let t = Table::of(kind, dim)
@@ -134,6 +163,10 @@ pub fn export(
             let (Some(t), Some((w, tmp, n))) =
                 (tables.get(&m.topic), writers.get_mut(m.topic.as_str()))
             else {
+                // A channel etp did not write has no typed table (`cat` shows it).
+                if c.channels.contains_key(&m.topic) {
+                    continue;
+                }
                 bail!("message on undeclared channel `{}`", m.topic);
             };
             let rec = recording::decode(&m.topic, &m.data)
@@ -212,7 +245,12 @@ pub fn cat(c: &Contents, out: &mut impl Write) -> Result<u64> {
     let mut n = 0u64;
     for m in order {
         let Some(t) = tables.get(&m.topic) else {
-            bail!("message on undeclared channel `{}`", m.topic);
+            if !c.channels.contains_key(&m.topic) {
+                bail!("message on undeclared channel `{}`", m.topic);
+            }
+            writeln!(out, "{}", foreign_line(c, m))?;
+            n += 1;
+            continue;
         };
         let rec = recording::decode(&m.topic, &m.data)
             .with_context(|| format!("message at log time {}", m.log_time))?;

@@ -74,11 +74,12 @@ pub struct FoxgloveStats {
 }
 
 /// Which times the copy carries.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Clock {
-    /// Plant step k at [`STEP_NS`] × k after its episode's start; the
+    /// Plant step k at 10 ms × k after its episode's start; the
     /// episodes follow each other with one step of gap.
+    #[default]
     Step,
     /// The recorder's `log_time`s.
     Recorded,

@@ -20,6 +20,9 @@ pub struct Contents {
     pub channels: BTreeMap<String, String>,
     /// Schema name → schema encoding.
     pub schemas: BTreeMap<String, String>,
+    /// Channel topic → message encoding (`bincode2-serde-legacy` in etp's
+    /// own recordings; `json`, `protobuf`, … in other MCAP files).
+    pub encodings: BTreeMap<String, String>,
     pub messages: Vec<RawMessage>,
     /// True when the file ends with a footer and the end magic.
     pub finished: bool,
@@ -252,6 +255,8 @@ pub fn read_lenient(name: &str, buf: &[u8]) -> Result<Contents, RecordingError> 
             Record::Channel(c) => {
                 let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
                 out.channels.insert(c.topic.clone(), schema);
+                out.encodings
+                    .insert(c.topic.clone(), c.message_encoding.clone());
                 topics.insert(c.id, c.topic);
             }
             Record::Message { header, data } => {
