@@ -135,6 +135,58 @@ pub fn export(
     format: Format,
     force: bool,
 ) -> Result<Exported> {
+    export_with(c, source, dir, format, force, |row| {
+        c.messages.iter().try_for_each(row)
+    })
+}
+
+/// [`export`] of a finished file streamed from disk, one chunk at a time:
+/// peak memory does not grow with the recording's length. Two passes (the
+/// metadata that names the sensors may follow the messages). The file's
+/// contents without its messages are returned.
+pub fn export_streaming(
+    source: &Path,
+    dir: &Path,
+    format: Format,
+    force: bool,
+    selection: &crate::select::Selection,
+) -> Result<(Exported, Contents)> {
+    let mut t0 = u64::MAX;
+    let mut c = recording::stream_finished(source, |m| -> Result<()> {
+        t0 = t0.min(m.log_time);
+        Ok(())
+    })?;
+    if c.damaged {
+        bail!(
+            "{} is damaged: {} (`etp replay repair {} OUT` salvages the records before the damage)",
+            source.display(),
+            c.truncated.as_deref().unwrap_or("unreadable record"),
+            source.display()
+        );
+    }
+    recording::check_metadata(&c)?;
+    selection.prepare(&mut c)?;
+    let e = export_with(&c, source, dir, format, force, |row| {
+        recording::stream_finished(source, |m| -> Result<()> {
+            if selection.keeps(&c, t0, &m)? {
+                row(&m)?;
+            }
+            Ok(())
+        })
+        .map(|_| ())
+    })?;
+    Ok((e, c))
+}
+
+/// The export, its messages handed in by `messages` (from memory or streamed).
+fn export_with(
+    c: &Contents,
+    source: &Path,
+    dir: &Path,
+    format: Format,
+    force: bool,
+    messages: impl FnOnce(&mut dyn FnMut(&recording::RawMessage) -> Result<()>) -> Result<()>,
+) -> Result<Exported> {
     let (names, dim) = names(c);
     let tables = tables(c, dim)?;
     let files: BTreeMap<&str, PathBuf> = tables
@@ -158,26 +210,24 @@ pub fn export(
         }
         writers.insert(topic, (w, tmp, 0));
     }
-    let result = (|| -> Result<()> {
-        for m in &c.messages {
-            let (Some(t), Some((w, tmp, n))) =
-                (tables.get(&m.topic), writers.get_mut(m.topic.as_str()))
-            else {
-                // A channel etp did not write has no typed table (`cat` shows it).
-                if c.channels.contains_key(&m.topic) {
-                    continue;
-                }
-                bail!("message on undeclared channel `{}`", m.topic);
-            };
-            let rec = recording::decode(&m.topic, &m.data)
-                .with_context(|| format!("message at log time {}", m.log_time))?;
-            let row = t.row(m.log_time, &rec, &names);
-            writeln!(w, "{}", row_line(t, &row, format))
-                .with_context(|| format!("writing {}", tmp.display()))?;
-            *n += 1;
-        }
+    let result = messages(&mut |m: &recording::RawMessage| -> Result<()> {
+        let (Some(t), Some((w, tmp, n))) =
+            (tables.get(&m.topic), writers.get_mut(m.topic.as_str()))
+        else {
+            // A channel etp did not write has no typed table (`cat` shows it).
+            if c.channels.contains_key(&m.topic) {
+                return Ok(());
+            }
+            bail!("message on undeclared channel `{}`", m.topic);
+        };
+        let rec = recording::decode(&m.topic, &m.data)
+            .with_context(|| format!("message at log time {}", m.log_time))?;
+        let row = t.row(m.log_time, &rec, &names);
+        writeln!(w, "{}", row_line(t, &row, format))
+            .with_context(|| format!("writing {}", tmp.display()))?;
+        *n += 1;
         Ok(())
-    })();
+    });
     let mut rows = 0u64;
     let mut bytes = 0u64;
     let mut described = Vec::new();

@@ -43,9 +43,12 @@ impl EpisodeTally {
     /// Complete: the outcome and the ledger of every leg it ran are recorded
     /// (the last leg's ledger follows the outcome, so a cut between them
     /// leaves the episode partial).
-    fn complete(&self) -> bool {
-        self.outcome
-            .is_some_and(|o| (0..=o.header.leg).all(|l| self.ledgers.contains_key(&l)))
+    /// Without the `ledger` channel (a selection of topics), the outcome
+    /// alone.
+    fn complete(&self, ledgers_recorded: bool) -> bool {
+        self.outcome.is_some_and(|o| {
+            !ledgers_recorded || (0..=o.header.leg).all(|l| self.ledgers.contains_key(&l))
+        })
     }
 
     /// Received per leg, the last leg's from the outcome.
@@ -154,8 +157,9 @@ pub fn summarize(c: &Contents) -> Result<Value> {
     let mut episodes = 0u64;
     let mut energies: Vec<f64> = Vec::new();
     let (mut partial, mut partial_messages, mut partial_measurements) = (Vec::new(), 0u64, 0u64);
+    let ledgers_recorded = c.channels.contains_key("ledger");
     for (number, e) in tally(c)? {
-        let Some(o) = e.outcome.filter(|_| e.complete()) else {
+        let Some(o) = e.outcome.filter(|_| e.complete(ledgers_recorded)) else {
             partial.push(number);
             partial_messages += e.messages;
             partial_measurements += e.measurements.values().sum::<u64>();

@@ -270,3 +270,79 @@ fn replay_plot_has_its_own_file_name() {
     assert!(dir.path("r-replay.png").is_file() && dir.path("r-replay.svg").is_file());
     assert!(!dir.path("r-report.png").exists());
 }
+
+/// The `etp replay` commands of a README code block, as argument lists:
+/// comments, `[optional]` parts and pipes dropped, the recording names of
+/// the examples mapped to `file`, single quotes removed.
+fn readme_replay_commands(text: &str, file: &str) -> Vec<Vec<String>> {
+    let mut out = Vec::new();
+    let mut in_code = false;
+    for line in text.lines() {
+        if line.trim_start().starts_with("```") {
+            in_code = !in_code;
+            continue;
+        }
+        let cmd = line.trim();
+        let indented = line.starts_with("    ");
+        if !(in_code || indented) || !cmd.starts_with("etp replay ") {
+            continue;
+        }
+        let mut cmd = cmd.split(" #").next().unwrap_or(cmd).to_string();
+        cmd = cmd.split(" |").next().unwrap_or(&cmd).to_string();
+        while let (Some(a), Some(b)) = (cmd.find('['), cmd.find(']')) {
+            if b < a {
+                break;
+            }
+            cmd.replace_range(a..=b, "");
+        }
+        let args: Vec<String> = cmd
+            .split_whitespace()
+            .skip(1)
+            .map(|w| {
+                let w = w.trim_matches('\'');
+                match w {
+                    "FILE"
+                    | "out/w/run.mcap"
+                    | "recordings/winding-2d-<run-id>.mcap"
+                    | "crashed.mcap" => file.to_string(),
+                    _ => w.replace("out/w/", "w-"),
+                }
+            })
+            .collect();
+        out.push(args);
+    }
+    out
+}
+
+/// Every `etp replay` command the READMEs show runs (on the fixture, in a
+/// scratch folder) and exits 0.
+#[test]
+fn every_replay_command_of_the_readmes_runs() {
+    let dir = Scratch::new("replay-readme");
+    let rec = dir.path("run.mcap");
+    std::fs::copy(fixture(), &rec).expect("copy");
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut ran = 0;
+    for readme in ["README.md", "recordings/README.md"] {
+        let text = std::fs::read_to_string(root.join(readme)).expect("README");
+        for mut args in readme_replay_commands(&text, s(&rec)) {
+            for a in &mut args {
+                if a == "copy" {
+                    *a = format!("readme{}", std::process::id());
+                }
+            }
+            let out = Command::new(env!("CARGO_BIN_EXE_etp"))
+                .args(&args)
+                .current_dir(&dir.0)
+                .output()
+                .expect("etp");
+            assert!(
+                out.status.success(),
+                "{readme}: etp {args:?} failed: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            ran += 1;
+        }
+    }
+    assert!(ran >= 20, "only {ran} commands found");
+}

@@ -193,7 +193,7 @@ fn cat_prints_every_message_decoded_with_names() {
         .args([
             "-c",
             &format!(
-                "{} replay {} --cat | head -1",
+                "{} replay cat {} | head -1",
                 env!("CARGO_BIN_EXE_etp"),
                 s(&f)
             ),

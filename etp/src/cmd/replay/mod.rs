@@ -458,6 +458,22 @@ fn run_job(a: Job) -> Result<()> {
             );
         }
     }
+    // `export` alone on a finished file streams it: memory stays flat
+    // however long the recording.
+    if let Some(dir) = a.export.as_ref().filter(|_| a.only)
+        && recording::ends_finished(&file).unwrap_or(false)
+    {
+        let (e, _) = export::export_streaming(&file, dir, a.format, a.force, &selection)
+            .with_context(|| format!("exporting to {}", dir.display()))?;
+        eprintln!(
+            "exported {} rows in {} tables to {} ({} bytes)",
+            e.rows, e.tables, e.dir, e.bytes
+        );
+        if a.json {
+            emit(&format!("{}\n", json!({ "exported": e })))?;
+        }
+        return Ok(());
+    }
     let (mut c, buf) = load_bytes(&file)?;
     // A damaged file is refused unless the user asked to salvage it.
     if c.damaged && a.repair.is_none() {
@@ -624,7 +640,8 @@ fn run_job(a: Job) -> Result<()> {
             v.mismatch_count
         );
     }
-    if !a.only && s["identities_hold"] == json!(false) {
+    // A selection of channels leaves the identities' other side out.
+    if !a.only && a.select.topics.is_empty() && s["identities_hold"] == json!(false) {
         return Err(crate::ExitWith {
             code: EXIT_IDENTITY,
             message: format!(
