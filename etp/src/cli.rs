@@ -33,8 +33,8 @@ pub enum Command {
     Run(crate::cmd::run::Args),
     /// Serve remote sensors of a run on this host (`etp run --listen … --remote …` on the agent host).
     SensorHost(crate::cmd::run::sensor_host::Args),
-    /// Summarise an MCAP recording of a run (finished or not); `--info`, `--cat`,
-    /// `--export DIR`, `--plot`, `--verify`, `--repair OUT`, `--publish`, `--foxglove OUT`.
+    /// Recording tools: `etp replay FILE` summarises a run's MCAP recording (finished
+    /// or not); `etp replay info|cat|export|filter|verify|repair|publish|foxglove|plot`.
     Replay(crate::cmd::replay::Args),
     /// Run one process of a run (used by `etp run` when the process binaries
     /// are not installed beside `etp`).

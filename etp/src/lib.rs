@@ -17,7 +17,7 @@ pub mod output;
 pub mod plot;
 pub mod progress;
 pub mod report_plot;
-pub mod vocab;
+pub use etp_recording_tools::vocab;
 
 use std::process::ExitCode;
 

@@ -13,6 +13,9 @@
 //!   sensors) and reaps it, so no process outlives a test, even a failing one.
 //! * [`processes_of_run`] — the live processes whose command line names a run.
 //! * [`unique_run_id`] — a run id per test.
+//! * [`pyenv`] — the pinned Python venv of the independent checks (`target/pyenv`).
+
+pub mod pyenv;
 
 use etp_runtime::cleanup;
 use etp_runtime::wire::RunId;

@@ -114,7 +114,7 @@ pub struct Args {
     #[arg(long)]
     pub eps_p: Option<f64>,
     /// Output directory (default `out/<scenario name>`).
-    #[arg(short = 'o', long = "out")]
+    #[arg(short = 'o', long = "out", alias = "output")]
     pub out: Option<PathBuf>,
     /// Overwrite an existing mdp.bin.
     #[arg(long)]

@@ -1,11 +1,15 @@
 //! End-to-end tests of the `etp` binary (one integration-test binary per crate;
 //! one module per area).
 
+#[path = "../../../tests/src/pyenv.rs"]
+mod pyenv;
+
 mod certified;
 mod exact;
 mod integrity;
 mod pipeline;
 mod replay;
+mod replay_subcommands;
 mod replay_tools;
 mod run_config;
 mod schemas;

@@ -219,9 +219,12 @@ impl Kind {
             .map(|(f, n)| format!("{f} ({})", n.describe()))
             .collect();
         format!(
-            "# {} ({encoding}), published by the {}\n{fields}{layout}# codes: {HEADER_CODES}\n# codes: {}\n# names in `etp replay --export` and `cat`: {}\n",
+            "# {} ({encoding}), published by {}\n{fields}{layout}# codes: {HEADER_CODES}\n# codes: {}\n# names in `etp replay export` and `cat`: {}\n",
             self.schema_name(),
-            self.owner(),
+            match self.owner() {
+                "any" => "any process".to_string(),
+                owner => format!("the {owner}"),
+            },
             self.codes(),
             named.join("; ")
         )

@@ -52,22 +52,9 @@ pub(super) fn replay(args: &[&str]) -> Value {
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("bad JSON ({e}): {text}"))
 }
 
-pub(super) fn python_mcap() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import mcap"])
-        .status()
-        .is_ok_and(|s| s.success());
-    if !ok {
-        eprintln!(
-            "SKIPPED the Python check: python3 with the PyPI `mcap` package is missing (pip install mcap)"
-        );
-    }
-    ok
-}
-
 /// Run a Python script on `file` (its `sys.argv[1]`); its stdout as JSON.
 pub(super) fn python_json(script: &str, file: &Path) -> Value {
-    let out = Command::new("python3")
+    let out = Command::new(etp_tests::pyenv::python())
         .args(["-c", script, &file.display().to_string()])
         .output()
         .expect("python3");
@@ -156,7 +143,7 @@ fn recording_counts_equal_the_report_and_measurements_equal_ledgers_and_received
     assert_eq!(r["received"].as_u64(), Some(received));
     assert_eq!(r["episodes"].as_f64(), Some(num(&v, "episodes")));
     // The independent reader.
-    if python_mcap() {
+    {
         let (py, total) = python_counts(&file);
         assert_eq!(py, counts, "python mcap counts == run report");
         assert_eq!(total, counts.values().sum::<u64>());
@@ -239,7 +226,7 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
     );
     assert!(rr["verify"]["episodes_incomplete"].as_u64() <= Some(1));
     assert_eq!(rr["counts"], r["counts"]);
-    if python_mcap() {
+    {
         let (py, total) = python_counts(&repaired);
         assert_eq!(total, messages);
         let rc: BTreeMap<String, u64> =
