@@ -368,14 +368,7 @@ fn force_replaces_a_recording_only_after_the_run_and_never_a_file_replaced_meanw
     // file first. A must not clobber B's recording.
     let long = run(&a, DELTA, "3000");
     let partial_a = partial_file(&file, &a);
-    let start = std::time::Instant::now();
-    while std::fs::metadata(&partial_a).map_or(0, |m| m.len()) < 64 * 1024 {
-        assert!(
-            start.elapsed() < Duration::from_secs(120),
-            "run A never recorded"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    wait_until_recorded(&partial_a);
     assert_eq!(std::fs::read(&file).expect("old file"), b"precious");
     let (ok_b, out_b, err_b) = run(&b, DELTA, "5").finish();
     assert!(ok_b, "{err_b}");
@@ -412,14 +405,7 @@ fn force_replaces_a_recording_only_after_the_run_and_never_a_file_replaced_meanw
     // and leaves the target alone.
     let victim = run(&c, DELTA, "3000");
     let partial_c = partial_file(&file, &c);
-    let start = std::time::Instant::now();
-    while std::fs::metadata(&partial_c).map_or(0, |m| m.len()) < 64 * 1024 {
-        assert!(
-            start.elapsed() < Duration::from_secs(120),
-            "run C never recorded"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    wait_until_recorded(&partial_c);
     std::fs::remove_file(&partial_c).expect("remove");
     kill("-TERM", &victim.pid().to_string());
     let (code, _, err) = victim.finish_code();
@@ -431,6 +417,19 @@ fn force_replaces_a_recording_only_after_the_run_and_never_a_file_replaced_meanw
     );
     for f in [&file, &partial_a, &partial_c] {
         let _ = std::fs::remove_file(f);
+    }
+}
+
+/// Wait (up to 120 s) until a run's recording in progress holds 64 KiB.
+fn wait_until_recorded(partial: &Path) {
+    let start = std::time::Instant::now();
+    while std::fs::metadata(partial).map_or(0, |m| m.len()) < 64 * 1024 {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "{} never grew",
+            partial.display()
+        );
+        std::thread::sleep(Duration::from_millis(20));
     }
 }
 
@@ -466,7 +465,11 @@ fn a_failed_remote_join_leaves_the_old_recording_alone() {
     )
     .finish_code();
     assert_eq!(code, Some(1), "{err}");
-    assert_eq!(std::fs::read(&file).expect("old file"), b"precious", "{err}");
+    assert_eq!(
+        std::fs::read(&file).expect("old file"),
+        b"precious",
+        "{err}"
+    );
     assert!(!partial_file(&file, &id).exists(), "{err}");
     assert!(processes_of_run(&id).is_empty());
     let _ = std::fs::remove_file(&file);

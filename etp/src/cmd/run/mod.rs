@@ -188,6 +188,15 @@ pub fn verdict(
             }
         }
     }
+    if unequal + lost > 0 {
+        v.push((
+            EXIT_ACCOUNTING,
+            format!(
+                "accounting mismatch: {unequal} leg(s) with ledger ≠ received, {lost} ledger(s) of live sensors missing (first: {})",
+                first.unwrap_or_default()
+            ),
+        ));
+    }
     // The totals, over exactly the legs they claim to cover.
     let mut totals = Vec::new();
     for (i, t) in report.sensors.iter().enumerate() {
@@ -215,19 +224,11 @@ pub fn verdict(
             ));
         }
     }
-    if !totals.is_empty() {
+    // A leg already found unequal explains unequal totals: one problem.
+    if unequal == 0 && !totals.is_empty() {
         v.push((
             EXIT_ACCOUNTING,
             format!("accounting mismatch in the totals: {}", totals.join("; ")),
-        ));
-    }
-    if unequal + lost > 0 {
-        v.push((
-            EXIT_ACCOUNTING,
-            format!(
-                "accounting mismatch: {unequal} leg(s) with ledger ≠ received, {lost} ledger(s) of live sensors missing (first: {})",
-                first.unwrap_or_default()
-            ),
         ));
     }
     if !recording_ok {
