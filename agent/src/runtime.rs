@@ -408,7 +408,7 @@ impl<const N: usize> Agent<N> {
         self.stats.dead_slots += u64::from(o.dead_slots);
         tracing::debug!(
             episode,
-            outcome = o.outcome,
+            outcome = OutcomeCode::try_from(o.outcome).map_or("?", OutcomeCode::name),
             steps = o.steps,
             received = o.received,
             degraded = o.degraded,

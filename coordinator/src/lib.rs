@@ -77,7 +77,7 @@ pub fn run(args: &Args) -> Result<RunReport, CoordinatorError> {
     let scenario = etp_runtime::load_scenario(&args.scenario)?;
     let text = std::fs::read_to_string(&args.strategy)
         .map_err(|e| CoordinatorError::Input(format!("reading strategy {}: {e}", args.strategy)))?;
-    let strategy = Strategy::from_json(&text)
+    let strategy = Strategy::from_sealed_json(&text)
         .map_err(|e| CoordinatorError::Input(format!("{}: {e}", args.strategy)))?;
     strategy
         .check_scenario(&scenario)

@@ -88,8 +88,11 @@ pub fn init_logging(process: &str) {
         // Zenoh's own warnings (e.g. that gossip, which we turn off, cannot
         // de-duplicate across region gateways) are noise by default.
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,zenoh=error"));
+    // Colour only on a terminal: logs redirected to a file or a pipe stay
+    // plain text (no ANSI escape codes).
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .with_writer(std::io::stderr)
         .with_target(false)
         .try_init();

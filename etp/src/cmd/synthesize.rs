@@ -393,8 +393,16 @@ pub fn run(a: Args) -> Result<()> {
     } else {
         None
     };
+    let replaced = front_path.exists();
     let front =
         crate::front::write_front(&built.dir, &built.mdp, method1.as_ref(), &text, a.force)?;
+    // Only now that the new front is written: what was derived from the
+    // old MDP would sit beside it as if derived from the new one.
+    let stale = if replaced {
+        set_aside_stale(&built.dir)?
+    } else {
+        None
+    };
     if a.json {
         let v = serde_json::json!({
             "mdp": built.report,
@@ -416,5 +424,49 @@ pub fn run(a: Args) -> Result<()> {
             println!("  wrote {}", f.display());
         }
     }
+    if let Some((dir, names)) = &stale {
+        eprintln!(
+            "moved {} (made from the replaced MDP) to {}",
+            names.join(", "),
+            dir.display()
+        );
+    }
     Ok(())
+}
+
+/// What `etp strategy`, `etp validate --plot` and `etp export-prism` write
+/// into a synthesis folder by default: derived from its MDP.
+const DERIVED: [&str; 4] = [
+    "strategy.json",
+    "strategy-map.png",
+    "strategy-map.svg",
+    "prism",
+];
+
+/// After `--force` replaced a synthesis: move what was derived from the old
+/// MDP into `DIR/stale-<unix seconds>/` (moved, not deleted). The folder and
+/// the names moved, if any.
+fn set_aside_stale(dir: &Path) -> Result<Option<(std::path::PathBuf, Vec<String>)>> {
+    let found: Vec<&str> = DERIVED
+        .into_iter()
+        .filter(|n| dir.join(n).symlink_metadata().is_ok())
+        .collect();
+    if found.is_empty() {
+        return Ok(None);
+    }
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let mut stale = dir.join(format!("stale-{secs}"));
+    let mut k = 1;
+    while stale.symlink_metadata().is_ok() {
+        stale = dir.join(format!("stale-{secs}-{k}"));
+        k += 1;
+    }
+    std::fs::create_dir(&stale).with_context(|| format!("creating {}", stale.display()))?;
+    for n in &found {
+        std::fs::rename(dir.join(n), stale.join(n))
+            .with_context(|| format!("moving {} to {}", dir.join(n).display(), stale.display()))?;
+    }
+    Ok(Some((stale, found.iter().map(|n| n.to_string()).collect())))
 }

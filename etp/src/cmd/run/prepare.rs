@@ -89,7 +89,7 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         (Some(path), _, None) => {
             let s = std::fs::read_to_string(path)
                 .with_context(|| format!("reading {}", path.display()))?;
-            let st = Strategy::from_json(&s)
+            let st = Strategy::from_sealed_json(&s)
                 .with_context(|| format!("loading strategy {}", path.display()))?;
             let text = match (&a.scenario, &st.scenario_toml) {
                 (Some(arg), _) => scenario_text(arg)?,
