@@ -12,7 +12,6 @@ use crate::session::{SESSION_KEY, SessionInfo, agent_host_alive_key, config, sen
 use crate::{BridgeError, emit};
 use etp_runtime::wire::traffic::Direction;
 use etp_runtime::wire::{self, AGENT_NODE, COORDINATOR_NODE, Ports, RunId, ServiceId};
-use iceoryx2::prelude::*;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
