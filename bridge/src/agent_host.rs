@@ -83,28 +83,13 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     )?;
     let counters = Counters::default();
     let stop = Arc::new(AtomicBool::new(false));
-    let outbound = {
-        // The catalogue's rows forwarded down, in causal order.
-        let services = ServiceId::forwarded(Direction::Down, &info.remote);
-        let o = Outbound {
-            run: run.clone(),
-            sensors,
-            events: ServiceId::wakes_of(&services),
-            services,
-            down: true,
-        };
-        let (session, counters, stop) = (session.clone(), counters.clone(), stop.clone());
-        std::thread::spawn(move || {
-            o.run(
-                "etp-bridge-out",
-                &session,
-                &counters,
-                &stop,
-                || {},
-                |_, _| {},
-            )
-        })
-    };
+    let outbound = Outbound::new(&run, sensors, Direction::Down, &info.remote).spawn(
+        &session,
+        &counters,
+        &stop,
+        || {},
+        |_, _| {},
+    );
     let node = wire::create_node(&run, "etp-bridge-in")?;
     let ports = Ports {
         node: &node,

@@ -13,7 +13,7 @@ use etp_runtime::recording::{
     self,
     ports::{DecodedPublisher, EncodedSubscriber, decoded_publisher, encoded_subscriber},
 };
-use etp_runtime::wire::traffic::LinkTraffic;
+use etp_runtime::wire::traffic::{Direction, LinkTraffic};
 use etp_runtime::wire::{self, Header, Notifier, Ports, RunId, ServiceId, Waiter, Wake};
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -54,6 +54,42 @@ pub struct Outbound {
 }
 
 impl Outbound {
+    /// What a bridge carries in `direction` for the remote sensors `remote`:
+    /// the catalogue's forwarded rows in causal rank
+    /// ([`ServiceId::forwarded`]) and their readers' wake-up events.
+    pub fn new(run: &RunId, sensors: usize, direction: Direction, remote: &[usize]) -> Self {
+        let services = ServiceId::forwarded(direction, remote);
+        Self {
+            run: run.clone(),
+            sensors,
+            events: ServiceId::wakes_of(&services),
+            services,
+            down: direction == Direction::Down,
+        }
+    }
+
+    /// [`Outbound::run`] on a thread of its own (node `etp-bridge-out`).
+    pub fn spawn(
+        self,
+        session: &zenoh::Session,
+        counters: &Counters,
+        stop: &Arc<AtomicBool>,
+        on_ready: impl FnOnce() + Send + 'static,
+        on_put: impl FnMut(ServiceId, &Header) + Send + 'static,
+    ) -> std::thread::JoinHandle<Result<(), BridgeError>> {
+        let (session, counters, stop) = (session.clone(), counters.clone(), stop.clone());
+        std::thread::spawn(move || {
+            self.run(
+                "etp-bridge-out",
+                &session,
+                &counters,
+                &stop,
+                on_ready,
+                on_put,
+            )
+        })
+    }
+
     /// Forward until `stop` (or a termination request); `on_ready` is
     /// called once every port exists, `on_put` sees every message put
     /// (service, header). Runs on its own thread: iceoryx2 ports stay on the

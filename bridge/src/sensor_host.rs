@@ -12,7 +12,6 @@ use crate::session::{SESSION_KEY, SessionInfo, agent_host_alive_key, config, sen
 use crate::{BridgeError, emit};
 use etp_runtime::wire::traffic::Direction;
 use etp_runtime::wire::{self, AGENT_NODE, COORDINATOR_NODE, Ports, RunId, ServiceId};
-use iceoryx2::prelude::*;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -145,38 +144,22 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let counters = Counters::default();
     let stop = Arc::new(AtomicBool::new(false));
     let (ready_tx, ready_rx) = std::sync::mpsc::channel::<()>();
-    let outbound = {
-        // The catalogue's rows forwarded up, in causal order (a sensor
-        // publishes its measurement before its slot).
-        let services = ServiceId::forwarded(Direction::Up, &served);
-        let o = Outbound {
-            run: run.clone(),
-            sensors,
-            events: ServiceId::wakes_of(&services),
-            services,
-            down: false,
-        };
-        let (session, counters, stop) = (session.clone(), counters.clone(), stop.clone());
-        let hello_tx = tx.clone();
-        std::thread::spawn(move || {
-            o.run(
-                "etp-bridge-out",
-                &session,
-                &counters,
-                &stop,
-                // Its subscribers (`hello` among them) exist: the sensors
-                // may start and say hello.
-                move || {
-                    let _ = ready_tx.send(());
-                },
-                |s, h| {
-                    if s == ServiceId::Hello {
-                        let _ = hello_tx.send(Incoming::Hello(h.sender as usize));
-                    }
-                },
-            )
-        })
-    };
+    let hello_tx = tx.clone();
+    let outbound = Outbound::new(&run, sensors, Direction::Up, &served).spawn(
+        &session,
+        &counters,
+        &stop,
+        // Its subscribers (`hello` among them) exist: the sensors may start
+        // and say hello.
+        move || {
+            let _ = ready_tx.send(());
+        },
+        move |s, h| {
+            if s == ServiceId::Hello {
+                let _ = hello_tx.send(Incoming::Hello(h.sender as usize));
+            }
+        },
+    );
     // Until the outbound direction's ports exist (or it failed: its error
     // comes with the join below).
     let _ = ready_rx.recv();

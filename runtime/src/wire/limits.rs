@@ -48,12 +48,7 @@ pub fn limits(service: ServiceId, sensors: usize) -> Limits {
     };
     let many_to_one = |buffer| Limits {
         max_publishers: sensors + OBSERVERS,
-        max_subscribers: 1 + OBSERVERS,
-        max_nodes: nodes,
-        buffer,
-        observer_buffer: OBSERVER_BUFFER,
-        history: 0,
-        safe_overflow: false,
+        ..one_to_one(buffer)
     };
     let Some(kind) = service.kind() else {
         // The wake-up events carry nothing: overflow is safe.

@@ -50,7 +50,9 @@ pub enum Wake {
 /// holds these attachments only, and each one's id is kept to tell which
 /// listener fired.
 pub struct Waiter {
-    waitset: WaitSet<ipc::Service>,
+    /// Boxed: an attachment's id holds the wait set's address, which must
+    /// not move after the ids are taken.
+    waitset: Box<WaitSet<ipc::Service>>,
     listeners: Vec<(WaitSetAttachmentId<ipc::Service>, Listener)>,
 }
 
@@ -63,9 +65,11 @@ impl Waiter {
     /// One wait over several wake-up events (e.g. every event of a run:
     /// [`super::ServiceId::all_events`]): notified when any fires.
     pub fn over(listeners: Vec<Listener>) -> Result<Self, WireError> {
-        let waitset = WaitSetBuilder::new()
-            .create::<ipc::Service>()
-            .map_err(|e| WireError::Wait(format!("creating the wait set: {e:?}")))?;
+        let waitset = Box::new(
+            WaitSetBuilder::new()
+                .create::<ipc::Service>()
+                .map_err(|e| WireError::Wait(format!("creating the wait set: {e:?}")))?,
+        );
         let mut ids = Vec::with_capacity(listeners.len());
         for l in &listeners {
             let guard = waitset
