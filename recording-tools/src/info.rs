@@ -128,7 +128,7 @@ fn write_info(out: &mut String, v: &Value) -> std::fmt::Result {
         }
     )?;
     // An MCAP file etp did not write has no run to describe.
-    let etp_run = !v["run_id"].is_null() || v["profile"] == Value::from(recording::PROFILE);
+    let etp_run = !v["run_id"].is_null() || v["profile"] == recording::PROFILE;
     if etp_run {
         writeln!(
             out,

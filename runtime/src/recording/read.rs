@@ -289,7 +289,7 @@ pub fn stream_finished<E: From<RecordingError>>(
     }
     let mut out = Contents::default();
     let records = Records::new(
-        std::io::Read::chain(&mcap::MAGIC[..], src),
+        std::io::Read::chain(mcap::MAGIC, src),
         usize::try_from(size).unwrap_or(usize::MAX),
     );
     let footer = collect(records, &mut out, on_message)?;
