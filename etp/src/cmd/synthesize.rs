@@ -5,7 +5,7 @@
 //! progress bar, write the file, measure); [`run`] prints its report. The Pareto
 //! step appends to [`run`] after [`build_mdp`].
 
-use crate::input::load_scenario;
+use crate::input::{RadioArgs, load_scenario_with_radio};
 use crate::output::write_new;
 use crate::progress;
 use anyhow::{Context, Result, bail};
@@ -131,6 +131,9 @@ pub struct Args {
     /// §7.3). A smaller ALPHA lumps more. Off by default.
     #[arg(long, value_name = "ALPHA")]
     pub merge: Option<f64>,
+    /// The radio the segments are sampled with (docs/MODEL.md §8).
+    #[command(flatten)]
+    pub radio: RadioArgs,
 }
 
 /// What [`build_mdp`] did, for the summary.
@@ -230,7 +233,7 @@ pub fn params(a: &Args, s: &Scenario) -> Result<AbstractionParams> {
 /// Build the MDP of `a.scenario` and write `DIR/mdp.bin`; refuses (before any
 /// work, touching nothing) when the file exists and `--force` is not given.
 pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
-    let s = load_scenario(&a.scenario)?;
+    let s = load_scenario_with_radio(&a.scenario, &a.radio)?;
     let dir = a
         .out
         .clone()
@@ -369,7 +372,7 @@ pub fn report_text(r: &MdpReport) -> String {
 
 pub fn run(a: Args) -> Result<()> {
     // Refuse before any work if the Pareto step would have to overwrite.
-    let s = load_scenario(&a.scenario)?;
+    let s = load_scenario_with_radio(&a.scenario, &a.radio)?;
     let dir = a
         .out
         .clone()

@@ -42,6 +42,9 @@ pub struct Args {
     /// Overwrite map plots that exist.
     #[arg(long)]
     pub force: bool,
+    /// Evaluate under this radio instead of the scenario's (a robustness study).
+    #[command(flatten)]
+    pub radio: crate::input::RadioArgs,
 }
 
 /// Load and check a strategy file (scenario embedded or built-in, hash checked).
@@ -61,6 +64,7 @@ pub fn run(a: Args) -> Result<()> {
         bail!("--episodes must be at least 1");
     }
     let (strategy, scenario) = load_strategy(&a.strategy)?;
+    let scenario = a.radio.apply(scenario)?;
     let pb = progress::bar(a.episodes, "validate", a.json);
     let sum = simulate_strategy(&scenario, &strategy, a.episodes, a.seed, &|k| pb.inc(k)).summary();
     pb.finish_and_clear();
@@ -92,11 +96,15 @@ pub fn run(a: Args) -> Result<()> {
         println!("\npredictions of the strategy file:");
         print!("{}", super::honest::text_of(&strategy));
         print!("{}", honest_check_text(&strategy, &sum));
+        let names: Vec<String> = scenario.sensors.iter().map(|x| x.name.clone()).collect();
         println!(
-            "\nsimulation details ({} episodes, seed {}):",
-            sum.episodes, a.seed
+            "\nsimulation details ({} episodes, seed {}, radio: {}):",
+            sum.episodes,
+            a.seed,
+            scenario.radio.describe(&names)
         );
         print!("{}", summary_table(&sum));
+        print!("{}", crate::cmd::simulate::radio_table(&scenario, &sum));
         for p in &plot_paths {
             println!("wrote {}", p.display());
         }

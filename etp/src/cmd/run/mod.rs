@@ -78,6 +78,10 @@ pub struct Args {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// The radio (docs/MODEL.md §8); the multi-process runtime runs the
+    /// ideal radio only for now, and refuses a lossy one.
+    #[command(flatten)]
+    pub radio: crate::input::RadioArgs,
     /// Kill everything and fail after this many seconds [default: 3600].
     #[arg(long)]
     pub deadline: Option<f64>,
@@ -436,6 +440,12 @@ pub fn execute(a: &Args) -> Result<(serde_json::Value, Vec<(u8, String)>)> {
 /// report and stderr say why).
 pub fn run(a: Args) -> Result<()> {
     let a = config::resolve(a)?;
+    if a.radio.loss.is_some_and(|p| p != 0.0) {
+        bail!(
+            "--loss: the multi-process runtime does not simulate a lossy radio yet \
+             (use `etp validate` or `etp simulate` with --loss)"
+        );
+    }
     let stem = a.plot.then(|| plot_stem(&a));
     if let Some(stem) = &stem {
         for p in [stem.with_extension("png"), stem.with_extension("svg")] {

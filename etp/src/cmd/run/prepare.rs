@@ -119,6 +119,12 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         text = clone_sensors(&text, k)?;
     }
     let scenario = Scenario::from_toml(&text).context("scenario")?;
+    if !scenario.radio.is_ideal() {
+        bail!(
+            "the scenario's [radio] is lossy; the multi-process runtime runs the ideal radio only \
+             for now (use `etp validate` or `etp simulate`)"
+        );
+    }
     if scenario.sensors.len() > MAX_SENSORS {
         bail!(
             "the scenario has {} sensors; a run supports at most {MAX_SENSORS} sensor processes",
