@@ -9,6 +9,7 @@
 mod builtin;
 mod higher;
 mod raw;
+pub mod random;
 mod validate;
 
 pub use builtin::{BUILTIN_NAMES, DEFAULT_SCENARIO, builtin_text};
