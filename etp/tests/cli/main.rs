@@ -8,6 +8,7 @@ mod pipeline;
 mod replay;
 mod replay_tools;
 mod run_config;
+mod scenario_random;
 mod schemas;
 mod synthesize;
 

@@ -149,12 +149,11 @@ fn r3(x: f64) -> f64 {
 }
 
 fn point_box_distance(p: &[f64], min: &[f64], max: &[f64]) -> f64 {
-    let mut s = 0.0;
-    for k in 0..p.len() {
-        let e = (min[k] - p[k]).max(p[k] - max[k]).max(0.0);
-        s += e * e;
-    }
-    s.sqrt()
+    p.iter()
+        .zip(min.iter().zip(max))
+        .map(|(x, (lo, hi))| (lo - x).max(x - hi).max(0.0).powi(2))
+        .sum::<f64>()
+        .sqrt()
 }
 
 fn lerp(a: &[f64], b: &[f64], t: f64) -> Vec<f64> {
@@ -432,19 +431,15 @@ fn random_r<R: Rng + ?Sized>(rng: &mut R, d: usize) -> Vec<Vec<f64>> {
         .map(|row| row.iter().zip(&var).map(|(x, s)| x * s).collect())
         .collect();
     let vt: Vec<Vec<f64>> = (0..d).map(|i| (0..d).map(|j| v[j][i]).collect()).collect();
-    let mut r = mat_mul(&vd, &vt);
-    for i in 0..d {
-        for j in 0..d {
-            let x = (r[i][j] * 1e12).round() / 1e12;
-            r[i][j] = x;
-        }
-    }
-    for i in 0..d {
-        for j in 0..i {
-            r[i][j] = r[j][i];
-        }
-    }
-    r
+    let full = mat_mul(&vd, &vt);
+    // the upper triangle, mirrored: symmetric to the last bit
+    (0..d)
+        .map(|i| {
+            (0..d)
+                .map(|j| (full[i.min(j)][i.max(j)] * 1e12).round() / 1e12)
+                .collect()
+        })
+        .collect()
 }
 
 /// Draw one scenario's TOML text from `rng` (named `name`).
@@ -575,9 +570,9 @@ pub fn random_scenario_toml<R: Rng + ?Sized>(kind: AgentKind, name: &str, rng: &
             let zeta = rng.random_range(0.7..0.9);
             let (kp, kd) = (r3(omega * omega), r3(2.0 * zeta * omega));
             let mut k = vec![vec![0.0; n]; d];
-            for a in 0..d {
-                k[a][a] = kp;
-                k[a][d + a] = kd;
+            for (a, row) in k.iter_mut().enumerate() {
+                row[a] = kp;
+                row[d + a] = kd;
             }
             gain = Some(k);
         }
@@ -607,8 +602,8 @@ pub fn random_scenario_toml<R: Rng + ?Sized>(kind: AgentKind, name: &str, rng: &
         let served: Vec<usize> = (0..legs).filter(|&i| serving[i] == s).collect();
         let mut centre = vec![0.0; d];
         for &i in &served {
-            for k in 0..d {
-                centre[k] += 0.5 * (points[i][k] + points[i + 1][k]) / served.len() as f64;
+            for (k, c) in centre.iter_mut().enumerate() {
+                *c += 0.5 * (points[i][k] + points[i + 1][k]) / served.len() as f64;
             }
         }
         let position: Vec<f64> = centre
@@ -616,8 +611,8 @@ pub fn random_scenario_toml<R: Rng + ?Sized>(kind: AgentKind, name: &str, rng: &
             .map(|c| r3(c + rng.random_range(-0.6..0.6)))
             .collect();
         let mut h = vec![vec![0.0; n]; d];
-        for k in 0..d {
-            h[k][k] = 1.0;
+        for (k, row) in h.iter_mut().enumerate() {
+            row[k] = 1.0;
         }
         let r = random_r(rng, d);
         let _ = writeln!(
