@@ -62,7 +62,10 @@ pub fn describe(r: &AggregationReport, mdp: &Mdp, seconds: f64) -> String {
             f.decision_point,
             f.state,
             region,
-            mdp.deltas.get(usize::from(f.action)).copied().unwrap_or(f64::NAN),
+            mdp.deltas
+                .get(usize::from(f.action))
+                .copied()
+                .unwrap_or(f64::NAN),
             r.features.get(f.feature).map_or("?", String::as_str),
             f.segments,
             f.p,

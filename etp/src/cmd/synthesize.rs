@@ -433,7 +433,10 @@ pub fn run(a: Args) -> Result<()> {
     } else {
         print!("{}", report_text(&built.report));
         if let Some((r, secs)) = &aggregation {
-            print!("{}", crate::cmd::aggregation::describe(r, &built.mdp, *secs));
+            print!(
+                "{}",
+                crate::cmd::aggregation::describe(r, &built.mdp, *secs)
+            );
         }
         print!("{}", crate::front::describe(&front.front));
         println!("  computed in {:.3} s", front.seconds);

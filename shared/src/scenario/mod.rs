@@ -8,8 +8,8 @@
 
 mod builtin;
 mod higher;
-mod raw;
 pub mod random;
+mod raw;
 mod validate;
 
 pub use builtin::{BUILTIN_NAMES, DEFAULT_SCENARIO, builtin_text};

@@ -58,7 +58,9 @@ impl AgentKind {
             6 => Ok(Self::Double3),
             _ => Err(ScenarioError::invalid(
                 "dim",
-                format!("a random scenario has n = 2, 3 (single integrator), 4 or 6 (double integrator), not {n}"),
+                format!(
+                    "a random scenario has n = 2, 3 (single integrator), 4 or 6 (double integrator), not {n}"
+                ),
             )),
         }
     }
@@ -213,11 +215,7 @@ struct Step {
 }
 
 /// Draw a route: `points[0]` is the start, `points[i + 1]` the end of leg i.
-fn draw_route<R: Rng + ?Sized>(
-    rng: &mut R,
-    d: usize,
-    g: &Geometry,
-) -> (Vec<Vec<f64>>, Vec<Step>) {
+fn draw_route<R: Rng + ?Sized>(rng: &mut R, d: usize, g: &Geometry) -> (Vec<Vec<f64>>, Vec<Step>) {
     let start: Vec<f64> = [0.5, 1.0, 1.0][..d].to_vec();
     'route: loop {
         let legs = rng.random_range(5..=8usize);
@@ -236,10 +234,7 @@ fn draw_route<R: Rng + ?Sized>(
                             sign: if rng.random_bool(0.5) { 1.0 } else { -1.0 },
                         }
                     }
-                    None => Step {
-                        axis: 0,
-                        sign: 1.0,
-                    },
+                    None => Step { axis: 0, sign: 1.0 },
                 };
                 let len = r3(rng.random_range(g.leg.0..g.leg.1));
                 let from = &points[i];
@@ -282,7 +277,14 @@ fn keeps_clear(b: &Block, points: &[Vec<f64>], g: &Geometry, target: (&[f64], &[
 
 /// A slab perpendicular to `axis` at `at .. at + sign·thickness`, spanning
 /// `span[k]` on the other axes.
-fn slab(name: String, axis: usize, at: f64, sign: f64, thickness: f64, span: &[(f64, f64)]) -> Block {
+fn slab(
+    name: String,
+    axis: usize,
+    at: f64,
+    sign: f64,
+    thickness: f64,
+    span: &[(f64, f64)],
+) -> Block {
     let mut min: Vec<f64> = span.iter().map(|s| r3(s.0)).collect();
     let mut max: Vec<f64> = span.iter().map(|s| r3(s.1)).collect();
     let (a, b) = (at, at + sign * thickness);
@@ -338,7 +340,14 @@ fn gate(
                 };
             }
             let axis_name = ["x", "y", "z"][cross];
-            let mut b = slab(format!("{name}-{axis_name}{side}"), step.axis, at, 1.0, thick, &span);
+            let mut b = slab(
+                format!("{name}-{axis_name}{side}"),
+                step.axis,
+                at,
+                1.0,
+                thick,
+                &span,
+            );
             b.gate_of = Some((leg, half));
             blocks.push(b);
         }
@@ -387,7 +396,11 @@ fn fmt_mat(m: &[Vec<f64>]) -> String {
 
 fn diag(v: &[f64]) -> Vec<Vec<f64>> {
     (0..v.len())
-        .map(|i| (0..v.len()).map(|j| if i == j { v[i] } else { 0.0 }).collect())
+        .map(|i| {
+            (0..v.len())
+                .map(|j| if i == j { v[i] } else { 0.0 })
+                .collect()
+        })
         .collect()
 }
 
@@ -406,7 +419,11 @@ fn mat_mul(a: &[Vec<f64>], b: &[Vec<f64>]) -> Vec<Vec<f64>> {
     let n = a.len();
     let m = b[0].len();
     (0..n)
-        .map(|i| (0..m).map(|j| (0..b.len()).map(|k| a[i][k] * b[k][j]).sum()).collect())
+        .map(|i| {
+            (0..m)
+                .map(|j| (0..b.len()).map(|k| a[i][k] * b[k][j]).sum())
+                .collect()
+        })
         .collect()
 }
 
@@ -416,7 +433,13 @@ fn mat_mul(a: &[Vec<f64>], b: &[Vec<f64>]) -> Vec<Vec<f64>> {
 fn random_r<R: Rng + ?Sized>(rng: &mut R, d: usize) -> Vec<Vec<f64>> {
     let sigma0 = rng.random_range(0.02..0.035);
     let sig: Vec<f64> = (0..d)
-        .map(|k| if k == 0 { sigma0 } else { sigma0 * rng.random_range(1.0..3.0) })
+        .map(|k| {
+            if k == 0 {
+                sigma0
+            } else {
+                sigma0 * rng.random_range(1.0..3.0)
+            }
+        })
         .collect();
     let mut v = diag(&vec![1.0; d]);
     for i in 0..d {
@@ -556,9 +579,24 @@ pub fn random_scenario_toml<R: Rng + ?Sized>(kind: AgentKind, name: &str, rng: &
         let p0: Vec<f64> = (0..n).map(|k| if k < d { 0.0009 } else { 0.001 }).collect();
         let mut x0 = points[0].clone();
         x0.extend(std::iter::repeat_n(0.0, d));
-        let _ = writeln!(o, "# x = (position, velocity), tau = {tau}: F = [[I, tau I], [0, I]], G = [[tau^2/2 I], [tau I]]");
-        let _ = writeln!(o, "F = {}\nG = {}\nC = {}", fmt_mat(&f), fmt_mat(&gm), fmt_mat(&c));
-        let _ = writeln!(o, "Q = {}\nx0 = {}\nP0 = {}", fmt_mat(&diag(&q)), fmt_vec(&x0), fmt_mat(&diag(&p0)));
+        let _ = writeln!(
+            o,
+            "# x = (position, velocity), tau = {tau}: F = [[I, tau I], [0, I]], G = [[tau^2/2 I], [tau I]]"
+        );
+        let _ = writeln!(
+            o,
+            "F = {}\nG = {}\nC = {}",
+            fmt_mat(&f),
+            fmt_mat(&gm),
+            fmt_mat(&c)
+        );
+        let _ = writeln!(
+            o,
+            "Q = {}\nx0 = {}\nP0 = {}",
+            fmt_mat(&diag(&q)),
+            fmt_vec(&x0),
+            fmt_mat(&diag(&p0))
+        );
         if rng.random_bool(0.7) {
             let wv = r3(rng.random_range(0.2..0.5));
             let wu = r3(rng.random_range(0.3..1.0));
@@ -590,12 +628,20 @@ pub fn random_scenario_toml<R: Rng + ?Sized>(kind: AgentKind, name: &str, rng: &
         );
         (u_max, eps_x, k_max) = (0.05, 0.05, 200);
     }
-    let _ = writeln!(o, "\n[controller]\nu_max = {u_max:?}\neps_x = {eps_x:?}\nk_max = {k_max}");
+    let _ = writeln!(
+        o,
+        "\n[controller]\nu_max = {u_max:?}\neps_x = {eps_x:?}\nk_max = {k_max}"
+    );
     if let Some(k) = &gain {
         let _ = writeln!(o, "K = {}", fmt_mat(k));
     }
     if let Some((state, input)) = &lqr {
-        let _ = writeln!(o, "\n[controller.lqr]\nstate = {}\ninput = {}", fmt_mat(state), fmt_mat(input));
+        let _ = writeln!(
+            o,
+            "\n[controller.lqr]\nstate = {}\ninput = {}",
+            fmt_mat(state),
+            fmt_mat(input)
+        );
     }
 
     for s in 0..sensors {
@@ -624,9 +670,19 @@ pub fn random_scenario_toml<R: Rng + ?Sized>(kind: AgentKind, name: &str, rng: &
         );
     }
     for i in 0..legs {
-        let _ = writeln!(o, "\n[[leg]]\nto = {}\nsensor = \"s{}\"", fmt_vec(&points[i + 1]), serving[i]);
+        let _ = writeln!(
+            o,
+            "\n[[leg]]\nto = {}\nsensor = \"s{}\"",
+            fmt_vec(&points[i + 1]),
+            serving[i]
+        );
     }
-    let _ = writeln!(o, "\n[target]\nmin = {}\nmax = {}", fmt_vec(&target_min), fmt_vec(&target_max));
+    let _ = writeln!(
+        o,
+        "\n[target]\nmin = {}\nmax = {}",
+        fmt_vec(&target_min),
+        fmt_vec(&target_max)
+    );
     for b in &blocks {
         let _ = writeln!(
             o,
@@ -643,7 +699,13 @@ pub fn random_scenario_toml<R: Rng + ?Sized>(kind: AgentKind, name: &str, rng: &
     };
     let deltas: Vec<f64> = rates
         .iter()
-        .map(|&r| if r >= 1.0 { 0.0 } else { (delta_for_rate(r, d) * 1e4).round() / 1e4 })
+        .map(|&r| {
+            if r >= 1.0 {
+                0.0
+            } else {
+                (delta_for_rate(r, d) * 1e4).round() / 1e4
+            }
+        })
         .collect();
     let rate_list: Vec<String> = rates.iter().map(|r| format!("{r}")).collect();
     let _ = writeln!(

@@ -50,9 +50,13 @@ fn the_same_seed_gives_the_same_text_and_seeds_differ() {
 fn two_hundred_seeds_per_kind_are_valid() {
     for kind in KINDS {
         for seed in 0..200 {
-            let (text, s) = random_scenario(kind, seed)
-                .unwrap_or_else(|e| panic!("{kind:?} seed {seed}: {e}"));
-            assert!(s.warnings.is_empty(), "{kind:?} seed {seed}: {:?}", s.warnings);
+            let (text, s) =
+                random_scenario(kind, seed).unwrap_or_else(|e| panic!("{kind:?} seed {seed}: {e}"));
+            assert!(
+                s.warnings.is_empty(),
+                "{kind:?} seed {seed}: {:?}",
+                s.warnings
+            );
             assert_eq!(s.dim, kind.dim());
             assert_eq!(s.workspace_dim(), kind.workspace_dim());
             assert!((3..=7).contains(&s.sensors.len()), "{text}");
@@ -62,8 +66,12 @@ fn two_hundred_seeds_per_kind_are_valid() {
             route.extend(s.legs.iter().map(|l| l.to.clone()));
             for o in &s.obstacles {
                 for w in route.windows(2) {
-                    let dist =
-                        segment_box_distance(w[0].as_slice(), w[1].as_slice(), &o.bounds.min, &o.bounds.max);
+                    let dist = segment_box_distance(
+                        w[0].as_slice(),
+                        w[1].as_slice(),
+                        &o.bounds.min,
+                        &o.bounds.max,
+                    );
                     assert!(dist >= 0.29, "{kind:?} seed {seed}: {} at {dist}", o.name);
                 }
             }
@@ -72,16 +80,20 @@ fn two_hundred_seeds_per_kind_are_valid() {
     }
 }
 
+/// The double integrators are feasible, not degenerate: the full KF reaches
+/// the target in 0.8–0.998 of 300 episodes on each of seeds 0..10 (measured
+/// with `etp simulate --delta 0 --episodes 300`: n = 4 0.88–0.99, n = 6
+/// 0.90–0.99; the bounds leave 3 binomial σ). The single integrators are
+/// not asserted: at the built-ins' process noise their random gates and walls
+/// are too tight (measured P_tar 0.18–0.61), see docs/MODEL.md.
 #[test]
-#[ignore = "exploration"]
-fn explore_feasibility() {
-    for kind in KINDS {
-        let mut line = format!("{kind:?}:");
-        for seed in 0..30 {
+fn double_integrators_reach_the_target_under_the_full_kf() {
+    for kind in [AgentKind::Double2, AgentKind::Double3] {
+        for seed in 0..10 {
             let (_, s) = random_scenario(kind, seed).expect("valid");
-            let (t, c) = full_kf(&s, 400);
-            line += &format!(" {:.2}/{:.2}", t as f64 / 400.0, c as f64 / 400.0);
+            let (t, _) = full_kf(&s, 300);
+            let p = t as f64 / 300.0;
+            assert!((0.8..=0.998).contains(&p), "{kind:?} seed {seed}: P_tar {p}");
         }
-        println!("{line}");
     }
 }

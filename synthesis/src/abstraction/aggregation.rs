@@ -37,7 +37,7 @@
 //! distance of each half from the region's pooled estimate.
 
 use super::merge::homogeneity_p;
-use crate::mdp::{Method, Mdp, Next};
+use crate::mdp::{Mdp, Method, Next};
 use etp_shared::discretization::DecisionPointBins;
 use etp_shared::episode::{AgentState, CompiledScenario, LegEnd, LegMode};
 use etp_shared::etkf::{Belief, Threshold};
@@ -148,11 +148,17 @@ fn features<const N: usize>(
 }
 
 fn feature_names(mdp: &Mdp, scenario: &Scenario) -> Vec<String> {
-    let Some(b) = mdp.discretization.as_ref().and_then(|d| d.decision_points.first()) else {
+    let Some(b) = mdp
+        .discretization
+        .as_ref()
+        .and_then(|d| d.decision_points.first())
+    else {
         return Vec::new();
     };
     let axes = match &b.workspace {
-        Some(w) => w.marginal(&nalgebra::DMatrix::identity(scenario.dim, scenario.dim)).nrows(),
+        Some(w) => w
+            .marginal(&nalgebra::DMatrix::identity(scenario.dim, scenario.dim))
+            .nrows(),
         None => scenario.dim,
     };
     let mut names: Vec<String> = (1..=axes).map(|j| format!("log λ{j}")).collect();
@@ -352,7 +358,12 @@ pub fn measure(
 ) -> Option<AggregationReport> {
     let segments = sample_segments(scenario, mdp, episodes, seed, progress)?;
     let pooled = |state: u32, action: u16| {
-        let c = mdp.states.get(state as usize)?.choices.iter().find(|c| c.action == action)?;
+        let c = mdp
+            .states
+            .get(state as usize)?
+            .choices
+            .iter()
+            .find(|c| c.action == action)?;
         let mut m = BTreeMap::new();
         for t in &c.transitions {
             *m.entry(t.next).or_insert(0) += t.count;

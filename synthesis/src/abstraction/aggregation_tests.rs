@@ -52,7 +52,10 @@ fn a_region_of_two_different_clusters_is_flagged() {
     assert!(features.contains(&0) && features.contains(&1), "{flags:?}");
     assert!(!features.contains(&2), "{flags:?}");
     // the halves differ by ≈ 10 pt of collision (the clusters do not overlap at gap 4)
-    assert!(flags.iter().all(|f| (0.06..0.14).contains(&f.tv_halves)), "{flags:?}");
+    assert!(
+        flags.iter().all(|f| (0.06..0.14).contains(&f.tv_halves)),
+        "{flags:?}"
+    );
 }
 
 /// One cluster (the outcome does not depend on the features): over 200
