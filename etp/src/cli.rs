@@ -17,6 +17,8 @@ pub enum Command {
     Demo(crate::cmd::demo::Args),
     /// Validate a scenario and print its legs, sensors, obstacles and thresholds.
     Check(crate::cmd::check::Args),
+    /// Generate scenarios: `etp scenario random --dim-agent 4 --seed 7`.
+    Scenario(crate::cmd::scenario::Args),
     /// Run episodes in-process with a constant threshold.
     Simulate(crate::cmd::simulate::Args),
     /// Pick the strategy for a requested trade-off from a synthesized front.

@@ -105,6 +105,8 @@ pub fn run(a: Args) -> Result<()> {
         no_kf_baseline: true,
         merge: None,
         radio: Default::default(),
+        aggregation_episodes: 0,
+        aggregation_alpha: 0.05,
     };
     let built = synthesize::build_mdp(&sargs)?;
     let front = write_front(&built.dir, &built.mdp, None, &text, false)?;

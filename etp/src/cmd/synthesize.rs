@@ -134,6 +134,14 @@ pub struct Args {
     /// The radio the segments are sampled with (docs/MODEL.md §8).
     #[command(flatten)]
     pub radio: RadioArgs,
+    /// Aggregation check: episodes with random thresholds whose legs test, per
+    /// region and action, whether the outcomes differ between the halves of
+    /// the region split at the median of a finer belief feature (0: off).
+    #[arg(long, value_name = "N", default_value_t = 50_000)]
+    pub aggregation_episodes: u64,
+    /// Aggregation check: false discovery rate of the flagged splits.
+    #[arg(long, value_name = "ALPHA", default_value_t = 0.05)]
+    pub aggregation_alpha: f64,
 }
 
 /// What [`build_mdp`] did, for the summary.
@@ -379,6 +387,12 @@ pub fn run(a: Args) -> Result<()> {
         .unwrap_or_else(|| Path::new("out").join(&s.name));
     let front_path = dir.join("front.json");
     crate::output::refuse_existing(&front_path, a.force)?;
+    if !(a.aggregation_alpha > 0.0 && a.aggregation_alpha < 1.0) {
+        bail!(
+            "--aggregation-alpha must lie in (0, 1) (got {})",
+            a.aggregation_alpha
+        );
+    }
     let text = crate::input::scenario_text(&a.scenario)?;
     let built = build_mdp(&a)?;
     // Method 1 as a baseline beside Method 2 (cheap: one state per decision point).
@@ -406,9 +420,17 @@ pub fn run(a: Args) -> Result<()> {
     } else {
         None
     };
+    let aggregation = crate::cmd::aggregation::measure(
+        &built.scenario,
+        &built.mdp,
+        a.aggregation_episodes,
+        a.aggregation_alpha,
+        a.json,
+    );
     if a.json {
         let v = serde_json::json!({
             "mdp": built.report,
+            "aggregation": aggregation.as_ref().map(|r| &r.0),
             "front": {
                 "vertices": front.front.vertices.len(),
                 "facets": front.front.facets.len(),
@@ -421,6 +443,12 @@ pub fn run(a: Args) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         print!("{}", report_text(&built.report));
+        if let Some((r, secs)) = &aggregation {
+            print!(
+                "{}",
+                crate::cmd::aggregation::describe(r, &built.mdp, *secs)
+            );
+        }
         print!("{}", crate::front::describe(&front.front));
         println!("  computed in {:.3} s", front.seconds);
         for f in &front.files {

@@ -12,6 +12,7 @@ mod replay;
 mod replay_subcommands;
 mod replay_tools;
 mod run_config;
+mod scenario_random;
 mod schemas;
 mod synthesize;
 

@@ -8,6 +8,7 @@
 
 mod builtin;
 mod higher;
+pub mod random;
 mod raw;
 mod validate;
 
