@@ -206,12 +206,14 @@ pub fn sample_segments(
                 let mut rng = stream_rng(seed, AGGREGATION_STREAM, e);
                 let mut st: AgentState<N> = cs.initial_state(&mut rng);
                 let mut out = Vec::with_capacity(legs);
+                // The episode's radio channels (an ideal radio draws nothing).
+                let mut channels = cs.channels(seed, AGGREGATION_STREAM, e);
                 let mut current = lookup(0, &to_dynamic(&st.belief.cov));
                 for dp in 0..legs {
                     let a = rng.random_range(0..actions);
                     let feats = features(&disc.decision_points[dp], scenario, dp, &st.belief);
                     let mode = LegMode::<N>::EventTriggered(Threshold::new(mdp.deltas[a]));
-                    let r = cs.run_leg(dp, &mut st, &mode, &mut rng, &mut ());
+                    let r = cs.run_leg(dp, &mut st, &mode, &mut rng, &mut channels, &mut ());
                     let (outcome, next) = match r.end {
                         LegEnd::Collision { .. } => (Next::Collision, None),
                         LegEnd::Terminated if dp + 1 == legs => {
