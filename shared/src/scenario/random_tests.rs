@@ -21,7 +21,13 @@ fn full_kf(s: &Scenario, episodes: u64) -> (u64, u64) {
         let mut hits = (0, 0);
         for e in 0..episodes {
             let mut rng = stream_rng(0, 1, e);
-            let r = c.run_episode(|_, _, _| LegMode::<N>::EventTriggered(t), &mut rng, &mut ());
+            let mut channels = c.channels(0, 1, e);
+            let r = c.run_episode(
+                |_, _, _| LegMode::<N>::EventTriggered(t),
+                &mut rng,
+                &mut channels,
+                &mut (),
+            );
             match r.outcome {
                 Outcome::Target => hits.0 += 1,
                 Outcome::Collision => hits.1 += 1,
@@ -93,7 +99,10 @@ fn double_integrators_reach_the_target_under_the_full_kf() {
             let (_, s) = random_scenario(kind, seed).expect("valid");
             let (t, _) = full_kf(&s, 300);
             let p = t as f64 / 300.0;
-            assert!((0.8..=0.998).contains(&p), "{kind:?} seed {seed}: P_tar {p}");
+            assert!(
+                (0.8..=0.998).contains(&p),
+                "{kind:?} seed {seed}: P_tar {p}"
+            );
         }
     }
 }
