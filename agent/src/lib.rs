@@ -20,6 +20,7 @@
 //!   and marks the episode degraded. A live sensor is waited for, however
 //!   slow or paused.
 
+pub mod core;
 pub mod link;
 pub mod runtime;
 

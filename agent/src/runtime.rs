@@ -1,6 +1,8 @@
-//! The agent's episodes over IPC: the step of `etp_shared::episode::step`
-//! (the same functions the in-process simulation and `replay --verify` use),
-//! with the slot served by a sensor process and the threshold chosen by the
+//! The agent's episodes over IPC: the thin adapter around the shared step
+//! (`etp_shared::episode::AgentCore`, the one the in-process simulation,
+//! the sensor's replica and `replay --verify` run) and the agent's pure
+//! decisions ([`crate::core`]): the world is the agent's true plant, each
+//! slot is served by a sensor process, each threshold chosen by the
 //! coordinator.
 //!
 //! The agent waits in exactly one place, [`Agent::wait_until`], on its
@@ -11,6 +13,7 @@
 //! however slow or paused; only a dead one (or, with `--slot-deadline`, a
 //! late one) makes a dead link.
 
+use crate::core::{EpisodeBook, end_code, measurement};
 use crate::link::{Fault, Links, SlotResult};
 use crate::{AgentError, AgentStats, Exit, IDLE_CHECK, SLOT_CHECK};
 use etp_runtime::wire::PortError;
@@ -19,11 +22,11 @@ use etp_runtime::wire::coordinator_to_agent::Control;
 use etp_runtime::wire::to_coordinator::Hello;
 use etp_runtime::wire::{
     self, AGENT_NODE, COORDINATOR_NODE, ControlKind, Liveness, Notifier, OutcomeCode, Ports, Pub,
-    SENDER_AGENT, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, belief_to_wire,
+    SENDER_AGENT, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog,
 };
-use etp_shared::episode::{CompiledScenario, SlotOutcome, belief_digest};
-use etp_shared::etkf::Threshold as Th;
-use etp_shared::rng::{stream_rng, streams};
+use etp_shared::episode::{AgentCore, CompiledScenario, OpenSlot, SlotOutcome, Step, StepDriver};
+use etp_shared::etkf::Vector;
+use etp_shared::rng::{SimRng, stream_rng, streams};
 use etp_shared::scenario::Scenario;
 use iceoryx2::prelude::*;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -52,6 +55,11 @@ enum Waited<T> {
 /// The agent process: its scenario, ports and counters.
 pub struct Agent<const N: usize> {
     c: CompiledScenario<N>,
+    io: AgentIo,
+}
+
+/// The agent's ports, its one wait point and its counters.
+struct AgentIo {
     node: Node<ipc::Service>,
     stamp: Stamper,
     links: Links,
@@ -64,14 +72,6 @@ pub struct Agent<const N: usize> {
     coordinator_wake: Notifier,
     stats: AgentStats,
     _hello: Option<Pub<Hello>>,
-}
-
-/// Counts of the leg in progress.
-#[derive(Debug, Clone, Copy, Default)]
-struct LegCounts {
-    steps: u32,
-    received: u32,
-    degraded: bool,
 }
 
 fn unix_ns(t: SystemTime) -> u64 {
@@ -109,8 +109,7 @@ impl<const N: usize> Agent<N> {
             },
             wire::HELLO_TIMEOUT,
         )?;
-        Ok(Self {
-            c: CompiledScenario::<N>::new(scenario),
+        let io = AgentIo {
             stamp,
             links,
             waiter,
@@ -124,34 +123,41 @@ impl<const N: usize> Agent<N> {
             stats: AgentStats::default(),
             _hello: Some(hello),
             node,
+        };
+        Ok(Self {
+            c: CompiledScenario::<N>::new(scenario),
+            io,
         })
     }
 
+    /// Serve episodes until stopped.
+    pub fn serve(self) -> Result<(Exit, AgentStats), AgentError> {
+        let Self { c, mut io } = self;
+        loop {
+            let start = io.wait_until(Awaiting::Coordinator, |a| a.take_control())?;
+            match start {
+                Waited::Got(Some((episode, seed))) => {
+                    let started = Instant::now();
+                    let r = io.episode(&c, episode, seed)?;
+                    io.stats.busy_seconds += started.elapsed().as_secs_f64();
+                    if let Some(exit) = r {
+                        return Ok((exit, io.stats));
+                    }
+                }
+                Waited::Got(None) => return Ok((Exit::Stopped, io.stats)),
+                Waited::Exit(exit) => return Ok((exit, io.stats)),
+                Waited::DeadLink(_) => unreachable!("no slot awaited"),
+            }
+        }
+    }
+}
+
+impl AgentIo {
     fn notify_coordinator(&self) -> Result<(), AgentError> {
         self.coordinator_wake
             .notify()
             .map(|_| ())
             .map_err(|e| PortError::notify("coordinator wake", e).into())
-    }
-
-    /// Serve episodes until stopped.
-    pub fn serve(mut self) -> Result<(Exit, AgentStats), AgentError> {
-        loop {
-            let start = self.wait_until(Awaiting::Coordinator, |a| a.take_control())?;
-            match start {
-                Waited::Got(Some((episode, seed))) => {
-                    let started = Instant::now();
-                    let r = self.episode(episode, seed)?;
-                    self.stats.busy_seconds += started.elapsed().as_secs_f64();
-                    if let Some(exit) = r {
-                        return Ok((exit, self.stats));
-                    }
-                }
-                Waited::Got(None) => return Ok((Exit::Stopped, self.stats)),
-                Waited::Exit(exit) => return Ok((exit, self.stats)),
-                Waited::DeadLink(_) => unreachable!("no slot awaited"),
-            }
-        }
     }
 
     /// `control`: `Some(Some(start))`, `Some(None)` for stop, `None` if nothing.
@@ -233,7 +239,7 @@ impl<const N: usize> Agent<N> {
     }
 
     /// One slot at `sensor` for (episode, leg, step k).
-    fn slot(
+    fn slot<const N: usize>(
         &mut self,
         episode: u64,
         leg: u32,
@@ -275,35 +281,38 @@ impl<const N: usize> Agent<N> {
     }
 
     /// One episode; `Some(exit)` if the process must stop.
-    fn episode(&mut self, episode: u64, seed: u64) -> Result<Option<Exit>, AgentError> {
+    fn episode<const N: usize>(
+        &mut self,
+        c: &CompiledScenario<N>,
+        episode: u64,
+        seed: u64,
+    ) -> Result<Option<Exit>, AgentError> {
         tracing::debug!(episode, "episode start");
         let mut rng = stream_rng(seed, streams::AGENT, episode);
-        let mut state = self.c.initial_state(&mut rng);
-        let mut k: u32 = 0;
-        let mut prev = LegCounts::default();
-        let mut totals = Outcome {
-            dead_sensor: u32::MAX,
-            ..Outcome::default()
+        let initial = c.initial_state(&mut rng);
+        let mut book = EpisodeBook::new();
+        let mut live = Live {
+            io: self,
+            c,
+            x: initial.x,
+            rng,
+            episode,
+            leg: 0,
+            book: &mut book,
         };
-        let legs = self.c.legs.len();
-        let tag = self.stamp.tag();
+        let (mut belief, mut k) = (initial.belief, 0);
+        let legs = c.legs.len();
+        let tag = live.io.stamp.tag();
         for leg in 0..legs {
             let leg32 = leg as u32;
-            let (mean, cov) = belief_to_wire(&state.belief);
-            let header = self.stamp.header(episode, leg32, k);
-            self.waypoint
-                .send_copy(Waypoint {
-                    header,
-                    dim: N as u32,
-                    prev_steps: prev.steps,
-                    prev_received: prev.received,
-                    prev_degraded: u32::from(prev.degraded),
-                    mean,
-                    cov,
-                })
+            let header = live.io.stamp.header(episode, leg32, k);
+            let waypoint = live.book.waypoint(header, &belief);
+            live.io
+                .waypoint
+                .send_copy(waypoint)
                 .map_err(|e| PortError::send("waypoint", e))?;
-            self.notify_coordinator()?;
-            let opened = self.wait_until(Awaiting::Coordinator, |a| {
+            live.io.notify_coordinator()?;
+            let opened = live.io.wait_until(Awaiting::Coordinator, |a| {
                 // The coordinator starts an episode only after the previous
                 // one's outcome: a control message now is its stop.
                 if a.take_control()?.is_some() {
@@ -317,100 +326,57 @@ impl<const N: usize> Agent<N> {
                 Waited::Exit(e) => return Ok(Some(e)),
                 Waited::DeadLink(_) => unreachable!("no slot awaited"),
             };
-            if sensor != self.c.legs[leg].sensor {
-                return Err(AgentError::Protocol(format!(
-                    "coordinator opened leg {leg} at sensor {sensor}, the scenario says {}",
-                    self.c.legs[leg].sensor
-                )));
+            EpisodeBook::check_open(c, leg, sensor)?;
+            if live.io.links.alive[sensor] {
+                let header = live.io.stamp.header(episode, leg32, k);
+                live.io.links.hand_over(sensor, header, &belief)?;
+                live.io.stats.handovers += 1;
             }
-            let beta = Th::new(delta).beta;
-            if self.links.alive[sensor] {
-                let header = self.stamp.header(episode, leg32, k);
-                self.links.hand_over(sensor, header, &state.belief)?;
-                self.stats.handovers += 1;
-            }
-            let mut counts = LegCounts::default();
+            live.leg = leg32;
+            let mut core = AgentCore::event_triggered(c, leg, delta, belief, k);
             loop {
-                // docs/MODEL.md §3 through episode::step, in this order.
-                let u = self.c.input(leg, &state.belief.mean);
-                let collided = self.c.move_plant(&mut state.x, &u, &mut rng);
-                k += 1;
-                counts.steps += 1;
-                totals.steps += 1;
-                if collided.is_some() {
-                    totals.outcome = OutcomeCode::Collision.code();
-                    return self
-                        .finish(episode, leg32, k, counts, totals)
-                        .map(|()| None);
-                }
-                let prior = self.c.prior(&state.belief, &u);
-                let (result, fault) = match self.slot(episode, leg32, k, sensor, &state.x)? {
-                    Ok(r) => r,
-                    Err(exit) => return Ok(Some(exit)),
+                // docs/MODEL.md §3, the one step.
+                let step = match core.step_any(c, &mut live) {
+                    Ok(step) => step,
+                    Err(Halt::Exit(exit)) => return Ok(Some(exit)),
+                    Err(Halt::Error(e)) => return Err(e),
                 };
-                if let Some(f) = fault {
-                    record_fault(&mut totals, &f);
-                }
-                totals.slots += 1;
-                let (slot, y) = match result {
-                    SlotResult::Closed(y, digest) => {
-                        // The sensor triggered on its replica's prior: it
-                        // must be ours, bit for bit (docs/MODEL.md §3.2).
-                        if digest != belief_digest(&prior) {
-                            return Err(AgentError::Protocol(format!(
-                                "sensor {sensor}'s replica diverged at episode {episode} step {k}: \
-                                 prior digest {digest:#018x}, the agent's {:#018x}",
-                                belief_digest(&prior)
-                            )));
-                        }
-                        (true, y)
+                match step {
+                    Step::Collided { .. } => {
+                        live.io.finish(
+                            *live.book,
+                            (episode, leg32, core.step),
+                            &core,
+                            OutcomeCode::Collision,
+                        )?;
+                        return Ok(None);
                     }
-                    SlotResult::Dead(y) => {
-                        counts.degraded = true;
-                        totals.degraded = 1;
-                        totals.dead_slots += 1;
-                        (false, y)
-                    }
-                };
-                counts.received += u32::from(y.is_some());
-                let outcome = match (&y, slot) {
-                    (Some(y), _) => SlotOutcome::Transmitted(&y[..]),
-                    (None, true) => SlotOutcome::Silent,
-                    (None, false) => SlotOutcome::Dead,
-                };
-                state.belief = self.c.close_slot(leg, &prior, outcome, beta);
-                if self.c.leg_ends(leg, &state.belief, counts.steps) {
-                    break;
+                    Step::Closed { leg_ends: true, .. } => break,
+                    Step::Closed { .. } => {}
                 }
             }
+            (belief, k) = (core.belief, core.step);
             if leg + 1 == legs {
-                totals.outcome = match self.c.classify_end(&state.x) {
-                    etp_shared::episode::Outcome::Target => OutcomeCode::Target,
-                    _ => OutcomeCode::Free,
-                }
-                .code();
-                return self
-                    .finish(episode, leg32, k, counts, totals)
-                    .map(|()| None);
+                let code = end_code(c, &live.x);
+                live.io
+                    .finish(*live.book, (episode, leg32, k), &core, code)?;
+                return Ok(None);
             }
-            totals.received += counts.received;
-            prev = counts;
+            live.book.end_leg(&core.counts());
         }
         Err(AgentError::Protocol("scenario without legs".into()))
     }
 
-    fn finish(
+    /// The episode ended during the leg of `core`: publish its `outcome`.
+    fn finish<const N: usize>(
         &mut self,
-        episode: u64,
-        leg: u32,
-        k: u32,
-        last: LegCounts,
-        mut o: Outcome,
+        book: EpisodeBook,
+        (episode, leg, k): (u64, u32, u32),
+        core: &AgentCore<N>,
+        code: OutcomeCode,
     ) -> Result<(), AgentError> {
-        o.header = self.stamp.header(episode, leg, k);
-        o.last_steps = last.steps;
-        o.last_received = last.received;
-        o.received += last.received;
+        let header = self.stamp.header(episode, leg, k);
+        let o = book.finish(header, &core.counts(), code);
         self.stats.episodes += 1;
         self.stats.steps += u64::from(o.steps);
         self.stats.received += u64::from(o.received);
@@ -430,11 +396,51 @@ impl<const N: usize> Agent<N> {
     }
 }
 
-fn record_fault(o: &mut Outcome, f: &Fault) {
-    if o.dead_sensor == u32::MAX {
-        o.dead_sensor = f.sensor;
-        o.detect_us = f.detect_us;
-        o.wait_started_unix_ns = f.wait_started_unix_ns;
-        o.detected_unix_ns = f.detected_unix_ns;
+/// Why a step stopped the episode.
+enum Halt {
+    Exit(Exit),
+    Error(AgentError),
+}
+
+impl From<AgentError> for Halt {
+    fn from(e: AgentError) -> Self {
+        Self::Error(e)
+    }
+}
+
+/// The agent process as the driver of the shared step: the world is its
+/// true plant (stream `AGENT`), each slot is served by the leg's sensor
+/// process and judged by the [`EpisodeBook`].
+struct Live<'a, const N: usize> {
+    io: &'a mut AgentIo,
+    c: &'a CompiledScenario<N>,
+    x: Vector<N>,
+    rng: SimRng,
+    episode: u64,
+    leg: u32,
+    book: &'a mut EpisodeBook,
+}
+
+impl<const N: usize, const M: usize> StepDriver<N, M> for Live<'_, N> {
+    type Stop = Halt;
+
+    fn advance(&mut self, _step: u32, u: &Vector<N>) -> Result<Option<usize>, Halt> {
+        Ok(self.c.move_plant(&mut self.x, u, &mut self.rng))
+    }
+
+    fn slot(&mut self, slot: &OpenSlot<'_, N, M>) -> Result<SlotOutcome<Vector<M>>, Halt> {
+        let sensor = self.c.legs[slot.leg].sensor;
+        let (result, fault) = self
+            .io
+            .slot(self.episode, self.leg, slot.step, sensor, &self.x)?
+            .map_err(Halt::Exit)?;
+        let outcome =
+            self.book
+                .on_slot((self.episode, slot.step, sensor), slot.prior, result, fault)?;
+        Ok(match outcome {
+            SlotOutcome::Delivered(y) => SlotOutcome::Delivered(measurement::<M>(&y)),
+            SlotOutcome::Silent => SlotOutcome::Silent,
+            SlotOutcome::Dead => SlotOutcome::Dead,
+        })
     }
 }

@@ -5,15 +5,16 @@
 //!
 //! The sensor knows the agent's estimate without a per-step downlink: at the
 //! start of each leg it serves the agent hands its belief over (`handover`),
-//! and from then on a [`LegReplica`] computes each prior with the agent's own
-//! step functions from what the sensor itself did (transmitted y, or stayed
-//! silent). The slot carries the replica prior's digest; the agent checks it.
+//! and from then on a [`LegReplica`] runs the agent's own step
+//! (`episode::AgentCore`) on every slot, with what the sensor itself did
+//! (transmitted y, or stayed silent). The slot carries the replica prior's
+//! digest; the agent checks it.
 
 use etp_runtime::wire::agent_to_sensor::{Handover, Truth};
 use etp_runtime::wire::coordinator_to_all::Threshold;
 use etp_runtime::wire::{ThresholdKind, WireVec, belief_from_wire, to_wire_vec, vec_from_wire};
-use etp_shared::episode::{CompiledScenario, LegReplica, SlotOutcome, belief_digest};
-use etp_shared::etkf::{EtKalmanFilter, Threshold as Th, Vector};
+use etp_shared::episode::{CompiledScenario, LegReplica, SlotOutcome};
+use etp_shared::etkf::{EtKalmanFilter, Vector};
 use etp_shared::rng::{stream_rng, streams};
 
 /// What the sensor spent on one leg.
@@ -208,15 +209,11 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
         if self.is_closed(episode, leg) {
             return Ok(());
         }
-        let open = self.open_leg(episode, leg)?;
+        let delta = self.open_leg(episode, leg)?.delta;
         let belief = belief_from_wire::<N>(&h.mean, &h.cov);
-        let beta = Th::new(open.delta).beta;
-        open.replica = Some(LegReplica::handed_over(
-            leg as usize,
-            beta,
-            belief,
-            h.header.step,
-        ));
+        let replica =
+            LegReplica::handed_over(&self.scenario, leg as usize, delta, belief, h.header.step);
+        self.open_leg(episode, leg)?.replica = Some(replica);
         self.stats.handovers += 1;
         Ok(())
     }
@@ -244,43 +241,44 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
         let Some(replica) = open.replica.as_mut() else {
             return Err(SlotError::NoHandover { episode, leg });
         };
-        if replica.next_step != step {
+        if replica.next_step() != step {
             return Err(SlotError::StepGap {
                 episode,
                 step,
-                expected: replica.next_step,
+                expected: replica.next_step(),
             });
         }
-        let prior = replica.prior(scenario);
         let mut rng = stream_rng(seed, streams::SENSOR, (episode << 32) | u64::from(step));
         let x: Vector<N> = vec_from_wire(&t.x);
-        let y = filter.sensor.measure(&x, &mut rng);
-        let fired = filter.innovation(&prior).triggers(&y, open.delta);
-        // What the agent will receive: the wire copy of y (same bits).
-        let y_wire = to_wire_vec(y.as_slice());
-        let slot = if fired {
-            SlotOutcome::Transmitted(&y_wire[..])
-        } else {
-            SlotOutcome::Silent
-        };
-        replica.close(scenario, &prior, slot);
+        let served = replica.serve(scenario, &filter, |slot| {
+            let y = slot.sensor.measure(&x, &mut rng);
+            if slot.triggers(&y) {
+                SlotOutcome::Delivered(y)
+            } else {
+                SlotOutcome::Silent
+            }
+        });
         open.ledger.slots += 1;
         self.stats.slots += 1;
         if self.episode_count.0 != episode {
             self.episode_count = (episode, 0);
         }
-        let transmit = fired.then(|| {
-            open.ledger.transmissions += 1;
-            self.stats.transmissions += 1;
-            self.episode_count.1 += 1;
-            (y_wire, self.episode_count.1)
-        });
+        let transmit = match &served.outcome {
+            SlotOutcome::Delivered(y) => {
+                open.ledger.transmissions += 1;
+                self.stats.transmissions += 1;
+                self.episode_count.1 += 1;
+                // What the agent will receive: the wire copy of y (same bits).
+                Some((to_wire_vec(y.as_slice()), self.episode_count.1))
+            }
+            SlotOutcome::Silent | SlotOutcome::Dead => None,
+        };
         Ok(SlotDecision {
             episode,
             leg,
             step,
             transmit,
-            prior_digest: belief_digest(&prior),
+            prior_digest: served.prior_digest,
         })
     }
 }
@@ -289,6 +287,7 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
 mod tests {
     use super::*;
     use etp_runtime::wire::{Header, belief_to_wire};
+    use etp_shared::episode::belief_digest;
     use etp_shared::etkf::{Belief, Matrix};
     use etp_shared::scenario::Scenario;
 
@@ -471,27 +470,35 @@ mod tests {
     }
 
     /// The replica's priors are the agent's: the slot digests equal those of
-    /// the priors `episode::step` computes from the same slot outcomes.
+    /// the priors an agent computes independently with the filter's own
+    /// functions (predict, innovation, explicit/implicit update) from the
+    /// same slot outcomes.
     #[test]
     fn the_slot_digest_is_the_agents_prior() {
         let s = Scenario::builtin("open-2d").expect("built-in");
         let compiled = CompiledScenario::<2>::new(&s);
+        let filter = EtKalmanFilter::<2, 2>::new(&s.plant, &s.sensors[0]);
         let mut c = core();
         c.on_threshold(&th(Threshold::OPEN, 0, 0, 1.0));
         let mut agent = belief();
         hand_over(&mut c, 0, 0, 0, &agent);
-        let beta = Th::new(1.0).beta;
+        let beta = etp_shared::gaussian::beta(1.0);
+        let mut sent = 0;
         for k in 1..=10 {
             let d = slot(&mut c, 0, 0, k);
             let u = compiled.input(0, &agent.mean);
-            let prior = compiled.prior(&agent, &u);
+            let prior = filter.predict(&agent, &u);
             assert_eq!(d.prior_digest, belief_digest(&prior), "step {k}");
-            let outcome = match &d.transmit {
-                Some((y, _)) => SlotOutcome::Transmitted(&y[..]),
-                None => SlotOutcome::Silent,
+            let inn = filter.innovation(&prior);
+            agent = match &d.transmit {
+                Some((y, _)) => {
+                    sent += 1;
+                    filter.update_explicit(&prior, &inn, &Vector::<2>::new(y[0], y[1]))
+                }
+                None => filter.update_implicit(&prior, &inn, beta),
             };
-            agent = compiled.close_slot(0, &prior, outcome, beta);
         }
+        assert!(sent > 0 && sent < 10, "{sent}");
     }
 
     #[test]

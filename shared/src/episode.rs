@@ -17,19 +17,19 @@
 //! Random numbers are drawn in a fixed order per step (process noise, then
 //! measurement noise), so a seed fixes an episode completely.
 //!
-//! The pieces of one step (input, move, prior, slot update, leg end) are
-//! defined once in [`step`] and shared with the runtime agent and
-//! `etp replay --verify`.
+//! The step itself is written once, [`AgentCore::step`] in [`step`]; the leg
+//! loop here is its in-process driver (true plant, in-process sensor), as
+//! the agent process, `etp replay --verify` and the sensor's replica
+//! ([`replica`]) are its others.
 
 pub mod replica;
 pub mod step;
 
 pub use replica::{LegReplica, belief_digest};
-pub use step::SlotOutcome;
+pub use step::{AgentCore, OpenSlot, SlotKind, SlotOutcome, Step, StepDriver};
 
 use crate::controller::{FeedbackController, reached};
 use crate::etkf::{Belief, EtKalmanFilter, LinearPlant, Matrix, Threshold, Vector, sample_belief};
-use crate::gaussian;
 use crate::geometry::{StaticBox, WorkspaceMap, first_containing, pad_point};
 use crate::linalg::to_static_vec;
 use crate::scenario::Scenario;
@@ -87,20 +87,6 @@ impl<const N: usize> SensorFilter<N> {
     /// Steady-state posterior covariance of the full Kalman filter (δ = 0).
     pub fn steady_state_posterior(&self) -> Matrix<N, N> {
         on_filter!(self, f => f.steady_state_posterior())
-    }
-
-    /// The posterior after a slot of this sensor: the explicit update with the
-    /// transmitted `y` (its first m entries; `y.len() >= m`), else the
-    /// implicit update with factor β. The one slot update shared by the
-    /// agent process and `etp replay --verify`, so both compute the same bits.
-    pub fn posterior(&self, prior: &Belief<N>, y: Option<&[f64]>, beta: f64) -> Belief<N> {
-        on_filter!(self, f => {
-            let inn = f.innovation(prior);
-            match y {
-                Some(y) => f.update_explicit(prior, &inn, &Vector::from_fn(|i, _| y[i])),
-                None => f.update_implicit(prior, &inn, beta),
-            }
-        })
     }
 
     /// One prediction with a zero input and an implicit update with factor β —
@@ -350,6 +336,9 @@ impl<const N: usize> CompiledScenario<N> {
         on_filter!(&self.filters[sensor], f => self.run_leg_with(f, leg, state, mode, rng, observer))
     }
 
+    /// The in-process driver of [`AgentCore::step`]: the true plant moves
+    /// (process noise from `rng`), the serving sensor measures (measurement
+    /// noise from `rng`, after the move) and triggers.
     #[inline(always)]
     fn run_leg_with<const M: usize, R: Rng + ?Sized, O: EpisodeObserver<N>>(
         &self,
@@ -360,73 +349,36 @@ impl<const N: usize> CompiledScenario<N> {
         rng: &mut R,
         observer: &mut O,
     ) -> LegResult {
-        let (initial_threshold, kf) = match *mode {
-            LegMode::EventTriggered(t) => (t, None),
-            LegMode::KfConvergence {
-                threshold,
-                eps_kf,
-                eps_p,
-                p_kf,
-            } => (threshold, Some((eps_kf, eps_p, p_kf))),
+        let mut core = AgentCore::at_leg(self, leg, *mode, state.belief, 0);
+        let mut world = InProcess {
+            c: self,
+            x: &mut state.x,
+            rng,
         };
-        let full_kf = Threshold::new(0.0);
-        let mut threshold = initial_threshold;
-        let mut in_kf_phase = false;
-        let mut r = LegResult {
-            end: LegEnd::Terminated,
-            steps: 0,
-            slots: 0,
-            transmissions: 0,
-            kf_slots: 0,
-            expected_transmissions: 0.0,
-        };
-        let mut expected_rate = gaussian::expected_rate(threshold.delta, M);
         loop {
-            let u = self.input(leg, &state.belief.mean);
-            let collided = self.move_plant(&mut state.x, &u, rng);
-            r.steps += 1;
-            if let Some(obstacle) = collided {
-                observer.on_step(&StepEvent {
-                    leg,
-                    x: &state.x,
-                    belief: &state.belief,
-                    delta: threshold.delta,
-                    transmitted: false,
-                    collided: true,
-                });
-                r.end = LegEnd::Collision { obstacle };
-                return r;
-            }
-            let y = filter.sensor.measure(&state.x, rng);
-            let (post, sent) = filter.step(&state.belief, &u, &y, threshold);
-            state.belief = post;
-            r.slots += 1;
-            r.transmissions += u32::from(sent);
-            r.kf_slots += u32::from(in_kf_phase);
-            r.expected_transmissions += expected_rate;
+            let step = match core.step(self, filter, &mut world) {
+                Ok(s) => s,
+                Err(never) => match never {},
+            };
+            let (delta, transmitted, collided, ends) = match step {
+                Step::Collided { .. } => (core.delta(), false, true, true),
+                Step::Closed {
+                    slot,
+                    delta,
+                    leg_ends,
+                } => (delta, slot == SlotOutcome::Delivered(()), false, leg_ends),
+            };
             observer.on_step(&StepEvent {
                 leg,
-                x: &state.x,
-                belief: &state.belief,
-                delta: threshold.delta,
-                transmitted: sent,
-                collided: false,
+                x: world.x,
+                belief: &core.belief,
+                delta,
+                transmitted,
+                collided,
             });
-            let done = match kf {
-                None => self.leg_ends(leg, &state.belief, r.steps),
-                Some((eps_kf, eps_p, p_kf)) => {
-                    let near = self.near_waypoint(leg, &state.belief.mean, self.eps_x);
-                    if !in_kf_phase && self.near_waypoint(leg, &state.belief.mean, eps_kf) {
-                        in_kf_phase = true;
-                        threshold = full_kf;
-                        expected_rate = 1.0;
-                    }
-                    (in_kf_phase && near && (state.belief.cov - p_kf).amax() <= eps_p)
-                        || r.steps >= self.k_max
-                }
-            };
-            if done {
-                return r;
+            if ends {
+                state.belief = core.belief;
+                return core.counts();
             }
         }
     }
@@ -468,6 +420,48 @@ impl<const N: usize> CompiledScenario<N> {
         }
         total.outcome = self.classify_end(&state.x);
         total
+    }
+}
+
+/// The world of an in-process leg: the true state and the random stream.
+struct InProcess<'a, const N: usize, R: ?Sized> {
+    c: &'a CompiledScenario<N>,
+    x: &'a mut Vector<N>,
+    rng: &'a mut R,
+}
+
+impl<const N: usize, const M: usize, R: Rng + ?Sized> StepDriver<N, M> for InProcess<'_, N, R> {
+    type Stop = std::convert::Infallible;
+
+    #[inline(always)]
+    fn advance(&mut self, _step: u32, u: &Vector<N>) -> Result<Option<usize>, Self::Stop> {
+        Ok(self.c.move_plant(self.x, u, self.rng))
+    }
+
+    #[inline(always)]
+    fn slot(&mut self, slot: &OpenSlot<'_, N, M>) -> Result<SlotOutcome<Vector<M>>, Self::Stop> {
+        let y = slot.sensor.measure(self.x, self.rng);
+        Ok(if slot.triggers(&y) {
+            SlotOutcome::Delivered(y)
+        } else {
+            SlotOutcome::Silent
+        })
+    }
+}
+
+impl<const N: usize> AgentCore<N> {
+    /// [`Self::step`] with the leg's sensor filter chosen at run time (the
+    /// runtime's drivers, which serve sensors of every measurement dimension).
+    pub fn step_any<E, D>(&mut self, c: &CompiledScenario<N>, driver: &mut D) -> Result<Step, E>
+    where
+        D: StepDriver<N, 1, Stop = E>
+            + StepDriver<N, 2, Stop = E>
+            + StepDriver<N, 3, Stop = E>
+            + StepDriver<N, 4, Stop = E>
+            + StepDriver<N, 5, Stop = E>
+            + StepDriver<N, 6, Stop = E>,
+    {
+        on_filter!(&c.filters[self.sensor()], f => self.step(c, f, driver))
     }
 }
 

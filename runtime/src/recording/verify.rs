@@ -5,7 +5,7 @@
 //! threshold δ of each leg (`threshold` OPEN), the transmitted measurements
 //! (`measurement`) and the closed slots (`slot`). From the initial belief
 //! (x̂₀, P₀) the re-run applies docs/MODEL.md §3 through the agent's own step
-//! functions (`episode::step`: input from the posterior, prior, the slot's
+//! functions (`episode::AgentCore::step`: input from the posterior, prior, the slot's
 //! update, the leg's end rule) and compares, with `f64::to_bits`, every belief
 //! the agent published — the posterior at each decision point (`waypoint`)
 //! and the belief handed over to the serving sensor (`sensor/<i>/handover`) —
@@ -26,8 +26,10 @@ use crate::wire::coordinator_to_agent::Control;
 use crate::wire::coordinator_to_all::Threshold;
 use crate::wire::sensor_to_agent::{Measurement, Slot};
 use crate::wire::{WireMat, WireVec, belief_to_wire};
-use etp_shared::episode::{CompiledScenario, SlotOutcome, belief_digest};
-use etp_shared::etkf::{Belief, Threshold as Th};
+use etp_shared::episode::{
+    AgentCore, CompiledScenario, OpenSlot, SlotOutcome, Step, StepDriver, belief_digest,
+};
+use etp_shared::etkf::{Belief, Vector};
 use etp_shared::scenario::Scenario;
 use std::collections::BTreeMap;
 
@@ -263,6 +265,130 @@ fn verify_episode<const N: usize>(
     }
 }
 
+/// Why a re-run stopped before the recorded outcome.
+enum Halt {
+    /// The file ends inside this episode.
+    Cut,
+    Mismatch(Mismatch),
+}
+
+impl From<Mismatch> for Halt {
+    fn from(m: Mismatch) -> Self {
+        Self::Mismatch(m)
+    }
+}
+
+/// Collisions are recorded without the obstacle's index.
+const RECORDED_OBSTACLE: usize = usize::MAX;
+
+/// The recording as the driver of the agent's step ([`AgentCore::step`]):
+/// the world collides where the recorded outcome says so, and each slot
+/// brings what the recording holds (its prior digest checked on the way).
+struct Replayed<'a, 'r> {
+    episode: u64,
+    r: &'a EpisodeRecord,
+    sensor: usize,
+    may_be_cut: bool,
+    rep: &'a mut VerifyReport,
+    sink: &'a mut PriorSink<'r>,
+}
+
+impl Replayed<'_, '_> {
+    fn miss(&self, leg: usize, step: u32, what: String) -> Mismatch {
+        Mismatch {
+            episode: self.episode,
+            leg: leg as u32,
+            step,
+            what,
+            max_abs_diff: 0.0,
+        }
+    }
+
+    /// A message the agent must have published is not in the file.
+    fn missing(&self, leg: usize, step: u32, what: &str) -> Halt {
+        if self.may_be_cut {
+            Halt::Cut
+        } else {
+            Halt::Mismatch(self.miss(leg, step, what.to_string()))
+        }
+    }
+}
+
+impl<const N: usize, const M: usize> StepDriver<N, M> for Replayed<'_, '_> {
+    type Stop = Halt;
+
+    fn advance(&mut self, step: u32, _u: &Vector<N>) -> Result<Option<usize>, Halt> {
+        self.rep.steps += 1;
+        Ok(self
+            .r
+            .outcome
+            .filter(|o| o.outcome == Outcome::COLLISION && o.header.step == step)
+            .map(|_| RECORDED_OBSTACLE))
+    }
+
+    fn slot(&mut self, slot: &OpenSlot<'_, N, M>) -> Result<SlotOutcome<Vector<M>>, Halt> {
+        let (leg, k) = (slot.leg, slot.step);
+        (self.sink)(self.episode, k, N as u32, belief_to_wire(slot.prior));
+        let y = self.r.measurements.get(&k);
+        if let Some(m) = y
+            && m.header.sender as usize != self.sensor
+        {
+            return Err(self
+                .miss(
+                    leg,
+                    k,
+                    format!(
+                        "measurement from sensor {}, the leg is served by {}",
+                        m.header.sender, self.sensor
+                    ),
+                )
+                .into());
+        }
+        let Some(closed) = self.r.slots.get(&k) else {
+            return Err(self.missing(leg, k, "slot not closed in the record"));
+        };
+        if closed.prior_digest != belief_digest(slot.prior) {
+            return Err(self
+                .miss(
+                    leg,
+                    k,
+                    "the sensor's replica triggered on another prior (slot.prior_digest)".into(),
+                )
+                .into());
+        }
+        self.rep.priors_checked += 1;
+        if closed.transmitted == 1 && y.is_none() {
+            return Err(self.missing(
+                leg,
+                k,
+                "slot says transmitted but no measurement is recorded",
+            ));
+        }
+        if closed.transmitted != 1 && y.is_some() {
+            return Err(self
+                .miss(
+                    leg,
+                    k,
+                    format!(
+                        "slot says transmitted = {} but a measurement is recorded",
+                        closed.transmitted
+                    ),
+                )
+                .into());
+        }
+        Ok(match y {
+            Some(m) => {
+                self.rep.explicit_updates += 1;
+                SlotOutcome::Delivered(Vector::<M>::from_fn(|i, _| m.y[i]))
+            }
+            None => {
+                self.rep.implicit_updates += 1;
+                SlotOutcome::Silent
+            }
+        })
+    }
+}
+
 fn rerun<const N: usize>(
     c: &CompiledScenario<N>,
     episode: u64,
@@ -271,6 +397,21 @@ fn rerun<const N: usize>(
     rep: &mut VerifyReport,
     sink: &mut PriorSink<'_>,
 ) -> Result<Ended, Mismatch> {
+    match rerun_halting(c, episode, r, may_be_cut, rep, sink) {
+        Ok(()) => Ok(Ended::Done),
+        Err(Halt::Cut) => Ok(Ended::Cut),
+        Err(Halt::Mismatch(m)) => Err(m),
+    }
+}
+
+fn rerun_halting<const N: usize>(
+    c: &CompiledScenario<N>,
+    episode: u64,
+    r: &EpisodeRecord,
+    may_be_cut: bool,
+    rep: &mut VerifyReport,
+    sink: &mut PriorSink<'_>,
+) -> Result<(), Halt> {
     let miss = |leg: u32, step: u32, what: String, d: f64| Mismatch {
         episode,
         leg,
@@ -281,26 +422,26 @@ fn rerun<const N: usize>(
     // A message the agent must have published is not in the file.
     let missing = |leg: u32, step: u32, what: &str| {
         if may_be_cut {
-            Ok(Ended::Cut)
+            Halt::Cut
         } else {
-            Err(miss(leg, step, what.to_string(), 0.0))
+            Halt::Mismatch(miss(leg, step, what.to_string(), 0.0))
         }
     };
     if let Some(d) = &r.duplicate {
-        return Err(miss(0, 0, d.clone(), 0.0));
+        return Err(miss(0, 0, d.clone(), 0.0).into());
     }
     let mut belief = c.initial;
     if let Some(ctrl) = &r.control
         && let Some(d) = differs(&belief, ctrl.dim, &ctrl.initial_mean, &ctrl.initial_cov)
     {
-        return Err(miss(0, 0, "initial belief (control)".into(), d));
+        return Err(miss(0, 0, "initial belief (control)".into(), d).into());
     }
     let outcome = r.outcome;
     let mut k: u32 = 0;
     let legs = c.legs.len() as u32;
     for leg in 0..legs {
         let Some(wp) = r.waypoints.get(&leg) else {
-            return missing(leg, k, "no waypoint recorded for this leg");
+            return Err(missing(leg, k, "no waypoint recorded for this leg"));
         };
         // A belief the agent published at this decision point: at step k,
         // with exactly the re-run's bits.
@@ -322,12 +463,10 @@ fn rerun<const N: usize>(
         )?;
         rep.waypoints_checked += 1;
         let Some(&delta) = r.opens.get(&leg) else {
-            return missing(leg, k, "no threshold opened this leg");
+            return Err(missing(leg, k, "no threshold opened this leg"));
         };
-        let beta = Th::new(delta).beta;
-        let sensor = c.legs[leg as usize].sensor;
         let Some(h) = r.handovers.get(&leg) else {
-            return missing(leg, k, "no handover recorded for this leg");
+            return Err(missing(leg, k, "no handover recorded for this leg"));
         };
         same("belief handed over", h.header.step, h.dim, &h.mean, &h.cov)?;
         rep.handovers_checked += 1;
@@ -337,120 +476,76 @@ fn rerun<const N: usize>(
             (None, Some(o)) if o.header.leg == leg => Some(o.header.step),
             _ => None,
         };
-        let mut steps_in_leg = 0u32;
+        let mut core = AgentCore::event_triggered(c, leg as usize, delta, belief, k);
+        let mut driver = Replayed {
+            episode,
+            r,
+            sensor: core.sensor(),
+            may_be_cut,
+            rep: &mut *rep,
+            sink: &mut *sink,
+        };
         loop {
-            // MODEL.md §3 in the agent's order: input, plant step, collision
-            // check (ends the episode before the slot), prediction, slot.
-            let u = c.input(leg as usize, &belief.mean);
-            k += 1;
-            steps_in_leg += 1;
-            rep.steps += 1;
-            if let Some(o) = outcome
-                && o.outcome == Outcome::COLLISION
-                && o.header.step == k
-            {
-                return if o.header.leg == leg {
-                    Ok(Ended::Done)
-                } else {
-                    Err(miss(
-                        leg,
-                        k,
-                        format!("collision recorded in leg {}", o.header.leg),
-                        0.0,
-                    ))
-                };
-            }
-            let prior = c.prior(&belief, &u);
-            sink(episode, k, N as u32, belief_to_wire(&prior));
-            let y = r.measurements.get(&k);
-            if let Some(m) = y
-                && m.header.sender as usize != sensor
-            {
-                return Err(miss(
-                    leg,
-                    k,
-                    format!(
-                        "measurement from sensor {}, the leg is served by {sensor}",
-                        m.header.sender
-                    ),
-                    0.0,
-                ));
-            }
-            let Some(slot) = r.slots.get(&k) else {
-                return missing(leg, k, "slot not closed in the record");
+            // MODEL.md §3 through the agent's own step.
+            let step = core.step_any(c, &mut driver)?;
+            k = core.step;
+            let leg_ends = match step {
+                Step::Collided { .. } => {
+                    return match outcome {
+                        Some(o) if o.header.leg == leg => Ok(()),
+                        _ => Err(miss(
+                            leg,
+                            k,
+                            format!(
+                                "collision recorded in leg {}",
+                                outcome.map_or(leg, |o| o.header.leg)
+                            ),
+                            0.0,
+                        )
+                        .into()),
+                    };
+                }
+                Step::Closed { leg_ends, .. } => leg_ends,
             };
-            if slot.prior_digest != belief_digest(&prior) {
-                return Err(miss(
-                    leg,
-                    k,
-                    "the sensor's replica triggered on another prior (slot.prior_digest)".into(),
-                    0.0,
-                ));
-            }
-            rep.priors_checked += 1;
-            if slot.transmitted == 1 && y.is_none() {
-                return missing(
-                    leg,
-                    k,
-                    "slot says transmitted but no measurement is recorded",
-                );
-            }
-            if slot.transmitted != 1 && y.is_some() {
-                return Err(miss(
-                    leg,
-                    k,
-                    format!(
-                        "slot says transmitted = {} but a measurement is recorded",
-                        slot.transmitted
-                    ),
-                    0.0,
-                ));
-            }
-            match y {
-                Some(_) => rep.explicit_updates += 1,
-                None => rep.implicit_updates += 1,
-            }
-            let slot = match y {
-                Some(m) => SlotOutcome::Transmitted(&m.y[..]),
-                None => SlotOutcome::Silent,
-            };
-            belief = c.close_slot(leg as usize, &prior, slot, beta);
-            let ends = c.leg_ends(leg as usize, &belief, steps_in_leg);
             match recorded_end {
-                Some(end) if ends && end != k => {
+                Some(end) if leg_ends && end != k => {
                     return Err(miss(
                         leg,
                         k,
                         format!("the estimator ends the leg here, the record at step {end}"),
                         0.0,
-                    ));
+                    )
+                    .into());
                 }
-                Some(end) if !ends && end == k => {
+                Some(end) if !leg_ends && end == k => {
                     return Err(miss(
                         leg,
                         k,
                         "the record ends the leg here, the estimator does not".into(),
                         0.0,
-                    ));
+                    )
+                    .into());
                 }
                 _ => {}
             }
-            if ends {
+            if leg_ends {
                 break;
             }
         }
+        belief = core.belief;
         if leg + 1 == legs {
             return match outcome {
-                None => missing(leg, k, "no outcome recorded"),
-                Some(o) if o.outcome != Outcome::COLLISION && o.header.step == k => Ok(Ended::Done),
+                None => Err(missing(leg, k, "no outcome recorded")),
+                Some(o) if o.outcome != Outcome::COLLISION && o.header.step == k => Ok(()),
                 Some(o) => Err(miss(
                     leg,
                     k,
                     format!("outcome {} recorded at step {}", o.outcome, o.header.step),
                     0.0,
-                )),
+                )
+                .into()),
             };
         }
     }
-    Ok(Ended::Done)
+    Ok(())
 }

@@ -1,57 +1,108 @@
 //! The agent's estimator as the serving sensor replays it (docs/MODEL.md
 //! §3.2): handed the agent's belief once at the start of a leg, the sensor
-//! computes every prior of the leg itself, with the agent's own step
-//! functions ([`CompiledScenario::input`], [`CompiledScenario::prior`],
-//! [`CompiledScenario::close_slot`]), from what it knows: its own
-//! transmissions and silent slots. No per-step downlink is needed, and the
-//! replica's priors are the agent's bit for bit (checked by the agent on every
-//! slot through [`belief_digest`], and by `etp replay --verify`).
+//! runs the agent's own step ([`AgentCore::step`]) on every slot it serves:
+//! the plant moved without collision (the agent sent the truth), and the
+//! slot's outcome is what the sensor itself decided (transmitted y, or
+//! stayed silent). No per-step downlink is needed, and the replica's priors
+//! are the agent's bit for bit (checked by the agent on every slot through
+//! [`belief_digest`], and by `etp replay --verify`).
 //!
 //! The replica is exact only while every slot of the leg reached the agent as
 //! the sensor closed it; a slot the agent took as dead (a dead link) breaks
 //! it, and the next handover (next leg) restores it.
 
-use super::{CompiledScenario, SlotOutcome};
-use crate::etkf::Belief;
+use super::{AgentCore, CompiledScenario, OpenSlot, SlotOutcome, StepDriver};
+use crate::etkf::{Belief, EtKalmanFilter, Vector};
 
 /// The agent's estimate within one leg, as the serving sensor tracks it.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy)]
 pub struct LegReplica<const N: usize> {
-    /// The leg (decision point) index.
-    pub leg: usize,
-    /// β(δ) of the leg's threshold (the implicit update's factor).
-    pub beta: f64,
-    /// The agent's posterior after the last closed slot (at the handover:
-    /// its belief at the decision point).
-    pub posterior: Belief<N>,
-    /// The step k the next slot will have.
-    pub next_step: u32,
+    core: AgentCore<N>,
+}
+
+/// One slot as the replica served it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Served<const M: usize> {
+    /// What the sensor decided (and the replica applied).
+    pub outcome: SlotOutcome<Vector<M>>,
+    /// [`belief_digest`] of the prior the sensor decided on.
+    pub prior_digest: u64,
 }
 
 impl<const N: usize> LegReplica<N> {
-    /// The replica handed over at step `step` (slots so far in the episode)
-    /// of leg `leg` with belief `belief`.
-    pub fn handed_over(leg: usize, beta: f64, belief: Belief<N>, step: u32) -> Self {
+    /// The replica handed over at step `step` (steps so far in the episode)
+    /// of leg `leg` under threshold δ = `delta`, with the agent's belief.
+    pub fn handed_over(
+        c: &CompiledScenario<N>,
+        leg: usize,
+        delta: f64,
+        belief: Belief<N>,
+        step: u32,
+    ) -> Self {
         Self {
-            leg,
-            beta,
-            posterior: belief,
-            next_step: step + 1,
+            core: AgentCore::event_triggered(c, leg, delta, belief, step),
         }
     }
 
-    /// The prior of the next slot: `u = input(leg, x̂)`, then `prior(posterior, u)`,
-    /// exactly as the agent computes it.
-    pub fn prior(&self, c: &CompiledScenario<N>) -> Belief<N> {
-        let u = c.input(self.leg, &self.posterior.mean);
-        c.prior(&self.posterior, &u)
+    /// The step k the next slot will have.
+    pub fn next_step(&self) -> u32 {
+        self.core.step + 1
     }
 
-    /// Close the slot: the agent's update of `prior` with what the sensor
-    /// did (transmitted y, or stayed silent).
-    pub fn close(&mut self, c: &CompiledScenario<N>, prior: &Belief<N>, slot: SlotOutcome<'_>) {
-        self.posterior = c.close_slot(self.leg, prior, slot, self.beta);
-        self.next_step += 1;
+    /// The agent's posterior after the last closed slot.
+    pub fn posterior(&self) -> &Belief<N> {
+        &self.core.belief
+    }
+
+    /// Serve the next slot with the agent's step: `decide` is the sensor's
+    /// side (measure, trigger) on the prior the agent has; the replica then
+    /// applies what the agent will apply.
+    pub fn serve<const M: usize>(
+        &mut self,
+        c: &CompiledScenario<N>,
+        filter: &EtKalmanFilter<N, M>,
+        decide: impl FnOnce(&OpenSlot<'_, N, M>) -> SlotOutcome<Vector<M>>,
+    ) -> Served<M> {
+        let mut driver = Replay {
+            decide: Some(decide),
+            served: None,
+        };
+        let step = self.core.step(c, filter, &mut driver);
+        match (step, driver.served) {
+            (Ok(_), Some(served)) => served,
+            // `advance` never collides and `slot` never stops.
+            _ => unreachable!("the replica's driver neither collides nor stops"),
+        }
+    }
+}
+
+/// The replica's driver: the world moved without collision; the slot is the
+/// sensor's decision.
+struct Replay<F, const M: usize> {
+    decide: Option<F>,
+    served: Option<Served<M>>,
+}
+
+impl<const N: usize, const M: usize, F> StepDriver<N, M> for Replay<F, M>
+where
+    F: FnOnce(&OpenSlot<'_, N, M>) -> SlotOutcome<Vector<M>>,
+{
+    type Stop = std::convert::Infallible;
+
+    fn advance(&mut self, _step: u32, _u: &Vector<N>) -> Result<Option<usize>, Self::Stop> {
+        Ok(None)
+    }
+
+    fn slot(&mut self, slot: &OpenSlot<'_, N, M>) -> Result<SlotOutcome<Vector<M>>, Self::Stop> {
+        let outcome = match self.decide.take() {
+            Some(decide) => decide(slot),
+            None => SlotOutcome::Dead,
+        };
+        self.served = Some(Served {
+            outcome,
+            prior_digest: belief_digest(slot.prior),
+        });
+        Ok(outcome)
     }
 }
 
@@ -83,48 +134,57 @@ pub fn belief_digest<const N: usize>(b: &Belief<N>) -> u64 {
 mod tests {
     use super::*;
     use crate::etkf::Threshold;
+    use crate::etkf::Vector;
     use crate::rng::{stream_rng, streams};
     use crate::scenario::Scenario;
 
-    /// The replica, fed only the slots' outcomes, reproduces the agent's
-    /// priors of a whole simulated leg bit for bit, on a single integrator
-    /// and on a double integrator (n = 4, LQR gain).
+    /// The replica, serving the slots itself, reproduces the priors and
+    /// posteriors of an agent computed independently with the filter's own
+    /// functions (predict, innovation, explicit/implicit update) bit for bit,
+    /// on a single integrator and on a double integrator (n = 4, LQR gain).
     fn replica_matches_the_agent<const N: usize>(name: &str) {
         let s = Scenario::builtin(name).expect("built-in");
         let c = CompiledScenario::<N>::new(&s);
+        let filter = EtKalmanFilter::<N, 2>::new(&s.plant, &s.sensors[c.legs[0].sensor]);
         let mut rng = stream_rng(5, streams::AGENT, 0);
         let mut state = c.initial_state(&mut rng);
         let delta = 1.2;
         let beta = Threshold::new(delta).beta;
         let leg = 0;
-        let mut replica = LegReplica::handed_over(leg, beta, state.belief, 0);
+        let mut replica = LegReplica::handed_over(&c, leg, delta, state.belief, 0);
         let mut checked = 0;
         for k in 1..=c.k_max {
+            assert_eq!(replica.next_step(), k);
             let u = c.input(leg, &state.belief.mean);
             if c.move_plant(&mut state.x, &u, &mut rng).is_some() {
                 break;
             }
-            let prior = c.prior(&state.belief, &u);
-            let mine = replica.prior(&c);
-            assert_eq!(belief_digest(&mine), belief_digest(&prior), "step {k}");
-            assert_eq!(mine, prior);
-            checked += 1;
+            let prior = filter.predict(&state.belief, &u);
+            let inn = filter.innovation(&prior);
             // Alternate transmissions and silences.
-            let y = [state.x[0], state.x[1], 0.0, 0.0, 0.0, 0.0];
-            let slot = if k % 3 == 0 {
-                SlotOutcome::Transmitted(&y[..])
+            let y = Vector::<2>::new(state.x[0], state.x[1]);
+            let sent = k % 3 == 0;
+            let served = replica.serve(&c, &filter, |slot| {
+                assert_eq!(slot.prior, &prior);
+                if sent {
+                    SlotOutcome::Delivered(y)
+                } else {
+                    SlotOutcome::Silent
+                }
+            });
+            assert_eq!(served.prior_digest, belief_digest(&prior), "step {k}");
+            checked += 1;
+            state.belief = if sent {
+                filter.update_explicit(&prior, &inn, &y)
             } else {
-                SlotOutcome::Silent
+                filter.update_implicit(&prior, &inn, beta)
             };
-            state.belief = c.close_slot(leg, &prior, slot, beta);
-            replica.close(&c, &mine, slot);
-            assert_eq!(replica.next_step, k + 1);
+            assert_eq!(replica.posterior(), &state.belief);
             if c.leg_ends(leg, &state.belief, k) {
                 break;
             }
         }
         assert!(checked >= 5, "{checked}");
-        assert_eq!(replica.posterior, state.belief);
     }
 
     #[test]

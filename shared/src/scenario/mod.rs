@@ -7,6 +7,7 @@
 //! symmetric positive definite, numbers are finite.
 
 mod builtin;
+mod fields;
 mod higher;
 mod raw;
 mod validate;

@@ -410,18 +410,22 @@ pub(super) fn build<const N: usize>(
                 .flat_map(|r| r.arrivals.iter().map(|a| a.belief.cov));
             Some(classifier_for(&mut covs, range))
         };
-        let arrival_regions: Vec<Vec<Region>> = match &next_classifier {
-            Some(c) => results
-                .par_iter()
-                .map(|r| {
-                    r.arrivals
-                        .iter()
-                        .map(|a| c.classify(&a.belief.cov))
-                        .collect()
-                })
-                .collect(),
-            None => Vec::new(),
+        // The regions of every chunk's arrivals (none after the last leg).
+        let regions_of = |chunks: &[ChunkTally<N>]| -> Vec<Vec<Region>> {
+            match &next_classifier {
+                Some(c) => chunks
+                    .par_iter()
+                    .map(|r| {
+                        r.arrivals
+                            .iter()
+                            .map(|a| c.classify(&a.belief.cov))
+                            .collect()
+                    })
+                    .collect(),
+                None => Vec::new(),
+            }
         };
+        let arrival_regions = regions_of(&results);
         let mut region_index: BTreeMap<&Region, u32> = BTreeMap::new();
         for r in arrival_regions.iter().flatten() {
             region_index.insert(r, 0);
@@ -433,61 +437,44 @@ pub(super) fn build<const N: usize>(
 
         // The held-out arrivals' regions (same bins; a region the main sample
         // did not reach has no state and is counted as unmatched).
-        let held_regions: Vec<Vec<Region>> = match &next_classifier {
-            Some(c) => held
-                .par_iter()
-                .map(|r| {
-                    r.arrivals
-                        .iter()
-                        .map(|a| c.classify(&a.belief.cov))
-                        .collect()
-                })
-                .collect(),
-            None => Vec::new(),
-        };
+        let held_regions = regions_of(&held);
 
-        let extra_regions: Vec<Vec<Region>> = match &next_classifier {
-            Some(c) => extra_results
-                .par_iter()
-                .map(|r| {
-                    r.arrivals
-                        .iter()
-                        .map(|a| c.classify(&a.belief.cov))
-                        .collect()
-                })
-                .collect(),
-            None => Vec::new(),
-        };
+        let extra_regions = regions_of(&extra_results);
 
         // Transitions and costs per (state, action), chunks merged in order.
         let per_choice = samples.div_ceil(CHUNK) as usize;
         let per_holdout = holdout.div_ceil(CHUNK) as usize;
+        // Count chunk `r` into `t`, its arrivals' next states found by their
+        // `regions`; an arrival whose region has no state counts as
+        // `no_state` (main segments: `u32::MAX`, which `add` tallies as such).
+        let add = |t: &mut ChoiceTally,
+                   r: &ChunkTally<N>,
+                   regions: Option<&Vec<Region>>,
+                   no_state: Option<u32>| {
+            t.add(r, |j| {
+                regions
+                    .and_then(|rs| rs.get(j))
+                    .and_then(|reg| region_index.get(reg))
+                    .copied()
+                    .or(no_state)
+            });
+        };
         for (s, ls) in layer.iter().enumerate() {
             let mut choices = Vec::with_capacity(deltas.len());
             for a in 0..deltas.len() {
                 let mut tally = ChoiceTally::default();
                 let first = (s * deltas.len() + a) * per_choice;
                 for (k, r) in results[first..first + per_choice].iter().enumerate() {
-                    let regions = arrival_regions.get(first + k);
-                    tally.add(r, |j| {
-                        Some(
-                            regions
-                                .and_then(|rs| rs.get(j))
-                                .and_then(|reg| region_index.get(reg))
-                                .copied()
-                                .unwrap_or(u32::MAX),
-                        )
-                    });
+                    add(
+                        &mut tally,
+                        r,
+                        arrival_regions.get(first + k),
+                        Some(u32::MAX),
+                    );
                 }
                 for (k, (t, r)) in extra_tasks.iter().zip(&extra_results).enumerate() {
                     if t.state == s && t.action == a {
-                        let regions = extra_regions.get(k);
-                        tally.add(r, |j| {
-                            regions
-                                .and_then(|rs| rs.get(j))
-                                .and_then(|reg| region_index.get(reg))
-                                .copied()
-                        });
+                        add(&mut tally, r, extra_regions.get(k), None);
                     }
                 }
                 total_segments += u64::from(tally.samples);
@@ -498,13 +485,7 @@ pub(super) fn build<const N: usize>(
                     let mut h = ChoiceTally::default();
                     let first = (s * deltas.len() + a) * per_holdout;
                     for (k, r) in held[first..first + per_holdout].iter().enumerate() {
-                        let regions = held_regions.get(first + k);
-                        h.add(r, |j| {
-                            regions
-                                .and_then(|rs| rs.get(j))
-                                .and_then(|reg| region_index.get(reg))
-                                .copied()
-                        });
+                        add(&mut h, r, held_regions.get(first + k), None);
                     }
                     total_segments += u64::from(h.samples);
                     total_steps += h.steps;

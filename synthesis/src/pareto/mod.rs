@@ -8,7 +8,9 @@
 //! * [`optimal`] — the exact strategy of a request: the whole-MDP occupation
 //!   LP realised as ω.
 //! * [`select`] — the vertex-mixture LP (the human-readable explanation).
+//! * [`certified`] — the certified front's data (computed by `certify::front`).
 
+pub mod certified;
 pub mod enumerate;
 pub mod optimal;
 pub mod policy;
@@ -80,7 +82,7 @@ pub struct ParetoFront {
     pub kf_convergence: Option<Box<ParetoFront>>,
     /// The nominal vertices with their certified bounds and cross-fitted
     /// values (docs/MODEL.md §4.1); `None` for the Method 1 baseline.
-    pub certified: Option<crate::certify::front::CertifiedFront>,
+    pub certified: Option<certified::CertifiedFront>,
     /// Weighted optimisations and hull rounds of the enumeration.
     pub optimisations: usize,
     pub rounds: usize,
