@@ -15,6 +15,7 @@
 //!   opens the new one (`threshold`); on `outcome` it records the episode. The
 //!   sensors' `ledger`s are joined to the agent's received counts per leg.
 
+mod core;
 mod session;
 
 pub use etp_runtime::wire::report::RunReport;

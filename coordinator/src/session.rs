@@ -1,24 +1,23 @@
-//! The coordinator's ports, episode loop and bookkeeping.
+//! The coordinator's iceoryx2 adapter: ports, its one wait point and the
+//! episode loop around [`CoordinatorCore`], which decides what every
+//! message means.
 
 use crate::CoordinatorError;
+use crate::core::{CoordinatorCore, ThresholdAction};
 use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_coordinator::{Outcome, Waypoint};
 use etp_runtime::wire::coordinator_to_agent::Control;
 use etp_runtime::wire::coordinator_to_all::Threshold;
-use etp_runtime::wire::report::{EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals};
+use etp_runtime::wire::report::RunReport;
 use etp_runtime::wire::sensor_to_coordinator::Ledger;
 use etp_runtime::wire::to_coordinator::Hello;
 use etp_runtime::wire::{
-    self, AGENT_NODE, COORDINATOR_NODE, Liveness, Notifier, OutcomeCode, Ports, Pub, RunId,
-    SENDER_AGENT, SENDER_COORDINATOR, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, to_wire_vec,
+    self, AGENT_NODE, COORDINATOR_NODE, Liveness, Notifier, Ports, Pub, RunId, SENDER_AGENT,
+    SENDER_COORDINATOR, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, to_wire_vec,
 };
-use etp_shared::rng::{SimRng, stream_rng, streams};
 use etp_shared::scenario::Scenario;
 use etp_shared::strategy::Strategy;
 use iceoryx2::prelude::*;
-use nalgebra::DMatrix;
-use rand::RngExt;
-use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
 /// Silence after which the coordinator checks that the agent lives.
@@ -30,8 +29,7 @@ const LEDGER_GRACE: Duration = Duration::from_secs(2);
 pub struct Coordinator<'a> {
     run: RunId,
     scenario: &'a Scenario,
-    strategy: &'a Strategy,
-    seed: u64,
+    core: Option<CoordinatorCore<'a>>,
     node: Node<ipc::Service>,
     stamp: Stamper,
     waiter: Waiter,
@@ -45,7 +43,6 @@ pub struct Coordinator<'a> {
     hello: Sub<Hello>,
     agent_wake: Notifier,
     sensor_wake: Vec<Notifier>,
-    ledgers: HashMap<(u64, u32), Ledger>,
     /// A termination signal was received: finish the report, do not wait.
     terminating: bool,
     /// `--progress FILE` and when it was last written.
@@ -83,10 +80,8 @@ impl<'a> Coordinator<'a> {
                 .collect::<Result<_, _>>()?,
             run: run.clone(),
             scenario,
-            strategy,
-            seed,
+            core: Some(CoordinatorCore::new(scenario, strategy, seed, run.tag())),
             stamp: Stamper::new(run, SENDER_COORDINATOR),
-            ledgers: HashMap::new(),
             terminating: false,
             progress: None,
             node,
@@ -183,11 +178,35 @@ impl<'a> Coordinator<'a> {
             .map_err(|e| PortError::notify(what, e).into())
     }
 
-    /// Close `leg` at its sensor (the sensor answers with its ledger).
-    fn close(&mut self, episode: u64, leg: u32) -> Result<(), CoordinatorError> {
-        let sensor = self.scenario.legs[leg as usize].sensor;
-        self.send_threshold(episode, leg, Threshold::CLOSE, sensor as u32, 0, 0.0)?;
-        Self::notify(&self.sensor_wake[sensor], "sensor wake")
+    /// Publish a threshold action and wake its reader (the sensor for a
+    /// CLOSE; the agent, which takes its δ from the OPEN, for an OPEN).
+    fn act(&mut self, a: ThresholdAction) -> Result<(), CoordinatorError> {
+        match a {
+            ThresholdAction::Close {
+                episode,
+                leg,
+                sensor,
+            } => {
+                self.send_threshold(episode, leg, Threshold::CLOSE, sensor, 0, 0.0)?;
+                Self::notify(&self.sensor_wake[sensor as usize], "sensor wake")
+            }
+            ThresholdAction::Open {
+                episode,
+                leg,
+                sensor,
+                delta_index,
+                delta,
+            } => {
+                self.send_threshold(episode, leg, Threshold::OPEN, sensor, delta_index, delta)?;
+                Self::notify(&self.agent_wake, "agent wake")
+            }
+        }
+    }
+
+    fn core(&mut self) -> Result<&mut CoordinatorCore<'a>, CoordinatorError> {
+        self.core
+            .as_mut()
+            .ok_or_else(|| CoordinatorError::Protocol("the run's report was already made".into()))
     }
 
     fn drain_ledgers(&mut self) -> Result<(), CoordinatorError> {
@@ -197,46 +216,9 @@ impl<'a> Coordinator<'a> {
             .map_err(|e| PortError::receive("ledger", e))?
         {
             let l: Ledger = *s;
-            if l.header.run == self.stamp.tag() {
-                self.ledgers.insert((l.header.episode, l.header.leg), l);
-            }
+            self.core()?.on_ledger(&l);
         }
         Ok(())
-    }
-
-    /// Decision point `w.header.leg`: classify, draw δ, open the leg.
-    fn decide(
-        &mut self,
-        w: &Waypoint,
-        rng: &mut SimRng,
-        legs: &mut Vec<LegRecord>,
-    ) -> Result<(), CoordinatorError> {
-        let episode = w.header.episode;
-        let leg = w.header.leg;
-        if leg > 0 {
-            if let Some(prev) = legs.last_mut() {
-                prev.steps = w.prev_steps;
-                prev.received = w.prev_received;
-            }
-            self.close(episode, leg - 1)?;
-        }
-        let n = self.scenario.dim;
-        let cov = DMatrix::from_fn(n, n, |r, c| w.cov[r][c]);
-        let u: f64 = rng.random();
-        let index = self.strategy.draw(leg as usize, &cov, u);
-        let delta = self.strategy.deltas[index];
-        let sensor = self.scenario.legs[leg as usize].sensor as u32;
-        legs.push(LegRecord {
-            leg,
-            sensor,
-            delta,
-            steps: 0,
-            received: 0,
-            transmitted: None,
-            slots: None,
-        });
-        self.send_threshold(episode, leg, Threshold::OPEN, sensor, index as u32, delta)?;
-        Self::notify(&self.agent_wake, "agent wake")
     }
 
     /// Run `episodes` episodes, stop every process, return the report.
@@ -245,60 +227,67 @@ impl<'a> Coordinator<'a> {
     /// the run after the episodes completed so far: their ledgers are still
     /// collected and reported, the others stopped.
     pub fn run_episodes(&mut self, episodes: u64) -> Result<RunReport, CoordinatorError> {
-        let mut records: Vec<EpisodeRecord> = Vec::new();
-        let mut faults: Vec<FaultRecord> = Vec::new();
         let mut aborted = None;
         let started = Instant::now();
-        let initial = initial_wire(&self.scenario.plant);
-        'episodes: for episode in 0..episodes {
-            if self.terminating || self.watchdog.parent_gone() {
-                aborted = Some(self.abort_reason(episode));
+        for episode in 0..episodes {
+            aborted = self.run_episode(episode)?;
+            if aborted.is_some() {
                 break;
             }
-            tracing::debug!(episode, "episode start");
-            let mut rng = stream_rng(self.seed, streams::COORDINATOR, episode);
-            let header = self.stamp.header(episode, 0, 0);
-            self.control
-                .send_copy(Control {
-                    header,
-                    kind: Control::START,
-                    dim: self.scenario.dim as u32,
-                    seed: self.seed,
-                    initial_mean: initial.0,
-                    initial_cov: initial.1,
-                })
-                .map_err(|e| PortError::send("control", e))?;
-            Self::notify(&self.agent_wake, "agent wake")?;
-            let mut legs = Vec::new();
-            loop {
-                let (progressed, done) =
-                    self.take_episode_messages(episode, &mut rng, &mut legs)?;
-                if let Some(o) = done {
-                    records.push(self.end_episode(episode, &o, legs, &mut faults)?);
-                    self.note_progress(records.len(), episode + 1 == episodes);
-                    break;
-                }
-                if progressed || self.wait(IDLE_CHECK)? {
-                    continue;
-                }
-                if self.terminating || self.watchdog.parent_gone() {
-                    aborted = Some(self.abort_reason(episode));
-                    break 'episodes;
-                }
-                // A live agent is waited for, however slow or paused.
-                if self.watchdog.gone(self.node.config(), true) {
-                    self.stop()?;
-                    return Err(CoordinatorError::AgentDied(episode));
-                }
-            }
+            let finished = self.core()?.finished();
+            self.note_progress(finished, episode + 1 == episodes);
         }
         let seconds = started.elapsed().as_secs_f64();
-        self.collect_ledgers(&records)?;
+        self.collect_ledgers()?;
         self.stop()?;
+        let core = self.core.take().ok_or_else(|| {
+            CoordinatorError::Protocol("the run's report was already made".into())
+        })?;
         if let Some(why) = &aborted {
-            tracing::warn!(episodes = records.len(), "{why}");
+            tracing::warn!(episodes = core.finished(), "{why}");
         }
-        Ok(self.report(episodes, records, faults, seconds, aborted))
+        Ok(core.report(self.run.to_string(), episodes, seconds, aborted))
+    }
+
+    /// One episode, to its outcome; `Some(why)` if the run must end before
+    /// it (a termination request, the supervisor gone).
+    fn run_episode(&mut self, episode: u64) -> Result<Option<String>, CoordinatorError> {
+        if self.terminating || self.watchdog.parent_gone() {
+            return Ok(Some(self.abort_reason(episode)));
+        }
+        tracing::debug!(episode, "episode start");
+        self.core()?.start_episode(episode);
+        let initial = initial_wire(&self.scenario.plant);
+        let header = self.stamp.header(episode, 0, 0);
+        let seed = self.core()?.seed();
+        self.control
+            .send_copy(Control {
+                header,
+                kind: Control::START,
+                dim: self.scenario.dim as u32,
+                seed,
+                initial_mean: initial.0,
+                initial_cov: initial.1,
+            })
+            .map_err(|e| PortError::send("control", e))?;
+        Self::notify(&self.agent_wake, "agent wake")?;
+        loop {
+            let (progressed, done) = self.take_episode_messages()?;
+            if done {
+                return Ok(None);
+            }
+            if progressed || self.wait(IDLE_CHECK)? {
+                continue;
+            }
+            if self.terminating || self.watchdog.parent_gone() {
+                return Ok(Some(self.abort_reason(episode)));
+            }
+            // A live agent is waited for, however slow or paused.
+            if self.watchdog.gone(self.node.config(), true) {
+                self.stop()?;
+                return Err(CoordinatorError::AgentDied(episode));
+            }
+        }
     }
 
     /// Progress goes to FILE (see [`Coordinator::note_progress`]).
@@ -333,14 +322,8 @@ impl<'a> Coordinator<'a> {
     }
 
     /// Drain waypoints (decide each), outcomes and ledgers; (anything
-    /// decided, the episode's outcome if it came).
-    fn take_episode_messages(
-        &mut self,
-        episode: u64,
-        rng: &mut SimRng,
-        legs: &mut Vec<LegRecord>,
-    ) -> Result<(bool, Option<Outcome>), CoordinatorError> {
-        let tag = self.stamp.tag();
+    /// decided, the episode ended).
+    fn take_episode_messages(&mut self) -> Result<(bool, bool), CoordinatorError> {
         let mut progressed = false;
         while let Some(s) = self
             .waypoint
@@ -348,86 +331,36 @@ impl<'a> Coordinator<'a> {
             .map_err(|e| PortError::receive("waypoint", e))?
         {
             let w: Waypoint = *s;
-            if w.header.run == tag && w.header.episode == episode {
+            for a in self.core()?.on_waypoint(&w) {
                 progressed = true;
-                self.decide(&w, rng, legs)?;
+                self.act(a)?;
             }
         }
-        let mut done = None;
+        let mut done = false;
         while let Some(s) = self
             .outcome
             .receive()
             .map_err(|e| PortError::receive("outcome", e))?
         {
             let o: Outcome = *s;
-            if o.header.run == tag && o.header.episode == episode {
-                done = Some(o);
+            if let Some(close) = self.core()?.on_outcome(&o)? {
+                done = true;
+                self.act(close)?;
             }
         }
         self.drain_ledgers()?;
         Ok((progressed, done))
     }
 
-    /// The episode's outcome came: close its last leg, record it.
-    fn end_episode(
-        &mut self,
-        episode: u64,
-        o: &Outcome,
-        mut legs: Vec<LegRecord>,
-        faults: &mut Vec<FaultRecord>,
-    ) -> Result<EpisodeRecord, CoordinatorError> {
-        if let Some(last) = legs.last_mut() {
-            last.steps = o.last_steps;
-            last.received = o.last_received;
-        }
-        self.close(episode, o.header.leg)?;
-        if o.dead_sensor != u32::MAX {
-            let sensor = self.sensor_name(o.dead_sensor);
-            tracing::warn!(episode, %sensor, detect_us = o.detect_us, "dead link");
-            faults.push(FaultRecord {
-                episode,
-                sensor,
-                detect_ms: o.detect_us as f64 / 1000.0,
-                wait_started_unix_ns: o.wait_started_unix_ns,
-                detected_unix_ns: o.detected_unix_ns,
-                dead_slots: o.dead_slots,
-            });
-        }
-        let outcome = OutcomeCode::try_from(o.outcome)
-            .map_err(|c| CoordinatorError::Protocol(format!("outcome: unknown outcome code {c}")))?
-            .name();
-        tracing::debug!(episode, outcome, steps = o.steps, "episode end");
-        Ok(EpisodeRecord {
-            episode,
-            outcome: outcome.to_string(),
-            degraded: o.degraded != 0,
-            steps: o.steps,
-            energy: 0.0,
-            legs,
-        })
-    }
-
-    fn sensor_name(&self, i: u32) -> String {
-        self.scenario
-            .sensors
-            .get(i as usize)
-            .map_or_else(|| format!("#{i}"), |s| s.name.clone())
-    }
-
     /// Wait for the ledgers of every leg of every recorded episode: as long
     /// as their sensors live, however slow (a ledger is never given up on a
     /// live sensor), except after a termination request, which leaves
     /// [`LEDGER_GRACE`]. A dead sensor's ledgers are missing.
-    fn collect_ledgers(&mut self, records: &[EpisodeRecord]) -> Result<(), CoordinatorError> {
+    fn collect_ledgers(&mut self) -> Result<(), CoordinatorError> {
         let mut grace_end = None;
         loop {
             self.drain_ledgers()?;
-            let mut missing: Vec<u32> = records
-                .iter()
-                .flat_map(|r| r.legs.iter().map(move |l| (r.episode, l)))
-                .filter(|(e, l)| !self.ledgers.contains_key(&(*e, l.leg)))
-                .map(|(_, l)| l.sensor)
-                .collect();
+            let missing = self.core()?.missing_ledgers();
             if missing.is_empty() {
                 return Ok(());
             }
@@ -438,8 +371,6 @@ impl<'a> Coordinator<'a> {
                 }
             }
             if !self.wait(Duration::from_millis(50))? {
-                missing.sort_unstable();
-                missing.dedup();
                 let cfg = self.node.config().clone();
                 let all_dead = missing.iter().all(|s| {
                     wire::liveness(&cfg, &wire::sensor_node_name(*s as usize)) != Liveness::Alive
@@ -467,74 +398,6 @@ impl<'a> Coordinator<'a> {
             let _ = n.notify();
         }
         Ok(())
-    }
-
-    fn report(
-        &self,
-        requested: u64,
-        mut records: Vec<EpisodeRecord>,
-        faults: Vec<FaultRecord>,
-        seconds: f64,
-        aborted: Option<String>,
-    ) -> RunReport {
-        let s = self.scenario;
-        let mut sensors: Vec<SensorTotals> = s
-            .sensors
-            .iter()
-            .map(|x| SensorTotals {
-                name: x.name.clone(),
-                transmitted: 0,
-                received: 0,
-                slots: 0,
-                energy: 0.0,
-                missing_ledgers: 0,
-            })
-            .collect();
-        for r in &mut records {
-            let mut energy = 0.0;
-            for l in &mut r.legs {
-                let cost = s.sensors[l.sensor as usize].cost;
-                let t = &mut sensors[l.sensor as usize];
-                t.received += u64::from(l.received);
-                match self.ledgers.get(&(r.episode, l.leg)) {
-                    Some(led) => {
-                        l.transmitted = Some(led.transmissions);
-                        l.slots = Some(led.slots);
-                        t.transmitted += u64::from(led.transmissions);
-                        t.slots += u64::from(led.slots);
-                        t.energy += led.energy;
-                        energy += led.energy;
-                    }
-                    None => {
-                        t.missing_ledgers += 1;
-                        r.degraded = true;
-                        energy += f64::from(l.received) * cost;
-                    }
-                }
-            }
-            r.energy = energy;
-        }
-        let count = |o: &str| records.iter().filter(|r| r.outcome == o).count() as u64;
-        RunReport {
-            run_id: self.run.to_string(),
-            scenario: s.name.clone(),
-            scenario_hash: s.content_hash.clone(),
-            strategy_label: self.strategy.label.clone(),
-            seed: self.seed,
-            requested_episodes: requested,
-            episodes: records.len() as u64,
-            target: count("target"),
-            collision: count("collision"),
-            free: count("free"),
-            degraded: records.iter().filter(|r| r.degraded).count() as u64,
-            steps: records.iter().map(|r| u64::from(r.steps)).sum(),
-            seconds,
-            predicted: self.strategy.predicted,
-            sensors,
-            faults,
-            episode_results: records,
-            aborted,
-        }
     }
 }
 
