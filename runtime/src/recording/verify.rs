@@ -236,13 +236,6 @@ fn differs<const N: usize>(b: &Belief<N>, dim: u32, mean: &WireVec, cov: &WireMa
     (!same).then_some(worst)
 }
 
-enum Ended {
-    /// Re-run to the recorded outcome (possibly with a mismatch).
-    Done,
-    /// The file ends inside this episode.
-    Cut,
-}
-
 fn verify_episode<const N: usize>(
     c: &CompiledScenario<N>,
     episode: u64,
@@ -256,9 +249,9 @@ fn verify_episode<const N: usize>(
         return;
     }
     match rerun(c, episode, r, may_be_cut, rep, sink) {
-        Ok(Ended::Done) => rep.episodes_checked += 1,
-        Ok(Ended::Cut) => rep.episodes_incomplete += 1,
-        Err(m) => {
+        Ok(()) => rep.episodes_checked += 1,
+        Err(Halt::Cut) => rep.episodes_incomplete += 1,
+        Err(Halt::Mismatch(m)) => {
             rep.episodes_checked += 1;
             rep.mismatch(m);
         }
@@ -267,8 +260,9 @@ fn verify_episode<const N: usize>(
 
 /// Why a re-run stopped before the recorded outcome.
 enum Halt {
-    /// The file ends inside this episode.
+    /// The file ends inside this episode (checked as far as recorded).
     Cut,
+    /// Re-run to a belief or end the record does not hold.
     Mismatch(Mismatch),
 }
 
@@ -390,21 +384,6 @@ impl<const N: usize, const M: usize> StepDriver<N, M> for Replayed<'_, '_> {
 }
 
 fn rerun<const N: usize>(
-    c: &CompiledScenario<N>,
-    episode: u64,
-    r: &EpisodeRecord,
-    may_be_cut: bool,
-    rep: &mut VerifyReport,
-    sink: &mut PriorSink<'_>,
-) -> Result<Ended, Mismatch> {
-    match rerun_halting(c, episode, r, may_be_cut, rep, sink) {
-        Ok(()) => Ok(Ended::Done),
-        Err(Halt::Cut) => Ok(Ended::Cut),
-        Err(Halt::Mismatch(m)) => Err(m),
-    }
-}
-
-fn rerun_halting<const N: usize>(
     c: &CompiledScenario<N>,
     episode: u64,
     r: &EpisodeRecord,
