@@ -9,8 +9,12 @@
 //! killed host or a cut link like a dead local sensor, within the link lease.
 
 use crate::forward::{Counters, Inbound, Incoming, Outbound, subscribe};
-use crate::session::{SESSION_KEY, SessionInfo, agent_host_alive_key, config, data_keys};
-use crate::{BridgeError, emit};
+use crate::session::{
+    AGENT_HOST, Direction, SESSION_KEY, Security, SessionInfo, agent_host_access,
+    agent_host_alive_key, config, parse_alive_key, parse_key, read_hosts, up_keys,
+};
+use crate::trust::{Delivery, Gate, Refusal};
+use crate::{BridgeError, Refusals, emit};
 use etp_runtime::recording::Recorded;
 use etp_runtime::wire::to_coordinator::Hello;
 use etp_runtime::wire::{
@@ -39,6 +43,41 @@ pub struct Args {
     /// Link lease, ms: a silent link is dead after this long.
     #[arg(long, default_value_t = crate::session::DEFAULT_LEASE.as_millis() as u64)]
     pub lease_ms: u64,
+    /// Key material of `etp certs init` (mutual TLS and access control).
+    #[arg(long, value_name = "DIR")]
+    pub tls: Option<std::path::PathBuf>,
+    /// Plain TCP: no authentication or encryption (isolated test networks).
+    #[arg(long)]
+    pub insecure: bool,
+}
+
+/// Under TLS: each sensor host of `hosts.json` → the remote sensors it may
+/// serve (an empty list: every remote sensor).
+fn may_serve(
+    security: &Security,
+    info: &SessionInfo,
+) -> Result<Option<BTreeMap<String, BTreeSet<usize>>>, BridgeError> {
+    let Security::Tls { dir, .. } = security else {
+        return Ok(None);
+    };
+    let hosts = read_hosts(dir)?;
+    Ok(Some(
+        hosts
+            .into_iter()
+            .map(|(h, names)| {
+                let set = if names.is_empty() {
+                    info.remote.iter().copied().collect()
+                } else {
+                    info.remote
+                        .iter()
+                        .copied()
+                        .filter(|&i| info.sensors.get(i).is_some_and(|n| names.contains(n)))
+                        .collect()
+                };
+                (h, set)
+            })
+            .collect(),
+    ))
 }
 
 pub fn run(a: &Args) -> Result<(), BridgeError> {
@@ -54,10 +93,21 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
             .cloned()
             .unwrap_or_else(|| format!("#{i}"))
     };
+    let security = Security::of_flags(a.tls.as_deref(), a.insecure, AGENT_HOST)?;
+    let may_serve = may_serve(&security, &info)?;
+    let access = may_serve.as_ref().map(|m| {
+        let m = m
+            .iter()
+            .map(|(h, s)| (h.clone(), s.iter().copied().collect()))
+            .collect();
+        agent_host_access(run.as_str(), &m)
+    });
     let session = zenoh::open(config(
         Some(&a.listen),
         None,
         Duration::from_millis(a.lease_ms),
+        &security,
+        access,
     )?)
     .wait()
     .map_err(|e| BridgeError::Zenoh(format!("listening on {}: {e}", a.listen)))?;
@@ -77,11 +127,13 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let (tx, rx) = std::sync::mpsc::channel();
     let _subs = subscribe(
         &session,
-        &[data_keys(run.as_str(), false)],
-        &format!("etp/{run}/alive/sensor/*"),
+        &[up_keys(run.as_str())],
+        &format!("etp/{run}/alive/sensor/*/*"),
         tx,
     )?;
     let counters = Counters::default();
+    let mut gate = Gate::new(run.tag(), info.remote.iter().copied(), may_serve);
+    let mut refusals = Refusals::default();
     let stop = Arc::new(AtomicBool::new(false));
     let outbound = {
         let mut services = Vec::new();
@@ -100,7 +152,8 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
             sensors,
             services,
             events,
-            down: true,
+            dir: Direction::Down,
+            asked: Some(gate.asked.clone()),
         };
         let (session, counters, stop) = (session.clone(), counters.clone(), stop.clone());
         std::thread::spawn(move || o.run("etp-bridge-out", &session, &counters, &stop, |_, _| {}))
@@ -166,26 +219,56 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
             }
         }
         let wait = if hellos.is_empty() { 100 } else { 5 };
-        match rx.recv_timeout(Duration::from_millis(wait)) {
+        let received = rx.recv_timeout(Duration::from_millis(wait));
+        let (late, refused) = gate.overdue(Instant::now());
+        for r in &refused {
+            refusals.report(r, &info.sensors);
+        }
+        for d in late {
+            take(d, &inbound, &counters, &mut said_hello, &mut hellos)?;
+        }
+        match received {
             Ok(Incoming::Data { key, bytes }) => {
-                let (s, r) = inbound.decode(&key, &bytes)?;
-                if s == ServiceId::Hello {
-                    said_hello.insert(r.header().sender as usize);
-                    hellos.push((r, bytes.len()));
-                } else {
-                    inbound.deliver(s, r, bytes.len(), &counters)?;
+                let Some((Some(host), topic)) = parse_key(run.as_str(), &key) else {
+                    continue; // only up keys are subscribed
+                };
+                let (ds, refused) = match inbound.decode(topic, &bytes) {
+                    Ok((s, r)) => gate.admit(host, (s, r, bytes.len()), Instant::now()),
+                    Err(why) => (
+                        Vec::new(),
+                        vec![Refusal {
+                            kind: "malformed",
+                            host: host.to_string(),
+                            sensor: None,
+                            detail: why,
+                        }],
+                    ),
+                };
+                for r in &refused {
+                    refusals.report(r, &info.sensors);
+                }
+                for d in ds {
+                    take(d, &inbound, &counters, &mut said_hello, &mut hellos)?;
                 }
             }
             Ok(Incoming::Alive { key, alive }) => {
-                let Some(i) = key.rsplit('/').next().and_then(|x| x.parse::<usize>().ok()) else {
+                let Some((i, host)) = parse_alive_key(&key) else {
                     continue;
                 };
                 if !remote.contains(&i) {
                     continue;
                 }
+                if alive {
+                    if let Err(r) = gate.claim(host, i) {
+                        refusals.report(&r, &info.sensors);
+                        continue;
+                    }
+                } else if gate.claimant(i) != Some(host) {
+                    continue;
+                }
                 if alive && !proxies.contains_key(&i) {
                     proxies.insert(i, wire::create_node(&run, &sensor_node_name(i))?);
-                    tracing::info!(sensor = %name(i), "remote sensor alive");
+                    tracing::info!(sensor = %name(i), %host, "remote sensor alive");
                 } else if !alive && proxies.remove(&i).is_some() {
                     tracing::info!(sensor = %name(i), "remote sensor lost (host gone, link cut, or run over)");
                     emit(&serde_json::json!({"event": "lost", "sensor": name(i),
@@ -200,9 +283,27 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let out = outbound
         .join()
         .map_err(|_| BridgeError::Wire("the outbound thread panicked".into()))?;
+    refusals.emit_total();
     crate::emit_traffic(&counters, &info.sensors);
     drop(proxies);
     result.and(out)
+}
+
+/// Deliver a message let in: hellos wait for the coordinator (see above).
+fn take(
+    (s, r, bytes): Delivery,
+    inbound: &Inbound,
+    counters: &Counters,
+    said_hello: &mut BTreeSet<usize>,
+    hellos: &mut Vec<(Recorded, usize)>,
+) -> Result<(), BridgeError> {
+    if s == ServiceId::Hello {
+        said_hello.insert(r.header().sender as usize);
+        hellos.push((r, bytes));
+        Ok(())
+    } else {
+        inbound.deliver(s, r, bytes, counters)
+    }
 }
 
 fn wire_now_ns() -> u64 {

@@ -8,7 +8,8 @@
 //! measured traffic, radio and plumbing, in each direction.
 
 use crate::BridgeError;
-use crate::session::{data_key, topic_of_key};
+use crate::session::{Direction, data_key};
+use crate::trust::Asked;
 use etp_runtime::recording::{
     self,
     ports::{DecodedPublisher, EncodedSubscriber, decoded_publisher, encoded_subscriber},
@@ -53,8 +54,11 @@ pub struct Outbound {
     pub services: Vec<ServiceId>,
     /// The wake-up events their publishers notify.
     pub events: Vec<ServiceId>,
-    /// `true` on the agent host.
-    pub down: bool,
+    /// Down (the agent host) or up from this sensor host.
+    pub dir: Direction,
+    /// On the agent host: what is asked of each remote sensor, noted before
+    /// it is put (the answer may be back before the put returns).
+    pub asked: Option<Asked>,
 }
 
 impl Outbound {
@@ -84,7 +88,7 @@ impl Outbound {
         for &s in &self.services {
             let sub = encoded_subscriber(&ports, s, false)?;
             let publisher = session
-                .declare_publisher(data_key(&run, s, self.down))
+                .declare_publisher(data_key(&run, s, &self.dir))
                 .congestion_control(zenoh::qos::CongestionControl::Block)
                 .express(true)
                 .wait()
@@ -107,12 +111,23 @@ impl Outbound {
         let _tick = waitset
             .attach_interval(TICK)
             .map_err(|e| BridgeError::Wire(format!("attaching the tick: {e:?}")))?;
-        let mut batch = Vec::new();
+        let mut batches: Vec<Vec<(Header, Vec<u8>)>> = vec![Vec::new(); links.len()];
         loop {
-            for (s, sub, publisher) in &links {
+            // Drain the dependents first (a slot before the measurements),
+            // put in causal order: a sensor publishes its measurement before
+            // its slot, so a slot drained here has its measurement already in
+            // the earlier service's buffer, and it goes on the one ordered
+            // link after it. Draining in causal order instead let a slot
+            // published between the two drains overtake its measurement.
+            for ((_, sub, _), batch) in links.iter().zip(batches.iter_mut()).rev() {
                 batch.clear();
-                sub.drain(&mut batch)?;
-                for (h, bytes) in &batch {
+                sub.drain(batch)?;
+            }
+            for ((s, _, publisher), batch) in links.iter().zip(&batches) {
+                for (h, bytes) in batch {
+                    if let Some(a) = &self.asked {
+                        a.note(*s, h);
+                    }
                     publisher
                         .put(bytes.clone())
                         .wait()
@@ -186,17 +201,19 @@ impl Inbound {
         Ok(Self { publishers, wakes })
     }
 
-    /// Decode a sample of `key`; its service and payload (not delivered yet).
+    /// Decode a sample of `topic`: its service and payload (not delivered
+    /// yet), or why it is malformed (never fatal: the bytes are a peer's).
     pub fn decode(
         &self,
-        key: &str,
+        topic: &str,
         bytes: &[u8],
-    ) -> Result<(ServiceId, recording::Recorded), BridgeError> {
-        let topic = topic_of_key(key).ok_or_else(|| BridgeError::Protocol(format!("key {key}")))?;
+    ) -> Result<(ServiceId, recording::Recorded), String> {
         let s = recording::service_of_topic(topic)
             .filter(|s| self.publishers.contains_key(s))
-            .ok_or_else(|| BridgeError::Protocol(format!("no local service for {key}")))?;
-        Ok((s, recording::decode(topic, bytes)?))
+            .ok_or_else(|| format!("no service of this end for topic `{topic}`"))?;
+        let r = recording::decode(topic, bytes)
+            .map_err(|e| format!("{} bytes on `{topic}`: {e}", bytes.len()))?;
+        Ok((s, r))
     }
 
     /// Publish a decoded payload on its service and wake its reader; counted.

@@ -12,6 +12,10 @@
 //!   wake-up events, Zenoh → iceoryx2 with the reader's wake-up; the bytes
 //!   on the wire are the recording's encoding; per-sensor traffic counted as
 //!   radio or plumbing.
+//! * [`trust`] — the agent host's gate on what comes up the link: run tag,
+//!   a remote sensor claimed by the sending host, per-sensor sequence order
+//!   (early messages held), answers only to what was asked; the rest is a
+//!   reported refusal, never fatal.
 //! * [`agent_host`] — `etp-bridge agent-host` (started by `etp run --listen`):
 //!   waits for the remote sensors, then forwards; a remote sensor's
 //!   liveliness is mirrored by a proxy iceoryx2 node, so its death is a dead
@@ -21,12 +25,14 @@
 //!   mirrored by proxies of the coordinator and agent nodes.
 //!
 //! The bridge prints one JSON object per line on stdout for its parent
-//! (`ready`, `joined`, `lost`, `agent-host-gone`, and `traffic` at the end).
+//! (`ready`, `joined`, `lost`, `refused`, `agent-host-gone`, and `refusals`
+//! and `traffic` at the end).
 
 pub mod agent_host;
 pub mod forward;
 pub mod sensor_host;
 pub mod session;
+pub mod trust;
 
 use std::io::Write;
 
@@ -54,6 +60,35 @@ pub enum BridgeError {
 pub fn emit(v: &serde_json::Value) {
     let mut out = std::io::stdout().lock();
     let _ = writeln!(out, "{v}").and_then(|()| out.flush());
+}
+
+/// How many refusals are reported one by one (the rest only counted).
+const REPORTED_REFUSALS: u64 = 100;
+
+/// Refused messages: each reported (the first [`REPORTED_REFUSALS`]) and
+/// logged with the peer, all counted.
+#[derive(Debug, Default)]
+pub struct Refusals {
+    pub count: u64,
+}
+
+impl Refusals {
+    pub fn report(&mut self, r: &trust::Refusal, names: &[String]) {
+        self.count += 1;
+        let sensor = r
+            .sensor
+            .map(|i| names.get(i).cloned().unwrap_or_else(|| format!("#{i}")));
+        tracing::warn!(kind = r.kind, host = %r.host, ?sensor, detail = %r.detail, "refused a message from the link");
+        if self.count <= REPORTED_REFUSALS {
+            emit(&serde_json::json!({"event": "refused", "kind": r.kind, "host": r.host,
+                "sensor": sensor, "detail": r.detail}));
+        }
+    }
+
+    /// The final `refusals` line.
+    pub fn emit_total(&self) {
+        emit(&serde_json::json!({"event": "refusals", "count": self.count}));
+    }
 }
 
 /// The final `traffic` line: per sensor name, what this end carried.

@@ -8,8 +8,12 @@
 //! sensors see their coordinator gone and exit.
 
 use crate::forward::{Counters, Inbound, Incoming, Outbound, subscribe};
-use crate::session::{SESSION_KEY, SessionInfo, agent_host_alive_key, config, sensor_alive_key};
-use crate::{BridgeError, emit};
+use crate::session::{
+    Direction, SESSION_KEY, Security, SessionInfo, agent_host_alive_key, config, parse_key,
+    read_hosts, sensor_alive_key, sensor_host_access,
+};
+use crate::trust::Refusal;
+use crate::{BridgeError, Refusals, emit};
 use etp_runtime::wire::{self, AGENT_NODE, COORDINATOR_NODE, Ports, RunId, ServiceId};
 use iceoryx2::prelude::*;
 use std::path::PathBuf;
@@ -36,6 +40,48 @@ pub struct Args {
     /// Link lease, ms.
     #[arg(long, default_value_t = crate::session::DEFAULT_LEASE.as_millis() as u64)]
     pub lease_ms: u64,
+    /// Key material of `etp certs init` (mutual TLS).
+    #[arg(long, value_name = "DIR")]
+    pub tls: Option<PathBuf>,
+    /// This host's name: its certificate `<NAME>.pem` under --tls (default:
+    /// the only sensor host of hosts.json), its name in the keys.
+    #[arg(long, value_name = "NAME")]
+    pub identity: Option<String>,
+    /// Plain TCP: no authentication or encryption (isolated test networks).
+    #[arg(long)]
+    pub insecure: bool,
+}
+
+/// This host's name: `--identity`, else under TLS the only host of
+/// hosts.json, else `h<pid>`.
+fn identity(a: &Args) -> Result<String, BridgeError> {
+    if let Some(n) = &a.identity {
+        if n.is_empty()
+            || !n
+                .bytes()
+                .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-')
+        {
+            return Err(BridgeError::Input(format!(
+                "--identity `{n}`: use a–z, 0–9 and -"
+            )));
+        }
+        return Ok(n.clone());
+    }
+    match &a.tls {
+        Some(dir) => {
+            let hosts = read_hosts(dir)?;
+            let mut names = hosts.keys();
+            match (names.next(), names.next()) {
+                (Some(one), None) => Ok(one.clone()),
+                _ => Err(BridgeError::Input(format!(
+                    "{} names several sensor hosts ({}): choose one with --identity",
+                    dir.join("hosts.json").display(),
+                    hosts.keys().cloned().collect::<Vec<_>>().join(", ")
+                ))),
+            }
+        }
+        None => Ok(format!("h{}", std::process::id())),
+    }
 }
 
 /// How often the local sensors' liveness is checked (a dead one's token is
@@ -75,10 +121,15 @@ fn fetch(
 }
 
 pub fn run(a: &Args) -> Result<(), BridgeError> {
+    let me = identity(a)?;
+    let security = Security::of_flags(a.tls.as_deref(), a.insecure, &me)?;
+    let access = matches!(security, Security::Tls { .. }).then(sensor_host_access);
     let session = zenoh::open(config(
         None,
         Some(&a.connect),
         Duration::from_millis(a.lease_ms),
+        &security,
+        access,
     )?)
     .wait()
     .map_err(|e| BridgeError::Zenoh(format!("connecting to {}: {e}", a.connect)))?;
@@ -164,7 +215,8 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                 ServiceId::Ledger,
             ],
             events: vec![ServiceId::AgentWake, ServiceId::CoordinatorWake],
-            down: false,
+            dir: Direction::Up(me.clone()),
+            asked: None,
         };
         let (session, counters, stop) = (session.clone(), counters.clone(), stop.clone());
         let hello_tx = tx.clone();
@@ -206,6 +258,9 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let mut tokens: std::collections::BTreeMap<usize, zenoh::liveliness::LivelinessToken> =
         std::collections::BTreeMap::new();
     let mut last_check = Instant::now();
+    let mut refusals = Refusals::default();
+    let mut last_seq: std::collections::BTreeMap<u32, u32> = std::collections::BTreeMap::new();
+    let tag = run.tag();
     let result = loop {
         if wire::termination_requested(&node) || std::os::unix::process::parent_id() != parent {
             break Ok(());
@@ -226,7 +281,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
             Ok(Incoming::Hello(i)) => {
                 let t = session
                     .liveliness()
-                    .declare_token(sensor_alive_key(run.as_str(), i))
+                    .declare_token(sensor_alive_key(run.as_str(), i, &me))
                     .wait()
                     .map_err(|e| {
                         BridgeError::Zenoh(format!("liveliness token of sensor {i}: {e}"))
@@ -234,8 +289,40 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                 tokens.insert(i, t);
             }
             Ok(Incoming::Data { key, bytes }) => {
-                let (s, r) = inbound.decode(&key, &bytes)?;
-                inbound.deliver(s, r, bytes.len(), &counters)?;
+                let Some((None, topic)) = parse_key(run.as_str(), &key) else {
+                    continue; // only down keys are subscribed
+                };
+                let refuse = |kind, detail| Refusal {
+                    kind,
+                    host: "agent-host".into(),
+                    sensor: None,
+                    detail,
+                };
+                match inbound.decode(topic, &bytes) {
+                    Err(why) => refusals.report(&refuse("malformed", why), &info.sensors),
+                    Ok((_, r)) if r.header().run != tag => refusals.report(
+                        &refuse("wrong-run", format!("`{topic}` of another run")),
+                        &info.sensors,
+                    ),
+                    Ok((s, r)) => {
+                        // Each sender numbers its messages: one not after the
+                        // last seen is a replay.
+                        let h = *r.header();
+                        let last = last_seq.entry(h.sender).or_insert(0);
+                        if h.seq <= *last {
+                            refusals.report(
+                                &refuse(
+                                    "replayed",
+                                    format!("`{topic}` seq {} after {}", h.seq, *last),
+                                ),
+                                &info.sensors,
+                            );
+                        } else {
+                            *last = h.seq;
+                            inbound.deliver(s, r, bytes.len(), &counters)?;
+                        }
+                    }
+                }
             }
             Ok(Incoming::Alive { alive: true, .. }) => {}
             Ok(Incoming::Alive { alive: false, .. }) => {
@@ -254,6 +341,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let out = outbound
         .join()
         .map_err(|_| BridgeError::Wire("the outbound thread panicked".into()))?;
+    refusals.emit_total();
     crate::emit_traffic(&counters, &info.sensors);
     result.and(out)
 }

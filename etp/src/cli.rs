@@ -33,6 +33,9 @@ pub enum Command {
     Run(crate::cmd::run::Args),
     /// Serve remote sensors of a run on this host (`etp run --listen … --remote …` on the agent host).
     SensorHost(crate::cmd::run::sensor_host::Args),
+    /// Key material for runs across hosts (`etp certs init DIR`: a CA and
+    /// the agent and sensor hosts' keys for Zenoh over mutual TLS).
+    Certs(crate::cmd::certs::Args),
     /// Summarise an MCAP recording of a run (finished or not); `--info`, `--cat`,
     /// `--export DIR`, `--plot`, `--verify`, `--repair OUT`, `--publish`, `--foxglove OUT`.
     Replay(crate::cmd::replay::Args),

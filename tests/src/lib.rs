@@ -239,9 +239,11 @@ impl Drop for CpuHog {
     }
 }
 
-/// The run's private folder (`$TMPDIR/etp-run/<run-id>`).
+/// The run's private folder (`<private base>/run/<run-id>`).
 pub fn run_folder(run_id: &str) -> PathBuf {
-    std::env::temp_dir().join("etp-run").join(run_id)
+    etp_runtime::wire::private::base_path()
+        .join("run")
+        .join(run_id)
 }
 
 /// No iceoryx2 file of the run is left in /dev/shm, nor its root folder.

@@ -29,6 +29,12 @@ mod faults;
 #[path = "runtime/remote.rs"]
 mod remote;
 
+#[path = "runtime/trust.rs"]
+mod trust;
+
+#[path = "runtime/private.rs"]
+mod private;
+
 const DELTA: &str = "1.4986";
 
 /// Multi-process runs take both cores; run them one at a time so the timing

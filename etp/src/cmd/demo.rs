@@ -187,6 +187,8 @@ pub fn run(a: Args) -> Result<()> {
         listen: None,
         remote: Vec::new(),
         join_timeout: None,
+        tls: None,
+        insecure: false,
     };
     let (mp, problems) = run_cmd::execute(&rargs)?;
 

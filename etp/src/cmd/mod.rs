@@ -1,6 +1,7 @@
 //! One module per subcommand.
 
 pub mod bench;
+pub mod certs;
 pub mod check;
 pub mod demo;
 pub mod export_prism;
@@ -18,6 +19,7 @@ use crate::cli::Command;
 /// Run one subcommand.
 pub fn dispatch(command: Command) -> anyhow::Result<()> {
     match command {
+        Command::Certs(a) => certs::run(a),
         Command::Check(a) => check::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Simulate(a) => simulate::run(a),

@@ -9,7 +9,8 @@
 //!   [`limits`] table used by [`open_pubsub`] / [`open_event`] in every
 //!   process, and node [`liveness`].
 //! * [`cleanup`] — removing what a run (or dead runs) left in /dev/shm and
-//!   under [`ROOT_BASE`].
+//!   under [`root_base`] (only folders this user owns, never through a symlink).
+//! * [`private`] — the per-user, mode-0700 folder every run path lives under.
 //!
 //! One step of an episode (one blocking round trip): the agent publishes
 //! `truth` to the serving sensor and wakes it; the sensor computes the prior
@@ -25,6 +26,7 @@ pub mod catalogue;
 pub mod cleanup;
 pub mod messages;
 pub mod port;
+pub mod private;
 pub mod report;
 pub mod services;
 pub mod traffic;
@@ -53,6 +55,8 @@ pub enum WireError {
     Port(String, String),
     #[error("waiting for a wake-up: {0}")]
     Wait(String),
+    #[error("private run folder: {0}")]
+    Private(String),
 }
 
 /// A belief as wire arrays (mean, covariance).

@@ -9,8 +9,11 @@ use iceoryx2::service::port_factory::{event, publish_subscribe};
 use std::fmt::Debug;
 use std::path::PathBuf;
 
-/// Folder under which every run keeps its iceoryx2 root (`<base>/<run-id>/`).
-pub const ROOT_BASE: &str = "/tmp/etp-iox2";
+/// Folder under which every run keeps its iceoryx2 root
+/// (`<private base>/iox2/<run-id>/`, see [`super::private`]): per user, mode 0700.
+pub fn root_base() -> PathBuf {
+    super::private::base_path().join("iox2")
+}
 
 /// How long a process waits for the coordinator to subscribe to `hello`.
 pub const HELLO_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(30);
@@ -105,15 +108,16 @@ impl RunId {
         }
     }
 
-    /// Shared-memory file prefix (`_` and `.` cannot occur in an id, so no
-    /// prefix of one run or domain is a prefix of another's).
+    /// Shared-memory file prefix, with the user's id (two users' runs of
+    /// one id never meet in /dev/shm; `_` and `.` cannot occur in an id, so
+    /// no prefix of one run or domain is a prefix of another's).
     pub fn shm_prefix(&self) -> String {
-        format!("etp_{}_", self.local_name())
+        format!("etp_u{}_{}_", super::private::uid(), self.local_name())
     }
 
     /// The run's iceoryx2 root folder.
     pub fn root_dir(&self) -> PathBuf {
-        PathBuf::from(ROOT_BASE).join(self.local_name())
+        root_base().join(self.local_name())
     }
 }
 
@@ -126,6 +130,8 @@ impl std::fmt::Display for RunId {
 /// The iceoryx2 configuration of a run: its own prefix and root path, built in
 /// code (no config file is read, whatever the working directory).
 pub fn config(run: &RunId) -> Result<Config, WireError> {
+    // The root lives in the user's private folder: checked before use.
+    super::private::sub("iox2")?;
     let mut cfg = Config::default();
     cfg.global.prefix = FileName::new(run.shm_prefix().as_bytes())
         .map_err(|e| WireError::Config(format!("prefix: {e:?}")))?;

@@ -17,7 +17,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 const DELTA: &str = "1.0518";
 
-fn ip(args: &[&str]) -> Result<(), String> {
+pub(super) fn ip(args: &[&str]) -> Result<(), String> {
     let out = Command::new("ip")
         .args(args)
         .output()
@@ -33,14 +33,14 @@ fn ip(args: &[&str]) -> Result<(), String> {
 }
 
 /// Where a namespace's process sees the test's output folder.
-const NS_OUT: &str = "/dev/shm/.etp-out";
+pub(super) const NS_OUT: &str = "/dev/shm/.etp-out";
 
 /// Network namespaces `<tag>a` (agent host) and one per sensor host, each
 /// joined to the agent host by a veth pair 10.77.<k>.1 ↔ 10.77.<k>.2;
 /// everything in them is killed and they are deleted on drop.
-struct Hosts {
-    agent: String,
-    sensors: Vec<String>,
+pub(super) struct Hosts {
+    pub(super) agent: String,
+    pub(super) sensors: Vec<String>,
 }
 
 impl Hosts {
@@ -87,17 +87,17 @@ impl Hosts {
     }
 
     /// The veth pair of sensor host k: (agent side, sensor side).
-    fn veth(&self, k: usize) -> (String, String) {
+    pub(super) fn veth(&self, k: usize) -> (String, String) {
         let p = std::process::id() % 100_000;
         (format!("va{p}{k}"), format!("vs{p}{k}"))
     }
 
-    fn spawn(&self, ns: &str, args: &[&str]) -> Guard {
+    pub(super) fn spawn(&self, ns: &str, args: &[&str]) -> Guard {
         self.spawn_in(ns, None, args)
     }
 
     /// [`Hosts::spawn`] with `out` visible inside as [`NS_OUT`].
-    fn spawn_out(&self, ns: &str, out: &std::path::Path, args: &[&str]) -> Guard {
+    pub(super) fn spawn_out(&self, ns: &str, out: &std::path::Path, args: &[&str]) -> Guard {
         self.spawn_in(ns, Some(out), args)
     }
 
@@ -138,7 +138,7 @@ impl Hosts {
         Guard(Some(c.spawn().expect("spawning in a namespace")))
     }
 
-    fn kill_all_in(ns: &str) {
+    pub(super) fn kill_all_in(ns: &str) {
         if let Ok(out) = Command::new("ip").args(["netns", "pids", ns]).output() {
             for pid in String::from_utf8_lossy(&out.stdout).split_whitespace() {
                 kill("-KILL", pid);
@@ -160,10 +160,10 @@ impl Drop for Hosts {
 }
 
 /// A child in its own process group, killed with its group on drop.
-struct Guard(Option<Child>);
+pub(super) struct Guard(pub(super) Option<Child>);
 
 impl Guard {
-    fn finish(mut self) -> (Option<i32>, String, String) {
+    pub(super) fn finish(mut self) -> (Option<i32>, String, String) {
         let c = self.0.take().expect("child");
         let out = c.wait_with_output().expect("waiting");
         (
@@ -184,7 +184,7 @@ impl Drop for Guard {
 }
 
 /// Namespaces, or `None` to skip (not root, not in CI).
-fn hosts(tag: &str, n: usize) -> Option<Hosts> {
+pub(super) fn hosts(tag: &str, n: usize) -> Option<Hosts> {
     assert!(
         bin_dir().join("etp-bridge").is_file(),
         "etp-bridge missing: cargo test --workspace builds it"
@@ -201,7 +201,19 @@ fn hosts(tag: &str, n: usize) -> Option<Hosts> {
     }
 }
 
-fn unix_ns() -> u64 {
+/// `etp certs init DIR --host …` (fresh DIR).
+pub(super) fn certs_init(dir: &std::path::Path, hosts: &[&str]) {
+    let _ = std::fs::remove_dir_all(dir);
+    let mut c = Command::new(bin_dir().join("etp"));
+    c.arg("certs").arg("init").arg(dir);
+    for h in hosts {
+        c.args(["--host", h]);
+    }
+    let out = c.output().expect("etp certs init");
+    assert!(out.status.success(), "etp certs init: {out:?}");
+}
+
+pub(super) fn unix_ns() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| d.as_nanos() as u64)
@@ -216,6 +228,8 @@ fn a_run_across_three_hosts_counts_exactly_and_verifies() {
     std::fs::create_dir_all(&dir).expect("scratch");
     let rec = dir.join("across.mcap");
     let _ = std::fs::remove_file(&rec);
+    // Mutual TLS with access control: host b may serve s1 and s3, host c s4.
+    certs_init(&dir.join("certs"), &["b=s1,s3", "c=s4"]);
     let run = h.spawn_out(
         &h.agent,
         &dir,
@@ -230,7 +244,9 @@ fn a_run_across_three_hosts_counts_exactly_and_verifies() {
             "--seed",
             "9",
             "--listen",
-            "tcp/0.0.0.0:7447",
+            "tls/0.0.0.0:7447",
+            "--tls",
+            &format!("{NS_OUT}/certs"),
             "--remote",
             "s1,s3,s4",
             "--record",
@@ -241,12 +257,18 @@ fn a_run_across_three_hosts_counts_exactly_and_verifies() {
             "30",
         ],
     );
-    let b = h.spawn(
+    let certs = format!("{NS_OUT}/certs");
+    let b = h.spawn_out(
         &h.sensors[0],
+        &dir,
         &[
             "sensor-host",
             "--connect",
-            "tcp/10.77.1.1:7447",
+            "tls/10.77.1.1:7447",
+            "--tls",
+            &certs,
+            "--identity",
+            "b",
             "--sensor",
             "s1",
             "--sensor",
@@ -254,12 +276,17 @@ fn a_run_across_three_hosts_counts_exactly_and_verifies() {
             "--json",
         ],
     );
-    let c = h.spawn(
+    let c = h.spawn_out(
         &h.sensors[1],
+        &dir,
         &[
             "sensor-host",
             "--connect",
-            "tcp/10.77.2.1:7447",
+            "tls/10.77.2.1:7447",
+            "--tls",
+            &certs,
+            "--identity",
+            "c",
             "--sensor",
             "s4",
             "--json",
@@ -367,6 +394,7 @@ fn a_killed_sensor_host_and_a_cut_link_are_detected_within_500_ms_and_the_run_go
             "4",
             "--listen",
             "tcp/0.0.0.0:7447",
+            "--insecure",
             "--remote",
             "s1,s4",
             "--allow-degraded",
@@ -382,6 +410,7 @@ fn a_killed_sensor_host_and_a_cut_link_are_detected_within_500_ms_and_the_run_go
             "sensor-host",
             "--connect",
             "tcp/10.77.1.1:7447",
+            "--insecure",
             "--sensor",
             "s1",
             "--json",
@@ -393,6 +422,7 @@ fn a_killed_sensor_host_and_a_cut_link_are_detected_within_500_ms_and_the_run_go
             "sensor-host",
             "--connect",
             "tcp/10.77.2.1:7447",
+            "--insecure",
             "--sensor",
             "s4",
             "--json",

@@ -64,6 +64,11 @@ pub struct RunConfig {
     pub remote: Option<Vec<String>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub join_timeout: Option<f64>,
+    /// The link's key material (`--tls`), or plain TCP (`--insecure`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tls: Option<std::path::PathBuf>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub insecure: Option<bool>,
 }
 
 /// Read a run file (errors name the file and the key).
@@ -119,6 +124,8 @@ pub fn resolve(mut a: Args) -> Result<Args> {
             a.remote = c.remote.unwrap_or_default();
         }
         a.join_timeout = a.join_timeout.or(c.join_timeout);
+        a.tls = a.tls.or(c.tls);
+        a.insecure |= c.insecure.unwrap_or(false);
         if a.listen.is_some() == a.remote.is_empty() {
             bail!(
                 "run file {}: `listen` and `remote` go together (sensors served from other hosts)",
@@ -169,6 +176,8 @@ pub fn of_args(a: &Args, record: Option<&Path>) -> RunConfig {
         listen: a.listen.clone(),
         remote: (!a.remote.is_empty()).then(|| a.remote.clone()),
         join_timeout: a.join_timeout,
+        tls: a.tls.clone(),
+        insecure: a.insecure.then_some(true),
     }
 }
 

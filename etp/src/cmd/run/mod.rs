@@ -37,6 +37,10 @@ pub const EXIT_ACCOUNTING: u8 = 4;
 /// Exit code: an episode ran with a dead link (degraded), without
 /// `--allow-degraded`.
 pub const EXIT_DEGRADED: u8 = 5;
+/// Exit code: a message from the link was refused (malformed, forged, from a
+/// host that does not serve that sensor, out of sequence), without
+/// `--allow-degraded`.
+pub const EXIT_LINK_REFUSED: u8 = 6;
 /// Exit code: SIGINT or SIGTERM stopped the run; the report covers the
 /// complete episodes.
 pub const EXIT_INTERRUPTED: u8 = 130;
@@ -122,6 +126,15 @@ pub struct Args {
     /// Seconds to wait for the remote sensors to join [default: 60].
     #[arg(long)]
     pub join_timeout: Option<f64>,
+    /// The link's key material (from `etp certs init DIR`): Zenoh over TLS
+    /// with mutual authentication and access control; listen on
+    /// `tls/ADDR:PORT`.
+    #[arg(long, value_name = "DIR", conflicts_with = "insecure")]
+    pub tls: Option<PathBuf>,
+    /// A plain `tcp/` link: no authentication, no encryption, no access
+    /// control. Only on an isolated test network.
+    #[arg(long)]
+    pub insecure: bool,
 }
 
 /// Why a completed run is not clean (empty: exit 0), checked leg by leg: a
@@ -279,6 +292,13 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
                 listen: listen.clone(),
                 remote: r,
                 join_timeout: a.join_timeout(),
+                security: match remote::security_args(a.tls.as_deref(), a.insecure, listen) {
+                    Ok(s) => s,
+                    Err(e) => {
+                        dir.remove();
+                        return Err(e);
+                    }
+                },
             }),
             Err(e) => {
                 dir.remove();
@@ -309,6 +329,19 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
 fn problems(a: &Args, outcome: &supervise::Supervised) -> Vec<(u8, String)> {
     let recording_ok = outcome.recording.as_ref().is_none_or(|r| r.finished);
     let mut problems = verdict(&outcome.report, recording_ok, a.allow_degraded);
+    if let Some(link) = &outcome.link
+        && link.refused > 0
+        && !a.allow_degraded
+    {
+        problems.push((
+            EXIT_LINK_REFUSED,
+            format!(
+                "{} message(s) from the link refused (first: {}; accept with --allow-degraded)",
+                link.refused,
+                link.refusals.first().map_or_else(String::new, |r| r.to_string())
+            ),
+        ));
+    }
     if outcome.interrupted {
         problems.insert(
             0,

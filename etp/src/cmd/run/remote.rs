@@ -21,6 +21,38 @@ pub struct RemoteSpec {
     /// Indices of the sensors served from other hosts.
     pub remote: Vec<usize>,
     pub join_timeout: f64,
+    /// The bridge's link flags: `--tls DIR` or `--insecure`.
+    pub security: Vec<String>,
+}
+
+/// `--tls DIR` / `--insecure` as the bridge's flags; exactly one, matching
+/// the endpoint's protocol. `--insecure` is warned about.
+pub fn security_args(
+    tls: Option<&std::path::Path>,
+    insecure: bool,
+    endpoint: &str,
+) -> Result<Vec<String>> {
+    match (tls, insecure) {
+        (Some(d), false) => {
+            if !endpoint.starts_with("tls/") {
+                bail!("--tls needs a `tls/ADDR:PORT` endpoint, not `{endpoint}`");
+            }
+            Ok(vec!["--tls".into(), d.display().to_string()])
+        }
+        (None, true) => {
+            if !endpoint.starts_with("tcp/") {
+                bail!("--insecure needs a `tcp/ADDR:PORT` endpoint, not `{endpoint}`");
+            }
+            eprintln!(
+                "etp: WARNING: --insecure: the link to {endpoint} is neither authenticated nor encrypted; anyone on the network can read the run and send to it (isolated test networks only)"
+            );
+            Ok(vec!["--insecure".into()])
+        }
+        (None, false) => bail!(
+            "a link across hosts needs --tls DIR (key material: `etp certs init DIR`) or, on an isolated test network, --insecure"
+        ),
+        (Some(_), true) => bail!("--tls and --insecure exclude each other"),
+    }
 }
 
 /// What the bridge saw.
@@ -30,6 +62,10 @@ pub struct LinkReport {
     pub traffic: BTreeMap<String, LinkTraffic>,
     /// Remote sensors lost during the run (name, wall clock ns).
     pub lost: Vec<(String, u64)>,
+    /// Messages from the link the bridge refused (a fault each), and the
+    /// first ones as reported.
+    pub refused: u64,
+    pub refusals: Vec<serde_json::Value>,
 }
 
 pub struct Bridge {
@@ -96,7 +132,10 @@ pub async fn start(plan: &Plan, spec: &RemoteSpec) -> Result<Bridge> {
             spec.listen.clone(),
             "--join-timeout".into(),
             spec.join_timeout.to_string(),
-        ],
+        ]
+        .into_iter()
+        .chain(spec.security.iter().cloned())
+        .collect::<Vec<String>>(),
         true,
     )?;
     let pid = child.id().unwrap_or(0);
@@ -144,6 +183,8 @@ impl Bridge {
                         v["sensor"].as_str().unwrap_or_default().to_string(),
                         v["unix_ns"].as_u64().unwrap_or(0),
                     )),
+                    Some("refused") => report.refusals.push(v.clone()),
+                    Some("refusals") => report.refused = v["count"].as_u64().unwrap_or(0),
                     Some("traffic") => {
                         report.traffic =
                             serde_json::from_value(v["sensors"].clone()).unwrap_or_default();

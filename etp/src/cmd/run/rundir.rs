@@ -1,6 +1,9 @@
-//! The run's private folder (`$TMPDIR/etp-run/<run-id>/`: the scenario,
-//! strategy and recording metadata its processes read), owned by exactly one
-//! live `etp run`.
+//! The run's private folder (`<private base>/run/<run-id>/`, the base being
+//! the user's own mode-0700 folder of `etp_runtime::wire::private`: the
+//! scenario, strategy and recording metadata its processes read), owned by
+//! exactly one live `etp run`. Every file here is opened with `O_NOFOLLOW`
+//! and every folder checked with `lstat` before it is removed: nothing
+//! planted is ever followed (nobody else can plant anything in the base).
 //!
 //! The owner holds an exclusive lock on `<folder>/owner.lock` for the whole
 //! run. The kernel drops the lock when the owner dies, kill -9 included, so
@@ -16,28 +19,37 @@
 
 use anyhow::{Context, Result, bail};
 use etp_runtime::wire::{RunId, cleanup};
+use etp_runtime::wire::private;
 use std::fs::{File, OpenOptions, TryLockError};
+use std::os::unix::fs::{DirBuilderExt, OpenOptionsExt};
 use std::path::{Path, PathBuf};
 
 const LOCK: &str = "owner.lock";
 const GUARD: &str = ".guard";
 
 /// The base-wide lock that serialises claims and sweeps (see module doc).
-fn guard() -> std::io::Result<File> {
-    let base = base();
-    std::fs::create_dir_all(&base)?;
-    let g = OpenOptions::new()
-        .create(true)
-        .truncate(false)
-        .write(true)
-        .open(base.join(GUARD))?;
-    g.lock()?;
+fn guard() -> Result<File> {
+    let path = base()?.join(GUARD);
+    let g = open_nofollow(&path).with_context(|| format!("opening {}", path.display()))?;
+    g.lock()
+        .with_context(|| format!("locking {}", path.display()))?;
     Ok(g)
 }
 
-/// Where every run keeps its folder.
-pub fn base() -> PathBuf {
-    std::env::temp_dir().join("etp-run")
+/// Open (create) a file for writing, refusing a symlink in its last component.
+fn open_nofollow(p: &Path) -> std::io::Result<File> {
+    OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .mode(0o600)
+        .custom_flags(libc::O_NOFOLLOW)
+        .open(p)
+}
+
+/// Where every run keeps its folder (created and checked: private).
+pub fn base() -> Result<PathBuf> {
+    Ok(private::runs()?)
 }
 
 /// A claimed run folder; removed on [`RunDir::remove`] (or by the next start
@@ -49,16 +61,16 @@ pub struct RunDir {
 }
 
 fn open_lock(dir: &Path) -> std::io::Result<File> {
-    OpenOptions::new()
-        .create(true)
-        .truncate(false)
-        .write(true)
-        .open(dir.join(LOCK))
+    open_nofollow(&dir.join(LOCK))
 }
 
 /// Is the folder's lock held by a live process?
 fn locked(dir: &Path) -> bool {
-    match OpenOptions::new().write(true).open(dir.join(LOCK)) {
+    match OpenOptions::new()
+        .write(true)
+        .custom_flags(libc::O_NOFOLLOW)
+        .open(dir.join(LOCK))
+    {
         Ok(f) => matches!(f.try_lock(), Err(TryLockError::WouldBlock)),
         Err(_) => false,
     }
@@ -68,10 +80,16 @@ impl RunDir {
     /// Create and lock the folder of `run`; refused if another live run
     /// (a locked folder, or live iceoryx2 nodes) uses this id.
     pub fn claim(run: &RunId) -> Result<Self> {
-        let _guard =
-            guard().with_context(|| format!("locking {}", base().join(GUARD).display()))?;
-        let path = base().join(run.as_str());
-        std::fs::create_dir_all(&path).with_context(|| format!("creating {}", path.display()))?;
+        let _guard = guard()?;
+        let path = base()?.join(run.as_str());
+        match std::fs::DirBuilder::new().mode(0o700).create(&path) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+            Err(e) => return Err(e).with_context(|| format!("creating {}", path.display())),
+        }
+        if !private::owned_folder(&path) {
+            bail!("{} is not a folder of this user's", path.display());
+        }
         let lock =
             open_lock(&path).with_context(|| format!("creating {}", path.join(LOCK).display()))?;
         match lock.try_lock() {
@@ -95,37 +113,40 @@ impl RunDir {
 
     /// Remove the folder (the lock goes with the file handle).
     pub fn remove(self) {
-        let _ = std::fs::remove_dir_all(&self.path);
+        if private::owned_folder(&self.path) {
+            let _ = std::fs::remove_dir_all(&self.path);
+        }
     }
 }
 
 /// Remove the folders of dead runs and their iceoryx2 files; the ids removed.
 /// A folder is stale when its lock is free and no iceoryx2 node of its run
 /// lives; one without a lock file only once it is a minute old (it may be a
-/// run being set up right now).
+/// run being set up right now). Only real folders owned by this user are
+/// looked at (a symlink is never followed, nor removed with its target).
 pub fn remove_stale() -> Vec<String> {
     let mut removed = Vec::new();
     // Without the guard a sweep could take a folder being claimed right now.
     let Ok(_guard) = guard() else {
         return removed;
     };
-    let Ok(dir) = std::fs::read_dir(base()) else {
+    let Ok(dir) = base().and_then(|b| Ok(std::fs::read_dir(b)?)) else {
         return removed;
     };
     for e in dir.filter_map(Result::ok) {
         let path = e.path();
-        if !path.is_dir() {
+        if !private::owned_folder(&path) {
             continue;
         }
         let name = e.file_name().to_string_lossy().to_string();
         let young = || {
-            e.metadata()
+            std::fs::symlink_metadata(&path)
                 .and_then(|m| m.modified())
                 .ok()
                 .and_then(|t| t.elapsed().ok())
                 .is_none_or(|age| age.as_secs() < 60)
         };
-        if locked(&path) || (!path.join(LOCK).exists() && young()) {
+        if locked(&path) || (std::fs::symlink_metadata(path.join(LOCK)).is_err() && young()) {
             continue;
         }
         let iceoryx_clean = RunId::new(&name).map_or(true, |run| cleanup::remove_run(&run));

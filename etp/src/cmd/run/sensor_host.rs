@@ -11,6 +11,7 @@
 use super::process::{ProcessExit, sibling_binary, signal, spawn_env, status_text};
 use anyhow::{Context, Result, bail};
 use etp_runtime::wire::{IPC_DOMAIN_ENV, RunId, cleanup};
+use std::path::PathBuf;
 use std::time::Duration;
 use tokio::io::{AsyncBufReadExt, BufReader};
 
@@ -28,6 +29,18 @@ pub struct Args {
     /// Print one JSON object at the end.
     #[arg(long)]
     pub json: bool,
+    /// The link's key material (from `etp certs init DIR`, copied here):
+    /// mutual TLS; connect to `tls/ADDR:PORT`.
+    #[arg(long, value_name = "DIR", conflicts_with = "insecure")]
+    pub tls: Option<PathBuf>,
+    /// This host's identity in DIR (`<NAME>.pem`; default: the only sensor
+    /// host of DIR/hosts.json).
+    #[arg(long, value_name = "NAME", requires = "tls")]
+    pub identity: Option<String>,
+    /// A plain `tcp/` link: no authentication, no encryption. Only on an
+    /// isolated test network.
+    #[arg(long)]
+    pub insecure: bool,
 }
 
 /// How long the sensors get to exit once the bridge has ended.
@@ -39,7 +52,7 @@ pub fn run(a: Args) -> Result<()> {
         .build()
         .context("starting the tokio runtime")?;
     let domain = format!("h{}", std::process::id());
-    let dir = std::env::temp_dir().join("etp-sensor-host").join(&domain);
+    let dir = etp_runtime::wire::private::sub("sensor-host")?.join(&domain);
     let r = rt.block_on(serve(&a, &domain, &dir));
     let _ = std::fs::remove_dir_all(&dir);
     let (summary, ok) = r?;
@@ -79,6 +92,14 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
     ];
     for s in &a.sensors {
         args.extend(["--sensor".to_string(), s.clone()]);
+    }
+    args.extend(super::remote::security_args(
+        a.tls.as_deref(),
+        a.insecure,
+        &a.connect,
+    )?);
+    if let Some(id) = &a.identity {
+        args.extend(["--identity".to_string(), id.clone()]);
     }
     let bin = sibling_binary("etp-bridge")?;
     let mut bridge = spawn_env(&bin, &args, true, &env)?;
