@@ -80,8 +80,10 @@ impl Refusals {
             .map(|i| names.get(i).cloned().unwrap_or_else(|| format!("#{i}")));
         tracing::warn!(kind = r.kind, host = %r.host, ?sensor, detail = %r.detail, "refused a message from the link");
         if self.count <= REPORTED_REFUSALS {
-            emit(&serde_json::json!({"event": "refused", "kind": r.kind, "host": r.host,
-                "sensor": sensor, "detail": r.detail}));
+            emit(
+                &serde_json::json!({"event": "refused", "kind": r.kind, "host": r.host,
+                "sensor": sensor, "detail": r.detail}),
+            );
         }
     }
 

@@ -64,7 +64,11 @@ impl Security {
         } else {
             Err(BridgeError::Input(format!(
                 "endpoint `{ep}`: {} needs a `{want}ADDR:PORT` endpoint",
-                if want == "tls/" { "--tls" } else { "--insecure" }
+                if want == "tls/" {
+                    "--tls"
+                } else {
+                    "--insecure"
+                }
             )))
         }
     }
@@ -114,7 +118,10 @@ pub fn up_keys(run: &str) -> String {
 /// A data key's sending host (`None` for down keys) and topic; `None` for a
 /// key that is not a data key of `run`.
 pub fn parse_key<'k>(run: &str, key: &'k str) -> Option<(Option<&'k str>, &'k str)> {
-    let rest = key.strip_prefix("etp/")?.strip_prefix(run)?.strip_prefix('/')?;
+    let rest = key
+        .strip_prefix("etp/")?
+        .strip_prefix(run)?
+        .strip_prefix('/')?;
     if let Some(t) = rest.strip_prefix("down/") {
         return Some((None, t));
     }
@@ -180,10 +187,14 @@ pub fn agent_host_access(run: &str, hosts: &BTreeMap<String, Vec<usize>>) -> ser
         if !sensors.is_empty() {
             rules.push(serde_json::json!({"id": format!("{h}-up"), "permission": "allow",
                 "flows": ["ingress"], "messages": ["put"], "key_exprs": [format!("etp/{run}/up/{h}/**")]}));
-            rules.push(serde_json::json!({"id": format!("{h}-down"), "permission": "allow",
-                "flows": ["ingress"], "messages": ["declare_subscriber"], "key_exprs": down}));
-            rules.push(serde_json::json!({"id": format!("{h}-alive"), "permission": "allow",
-                "flows": ["ingress"], "messages": ["liveliness_token"], "key_exprs": alive}));
+            rules.push(
+                serde_json::json!({"id": format!("{h}-down"), "permission": "allow",
+                "flows": ["ingress"], "messages": ["declare_subscriber"], "key_exprs": down}),
+            );
+            rules.push(
+                serde_json::json!({"id": format!("{h}-alive"), "permission": "allow",
+                "flows": ["ingress"], "messages": ["liveliness_token"], "key_exprs": alive}),
+            );
             own.extend([format!("{h}-up"), format!("{h}-down"), format!("{h}-alive")]);
         }
         subjects.push(serde_json::json!({"id": h, "cert_common_names": [h]}));
@@ -238,8 +249,16 @@ pub fn config(
         };
         let cert = file(&format!("{identity}.pem"))?;
         let key = file(&format!("{identity}-key.pem"))?;
-        set(&mut c, "transport/link/tls/root_ca_certificate", file("ca.pem")?)?;
-        set(&mut c, "transport/link/tls/listen_certificate", cert.clone())?;
+        set(
+            &mut c,
+            "transport/link/tls/root_ca_certificate",
+            file("ca.pem")?,
+        )?;
+        set(
+            &mut c,
+            "transport/link/tls/listen_certificate",
+            cert.clone(),
+        )?;
         set(&mut c, "transport/link/tls/listen_private_key", key.clone())?;
         set(&mut c, "transport/link/tls/connect_certificate", cert)?;
         set(&mut c, "transport/link/tls/connect_private_key", key)?;
@@ -247,7 +266,11 @@ pub fn config(
         set(&mut c, "transport/link/tls/enable_mtls", "true".into())?;
         // Labs address hosts by IP, which the certificates do not name; the
         // peer's identity is checked by access control on its common name.
-        set(&mut c, "transport/link/tls/verify_name_on_connect", "false".into())?;
+        set(
+            &mut c,
+            "transport/link/tls/verify_name_on_connect",
+            "false".into(),
+        )?;
     }
     if let Some(acl) = access {
         set(&mut c, "access_control", acl.to_string())?;
@@ -296,7 +319,10 @@ mod tests {
         assert_eq!(parse_key("r1", &k), Some((Some("h-2"), "measurement")));
         assert_eq!(parse_key("r2", &k), None);
         assert_eq!(parse_key("r1", "nope"), None);
-        assert_eq!(parse_alive_key(&sensor_alive_key("r1", 4, "h")), Some((4, "h")));
+        assert_eq!(
+            parse_alive_key(&sensor_alive_key("r1", 4, "h")),
+            Some((4, "h"))
+        );
     }
 
     #[test]
@@ -317,15 +343,27 @@ mod tests {
             identity: "x".into(),
         };
         assert!(config(Some("tcp/127.0.0.1:1"), None, DEFAULT_LEASE, &tls, None).is_err());
-        assert!(config(Some("tls/127.0.0.1:1"), None, DEFAULT_LEASE, &Security::Insecure, None).is_err());
+        assert!(
+            config(
+                Some("tls/127.0.0.1:1"),
+                None,
+                DEFAULT_LEASE,
+                &Security::Insecure,
+                None
+            )
+            .is_err()
+        );
     }
 
     #[test]
     fn access_control_parses_as_zenoh_configuration() {
         let hosts = BTreeMap::from([("h1".to_string(), vec![0, 2]), ("h2".to_string(), vec![])]);
         let mut c = zenoh::Config::default();
-        c.insert_json5("access_control", &agent_host_access("r1", &hosts).to_string())
-            .expect("agent host acl");
+        c.insert_json5(
+            "access_control",
+            &agent_host_access("r1", &hosts).to_string(),
+        )
+        .expect("agent host acl");
         c.insert_json5("access_control", &sensor_host_access().to_string())
             .expect("sensor host acl");
     }

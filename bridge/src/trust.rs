@@ -189,7 +189,10 @@ impl Gate {
         let i = h.sender as usize;
         let refuse = |kind, detail| (Vec::new(), vec![refusal(kind, host, Some(i), detail)]);
         if h.run != self.tag {
-            return refuse("wrong-run", format!("{:?} with run tag {:#x}", msg.0, h.run));
+            return refuse(
+                "wrong-run",
+                format!("{:?} with run tag {:#x}", msg.0, h.run),
+            );
         }
         if msg.0 == ServiceId::Hello {
             if let Err(r) = self.claim(host, i) {
@@ -206,7 +209,8 @@ impl Gate {
                 format!(
                     "{:?} for sensor {i}, served by {}",
                     msg.0,
-                    self.claimant(i).map_or("no host yet".into(), |c| format!("`{c}`"))
+                    self.claimant(i)
+                        .map_or("no host yet".into(), |c| format!("`{c}`"))
                 ),
             );
         }
@@ -283,9 +287,7 @@ impl Gate {
             .held
             .iter()
             .filter(|(i, h)| {
-                still(i)
-                    && h.values()
-                        .any(|m| now.duration_since(m.since) >= GAP_WAIT)
+                still(i) && h.values().any(|m| now.duration_since(m.since) >= GAP_WAIT)
             })
             .map(|(&i, _)| i)
             .collect();

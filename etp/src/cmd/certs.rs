@@ -109,7 +109,8 @@ fn leaf(name: &str, issuer: &Issuer<'_, KeyPair>) -> Result<(String, String)> {
     let mut p = CertificateParams::new(vec![name.to_string()])
         .with_context(|| format!("certificate of {name}"))?;
     p.distinguished_name.push(DnType::CommonName, name);
-    p.distinguished_name.push(DnType::OrganizationName, "etpareto");
+    p.distinguished_name
+        .push(DnType::OrganizationName, "etpareto");
     p.key_usages = vec![
         KeyUsagePurpose::DigitalSignature,
         KeyUsagePurpose::KeyEncipherment,
@@ -203,13 +204,23 @@ fn init(a: &InitArgs) -> Result<()> {
         std::fs::rename(&fresh, &a.dir)
             .with_context(|| format!("renaming {} to {}", fresh.display(), a.dir.display()))?;
     }
-    println!("key material in {} (mode 0700, files 0600):", a.dir.display());
-    println!("  agent host:  etp run --tls {} --listen tls/ADDR:PORT …", a.dir.display());
+    println!(
+        "key material in {} (mode 0700, files 0600):",
+        a.dir.display()
+    );
+    println!(
+        "  agent host:  etp run --tls {} --listen tls/ADDR:PORT …",
+        a.dir.display()
+    );
     for (h, s) in &hosts {
         println!(
             "  sensor host: etp sensor-host --tls {} --identity {h} --connect tls/ADDR:PORT  (serves {}; needs ca.pem, {h}.pem, {h}-key.pem, hosts.json)",
             a.dir.display(),
-            if s.is_empty() { "any remote sensor".to_string() } else { s.join(",") }
+            if s.is_empty() {
+                "any remote sensor".to_string()
+            } else {
+                s.join(",")
+            }
         );
     }
     Ok(())
@@ -232,14 +243,25 @@ mod tests {
             force: false,
         };
         init(&args).expect("init");
-        for f in ["ca.pem", "ca-key.pem", "agent-host.pem", "a-key.pem", "b.pem", "hosts.json"] {
+        for f in [
+            "ca.pem",
+            "ca-key.pem",
+            "agent-host.pem",
+            "a-key.pem",
+            "b.pem",
+            "hosts.json",
+        ] {
             let m = std::fs::metadata(dir.join(f)).expect(f);
             assert_eq!(m.permissions().mode() & 0o777, 0o600, "{f}");
         }
         let ca = std::fs::read_to_string(dir.join("ca.pem")).expect("ca");
         let e = init(&args).expect_err("exists");
         assert!(e.to_string().contains("--force"), "{e}");
-        init(&InitArgs { force: true, ..args }).expect("forced");
+        init(&InitArgs {
+            force: true,
+            ..args
+        })
+        .expect("forced");
         assert_ne!(std::fs::read_to_string(dir.join("ca.pem")).expect("ca"), ca);
         let hosts: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(dir.join("hosts.json")).expect("hosts"))

@@ -82,7 +82,11 @@ fn victim_intact(v: &Path) {
         .filter_map(Result::ok)
         .map(|e| e.file_name())
         .collect();
-    assert_eq!(names.len(), 1, "something was created in the victim: {names:?}");
+    assert_eq!(
+        names.len(),
+        1,
+        "something was created in the victim: {names:?}"
+    );
 }
 
 #[test]
@@ -166,7 +170,11 @@ fn another_user_cannot_redirect_or_delete_through_planted_paths_and_both_run() {
     let m = std::fs::symlink_metadata(&ours).expect("root's private folder");
     assert!(m.is_dir());
     assert_eq!(m.permissions().mode() & 0o777, 0o700);
-    let o = as_nobody(&format!("ln -s '{}' '{}/run/x'", victim.display(), ours.display()));
+    let o = as_nobody(&format!(
+        "ln -s '{}' '{}/run/x'",
+        victim.display(),
+        ours.display()
+    ));
     assert!(!o.status.success(), "nobody planted inside root's folder");
     // Stale-run cleanup by root never touches nobody's folders.
     let nobody_base = t.join(format!("etp-{NOBODY}"));

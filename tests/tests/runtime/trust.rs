@@ -29,7 +29,10 @@ fn python() -> PathBuf {
     let py = env.join("bin/python");
     let has = |py: &Path| {
         Command::new(py)
-            .args(["-c", "import zenoh, sys; sys.exit(0 if zenoh.__version__.startswith('1.10') else 1)"])
+            .args([
+                "-c",
+                "import zenoh, sys; sys.exit(0 if zenoh.__version__.startswith('1.10') else 1)",
+            ])
             .stderr(Stdio::null())
             .status()
             .is_ok_and(|s| s.success())
@@ -86,7 +89,13 @@ fn outsider_report(g: Guard) -> Value {
 }
 
 /// `etp run` args of a run of open-2d with `remote` served elsewhere.
-fn run_args(run_id: &str, episodes: &str, link: &[&str], remote: &str, extra: &[&str]) -> Vec<String> {
+fn run_args(
+    run_id: &str,
+    episodes: &str,
+    link: &[&str],
+    remote: &str,
+    extra: &[&str],
+) -> Vec<String> {
     let mut v: Vec<String> = [
         "run",
         "--scenario",
@@ -119,7 +128,8 @@ fn strs(v: &[String]) -> Vec<&str> {
 }
 
 fn scratch(tag: &str) -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("trust-{tag}-{}", std::process::id()));
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("trust-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).expect("scratch");
     d
@@ -142,8 +152,7 @@ fn assert_recording_matches_ledgers(rec: &Path, v: &Value) {
         .args(["replay", &rec.display().to_string(), "--verify", "--json"])
         .output()
         .expect("replay");
-    let r: Value = serde_json::from_slice(&out.stdout)
-        .unwrap_or_else(|e| panic!("{e}: {out:?}"));
+    let r: Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("{e}: {out:?}"));
     let ledgers: u64 = v["sensors"]
         .as_array()
         .expect("sensors")
@@ -165,12 +174,27 @@ fn over_tls_an_outsider_cannot_connect_query_or_subscribe_and_another_identity_c
     certs_init(&dir.join("certs"), &["b=s1", "c=s4"]);
     let certs = format!("{NS_OUT}/certs");
     let run_id = format!("tls{}", std::process::id());
-    let args = run_args(&run_id, "150", &["--listen", "tls/0.0.0.0:7447", "--tls", &certs], "s1", &[]);
+    let args = run_args(
+        &run_id,
+        "150",
+        &["--listen", "tls/0.0.0.0:7447", "--tls", &certs],
+        "s1",
+        &[],
+    );
     let run = h.spawn_out(&h.agent, &dir, &strs(&args));
     let b = h.spawn_out(
         &h.sensors[0],
         &dir,
-        &["sensor-host", "--connect", "tls/10.77.1.1:7447", "--tls", &certs, "--identity", "b", "--json"],
+        &[
+            "sensor-host",
+            "--connect",
+            "tls/10.77.1.1:7447",
+            "--tls",
+            &certs,
+            "--identity",
+            "b",
+            "--json",
+        ],
     );
     // From the other sensor namespace: the network, not a host of the run.
     let ca = dir.join("certs/ca.pem").display().to_string();
@@ -178,8 +202,14 @@ fn over_tls_an_outsider_cannot_connect_query_or_subscribe_and_another_identity_c
     let run_keys = format!("etp/{run_id}/**");
     let garbage = hex(&[0u8; 7]);
     let attempts = [
-        ("plain tcp", json!({"endpoint": "tcp/10.77.2.1:7447", "tls": null})),
-        ("tls without a certificate", json!({"endpoint": "tls/10.77.2.1:7447", "tls": {"ca": ca}})),
+        (
+            "plain tcp",
+            json!({"endpoint": "tcp/10.77.2.1:7447", "tls": null}),
+        ),
+        (
+            "tls without a certificate",
+            json!({"endpoint": "tls/10.77.2.1:7447", "tls": {"ca": ca}}),
+        ),
         (
             "a self-made certificate",
             json!({"endpoint": "tls/10.77.2.1:7447",
@@ -250,7 +280,15 @@ fn garbage_and_forged_traffic_is_refused_as_a_fault_and_never_recorded() {
     let run = h.spawn_out(&h.agent, &dir, &strs(&args));
     let b = h.spawn(
         &h.sensors[0],
-        &["sensor-host", "--connect", "tcp/10.77.1.1:7447", "--insecure", "--identity", "b", "--json"],
+        &[
+            "sensor-host",
+            "--connect",
+            "tcp/10.77.1.1:7447",
+            "--insecure",
+            "--identity",
+            "b",
+            "--json",
+        ],
     );
     let o = outsider(
         &h.sensors[1],
@@ -296,11 +334,27 @@ fn a_second_host_claiming_a_served_sensor_is_refused() {
     let run = h.spawn_out(&h.agent, &dir, &strs(&args));
     let b = h.spawn(
         &h.sensors[0],
-        &["sensor-host", "--connect", "tcp/10.77.1.1:7447", "--insecure", "--identity", "b", "--json"],
+        &[
+            "sensor-host",
+            "--connect",
+            "tcp/10.77.1.1:7447",
+            "--insecure",
+            "--identity",
+            "b",
+            "--json",
+        ],
     );
     let c = h.spawn(
         &h.sensors[1],
-        &["sensor-host", "--connect", "tcp/10.77.2.1:7447", "--insecure", "--identity", "c", "--json"],
+        &[
+            "sensor-host",
+            "--connect",
+            "tcp/10.77.2.1:7447",
+            "--insecure",
+            "--identity",
+            "c",
+            "--json",
+        ],
     );
     let (code, out, err) = run.finish();
     let _ = (b.finish(), c.finish());
@@ -321,12 +375,26 @@ fn a_stalled_subscriber_cannot_stall_the_run() {
     let Some(h) = hosts("st", 2) else { return };
     let dir = scratch("stall");
     let run_id = format!("stall{}", std::process::id());
-    let args = run_args(&run_id, "200", &["--listen", "tcp/0.0.0.0:7447", "--insecure"], "s1", &[]);
+    let args = run_args(
+        &run_id,
+        "200",
+        &["--listen", "tcp/0.0.0.0:7447", "--insecure"],
+        "s1",
+        &[],
+    );
     let started = Instant::now();
     let run = h.spawn_out(&h.agent, &dir, &strs(&args));
     let b = h.spawn(
         &h.sensors[0],
-        &["sensor-host", "--connect", "tcp/10.77.1.1:7447", "--insecure", "--identity", "b", "--json"],
+        &[
+            "sensor-host",
+            "--connect",
+            "tcp/10.77.1.1:7447",
+            "--insecure",
+            "--identity",
+            "b",
+            "--json",
+        ],
     );
     // Reads one sample of everything, then never again.
     let o = outsider(
@@ -361,15 +429,37 @@ fn seven_remote_sensors_on_one_host_keep_their_order_20_times() {
             &h.agent,
             &dir,
             &[
-                "run", "--scenario", "winding-2d", "--delta", "1.4986", "--episodes", "60",
-                "--seed", "21", "--run-id", &run_id, "--listen", "tcp/0.0.0.0:7461",
-                "--insecure", "--remote", "s0,s1,s2,s3,s4,s5,s6", "--episode-details",
-                "--json", "--join-timeout", "30",
+                "run",
+                "--scenario",
+                "winding-2d",
+                "--delta",
+                "1.4986",
+                "--episodes",
+                "60",
+                "--seed",
+                "21",
+                "--run-id",
+                &run_id,
+                "--listen",
+                "tcp/0.0.0.0:7461",
+                "--insecure",
+                "--remote",
+                "s0,s1,s2,s3,s4,s5,s6",
+                "--episode-details",
+                "--json",
+                "--join-timeout",
+                "30",
             ],
         );
         let b = h.spawn(
             &h.sensors[0],
-            &["sensor-host", "--connect", "tcp/10.77.1.1:7461", "--insecure", "--json"],
+            &[
+                "sensor-host",
+                "--connect",
+                "tcp/10.77.1.1:7461",
+                "--insecure",
+                "--json",
+            ],
         );
         let (code, out, err) = run.finish();
         let (bcode, _, berr) = b.finish();
@@ -377,7 +467,12 @@ fn seven_remote_sensors_on_one_host_keep_their_order_20_times() {
         assert_eq!(bcode, Some(0), "run {k}: {berr}");
         let v: Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}: {out}"));
         assert_eq!(num(&v, "degraded"), 0.0, "run {k}");
-        assert_eq!(v["link"]["refused"].as_u64(), Some(0), "run {k}: {}", v["link"]);
+        assert_eq!(
+            v["link"]["refused"].as_u64(),
+            Some(0),
+            "run {k}: {}",
+            v["link"]
+        );
         assert_ledgers_match(&v, false);
     }
     drop(h);

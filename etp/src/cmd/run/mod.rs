@@ -338,7 +338,9 @@ fn problems(a: &Args, outcome: &supervise::Supervised) -> Vec<(u8, String)> {
             format!(
                 "{} message(s) from the link refused (first: {}; accept with --allow-degraded)",
                 link.refused,
-                link.refusals.first().map_or_else(String::new, |r| r.to_string())
+                link.refusals
+                    .first()
+                    .map_or_else(String::new, |r| r.to_string())
             ),
         ));
     }

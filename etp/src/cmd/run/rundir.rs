@@ -18,8 +18,8 @@
 //! only for those few milliseconds.
 
 use anyhow::{Context, Result, bail};
-use etp_runtime::wire::{RunId, cleanup};
 use etp_runtime::wire::private;
+use etp_runtime::wire::{RunId, cleanup};
 use std::fs::{File, OpenOptions, TryLockError};
 use std::os::unix::fs::{DirBuilderExt, OpenOptionsExt};
 use std::path::{Path, PathBuf};
