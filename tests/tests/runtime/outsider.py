@@ -7,8 +7,8 @@ Argument: one JSON object
   query      true: get("etp/session")
   subscribe  a key expression to subscribe to, or null
   stall      true: the subscriber's callback never returns (a stalled reader)
-  capture    true: keep the first measurement and ledger seen on up keys and
-             put forged variants of them (see below)
+  capture    true: read the run's tag from a down message, then put forged
+             measurements and a ledger as host `host` (see below)
   puts       [[key, hex bytes], …] put after `wait` seconds
   wait, seconds
 Prints one JSON object: connected, replies, received, forged (what was put).
@@ -61,8 +61,10 @@ def on_sample(sample):
         out["received"] += 1
         key = str(sample.key_expr)
         topic = key.rsplit("/", 1)[-1]
-        if a.get("capture") and topic in ("measurement", "ledger") and topic not in captured:
-            captured[topic] = (key, bytes(sample.payload.to_bytes()))
+        payload = bytes(sample.payload.to_bytes())
+        # A real down message (this session's own puts come back too).
+        if a.get("capture") and "/down/" in key and len(payload) >= 48 and "tag" not in captured:
+            captured["tag"] = payload[:8]
     if a.get("stall"):
         time.sleep(3600)
 
@@ -79,30 +81,31 @@ for key, hexbytes in a.get("puts", []):
     s.put(key, bytes.fromhex(hexbytes))
     out["forged"].append(key)
 if a.get("capture"):
+    # The run's tag is the first 8 bytes of any message of the run (the
+    # down traffic this outsider can read on an insecure link).
     deadline = time.time() + 20
     while time.time() < deadline:
         with lock:
-            if len(captured) == 2:
+            if "tag" in captured:
                 break
         time.sleep(0.05)
     with lock:
-        got = dict(captured)
-    # Header: run u64, episode u64, step u32, leg u32, sender u32, seq u32.
-    if "measurement" in got:
-        key, m = got["measurement"]
-        s.put(key, m)  # replayed verbatim
-        out["forged"].append("replayed measurement")
-        local = bytearray(m)
-        struct.pack_into("<I", local, 24, 3)  # as sensor s3, a local one
-        s.put(key, bytes(local))
+        tag = captured.get("tag")
+    if tag is not None:
+        up = f"etp/{run}/up/{a['host']}"
+
+        def header(sender, seq, episode=0, leg=0, step=1):
+            return tag + struct.pack("<QIIII", episode, step, leg, sender, seq)
+
+        y = struct.pack("<6d", *([0.5] * 6))
+        # A measurement as sensor s3, a local sensor.
+        s.put(f"{up}/measurement", header(3, 1) + struct.pack("<II", 2, 1) + y)
         out["forged"].append("measurement as a local sensor")
-    if "ledger" in got:
-        key, l = got["ledger"]
-        forged = bytearray(l)
-        (t,) = struct.unpack_from("<I", forged, 36)
-        struct.pack_into("<I", forged, 36, t + 1000)  # 1000 more transmissions
-        s.put(key, bytes(forged))
-        out["forged"].append("ledger +1000")
+        # A measurement and a ledger of the remote sensor s1, old sequence numbers.
+        s.put(f"{up}/measurement", header(1, 1) + struct.pack("<II", 2, 1) + y)
+        out["forged"].append("measurement of s1")
+        s.put(f"{up}/ledger", header(1, 2) + struct.pack("<IId", 10, 1000, 1.0))
+        out["forged"].append("ledger of s1, 1000 transmissions")
 time.sleep(a.get("seconds", 0))
 print(json.dumps(out), flush=True)
 if a.get("stall"):
