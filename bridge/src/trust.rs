@@ -393,7 +393,7 @@ mod tests {
         let (d, r) = g.admit("a", slot(0, 2, 9), t);
         assert!(d.is_empty());
         assert_eq!(r[0].kind, "not-asked");
-        let mut other = Header {
+        let other = Header {
             run: TAG + 1,
             ..header(0, 3, 0, 0, 1)
         };
@@ -412,7 +412,6 @@ mod tests {
             t,
         );
         assert_eq!(r[0].kind, "wrong-run");
-        other.run = TAG;
         ask(&g, 0, 5);
         let (d, _) = g.admit("a", slot(0, 5, 5), t);
         assert!(d.is_empty(), "held behind seq 3 and 4");
