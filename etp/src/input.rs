@@ -24,13 +24,13 @@ pub fn scenario_text(arg: &str) -> Result<String> {
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct RadioArgs {
     /// Probability that one transmission attempt is lost, in [0, 1) (0 = ideal radio).
-    #[arg(long, value_name = "P")]
+    #[arg(long, value_name = "P", allow_negative_numbers = true)]
     pub loss: Option<f64>,
     /// Further attempts in the same step after a lost one (acknowledged link).
-    #[arg(long, value_name = "R")]
+    #[arg(long, value_name = "R", allow_negative_numbers = true)]
     pub retries: Option<i64>,
     /// Gilbert–Elliott channel with this mean burst length in steps (≥ 1).
-    #[arg(long, value_name = "B")]
+    #[arg(long, value_name = "B", allow_negative_numbers = true)]
     pub burst: Option<f64>,
     /// The agent's silence update: `aware` (β_q, knows packets get lost) or `naive` (β).
     #[arg(long, value_parser = ["aware", "naive"])]
