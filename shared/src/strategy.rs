@@ -85,8 +85,7 @@ fn check_seal(text: &str) -> Result<Option<()>, StrategyError> {
     let actual = sha256_hex(body.as_bytes());
     if hex != actual {
         return Err(StrategyError::Tampered(format!(
-            "its text hashes to {actual:.12}…, not to the `{SEAL_KEY}` {:.12}… it was written with (a field such as `scenario_name`, `predicted`, `leg_energy` or `states` was edited)",
-            hex
+            "its text hashes to {actual:.12}…, not to the `{SEAL_KEY}` {hex:.12}… it was written with (a field such as `scenario_name`, `predicted`, `leg_energy` or `states` was edited)"
         )));
     }
     Ok(Some(()))
