@@ -371,6 +371,9 @@ impl<const N: usize> CompiledScenario<N> {
     /// checks at run time).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
+    // The leg's state travels by reference into the inlined loop: a struct
+    // of eight borrows would add nothing but a name.
+    #[allow(clippy::too_many_arguments)]
     fn run_leg_avx2<R: Rng + ?Sized, O: EpisodeObserver<N>>(
         &self,
         sensor: usize,
@@ -385,6 +388,7 @@ impl<const N: usize> CompiledScenario<N> {
     }
 
     #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     fn run_leg_with<const M: usize, R: Rng + ?Sized, O: EpisodeObserver<N>>(
         &self,
         filter: &EtKalmanFilter<N, M>,

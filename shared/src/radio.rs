@@ -498,10 +498,9 @@ impl EpisodeChannels {
     /// Sensor `s`'s channel, advanced to the current step.
     pub fn link_mut(&mut self, sensor: usize) -> Option<&mut LinkChannel> {
         let step = self.step;
-        self.links.get_mut(sensor).map(|l| {
-            l.advance_to(step);
-            l
-        })
+        let link = self.links.get_mut(sensor)?;
+        link.advance_to(step);
+        Some(link)
     }
 }
 
