@@ -132,13 +132,12 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
             }
         }
         // Remote hellos wait until the coordinator (and a recorder) subscribe.
-        if !hellos.is_empty() && wire::liveness(node.config(), COORDINATOR_NODE) == Liveness::Alive
+        if !hellos.is_empty()
+            && wire::liveness(node.config(), COORDINATOR_NODE) == Liveness::Alive
+            && hello.dynamic_config().number_of_subscribers() >= wire::hello_readers(node.config())
         {
-            if hello.dynamic_config().number_of_subscribers() >= wire::hello_readers(node.config())
-            {
-                for (r, bytes) in hellos.drain(..) {
-                    inbound.deliver(ServiceId::Hello, r, bytes, &counters)?;
-                }
+            for (r, bytes) in hellos.drain(..) {
+                inbound.deliver(ServiceId::Hello, r, bytes, &counters)?;
             }
         }
         let wait = if hellos.is_empty() { 100 } else { 5 };
