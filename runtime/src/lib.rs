@@ -10,7 +10,7 @@
 //!   lists and schema texts are derived from it.
 //! * [`wire::messages`] — the `#[repr(C)]` + `ZeroCopySend` payloads, by
 //!   direction (`agent_to_sensor`, `sensor_to_agent`, …), and their code enums.
-//! * [`wire::run_id`], [`wire::limits`], [`wire::ports`], [`wire::liveness`],
+//! * [`wire::run_id`], [`wire::limits`](mod@wire::limits), [`wire::ports`], [`wire::liveness`](mod@wire::liveness),
 //!   [`wire::hello`] — a run's id and iceoryx2 configuration, THE limits
 //!   table, the one way to open ports ([`wire::Ports`], [`wire::PortError`]),
 //!   nodes and their liveness, and saying hello.

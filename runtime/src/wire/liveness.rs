@@ -45,7 +45,7 @@ pub enum Liveness {
 
 /// Look a node up by name in the run's node list; a dead node's stale
 /// resources are removed on the way (so the peers' counts drop and listeners
-/// get [`DEAD_NOTIFIER_EVENT`]).
+/// get [`super::ports::DEAD_NOTIFIER_EVENT`]).
 pub fn liveness(cfg: &Config, name: &str) -> Liveness {
     node_state(cfg, name, true)
 }

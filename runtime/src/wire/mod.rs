@@ -11,9 +11,9 @@
 //!   [`schema`] the schema text of a recording's channel.
 //! * [`run_id`] — [`RunId`] and the per-run iceoryx2 [`config`] (own shm
 //!   prefix and root folder).
-//! * [`limits`] — THE limits table used by [`open_pubsub`] / [`open_event`]
+//! * [`limits`](mod@limits) — THE limits table used by [`open_pubsub`] / [`open_event`]
 //!   ([`ports`]: [`Ports`], [`PortError`]) in every process.
-//! * [`liveness`] — node names, [`create_node`] and what the node list says
+//! * [`liveness`](mod@liveness) — node names, [`create_node`] and what the node list says
 //!   about a node; [`hello`] — how a process announces itself.
 //! * [`waiter`] — the one wait point of a process ([`Waiter`]), the
 //!   [`Watchdog`] and the header [`Stamper`]; [`traffic`] — the sensor

@@ -1,5 +1,5 @@
 //! Opening a run's services and ports: every process goes through
-//! [`Ports`], which takes every service's limits from [`super::limits`], so
+//! [`Ports`], which takes every service's limits from [`super::limits`](mod@super::limits), so
 //! whichever process creates a service first, it has the same QoS. And the
 //! one port error of every runtime process ([`PortError`]).
 
