@@ -23,7 +23,8 @@
 pub mod link;
 pub mod runtime;
 
-use etp_runtime::wire::{self, RunId, WireError};
+use etp_runtime::shell::{self, Done};
+use etp_runtime::wire::{RunId, WireError};
 use std::time::Duration;
 
 /// Silence on a slot after which the agent asks the node list whether the
@@ -37,8 +38,8 @@ pub const IDLE_CHECK: Duration = Duration::from_millis(250);
 pub enum AgentError {
     #[error(transparent)]
     Wire(#[from] WireError),
-    #[error("{0}")]
-    Scenario(String),
+    #[error(transparent)]
+    Scenario(#[from] etp_runtime::scenario_arg::ScenarioArgError),
     #[error(transparent)]
     Port(#[from] etp_runtime::wire::PortError),
     #[error("protocol error: {0}")]
@@ -86,33 +87,23 @@ pub struct AgentStats {
 /// Run the agent until the coordinator says stop.
 pub fn run(args: &Args) -> Result<(Exit, AgentStats), AgentError> {
     let run = RunId::new(&args.run_id)?;
-    let scenario = wire::load_scenario(&args.scenario).map_err(AgentError::Scenario)?;
+    let scenario = etp_runtime::load_scenario(&args.scenario)?;
     let deadline = args.slot_deadline.map(Duration::from_millis);
     etp_shared::with_dim!(scenario.dim, N => runtime::Agent::<N>::new(&run, &scenario, deadline)?.serve())
 }
 
 /// The process entry point (`main` of the binary, and `etp process <name>`
-/// when the binary is not installed beside `etp`): parse `args` (the first
-/// is the program name) and run.
+/// when the binary is not installed beside `etp`): the process shell with
+/// the agent's body.
 pub fn main_with<I, T>(args: I) -> std::process::ExitCode
 where
     I: IntoIterator<Item = T>,
     T: Into<std::ffi::OsString> + Clone,
 {
-    use clap::Parser;
-    use std::process::ExitCode;
-    // Prints help or the usage error and exits (0 or 2), as `main` would.
-    let args = Args::parse_from(args);
-    etp_runtime::wire::init_process_logging("etp-agent");
-    let _span = tracing::info_span!("agent").entered();
-    match crate::run(&args) {
-        Ok((exit, stats)) => {
-            tracing::info!(?exit, ?stats, "agent done");
-            ExitCode::SUCCESS
-        }
-        Err(e) => {
-            eprintln!("etp-agent: error: {e}");
-            ExitCode::FAILURE
-        }
-    }
+    shell::main("etp-agent", args, |args: &Args| {
+        let _span = tracing::info_span!("agent").entered();
+        let (exit, stats) = run(args)?;
+        tracing::info!(?exit, ?stats, "agent done");
+        Ok::<_, AgentError>(Done::Quiet)
+    })
 }

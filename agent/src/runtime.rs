@@ -99,16 +99,7 @@ impl<const N: usize> Agent<N> {
         let outcome = ports.publisher::<Outcome>(ServiceId::Outcome)?;
         let coordinator_wake = ports.notifier(ServiceId::CoordinatorWake)?;
         let mut stamp = Stamper::new(run, SENDER_AGENT);
-        let hello = wire::say_hello(
-            &ports,
-            &coordinator_wake,
-            Hello {
-                header: stamp.header(0, 0, 0),
-                pid: std::process::id(),
-                _pad: 0,
-            },
-            wire::HELLO_TIMEOUT,
-        )?;
+        let hello = wire::say_hello(&ports, &coordinator_wake, &mut stamp)?;
         Ok(Self {
             c: CompiledScenario::<N>::new(scenario),
             stamp,
@@ -417,7 +408,7 @@ impl<const N: usize> Agent<N> {
         self.stats.dead_slots += u64::from(o.dead_slots);
         tracing::debug!(
             episode,
-            outcome = o.outcome,
+            outcome = OutcomeCode::try_from(o.outcome).map_or("?", OutcomeCode::name),
             steps = o.steps,
             received = o.received,
             degraded = o.degraded,

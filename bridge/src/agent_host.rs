@@ -13,9 +13,9 @@ use crate::session::{SESSION_KEY, SessionInfo, agent_host_alive_key, config, dat
 use crate::{BridgeError, emit};
 use etp_runtime::recording::Recorded;
 use etp_runtime::wire::to_coordinator::Hello;
+use etp_runtime::wire::traffic::Direction;
 use etp_runtime::wire::{
-    self, COORDINATOR_NODE, Liveness, Ports, RECORDER_NODE, RunId, ServiceId, open_pubsub,
-    sensor_node_name,
+    self, COORDINATOR_NODE, Liveness, Ports, RunId, ServiceId, open_pubsub, sensor_node_name,
 };
 use iceoryx2::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
@@ -83,43 +83,20 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     )?;
     let counters = Counters::default();
     let stop = Arc::new(AtomicBool::new(false));
-    let outbound = {
-        let mut services = Vec::new();
-        let mut events = Vec::new();
-        for &i in &info.remote {
-            // Causal order: the OPEN before the handover before the truth.
-            services.extend([
-                ServiceId::Threshold(i),
-                ServiceId::Handover(i),
-                ServiceId::Truth(i),
-            ]);
-            events.push(ServiceId::SensorWake(i));
-        }
-        let o = Outbound {
-            run: run.clone(),
-            sensors,
-            services,
-            events,
-            down: true,
-        };
-        let (session, counters, stop) = (session.clone(), counters.clone(), stop.clone());
-        std::thread::spawn(move || o.run("etp-bridge-out", &session, &counters, &stop, |_, _| {}))
-    };
+    let outbound = Outbound::new(&run, sensors, Direction::Down, &info.remote).spawn(
+        &session,
+        &counters,
+        &stop,
+        || {},
+        |_, _| {},
+    );
     let node = wire::create_node(&run, "etp-bridge-in")?;
     let ports = Ports {
         node: &node,
         run: &run,
         sensors,
     };
-    let inbound = Inbound::new(
-        &ports,
-        &[
-            ServiceId::Measurement,
-            ServiceId::Slot,
-            ServiceId::Ledger,
-            ServiceId::Hello,
-        ],
-    )?;
+    let inbound = Inbound::new(&ports, &ServiceId::forwarded(Direction::Up, &info.remote))?;
     let hello = open_pubsub::<Hello>(&node, &run, ServiceId::Hello, sensors)?;
     let remote: BTreeSet<usize> = info.remote.iter().copied().collect();
     let mut proxies: BTreeMap<usize, Node<ipc::Service>> = BTreeMap::new();
@@ -155,14 +132,12 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
             }
         }
         // Remote hellos wait until the coordinator (and a recorder) subscribe.
-        if !hellos.is_empty() && wire::liveness(node.config(), COORDINATOR_NODE) == Liveness::Alive
+        if !hellos.is_empty()
+            && wire::liveness(node.config(), COORDINATOR_NODE) == Liveness::Alive
+            && hello.dynamic_config().number_of_subscribers() >= wire::hello_readers(node.config())
         {
-            let needed =
-                1 + usize::from(wire::liveness(node.config(), RECORDER_NODE) == Liveness::Alive);
-            if hello.dynamic_config().number_of_subscribers() >= needed {
-                for (r, bytes) in hellos.drain(..) {
-                    inbound.deliver(ServiceId::Hello, r, bytes, &counters)?;
-                }
+            for (r, bytes) in hellos.drain(..) {
+                inbound.deliver(ServiceId::Hello, r, bytes, &counters)?;
             }
         }
         let wait = if hellos.is_empty() { 100 } else { 5 };

@@ -13,10 +13,8 @@ use etp_runtime::recording::{
     self,
     ports::{DecodedPublisher, EncodedSubscriber, decoded_publisher, encoded_subscriber},
 };
-use etp_runtime::wire::traffic::LinkTraffic;
-use etp_runtime::wire::{self, Header, Notifier, Ports, RunId, ServiceId};
-use iceoryx2::prelude::*;
-use iceoryx2::waitset::WaitSetRunResult;
+use etp_runtime::wire::traffic::{Direction, LinkTraffic};
+use etp_runtime::wire::{self, Header, Notifier, Ports, RunId, ServiceId, Waiter, Wake};
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -26,12 +24,10 @@ use zenoh::Wait;
 /// Per-sensor link traffic, shared by both directions.
 pub type Counters = Arc<Mutex<BTreeMap<usize, LinkTraffic>>>;
 
-/// The sensor a message of `s` belongs to.
+/// The sensor a message of `s` belongs to: a per-sensor service's own, or
+/// the sender of a shared one (sensors send with their index).
 fn sensor_of(s: ServiceId, h: &Header) -> usize {
-    match s {
-        ServiceId::Threshold(i) | ServiceId::Truth(i) | ServiceId::Handover(i) => i,
-        _ => h.sender as usize,
-    }
+    s.sensor().unwrap_or(h.sender as usize)
 }
 
 fn count(counters: &Counters, s: ServiceId, h: &Header, bytes: usize) {
@@ -58,15 +54,53 @@ pub struct Outbound {
 }
 
 impl Outbound {
-    /// Forward until `stop` (or a termination request); `on_put` sees every
-    /// message put (service, header). Runs on its own thread: iceoryx2 ports
-    /// stay on the thread that made them.
+    /// What a bridge carries in `direction` for the remote sensors `remote`:
+    /// the catalogue's forwarded rows in causal rank
+    /// ([`ServiceId::forwarded`]) and their readers' wake-up events.
+    pub fn new(run: &RunId, sensors: usize, direction: Direction, remote: &[usize]) -> Self {
+        let services = ServiceId::forwarded(direction, remote);
+        Self {
+            run: run.clone(),
+            sensors,
+            events: ServiceId::wakes_of(&services),
+            services,
+            down: direction == Direction::Down,
+        }
+    }
+
+    /// [`Outbound::run`] on a thread of its own (node `etp-bridge-out`).
+    pub fn spawn(
+        self,
+        session: &zenoh::Session,
+        counters: &Counters,
+        stop: &Arc<AtomicBool>,
+        on_ready: impl FnOnce() + Send + 'static,
+        on_put: impl FnMut(ServiceId, &Header) + Send + 'static,
+    ) -> std::thread::JoinHandle<Result<(), BridgeError>> {
+        let (session, counters, stop) = (session.clone(), counters.clone(), stop.clone());
+        std::thread::spawn(move || {
+            self.run(
+                "etp-bridge-out",
+                &session,
+                &counters,
+                &stop,
+                on_ready,
+                on_put,
+            )
+        })
+    }
+
+    /// Forward until `stop` (or a termination request); `on_ready` is
+    /// called once every port exists, `on_put` sees every message put
+    /// (service, header). Runs on its own thread: iceoryx2 ports stay on the
+    /// thread that made them.
     pub fn run(
         self,
         node_name: &str,
         session: &zenoh::Session,
         counters: &Counters,
         stop: &AtomicBool,
+        on_ready: impl FnOnce(),
         mut on_put: impl FnMut(ServiceId, &Header),
     ) -> Result<(), BridgeError> {
         let node = wire::create_node(&self.run, node_name)?;
@@ -91,22 +125,13 @@ impl Outbound {
                 .map_err(|e| BridgeError::Zenoh(format!("publisher {s:?}: {e}")))?;
             links.push((s, sub, publisher));
         }
-        let listeners = self
-            .events
-            .iter()
-            .map(|&e| ports.listener(e))
-            .collect::<Result<Vec<_>, _>>()?;
-        let waitset = WaitSetBuilder::new()
-            .create::<ipc::Service>()
-            .map_err(|e| BridgeError::Wire(format!("wait set: {e:?}")))?;
-        let guards = listeners
-            .iter()
-            .map(|l| waitset.attach_notification(l))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| BridgeError::Wire(format!("attaching listeners: {e:?}")))?;
-        let _tick = waitset
-            .attach_interval(TICK)
-            .map_err(|e| BridgeError::Wire(format!("attaching the tick: {e:?}")))?;
+        let waiter = Waiter::over(
+            self.events
+                .iter()
+                .map(|&e| ports.listener(e))
+                .collect::<Result<Vec<_>, _>>()?,
+        )?;
+        on_ready();
         let mut batch = Vec::new();
         loop {
             for (s, sub, publisher) in &links {
@@ -124,26 +149,9 @@ impl Outbound {
             if stop.load(Ordering::Relaxed) {
                 return Ok(());
             }
-            let woke = waitset.wait_and_process_once(|id| {
-                for (g, l) in guards.iter().zip(&listeners) {
-                    if id.has_event_from(g) {
-                        let _ = l.try_wait(|_| {});
-                    }
-                }
-                CallbackProgression::Continue
-            });
-            match woke {
-                Ok(WaitSetRunResult::TerminationRequest) => {
-                    wire::note_termination();
-                    stop.store(true, Ordering::Relaxed);
-                }
-                Ok(WaitSetRunResult::Interrupt) => {
-                    if wire::termination_requested(&node) {
-                        stop.store(true, Ordering::Relaxed);
-                    }
-                }
-                Ok(_) => {}
-                Err(e) => return Err(BridgeError::Wire(format!("waiting: {e:?}"))),
+            match waiter.wait(&node, TICK)? {
+                Wake::Notified { .. } | Wake::Silence => {}
+                Wake::Terminate => stop.store(true, Ordering::Relaxed),
             }
         }
     }

@@ -88,25 +88,17 @@ pub enum Cli {
     SensorHost(sensor_host::Args),
 }
 
-/// The process entry point: parse `args` (the first is the program name)
-/// and run.
+/// The process entry point: the process shell with the bridge's body.
 pub fn main_with<I, T>(args: I) -> std::process::ExitCode
 where
     I: IntoIterator<Item = T>,
     T: Into<std::ffi::OsString> + Clone,
 {
-    use clap::Parser;
-    let cli = Cli::parse_from(args);
-    etp_runtime::wire::init_process_logging("etp-bridge");
-    let r = match &cli {
-        Cli::AgentHost(a) => agent_host::run(a),
-        Cli::SensorHost(a) => sensor_host::run(a),
-    };
-    match r {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("etp-bridge: error: {e}");
-            std::process::ExitCode::FAILURE
+    etp_runtime::shell::main("etp-bridge", args, |cli: &Cli| {
+        match cli {
+            Cli::AgentHost(a) => agent_host::run(a),
+            Cli::SensorHost(a) => sensor_host::run(a),
         }
-    }
+        .map(|()| etp_runtime::shell::Done::Quiet)
+    })
 }

@@ -10,8 +10,8 @@
 use crate::forward::{Counters, Inbound, Incoming, Outbound, subscribe};
 use crate::session::{SESSION_KEY, SessionInfo, agent_host_alive_key, config, sensor_alive_key};
 use crate::{BridgeError, emit};
+use etp_runtime::wire::traffic::Direction;
 use etp_runtime::wire::{self, AGENT_NODE, COORDINATOR_NODE, Ports, RunId, ServiceId};
-use iceoryx2::prelude::*;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -130,15 +130,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         run: &run,
         sensors,
     };
-    let mut services = Vec::new();
-    for &i in &served {
-        services.extend([
-            ServiceId::Threshold(i),
-            ServiceId::Handover(i),
-            ServiceId::Truth(i),
-        ]);
-    }
-    let inbound = Inbound::new(&ports, &services)?;
+    let inbound = Inbound::new(&ports, &ServiceId::forwarded(Direction::Down, &served))?;
     let (tx, rx) = std::sync::mpsc::channel();
     let _subs = subscribe(
         &session,
@@ -152,47 +144,25 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let counters = Counters::default();
     let stop = Arc::new(AtomicBool::new(false));
     let (ready_tx, ready_rx) = std::sync::mpsc::channel::<()>();
-    let outbound = {
-        let o = Outbound {
-            run: run.clone(),
-            sensors,
-            // A sensor publishes its measurement before its slot.
-            services: vec![
-                ServiceId::Hello,
-                ServiceId::Measurement,
-                ServiceId::Slot,
-                ServiceId::Ledger,
-            ],
-            events: vec![ServiceId::AgentWake, ServiceId::CoordinatorWake],
-            down: false,
-        };
-        let (session, counters, stop) = (session.clone(), counters.clone(), stop.clone());
-        let hello_tx = tx.clone();
-        std::thread::spawn(move || {
+    let hello_tx = tx.clone();
+    let outbound = Outbound::new(&run, sensors, Direction::Up, &served).spawn(
+        &session,
+        &counters,
+        &stop,
+        // Its subscribers (`hello` among them) exist: the sensors may start
+        // and say hello.
+        move || {
             let _ = ready_tx.send(());
-            o.run("etp-bridge-out", &session, &counters, &stop, |s, h| {
-                if s == ServiceId::Hello {
-                    let _ = hello_tx.send(Incoming::Hello(h.sender as usize));
-                }
-            })
-        })
-    };
-    let _ = ready_rx.recv_timeout(Duration::from_secs(5));
-    // The outbound thread opens its `hello` subscriber before the sensors say
-    // hello: give it the moment it needs.
-    let started = Instant::now();
-    while started.elapsed() < Duration::from_secs(5) {
-        let h = wire::open_pubsub::<wire::to_coordinator::Hello>(
-            &node,
-            &run,
-            ServiceId::Hello,
-            sensors,
-        )?;
-        if h.dynamic_config().number_of_subscribers() >= 1 {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
+        },
+        move |s, h| {
+            if s == ServiceId::Hello {
+                let _ = hello_tx.send(Incoming::Hello(h.sender as usize));
+            }
+        },
+    );
+    // Until the outbound direction's ports exist (or it failed: its error
+    // comes with the join below).
+    let _ = ready_rx.recv();
     emit(&serde_json::json!({
         "event": "joined",
         "run_id": info.run_id,

@@ -17,9 +17,10 @@
 
 mod session;
 
-pub use etp_runtime::wire::report::RunReport;
+pub use etp_runtime::report::RunReport;
 
-use etp_runtime::wire::{self, RunId, WireError};
+use etp_runtime::shell::{self, Done};
+use etp_runtime::wire::{RunId, WireError};
 use etp_shared::strategy::Strategy;
 use std::time::Duration;
 
@@ -30,6 +31,8 @@ pub enum CoordinatorError {
     Wire(#[from] WireError),
     #[error("{0}")]
     Input(String),
+    #[error(transparent)]
+    Scenario(#[from] etp_runtime::scenario_arg::ScenarioArgError),
     #[error(transparent)]
     Port(#[from] etp_runtime::wire::PortError),
     #[error("processes not ready after {0:?}: missing {1}")]
@@ -71,10 +74,10 @@ pub struct Args {
 /// Run all episodes and return the report.
 pub fn run(args: &Args) -> Result<RunReport, CoordinatorError> {
     let run = RunId::new(&args.run_id)?;
-    let scenario = wire::load_scenario(&args.scenario).map_err(CoordinatorError::Input)?;
+    let scenario = etp_runtime::load_scenario(&args.scenario)?;
     let text = std::fs::read_to_string(&args.strategy)
         .map_err(|e| CoordinatorError::Input(format!("reading strategy {}: {e}", args.strategy)))?;
-    let strategy = Strategy::from_json(&text)
+    let strategy = Strategy::from_sealed_json(&text)
         .map_err(|e| CoordinatorError::Input(format!("{}: {e}", args.strategy)))?;
     strategy
         .check_scenario(&scenario)
@@ -91,37 +94,21 @@ pub fn run(args: &Args) -> Result<RunReport, CoordinatorError> {
 use anyhow::Context;
 
 /// The process entry point (`main` of the binary, and `etp process <name>`
-/// when the binary is not installed beside `etp`): parse `args` (the first
-/// is the program name) and run.
+/// when the binary is not installed beside `etp`): the process shell with
+/// the coordinator's body; the report is its one line on stdout (an
+/// undelivered report fails the process).
 pub fn main_with<I, T>(args: I) -> std::process::ExitCode
 where
     I: IntoIterator<Item = T>,
     T: Into<std::ffi::OsString> + Clone,
 {
-    use clap::Parser;
-    use std::process::ExitCode;
-    // Prints help or the usage error and exits (0 or 2), as `main` would.
-    let args = Args::parse_from(args);
-    etp_runtime::wire::init_process_logging("etp-coordinator");
-    let _span = tracing::info_span!("coordinator").entered();
-    let result = crate::run(&args)
-        .context("coordinator")
-        .and_then(|r| serde_json::to_string(&r).context("encoding the report"));
-    match result {
-        Ok(json) => {
-            // The supervisor reads the report; if it is gone (its end of the
-            // pipe closed), there is no one to tell: exit quietly, no panic.
-            use std::io::Write;
-            let mut out = std::io::stdout().lock();
-            if writeln!(out, "{json}").and_then(|()| out.flush()).is_err() {
-                tracing::warn!("report not delivered: stdout closed");
-                return ExitCode::FAILURE;
-            }
-            ExitCode::SUCCESS
-        }
-        Err(e) => {
-            eprintln!("etp-coordinator: error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    shell::main("etp-coordinator", args, |args: &Args| {
+        let _span = tracing::info_span!("coordinator").entered();
+        let report = run(args).context("coordinator")?;
+        let text = serde_json::to_string(&report).context("encoding the report")?;
+        Ok::<_, anyhow::Error>(Done::Line {
+            text,
+            required: true,
+        })
+    })
 }

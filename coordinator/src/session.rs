@@ -1,11 +1,11 @@
 //! The coordinator's ports, episode loop and bookkeeping.
 
 use crate::CoordinatorError;
+use etp_runtime::report::{EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals};
 use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_coordinator::{Outcome, Waypoint};
 use etp_runtime::wire::coordinator_to_agent::Control;
 use etp_runtime::wire::coordinator_to_all::Threshold;
-use etp_runtime::wire::report::{EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals};
 use etp_runtime::wire::sensor_to_coordinator::Ledger;
 use etp_runtime::wire::to_coordinator::Hello;
 use etp_runtime::wire::{
@@ -485,6 +485,7 @@ impl<'a> Coordinator<'a> {
                 name: x.name.clone(),
                 transmitted: 0,
                 received: 0,
+                received_without_ledger: 0,
                 slots: 0,
                 energy: 0.0,
                 missing_ledgers: 0,
@@ -495,9 +496,10 @@ impl<'a> Coordinator<'a> {
             for l in &mut r.legs {
                 let cost = s.sensors[l.sensor as usize].cost;
                 let t = &mut sensors[l.sensor as usize];
-                t.received += u64::from(l.received);
+                // `received` over exactly the legs `transmitted` covers.
                 match self.ledgers.get(&(r.episode, l.leg)) {
                     Some(led) => {
+                        t.received += u64::from(l.received);
                         l.transmitted = Some(led.transmissions);
                         l.slots = Some(led.slots);
                         t.transmitted += u64::from(led.transmissions);
@@ -506,6 +508,7 @@ impl<'a> Coordinator<'a> {
                         energy += led.energy;
                     }
                     None => {
+                        t.received_without_ledger += u64::from(l.received);
                         t.missing_ledgers += 1;
                         r.degraded = true;
                         energy += f64::from(l.received) * cost;

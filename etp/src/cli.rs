@@ -17,6 +17,8 @@ pub enum Command {
     Demo(crate::cmd::demo::Args),
     /// Validate a scenario and print its legs, sensors, obstacles and thresholds.
     Check(crate::cmd::check::Args),
+    /// Generate scenarios: `etp scenario random --dim-agent 4 --seed 7`.
+    Scenario(crate::cmd::scenario::Args),
     /// Run episodes in-process with a constant threshold.
     Simulate(crate::cmd::simulate::Args),
     /// Pick the strategy for a requested trade-off from a synthesized front.
@@ -33,8 +35,8 @@ pub enum Command {
     Run(crate::cmd::run::Args),
     /// Serve remote sensors of a run on this host (`etp run --listen … --remote …` on the agent host).
     SensorHost(crate::cmd::run::sensor_host::Args),
-    /// Summarise an MCAP recording of a run (finished or not); `--info`, `--cat`,
-    /// `--export DIR`, `--plot`, `--verify`, `--repair OUT`, `--publish`, `--foxglove OUT`.
+    /// Recording tools: `etp replay FILE` summarises a run's MCAP recording (finished
+    /// or not); `etp replay info|cat|export|filter|verify|repair|publish|foxglove|plot`.
     Replay(crate::cmd::replay::Args),
     /// Run one process of a run (used by `etp run` when the process binaries
     /// are not installed beside `etp`).

@@ -1,24 +1,13 @@
-//! Resolving user input: scenario names and paths.
+//! Resolving user input: scenario names and paths, and the radio options.
 
 use anyhow::{Context, Result};
-use etp_shared::scenario::{BUILTIN_NAMES, Scenario, builtin_text};
-use std::path::Path;
+use etp_shared::radio::{Estimator, RadioOverride};
+use etp_shared::scenario::{Scenario, builtin_text};
 
-/// A `SCENARIO` argument: a built-in name (`winding-2d`, …) or a TOML path.
+/// A `SCENARIO` argument: a built-in name (`winding-2d`, …) or a TOML path
+/// (resolved by `etp_runtime`, as in every process of a run).
 pub fn load_scenario(arg: &str) -> Result<Scenario> {
-    if let Some(text) = builtin_text(arg) {
-        return Scenario::from_toml(text).with_context(|| format!("built-in scenario `{arg}`"));
-    }
-    let path = Path::new(arg);
-    if !path.exists() {
-        anyhow::bail!(
-            "`{arg}` is neither a built-in scenario ({}) nor an existing file",
-            BUILTIN_NAMES.join(", ")
-        );
-    }
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("reading scenario file {}", path.display()))?;
-    Scenario::from_toml(&text).with_context(|| format!("scenario file {}", path.display()))
+    Ok(etp_runtime::load_scenario(arg)?)
 }
 
 /// The TOML text of a scenario argument (for embedding into outputs).
@@ -27,4 +16,47 @@ pub fn scenario_text(arg: &str) -> Result<String> {
         return Ok(text.to_string());
     }
     std::fs::read_to_string(arg).with_context(|| format!("reading scenario file {arg}"))
+}
+
+/// The radio options of `simulate`, `synthesize`, `validate` and `run`
+/// (docs/MODEL.md §8): each one given replaces the scenario's setting on every
+/// sensor link.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct RadioArgs {
+    /// Probability that one transmission attempt is lost, in [0, 1) (0 = ideal radio).
+    #[arg(long, value_name = "P", allow_negative_numbers = true)]
+    pub loss: Option<f64>,
+    /// Further attempts in the same step after a lost one (acknowledged link).
+    #[arg(long, value_name = "R", allow_negative_numbers = true)]
+    pub retries: Option<i64>,
+    /// Gilbert–Elliott channel with this mean burst length in steps (≥ 1).
+    #[arg(long, value_name = "B", allow_negative_numbers = true)]
+    pub burst: Option<f64>,
+    /// The agent's silence update: `aware` (β_q, knows packets get lost) or `naive` (β).
+    #[arg(long, value_parser = ["aware", "naive"])]
+    pub estimator: Option<String>,
+}
+
+impl RadioArgs {
+    /// The settings as an override of the scenario's radio.
+    pub fn to_override(&self) -> RadioOverride {
+        RadioOverride {
+            loss: self.loss,
+            retries: self.retries,
+            burst: self.burst,
+            estimator: self.estimator.as_deref().and_then(Estimator::parse),
+        }
+    }
+
+    /// `scenario` under these settings (errors name the option).
+    pub fn apply(&self, scenario: Scenario) -> Result<Scenario> {
+        scenario
+            .with_radio_override(&self.to_override())
+            .context("radio options")
+    }
+}
+
+/// A `SCENARIO` argument under the radio options.
+pub fn load_scenario_with_radio(arg: &str, radio: &RadioArgs) -> Result<Scenario> {
+    radio.apply(load_scenario(arg)?)
 }

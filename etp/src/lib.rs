@@ -17,7 +17,7 @@ pub mod output;
 pub mod plot;
 pub mod progress;
 pub mod report_plot;
-pub mod vocab;
+pub use etp_recording_tools::vocab;
 
 use std::process::ExitCode;
 
@@ -61,5 +61,5 @@ pub fn run(cli: cli::Cli) -> ExitCode {
 
 fn init_tracing() {
     // A second init (tests calling run twice) is harmless.
-    etp_runtime::wire::init_process_logging("etp");
+    etp_runtime::shell::init_logging("etp");
 }

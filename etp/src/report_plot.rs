@@ -1,72 +1,29 @@
-//! The figure of `etp run --plot` and `etp replay --plot`: measured against
+//! The figure of `etp run --plot` and `etp replay plot`: measured against
 //! predicted, per sensor (energy per episode) and per outcome (P_tar,
 //! P_coll, P_free), measured values with their 95 % intervals (PNG + SVG).
 
-use anyhow::{Context, Result, anyhow};
+use anyhow::{Result, anyhow};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
 
-/// One measured quantity beside its prediction.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Bar {
-    pub name: String,
-    pub measured: f64,
-    /// 95 % half-width of `measured`.
-    pub ci95: f64,
-    pub predicted: Option<f64>,
-}
-
-/// What the figure shows.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RunFigure {
-    /// `run r1 · open-2d · constant δ = 1.05 · 200 episodes`.
-    pub title: String,
-    /// Where the per-sensor prediction comes from.
-    pub prediction_note: String,
-    pub sensors: Vec<Bar>,
-    pub outcomes: Vec<Bar>,
-}
-
-/// Mean and 95 % half-width (normal approximation) of `xs`.
-pub fn mean_ci(xs: &[f64]) -> (f64, f64) {
-    let n = xs.len() as f64;
-    if xs.is_empty() {
-        return (f64::NAN, f64::NAN);
-    }
-    let m = xs.iter().sum::<f64>() / n;
-    if xs.len() < 2 {
-        return (m, 0.0);
-    }
-    let var = xs.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
-    (m, 1.96 * (var / n).sqrt())
-}
-
-/// A proportion `k / n` with its 95 % half-width (normal approximation).
-pub fn proportion(k: u64, n: u64) -> (f64, f64) {
-    if n == 0 {
-        return (f64::NAN, f64::NAN);
-    }
-    let p = k as f64 / n as f64;
-    (p, 1.96 * (p * (1.0 - p) / n as f64).sqrt())
-}
+use etp_recording_tools::figure::short_to;
+pub use etp_recording_tools::figure::{Bar, RunFigure, mean_ci, proportion, short_label};
 
 /// Write `stem.png` and `stem.svg`.
 pub fn report_plot(fig: &RunFigure, stem: &Path) -> Result<()> {
-    crate::plot::register_font();
-    let png = stem.with_extension("png");
-    let svg = stem.with_extension("svg");
+    crate::plot::png_and_svg(&ReportFigure(fig), stem, (1200, 560))
+}
+
+struct ReportFigure<'a>(&'a RunFigure);
+
+impl crate::plot::Figure for ReportFigure<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
     {
-        let root = BitMapBackend::new(&png, (1200, 560)).into_drawing_area();
-        draw(&root, fig)?;
-        root.present()
-            .with_context(|| format!("writing {}", png.display()))?;
+        draw(root, self.0)
     }
-    let root = SVGBackend::new(&svg, (1200, 560)).into_drawing_area();
-    draw(&root, fig)?;
-    root.present()
-        .with_context(|| format!("writing {}", svg.display()))?;
-    Ok(())
 }
 
 fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, fig: &RunFigure) -> Result<()>
@@ -104,21 +61,6 @@ where
         1.0,
     )?;
     Ok(())
-}
-
-/// A strategy label without its parenthesised details, at most 50 characters.
-pub fn short_label(label: &str) -> String {
-    let head = label.split(" (").next().unwrap_or(label);
-    short_to(head, 50)
-}
-
-fn short_to(s: &str, n: usize) -> String {
-    let t: String = s.chars().take(n).collect();
-    if t.len() < s.len() {
-        format!("{t}…")
-    } else {
-        t
-    }
 }
 
 /// The note shortened to fit a panel caption (the part before `(` or `:`).
@@ -211,20 +153,4 @@ where
         .draw()
         .map_err(e)?;
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn intervals() {
-        let (m, h) = mean_ci(&[1.0, 3.0]);
-        assert_eq!(m, 2.0);
-        assert!((h - 1.96 * (2.0f64 / 2.0).sqrt()).abs() < 1e-12);
-        assert_eq!(mean_ci(&[5.0]), (5.0, 0.0));
-        let (p, h) = proportion(50, 100);
-        assert_eq!(p, 0.5);
-        assert!((h - 0.098).abs() < 1e-12);
-    }
 }

@@ -15,7 +15,7 @@ fuzz_target!(|data: &[u8]| {
             c.k_max = c.k_max.min(5);
             let mut rng = stream_rng(0, 0, 0);
             let mut st = c.initial_state(&mut rng);
-            let _ = c.run_leg(0, &mut st, &LegMode::EventTriggered(Threshold::new(s.deltas[0])), &mut rng, &mut ());
+            let _ = c.run_leg(0, &mut st, &LegMode::EventTriggered(Threshold::new(s.deltas[0])), &mut rng, &mut c.channels(0, 0, 0), &mut ());
         });
     }
 });

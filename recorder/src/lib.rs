@@ -9,9 +9,9 @@
 //! what is left, calls `finish()` and prints one JSON object
 //! `{"path", "counts": {topic: n}, "messages", "bytes"}`. A closed stdout
 //! (its parent died) is not an error: the file is finished all the same.
-//! It never polls: it listens to every wake-up event of the run (each
-//! publication is followed by one) in an iceoryx2 `WaitSet`, with a 100 ms
-//! interval for the flush, and drains its subscribers when woken.
+//! It never polls: it waits on every wake-up event of the run at once (each
+//! publication is followed by one; one `wire::Waiter` over all of them), at
+//! most 100 ms at a time for the flush, and drains its subscribers when woken.
 //! zstd chunks of 128 KiB plus a flush every 100 ms: a crash loses at most the
 //! last ~100 ms (`etp replay` calls such a file unfinished, exit 3, and
 //! `--repair` finishes it). Logs go to stderr through `tracing` (`RUST_LOG`,
@@ -20,9 +20,8 @@
 use anyhow::{Context, Result};
 use clap::Parser;
 use etp_runtime::recording::{self, Kind};
-use etp_runtime::wire::{self, Ports, RunId, ServiceId};
-use iceoryx2::prelude::*;
-use iceoryx2::waitset::WaitSetRunResult;
+use etp_runtime::shell::{self, Done};
+use etp_runtime::wire::{self, Ports, RunId, ServiceId, Waiter, Wake};
 use mcap::records::{MessageHeader, Metadata};
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -90,7 +89,7 @@ fn create_output(path: &Path) -> Result<File> {
 /// Record to `file` (created by the caller) until told to stop.
 fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
     let run = RunId::new(&cli.run_id)?;
-    let scenario = wire::load_scenario(&cli.scenario).map_err(anyhow::Error::msg)?;
+    let scenario = etp_runtime::load_scenario(&cli.scenario)?;
     let sensors = scenario.sensors.len();
     let node = wire::create_node(&run, wire::RECORDER_NODE)?;
     let ports = Ports {
@@ -117,7 +116,7 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
     }
     let mut schemas: BTreeMap<Kind, u16> = BTreeMap::new();
     let mut channels = Vec::new();
-    for s in ServiceId::all_pubsub(sensors) {
+    for s in ServiceId::recorded(sensors) {
         let Some((topic, kind)) = recording::channel(s) else {
             continue;
         };
@@ -147,21 +146,12 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
             count: 0,
         });
     }
-    let listeners = ServiceId::all_events(sensors)
-        .into_iter()
-        .map(|s| ports.listener(s))
-        .collect::<Result<Vec<_>, _>>()?;
-    let waitset = WaitSetBuilder::new()
-        .create::<ipc::Service>()
-        .map_err(|e| anyhow::anyhow!("creating the wait set: {e:?}"))?;
-    let guards = listeners
-        .iter()
-        .map(|l| waitset.attach_notification(l))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| anyhow::anyhow!("attaching the wake-up listeners: {e:?}"))?;
-    let _tick = waitset
-        .attach_interval(FLUSH_EVERY)
-        .map_err(|e| anyhow::anyhow!("attaching the flush interval: {e:?}"))?;
+    let waiter = Waiter::over(
+        ServiceId::all_events(sensors)
+            .into_iter()
+            .map(|s| ports.listener(s))
+            .collect::<Result<Vec<_>, _>>()?,
+    )?;
     w.flush().context("flushing the MCAP header")?;
     {
         let mut out = std::io::stdout().lock();
@@ -214,24 +204,13 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
             // One more pass drains what arrived meanwhile.
             continue;
         }
-        let woke = waitset.wait_and_process_once(|id| {
-            for (g, l) in guards.iter().zip(&listeners) {
-                if id.has_event_from(g) {
-                    // Consume the notifications, or the wait set fires again.
-                    let _ = l.try_wait(|_| {});
-                }
-            }
-            CallbackProgression::Continue
-        });
-        match woke {
-            Ok(WaitSetRunResult::TerminationRequest) => {
-                wire::note_termination();
-                stopping = true;
-            }
-            // SIGINT, or SIGCONT after a pause: only a termination request stops.
-            Ok(WaitSetRunResult::Interrupt) => stopping = wire::termination_requested(&node),
-            Ok(_) => {}
-            Err(e) => anyhow::bail!("waiting for messages: {e:?}"),
+        // SIGCONT after a pause resumes the wait; only SIGINT/SIGTERM stop.
+        match waiter
+            .wait(&node, FLUSH_EVERY)
+            .context("waiting for messages")?
+        {
+            Wake::Notified { .. } | Wake::Silence => {}
+            Wake::Terminate => stopping = true,
         }
         if std::os::unix::process::parent_id() != parent {
             stopping = true;
@@ -285,46 +264,27 @@ fn write_handed_over_metadata<W: std::io::Write + std::io::Seek>(
     Ok(())
 }
 
-/// Logs to stderr, filtered by `RUST_LOG` (default `warn`).
-/// Write one line to stdout. A closed stdout (the parent is gone) is not an
-/// error of the recording: it is logged and the line dropped.
-fn print_line(line: &str) {
-    let mut out = std::io::stdout().lock();
-    if let Err(e) = writeln!(out, "{line}").and_then(|()| out.flush()) {
-        tracing::info!("stdout closed ({e}); the summary line is dropped");
-    }
-}
-
 /// The process entry point (`main` of `etp-recorder`, and `etp process
-/// etp-recorder` when the binary is not installed beside `etp`): parse `args`
-/// (the first is the program name), record, print the summary JSON.
+/// etp-recorder` when the binary is not installed beside `etp`): the process
+/// shell with the recorder's body; its summary JSON is its line on stdout (a
+/// closed stdout is not an error: the file is finished all the same).
 pub fn main_with<I, T>(args: I) -> std::process::ExitCode
 where
     I: IntoIterator<Item = T>,
     T: Into<std::ffi::OsString> + Clone,
 {
-    // Prints help or the usage error and exits (0 or 2), as `main` would.
-    let cli = Cli::parse_from(args);
-    wire::init_process_logging("etp-recorder");
-    let result = create_output(&cli.out).and_then(|file| {
+    shell::main("etp-recorder", args, |cli: &Cli| {
+        let file = create_output(&cli.out)?;
         let mut ready = false;
-        let r = run(&cli, file, &mut ready);
+        let r = run(cli, file, &mut ready);
         if r.is_err() && !ready {
             // Nothing was recorded: remove the file this process created (and
             // only it: create_new guarantees it is ours).
             let _ = std::fs::remove_file(&cli.out);
         }
-        r
-    });
-    match result {
-        Ok(v) => {
-            print_line(&v.to_string());
-            std::process::ExitCode::SUCCESS
-        }
-        Err(e) => {
-            // stderr may be closed too: never panic on it.
-            let _ = writeln!(std::io::stderr(), "etp-recorder: error: {e:#}");
-            std::process::ExitCode::FAILURE
-        }
-    }
+        r.map(|v| Done::Line {
+            text: v.to_string(),
+            required: false,
+        })
+    })
 }

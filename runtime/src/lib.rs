@@ -4,20 +4,34 @@
 //!
 //! A short tour:
 //!
-//! * [`wire::catalogue`] — every message declared once (payload type, topic,
-//!   kind, owner); service ids, topics, recorded kinds and schema texts are
-//!   derived from it.
+//! * [`wire::catalogue`] — every message declared once, one row each (type,
+//!   topic, owner and reader, limits, link class, recorded, forwarded); the
+//!   [`wire::ServiceId`]s, topics, limits, recorded kinds, the bridge's
+//!   lists and schema texts are derived from it.
 //! * [`wire::messages`] — the `#[repr(C)]` + `ZeroCopySend` payloads, by
 //!   direction (`agent_to_sensor`, `sensor_to_agent`, …), and their code enums.
-//! * [`wire::services`] — per-run iceoryx2 configuration and the one builder
-//!   that sets every service's limits; [`wire::Ports`] and [`wire::PortError`].
+//! * [`wire::run_id`], [`wire::limits`](mod@wire::limits), [`wire::ports`], [`wire::liveness`](mod@wire::liveness),
+//!   [`wire::hello`] — a run's id and iceoryx2 configuration, THE limits
+//!   table, the one way to open ports ([`wire::Ports`], [`wire::PortError`]),
+//!   nodes and their liveness, and saying hello.
 //! * [`wire::waiter`] — the one wait point of every process loop
-//!   ([`wire::waiter::Waiter`]), the liveness [`wire::waiter::Watchdog`] and
-//!   the header [`wire::waiter::Stamper`].
+//!   ([`wire::Waiter`], over one wake-up event or several), the liveness
+//!   [`wire::Watchdog`] and the header [`wire::Stamper`].
+//! * [`shell`] — the one process shell: argument parsing, logging, exit
+//!   codes ([`shell::main`]).
+//! * [`scenario_arg`] — a `SCENARIO` argument (built-in name or TOML path).
+//! * [`report`] — the coordinator's run report and a run's session info;
+//!   [`cleanup`] — removing what a run left in /dev/shm and its folder.
 //! * [`recording`] — the versioned MCAP recording: a sans-io reader
 //!   ([`recording::read_lenient`]), integrity checks (CRCs, scenario hash) and the
 //!   bit-for-bit re-simulation behind `replay --verify` ([`recording::verify`]),
 //!   which runs the same episode stepper as simulation and the agent.
 
+pub mod cleanup;
 pub mod recording;
+pub mod report;
+pub mod scenario_arg;
+pub mod shell;
 pub mod wire;
+
+pub use scenario_arg::load_scenario;

@@ -29,7 +29,8 @@ mod node;
 
 pub use core::{LegLedger, SensorStats};
 
-use etp_runtime::wire::{self, RunId, WireError};
+use etp_runtime::shell::{self, Done};
+use etp_runtime::wire::{RunId, WireError};
 use std::time::Duration;
 
 /// How often an idle sensor checks its coordinator and its termination flag.
@@ -45,8 +46,8 @@ pub const LIST_EVERY: u32 = 12;
 pub enum SensorError {
     #[error(transparent)]
     Wire(#[from] WireError),
-    #[error("{0}")]
-    Scenario(String),
+    #[error(transparent)]
+    Scenario(#[from] etp_runtime::scenario_arg::ScenarioArgError),
     #[error("unknown sensor `{0}` in scenario `{1}`")]
     UnknownSensor(String, String),
     #[error(transparent)]
@@ -87,7 +88,7 @@ pub enum Exit {
 /// Serve as sensor `args.sensor` until stopped.
 pub fn run(args: &Args) -> Result<(Exit, SensorStats), SensorError> {
     let run = RunId::new(&args.run_id)?;
-    let scenario = wire::load_scenario(&args.scenario).map_err(SensorError::Scenario)?;
+    let scenario = etp_runtime::load_scenario(&args.scenario)?;
     let index = scenario
         .sensors
         .iter()
@@ -102,27 +103,17 @@ pub fn run(args: &Args) -> Result<(Exit, SensorStats), SensorError> {
 use anyhow::Context;
 
 /// The process entry point (`main` of the binary, and `etp process <name>`
-/// when the binary is not installed beside `etp`): parse `args` (the first
-/// is the program name) and run.
+/// when the binary is not installed beside `etp`): the process shell with
+/// the sensor's body.
 pub fn main_with<I, T>(args: I) -> std::process::ExitCode
 where
     I: IntoIterator<Item = T>,
     T: Into<std::ffi::OsString> + Clone,
 {
-    use clap::Parser;
-    use std::process::ExitCode;
-    // Prints help or the usage error and exits (0 or 2), as `main` would.
-    let args = Args::parse_from(args);
-    etp_runtime::wire::init_process_logging("etp-sensor-node");
-    let _span = tracing::info_span!("sensor", name = %args.sensor).entered();
-    match crate::run(&args).with_context(|| format!("sensor `{}`", args.sensor)) {
-        Ok((exit, stats)) => {
-            tracing::info!(?exit, ?stats, "sensor node done");
-            ExitCode::SUCCESS
-        }
-        Err(e) => {
-            eprintln!("etp-sensor-node: error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    shell::main("etp-sensor-node", args, |args: &Args| {
+        let _span = tracing::info_span!("sensor", name = %args.sensor).entered();
+        let (exit, stats) = run(args).with_context(|| format!("sensor `{}`", args.sensor))?;
+        tracing::info!(?exit, ?stats, "sensor node done");
+        Ok::<_, anyhow::Error>(Done::Quiet)
+    })
 }

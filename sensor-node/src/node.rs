@@ -8,7 +8,6 @@ use etp_runtime::wire::agent_to_sensor::{Handover, Truth};
 use etp_runtime::wire::coordinator_to_all::Threshold;
 use etp_runtime::wire::sensor_to_agent::{Measurement, Slot};
 use etp_runtime::wire::sensor_to_coordinator::Ledger;
-use etp_runtime::wire::to_coordinator::Hello;
 use etp_runtime::wire::{
     self, COORDINATOR_NODE, Notifier, Ports, Pub, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog,
 };
@@ -80,16 +79,7 @@ pub(crate) fn serve<const N: usize, const M: usize>(
     };
     let waiter = Waiter::new(ports.listener(ServiceId::SensorWake(index))?)?;
     let mut stamp = Stamper::new(run, index as u32);
-    let _hello = wire::say_hello(
-        &ports,
-        &p.coordinator_wake,
-        Hello {
-            header: stamp.header(0, 0, 0),
-            pid: std::process::id(),
-            _pad: 0,
-        },
-        wire::HELLO_TIMEOUT,
-    )?;
+    let _hello = wire::say_hello(&ports, &p.coordinator_wake, &mut stamp)?;
     let mut core = SensorCore::new(
         CompiledScenario::<N>::new(scenario),
         filter,

@@ -11,11 +11,15 @@
 //! 1. `u = sat(K (C⁺w_i − x̂), u_max)` (K = C = I: `sat(w_i − x̂, u_max)`)
 //! 2. `x ← F x + G u + w`
 //! 3. `C x` in a closed obstacle box → collision (terminal, no measurement)
-//! 4. the serving sensor measures, triggers, the filter updates
+//! 4. the serving sensor measures and triggers; on a trigger its link makes its
+//!    attempts (docs/MODEL.md §8); the filter updates (measurement update if
+//!    delivered, else the silence update with β, or β_q for the aware estimator)
 //! 5. `k_i += 1`; the leg ends if `‖C x̂ − w_i‖ ≤ ε_x` or `k_i ≥ k_max`
 //!
 //! Random numbers are drawn in a fixed order per step (process noise, then
-//! measurement noise), so a seed fixes an episode completely.
+//! measurement noise), so a seed fixes an episode completely; packet fates come
+//! from the [`EpisodeChannels`] of the episode, one stream per link, so an
+//! ideal radio draws nothing and leaves every result as it was.
 //!
 //! The pieces of one step (input, move, prior, slot update, leg end) are
 //! defined once in [`step`] and shared with the runtime agent and
@@ -32,6 +36,7 @@ use crate::etkf::{Belief, EtKalmanFilter, LinearPlant, Matrix, Threshold, Vector
 use crate::gaussian;
 use crate::geometry::{StaticBox, WorkspaceMap, first_containing, pad_point};
 use crate::linalg::to_static_vec;
+use crate::radio::{EpisodeChannels, Radio, Transmission};
 use crate::scenario::Scenario;
 use rand::Rng;
 
@@ -154,8 +159,12 @@ pub struct LegResult {
     pub steps: u32,
     /// Measurement slots (steps that reached the sensor: all but a colliding one).
     pub slots: u32,
-    /// Transmitted measurements.
+    /// Transmission attempts (each costs c_m; = triggers on an ideal radio).
     pub transmissions: u32,
+    /// Slots whose measurement triggered (‖ε‖∞ > δ).
+    pub triggers: u32,
+    /// Triggers whose measurement reached the agent.
+    pub delivered: u32,
     /// Slots spent in the enforced δ = 0 phase of [`LegMode::KfConvergence`].
     pub kf_slots: u32,
     /// Σ over slots of γ̄(δ, m): the transmissions the Gaussian assumption predicts.
@@ -176,8 +185,11 @@ pub struct EpisodeResult {
     pub outcome: Outcome,
     pub steps: u32,
     pub slots: u32,
+    /// Transmission attempts.
     pub transmissions: u32,
-    /// Σ c_m γ_k over the episode.
+    pub triggers: u32,
+    pub delivered: u32,
+    /// Σ c_m × attempts over the episode.
     pub energy: f64,
     /// Σ γ̄(δ, m) over the episode's slots.
     pub expected_transmissions: f64,
@@ -192,7 +204,12 @@ pub struct StepEvent<'a, const N: usize> {
     /// Posterior after the update (the previous posterior on a colliding step).
     pub belief: &'a Belief<N>,
     pub delta: f64,
+    /// The measurement triggered (the sensor transmitted at least once).
     pub transmitted: bool,
+    /// Attempts made this step (0 without a trigger).
+    pub attempts: u32,
+    /// The measurement reached the agent.
+    pub delivered: bool,
     pub collided: bool,
 }
 
@@ -232,6 +249,8 @@ pub struct CompiledScenario<const N: usize> {
     pub controller: FeedbackController<N>,
     /// `q = C x`: collisions, leg ends and the target are decided on it.
     pub workspace: WorkspaceMap<N>,
+    /// The radio: one link per sensor, the agent's estimator (docs/MODEL.md §8).
+    pub radio: Radio,
 }
 
 impl<const N: usize> CompiledScenario<N> {
@@ -269,6 +288,18 @@ impl<const N: usize> CompiledScenario<N> {
             k_max: scenario.controller.k_max,
             controller: FeedbackController::new(scenario),
             workspace: WorkspaceMap::new(scenario.workspace.as_ref()),
+            radio: scenario.radio.clone(),
+        }
+    }
+
+    /// The radio channels of episode (or segment) `index` of stream `stream`
+    /// under `seed`: every run of a leg or episode takes them, so a lossy
+    /// radio is never simulated as an ideal one by accident.
+    pub fn channels(&self, seed: u64, stream: u64, index: u64) -> EpisodeChannels {
+        if self.radio.is_ideal() {
+            EpisodeChannels::ideal()
+        } else {
+            EpisodeChannels::new(&self.radio, seed, stream, index)
         }
     }
 
@@ -304,13 +335,15 @@ impl<const N: usize> CompiledScenario<N> {
         }
     }
 
-    /// Run leg `leg` from `state` (updated in place) under `mode`.
+    /// Run leg `leg` from `state` (updated in place) under `mode`; the
+    /// serving link's attempts go through `channels` (from [`Self::channels`]).
     pub fn run_leg<R: Rng + ?Sized, O: EpisodeObserver<N>>(
         &self,
         leg: usize,
         state: &mut AgentState<N>,
         mode: &LegMode<N>,
         rng: &mut R,
+        channels: &mut EpisodeChannels,
         observer: &mut O,
     ) -> LegResult {
         let sensor = self.legs[leg].sensor;
@@ -319,12 +352,12 @@ impl<const N: usize> CompiledScenario<N> {
         let result = if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked just above), the one
             // requirement of calling a `#[target_feature]` function.
-            unsafe { self.run_leg_avx2(sensor, leg, state, mode, rng, observer) }
+            unsafe { self.run_leg_avx2(sensor, leg, state, mode, rng, channels, observer) }
         } else {
-            on_filter!(&self.filters[sensor], f => self.run_leg_with(f, leg, state, mode, rng, observer))
+            on_filter!(&self.filters[sensor], f => self.run_leg_with(f, leg, state, mode, rng, channels, observer))
         };
         #[cfg(not(target_arch = "x86_64"))]
-        let result = on_filter!(&self.filters[sensor], f => self.run_leg_with(f, leg, state, mode, rng, observer));
+        let result = on_filter!(&self.filters[sensor], f => self.run_leg_with(f, leg, state, mode, rng, channels, observer));
         observer.on_leg_end(leg, sensor, &result);
         result
     }
@@ -338,6 +371,9 @@ impl<const N: usize> CompiledScenario<N> {
     /// checks at run time).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
+    // The leg's state travels by reference into the inlined loop: a struct
+    // of eight borrows would add nothing but a name.
+    #[allow(clippy::too_many_arguments)]
     fn run_leg_avx2<R: Rng + ?Sized, O: EpisodeObserver<N>>(
         &self,
         sensor: usize,
@@ -345,12 +381,14 @@ impl<const N: usize> CompiledScenario<N> {
         state: &mut AgentState<N>,
         mode: &LegMode<N>,
         rng: &mut R,
+        channels: &mut EpisodeChannels,
         observer: &mut O,
     ) -> LegResult {
-        on_filter!(&self.filters[sensor], f => self.run_leg_with(f, leg, state, mode, rng, observer))
+        on_filter!(&self.filters[sensor], f => self.run_leg_with(f, leg, state, mode, rng, channels, observer))
     }
 
     #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     fn run_leg_with<const M: usize, R: Rng + ?Sized, O: EpisodeObserver<N>>(
         &self,
         filter: &EtKalmanFilter<N, M>,
@@ -358,6 +396,7 @@ impl<const N: usize> CompiledScenario<N> {
         state: &mut AgentState<N>,
         mode: &LegMode<N>,
         rng: &mut R,
+        channels: &mut EpisodeChannels,
         observer: &mut O,
     ) -> LegResult {
         let (initial_threshold, kf) = match *mode {
@@ -369,14 +408,31 @@ impl<const N: usize> CompiledScenario<N> {
                 p_kf,
             } => (threshold, Some((eps_kf, eps_p, p_kf))),
         };
-        let full_kf = Threshold::new(0.0);
-        let mut threshold = initial_threshold;
+        let sensor = self.legs[leg].sensor;
+        // A lossy serving link takes the lossy step; an ideal one the step of
+        // §2 exactly (same operations, same bits).
+        let lossy = !self.radio.link(sensor).is_ideal();
+        // The silence update's factor: β_q(δ) for the aware estimator.
+        let silence = |t: Threshold| {
+            if lossy {
+                Threshold {
+                    delta: t.delta,
+                    beta: self.radio.silence_beta(sensor, t.delta, M),
+                }
+            } else {
+                t
+            }
+        };
+        let full_kf = silence(Threshold::new(0.0));
+        let mut threshold = silence(initial_threshold);
         let mut in_kf_phase = false;
         let mut r = LegResult {
             end: LegEnd::Terminated,
             steps: 0,
             slots: 0,
             transmissions: 0,
+            triggers: 0,
+            delivered: 0,
             kf_slots: 0,
             expected_transmissions: 0.0,
         };
@@ -384,6 +440,7 @@ impl<const N: usize> CompiledScenario<N> {
         loop {
             let u = self.input(leg, &state.belief.mean);
             let collided = self.move_plant(&mut state.x, &u, rng);
+            channels.start_step();
             r.steps += 1;
             if let Some(obstacle) = collided {
                 observer.on_step(&StepEvent {
@@ -392,16 +449,31 @@ impl<const N: usize> CompiledScenario<N> {
                     belief: &state.belief,
                     delta: threshold.delta,
                     transmitted: false,
+                    attempts: 0,
+                    delivered: false,
                     collided: true,
                 });
                 r.end = LegEnd::Collision { obstacle };
                 return r;
             }
             let y = filter.sensor.measure(&state.x, rng);
-            let (post, sent) = filter.step(&state.belief, &u, &y, threshold);
+            let (post, sent, sending) = if lossy {
+                lossy_step(filter, &state.belief, &u, &y, threshold, || {
+                    channels.transmit(sensor)
+                })
+            } else {
+                let (post, sent) = filter.step(&state.belief, &u, &y, threshold);
+                let t = Transmission {
+                    attempts: u32::from(sent),
+                    delivered: sent,
+                };
+                (post, sent, t)
+            };
             state.belief = post;
             r.slots += 1;
-            r.transmissions += u32::from(sent);
+            r.transmissions += sending.attempts;
+            r.triggers += u32::from(sent);
+            r.delivered += u32::from(sending.delivered);
             r.kf_slots += u32::from(in_kf_phase);
             r.expected_transmissions += expected_rate;
             observer.on_step(&StepEvent {
@@ -410,6 +482,8 @@ impl<const N: usize> CompiledScenario<N> {
                 belief: &state.belief,
                 delta: threshold.delta,
                 transmitted: sent,
+                attempts: sending.attempts,
+                delivered: sending.delivered,
                 collided: false,
             });
             let done = match kf {
@@ -433,10 +507,12 @@ impl<const N: usize> CompiledScenario<N> {
 
     /// Run a whole episode: draw `x0`, then for each leg ask `policy(leg, belief)`
     /// for the leg's mode, run it, stop at a collision; classify at the end.
+    /// Packet fates come from `channels` (from [`Self::channels`]).
     pub fn run_episode<R, P, O>(
         &self,
         mut policy: P,
         rng: &mut R,
+        channels: &mut EpisodeChannels,
         observer: &mut O,
     ) -> EpisodeResult
     where
@@ -450,15 +526,19 @@ impl<const N: usize> CompiledScenario<N> {
             steps: 0,
             slots: 0,
             transmissions: 0,
+            triggers: 0,
+            delivered: 0,
             energy: 0.0,
             expected_transmissions: 0.0,
         };
         for leg in 0..self.legs.len() {
             let mode = policy(leg, &state.belief, rng);
-            let r = self.run_leg(leg, &mut state, &mode, rng, observer);
+            let r = self.run_leg(leg, &mut state, &mode, rng, channels, observer);
             total.steps += r.steps;
             total.slots += r.slots;
             total.transmissions += r.transmissions;
+            total.triggers += r.triggers;
+            total.delivered += r.delivered;
             total.expected_transmissions += r.expected_transmissions;
             total.energy += f64::from(r.transmissions) * self.filters[self.legs[leg].sensor].cost();
             if let LegEnd::Collision { .. } = r.end {
@@ -468,6 +548,39 @@ impl<const N: usize> CompiledScenario<N> {
         }
         total.outcome = self.classify_end(&state.x);
         total
+    }
+}
+
+/// One slot over a lossy link (docs/MODEL.md §8): predict, trigger on the
+/// agent's estimate; on a trigger `transmit` gives the attempts' fate; a
+/// delivered measurement gets the measurement update, anything else the
+/// silence update with `th.beta` (β_q for the aware estimator). Returns the
+/// posterior, whether it triggered, and the attempts.
+#[inline(always)]
+fn lossy_step<const N: usize, const M: usize>(
+    filter: &EtKalmanFilter<N, M>,
+    post: &Belief<N>,
+    u: &Vector<N>,
+    y: &Vector<M>,
+    th: Threshold,
+    transmit: impl FnOnce() -> Transmission,
+) -> (Belief<N>, bool, Transmission) {
+    let prior = filter.predict(post, u);
+    let inn = filter.innovation(&prior);
+    if inn.triggers(y, th.delta) {
+        let t = transmit();
+        let post = if t.delivered {
+            filter.update_explicit(&prior, &inn, y)
+        } else {
+            filter.update_implicit(&prior, &inn, th.beta)
+        };
+        (post, true, t)
+    } else {
+        let silent = Transmission {
+            attempts: 0,
+            delivered: false,
+        };
+        (filter.update_implicit(&prior, &inn, th.beta), false, silent)
     }
 }
 

@@ -12,6 +12,9 @@
 //!   episode rules of docs/MODEL.md §3 (controller, collision, leg termination,
 //!   target/free classification): [`episode::CompiledScenario::run_leg`] and
 //!   [`episode::CompiledScenario::run_episode`].
+//! * [`radio`] — the lossy, acknowledged radio of docs/MODEL.md §8: per-link
+//!   channels (independent or Gilbert–Elliott losses, retries), β_q(δ) for the
+//!   aware silence update, and each attempt's fate from its own stream.
 //! * [`rng`] — reproducible per-episode random streams (`Xoshiro256++`).
 //! * [`stats`] — confidence intervals for means and proportions.
 //!
@@ -31,6 +34,7 @@ pub mod gaussian;
 pub mod geometry;
 pub mod linalg;
 pub mod lqr;
+pub mod radio;
 pub mod rng;
 pub mod scenario;
 pub mod stats;

@@ -21,6 +21,18 @@ pub fn stream_rng(seed: u64, stream: u64, index: u64) -> SimRng {
     SimRng::seed_from_u64(mix64(mix64(seed ^ mix64(stream)) ^ index))
 }
 
+/// The generator of radio link `link` in episode `index` of stream `stream`
+/// under `seed` (docs/MODEL.md §8): every (episode, link) pair has its own
+/// stream, disjoint from the episode's own [`stream_rng`], so packet fates
+/// never shift the plant's or the sensors' random numbers.
+pub fn link_rng(seed: u64, stream: u64, index: u64, link: u64) -> SimRng {
+    stream_rng(
+        seed,
+        streams::RADIO,
+        mix64(mix64(mix64(stream) ^ index) ^ link),
+    )
+}
+
 /// Named streams used across the project.
 pub mod streams {
     /// `etp simulate` episodes.
@@ -39,4 +51,7 @@ pub mod streams {
     /// same segment indices as [`SYNTHESIS`] under another stream, so the two
     /// sample sets share no random numbers.
     pub const HOLDOUT: u64 = 7;
+    /// Radio packet fates, one generator per (stream, episode, link): see
+    /// [`super::link_rng`].
+    pub const RADIO: u64 = 8;
 }

@@ -4,11 +4,21 @@
 //! Stored as `strategy.json`. It carries the scenario's content hash so it is
 //! never applied to another scenario, and its own discretization so the
 //! coordinator and the in-process validator classify beliefs identically.
+//!
+//! The file is sealed by its own hash: its last key, `content_sha256`, is the
+//! SHA-256 of the file's exact text without that key ([`Strategy::to_json`]).
+//! Any edit — a value (`scenario_name`, `predicted`, `leg_energy`, …), a key
+//! added or removed, or a reformatting — is refused by
+//! [`Strategy::from_sealed_json`] (the loader of strategy files). Files
+//! written before the seal are refused too, with a message to re-run `etp
+//! strategy`; [`Strategy::from_json`] (strategies embedded in recordings)
+//! checks the seal when present and accepts old, unsealed ones.
 
 use crate::discretization::{Discretization, Region};
 use crate::scenario::Scenario;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
 
 /// Version of the `strategy.json` layout.
 pub const STRATEGY_FORMAT_VERSION: u32 = 1;
@@ -31,6 +41,54 @@ pub enum StrategyError {
     },
     #[error("strategy is inconsistent: {0}")]
     Invalid(String),
+    #[error(
+        "strategy file has no `content_sha256` (written before strategy files were sealed by their hash, or the key was removed); re-create it with `etp strategy` (or `etp run --scenario NAME --delta D` for a constant δ)"
+    )]
+    Unsealed,
+    #[error(
+        "strategy file was changed after it was written: {0}; a strategy file is used only as `etp strategy` wrote it (re-create it with `etp strategy`)"
+    )]
+    Tampered(String),
+}
+
+/// The key of the seal, the file's last (see the module doc).
+const SEAL_KEY: &str = "content_sha256";
+
+fn sha256_hex(bytes: &[u8]) -> String {
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// The seal of a strategy file's text: `Ok(None)` without one, `Ok(Some(()))`
+/// when it matches, an error naming what is wrong otherwise.
+fn check_seal(text: &str) -> Result<Option<()>, StrategyError> {
+    let t = text.trim_end();
+    let marker = format!(",\n  \"{SEAL_KEY}\": \"");
+    let Some(at) = t.rfind(&marker) else {
+        return if t.contains(&format!("\"{SEAL_KEY}\"")) {
+            Err(StrategyError::Tampered(format!(
+                "`{SEAL_KEY}` is not the file's last key as written (the file was reformatted or keys were moved)"
+            )))
+        } else {
+            Ok(None)
+        };
+    };
+    let rest = &t[at + marker.len()..];
+    let Some(hex) = rest.strip_suffix("\"\n}") else {
+        return Err(StrategyError::Tampered(format!(
+            "keys follow `{SEAL_KEY}`, which is the file's last key as written"
+        )));
+    };
+    let body = format!("{}\n}}", &t[..at]);
+    let actual = sha256_hex(body.as_bytes());
+    if hex != actual {
+        return Err(StrategyError::Tampered(format!(
+            "its text hashes to {actual:.12}…, not to the `{SEAL_KEY}` {hex:.12}… it was written with (a field such as `scenario_name`, `predicted`, `leg_energy` or `states` was edited)"
+        )));
+    }
+    Ok(Some(()))
 }
 
 /// The values a strategy is predicted to reach (on the abstraction).
@@ -158,7 +216,20 @@ impl Strategy {
         Ok(parsed)
     }
 
-    /// Parse and check internal consistency.
+    /// A strategy file: the seal must be present and match (see the module
+    /// doc), then as [`Strategy::from_json`].
+    pub fn from_sealed_json(text: &str) -> Result<Self, StrategyError> {
+        if check_seal(text)?.is_none() {
+            // Not JSON at all is a parse error, not a missing seal.
+            serde_json::from_str::<serde_json::Value>(text)
+                .map_err(|e| StrategyError::Parse(e.to_string()))?;
+            return Err(StrategyError::Unsealed);
+        }
+        Self::from_json(text)
+    }
+
+    /// Parse and check internal consistency; the seal is checked when the
+    /// text has one (strategies recorded before it was introduced have none).
     pub fn from_json(text: &str) -> Result<Self, StrategyError> {
         #[derive(Deserialize)]
         struct Versioned {
@@ -172,14 +243,22 @@ impl Strategy {
                 expected: STRATEGY_FORMAT_VERSION,
             });
         }
+        check_seal(text)?;
         let s: Self =
             serde_json::from_str(text).map_err(|e| StrategyError::Parse(e.to_string()))?;
         s.check_consistent()?;
         Ok(s)
     }
 
+    /// The sealed text of a strategy file: pretty JSON whose last key,
+    /// `content_sha256`, hashes the text without it.
     pub fn to_json(&self) -> String {
-        serde_json::to_string_pretty(self).unwrap_or_default()
+        let body = serde_json::to_string_pretty(self).unwrap_or_default();
+        let hash = sha256_hex(body.as_bytes());
+        match body.strip_suffix("\n}") {
+            Some(head) => format!("{head},\n  \"{SEAL_KEY}\": \"{hash}\"\n}}"),
+            None => body,
+        }
     }
 
     fn check_consistent(&self) -> Result<(), StrategyError> {
@@ -428,6 +507,64 @@ mod tests {
         assert!(matches!(
             Strategy::from_json(&bad),
             Err(StrategyError::Invalid(_))
+        ));
+    }
+
+    #[test]
+    fn the_whole_file_is_covered_by_its_hash() {
+        let s = Scenario::builtin("winding-2d").expect("built-in");
+        let mut st = Strategy::constant(&s, 1, prediction());
+        st.leg_energy = Some(vec![1.5; s.legs.len()]);
+        let text = st.to_json();
+        assert!(text.trim_end().ends_with('}'));
+        assert_eq!(Strategy::from_sealed_json(&text).expect("sealed"), st);
+        // A trailing newline (an editor's) is not an edit.
+        Strategy::from_sealed_json(&format!("{text}\n")).expect("trailing newline");
+        // Every field is covered, those no other check looks at included.
+        for (from, to) in [
+            (
+                "\"scenario_name\": \"winding-2d\"",
+                "\"scenario_name\": \"winding-3d\"",
+            ),
+            ("\"p_target\": 0.9", "\"p_target\": 0.5"),
+            ("\"energy_mean\": 10.0", "\"energy_mean\": 1.0"),
+            ("1.5,", "0.5,"),
+            ("\"label\": \"constant", "\"label\": \"Constant"),
+            (
+                "{\n  \"format_version\"",
+                "{\n  \"extra\": 1,\n  \"format_version\"",
+            ),
+        ] {
+            assert!(text.contains(from), "{from}");
+            let edited = text.replacen(from, to, 1);
+            for e in [
+                Strategy::from_sealed_json(&edited),
+                Strategy::from_json(&edited),
+            ] {
+                let e = e.expect_err(from).to_string();
+                assert!(
+                    e.contains("changed after it was written") && e.contains("etp strategy"),
+                    "{e}"
+                );
+            }
+        }
+        // Reformatted (the seal no longer the last key as written): refused.
+        let v: serde_json::Value = serde_json::from_str(&text).expect("JSON");
+        let compact = serde_json::to_string(&v).expect("JSON");
+        assert!(matches!(
+            Strategy::from_sealed_json(&compact),
+            Err(StrategyError::Tampered(_))
+        ));
+        // A file written before the seal: refused as a strategy file, saying
+        // what to do; accepted where recordings are read.
+        let old = serde_json::to_string_pretty(&st).expect("JSON");
+        let e = Strategy::from_sealed_json(&old).expect_err("unsealed");
+        assert!(matches!(e, StrategyError::Unsealed));
+        assert!(e.to_string().contains("etp strategy"), "{e}");
+        assert_eq!(Strategy::from_json(&old).expect("recorded, unsealed"), st);
+        assert!(matches!(
+            Strategy::from_sealed_json("{ not json"),
+            Err(StrategyError::Parse(_))
         ));
     }
 

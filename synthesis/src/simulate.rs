@@ -4,7 +4,9 @@
 //! episodes are summed in fixed-size chunks merged in index order, so a summary
 //! is bit-identical for a given seed whatever the number of threads.
 
-use etp_shared::episode::{CompiledScenario, EpisodeObserver, LegMode, LegResult, Outcome};
+use etp_shared::episode::{
+    CompiledScenario, EpisodeObserver, LegMode, LegResult, Outcome, StepEvent,
+};
 use etp_shared::etkf::Belief;
 use etp_shared::rng::{SimRng, stream_rng};
 use etp_shared::stats::{Estimate, MeanAccumulator, RatioAccumulator, proportion};
@@ -20,8 +22,21 @@ const CHUNK: u64 = 64;
 pub struct SensorCounts {
     /// Measurement slots the sensor served.
     pub slots: u64,
-    /// Measurements it transmitted.
+    /// Transmission attempts (each costs c_m; docs/MODEL.md §8).
     pub transmissions: u64,
+    /// Slots whose measurement triggered.
+    pub triggers: u64,
+    /// Triggers whose measurement reached the agent.
+    pub delivered: u64,
+    /// Σ γ̄(δ, m) over its slots: the triggers the Gaussian assumption predicts.
+    pub expected_triggers: f64,
+}
+
+impl SensorCounts {
+    /// Attempts lost: `transmissions = delivered + lost`.
+    pub fn lost(&self) -> u64 {
+        self.transmissions - self.delivered
+    }
 }
 
 /// Raw sums of a batch of episodes (mergeable).
@@ -33,8 +48,10 @@ pub struct SimulationTotals {
     pub free: u64,
     pub energy: MeanAccumulator,
     pub steps: MeanAccumulator,
-    /// (transmissions, slots) per episode.
+    /// (triggers, slots) per episode.
     pub rate: RatioAccumulator,
+    /// (Σ NEES/n of the agent's estimate, slots) per episode.
+    pub nees: RatioAccumulator,
     /// (expected transmissions Σγ̄, slots) per episode.
     pub expected_rate: RatioAccumulator,
     pub sensors: Vec<SensorCounts>,
@@ -56,22 +73,52 @@ impl SimulationTotals {
         self.energy.merge(&o.energy);
         self.steps.merge(&o.steps);
         self.rate.merge(&o.rate);
+        self.nees.merge(&o.nees);
         self.expected_rate.merge(&o.expected_rate);
         for (a, b) in self.sensors.iter_mut().zip(&o.sensors) {
             a.slots += b.slots;
             a.transmissions += b.transmissions;
+            a.triggers += b.triggers;
+            a.delivered += b.delivered;
+            a.expected_triggers += b.expected_triggers;
         }
     }
 }
 
-/// Counts per sensor as legs end.
-struct SensorTally<'a>(&'a mut [SensorCounts]);
+/// Counts per sensor as legs end, and the episode's consistency sum.
+struct SensorTally<'a> {
+    sensors: &'a mut [SensorCounts],
+    /// Σ over slots of (x − x̂)ᵀ P⁻¹ (x − x̂) / n.
+    nees: f64,
+}
 
 impl<const N: usize> EpisodeObserver<N> for SensorTally<'_> {
     #[inline]
+    fn on_step(&mut self, e: &StepEvent<'_, N>) {
+        if !e.collided {
+            self.nees += normalized_error(e.x, e.belief);
+        }
+    }
+
+    #[inline]
     fn on_leg_end(&mut self, _leg: usize, sensor: usize, r: &LegResult) {
-        self.0[sensor].slots += u64::from(r.slots);
-        self.0[sensor].transmissions += u64::from(r.transmissions);
+        let c = &mut self.sensors[sensor];
+        c.slots += u64::from(r.slots);
+        c.transmissions += u64::from(r.transmissions);
+        c.triggers += u64::from(r.triggers);
+        c.delivered += u64::from(r.delivered);
+        c.expected_triggers += r.expected_transmissions;
+    }
+}
+
+/// NEES/n: `(x − x̂)ᵀ P⁻¹ (x − x̂) / n`, ≈ 1 on average for a consistent filter
+/// (0 if rounding ever made P singular).
+#[inline]
+pub fn normalized_error<const N: usize>(x: &etp_shared::etkf::Vector<N>, b: &Belief<N>) -> f64 {
+    let e = x - b.mean;
+    match b.cov.cholesky() {
+        Some(ch) => ch.solve(&e).dot(&e) / N as f64,
+        None => 0.0,
     }
 }
 
@@ -84,13 +131,15 @@ pub struct SimulationSummary {
     pub p_free: Estimate,
     pub energy_mean: Estimate,
     pub steps_mean: Estimate,
-    /// Measured transmissions per measurement slot.
+    /// Measured triggers per measurement slot.
     pub trigger_rate: Estimate,
     /// γ̄(δ, m) averaged over the same slots (the filter's Gaussian prediction).
     pub trigger_rate_expected: Estimate,
     pub sensors: Vec<SensorCounts>,
     /// Total plant steps simulated (for throughput figures).
     pub total_steps: u64,
+    /// Mean NEES/n of the agent's estimate over the slots (≈ 1: consistent).
+    pub nees: Estimate,
 }
 
 impl SimulationTotals {
@@ -107,6 +156,7 @@ impl SimulationTotals {
             trigger_rate_expected: self.expected_rate.estimate(),
             sensors: self.sensors.clone(),
             total_steps: self.steps.sum as u64,
+            nees: self.nees.estimate(),
         }
     }
 }
@@ -156,7 +206,13 @@ where
     let mut t = SimulationTotals::new(scenario.filters.len());
     for e in range {
         let mut rng = stream_rng(seed, stream, e);
-        let r = scenario.run_episode(policy, &mut rng, &mut SensorTally(&mut t.sensors));
+        let mut channels = scenario.channels(seed, stream, e);
+        let mut tally = SensorTally {
+            sensors: &mut t.sensors,
+            nees: 0.0,
+        };
+        let r = scenario.run_episode(policy, &mut rng, &mut channels, &mut tally);
+        let nees = tally.nees;
         t.episodes += 1;
         match r.outcome {
             Outcome::Target => t.target += 1,
@@ -165,7 +221,8 @@ where
         }
         t.energy.push(r.energy);
         t.steps.push(f64::from(r.steps));
-        t.rate.push(f64::from(r.transmissions), f64::from(r.slots));
+        t.rate.push(f64::from(r.triggers), f64::from(r.slots));
+        t.nees.push(nees, f64::from(r.slots));
         t.expected_rate
             .push(r.expected_transmissions, f64::from(r.slots));
     }

@@ -100,7 +100,8 @@ pub fn sample_trajectories(
                 let mut rec = Recorder { points: Vec::new(), scenario: &c, d: scenario.workspace_dim() };
                 let start = scenario.route_start.as_slice().to_vec();
                 rec.points.push(TrajectoryPoint { x: start.clone(), mean: start, expected_rate: 1.0, transmitted: false });
-                let r = c.run_episode(&policy, &mut rng, &mut rec);
+                let mut channels = c.channels(seed, streams::VALIDATE, e);
+                let r = c.run_episode(&policy, &mut rng, &mut channels, &mut rec);
                 Trajectory { points: rec.points, outcome: r.outcome }
             })
             .collect()

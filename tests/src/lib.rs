@@ -13,8 +13,12 @@
 //!   sensors) and reaps it, so no process outlives a test, even a failing one.
 //! * [`processes_of_run`] — the live processes whose command line names a run.
 //! * [`unique_run_id`] — a run id per test.
+//! * [`pyenv`] — the pinned Python venv of the independent checks (`target/pyenv`).
 
-use etp_runtime::wire::{RunId, cleanup};
+pub mod pyenv;
+
+use etp_runtime::cleanup;
+use etp_runtime::wire::RunId;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 
@@ -127,7 +131,7 @@ impl Drop for EtpRun {
         // Whatever was left in /dev/shm and the root folder by killed nodes.
         // (iceoryx2 warns about its global config while cleaning a dead
         // node whose details are gone: noise, as in every etp process.)
-        etp_runtime::wire::quiet_iceoryx2();
+        etp_runtime::shell::quiet_iceoryx2();
         if let Ok(run) = RunId::new(&self.run_id) {
             for _ in 0..50 {
                 if processes_of_run(&self.run_id).is_empty() {

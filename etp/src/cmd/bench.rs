@@ -4,7 +4,7 @@
 //! synthesized MDPs and of a synthetic layered MDP of thousands of states.
 
 use crate::cmd::simulate::simulate_constant;
-use crate::input::load_scenario;
+use crate::input::{RadioArgs, load_scenario_with_radio};
 use anyhow::Result;
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::optimal::{LpRequest, optimal_strategy};
@@ -46,6 +46,9 @@ pub struct Args {
     /// vertices; the certified ε is reported).
     #[arg(long, default_value_t = SYNTHETIC_TOLERANCE)]
     pub synthetic_tolerance: f64,
+    /// Measure the simulator under this radio (docs/MODEL.md §8).
+    #[command(flatten)]
+    pub radio: RadioArgs,
 }
 
 /// Default stopping tolerance of the synthetic row: its front at 1e-6 has
@@ -149,7 +152,7 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(dirs) = &a.front {
         return bench_front(dirs, &a);
     }
-    let s = load_scenario(&a.scenario)?;
+    let s = load_scenario_with_radio(&a.scenario, &a.radio)?;
     let max_delta = s.deltas.iter().copied().fold(0.0, f64::max);
     let threads = rayon::current_num_threads();
     let mut rows = Vec::new();

@@ -104,6 +104,9 @@ pub fn run(a: Args) -> Result<()> {
         json: a.json,
         no_kf_baseline: true,
         merge: None,
+        radio: Default::default(),
+        aggregation_episodes: 0,
+        aggregation_alpha: 0.05,
     };
     let built = synthesize::build_mdp(&sargs)?;
     let front = write_front(&built.dir, &built.mdp, None, &text, false)?;
@@ -187,6 +190,7 @@ pub fn run(a: Args) -> Result<()> {
         listen: None,
         remote: Vec::new(),
         join_timeout: None,
+        radio: Default::default(),
     };
     let (mp, problems) = run_cmd::execute(&rargs)?;
 

@@ -1,5 +1,6 @@
 //! One module per subcommand.
 
+pub mod aggregation;
 pub mod bench;
 pub mod check;
 pub mod demo;
@@ -8,6 +9,7 @@ pub mod honest;
 pub mod process;
 pub mod replay;
 pub mod run;
+pub mod scenario;
 pub mod simulate;
 pub mod strategy;
 pub mod synthesize;
@@ -19,6 +21,7 @@ use crate::cli::Command;
 pub fn dispatch(command: Command) -> anyhow::Result<()> {
     match command {
         Command::Check(a) => check::run(a),
+        Command::Scenario(a) => scenario::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Bench(a) => bench::run(a),

@@ -1,6 +1,6 @@
 //! `etp simulate SCENARIO --delta D`: in-process episodes with a constant threshold.
 
-use crate::input::load_scenario;
+use crate::input::{RadioArgs, load_scenario_with_radio};
 use crate::progress;
 use anyhow::{Result, bail};
 use etp_shared::episode::{CompiledScenario, LegMode};
@@ -9,7 +9,7 @@ use etp_shared::rng::streams;
 use etp_shared::scenario::Scenario;
 use etp_shared::stats::Estimate;
 use etp_shared::with_dim;
-use etp_synthesis::simulate::{SimulationSummary, simulate};
+use etp_synthesis::simulate::{SensorCounts, SimulationSummary, simulate};
 use serde_json::{Map, Value, json};
 
 #[derive(Debug, clap::Args)]
@@ -28,6 +28,8 @@ pub struct Args {
     /// Print one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub radio: RadioArgs,
 }
 
 /// Simulate a constant threshold on a scenario (all threads).
@@ -53,7 +55,7 @@ pub fn run(a: Args) -> Result<()> {
     if a.episodes == 0 {
         bail!("--episodes must be at least 1");
     }
-    let s = load_scenario(&a.scenario)?;
+    let s = load_scenario_with_radio(&a.scenario, &a.radio)?;
     let pb = progress::bar(a.episodes, "simulate", a.json);
     let started = std::time::Instant::now();
     let sum = simulate_constant(&s, a.delta, a.episodes, a.seed, &|k| pb.inc(k));
@@ -75,10 +77,16 @@ pub fn run(a: Args) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!(
-            "{} · δ = {} · {} episodes · seed {} · {:.2} s",
-            s.name, a.delta, sum.episodes, a.seed, secs
+            "{} · δ = {} · {} episodes · seed {} · {:.2} s · radio: {}",
+            s.name,
+            a.delta,
+            sum.episodes,
+            a.seed,
+            secs,
+            s.radio.describe(&sensor_names(&s))
         );
         print!("{}", summary_table(&sum));
+        print!("{}", radio_table(&s, &sum));
     }
     Ok(())
 }
@@ -93,25 +101,69 @@ pub fn summary_json(s: &Scenario, sum: &SimulationSummary) -> Value {
         m.insert(format!("{k}_ci95"), json!(e.ci95));
     }
     m.insert("total_steps".into(), json!(sum.total_steps));
-    m.insert(
-        "transmissions".into(),
-        json!(sum.sensors.iter().map(|c| c.transmissions).sum::<u64>()),
-    );
+    let total = sum
+        .sensors
+        .iter()
+        .fold(SensorCounts::default(), |mut t, c| {
+            t.slots += c.slots;
+            t.transmissions += c.transmissions;
+            t.triggers += c.triggers;
+            t.delivered += c.delivered;
+            t.expected_triggers += c.expected_triggers;
+            t
+        });
+    m.insert("transmissions".into(), json!(total.transmissions));
+    radio_counts(&mut m, &total);
+    m.insert("radio".into(), json!(s.radio.describe(&sensor_names(s))));
     let sensors: Vec<Value> = s
         .sensors
         .iter()
         .zip(&sum.sensors)
         .map(|(x, c)| {
-            json!({"name": x.name, "slots": c.slots, "transmissions": c.transmissions,
-                   "energy": crate::vocab::round_energy(x.cost * c.transmissions as f64),
-                   "predicted_energy": null})
+            let mut o = Map::new();
+            o.insert("name".into(), json!(x.name));
+            o.insert("slots".into(), json!(c.slots));
+            o.insert("transmissions".into(), json!(c.transmissions));
+            o.insert(
+                "energy".into(),
+                json!(crate::vocab::round_energy(x.cost * c.transmissions as f64)),
+            );
+            o.insert("predicted_energy".into(), Value::Null);
+            radio_counts(&mut o, c);
+            let rate = |k: f64| (c.slots > 0).then(|| k / c.slots as f64);
+            o.insert("trigger_rate".into(), json!(rate(c.triggers as f64)));
+            o.insert(
+                "trigger_rate_expected".into(),
+                json!(rate(c.expected_triggers)),
+            );
+            Value::Object(o)
         })
         .collect();
     m.insert("sensors".into(), json!(sensors));
     Value::Object(m)
 }
 
-fn estimates(sum: &SimulationSummary) -> [(&'static str, Estimate); 7] {
+fn sensor_names(s: &Scenario) -> Vec<String> {
+    s.sensors.iter().map(|x| x.name.clone()).collect()
+}
+
+/// The radio's counts (docs/MODEL.md §8): `triggers`, `delivered`, `lost`
+/// (attempts lost: `transmissions = delivered + lost`), `loss_rate` (lost per
+/// attempt, null without attempts) and `undelivered_rate` (triggers that
+/// never reached the agent, per trigger).
+fn radio_counts(m: &mut Map<String, Value>, c: &SensorCounts) {
+    m.insert("triggers".into(), json!(c.triggers));
+    m.insert("delivered".into(), json!(c.delivered));
+    m.insert("lost".into(), json!(c.lost()));
+    let per = |k: u64, n: u64| (n > 0).then(|| k as f64 / n as f64);
+    m.insert("loss_rate".into(), json!(per(c.lost(), c.transmissions)));
+    m.insert(
+        "undelivered_rate".into(),
+        json!(per(c.triggers - c.delivered, c.triggers)),
+    );
+}
+
+fn estimates(sum: &SimulationSummary) -> [(&'static str, Estimate); 8] {
     [
         ("p_target", sum.p_target),
         ("p_collision", sum.p_collision),
@@ -120,7 +172,37 @@ fn estimates(sum: &SimulationSummary) -> [(&'static str, Estimate); 7] {
         ("steps_mean", sum.steps_mean),
         ("trigger_rate", sum.trigger_rate),
         ("trigger_rate_expected", sum.trigger_rate_expected),
+        ("nees", sum.nees),
     ]
+}
+
+/// Per-sensor radio counts (only when the radio loses packets).
+pub fn radio_table(s: &Scenario, sum: &SimulationSummary) -> String {
+    if s.radio.is_ideal() {
+        return String::new();
+    }
+    let mut o = format!(
+        "  {:<8} {:>10} {:>10} {:>10} {:>10} {:>9} {:>9} {:>9}\n",
+        "sensor", "triggers", "attempts", "delivered", "lost", "loss", "rate", "expected"
+    );
+    for (x, c) in s.sensors.iter().zip(&sum.sensors) {
+        if c.slots == 0 {
+            continue;
+        }
+        let frac = |k: f64, n: u64| if n > 0 { k / n as f64 } else { 0.0 };
+        o.push_str(&format!(
+            "  {:<8} {:>10} {:>10} {:>10} {:>10} {:>9.4} {:>9.4} {:>9.4}\n",
+            x.name,
+            c.triggers,
+            c.transmissions,
+            c.delivered,
+            c.lost(),
+            frac(c.lost() as f64, c.transmissions),
+            frac(c.triggers as f64, c.slots),
+            frac(c.expected_triggers, c.slots),
+        ));
+    }
+    o
 }
 
 /// A readable table of a summary.

@@ -39,7 +39,7 @@ pub struct Args {
     #[arg(long, value_name = "K")]
     pub vertex: Option<usize>,
     /// Where to write the strategy (default DIR/strategy.json).
-    #[arg(short, long)]
+    #[arg(short = 'o', long = "out", alias = "output")]
     pub output: Option<PathBuf>,
     /// Overwrite an existing output file.
     #[arg(long)]

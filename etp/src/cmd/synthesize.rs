@@ -5,7 +5,7 @@
 //! progress bar, write the file, measure); [`run`] prints its report. The Pareto
 //! step appends to [`run`] after [`build_mdp`].
 
-use crate::input::load_scenario;
+use crate::input::{RadioArgs, load_scenario_with_radio};
 use crate::output::write_new;
 use crate::progress;
 use anyhow::{Context, Result, bail};
@@ -114,7 +114,7 @@ pub struct Args {
     #[arg(long)]
     pub eps_p: Option<f64>,
     /// Output directory (default `out/<scenario name>`).
-    #[arg(short = 'o', long = "out")]
+    #[arg(short = 'o', long = "out", alias = "output")]
     pub out: Option<PathBuf>,
     /// Overwrite an existing mdp.bin.
     #[arg(long)]
@@ -131,6 +131,17 @@ pub struct Args {
     /// §7.3). A smaller ALPHA lumps more. Off by default.
     #[arg(long, value_name = "ALPHA")]
     pub merge: Option<f64>,
+    /// The radio the segments are sampled with (docs/MODEL.md §8).
+    #[command(flatten)]
+    pub radio: RadioArgs,
+    /// Aggregation check: episodes with random thresholds whose legs test, per
+    /// region and action, whether the outcomes differ between the halves of
+    /// the region split at the median of a finer belief feature (0: off).
+    #[arg(long, value_name = "N", default_value_t = 50_000)]
+    pub aggregation_episodes: u64,
+    /// Aggregation check: false discovery rate of the flagged splits.
+    #[arg(long, value_name = "ALPHA", default_value_t = 0.05)]
+    pub aggregation_alpha: f64,
 }
 
 /// What [`build_mdp`] did, for the summary.
@@ -230,7 +241,7 @@ pub fn params(a: &Args, s: &Scenario) -> Result<AbstractionParams> {
 /// Build the MDP of `a.scenario` and write `DIR/mdp.bin`; refuses (before any
 /// work, touching nothing) when the file exists and `--force` is not given.
 pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
-    let s = load_scenario(&a.scenario)?;
+    let s = load_scenario_with_radio(&a.scenario, &a.radio)?;
     let dir = a
         .out
         .clone()
@@ -369,13 +380,19 @@ pub fn report_text(r: &MdpReport) -> String {
 
 pub fn run(a: Args) -> Result<()> {
     // Refuse before any work if the Pareto step would have to overwrite.
-    let s = load_scenario(&a.scenario)?;
+    let s = load_scenario_with_radio(&a.scenario, &a.radio)?;
     let dir = a
         .out
         .clone()
         .unwrap_or_else(|| Path::new("out").join(&s.name));
     let front_path = dir.join("front.json");
     crate::output::refuse_existing(&front_path, a.force)?;
+    if !(a.aggregation_alpha > 0.0 && a.aggregation_alpha < 1.0) {
+        bail!(
+            "--aggregation-alpha must lie in (0, 1) (got {})",
+            a.aggregation_alpha
+        );
+    }
     let text = crate::input::scenario_text(&a.scenario)?;
     let built = build_mdp(&a)?;
     // Method 1 as a baseline beside Method 2 (cheap: one state per decision point).
@@ -393,11 +410,27 @@ pub fn run(a: Args) -> Result<()> {
     } else {
         None
     };
+    let replaced = front_path.exists();
     let front =
         crate::front::write_front(&built.dir, &built.mdp, method1.as_ref(), &text, a.force)?;
+    // Only now that the new front is written: what was derived from the
+    // old MDP would sit beside it as if derived from the new one.
+    let stale = if replaced {
+        set_aside_stale(&built.dir)?
+    } else {
+        None
+    };
+    let aggregation = crate::cmd::aggregation::measure(
+        &built.scenario,
+        &built.mdp,
+        a.aggregation_episodes,
+        a.aggregation_alpha,
+        a.json,
+    );
     if a.json {
         let v = serde_json::json!({
             "mdp": built.report,
+            "aggregation": aggregation.as_ref().map(|r| &r.0),
             "front": {
                 "vertices": front.front.vertices.len(),
                 "facets": front.front.facets.len(),
@@ -410,11 +443,61 @@ pub fn run(a: Args) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         print!("{}", report_text(&built.report));
+        if let Some((r, secs)) = &aggregation {
+            print!(
+                "{}",
+                crate::cmd::aggregation::describe(r, &built.mdp, *secs)
+            );
+        }
         print!("{}", crate::front::describe(&front.front));
         println!("  computed in {:.3} s", front.seconds);
         for f in &front.files {
             println!("  wrote {}", f.display());
         }
     }
+    if let Some((dir, names)) = &stale {
+        eprintln!(
+            "moved {} (made from the replaced MDP) to {}",
+            names.join(", "),
+            dir.display()
+        );
+    }
     Ok(())
+}
+
+/// What `etp strategy`, `etp validate --plot` and `etp export-prism` write
+/// into a synthesis folder by default: derived from its MDP.
+const DERIVED: [&str; 4] = [
+    "strategy.json",
+    "strategy-map.png",
+    "strategy-map.svg",
+    "prism",
+];
+
+/// After `--force` replaced a synthesis: move what was derived from the old
+/// MDP into `DIR/stale-<unix seconds>/` (moved, not deleted). The folder and
+/// the names moved, if any.
+fn set_aside_stale(dir: &Path) -> Result<Option<(std::path::PathBuf, Vec<String>)>> {
+    let found: Vec<&str> = DERIVED
+        .into_iter()
+        .filter(|n| dir.join(n).symlink_metadata().is_ok())
+        .collect();
+    if found.is_empty() {
+        return Ok(None);
+    }
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let mut stale = dir.join(format!("stale-{secs}"));
+    let mut k = 1;
+    while stale.symlink_metadata().is_ok() {
+        stale = dir.join(format!("stale-{secs}-{k}"));
+        k += 1;
+    }
+    std::fs::create_dir(&stale).with_context(|| format!("creating {}", stale.display()))?;
+    for n in &found {
+        std::fs::rename(dir.join(n), stale.join(n))
+            .with_context(|| format!("moving {} to {}", dir.join(n).display(), stale.display()))?;
+    }
+    Ok(Some((stale, found.iter().map(|n| n.to_string()).collect())))
 }

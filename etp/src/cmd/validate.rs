@@ -10,7 +10,17 @@ use etp_synthesis::validate::{sample_trajectories, simulate_strategy};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
+/// Exit code: the report was printed and at least one of the strategy's
+/// predictions lies outside the simulation's 95 % interval (a check FAILS).
+pub const EXIT_CHECK_FAILS: u8 = 6;
+
+/// Exit codes (`etp validate --help`).
+const EXIT_CODES: &str = "Exit codes: 0 every check holds; 6 a check FAILS (a prediction of the \
+strategy lies outside the simulation's 95 % interval; the report is printed first); 1 an \
+error (unreadable or edited strategy file: its `content_sha256` must match, bad arguments).";
+
 #[derive(Debug, clap::Args)]
+#[command(after_help = EXIT_CODES)]
 pub struct Args {
     /// A strategy.json written by `etp strategy`.
     pub strategy: PathBuf,
@@ -32,13 +42,16 @@ pub struct Args {
     /// Overwrite map plots that exist.
     #[arg(long)]
     pub force: bool,
+    /// Evaluate under this radio instead of the scenario's (a robustness study).
+    #[command(flatten)]
+    pub radio: crate::input::RadioArgs,
 }
 
 /// Load and check a strategy file (scenario embedded or built-in, hash checked).
 pub fn load_strategy(path: &Path) -> Result<(Strategy, etp_shared::scenario::Scenario)> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let strategy = Strategy::from_json(&text)
+    let strategy = Strategy::from_sealed_json(&text)
         .with_context(|| format!("loading strategy {}", path.display()))?;
     let scenario = strategy
         .scenario()
@@ -51,6 +64,7 @@ pub fn run(a: Args) -> Result<()> {
         bail!("--episodes must be at least 1");
     }
     let (strategy, scenario) = load_strategy(&a.strategy)?;
+    let scenario = a.radio.apply(scenario)?;
     let pb = progress::bar(a.episodes, "validate", a.json);
     let sum = simulate_strategy(&scenario, &strategy, a.episodes, a.seed, &|k| pb.inc(k)).summary();
     pb.finish_and_clear();
@@ -82,16 +96,39 @@ pub fn run(a: Args) -> Result<()> {
         println!("\npredictions of the strategy file:");
         print!("{}", super::honest::text_of(&strategy));
         print!("{}", honest_check_text(&strategy, &sum));
+        let names: Vec<String> = scenario.sensors.iter().map(|x| x.name.clone()).collect();
         println!(
-            "\nsimulation details ({} episodes, seed {}):",
-            sum.episodes, a.seed
+            "\nsimulation details ({} episodes, seed {}, radio: {}):",
+            sum.episodes,
+            a.seed,
+            scenario.radio.describe(&names)
         );
         print!("{}", summary_table(&sum));
+        print!("{}", crate::cmd::simulate::radio_table(&scenario, &sum));
         for p in &plot_paths {
             println!("wrote {}", p.display());
         }
     }
-    Ok(())
+    let failed: Vec<&str> = honest_checks(&strategy, &sum)
+        .into_iter()
+        .filter(|(_, holds)| !holds)
+        .map(|(name, _)| name)
+        .collect();
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(crate::ExitWith {
+            code: EXIT_CHECK_FAILS,
+            message: format!(
+                "etp validate: {} check(s) FAIL: {} (each prediction against the simulation's 95 % interval, {} episodes, seed {})",
+                failed.len(),
+                failed.join(", "),
+                sum.episodes,
+                a.seed
+            ),
+        }
+        .into())
+    }
 }
 
 /// Each prediction against the simulation's 95 % interval: (name, inside).
@@ -196,16 +233,22 @@ pub fn comparison_table(strategy: &Strategy, sum: &SimulationSummary) -> String 
         ("energy", p.energy_mean, sum.energy_mean, false),
     ];
     let mut o = format!(
-        "  {:<8} {:>10} {:>20} {:>10}\n",
+        "  {:<8} {:>10} {:>24} {:>10}\n",
         "", "predicted", "simulated (95 %)", "error"
     );
     for (name, pred, sim, is_prob) in rows {
         if is_prob {
+            // The Wilson interval, which stays in [0, 1] (the count is
+            // the proportion times the episodes, exactly).
+            let n = sum.episodes;
+            let (lo, hi) =
+                etp_shared::stats::wilson_interval((sim.value * n as f64).round() as u64, n);
             o.push_str(&format!(
-                "  {name:<8} {:>9.2}% {:>11.2}% ± {:>4.2}% {:>+8.2} pt\n",
+                "  {name:<8} {:>9.2}% {:>7.2}% [{:>5.2}, {:>6.2}]% {:>+8.2} pt\n",
                 100.0 * pred,
                 100.0 * sim.value,
-                100.0 * sim.ci95,
+                100.0 * lo,
+                100.0 * hi,
                 100.0 * (sim.value - pred)
             ));
         } else {
@@ -215,7 +258,7 @@ pub fn comparison_table(strategy: &Strategy, sum: &SimulationSummary) -> String 
                 0.0
             };
             o.push_str(&format!(
-                "  {name:<8} {:>10.2} {:>12.2} ± {:>5.2} {:>+8.2} %\n",
+                "  {name:<8} {:>10.2} {:>16.2} ± {:>5.2} {:>+8.2} %\n",
                 pred, sim.value, sim.ci95, rel
             ));
         }

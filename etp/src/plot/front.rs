@@ -2,8 +2,7 @@
 //! frontier of the front's vertices within the bound, with the constant-δ
 //! baselines, the certified front and the Method 1 front.
 
-use super::register_font;
-use anyhow::{Context, Result, anyhow};
+use anyhow::{Result, anyhow};
 use etp_synthesis::pareto::ParetoFront;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -11,20 +10,18 @@ use std::path::Path;
 
 /// Write the front plot to `stem.png` and `stem.svg`.
 pub fn front_plot(front: &ParetoFront, stem: &Path) -> Result<()> {
-    register_font();
-    let png = stem.with_extension("png");
-    let svg = stem.with_extension("svg");
+    super::png_and_svg(&FrontFigure(front), stem, (1000, 700))
+}
+
+struct FrontFigure<'a>(&'a ParetoFront);
+
+impl super::Figure for FrontFigure<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
     {
-        let root = BitMapBackend::new(&png, (1000, 700)).into_drawing_area();
-        draw_front(&root, front)?;
-        root.present()
-            .with_context(|| format!("writing {}", png.display()))?;
+        draw_front(root, self.0)
     }
-    let root = SVGBackend::new(&svg, (1000, 700)).into_drawing_area();
-    draw_front(&root, front)?;
-    root.present()
-        .with_context(|| format!("writing {}", svg.display()))?;
-    Ok(())
 }
 
 fn draw_front<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, front: &ParetoFront) -> Result<()>

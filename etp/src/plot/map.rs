@@ -2,8 +2,8 @@
 //! trajectories coloured by γ̄(δ) with a colour bar, equal aspect; for d ≥ 3
 //! two projections.
 
-use super::{heat, register_font};
-use anyhow::{Context, Result, anyhow};
+use super::heat;
+use anyhow::{Result, anyhow};
 use etp_shared::episode::Outcome;
 use etp_shared::scenario::Scenario;
 use etp_synthesis::validate::Trajectory;
@@ -16,25 +16,23 @@ use std::path::Path;
 /// in two projections side by side, top view (q₁, q₂) and side view (q₁, q₃),
 /// each named in its caption.
 pub fn map_plot(scenario: &Scenario, trajectories: &[Trajectory], stem: &Path) -> Result<()> {
-    register_font();
-    let png = stem.with_extension("png");
-    let svg = stem.with_extension("svg");
     let size = if scenario.workspace_dim() >= 3 {
         (1800, 800)
     } else {
         (1200, 900)
     };
+    super::png_and_svg(&MapFigure(scenario, trajectories), stem, size)
+}
+
+struct MapFigure<'a>(&'a Scenario, &'a [Trajectory]);
+
+impl super::Figure for MapFigure<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
     {
-        let root = BitMapBackend::new(&png, size).into_drawing_area();
-        draw_maps(&root, scenario, trajectories)?;
-        root.present()
-            .with_context(|| format!("writing {}", png.display()))?;
+        draw_maps(root, self.0, self.1)
     }
-    let root = SVGBackend::new(&svg, size).into_drawing_area();
-    draw_maps(&root, scenario, trajectories)?;
-    root.present()
-        .with_context(|| format!("writing {}", svg.display()))?;
-    Ok(())
 }
 
 fn draw_maps<DB: DrawingBackend>(

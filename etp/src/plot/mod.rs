@@ -1,7 +1,8 @@
 //! Figures (plotters, PNG and SVG): the Pareto front (P_tar vs energy per
 //! bound on P_coll, baselines marked) and the scenario map with sampled
 //! trajectories coloured by the expected rate of the threshold in force (the
-//! paper's Fig. 4). The run report figure is `crate::report_plot`.
+//! paper's Fig. 4). The run report figure is `crate::report_plot`; all three are written by
+//! [`png_and_svg`].
 //!
 //! The font is embedded (DejaVu Sans, see `assets/`), so plots render the same on
 //! a machine without any installed fonts.
@@ -15,7 +16,10 @@ mod map;
 pub use front::front_plot;
 pub use map::map_plot;
 
+use anyhow::{Context, Result};
+use plotters::coord::Shift;
 use plotters::prelude::*;
+use std::path::Path;
 use std::sync::Once;
 
 static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
@@ -27,6 +31,31 @@ pub(crate) fn register_font() {
         // lose text, never the plot.
         let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
     });
+}
+
+/// A figure drawn the same way on any plotters backend (PNG and SVG).
+pub(crate) trait Figure {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static;
+}
+
+/// THE way every figure is written: `stem.png` and `stem.svg`, `size` pixels.
+pub(crate) fn png_and_svg(fig: &impl Figure, stem: &Path, size: (u32, u32)) -> Result<()> {
+    register_font();
+    let png = stem.with_extension("png");
+    {
+        let root = BitMapBackend::new(&png, size).into_drawing_area();
+        fig.draw(&root)?;
+        root.present()
+            .with_context(|| format!("writing {}", png.display()))?;
+    }
+    let svg = stem.with_extension("svg");
+    let root = SVGBackend::new(&svg, size).into_drawing_area();
+    fig.draw(&root)?;
+    root.present()
+        .with_context(|| format!("writing {}", svg.display()))?;
+    Ok(())
 }
 
 /// Blue (low) → red (high) colour map on [0, 1].

@@ -22,26 +22,10 @@ fn run_ok(args: &[&str], threads: &str) -> Vec<u8> {
     out.stdout
 }
 
-/// Is `python3` with SciPy available? Under CI (env `CI` set) it must be.
-fn scipy_available() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import scipy.optimize, scipy.sparse, numpy"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !ok {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "CI is set but python3 with scipy is missing (the independent LP check needs it)"
-        );
-        eprintln!("skipping the independent LP check: python3 with scipy is not installed");
-    }
-    ok
-}
-
 /// The least energy of each query by the independent solver (None: infeasible).
 fn independent(prism: &Path, queries: &[String]) -> Vec<Option<f64>> {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/cli/occupation_lp.py");
-    let out = Command::new("python3")
+    let out = Command::new(crate::pyenv::python())
         .arg(script)
         .arg(prism)
         .args(queries)
@@ -59,9 +43,6 @@ fn independent(prism: &Path, queries: &[String]) -> Vec<Option<f64>> {
 
 #[test]
 fn strategy_energy_agrees_with_an_independent_lp_on_every_scenario() {
-    if !scipy_available() {
-        return;
-    }
     let scratch = Scratch::new("exact-parity");
     for name in ["winding-2d", "open-2d", "superg-3d"] {
         let dir = scratch.path(name);

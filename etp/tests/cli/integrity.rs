@@ -2,7 +2,8 @@
 //! with any flipped bit, a `strategy.json` whose Δ was edited, a scenario
 //! named `../../escape`.
 
-use super::{Scratch, fails_with, ok_json, s};
+use super::{Scratch, etp, fails_with, ok_json, s};
+use etp_shared::strategy::Strategy;
 
 /// A small synthesis of open-2d (`DIR/mdp.bin`, `DIR/strategy.json`).
 fn synthesize(dir: &Scratch) -> std::path::PathBuf {
@@ -63,21 +64,21 @@ fn flipped_bits_in_mdp_bin_and_edited_deltas_are_refused() {
 
     // A strategy whose δ were edited (still well-formed JSON, still a
     // distribution over its thresholds): refused by every reader of
-    // strategies, naming the field, before anything runs.
+    // strategy files before anything runs — its seal no longer matches.
     let strategy = out.join("strategy.json");
-    let mut v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&strategy).expect("strategy")).expect("JSON");
+    let text = std::fs::read_to_string(&strategy).expect("strategy");
+    let mut v: serde_json::Value = serde_json::from_str(&text).expect("JSON");
     v["deltas"][1] = serde_json::json!(3.5);
     let bent = dir.path("bent.json");
-    std::fs::write(&bent, v.to_string()).expect("write");
+    std::fs::write(&bent, serde_json::to_string_pretty(&v).expect("JSON")).expect("write");
     fails_with(
         &["validate", s(&bent), "--episodes", "5"],
-        &["`deltas`", "3.5"],
+        &["changed after it was written", "etp strategy"],
     );
     let rec = dir.path("bent.mcap");
     fails_with(
         &["run", s(&bent), "--episodes", "2", "--record", s(&rec)],
-        &["`deltas`", "3.5"],
+        &["changed after it was written"],
     );
     assert!(!rec.exists(), "nothing was started");
     // The unedited strategy still validates.
@@ -141,21 +142,100 @@ fn walk(root: std::path::PathBuf) -> Vec<std::path::PathBuf> {
 #[test]
 fn an_edited_strategy_is_refused_by_etp_run_and_validate_with_a_builtin() {
     // The same refusal for a strategy without an embedded scenario text
-    // (looked up among the built-ins): `etp run --scenario` path too.
+    // (looked up among the built-ins): `etp run --scenario` path too. A
+    // file re-sealed after the edit (forged) still meets the Δ check.
     let dir = Scratch::new("integrity-builtin");
     let out = synthesize(&dir);
-    let mut v: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(out.join("strategy.json")).expect("strategy"),
-    )
-    .expect("JSON");
-    v["scenario_toml"] = serde_json::Value::Null;
-    let n = v["deltas"].as_array().map_or(0, Vec::len);
-    v["deltas"][n - 1] = serde_json::json!(3.5);
+    let text = std::fs::read_to_string(out.join("strategy.json")).expect("strategy");
+    let mut st = Strategy::from_sealed_json(&text).expect("sealed");
+    st.scenario_toml = None;
+    let n = st.deltas.len();
+    st.deltas[n - 1] = 3.5;
     let bent = dir.path("bent.json");
-    std::fs::write(&bent, v.to_string()).expect("write");
+    std::fs::write(&bent, st.to_json()).expect("write");
     fails_with(&["validate", s(&bent)], &["`deltas`"]);
     fails_with(
         &["run", s(&bent), "--scenario", "open-2d", "--episodes", "1"],
         &["`deltas`"],
+    );
+}
+
+/// Issue 24 item 4: every field of `strategy.json` is covered by its seal
+/// (`scenario_name`, `predicted`, `leg_energy`, …: exit 1 naming what to
+/// do); a file without the seal is refused the same way; and `etp validate`
+/// exits 6 when a check FAILS, after printing the report.
+#[test]
+fn every_field_of_a_strategy_is_sealed_and_a_failing_check_exits_6() {
+    let dir = Scratch::new("integrity-seal");
+    let out = synthesize(&dir);
+    let path = out.join("strategy.json");
+    let text = std::fs::read_to_string(&path).expect("strategy");
+    let v: serde_json::Value = serde_json::from_str(&text).expect("JSON");
+    let p_target = v["predicted"]["p_target"].to_string();
+    let first_leg = v["leg_energy"][0].to_string();
+    for (from, to) in [
+        (
+            "\"scenario_name\": \"open-2d\"".to_string(),
+            "\"scenario_name\": \"winding-2d\"".to_string(),
+        ),
+        (
+            format!("\"p_target\": {p_target}"),
+            "\"p_target\": 0.5".to_string(),
+        ),
+        (
+            format!("\"leg_energy\": [\n    {first_leg}"),
+            "\"leg_energy\": [\n    0.0".to_string(),
+        ),
+    ] {
+        assert!(text.contains(&from), "{from}");
+        let edited = dir.path("edited.json");
+        std::fs::write(&edited, text.replacen(&from, &to, 1)).expect("write");
+        let o = etp(&["validate", s(&edited), "--episodes", "5"]);
+        assert_eq!(o.status.code(), Some(1), "{from}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            err.contains("changed after it was written") && err.contains("etp strategy"),
+            "{from}: {err}"
+        );
+    }
+    // Written before the seal: refused, saying what to do.
+    let unsealed = dir.path("unsealed.json");
+    let old = text[..text.rfind(",\n  \"content_sha256\"").expect("seal")].to_string() + "\n}";
+    std::fs::write(&unsealed, old).expect("write");
+    fails_with(
+        &["validate", s(&unsealed), "--episodes", "5"],
+        &["no `content_sha256`", "etp strategy"],
+    );
+    // A sealed strategy whose prediction is far from what it does: the
+    // report is printed, then exit 6 naming the failing check.
+    let mut st = Strategy::from_sealed_json(&text).expect("sealed");
+    st.predicted.p_target = if st.predicted.p_target > 0.5 {
+        0.05
+    } else {
+        0.95
+    };
+    let wrong = dir.path("wrong.json");
+    std::fs::write(&wrong, st.to_json()).expect("write");
+    let o = etp(&["validate", s(&wrong), "--episodes", "300", "--json"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(6), "{err}");
+    assert!(err.contains("selection-time P_tar"), "{err}");
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).expect("report first");
+    assert!(
+        report["checks"]
+            .as_array()
+            .expect("checks")
+            .iter()
+            .any(|c| c["holds"] == false)
+    );
+    let help = String::from_utf8_lossy(&etp(&["validate", "--help"]).stdout).into_owned();
+    assert!(
+        help.contains("Exit codes") && help.contains("6 a check FAILS"),
+        "{help}"
+    );
+    let help = String::from_utf8_lossy(&etp(&["run", "--help"]).stdout).into_owned();
+    assert!(
+        help.contains("Exit codes") && help.contains("4 an accounting"),
+        "{help}"
     );
 }

@@ -1,13 +1,18 @@
 //! End-to-end tests of the `etp` binary (one integration-test binary per crate;
 //! one module per area).
 
+#[path = "../../../tests/src/pyenv.rs"]
+mod pyenv;
+
 mod certified;
 mod exact;
 mod integrity;
 mod pipeline;
 mod replay;
+mod replay_subcommands;
 mod replay_tools;
 mod run_config;
+mod scenario_random;
 mod schemas;
 mod synthesize;
 
@@ -224,4 +229,57 @@ fn piped_progress_prints_lines() {
         "{}",
         String::from_utf8_lossy(&quiet.stderr)
     );
+}
+
+/// A lossy radio (docs/MODEL.md §8): attempts add up, the counts are per
+/// sensor, and the options are checked with their names.
+#[test]
+fn simulate_with_a_lossy_radio_counts_attempts_and_names_bad_options() {
+    let base = [
+        "simulate",
+        "winding-2d",
+        "--delta",
+        "1.4986",
+        "--episodes",
+        "300",
+        "--seed",
+        "2",
+        "--json",
+    ];
+    let ideal = ok_json(&base);
+    assert_eq!(ideal["radio"], "ideal");
+    assert_eq!(ideal["lost"], 0);
+    assert_eq!(ideal["transmissions"], ideal["delivered"]);
+    assert_eq!(ideal["transmissions"], ideal["triggers"]);
+    let mut args = base.to_vec();
+    args.extend(["--loss", "0.3", "--retries", "1"]);
+    let v = ok_json(&args);
+    let n = |v: &serde_json::Value, k: &str| v[k].as_u64().unwrap_or(u64::MAX);
+    assert_eq!(n(&v, "transmissions"), n(&v, "delivered") + n(&v, "lost"));
+    assert!(n(&v, "lost") > 0 && n(&v, "delivered") <= n(&v, "triggers"));
+    assert!(
+        v["radio"]
+            .as_str()
+            .unwrap_or("")
+            .contains("loss 0.3, retries 1")
+    );
+    assert!(v["nees"].as_f64().is_some_and(|x| x > 0.0));
+    let mut sum = 0;
+    for s in v["sensors"].as_array().expect("sensors") {
+        assert_eq!(n(s, "transmissions"), n(s, "delivered") + n(s, "lost"));
+        sum += n(s, "lost");
+    }
+    assert_eq!(sum, n(&v, "lost"));
+    for (opt, val) in [("--loss", "1.0"), ("--retries", "-1"), ("--burst", "0.5")] {
+        let mut args = base.to_vec();
+        args.extend(["--loss", "0.2", opt, val]);
+        if opt == "--loss" {
+            args.truncate(base.len());
+            args.extend([opt, val]);
+        }
+        fails_with(&args, &[opt]);
+    }
+    let mut args = base.to_vec();
+    args.extend(["--estimator", "smart"]);
+    fails_with(&args, &["--estimator"]);
 }

@@ -169,11 +169,21 @@ fn pipeline_predicts_what_simulation_measures_and_refuses_bad_files() {
         &["--min-target"],
     );
 
-    // A strategy whose embedded scenario was edited: hash mismatch.
+    // A strategy whose embedded scenario was edited: the file's seal no
+    // longer matches; re-sealed (forged), the scenario hash still refuses it.
     let text = String::from_utf8(before.clone()).expect("utf-8");
     let tampered = text.replacen("k_max = 200", "k_max = 150", 1);
     assert_ne!(tampered, text, "strategy embeds the scenario text");
     std::fs::write(dir.path("tampered.json"), tampered).expect("write");
+    fails_with(
+        &["validate", s(&dir.path("tampered.json"))],
+        &["changed after it was written"],
+    );
+    let mut forged = etp_shared::strategy::Strategy::from_sealed_json(&text).expect("sealed");
+    forged.scenario_toml = forged
+        .scenario_toml
+        .map(|t| t.replacen("k_max = 200", "k_max = 150", 1));
+    std::fs::write(dir.path("tampered.json"), forged.to_json()).expect("write");
     fails_with(
         &["validate", s(&dir.path("tampered.json"))],
         &["made for scenario", "hash"],

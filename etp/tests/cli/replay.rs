@@ -42,7 +42,7 @@ fn a_truncated_recording_is_summarised_with_exit_code_3() {
     assert!(v["messages"].as_u64() > Some(100), "{v}");
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("unfinished") && err.contains("--repair"),
+        err.contains("unfinished") && err.contains("replay repair"),
         "{err}"
     );
 
@@ -299,7 +299,7 @@ fn a_corrupted_recording_is_refused_unless_salvaged() {
         }
         let f = dir.path(&format!("bad-{at}.mcap"));
         std::fs::write(&f, &bad).expect("write");
-        fails_with(&["replay", s(&f)], &["is damaged", "--repair"]);
+        fails_with(&["replay", s(&f)], &["is damaged", "replay repair"]);
         let salvaged = dir.path(&format!("salvaged-{at}.mcap"));
         ok_json(&["replay", s(&f), "--repair", s(&salvaged), "--json"]);
         let v = ok_json(&["replay", s(&salvaged), "--json"]);

@@ -193,7 +193,7 @@ fn cat_prints_every_message_decoded_with_names() {
         .args([
             "-c",
             &format!(
-                "{} replay {} --cat | head -1",
+                "{} replay cat {} | head -1",
                 env!("CARGO_BIN_EXE_etp"),
                 s(&f)
             ),
@@ -205,16 +205,6 @@ fn cat_prints_every_message_decoded_with_names() {
         "{}",
         String::from_utf8_lossy(&sh.stderr)
     );
-}
-
-/// Is `python3` there? Under CI it must be.
-fn python() -> bool {
-    let ok = Command::new("python3")
-        .arg("--version")
-        .output()
-        .is_ok_and(|o| o.status.success());
-    assert!(ok || std::env::var_os("CI").is_none(), "CI without python3");
-    ok
 }
 
 /// Per-sensor measurement rows and outcomes of an export, read by Python's
@@ -242,7 +232,7 @@ manifest = json.load(open(os.path.join(d, "tables.json")))
 print(json.dumps({"per_sensor": per_sensor, "outcomes": outcomes, "ledger": ledger,
                   "tables": len(manifest["tables"])}))
 "#;
-    let out = Command::new("python3")
+    let out = Command::new(crate::pyenv::python())
         .args(["-c", script, s(dir), format])
         .output()
         .expect("python3");
@@ -305,10 +295,6 @@ fn export_tables_read_by_python_match_the_run_report() {
         "jsonl",
         "--json",
     ]);
-    if !python() {
-        eprintln!("SKIPPED the Python check: no python3");
-        return;
-    }
     for (d, fmt) in [(&out, "csv"), (&jl, "jsonl")] {
         let py = python_counts(d, fmt);
         for sensor in report["sensors"].as_array().expect("sensors") {
@@ -367,10 +353,10 @@ fn replay_plot_draws_measured_against_predicted() {
     let f = dir.path("run.mcap");
     std::fs::copy(fixture(), &f).expect("copy fixture");
     let v = ok_json(&["replay", s(&f), "--plot", "--json"]);
-    let png = dir.path("run-report.png");
+    let png = dir.path("run-replay.png");
     assert_eq!(v["plot"].as_str(), Some(s(&png)));
     assert!(std::fs::metadata(&png).expect("png").len() > 10_000);
-    let svg = std::fs::read_to_string(dir.path("run-report.svg")).expect("svg");
+    let svg = std::fs::read_to_string(dir.path("run-replay.svg")).expect("svg");
     for needle in [
         "s0",
         "s4",
@@ -384,7 +370,7 @@ fn replay_plot_draws_measured_against_predicted() {
     let before = std::fs::read(&png).expect("png");
     fails_with(
         &["replay", s(&f), "--plot"],
-        &["run-report", "already exists", "--force"],
+        &["run-replay", "already exists", "--force"],
     );
     assert_eq!(std::fs::read(&png).expect("png"), before);
 }
@@ -394,15 +380,6 @@ fn replay_plot_draws_measured_against_predicted() {
 /// (sizes agree), and the values are those `--cat` prints.
 #[test]
 fn schema_text_unpacks_every_message_in_python() {
-    let ok = Command::new("python3")
-        .args(["-c", "import mcap"])
-        .status()
-        .is_ok_and(|st| st.success());
-    if !ok {
-        assert!(std::env::var_os("CI").is_none(), "CI without python mcap");
-        eprintln!("SKIPPED: python3 has no `mcap` package");
-        return;
-    }
     let script = r#"
 import sys, json, re, struct
 from mcap.reader import make_reader
@@ -418,7 +395,7 @@ with open(sys.argv[1], "rb") as f:
 print(json.dumps({"sizes": sizes, "first": first}))
 "#;
     let f = fixture();
-    let out = Command::new("python3")
+    let out = Command::new(crate::pyenv::python())
         .args(["-c", script, s(&f)])
         .output()
         .expect("python3");

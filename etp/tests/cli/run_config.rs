@@ -45,7 +45,20 @@ fn a_run_file_runs_flags_win_and_the_recording_keeps_it() {
     assert_eq!(parsed["episodes"].as_integer(), Some(1), "{config}");
     assert_eq!(parsed["seed"].as_integer(), Some(9), "{config}");
     assert_eq!(parsed["scenario"].as_str(), Some("open-2d"), "{config}");
-    assert_eq!(parsed["run_id"].as_str(), Some(run_id.as_str()), "{config}");
+    // Stored to run again from anywhere as a new run: no run id (this
+    // run's id is in `etp.run`), the recording's path absolute.
+    assert!(parsed.get("run_id").is_none(), "{config}");
+    assert_eq!(
+        manifest["metadata"]["etp.run"]["run_id"].as_str(),
+        Some(run_id.as_str()),
+        "{manifest}"
+    );
+    let stored = std::path::PathBuf::from(parsed["record"].as_str().expect("record"));
+    assert!(stored.is_absolute(), "{config}");
+    assert_eq!(
+        stored.canonicalize().expect("stored path"),
+        rec.canonicalize().expect("recording")
+    );
     // Refusals name the file and the key; nothing runs.
     std::fs::write(&file, "scenario = \"open-2d\"\nepisodez = 3\n").expect("run file");
     fails_with(&["run", "--config", s(&file)], &["run.toml", "episodez"]);

@@ -74,6 +74,44 @@ fn synthesize_writes_refuses_overwrite_and_exports_prism() {
     assert_eq!(tra.lines().next().map(|l| l.split(' ').count()), Some(3));
     let refused = etp(&["export-prism", s(&dir), s(&out)], "2");
     assert!(!refused.status.success());
+
+    // Issue 24 item 10: a strategy and a PRISM export of the old MDP do not
+    // stay beside a front that --force replaced: they are moved (not
+    // deleted) into stale-<secs>/, and the command says so.
+    let st = etp(&["strategy", s(&dir), "--vertex", "0"], "1");
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let old_strategy = std::fs::read(dir.join("strategy.json")).expect("strategy.json");
+    let again = etp(&forced, "2");
+    assert!(
+        again.status.success(),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(
+        err.contains("strategy.json, prism") && err.contains("stale-"),
+        "{err}"
+    );
+    assert!(!dir.join("strategy.json").exists() && !out.exists());
+    let stale: Vec<_> = std::fs::read_dir(&dir)
+        .expect("dir")
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| {
+            p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with("stale-"))
+        })
+        .collect();
+    assert_eq!(stale.len(), 1, "{stale:?}");
+    assert_eq!(
+        std::fs::read(stale[0].join("strategy.json")).expect("moved"),
+        old_strategy
+    );
+    assert!(stale[0].join("prism/model.tra").is_file());
     let _ = std::fs::remove_dir_all(&dir);
 }
 

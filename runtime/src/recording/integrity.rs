@@ -141,13 +141,14 @@ mod tests {
             let e = check_metadata(&c).expect_err("edited scenario").to_string();
             assert!(e.contains("scenario hash mismatch"), "{e}");
         }
-        // A strategy whose Δ was edited.
+        // A strategy whose Δ was edited: its seal (`content_sha256`, the
+        // hash of the whole file) refuses it before any field is compared.
         let bent = st.replacen("1.0518", "3.5", 1);
         assert_ne!(bent, st);
         let e = check_metadata(&contents(text, None, Some(bent)))
             .expect_err("edited deltas")
             .to_string();
-        assert!(e.contains("deltas"), "{e}");
+        assert!(e.contains("content_sha256"), "{e}");
         // No scenario at all: nothing to check, unless something names one.
         assert!(
             check_metadata(&Contents::default())

@@ -31,7 +31,7 @@ mod verify;
 
 pub use integrity::{META_RUN_SCENARIO_HASH, check_metadata};
 pub use layout::{ChunkStats, Layout, layout};
-pub use read::{Contents, RawMessage, read_lenient};
+pub use read::{Contents, RawMessage, ends_finished, read_lenient, stream_finished};
 pub use verify::{Mismatch, PriorTable, VerifyReport, priors, verify};
 
 /// Version of this format (metadata `etp.run` / `format_version`). 3: the

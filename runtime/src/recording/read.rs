@@ -20,6 +20,9 @@ pub struct Contents {
     pub channels: BTreeMap<String, String>,
     /// Schema name → schema encoding.
     pub schemas: BTreeMap<String, String>,
+    /// Channel topic → message encoding (`bincode2-serde-legacy` in etp's
+    /// own recordings; `json`, `protobuf`, … in other MCAP files).
+    pub encodings: BTreeMap<String, String>,
     pub messages: Vec<RawMessage>,
     /// True when the file ends with a footer and the end magic.
     pub finished: bool,
@@ -52,6 +55,9 @@ impl Contents {
 /// 1 MiB; the bound keeps a corrupted length from asking for terabytes.
 const RECORD_LIMIT: usize = 256 << 20;
 
+/// Largest single read into the record reader's buffer.
+const READ_STEP: usize = 1 << 20;
+
 /// The records of an MCAP file, chunks flattened, with every length bounded
 /// by [`RECORD_LIMIT`] and chunk CRCs checked.
 ///
@@ -59,27 +65,29 @@ const RECORD_LIMIT: usize = 256 << 20;
 /// record length inside a chunk made it reserve an impossible buffer and
 /// panic (found by the `mcap_read` fuzz target); this is the same loop over
 /// the sans-io reader with the limit set.
-struct Records<'a> {
-    buf: &'a [u8],
+struct Records<R> {
+    src: R,
     reader: mcap::sans_io::LinearReader,
 }
 
-impl<'a> Records<'a> {
-    fn new(buf: &'a [u8]) -> Self {
+impl<R: std::io::Read> Records<R> {
+    /// Records of `src` (a byte slice, or a file read as it goes), no record
+    /// longer than `max(RECORD_LIMIT, size)`.
+    fn new(src: R, size: usize) -> Self {
         let options = mcap::sans_io::LinearReaderOptions::default()
             .with_skip_end_magic(true)
             .with_validate_chunk_crcs(true)
             .with_validate_data_section_crc(true)
             .with_validate_summary_section_crc(true)
-            .with_record_length_limit(RECORD_LIMIT.max(buf.len()));
+            .with_record_length_limit(RECORD_LIMIT.max(size));
         Self {
-            buf,
+            src,
             reader: mcap::sans_io::LinearReader::new_with_options(options),
         }
     }
 }
 
-impl Iterator for Records<'_> {
+impl<R: std::io::Read> Iterator for Records<R> {
     type Item = Result<mcap::records::Record<'static>, mcap::McapError>;
 
     fn next(&mut self) -> Option<Self::Item> {
@@ -87,10 +95,13 @@ impl Iterator for Records<'_> {
         while let Some(event) = self.reader.next_event() {
             match event {
                 Ok(LinearReadEvent::ReadRequest(need)) => {
-                    let len = need.min(self.buf.len());
-                    self.reader.insert(len).copy_from_slice(&self.buf[..len]);
-                    self.reader.notify_read(len);
-                    self.buf = &self.buf[len..];
+                    // The reader may ask for far more than the next record
+                    // (up to its length limit); a short read is allowed, and
+                    // asking for 1 MiB at most keeps its buffer that small.
+                    match self.src.read(self.reader.insert(need.min(READ_STEP))) {
+                        Ok(n) => self.reader.notify_read(n),
+                        Err(e) => return Some(Err(e.into())),
+                    }
                 }
                 Ok(LinearReadEvent::Record { data, opcode }) => {
                     return Some(mcap::parse_record(opcode, data).map(|r| r.into_owned()));
@@ -202,7 +213,6 @@ fn framing(buf: &[u8]) -> Framing {
 /// channel, a finished file (end magic) whose records do not add up, or a
 /// footer without a data-end record.
 pub fn read_lenient(name: &str, buf: &[u8]) -> Result<Contents, RecordingError> {
-    use mcap::records::Record;
     if buf.len() < 8 || &buf[..8] != mcap::MAGIC {
         return Err(RecordingError::NotMcap(
             name.into(),
@@ -228,7 +238,73 @@ pub fn read_lenient(name: &str, buf: &[u8]) -> Result<Contents, RecordingError> 
             buf
         }
     };
-    let reader = Records::new(readable);
+    let mut messages = Vec::new();
+    let footer = collect(
+        Records::new(readable, buf.len()),
+        &mut out,
+        |m| -> Result<(), RecordingError> {
+            messages.push(m);
+            Ok(())
+        },
+    )?;
+    out.messages = messages;
+    out.finished = footer && !out.damaged && ends_with_magic;
+    Ok(out)
+}
+
+/// Does the file at `path` start and end with the MCAP magic (a finished
+/// file, unless damaged)?
+pub fn ends_finished(path: &std::path::Path) -> std::io::Result<bool> {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut f = std::fs::File::open(path)?;
+    let len = f.metadata()?.len();
+    if len < 16 {
+        return Ok(false);
+    }
+    let (mut head, mut tail) = ([0u8; 8], [0u8; 8]);
+    f.read_exact(&mut head)?;
+    f.seek(SeekFrom::End(-8))?;
+    f.read_exact(&mut tail)?;
+    Ok(head == *mcap::MAGIC && tail == *mcap::MAGIC)
+}
+
+/// Read a finished recording from disk one chunk at a time, handing every
+/// message to `on_message` in file order instead of keeping it: memory does
+/// not grow with the recording's length. The returned [`Contents`] holds
+/// everything but the messages. A record that fails a check stops the
+/// stream and marks the file damaged (as [`read_lenient`] does).
+pub fn stream_finished<E: From<RecordingError>>(
+    path: &std::path::Path,
+    on_message: impl FnMut(RawMessage) -> Result<(), E>,
+) -> Result<Contents, E> {
+    let name = path.display().to_string();
+    let io = |e: std::io::Error| RecordingError::NotMcap(name.clone(), e.to_string());
+    let file = std::fs::File::open(path).map_err(io)?;
+    let size = file.metadata().map_err(io)?.len();
+    let mut src = std::io::BufReader::new(file);
+    let mut magic = [0u8; 8];
+    std::io::Read::read_exact(&mut src, &mut magic).map_err(io)?;
+    if magic != *mcap::MAGIC {
+        return Err(RecordingError::NotMcap(name, "no MCAP magic at the start".into()).into());
+    }
+    let mut out = Contents::default();
+    let records = Records::new(
+        std::io::Read::chain(mcap::MAGIC, src),
+        usize::try_from(size).unwrap_or(usize::MAX),
+    );
+    let footer = collect(records, &mut out, on_message)?;
+    out.finished = footer && !out.damaged;
+    Ok(out)
+}
+
+/// Fold the records into `out`, messages to `on_message`; true when the
+/// footer was read.
+fn collect<E: From<RecordingError>>(
+    reader: impl Iterator<Item = Result<mcap::records::Record<'static>, mcap::McapError>>,
+    out: &mut Contents,
+    mut on_message: impl FnMut(RawMessage) -> Result<(), E>,
+) -> Result<bool, E> {
+    use mcap::records::Record;
     let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
     let mut topics: BTreeMap<u16, String> = BTreeMap::new();
     let mut data_end = false;
@@ -252,6 +328,8 @@ pub fn read_lenient(name: &str, buf: &[u8]) -> Result<Contents, RecordingError> 
             Record::Channel(c) => {
                 let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
                 out.channels.insert(c.topic.clone(), schema);
+                out.encodings
+                    .insert(c.topic.clone(), c.message_encoding.clone());
                 topics.insert(c.id, c.topic);
             }
             Record::Message { header, data } => {
@@ -263,11 +341,11 @@ pub fn read_lenient(name: &str, buf: &[u8]) -> Result<Contents, RecordingError> 
                     out.damaged = true;
                     break;
                 };
-                out.messages.push(RawMessage {
+                on_message(RawMessage {
                     topic: topic.clone(),
                     log_time: header.log_time,
                     data: data.into_owned(),
-                });
+                })?;
             }
             Record::Metadata(m) => {
                 out.metadata.insert(m.name, m.metadata);
@@ -281,8 +359,7 @@ pub fn read_lenient(name: &str, buf: &[u8]) -> Result<Contents, RecordingError> 
         out.damaged = true;
         out.truncated = Some("the file has a footer but no data-end record".into());
     }
-    out.finished = footer && !out.damaged && ends_with_magic;
-    Ok(out)
+    Ok(footer)
 }
 
 #[cfg(test)]

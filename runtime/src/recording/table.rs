@@ -10,7 +10,8 @@
 //! `agent`, flags as booleans). The first column is `log_time_ns`.
 
 use super::{Kind, Recorded};
-use crate::wire::catalogue::{Field, HEADER_NAMES, Named, Scalar};
+use crate::wire::catalogue::{HEADER_NAMES, Named};
+use crate::wire::schema::{Field, Scalar};
 use crate::wire::{
     ControlKind, MAX_DIM, OutcomeCode, SENDER_AGENT, SENDER_COORDINATOR, ThresholdKind,
 };
@@ -93,6 +94,8 @@ struct Source {
     index: Vec<usize>,
     scalar: Scalar,
     named: Option<Named>,
+    /// The run hash (`header.run`), written as decimal text.
+    hash: bool,
 }
 
 /// The table layout of one kind.
@@ -182,15 +185,23 @@ impl Table {
                 for i in &index {
                     name.push_str(&format!("_{i}"));
                 }
+                // The run's 64-bit hash as text: a JSON number past 2^53
+                // loses digits in jq and JavaScript.
+                let hash = full == "header.run";
                 columns.push(Column {
                     name,
-                    ty: column_type(f.scalar, named),
+                    ty: if hash {
+                        ColumnType::Text
+                    } else {
+                        column_type(f.scalar, named)
+                    },
                 });
                 sources.push(Source {
                     path: f.path.clone(),
                     index,
                     scalar: f.scalar,
                     named,
+                    hash,
                 });
             }
         }
@@ -245,6 +256,9 @@ impl Table {
 
 fn cell(v: &Value, s: &Source, names: &Names) -> Cell {
     let code = v.as_u64();
+    if s.hash {
+        return code.map_or(Cell::Null, |x| Cell::Text(x.to_string()));
+    }
     match (s.named, code) {
         (Some(Named::Flag), Some(c)) => Cell::Bool(c != 0),
         (Some(Named::ControlKind), Some(c)) => named_code(c, |c| {

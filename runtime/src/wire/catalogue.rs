@@ -1,22 +1,34 @@
-//! THE message catalogue: every payload of the runtime declared once — its
-//! kind, its Rust type, the process that publishes it — and everything else
-//! derived from that one list: the [`Kind`] enum, the decoded [`Recorded`]
-//! union, typed dispatch over kinds ([`KindVisitor`]), the schema text of a
-//! recording (field names and types traced from the type itself, so it cannot
-//! drift from the struct), and which kind each service carries
-//! ([`ServiceId::kind`], topics in [`ServiceId::topic`] /
-//! [`ServiceId::from_topic`]).
+//! THE message catalogue: one row per payload of the runtime, and
+//! everything about a message derived from its row.
 //!
-//! Adding a message is one line in the `catalogue!` invocation below (plus
-//! its struct in [`super::messages`] and, if it gets a service of its own, a
-//! [`ServiceId`] variant).
+//! A row holds every column of a message: its kind and Rust type, its topic
+//! pattern (`{sensor}` in it makes the service per-sensor: one service per
+//! sensor, so idle sensors are never woken), the process that publishes it
+//! (`owner`) and the one that reads it (`reader`, whose wake-up event a
+//! publication notifies), its limits class, its link class (radio, plumbing
+//! or local), whether it is recorded, whether and in which causal rank it is
+//! forwarded for a remote sensor (down: agent host → sensor host; up: the
+//! reverse), and the codes and named fields of its schema.
+//!
+//! Derived from the rows: the [`Kind`] enum, the decoded [`Recorded`] union,
+//! typed dispatch over kinds ([`KindVisitor`]), the [`ServiceId`] enum (one
+//! variant per row, `(usize)` for a per-sensor one, plus the three wake-up
+//! events) with its topic, reader wake-up, kind, limits, link class and
+//! forwarding (`super::services`, `super::limits`, `super::traffic`), the
+//! recorder's subscriptions ([`ServiceId::recorded`]), the bridge's
+//! forwarding lists ([`ServiceId::forwarded`]) and the schema text of a
+//! recording (`super::schema`).
+//!
+//! **Adding a message is one struct in [`super::messages`] and one row
+//! below.** A row lacking a column does not compile (the macro requires
+//! every column, in order); a per-sensor reader of a shared message, or a
+//! forwarded message that is not on the sensor link, fails a `const` check.
 
 use super::messages::{
     Header, agent_to_coordinator as a2c, agent_to_sensor as a2s, coordinator_to_agent as c2a,
     coordinator_to_all as c2all, sensor_to_agent as s2a, sensor_to_coordinator as s2c,
     to_coordinator as tc,
 };
-use super::services::ServiceId;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::Serialize;
 use serde::de::DeserializeOwned;
@@ -41,101 +53,410 @@ pub trait KindVisitor {
     fn visit<T: Message>(self) -> Self::Out;
 }
 
+/// A process of a run (a message's owner or reader).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Process {
+    Coordinator,
+    Agent,
+    Sensor,
+    /// Every process (only as an owner: `hello`).
+    Any,
+}
+
+impl Process {
+    /// `coordinator`, `agent`, `sensor`, `any` (the schema text's "published by").
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Coordinator => "coordinator",
+            Self::Agent => "agent",
+            Self::Sensor => "sensor",
+            Self::Any => "any",
+        }
+    }
+}
+
+/// How many ports, nodes and buffered samples a message's service allows
+/// (`super::limits` turns a class into numbers for a run's sensor count).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LimitsClass {
+    /// One publisher, one reader (plus observers); the reader's buffer.
+    OneToOne(usize),
+    /// One publisher, read by its sensor and by the agent; the buffer.
+    OneToTwo(usize),
+    /// Published by every sensor, one reader; the buffer.
+    FromSensors(usize),
+    /// Published once by every process; late readers get the history.
+    Announce,
+}
+
+/// What a message is on the sensor link (a deployment's view).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Class {
+    /// Transmitted by a real sensor network.
+    Radio,
+    /// Stands in for the physical world or drives the simulation.
+    Plumbing,
+}
+
+/// Direction relative to the sensor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Direction {
+    /// Agent host → sensor.
+    Down,
+    /// Sensor → agent host.
+    Up,
+}
+
+/// The link class column: radio, plumbing, or never on a sensor link.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Link {
+    Radio,
+    Plumbing,
+    /// Between the agent and the coordinator: never crosses hosts.
+    Local,
+}
+
+impl Link {
+    pub const fn class(self) -> Option<Class> {
+        match self {
+            Self::Radio => Some(Class::Radio),
+            Self::Plumbing => Some(Class::Plumbing),
+            Self::Local => None,
+        }
+    }
+}
+
+/// The forwarding column: which way a bridge carries the message for a
+/// remote sensor, and its causal rank in that direction (a bridge drains
+/// lower ranks first: a message is put after those it may depend on).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Forward {
+    Down(u8),
+    Up(u8),
+    /// Not forwarded.
+    Local,
+}
+
+impl Forward {
+    /// The direction and the rank.
+    pub const fn direction(self) -> Option<(Direction, u8)> {
+        match self {
+            Self::Down(r) => Some((Direction::Down, r)),
+            Self::Up(r) => Some((Direction::Up, r)),
+            Self::Local => None,
+        }
+    }
+}
+
+/// One row of the catalogue: every column of one message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Row {
+    pub kind: Kind,
+    /// The topic within the run (`etp/<run-id>/<topic>`, also the
+    /// recording's channel topic); `{sensor}` stands for the sensor's index.
+    pub topic: &'static str,
+    /// One service per sensor (`ServiceId::Kind(i)`), or one for the run.
+    pub per_sensor: bool,
+    /// The process that publishes it.
+    pub owner: Process,
+    /// The process that reads it: its wake-up event is notified after a
+    /// publication (a sensor's own, for a per-sensor message).
+    pub reader: Process,
+    pub limits: LimitsClass,
+    pub link: Link,
+    /// The recorder subscribes to it.
+    pub recorded: bool,
+    pub forward: Forward,
+    /// Fields whose numbers stand for names (`replay --export`, `cat`).
+    pub named: &'static [(&'static str, Named)],
+    /// What the numeric codes of its fields mean (schema text).
+    pub codes: &'static str,
+}
+
+/// `(usize)` of a per-sensor [`ServiceId`] variant.
+macro_rules! sensor_index {
+    ($sensor:ident) => {
+        usize
+    };
+}
+
+/// A wildcard pattern for a per-sensor variant's index.
+macro_rules! any_index {
+    ($sensor:ident) => {
+        _
+    };
+}
+
+/// Whether a row is per-sensor.
+macro_rules! is_per_sensor {
+    () => {
+        false
+    };
+    ($sensor:ident) => {
+        true
+    };
+}
+
+/// `Some(index)` of a per-sensor variant, `None` of a shared one.
+macro_rules! index_of {
+    () => {
+        None
+    };
+    ($sensor:ident) => {
+        Some($sensor)
+    };
+}
+
+/// The service of a row for an optional sensor index (`None` on a mismatch).
+macro_rules! service_of {
+    ($variant:path, $index:ident) => {
+        match $index {
+            None => Some($variant),
+            Some(_) => None,
+        }
+    };
+    ($variant:path, $index:ident, $sensor:ident) => {
+        $index.map($variant)
+    };
+}
+
 macro_rules! catalogue {
-    ($( $kind:ident => $ty:ty, owner $owner:literal,
-        names [ $( $field:literal : $named:ident ),* ], codes $codes:literal; )*) => {
+    ($(
+        $(#[cfg($cfg:meta)])?
+        $kind:ident $( ($sensor:ident) )? => $ty:ty {
+            topic: $topic:literal,
+            owner: $owner:ident,
+            reader: $reader:ident,
+            limits: $limits:ident $( ($buffer:expr) )?,
+            link: $link:ident,
+            recorded: $recorded:literal,
+            forward: $forward:ident $( ($rank:literal) )?,
+            names: [ $( $field:literal : $named:ident ),* ],
+            codes: $codes:literal $(,)?
+        }
+    )*) => {
         /// The kind of a payload (one per message type).
         #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-        pub enum Kind { $( $kind, )* }
+        pub enum Kind { $( $(#[cfg($cfg)])? $kind, )* }
 
         impl Kind {
             /// Every kind, in catalogue order.
-            pub const ALL: &'static [Kind] = &[ $( Kind::$kind, )* ];
+            pub const ALL: &'static [Kind] = &[ $( $(#[cfg($cfg)])? Kind::$kind, )* ];
 
             /// The schema name (the iceoryx2 type name `etp::<Kind>`).
             pub fn schema_name(self) -> &'static str {
-                match self { $( Kind::$kind => concat!("etp::", stringify!($kind)), )* }
+                match self { $( $(#[cfg($cfg)])? Kind::$kind => concat!("etp::", stringify!($kind)), )* }
             }
 
-            /// The process that publishes this kind.
-            pub fn owner(self) -> &'static str {
-                match self { $( Kind::$kind => $owner, )* }
-            }
-
-            /// What the numeric codes of this kind's fields mean.
-            pub fn codes(self) -> &'static str {
-                match self { $( Kind::$kind => $codes, )* }
-            }
-
-            /// The fields of this kind whose numbers stand for names (the
-            /// header's `sender` aside: see [`HEADER_NAMES`]).
-            pub fn named_fields(self) -> &'static [(&'static str, Named)] {
-                match self { $( Kind::$kind => &[ $( ($field, Named::$named), )* ], )* }
+            /// Its row of the catalogue.
+            pub const fn row(self) -> &'static Row {
+                match self {
+                    $( $(#[cfg($cfg)])? Kind::$kind => {
+                        const ROW: Row = Row {
+                        kind: Kind::$kind,
+                        topic: $topic,
+                        per_sensor: is_per_sensor!($($sensor)?),
+                        owner: Process::$owner,
+                        reader: Process::$reader,
+                        limits: LimitsClass::$limits $( ($buffer) )?,
+                        link: Link::$link,
+                        recorded: $recorded,
+                        forward: Forward::$forward $( ($rank) )?,
+                        named: &[ $( ($field, Named::$named), )* ],
+                        codes: $codes,
+                        };
+                        &ROW
+                    } )*
+                }
             }
 
             /// Run `v` with the Rust type of this kind.
             pub fn visit<V: KindVisitor>(self, v: V) -> V::Out {
-                match self { $( Kind::$kind => v.visit::<$ty>(), )* }
+                match self { $( $(#[cfg($cfg)])? Kind::$kind => v.visit::<$ty>(), )* }
             }
         }
 
         /// One decoded payload of any kind.
         #[derive(Debug, Clone, PartialEq)]
-        pub enum Recorded { $( $kind($ty), )* }
+        pub enum Recorded { $( $(#[cfg($cfg)])? $kind($ty), )* }
 
         impl Recorded {
             pub fn kind(&self) -> Kind {
-                match self { $( Recorded::$kind(_) => Kind::$kind, )* }
+                match self { $( $(#[cfg($cfg)])? Recorded::$kind(_) => Kind::$kind, )* }
             }
 
             pub fn header(&self) -> &Header {
-                match self { $( Recorded::$kind(m) => &m.header, )* }
+                match self { $( $(#[cfg($cfg)])? Recorded::$kind(m) => &m.header, )* }
             }
 
             /// The payload as a JSON value (serde's view of the struct:
             /// nested `header`, arrays as arrays).
             pub fn to_json(&self) -> serde_json::Value {
-                let v = match self { $( Recorded::$kind(m) => serde_json::to_value(m), )* };
+                let v = match self { $( $(#[cfg($cfg)])? Recorded::$kind(m) => serde_json::to_value(m), )* };
                 // Plain structs of numbers always serialize.
                 v.unwrap_or(serde_json::Value::Null)
             }
         }
 
         $(
+            $(#[cfg($cfg)])?
             impl Message for $ty {
                 const KIND: Kind = Kind::$kind;
                 fn into_recorded(self) -> Recorded { Recorded::$kind(self) }
                 fn from_recorded(r: Recorded) -> Option<Self> {
+                    #[allow(unreachable_patterns)]
                     match r { Recorded::$kind(m) => Some(m), _ => None }
                 }
                 fn header(&self) -> &Header { &self.header }
             }
         )*
+
+        /// Every service of a run: one per shared message, one per sensor
+        /// and per-sensor message, and the three wake-up events (one per
+        /// process: peers publish, then notify the reader's event).
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+        pub enum ServiceId {
+            $(
+                $(#[cfg($cfg)])?
+                #[doc = concat!("`", $topic, "`: ", stringify!($owner), " → ", stringify!($reader), " (", stringify!($kind), ").")]
+                $kind $( (sensor_index!($sensor)) )?,
+            )*
+            /// event: wakes the agent.
+            AgentWake,
+            /// event: wakes the coordinator.
+            CoordinatorWake,
+            /// event: wakes sensor i.
+            SensorWake(usize),
+        }
+
+        impl ServiceId {
+            /// The kind of payload a publish-subscribe service carries;
+            /// `None` for the wake-up events (no payload).
+            pub const fn kind(self) -> Option<Kind> {
+                match self {
+                    $( $(#[cfg($cfg)])? Self::$kind $( (any_index!($sensor)) )? => Some(Kind::$kind), )*
+                    Self::AgentWake | Self::CoordinatorWake | Self::SensorWake(_) => None,
+                }
+            }
+
+            /// The sensor a per-sensor service (or wake-up event) belongs to.
+            pub const fn sensor(self) -> Option<usize> {
+                match self {
+                    $( $(#[cfg($cfg)])? Self::$kind $( ($sensor) )? => index_of!($($sensor)?), )*
+                    Self::SensorWake(i) => Some(i),
+                    Self::AgentWake | Self::CoordinatorWake => None,
+                }
+            }
+
+            /// The service of `kind` (of sensor `sensor` for a per-sensor
+            /// kind; `None` for a shared one). `None` on a mismatch.
+            pub fn of(kind: Kind, sensor: Option<usize>) -> Option<Self> {
+                match kind {
+                    $( $(#[cfg($cfg)])? Kind::$kind => service_of!(Self::$kind, sensor $(, $sensor)?), )*
+                }
+            }
+        }
+
+        // The columns' consistency, checked when the crate compiles.
+        $(
+            $(#[cfg($cfg)])?
+            const _: () = {
+                let row = Kind::$kind.row();
+                // A sensor reads only its own per-sensor services; the reader
+                // is one process.
+                assert!(!matches!(row.reader, Process::Sensor) || row.per_sensor, concat!(stringify!($kind), ": a sensor reads only per-sensor services"));
+                assert!(!matches!(row.reader, Process::Any), concat!(stringify!($kind), ": the reader is one process"));
+                // Forwarded exactly when on the sensor link.
+                assert!(row.link.class().is_some() == row.forward.direction().is_some(), concat!(stringify!($kind), ": forwarded iff on the sensor link"));
+            };
+        )*
     };
 }
 
 catalogue! {
-    Control => c2a::Control, owner "coordinator", names ["kind": ControlKind],
-        codes "kind: 1 = START (an episode), 2 = STOP (the agent exits)";
-    Threshold => c2all::Threshold, owner "coordinator", names ["kind": ThresholdKind, "sensor": Sensor],
-        codes "kind: 1 = OPEN (leg header.leg at `sensor` with delta), 2 = CLOSE (the sensor answers with its ledger), 3 = STOP (the sensor exits); delta_index: index of delta in the strategy's thresholds";
-    Truth => a2s::Truth, owner "agent", names [],
-        codes "x: the true state (simulation only: stands in for the physical world); entries past dim are 0";
-    Handover => a2s::Handover, owner "agent", names [],
-        codes "radio, once per leg served: mean, cov = the agent's belief at the start of leg header.leg after header.step steps (row-major; entries past dim are 0); the sensor's replica computes the leg's priors from it";
-    Measurement => s2a::Measurement, owner "sensor", names [],
-        codes "costed: one transmission; sequence: transmissions of this sensor in this episode, this one included; y: entries past dim are 0";
-    Slot => s2a::Slot, owner "sensor", names ["transmitted": Flag],
-        codes "transmitted: 1 if a measurement was sent for this slot, 0 if silent; prior_digest: FNV-1a of the bits of the replica's prior (mean, then cov row by row)";
-    Waypoint => a2c::Waypoint, owner "agent", names ["prev_degraded": Flag],
-        codes "decision point header.leg reached; prev_*: counts of the leg that just ended; prev_degraded: 1 if it had a dead link";
-    Outcome => a2c::Outcome, owner "agent",
-        names ["outcome": Outcome, "degraded": Flag, "dead_sensor": SensorOrNone],
-        codes "outcome: 1 = TARGET, 2 = COLLISION, 3 = FREE; degraded: 1 if a slot had a dead link; dead_sensor: 4294967295 = none";
-    Ledger => s2c::Ledger, owner "sensor", names [],
-        codes "what the sensor spent on leg header.leg: slots served, transmissions, energy = transmissions x cost";
-    Hello => tc::Hello, owner "any", names [],
-        codes "a process is ready (pid)";
+    Control => c2a::Control {
+        topic: "control",
+        owner: Coordinator, reader: Agent,
+        limits: OneToOne(8), link: Local, recorded: true, forward: Local,
+        names: ["kind": ControlKind],
+        codes: "kind: 1 = START (an episode), 2 = STOP (the agent exits)",
+    }
+    Threshold(sensor) => c2all::Threshold {
+        topic: "sensor/{sensor}/threshold",
+        owner: Coordinator, reader: Sensor,
+        // Read by its sensor and by the agent; at most an OPEN and a CLOSE
+        // per leg the sensor serves are ever outstanding.
+        limits: OneToTwo(16), link: Plumbing, recorded: true, forward: Down(0),
+        names: ["kind": ThresholdKind, "sensor": Sensor],
+        codes: "kind: 1 = OPEN (leg header.leg at `sensor` with delta), 2 = CLOSE (the sensor answers with its ledger), 3 = STOP (the sensor exits); delta_index: index of delta in the strategy's thresholds",
+    }
+    Truth(sensor) => a2s::Truth {
+        topic: "sensor/{sensor}/truth",
+        owner: Agent, reader: Sensor,
+        limits: OneToOne(8), link: Plumbing, recorded: true, forward: Down(2),
+        names: [],
+        codes: "x: the true state (simulation only: stands in for the physical world); entries past dim are 0",
+    }
+    Handover(sensor) => a2s::Handover {
+        topic: "sensor/{sensor}/handover",
+        owner: Agent, reader: Sensor,
+        limits: OneToOne(8), link: Radio, recorded: true, forward: Down(1),
+        names: [],
+        codes: "radio, once per leg served: mean, cov = the agent's belief at the start of leg header.leg after header.step steps (row-major; entries past dim are 0); the sensor's replica computes the leg's priors from it",
+    }
+    Measurement => s2a::Measurement {
+        topic: "measurement",
+        owner: Sensor, reader: Agent,
+        limits: FromSensors(16), link: Radio, recorded: true, forward: Up(1),
+        names: [],
+        codes: "costed: one transmission; sequence: transmissions of this sensor in this episode, this one included; y: entries past dim are 0",
+    }
+    Slot => s2a::Slot {
+        topic: "slot",
+        owner: Sensor, reader: Agent,
+        limits: FromSensors(16), link: Plumbing, recorded: true, forward: Up(2),
+        names: ["transmitted": Flag],
+        codes: "transmitted: 1 if a measurement was sent for this slot, 0 if silent; prior_digest: FNV-1a of the bits of the replica's prior (mean, then cov row by row)",
+    }
+    Waypoint => a2c::Waypoint {
+        topic: "waypoint",
+        owner: Agent, reader: Coordinator,
+        limits: OneToOne(16), link: Local, recorded: true, forward: Local,
+        names: ["prev_degraded": Flag],
+        codes: "decision point header.leg reached; prev_*: counts of the leg that just ended; prev_degraded: 1 if it had a dead link",
+    }
+    Outcome => a2c::Outcome {
+        topic: "outcome",
+        owner: Agent, reader: Coordinator,
+        limits: OneToOne(16), link: Local, recorded: true, forward: Local,
+        names: ["outcome": Outcome, "degraded": Flag, "dead_sensor": SensorOrNone],
+        codes: "outcome: 1 = TARGET, 2 = COLLISION, 3 = FREE; degraded: 1 if a slot had a dead link; dead_sensor: 4294967295 = none",
+    }
+    Ledger => s2c::Ledger {
+        topic: "ledger",
+        owner: Sensor, reader: Coordinator,
+        // Drained at leg boundaries: a generous buffer per sensor.
+        limits: FromSensors(256), link: Plumbing, recorded: true, forward: Up(3),
+        names: [],
+        codes: "what the sensor spent on leg header.leg: slots served, transmissions, energy = transmissions x cost",
+    }
+    Hello => tc::Hello {
+        topic: "hello",
+        owner: Any, reader: Coordinator,
+        limits: Announce, link: Plumbing, recorded: true, forward: Up(0),
+        names: [],
+        codes: "a process is ready (pid)",
+    }
+    // A message that exists only in this crate's tests: it shows that one
+    // row derives everything (see `tests::a_test_only_row_derives_everything`).
+    #[cfg(test)]
+    Probe(sensor) => super::messages::test_only::Probe {
+        topic: "sensor/{sensor}/probe",
+        owner: Agent, reader: Sensor,
+        limits: OneToOne(8), link: Radio, recorded: true, forward: Down(3),
+        names: ["flag": Flag],
+        codes: "flag: test only",
+    }
 }
 
 /// How payloads are encoded in a recording: bincode 2.0.1 through serde with
@@ -145,6 +466,24 @@ pub const PAYLOAD_ENCODING: &str = "bincode2-serde-legacy";
 
 /// Codes of the header, common to every kind.
 pub const HEADER_CODES: &str = "header.run: hash of the run id; header.sender: the sensor's index, 4294901760 = coordinator, 4294901761 = agent; header.seq: per-sender sequence number";
+
+impl Kind {
+    /// The process that publishes this kind (`any`: every process).
+    pub fn owner(self) -> &'static str {
+        self.row().owner.name()
+    }
+
+    /// What the numeric codes of this kind's fields mean.
+    pub fn codes(self) -> &'static str {
+        self.row().codes
+    }
+
+    /// The fields of this kind whose numbers stand for names (the
+    /// header's `sender` aside: see [`HEADER_NAMES`]).
+    pub fn named_fields(self) -> &'static [(&'static str, Named)] {
+        self.row().named
+    }
+}
 
 /// What the number of a code field stands for, in exports and `replay cat`
 /// (declared per kind in the catalogue; see [`Kind::named_fields`]).
@@ -168,353 +507,3 @@ pub enum Named {
 
 /// Named fields of the header, common to every kind.
 pub const HEADER_NAMES: &[(&str, Named)] = &[("header.sender", Named::Sender)];
-
-/// The scalar type of a payload field.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Scalar {
-    U8,
-    U16,
-    U32,
-    U64,
-    I32,
-    I64,
-    F32,
-    F64,
-    Bool,
-}
-
-impl Scalar {
-    /// The Rust spelling (`u32`, `f64`, …).
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::U8 => "u8",
-            Self::U16 => "u16",
-            Self::U32 => "u32",
-            Self::U64 => "u64",
-            Self::I32 => "i32",
-            Self::I64 => "i64",
-            Self::F32 => "f32",
-            Self::F64 => "f64",
-            Self::Bool => "bool",
-        }
-    }
-
-    /// The Python `struct` format character (little-endian, standard sizes).
-    pub fn struct_char(self) -> char {
-        match self {
-            Self::U8 => 'B',
-            Self::U16 => 'H',
-            Self::U32 => 'I',
-            Self::U64 => 'Q',
-            Self::I32 => 'i',
-            Self::I64 => 'q',
-            Self::F32 => 'f',
-            Self::F64 => 'd',
-            Self::Bool => '?',
-        }
-    }
-
-    /// Bytes on the wire.
-    pub fn size(self) -> usize {
-        match self {
-            Self::U8 | Self::Bool => 1,
-            Self::U16 => 2,
-            Self::U32 | Self::I32 | Self::F32 => 4,
-            Self::U64 | Self::I64 | Self::F64 => 8,
-        }
-    }
-}
-
-/// One field of a payload in wire order: its path (`header.seq`, `y`), its
-/// scalar type and array shape (`[]` scalar, `[6]` vector, `[6, 6]` matrix).
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Field {
-    pub path: Vec<String>,
-    pub scalar: Scalar,
-    pub shape: Vec<usize>,
-}
-
-impl Field {
-    /// `header.seq`, `y`.
-    pub fn name(&self) -> String {
-        self.path.join(".")
-    }
-
-    /// A padding field (`_pad`): no information.
-    pub fn is_padding(&self) -> bool {
-        self.path.last().is_some_and(|p| p.starts_with('_'))
-    }
-
-    /// `u32`, `[f64; 6]`, `[[f64; 6]; 6]`.
-    pub fn type_name(&self) -> String {
-        self.shape
-            .iter()
-            .rev()
-            .fold(self.scalar.name().to_string(), |t, n| format!("[{t}; {n}]"))
-    }
-
-    /// Number of scalars.
-    pub fn len(&self) -> usize {
-        self.shape.iter().product()
-    }
-
-    /// True for a zero-sized array (none in the catalogue).
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-}
-
-/// The fields of `T` in wire order, nested structs (the header) flattened;
-/// traced from the type's serde implementation, so it is the layout bincode
-/// writes.
-fn fields_of<T: Message>() -> Result<Vec<Field>, String> {
-    use serde_reflection::{ContainerFormat, Format, Tracer, TracerConfig};
-    fn scalar(f: &Format, shape: &mut Vec<usize>) -> Result<Scalar, String> {
-        Ok(match f {
-            Format::U8 => Scalar::U8,
-            Format::U16 => Scalar::U16,
-            Format::U32 => Scalar::U32,
-            Format::U64 => Scalar::U64,
-            Format::I32 => Scalar::I32,
-            Format::I64 => Scalar::I64,
-            Format::F32 => Scalar::F32,
-            Format::F64 => Scalar::F64,
-            Format::Bool => Scalar::Bool,
-            Format::TupleArray { content, size } => {
-                shape.push(*size);
-                scalar(content, shape)?
-            }
-            other => return Err(format!("unsupported field format {other:?}")),
-        })
-    }
-    fn walk(
-        registry: &serde_reflection::Registry,
-        name: &str,
-        prefix: &[String],
-        out: &mut Vec<Field>,
-    ) -> Result<(), String> {
-        let Some(ContainerFormat::Struct(fields)) = registry.get(name) else {
-            return Err(format!("`{name}` is not a struct"));
-        };
-        for f in fields {
-            let mut path = prefix.to_vec();
-            path.push(f.name.clone());
-            match &f.value {
-                Format::TypeName(inner) => walk(registry, inner, &path, out)?,
-                v => {
-                    let mut shape = Vec::new();
-                    let scalar = scalar(v, &mut shape)?;
-                    out.push(Field {
-                        path,
-                        scalar,
-                        shape,
-                    });
-                }
-            }
-        }
-        Ok(())
-    }
-    let mut tracer = Tracer::new(TracerConfig::default());
-    tracer.trace_simple_type::<T>().map_err(|e| e.to_string())?;
-    let registry = tracer.registry().map_err(|e| e.to_string())?;
-    let name = std::any::type_name::<T>()
-        .rsplit("::")
-        .next()
-        .unwrap_or_default()
-        .to_string();
-    let mut out = Vec::new();
-    walk(&registry, &name, &[], &mut out)?;
-    Ok(out)
-}
-
-struct Fields;
-
-impl KindVisitor for Fields {
-    type Out = Result<Vec<Field>, String>;
-    fn visit<T: Message>(self) -> Self::Out {
-        fields_of::<T>()
-    }
-}
-
-impl Kind {
-    /// The payload's fields in wire order (traced from the type).
-    pub fn fields(self) -> Result<Vec<Field>, String> {
-        self.visit(Fields)
-    }
-
-    /// The Python `struct` format of a payload (`<` little-endian, standard
-    /// sizes, padding fields included), e.g. `<QQIIIIII6d`.
-    pub fn struct_format(self) -> Result<String, String> {
-        let mut f = String::from("<");
-        for x in self.fields()? {
-            match x.len() {
-                1 => f.push(x.scalar.struct_char()),
-                n => f.push_str(&format!("{n}{}", x.scalar.struct_char())),
-            }
-        }
-        Ok(f)
-    }
-
-    /// The schema text of a recording's channel of this kind: a header line,
-    /// the fields in wire order (traced from the type), the payload's size
-    /// and Python `struct` format, the codes and named fields.
-    pub fn schema_text(self) -> String {
-        let encoding = PAYLOAD_ENCODING;
-        let (fields, layout) = match (self.fields(), self.struct_format()) {
-            (Ok(f), Ok(s)) => {
-                let size: usize = f.iter().map(|x| x.len() * x.scalar.size()).sum();
-                (
-                    f.iter()
-                        .map(|x| format!("{}: {}\n", x.name(), x.type_name()))
-                        .collect::<String>(),
-                    format!("# size: {size} bytes; python: struct.unpack(\"{s}\", data)\n"),
-                )
-            }
-            (Err(e), _) | (_, Err(e)) => (
-                format!("# fields could not be traced: {e}\n"),
-                String::new(),
-            ),
-        };
-        let named: Vec<String> = HEADER_NAMES
-            .iter()
-            .chain(self.named_fields())
-            .map(|(f, n)| format!("{f} ({})", n.describe()))
-            .collect();
-        format!(
-            "# {} ({encoding}), published by the {}\n{fields}{layout}# codes: {HEADER_CODES}\n# codes: {}\n# names in `etp replay --export` and `cat`: {}\n",
-            self.schema_name(),
-            self.owner(),
-            self.codes(),
-            named.join("; ")
-        )
-    }
-}
-
-impl Named {
-    /// How an export shows the field.
-    pub fn describe(self) -> &'static str {
-        match self {
-            Self::Flag => "bool",
-            Self::ControlKind => "start | stop",
-            Self::ThresholdKind => "open | close | stop",
-            Self::Outcome => "target | collision | free",
-            Self::Sensor => "the sensor's name",
-            Self::SensorOrNone => "the sensor's name, or null for none",
-            Self::Sender => "the sensor's name, coordinator or agent",
-        }
-    }
-}
-
-impl ServiceId {
-    /// The kind of payload a publish-subscribe service carries; `None` for
-    /// the wake-up events (no payload).
-    pub fn kind(self) -> Option<Kind> {
-        Some(match self {
-            Self::Control => Kind::Control,
-            Self::Threshold(_) => Kind::Threshold,
-            Self::Truth(_) => Kind::Truth,
-            Self::Handover(_) => Kind::Handover,
-            Self::Measurement => Kind::Measurement,
-            Self::Slot => Kind::Slot,
-            Self::Waypoint => Kind::Waypoint,
-            Self::Outcome => Kind::Outcome,
-            Self::Ledger => Kind::Ledger,
-            Self::Hello => Kind::Hello,
-            Self::AgentWake | Self::CoordinatorWake | Self::SensorWake(_) => return None,
-        })
-    }
-
-    /// The inverse of [`ServiceId::topic`] for publish-subscribe services.
-    pub fn from_topic(topic: &str) -> Option<Self> {
-        let per_sensor = |tail: &str| -> Option<usize> {
-            topic
-                .strip_prefix("sensor/")?
-                .strip_suffix(tail)?
-                .parse()
-                .ok()
-        };
-        let s = match topic {
-            "control" => Self::Control,
-            "measurement" => Self::Measurement,
-            "slot" => Self::Slot,
-            "waypoint" => Self::Waypoint,
-            "outcome" => Self::Outcome,
-            "ledger" => Self::Ledger,
-            "hello" => Self::Hello,
-            _ => {
-                if let Some(i) = per_sensor("/truth") {
-                    Self::Truth(i)
-                } else if let Some(i) = per_sensor("/handover") {
-                    Self::Handover(i)
-                } else {
-                    Self::Threshold(per_sensor("/threshold")?)
-                }
-            }
-        };
-        // Canonical spelling only ("sensor/01/truth" is not a topic).
-        (s.topic() == topic).then_some(s)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn schema_text_is_traced_from_the_types() {
-        let t = Kind::Measurement.schema_text();
-        assert!(
-            t.starts_with("# etp::Measurement (bincode2-serde-legacy), published by the sensor\n"),
-            "{t}"
-        );
-        assert!(t.contains("header.run: u64\nheader.episode: u64\nheader.step: u32\nheader.leg: u32\nheader.sender: u32\nheader.seq: u32\ndim: u32\nsequence: u32\ny: [f64; 6]\n"), "{t}");
-        assert!(
-            Kind::Handover
-                .schema_text()
-                .contains("cov: [[f64; 6]; 6]\n")
-        );
-        assert!(Kind::Outcome.schema_text().contains("1 = TARGET"));
-        assert!(
-            t.contains("# size: 88 bytes; python: struct.unpack(\"<QQIIIIII6d\", data)\n"),
-            "{t}"
-        );
-        assert!(
-            Kind::Outcome
-                .schema_text()
-                .contains("dead_sensor (the sensor's name, or null for none)")
-        );
-        for k in Kind::ALL {
-            let t = k.schema_text();
-            assert!(!t.contains("could not be traced"), "{t}");
-            assert!(t.contains("header.seq: u32"), "{t}");
-        }
-    }
-
-    #[test]
-    fn every_service_has_one_topic_and_kind() {
-        for s in ServiceId::all_pubsub(12) {
-            assert_eq!(ServiceId::from_topic(&s.topic()), Some(s));
-            assert!(s.kind().is_some(), "{s:?}");
-        }
-        for bad in [
-            "",
-            "sensor/x/truth",
-            "sensor/1/wake",
-            "sensor//handover",
-            "sensor/01/truth",
-            "nope",
-        ] {
-            assert_eq!(ServiceId::from_topic(bad), None, "{bad}");
-        }
-        assert_eq!(Kind::ALL.len(), 10);
-    }
-
-    #[test]
-    fn the_union_round_trips_every_kind() {
-        let m = s2a::Slot::default();
-        let r = m.into_recorded();
-        assert_eq!(r.kind(), Kind::Slot);
-        assert_eq!(s2a::Slot::from_recorded(r.clone()), Some(m));
-        assert_eq!(s2a::Measurement::from_recorded(r), None);
-    }
-}

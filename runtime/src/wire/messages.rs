@@ -258,6 +258,22 @@ pub mod to_coordinator {
     }
 }
 
+/// Messages of this crate's tests only (the catalogue's test-only row).
+#[cfg(test)]
+pub mod test_only {
+    use super::*;
+
+    /// `sensor/<i>/probe`: exists only to show that one row derives everything.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+    #[type_name("etp::Probe")]
+    pub struct Probe {
+        pub header: Header,
+        pub flag: u32,
+        pub _pad: u32,
+    }
+}
+
 /// Copy a slice into a wire vector (entries beyond `MAX_DIM` are ignored).
 pub fn to_wire_vec(v: &[f64]) -> WireVec {
     let mut out = [0.0; MAX_DIM];

@@ -4,12 +4,20 @@
 //!   module per direction (`coordinator_to_agent`, `coordinator_to_all`,
 //!   `agent_to_sensor`, `sensor_to_agent`, `agent_to_coordinator`,
 //!   `sensor_to_coordinator`, `to_coordinator`), each starting with a [`Header`].
-//! * [`services`] — [`RunId`], the per-run iceoryx2 [`config`] (own shm prefix
-//!   and root folder), [`ServiceId`] with its `etp/<run-id>/…` name, THE
-//!   [`limits`] table used by [`open_pubsub`] / [`open_event`] in every
-//!   process, and node [`liveness`].
-//! * [`cleanup`] — removing what a run (or dead runs) left in /dev/shm and
-//!   under [`ROOT_BASE`].
+//! * [`catalogue`] — THE list of messages, one row each (type, topic,
+//!   owner and reader, limits class, link class, recorded, forwarded), and
+//!   [`ServiceId`], generated from it; [`services`] derives each service's
+//!   topic, reader wake-up, the recorder's and the bridge's lists;
+//!   [`schema`] the schema text of a recording's channel.
+//! * [`run_id`] — [`RunId`] and the per-run iceoryx2 [`config`] (own shm
+//!   prefix and root folder).
+//! * [`limits`](mod@limits) — THE limits table used by [`open_pubsub`] / [`open_event`]
+//!   ([`ports`]: [`Ports`], [`PortError`]) in every process.
+//! * [`liveness`](mod@liveness) — node names, [`create_node`] and what the node list says
+//!   about a node; [`hello`] — how a process announces itself.
+//! * [`waiter`] — the one wait point of a process ([`Waiter`]), the
+//!   [`Watchdog`] and the header [`Stamper`]; [`traffic`] — the sensor
+//!   link's radio and plumbing counts.
 //!
 //! One step of an episode (one blocking round trip): the agent publishes
 //! `truth` to the serving sensor and wakes it; the sensor computes the prior
@@ -22,18 +30,34 @@
 //! on `ledger`). The episode ends with `outcome`.
 
 pub mod catalogue;
-pub mod cleanup;
+pub mod hello;
+pub mod limits;
+pub mod liveness;
 pub mod messages;
-pub mod port;
-pub mod report;
+pub mod ports;
+pub mod run_id;
+pub mod schema;
 pub mod services;
 pub mod traffic;
 pub mod waiter;
 
-pub use catalogue::{Kind, KindVisitor, Message, Recorded};
+pub use catalogue::{Kind, KindVisitor, Message, Recorded, ServiceId};
+pub use hello::{HELLO_TIMEOUT, hello_readers, say_hello};
+pub use limits::{Limits, limits};
+pub use liveness::{
+    AGENT_NODE, COORDINATOR_NODE, Liveness, RECORDER_NODE, alive_nodes, create_node, liveness,
+    peek_liveness, remove_dead_nodes, sensor_node_name,
+};
 pub use messages::*;
-pub use port::PortError;
-pub use services::*;
+pub use ports::{
+    DEAD_NOTIFIER_EVENT, Event, Listener, Notifier, PortError, Ports, Pub, PubSub, Sub, open_event,
+    open_pubsub,
+};
+pub use run_id::{IPC_DOMAIN_ENV, ROOT_BASE, RunId, config};
+// The old paths of the run report and the cleanup (moved out of `wire`),
+// kept while branches written against them merge; new code uses
+// `etp_runtime::report` and `etp_runtime::cleanup`.
+pub use crate::{cleanup, report};
 pub use waiter::{Stamper, Waiter, Wake, Watchdog, note_termination, termination_requested};
 
 use etp_shared::etkf::{Belief, Matrix, Vector};
@@ -76,75 +100,9 @@ pub fn vec_from_wire<const D: usize>(v: &WireVec) -> Vector<D> {
     Vector::<D>::from_fn(|i, _| v[i])
 }
 
-/// Resolve a runtime process's `--scenario` argument: a built-in name or a
-/// TOML path (the supervisor passes the same argument to every process).
-pub fn load_scenario(arg: &str) -> Result<etp_shared::scenario::Scenario, String> {
-    if let Some(text) = etp_shared::scenario::builtin_text(arg) {
-        return etp_shared::scenario::Scenario::from_toml(text).map_err(|e| e.to_string());
-    }
-    let text =
-        std::fs::read_to_string(arg).map_err(|e| format!("reading scenario `{arg}`: {e}"))?;
-    etp_shared::scenario::Scenario::from_toml(&text).map_err(|e| format!("scenario `{arg}`: {e}"))
-}
-
-/// iceoryx2 reports errors only: its warnings (no config file, the global
-/// config used while cleaning a dead node whose details are gone) are noise
-/// here, where every configuration is built in code.
-pub fn quiet_iceoryx2() {
-    iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
-}
-
-/// Logging setup for the runtime processes: a `tracing` subscriber on
-/// stderr filtered by `RUST_LOG` (default `warn`); the caller enters a span
-/// named after the process so every line says who wrote it. iceoryx2 only reports errors (its "no config file"
-/// warning is noise: the config is built in code).
-pub fn init_process_logging(process: &str) {
-    quiet_iceoryx2();
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        // Zenoh's own warnings (e.g. that gossip, which we turn off, cannot
-        // de-duplicate across region gateways) are noise by default.
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,zenoh=error"));
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .with_target(false)
-        .try_init();
-    tracing::debug!(process, pid = std::process::id(), "logging ready");
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn run_ids_are_checked_and_prefixes_do_not_nest() {
-        assert!(RunId::new("t-1").is_ok());
-        assert!(RunId::new("").is_err());
-        assert!(RunId::new("A").is_err());
-        assert!(RunId::new("a_b").is_err());
-        let a = RunId::new("a").expect("valid");
-        let ab = RunId::new("a-b").expect("valid");
-        assert!(!ab.shm_prefix().starts_with(&a.shm_prefix()));
-        assert_ne!(a.tag(), ab.tag());
-        assert_eq!(ServiceId::Truth(3).name(&a), "etp/a/sensor/3/truth");
-        assert!(RunId::new(RunId::generate().as_str()).is_ok());
-    }
-
-    #[test]
-    fn limits_admit_32_sensors_and_a_recorder() {
-        for s in ServiceId::all_pubsub(32) {
-            let l = limits(s, 32);
-            assert!(l.max_nodes > 32 + 2);
-            assert!(l.max_subscribers >= 2);
-        }
-        assert!(limits(ServiceId::Measurement, 32).max_publishers >= 33);
-        assert!(limits(ServiceId::Threshold(31), 32).max_subscribers > 2);
-        // Nothing that carries data or accounting may overwrite an unread sample.
-        for s in ServiceId::all_pubsub(32) {
-            assert!(!limits(s, 32).safe_overflow, "{s:?}");
-        }
-        assert!(limits(ServiceId::AgentWake, 32).max_publishers >= 34);
-    }
 
     #[test]
     fn beliefs_round_trip() {

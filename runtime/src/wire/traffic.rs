@@ -9,33 +9,14 @@
 use super::{Kind, KindVisitor, Message, ServiceId};
 use serde::{Deserialize, Serialize};
 
-/// Radio or plumbing.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Class {
-    Radio,
-    Plumbing,
-}
+pub use super::catalogue::{Class, Direction};
 
-/// Direction relative to the sensor.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Direction {
-    /// Agent host → sensor.
-    Down,
-    /// Sensor → agent host.
-    Up,
-}
-
-/// The sensor-link services: class and direction (`None`: the service never
-/// reaches a sensor — control, waypoint, outcome — and never crosses hosts).
+/// The sensor-link services: class and direction, from the service's
+/// catalogue row (`None`: the service never reaches a sensor — control,
+/// waypoint, outcome, the wake-up events — and never crosses hosts).
 pub fn link_class(s: ServiceId) -> Option<(Class, Direction)> {
-    use ServiceId as S;
-    Some(match s {
-        S::Handover(_) => (Class::Radio, Direction::Down),
-        S::Measurement => (Class::Radio, Direction::Up),
-        S::Truth(_) | S::Threshold(_) => (Class::Plumbing, Direction::Down),
-        S::Slot | S::Ledger | S::Hello => (Class::Plumbing, Direction::Up),
-        _ => return None,
-    })
+    let row = s.kind()?.row();
+    Some((row.link.class()?, row.forward.direction()?.0))
 }
 
 /// Bytes of one encoded payload of `kind` (fixed: every payload is a

@@ -4,8 +4,9 @@
 //! Every process of a run owns exactly one wake-up event (`agent/wake`,
 //! `coordinator/wake`, `sensor/<i>/wake`); peers publish, then notify it. A
 //! process therefore waits in one place, [`Waiter::wait`] (its listener
-//! attached to an iceoryx2 `WaitSet`), and gets one of
-//! the closed set of [`Wake`] events:
+//! attached to an iceoryx2 `WaitSet`; an observer of the whole run — the
+//! recorder, a bridge — attaches every event it needs to one `Waiter`), and
+//! gets one of the closed set of [`Wake`] events:
 //!
 //! * a SIGSTOP/SIGCONT (or a debugger, or Ctrl-Z + `fg`) interrupts the
 //!   kernel wait with EINTR: that is *not* an event — the wait resumes for
@@ -17,9 +18,9 @@
 //!   alone (a live but slow process is waited for).
 
 use super::WireError;
-use super::services::{DEAD_NOTIFIER_EVENT, Listener};
+use super::ports::{DEAD_NOTIFIER_EVENT, Listener};
 use iceoryx2::prelude::*;
-use iceoryx2::waitset::WaitSetRunResult;
+use iceoryx2::waitset::{WaitSetAttachmentId, WaitSetRunResult};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -36,31 +37,51 @@ pub enum Wake {
     Terminate,
 }
 
-/// The one wait of a process: its wake-up listener attached to an iceoryx2
-/// [`WaitSet`] for the process's whole life.
+/// The one wait of a process: its wake-up listener — or, for an observer
+/// of a whole run (the recorder, a bridge's outbound direction), several —
+/// attached to an iceoryx2 [`WaitSet`] for the process's whole life.
 ///
-/// Why the attachment guard is forgotten: it borrows both the wait set and
-/// the listener, which live side by side here (a process stores its `Waiter`
-/// beside its ports), and re-attaching for every wait costs two `epoll_ctl`
-/// calls per wake-up — measured 40 % fewer steps/s over IPC. Forgetting the
-/// guard leaves the listener's descriptor registered until the wait set (its
-/// epoll instance) is dropped with the `Waiter`; the wait set has this one
-/// attachment, so every notification it reports is the listener's.
+/// Why the attachment guards are forgotten: they borrow both the wait set
+/// and the listeners, which live side by side here (a process stores its
+/// `Waiter` beside its ports), and re-attaching for every wait costs two
+/// `epoll_ctl` calls per wake-up — measured 40 % fewer steps/s over IPC.
+/// Forgetting a guard leaves its listener's descriptor registered until the
+/// wait set (its epoll instance) is dropped with the `Waiter`; the wait set
+/// holds these attachments only, and each one's id is kept to tell which
+/// listener fired.
 pub struct Waiter {
-    waitset: WaitSet<ipc::Service>,
-    listener: Listener,
+    /// Boxed: an attachment's id holds the wait set's address, which must
+    /// not move after the ids are taken.
+    waitset: Box<WaitSet<ipc::Service>>,
+    listeners: Vec<(WaitSetAttachmentId<ipc::Service>, Listener)>,
 }
 
 impl Waiter {
+    /// The wait of a process on its own wake-up event.
     pub fn new(listener: Listener) -> Result<Self, WireError> {
-        let waitset = WaitSetBuilder::new()
-            .create::<ipc::Service>()
-            .map_err(|e| WireError::Wait(format!("creating the wait set: {e:?}")))?;
-        let guard = waitset
-            .attach_notification(&listener)
-            .map_err(|e| WireError::Wait(format!("attaching the wake-up listener: {e:?}")))?;
-        std::mem::forget(guard);
-        Ok(Self { waitset, listener })
+        Self::over(vec![listener])
+    }
+
+    /// One wait over several wake-up events (e.g. every event of a run:
+    /// [`super::ServiceId::all_events`]): notified when any fires.
+    pub fn over(listeners: Vec<Listener>) -> Result<Self, WireError> {
+        let waitset = Box::new(
+            WaitSetBuilder::new()
+                .create::<ipc::Service>()
+                .map_err(|e| WireError::Wait(format!("creating the wait set: {e:?}")))?,
+        );
+        let mut ids = Vec::with_capacity(listeners.len());
+        for l in &listeners {
+            let guard = waitset
+                .attach_notification(l)
+                .map_err(|e| WireError::Wait(format!("attaching a wake-up listener: {e:?}")))?;
+            ids.push(WaitSetAttachmentId::from_guard(&guard));
+            std::mem::forget(guard);
+        }
+        Ok(Self {
+            waitset,
+            listeners: ids.into_iter().zip(listeners).collect(),
+        })
     }
 
     /// Block until notified, `timeout` passes, or a termination signal.
@@ -77,14 +98,20 @@ impl Waiter {
             let mut dead_peer = false;
             let mut drain_error = None;
             let run = self.waitset.wait_and_process_once_with_timeout(
-                |_listener_fired| {
-                    // Consume every pending notification: an unconsumed one
-                    // would wake the wait set again at once.
-                    if let Err(e) = self.listener.try_wait(|ev| {
-                        notified = true;
-                        dead_peer |= ev.id == dead;
-                    }) {
-                        drain_error = Some(format!("{e:?}"));
+                |fired| {
+                    // Consume every pending notification of the listener
+                    // that fired: an unconsumed one would wake the wait set
+                    // again at once.
+                    for (id, listener) in &self.listeners {
+                        if *id != fired {
+                            continue;
+                        }
+                        if let Err(e) = listener.try_wait(|ev| {
+                            notified = true;
+                            dead_peer |= ev.id == dead;
+                        }) {
+                            drain_error = Some(format!("{e:?}"));
+                        }
                     }
                     CallbackProgression::Continue
                 },
@@ -178,13 +205,13 @@ impl Watchdog {
         if !dead_event && !self.silences.is_multiple_of(self.list_every) {
             return false;
         }
-        match super::services::liveness(cfg, &self.peer) {
-            super::services::Liveness::Alive => {
+        match super::liveness(cfg, &self.peer) {
+            super::Liveness::Alive => {
                 self.seen = true;
                 false
             }
-            super::services::Liveness::Missing => self.seen,
-            super::services::Liveness::Dead => true,
+            super::Liveness::Missing => self.seen,
+            super::Liveness::Dead => true,
         }
     }
 

@@ -2,6 +2,7 @@
 //! sensors, LQR gain) against a hand-written loop in plain dynamic matrices.
 
 use super::*;
+use crate::radio::EpisodeChannels;
 use crate::rng::{stream_rng, streams};
 use crate::scenario::Scenario;
 use nalgebra::{DMatrix, DVector};
@@ -110,6 +111,7 @@ fn double_integrator_episode_matches_a_hand_written_loop() {
         let r = c.run_episode(
             |_, _, _| LegMode::EventTriggered(Threshold::new(0.0)),
             &mut stream_rng(seed, streams::SIMULATE, 0),
+            &mut EpisodeChannels::ideal(),
             &mut last,
         );
         assert_eq!(
@@ -164,9 +166,9 @@ fn the_avx2_leg_loop_is_the_portable_one_bit_for_bit() {
                     let mut rng_b = rng_a.clone();
                     let mut b = a;
                     for leg in 0..c.legs.len() {
-                        let ra = c.run_leg(leg, &mut a, &mode, &mut rng_a, &mut ());
+                        let ra = c.run_leg(leg, &mut a, &mode, &mut rng_a, &mut EpisodeChannels::ideal(), &mut ());
                         let sensor = c.legs[leg].sensor;
-                        let rb = on_filter!(&c.filters[sensor], f => c.run_leg_with(f, leg, &mut b, &mode, &mut rng_b, &mut ()));
+                        let rb = on_filter!(&c.filters[sensor], f => c.run_leg_with(f, leg, &mut b, &mode, &mut rng_b, &mut EpisodeChannels::ideal(), &mut ()));
                         assert_eq!(ra, rb, "{name} δ = {delta} episode {e} leg {leg}");
                         let bits = |st: &AgentState<N>| {
                             st.x.iter()

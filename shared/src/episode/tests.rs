@@ -1,4 +1,5 @@
 use super::*;
+use crate::radio::EpisodeChannels;
 use crate::rng::{stream_rng, streams};
 use crate::scenario::Scenario;
 
@@ -18,17 +19,20 @@ fn same_seed_same_episode() {
     let a = c.run_episode(
         constant(1.5),
         &mut stream_rng(7, streams::SIMULATE, 3),
+        &mut EpisodeChannels::ideal(),
         &mut (),
     );
     let b = c.run_episode(
         constant(1.5),
         &mut stream_rng(7, streams::SIMULATE, 3),
+        &mut EpisodeChannels::ideal(),
         &mut (),
     );
     assert_eq!(a, b);
     let other = c.run_episode(
         constant(1.5),
         &mut stream_rng(7, streams::SIMULATE, 4),
+        &mut EpisodeChannels::ideal(),
         &mut (),
     );
     assert_ne!(a, other);
@@ -63,6 +67,7 @@ fn full_kf_transmits_every_slot_and_counts_add_up() {
         let r = c.run_episode(
             constant(0.0),
             &mut stream_rng(1, streams::SIMULATE, ep),
+            &mut EpisodeChannels::ideal(),
             &mut obs,
         );
         assert_eq!(r.transmissions, r.slots, "δ = 0 sends every measurement");
@@ -95,6 +100,7 @@ fn a_leg_runs_at_least_one_step_and_stops_at_k_max() {
         &mut state,
         &LegMode::EventTriggered(Threshold::new(0.0)),
         &mut rng,
+        &mut EpisodeChannels::ideal(),
         &mut (),
     );
     assert_eq!(r.end, LegEnd::Terminated);
@@ -110,6 +116,7 @@ fn a_leg_runs_at_least_one_step_and_stops_at_k_max() {
         &mut state,
         &LegMode::EventTriggered(Threshold::new(0.0)),
         &mut rng,
+        &mut EpisodeChannels::ideal(),
         &mut (),
     );
     assert!(r.steps >= 1);
@@ -128,6 +135,7 @@ fn an_obstacle_on_the_line_is_hit() {
     let r = c.run_episode(
         constant(0.0),
         &mut stream_rng(3, streams::SIMULATE, 0),
+        &mut EpisodeChannels::ideal(),
         &mut (),
     );
     assert_eq!(r.outcome, Outcome::Collision);
@@ -146,7 +154,14 @@ fn kf_convergence_spends_slots_at_delta_zero_near_the_waypoint() {
     };
     let mut rng = stream_rng(4, streams::SIMULATE, 0);
     let mut state = c.initial_state(&mut rng);
-    let r = c.run_leg(0, &mut state, &mode, &mut rng, &mut ());
+    let r = c.run_leg(
+        0,
+        &mut state,
+        &mode,
+        &mut rng,
+        &mut EpisodeChannels::ideal(),
+        &mut (),
+    );
     assert_eq!(r.end, LegEnd::Terminated);
     assert!(r.kf_slots > 0 && r.steps < c.k_max);
     assert!((state.belief.cov - p_kf).amax() <= 1e-6);

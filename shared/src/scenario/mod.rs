@@ -8,6 +8,7 @@
 
 mod builtin;
 mod higher;
+pub mod random;
 mod raw;
 mod validate;
 
@@ -15,6 +16,7 @@ pub use builtin::{BUILTIN_NAMES, DEFAULT_SCENARIO, builtin_text};
 pub use higher::pseudo_inverse;
 
 use crate::geometry::Aabb;
+use crate::radio::{Radio, RadioOverride};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
@@ -134,6 +136,10 @@ pub struct Scenario {
     /// rest point), for `etp check` to show.
     #[serde(default)]
     pub warnings: Vec<String>,
+    /// The radio: one link per sensor and the agent's estimator (docs/MODEL.md
+    /// §8); ideal unless the file has `[radio]` or per-sensor `loss`.
+    #[serde(default)]
+    pub radio: Radio,
 }
 
 impl Scenario {
@@ -150,6 +156,20 @@ impl Scenario {
         let text =
             builtin_text(name).ok_or_else(|| ScenarioError::UnknownBuiltin(name.to_string()))?;
         Self::from_toml(text)
+    }
+
+    /// The scenario under command-line radio settings (`--loss`, `--retries`,
+    /// `--burst`, `--estimator`), which replace the file's for every link.
+    /// The content hash stays the file's: the channel is a condition of use
+    /// (a strategy may be evaluated under another radio, docs/MODEL.md §8).
+    pub fn with_radio_override(mut self, o: &RadioOverride) -> Result<Self, ScenarioError> {
+        if !o.is_empty() {
+            self.radio = self
+                .radio
+                .overridden(o)
+                .map_err(|e| ScenarioError::invalid(e.field, e.reason))?;
+        }
+        Ok(self)
     }
 
     /// Number of legs (= decision points).
@@ -202,3 +222,6 @@ impl Scenario {
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod radio_tests;

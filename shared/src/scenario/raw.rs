@@ -21,6 +21,23 @@ pub(crate) struct RawScenario {
     #[serde(rename = "obstacle", default)]
     pub obstacles: Vec<RawObstacle>,
     pub triggering: RawTriggering,
+    /// The lossy radio (docs/MODEL.md §8); absent = ideal. Skipped when absent
+    /// so the content hash of a scenario without it is what it was before §8.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radio: Option<RawRadio>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawRadio {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub loss: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub retries: Option<i64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub burst: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimator: Option<String>,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -75,6 +92,14 @@ pub(crate) struct RawSensor {
     pub r: RawMatrix,
     #[serde(default = "one")]
     pub cost: f64,
+    /// This link's radio settings, overriding `[radio]` (docs/MODEL.md §8);
+    /// skipped when absent (content hash unchanged).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub loss: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub retries: Option<i64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub burst: Option<f64>,
 }
 
 fn one() -> f64 {

@@ -4,9 +4,10 @@
 //! reason, so a user can fix the file without reading code.
 
 use super::higher;
-use super::raw::{RawBox, RawMatrix, RawScenario};
+use super::raw::{RawBox, RawMatrix, RawRadio, RawScenario, RawSensor};
 use super::{ControllerParams, Leg, MAX_DIM, Obstacle, Plant, Scenario, ScenarioError, Sensor};
 use crate::geometry::Aabb;
+use crate::radio::{Estimator, Link, LinkFields, Radio};
 use nalgebra::{DMatrix, DVector};
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
@@ -217,6 +218,8 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
         }
     }
 
+    let radio = radio(raw.radio.as_ref(), &raw.sensors)?;
+
     let mut warnings = Vec::new();
     if let Some(c) = &workspace {
         warnings.extend(higher::rest_point_warnings(c, &plant.f, &legs));
@@ -238,7 +241,60 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
         gain,
         route_start,
         warnings,
+        radio,
     })
+}
+
+/// `[radio]` and the per-sensor `loss`/`retries`/`burst`, resolved to one
+/// checked link per sensor; errors name the field the offending value came
+/// from (the sensor's own, else `radio.*`).
+fn radio(raw: Option<&RawRadio>, sensors: &[RawSensor]) -> Result<Radio> {
+    let estimator = match raw.and_then(|r| r.estimator.as_deref()) {
+        None => Estimator::default(),
+        Some(name) => Estimator::parse(name).ok_or_else(|| {
+            ScenarioError::invalid(
+                "radio.estimator",
+                format!("must be \"aware\" or \"naive\", got {name:?}"),
+            )
+        })?,
+    };
+    let links = sensors
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            let at = format!("sensor[{i}] \"{}\"", s.name);
+            let own = |has: bool, name: &str| {
+                if has {
+                    format!("{at}.{name}")
+                } else {
+                    format!("radio.{name}")
+                }
+            };
+            let (loss_f, retries_f) = (
+                own(s.loss.is_some(), "loss"),
+                own(s.retries.is_some(), "retries"),
+            );
+            // The burst bound involves loss and B: name the sensor's own field
+            // when it set either.
+            let burst_f = if s.burst.is_some() || s.loss.is_some() {
+                format!("{at}.burst")
+            } else {
+                "radio.burst".to_string()
+            };
+            Link::checked(
+                s.loss.or(raw.and_then(|r| r.loss)).unwrap_or(0.0),
+                s.retries.or(raw.and_then(|r| r.retries)).unwrap_or(0),
+                s.burst.or(raw.and_then(|r| r.burst)),
+                LinkFields {
+                    loss: &loss_f,
+                    retries: &retries_f,
+                    burst: &burst_f,
+                },
+            )
+            .map_err(|e| ScenarioError::invalid(e.field, e.reason))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Radio { estimator, links })
 }
 
 /// Longest scenario name.

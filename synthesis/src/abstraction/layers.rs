@@ -118,7 +118,10 @@ fn run_task<const N: usize>(
             x: sample_belief(&start, &mut rng),
             belief: start,
         };
-        let r = cs.run_leg(dp, &mut st, mode, &mut rng, &mut ());
+        // The segment's own radio channels (docs/MODEL.md §8): transitions
+        // and energy include the loss; an ideal radio draws nothing.
+        let mut channels = cs.channels(seed, stream, id);
+        let r = cs.run_leg(dp, &mut st, mode, &mut rng, &mut channels, &mut ());
         c.steps += u64::from(r.steps);
         c.transmissions += u64::from(r.transmissions);
         c.transmissions_sq += u64::from(r.transmissions) * u64::from(r.transmissions);

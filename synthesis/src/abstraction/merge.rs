@@ -94,7 +94,7 @@ fn rename(next: Next, lump_of: &[u32]) -> Next {
 /// Categories with an expected count under [`MIN_EXPECTED`] in either row are
 /// pooled into one (folded into the smallest other if still sparse); a
 /// single category left means no evidence (p = 1).
-fn homogeneity_p(a: &BTreeMap<Next, u32>, b: &BTreeMap<Next, u32>) -> f64 {
+pub(super) fn homogeneity_p(a: &BTreeMap<Next, u32>, b: &BTreeMap<Next, u32>) -> f64 {
     let (na, nb) = (
         a.values().map(|&v| f64::from(v)).sum::<f64>(),
         b.values().map(|&v| f64::from(v)).sum::<f64>(),

@@ -22,6 +22,7 @@
 //! the smallest hash keys — so the MDP is bit-identical for a seed whatever the
 //! number of threads. Pure: no I/O, no clock.
 
+pub mod aggregation;
 mod bounds;
 mod layers;
 mod merge;

@@ -3,7 +3,7 @@
 //! the source recording; Python `jsonschema` on a sample when installed),
 //! and no silent overwrite.
 
-use super::recording::{out_file, python_json, python_mcap, record, replay};
+use super::recording::{out_file, python_json, record, replay};
 use super::serial;
 use etp_tests::{bin_dir, unique_run_id};
 use serde_json::Value;
@@ -96,7 +96,7 @@ fn the_foxglove_copy_is_json_with_foxglove_schemas_and_matches_the_recording() {
     let size = std::fs::metadata(&fox).expect("the copy exists").len();
     assert_eq!(st["bytes"].as_u64(), Some(size));
 
-    if python_mcap() {
+    {
         let p = inspect(&fox);
         let channels = p["channels"].as_array().expect("channels");
         assert_eq!(channels.len(), 5, "{p}");
@@ -134,14 +134,13 @@ fn the_foxglove_copy_is_json_with_foxglove_schemas_and_matches_the_recording() {
             w
         };
         assert_eq!(ids, want, "one path entity per episode");
-        if p["jsonschema"].as_bool() == Some(true) {
-            assert!(p["validated"].as_u64() > Some(100), "{}", p["validated"]);
-            assert_eq!(p["errors"], Value::Array(vec![]), "schema violations");
-        } else {
-            eprintln!(
-                "SKIPPED the schema validation: python3 has no `jsonschema` (pip install jsonschema)"
-            );
-        }
+        assert_eq!(
+            p["jsonschema"].as_bool(),
+            Some(true),
+            "the pinned venv has jsonschema"
+        );
+        assert!(p["validated"].as_u64() > Some(100), "{}", p["validated"]);
+        assert_eq!(p["errors"], Value::Array(vec![]), "schema violations");
     }
 
     // An existing OUT is refused without --force and left untouched.

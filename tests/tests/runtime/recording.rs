@@ -15,6 +15,12 @@ pub(super) fn out_file(id: &str) -> PathBuf {
     std::env::temp_dir().join(format!("etp-test-{id}.mcap"))
 }
 
+/// Where a run records before its recording is moved onto `file`.
+pub(super) fn partial_file(file: &Path, run_id: &str) -> PathBuf {
+    let name = file.file_name().expect("file name").to_string_lossy();
+    file.with_file_name(format!("{name}.{run_id}.partial"))
+}
+
 pub(super) fn record(id: &str, file: &Path, episodes: &str, seed: &str) -> Value {
     let (ok, out, err) = EtpRun::spawn(
         id,
@@ -52,22 +58,9 @@ pub(super) fn replay(args: &[&str]) -> Value {
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("bad JSON ({e}): {text}"))
 }
 
-pub(super) fn python_mcap() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import mcap"])
-        .status()
-        .is_ok_and(|s| s.success());
-    if !ok {
-        eprintln!(
-            "SKIPPED the Python check: python3 with the PyPI `mcap` package is missing (pip install mcap)"
-        );
-    }
-    ok
-}
-
 /// Run a Python script on `file` (its `sys.argv[1]`); its stdout as JSON.
 pub(super) fn python_json(script: &str, file: &Path) -> Value {
-    let out = Command::new("python3")
+    let out = Command::new(etp_tests::pyenv::python())
         .args(["-c", script, &file.display().to_string()])
         .output()
         .expect("python3");
@@ -156,7 +149,7 @@ fn recording_counts_equal_the_report_and_measurements_equal_ledgers_and_received
     assert_eq!(r["received"].as_u64(), Some(received));
     assert_eq!(r["episodes"].as_f64(), Some(num(&v, "episodes")));
     // The independent reader.
-    if python_mcap() {
+    {
         let (py, total) = python_counts(&file);
         assert_eq!(py, counts, "python mcap counts == run report");
         assert_eq!(total, counts.values().sum::<u64>());
@@ -187,9 +180,11 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
     );
     let victim = wait_for_process(&id, "etp-recorder", None);
     // Kill it mid-run: once the file holds a few episodes (a fixed delay
-    // measured the machine's load, not the recorder).
+    // measured the machine's load, not the recorder). The run records
+    // beside its target (moved there at the end).
+    let partial = partial_file(&file, &id);
     let start = std::time::Instant::now();
-    while std::fs::metadata(&file).map_or(0, |m| m.len()) < 200 * 1024 {
+    while std::fs::metadata(&partial).map_or(0, |m| m.len()) < 200 * 1024 {
         assert!(
             start.elapsed() < Duration::from_secs(120),
             "the recording never grew"
@@ -239,7 +234,7 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
     );
     assert!(rr["verify"]["episodes_incomplete"].as_u64() <= Some(1));
     assert_eq!(rr["counts"], r["counts"]);
-    if python_mcap() {
+    {
         let (py, total) = python_counts(&repaired);
         assert_eq!(total, messages);
         let rc: BTreeMap<String, u64> =
@@ -250,9 +245,11 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
     let _ = std::fs::remove_file(&repaired);
 }
 
-/// Two runs recording to one path at once: the recorder creates the file
-/// exclusively, so exactly one run records; the other is refused before it
-/// starts anything, naming the path; the winner's file is whole and verifies.
+/// Two runs recording to one path at once (issue 24 item 1): each records
+/// beside the path; the first to finish links its recording into place, the
+/// other finds the path taken, does not overwrite it, keeps its recording at
+/// its partial name and exits 4 naming the path. The winner's file is whole
+/// and verifies.
 #[test]
 fn two_runs_recording_to_one_path_do_not_both_write() {
     let _serial = serial();
@@ -275,26 +272,32 @@ fn two_runs_recording_to_one_path_do_not_both_write() {
         &path,
     ];
     let (ra, rb) = (EtpRun::spawn(&a, &args), EtpRun::spawn(&b, &args));
-    let (ok_a, out_a, err_a) = ra.finish();
-    let (ok_b, out_b, err_b) = rb.finish();
+    let (code_a, out_a, err_a) = ra.finish_code();
+    let (code_b, out_b, err_b) = rb.finish_code();
     assert!(
-        ok_a != ok_b,
-        "exactly one run may record to {path}: a {ok_a} ({err_a}), b {ok_b} ({err_b})"
+        (code_a == Some(0)) != (code_b == Some(0)),
+        "exactly one run may record to {path}: a {code_a:?} ({err_a}), b {code_b:?} ({err_b})"
     );
-    let (winner, out, loser_err) = if ok_a {
-        (&a, out_a, err_b)
+    let (winner, loser, out, loser_code, loser_err) = if code_a == Some(0) {
+        (&a, &b, out_a, code_b, err_b)
     } else {
-        (&b, out_b, err_a)
+        (&b, &a, out_b, code_a, err_a)
     };
+    assert_eq!(loser_code, Some(4), "{loser_err}");
+    let kept = partial_file(&file, loser);
     assert!(
         loser_err.contains(&path)
-            && (loser_err.contains("already exists") || loser_err.contains("exclusively")),
+            && loser_err.contains("already exists")
+            && loser_err.contains(&kept.display().to_string()),
         "{loser_err}"
     );
     let v: Value = serde_json::from_str(&out).expect("report of the recording run");
     assert_eq!(v["recording"]["finished"].as_bool(), Some(true));
     let c = read_finished(&file);
     assert_eq!(c.meta(recording::META_RUN, "run_id"), Some(winner.as_str()));
+    // The loser's recording is whole too, at its partial name.
+    let k = read_finished(&kept);
+    assert_eq!(k.meta(recording::META_RUN, "run_id"), Some(loser.as_str()));
     let r = replay(&[&path, "--verify"]);
     assert_eq!(
         r["verify"]["passed"].as_bool(),
@@ -303,6 +306,159 @@ fn two_runs_recording_to_one_path_do_not_both_write() {
         r["verify"]
     );
     assert_eq!(r["episodes"].as_u64(), Some(20));
+    assert!(!partial_file(&file, winner).exists());
+    let _ = std::fs::remove_file(&file);
+    let _ = std::fs::remove_file(&kept);
+}
+
+/// Issue 24 item 1: `--force` destroys nothing before the run ran — a run
+/// refused before it starts leaves the old file and no partial file — and
+/// a run whose target another `--force` run replaced meanwhile does not
+/// clobber it: it says so, keeps its own recording beside, and exits 4.
+#[test]
+fn force_replaces_a_recording_only_after_the_run_and_never_a_file_replaced_meanwhile() {
+    let _serial = serial();
+    let (a, b, c) = (
+        unique_run_id("force-a"),
+        unique_run_id("force-b"),
+        unique_run_id("force-c"),
+    );
+    let file = out_file(&a);
+    let path = file.display().to_string();
+    std::fs::write(&file, b"precious").expect("write");
+    let run = |id: &str, delta: &str, episodes: &str| {
+        EtpRun::spawn(
+            id,
+            &[
+                "--scenario",
+                "winding-2d",
+                "--delta",
+                delta,
+                "--episodes",
+                episodes,
+                "--predict-episodes",
+                "50",
+                "--record",
+                &path,
+                "--force",
+            ],
+        )
+    };
+    // Refused before it ran: the old file stays, nothing beside it.
+    let (code, _, err) = run(&a, "9.99", "10").finish_code();
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("9.99"), "{err}");
+    assert_eq!(std::fs::read(&file).expect("old file"), b"precious");
+    assert!(!partial_file(&file, &a).exists());
+
+    // A long run A is recording with --force; run B --force replaces the
+    // file first. A must not clobber B's recording.
+    let long = run(&a, DELTA, "3000");
+    let partial_a = partial_file(&file, &a);
+    wait_until_recorded(&partial_a);
+    assert_eq!(std::fs::read(&file).expect("old file"), b"precious");
+    let (ok_b, out_b, err_b) = run(&b, DELTA, "5").finish();
+    assert!(ok_b, "{err_b}");
+    let vb: Value = serde_json::from_str(&out_b).expect("JSON");
+    assert_eq!(vb["recording"]["path"].as_str(), Some(path.as_str()));
+    assert_eq!(
+        read_finished(&file).meta(recording::META_RUN, "run_id"),
+        Some(b.as_str())
+    );
+    kill("-TERM", &long.pid().to_string());
+    let (code, out, err) = long.finish_code();
+    assert_eq!(code, Some(130), "{err}");
+    assert!(
+        err.contains("was replaced or removed during this run")
+            && err.contains(&partial_a.display().to_string()),
+        "{err}"
+    );
+    let va: Value = serde_json::from_str(&out).expect("JSON");
+    assert_eq!(
+        va["recording"]["path"].as_str(),
+        Some(partial_a.display().to_string().as_str())
+    );
+    // B's recording is still the file; A's is whole beside it.
+    assert_eq!(
+        read_finished(&file).meta(recording::META_RUN, "run_id"),
+        Some(b.as_str())
+    );
+    assert_eq!(
+        read_finished(&partial_a).meta(recording::META_RUN, "run_id"),
+        Some(a.as_str())
+    );
+
+    // A run whose own partial file is removed under it says so (exit 4)
+    // and leaves the target alone.
+    let victim = run(&c, DELTA, "3000");
+    let partial_c = partial_file(&file, &c);
+    wait_until_recorded(&partial_c);
+    std::fs::remove_file(&partial_c).expect("remove");
+    kill("-TERM", &victim.pid().to_string());
+    let (code, _, err) = victim.finish_code();
+    assert_eq!(code, Some(130), "{err}");
+    assert!(err.contains("was removed during the run"), "{err}");
+    assert_eq!(
+        read_finished(&file).meta(recording::META_RUN, "run_id"),
+        Some(b.as_str())
+    );
+    for f in [&file, &partial_a, &partial_c] {
+        let _ = std::fs::remove_file(f);
+    }
+}
+
+/// Wait (up to 120 s) until a run's recording in progress holds 64 KiB.
+fn wait_until_recorded(partial: &Path) {
+    let start = std::time::Instant::now();
+    while std::fs::metadata(partial).map_or(0, |m| m.len()) < 64 * 1024 {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "{} never grew",
+            partial.display()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Issue 24 item 1: a remote join that fails (nobody joins in time) is a
+/// run that never ran: `--force` leaves the old recording as it was and no
+/// partial file beside it.
+#[test]
+fn a_failed_remote_join_leaves_the_old_recording_alone() {
+    let _serial = serial();
+    let id = unique_run_id("join-fail");
+    let file = out_file(&id);
+    std::fs::write(&file, b"precious").expect("write");
+    let port = 20_000 + std::process::id() % 20_000;
+    let (code, _, err) = EtpRun::spawn(
+        &id,
+        &[
+            "--scenario",
+            "open-2d",
+            "--delta",
+            "1.0518",
+            "--episodes",
+            "5",
+            "--listen",
+            &format!("tcp/127.0.0.1:{port}"),
+            "--remote",
+            "s1",
+            "--join-timeout",
+            "1",
+            "--record",
+            &file.display().to_string(),
+            "--force",
+        ],
+    )
+    .finish_code();
+    assert_eq!(code, Some(1), "{err}");
+    assert_eq!(
+        std::fs::read(&file).expect("old file"),
+        b"precious",
+        "{err}"
+    );
+    assert!(!partial_file(&file, &id).exists(), "{err}");
+    assert!(processes_of_run(&id).is_empty());
     let _ = std::fs::remove_file(&file);
 }
 
@@ -369,7 +525,7 @@ fn a_recorder_never_opens_an_existing_file_and_survives_a_closed_stdout() {
     let _ = std::fs::remove_file(&file);
     for id in [&a, &b] {
         if let Ok(run) = etp_runtime::wire::RunId::new(id) {
-            etp_runtime::wire::cleanup::remove_run(&run);
+            etp_runtime::cleanup::remove_run(&run);
         }
     }
 }

@@ -1,108 +1,47 @@
-//! `etp replay FILE`: the run's summary from a recording alone (episodes,
-//! outcomes, per-sensor transmissions = `measurement` messages beside the
-//! sensors' ledgers and what the agent received, energy vs prediction). Works
-//! on an unfinished file (crashed recorder): every complete record is read.
-//! `--repair OUT` writes a finished copy; `--verify` re-runs the estimator
-//! (`etp_runtime::recording::verify`); `--publish` puts the traffic back on
-//! iceoryx2 (`publish.rs`); `--foxglove OUT` writes a copy that Foxglove
-//! draws (`foxglove.rs`); `--info` (`info.rs`), `--cat` and `--export DIR`
-//! (`export.rs`), `--plot` (`figure.rs`), on the messages selected by
-//! `--topics`, `--episodes`, `--start`/`--end` (`select.rs`). Exit codes: 0 complete file, 3 unfinished file
-//! (cut anywhere by a crash or a copy: summary of every complete record
-//! printed), 1 error — including a damaged file (bad chunk, data or summary
-//! CRC, undecodable record, metadata whose scenario hashes disagree), which
-//! only `--repair` reads (salvaging the records before the damage). Output
-//! goes through [`emit`]: a closed stdout never panics.
-
-mod export;
-mod figure;
-mod foxglove;
-mod info;
-mod publish;
-mod repair;
-mod select;
-mod summary;
+//! `etp replay`: the recording tools of `etp_recording_tools`, as
+//! subcommands like `ros2 bag` and the `mcap` CLI:
+//!
+//! `etp replay summary FILE` (also plain `etp replay FILE`), `info`, `cat`,
+//! `export FILE DIR`, `filter FILE OUT`, `verify`, `repair FILE OUT`,
+//! `publish`, `foxglove FILE OUT`, `plot`. The flags of the previous release
+//! (`etp replay FILE --info`, `--cat`, `--export DIR`, …) still work, with a
+//! deprecation note on stderr; they go in the next release.
+//!
+//! Exit codes (README "Exit codes"): 0 a complete file whose identities
+//! hold; 1 an error, a damaged file (only `repair` reads it) or a failed
+//! verification; 3 an unfinished file (cut by a crash or a copy: every
+//! complete record is summarised); 4 a count identity fails on the complete
+//! episodes (`measurement` messages ≠ ledger transmissions, or ≠ received
+//! without a dead link). Output goes through [`emit`]: a closed stdout never
+//! panics.
 
 use anyhow::{Context, Result, bail};
+use etp_recording_tools::{
+    check_output, export, figure, foxglove, info, load_bytes, publish, repair, select, summary,
+};
 use etp_runtime::recording::{self, Contents};
 use etp_runtime::wire::RunId;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
-/// Episodes by recorded outcome (summary and figure count the same way).
-#[derive(Debug, Default, Clone, Copy)]
-struct OutcomeCounts {
-    target: u64,
-    collision: u64,
-    free: u64,
-}
-
-impl OutcomeCounts {
-    fn add(&mut self, outcome: &etp_runtime::wire::agent_to_coordinator::Outcome) {
-        use etp_runtime::wire::agent_to_coordinator::Outcome;
-        match outcome.outcome {
-            Outcome::TARGET => self.target += 1,
-            Outcome::COLLISION => self.collision += 1,
-            Outcome::FREE => self.free += 1,
-            _ => {}
-        }
-    }
-}
-
 #[derive(Debug, clap::Args)]
+#[command(
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true,
+    after_help = "Without a subcommand, `etp replay FILE` prints the summary. The flags \
+                  `--info`, `--cat`, `--export`, `--verify`, `--repair`, `--publish`, \
+                  `--foxglove` and `--plot` of the previous release still work (deprecated)."
+)]
 pub struct Args {
-    /// An MCAP recording (`etp run --record`).
-    pub file: PathBuf,
-    /// Print one JSON object.
-    #[arg(long)]
-    pub json: bool,
-    /// Write a finished copy (summary, indexes, footer) of the file to OUT.
-    #[arg(long, value_name = "OUT")]
-    pub repair: Option<PathBuf>,
-    /// Re-run the agent's estimator on the recorded measurements and silent
-    /// slots and check it reproduces every recorded belief bit for bit
-    /// (exit code 1 if not).
-    #[arg(long)]
-    pub verify: bool,
-    /// Re-publish the recorded traffic on iceoryx2 (like `ros2 bag play`), at
-    /// the recorded timing divided by `--rate`, on the services of run
-    /// `--run-id` (start subscribers such as `etp-recorder --run-id ID` first).
-    #[arg(long)]
-    pub publish: bool,
-    /// Speed of `--publish`: 1 = recorded timing, 2 = twice as fast, `inf` =
-    /// as fast as the subscribers take it.
-    #[arg(long, default_value = "1", value_parser = publish::parse_rate, requires = "publish")]
-    pub rate: f64,
-    /// Run id (services `etp/<run-id>/…`) for `--publish`; default: a fresh one.
-    #[arg(long, requires = "publish")]
-    pub run_id: Option<String>,
-    /// Write a copy for Foxglove to OUT: JSON messages with Foxglove's
-    /// schemas (map, agent with 3σ ellipse, paths, transmissions, outcomes).
-    #[arg(long, value_name = "OUT")]
-    pub foxglove: Option<PathBuf>,
-    /// Times of the `--foxglove` copy: `step` (10 ms per plant step, smooth
-    /// playback at 1×) or `recorded` (the recorder's time stamps).
-    #[arg(long, value_enum, default_value = "step", requires = "foxglove")]
-    pub foxglove_clock: foxglove::Clock,
-    /// Repeat `--publish`: `--loop` until interrupted (Ctrl-C, SIGTERM),
-    /// `--loop N` N times in all.
-    #[arg(long = "loop", value_name = "N", num_args = 0..=1, default_missing_value = "0", requires = "publish")]
-    pub repeat: Option<u64>,
-    /// Write one table per channel into DIR (decoded, typed columns, codes
-    /// as names; `DIR/tables.json` describes them).
-    #[arg(long, value_name = "DIR")]
-    pub export: Option<PathBuf>,
-    /// Table format of `--export`.
-    #[arg(long, value_enum, default_value = "csv", requires = "export")]
-    pub format: export::Format,
-    /// Print every (selected) message decoded, as one JSON object per line,
-    /// in log-time order (instead of the summary).
-    #[arg(long, conflicts_with_all = ["json", "info"])]
-    pub cat: bool,
-    /// Print what the file holds (size, compression, time span, schemas,
-    /// messages per channel, metadata) instead of the summary.
-    #[arg(long)]
-    pub info: bool,
+    #[command(subcommand)]
+    pub action: Option<Action>,
+    #[command(flatten)]
+    pub job: Job,
+}
+
+/// `--topics`, `--episodes`, `--start`, `--end`.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct SelectArgs {
     /// Only these channels (comma-separated topics; `*` matches any text,
     /// e.g. `outcome,sensor/*/handover`).
     #[arg(long, value_delimiter = ',', value_name = "TOPICS")]
@@ -117,117 +56,434 @@ pub struct Args {
     /// Only messages up to this many seconds after the first message.
     #[arg(long, value_parser = select::parse_offset, value_name = "SECONDS")]
     pub end: Option<f64>,
+}
+
+/// One recording tool.
+#[derive(Debug, clap::Subcommand)]
+pub enum Action {
+    /// The run's summary: complete episodes, outcomes, per-sensor
+    /// transmissions beside ledgers and received, energy vs prediction.
+    Summary {
+        file: PathBuf,
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        select: SelectArgs,
+    },
+    /// What the file holds (size, compression, time span, schemas, messages
+    /// per channel, metadata), like `mcap info`.
+    Info {
+        file: PathBuf,
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        select: SelectArgs,
+    },
+    /// Every (selected) message decoded, one JSON object per line, in
+    /// log-time order, like `mcap cat --json`.
+    Cat {
+        file: PathBuf,
+        #[command(flatten)]
+        select: SelectArgs,
+    },
+    /// One table per channel into DIR (decoded, typed columns, codes as
+    /// names; `DIR/tables.json` describes them).
+    Export {
+        file: PathBuf,
+        dir: PathBuf,
+        #[arg(long, value_enum, default_value = "csv")]
+        format: export::Format,
+        #[arg(long)]
+        force: bool,
+        #[command(flatten)]
+        select: SelectArgs,
+    },
+    /// Write the selected messages (all metadata kept) to a new, finished
+    /// recording OUT, like `mcap filter`.
+    Filter {
+        file: PathBuf,
+        out: PathBuf,
+        #[arg(long)]
+        force: bool,
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        select: SelectArgs,
+    },
+    /// Re-run the agent's estimator on the recorded measurements and silent
+    /// slots; every recorded belief must be reproduced bit for bit (exit 1 if
+    /// not).
+    Verify {
+        file: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write a finished copy (summary, indexes, footer) of an unfinished or
+    /// damaged file: every complete record before the cut or the damage.
+    Repair {
+        file: PathBuf,
+        out: PathBuf,
+        #[arg(long)]
+        force: bool,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Re-publish the recorded traffic on iceoryx2 (like `ros2 bag play`).
+    Publish {
+        file: PathBuf,
+        /// 1 = recorded timing, 2 = twice as fast, `inf` = as fast as the
+        /// subscribers take it.
+        #[arg(long, default_value = "1", value_parser = publish::parse_rate)]
+        rate: f64,
+        /// Run id (services `etp/<run-id>/…`); default: a fresh one.
+        #[arg(long)]
+        run_id: Option<String>,
+        /// Repeat: `--loop` until interrupted, `--loop N` N times in all.
+        #[arg(long = "loop", value_name = "N", num_args = 0..=1, default_missing_value = "0")]
+        repeat: Option<u64>,
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        select: SelectArgs,
+    },
+    /// Write a copy Foxglove draws (map, agent with 3σ ellipse, paths,
+    /// transmissions, outcomes) to OUT; `--episodes` cuts it.
+    Foxglove {
+        file: PathBuf,
+        out: PathBuf,
+        /// `step` (10 ms per plant step) or `recorded` (recorder time stamps).
+        #[arg(long, value_enum, default_value = "step")]
+        clock: foxglove::Clock,
+        /// Only these episodes (`A..B`, `A..=B`, `A..`, `..B` or `N`).
+        #[arg(long, value_parser = select::parse_episodes, value_name = "RANGE")]
+        episodes: Option<select::Episodes>,
+        #[arg(long)]
+        force: bool,
+        #[arg(long)]
+        json: bool,
+    },
     /// Draw measured vs predicted (per-sensor energy per episode, outcomes,
-    /// 95 % intervals) to `<FILE without .mcap>-report.png` and `.svg`.
+    /// 95 % intervals) to `<FILE without .mcap>-replay.png` and `.svg`.
+    Plot {
+        file: PathBuf,
+        #[arg(long)]
+        force: bool,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+impl Action {
+    /// The job of this tool, in the terms of the previous release's flags.
+    fn job(self) -> Job {
+        let sel = |j: Job, s: SelectArgs| Job { select: s, ..j };
+        let on = |file: PathBuf| Job {
+            file: Some(file),
+            ..Job::default()
+        };
+        match self {
+            Action::Summary { file, json, select } => sel(Job { json, ..on(file) }, select),
+            Action::Info { file, json, select } => sel(
+                Job {
+                    json,
+                    info: true,
+                    ..on(file)
+                },
+                select,
+            ),
+            Action::Cat { file, select } => sel(
+                Job {
+                    cat: true,
+                    ..on(file)
+                },
+                select,
+            ),
+            Action::Export {
+                file,
+                dir,
+                format,
+                force,
+                select,
+            } => sel(
+                Job {
+                    export: Some(dir),
+                    format,
+                    force,
+                    only: true,
+                    ..on(file)
+                },
+                select,
+            ),
+            Action::Filter {
+                file,
+                out,
+                force,
+                json,
+                select,
+            } => sel(
+                Job {
+                    filter: Some(out),
+                    force,
+                    json,
+                    only: true,
+                    ..on(file)
+                },
+                select,
+            ),
+            Action::Verify { file, json } => Job {
+                verify: true,
+                json,
+                ..on(file)
+            },
+            Action::Repair {
+                file,
+                out,
+                force,
+                json,
+            } => Job {
+                repair: Some(out),
+                force,
+                json,
+                only: true,
+                ..on(file)
+            },
+            Action::Publish {
+                file,
+                rate,
+                run_id,
+                repeat,
+                json,
+                select,
+            } => sel(
+                Job {
+                    publish: true,
+                    rate,
+                    run_id,
+                    repeat,
+                    json,
+                    ..on(file)
+                },
+                select,
+            ),
+            Action::Foxglove {
+                file,
+                out,
+                clock,
+                episodes,
+                force,
+                json,
+            } => Job {
+                foxglove: Some(out),
+                foxglove_clock: clock,
+                force,
+                json,
+                only: true,
+                select: SelectArgs {
+                    episodes,
+                    ..SelectArgs::default()
+                },
+                ..on(file)
+            },
+            Action::Plot { file, force, json } => Job {
+                plot: true,
+                force,
+                json,
+                only: true,
+                ..on(file)
+            },
+        }
+    }
+}
+
+/// What `etp replay` does to a file: the summary, plus the jobs asked for
+/// (the flags of the previous release, deprecated).
+#[derive(Debug, Default, clap::Args)]
+pub struct Job {
+    /// An MCAP recording (`etp run --record`).
+    #[arg(required = true)]
+    pub file: Option<PathBuf>,
+    /// Print one JSON object.
     #[arg(long)]
+    pub json: bool,
+    /// Deprecated: `etp replay repair FILE OUT`.
+    #[arg(long, value_name = "OUT", hide = true)]
+    pub repair: Option<PathBuf>,
+    /// Deprecated: `etp replay verify FILE`.
+    #[arg(long, hide = true)]
+    pub verify: bool,
+    /// Deprecated: `etp replay publish FILE`.
+    #[arg(long, hide = true)]
+    pub publish: bool,
+    /// Deprecated: `etp replay publish FILE --rate X`.
+    #[arg(long, default_value = "1", value_parser = publish::parse_rate, requires = "publish", hide = true)]
+    pub rate: f64,
+    /// Deprecated: `etp replay publish FILE --run-id ID`.
+    #[arg(long, requires = "publish", hide = true)]
+    pub run_id: Option<String>,
+    /// Deprecated: `etp replay foxglove FILE OUT`.
+    #[arg(long, value_name = "OUT", hide = true)]
+    pub foxglove: Option<PathBuf>,
+    /// Deprecated: `etp replay foxglove FILE OUT --clock C`.
+    #[arg(
+        long,
+        value_enum,
+        default_value = "step",
+        requires = "foxglove",
+        hide = true
+    )]
+    pub foxglove_clock: foxglove::Clock,
+    /// Deprecated: `etp replay publish FILE --loop [N]`.
+    #[arg(long = "loop", value_name = "N", num_args = 0..=1, default_missing_value = "0", requires = "publish", hide = true)]
+    pub repeat: Option<u64>,
+    /// Deprecated: `etp replay export FILE DIR`.
+    #[arg(long, value_name = "DIR", hide = true)]
+    pub export: Option<PathBuf>,
+    /// Deprecated: `etp replay export FILE DIR --format F`.
+    #[arg(
+        long,
+        value_enum,
+        default_value = "csv",
+        requires = "export",
+        hide = true
+    )]
+    pub format: export::Format,
+    /// Deprecated: `etp replay cat FILE`.
+    #[arg(long, conflicts_with_all = ["json", "info"], hide = true)]
+    pub cat: bool,
+    /// Deprecated: `etp replay info FILE`.
+    #[arg(long, hide = true)]
+    pub info: bool,
+    #[command(flatten)]
+    pub select: SelectArgs,
+    /// Deprecated: `etp replay plot FILE`.
+    #[arg(long, hide = true)]
     pub plot: bool,
     /// Overwrite output files that exist.
     #[arg(long)]
     pub force: bool,
+    /// `filter OUT` (subcommand only).
+    #[arg(skip)]
+    pub filter: Option<PathBuf>,
+    /// The job alone, without the summary on stdout (a subcommand's).
+    #[arg(skip)]
+    pub only: bool,
 }
 
-impl Args {
+impl Job {
     fn selection(&self) -> select::Selection {
         select::Selection {
-            topics: self.topics.clone(),
-            episodes: self.episodes,
-            start: self.start,
-            end: self.end,
+            topics: self.select.topics.clone(),
+            episodes: self.select.episodes,
+            start: self.select.start,
+            end: self.select.end,
         }
     }
-}
 
-/// The MCAP writer of `etp replay`'s copies (zstd, 1 MiB chunks), with the
-/// source's metadata records already written.
-fn copy_writer(
-    c: &Contents,
-    path: &Path,
-    profile: &str,
-    what: &str,
-) -> Result<mcap::Writer<std::io::BufWriter<std::fs::File>>> {
-    let file =
-        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-    let mut w = mcap::WriteOptions::new()
-        .compression(Some(mcap::Compression::Zstd))
-        .chunk_size(Some(1024 * 1024))
-        .profile(profile)
-        .library(format!("etp replay {what} {}", env!("CARGO_PKG_VERSION")))
-        .create(std::io::BufWriter::new(file))
-        .context("starting the MCAP writer")?;
-    for (name, metadata) in &c.metadata {
-        w.write_metadata(&mcap::records::Metadata {
-            name: name.clone(),
-            metadata: metadata.clone(),
-        })?;
+    /// The previous release's flags in use, for the deprecation note.
+    fn old_flags(&self) -> Vec<&'static str> {
+        [
+            (
+                self.repair.is_some(),
+                "--repair OUT → `etp replay repair FILE OUT`",
+            ),
+            (self.verify, "--verify → `etp replay verify FILE`"),
+            (self.publish, "--publish → `etp replay publish FILE`"),
+            (
+                self.foxglove.is_some(),
+                "--foxglove OUT → `etp replay foxglove FILE OUT`",
+            ),
+            (
+                self.export.is_some(),
+                "--export DIR → `etp replay export FILE DIR`",
+            ),
+            (self.cat, "--cat → `etp replay cat FILE`"),
+            (self.info, "--info → `etp replay info FILE`"),
+            (self.plot, "--plot → `etp replay plot FILE`"),
+        ]
+        .into_iter()
+        .filter_map(|(on, s)| on.then_some(s))
+        .collect()
     }
-    Ok(w)
-}
-
-/// Read a recording (finished or not).
-pub fn load(path: &Path) -> Result<Contents> {
-    Ok(load_bytes(path)?.0)
-}
-
-/// Read a recording and the file's bytes.
-fn load_bytes(path: &Path) -> Result<(Contents, Vec<u8>)> {
-    let buf = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    let c = recording::read_lenient(&path.display().to_string(), &buf)?;
-    Ok((c, buf))
-}
-
-/// Refuse an output path that exists (unless `--force`) or is the input.
-fn check_output(input: &Path, out: &Path, force: bool) -> Result<()> {
-    if out == input
-        || std::fs::canonicalize(out)
-            .ok()
-            .is_some_and(|o| std::fs::canonicalize(input).ok() == Some(o))
-    {
-        bail!(
-            "{} is the recording being read: choose another output",
-            out.display()
-        );
-    }
-    crate::output::refuse_existing(out, force)
 }
 
 /// Exit code of `etp replay` on an unfinished recording (summary printed).
 pub const EXIT_UNFINISHED: u8 = 3;
+/// Exit code of `etp replay` when a count identity fails on the complete
+/// episodes.
+pub const EXIT_IDENTITY: u8 = 4;
 
 pub fn run(a: Args) -> Result<()> {
-    if let Some(out) = &a.repair {
-        check_output(&a.file, out, a.force)?;
-    }
-    if let Some(out) = &a.foxglove {
-        check_output(&a.file, out, a.force)?;
-        if a.repair.as_ref() == Some(out) {
-            bail!("--repair and --foxglove both write {}", out.display());
-        }
-    }
-    let selection = a.selection();
-    if !selection.is_all() {
-        for (on, flag) in [
-            (a.verify, "--verify"),
-            (a.repair.is_some(), "--repair"),
-            (a.foxglove.is_some(), "--foxglove"),
-        ] {
-            if on {
-                bail!(
-                    "{flag} reads the whole recording: --topics, --episodes, --start and --end \
-                     select messages for the summary, --info, --cat, --export and --publish only"
+    let job = match a.action {
+        Some(action) => action.job(),
+        None => {
+            let old = a.job.old_flags();
+            if !old.is_empty() {
+                eprintln!(
+                    "note: deprecated flags (they go in the next release): {}",
+                    old.join("; ")
                 );
             }
+            a.job
+        }
+    };
+    run_job(job)
+}
+
+fn run_job(a: Job) -> Result<()> {
+    let file = a.file.clone().context("no recording given")?;
+    for out in [&a.repair, &a.foxglove, &a.filter].into_iter().flatten() {
+        check_output(&file, out, a.force)?;
+    }
+    if a.repair.is_some() && a.repair == a.foxglove {
+        bail!("--repair and --foxglove both write the same file");
+    }
+    let selection = a.selection();
+    let whole = select::Selection {
+        episodes: None,
+        ..selection.clone()
+    };
+    for (on, flag, sel) in [
+        (a.verify, "verify", &selection),
+        (a.repair.is_some(), "repair", &selection),
+        (a.foxglove.is_some(), "foxglove", &whole),
+    ] {
+        if on && !sel.is_all() {
+            bail!(
+                "{flag} reads the whole recording{}: write a subset with `etp replay filter` first",
+                if flag == "foxglove" {
+                    " (or whole episodes: --episodes)"
+                } else {
+                    ""
+                }
+            );
         }
     }
-    let (mut c, buf) = load_bytes(&a.file)?;
+    // `export` alone on a finished file streams it: memory stays flat
+    // however long the recording.
+    if let Some(dir) = a.export.as_ref().filter(|_| a.only)
+        && recording::ends_finished(&file).unwrap_or(false)
+    {
+        let (e, _) = export::export_streaming(&file, dir, a.format, a.force, &selection)
+            .with_context(|| format!("exporting to {}", dir.display()))?;
+        eprintln!(
+            "exported {} rows in {} tables to {} ({} bytes)",
+            e.rows, e.tables, e.dir, e.bytes
+        );
+        if a.json {
+            emit(&format!("{}\n", json!({ "exported": e })))?;
+        }
+        return Ok(());
+    }
+    let (mut c, buf) = load_bytes(&file)?;
     // A damaged file is refused unless the user asked to salvage it.
     if c.damaged && a.repair.is_none() {
         bail!(
             "{} is damaged: {}; {} complete messages precede the damage \
-             (`etp replay {} --repair OUT` salvages them)",
-            a.file.display(),
+             (`etp replay repair {} OUT` salvages them)",
+            file.display(),
             c.truncated.as_deref().unwrap_or("unreadable record"),
             c.messages.len(),
-            a.file.display()
+            file.display()
         );
     }
     // The metadata must describe one scenario (hashes of etp.run and of the
@@ -235,23 +491,23 @@ pub fn run(a: Args) -> Result<()> {
     if let Err(e) = recording::check_metadata(&c) {
         if a.repair.is_none() {
             bail!(
-                "{} is damaged: {e}; `etp replay {} --repair OUT` copies its records anyway",
-                a.file.display(),
-                a.file.display()
+                "{} is damaged: {e}; `etp replay repair {} OUT` copies its records anyway",
+                file.display(),
+                file.display()
             );
         }
         eprintln!("warning: {e}; the repaired copy keeps this metadata");
     }
     selection.apply(&mut c)?;
     if a.info {
-        let v = info::info(&a.file, buf.len() as u64, &c, &recording::layout(&buf));
+        let v = info::info(&file, buf.len() as u64, &c, &recording::layout(&buf));
         drop(buf);
         emit(&if a.json {
             format!("{v}\n")
         } else {
             info::render(&v)
         })?;
-        return unfinished_exit(&a, &c);
+        return unfinished_exit(&a, &file, &c);
     }
     drop(buf);
     if a.cat {
@@ -259,14 +515,14 @@ pub fn run(a: Args) -> Result<()> {
         match export::cat(&c, &mut out) {
             Err(e) if is_broken_pipe(&e) => return Ok(()),
             r => {
-                r.context("--cat")?;
+                r.context("cat")?;
             }
         }
-        return unfinished_exit(&a, &c);
+        return unfinished_exit(&a, &file, &c);
     }
     let exported = match &a.export {
         Some(dir) => {
-            let e = export::export(&c, &a.file, dir, a.format, a.force)
+            let e = export::export(&c, &file, dir, a.format, a.force)
                 .with_context(|| format!("exporting to {}", dir.display()))?;
             eprintln!(
                 "exported {} rows in {} tables to {} ({} bytes)",
@@ -279,10 +535,9 @@ pub fn run(a: Args) -> Result<()> {
     let s = summary::summarize(&c)?;
     let plotted = match a.plot {
         true => {
-            let stem = a.file.with_extension("").with_file_name(format!(
-                "{}-report",
-                a.file
-                    .file_stem()
+            let stem = file.with_extension("").with_file_name(format!(
+                "{}-replay",
+                file.file_stem()
                     .and_then(|x| x.to_str())
                     .unwrap_or("recording")
             ));
@@ -301,6 +556,14 @@ pub fn run(a: Args) -> Result<()> {
         let n = repair::repair(&c, out)?;
         eprintln!("repaired copy: {} ({n} messages)", out.display());
     }
+    let filtered = match &a.filter {
+        Some(out) => {
+            let n = repair::filter(&c, out)?;
+            eprintln!("filtered copy: {} ({n} messages)", out.display());
+            Some(n)
+        }
+        None => None,
+    };
     let fox = match &a.foxglove {
         Some(out) => {
             let st = foxglove::write_foxglove(&c, out, a.foxglove_clock)
@@ -325,7 +588,7 @@ pub fn run(a: Args) -> Result<()> {
                 c.messages.len(),
                 a.rate
             );
-            Some(publish::publish(&c, &run, a.rate, a.repeat).context("--publish")?)
+            Some(publish::publish(&c, &run, a.rate, a.repeat).context("publish")?)
         }
         false => None,
     };
@@ -335,7 +598,7 @@ pub fn run(a: Args) -> Result<()> {
         None
     };
     if a.json {
-        let mut s = s;
+        let mut s = s.clone();
         if let Some(v) = &verified {
             s["verify"] = json!(v);
             s["verify"]["passed"] = json!(v.passed());
@@ -352,9 +615,12 @@ pub fn run(a: Args) -> Result<()> {
         if let Some(p) = &plotted {
             s["plot"] = json!(p);
         }
+        if let (Some(n), Some(out)) = (filtered, &a.filter) {
+            s["filtered"] = json!({"file": out, "messages": n});
+        }
         emit(&format!("{s}\n"))?;
-    } else {
-        let mut text = summary::render(&a.file, &c, &s);
+    } else if !a.only {
+        let mut text = summary::render(&file, &c, &s);
         if let Some(v) = &verified {
             text.push_str(&render_verify(v));
         }
@@ -374,18 +640,31 @@ pub fn run(a: Args) -> Result<()> {
             v.mismatch_count
         );
     }
-    unfinished_exit(&a, &c)
+    // A selection of channels leaves the identities' other side out.
+    if !a.only && a.select.topics.is_empty() && s["identities_hold"] == json!(false) {
+        return Err(crate::ExitWith {
+            code: EXIT_IDENTITY,
+            message: format!(
+                "error: {}: a count identity fails on the complete episodes: {}",
+                file.display(),
+                s["identity_failures"]
+            ),
+        }
+        .into());
+    }
+    unfinished_exit(&a, &file, &c)
 }
 
 /// Exit code 3 (with a warning) for an unfinished file, unless repaired.
-fn unfinished_exit(a: &Args, c: &Contents) -> Result<()> {
-    if !c.finished && a.repair.is_none() {
+fn unfinished_exit(a: &Job, file: &Path, c: &Contents) -> Result<()> {
+    if !c.finished && a.repair.is_none() && a.filter.is_none() {
         return Err(crate::ExitWith {
             code: EXIT_UNFINISHED,
             message: format!(
                 "warning: {} is unfinished (its recorder stopped before finishing it): \
-                 the summary covers every complete record; `--repair OUT` writes a finished copy",
-                a.file.display()
+                 the summary covers every complete record; `etp replay repair FILE OUT` \
+                 writes a finished copy",
+                file.display()
             ),
         }
         .into());

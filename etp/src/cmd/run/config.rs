@@ -150,6 +150,31 @@ pub fn resolve(mut a: Args) -> Result<Args> {
     Ok(a)
 }
 
+/// The text of the `etp.config` record: the resolved run as a run file that
+/// runs again from any working directory — paths made absolute (they were
+/// relative to where the run started), and no run id (a new run gets a new
+/// one; this run's id is in the `etp.run` record).
+pub fn stored(c: &RunConfig) -> Result<String> {
+    let mut c = c.clone();
+    c.run_id = None;
+    let abs = |p: &mut Option<PathBuf>| -> Result<()> {
+        if let Some(x) = p.as_mut() {
+            *x = std::path::absolute(&*x)
+                .with_context(|| format!("making {} absolute", x.display()))?;
+        }
+        Ok(())
+    };
+    abs(&mut c.strategy)?;
+    abs(&mut c.record)?;
+    if let Some(s) = &c.scenario
+        && etp_shared::scenario::builtin_text(s).is_none()
+    {
+        let p = std::path::absolute(s).with_context(|| format!("making {s} absolute"))?;
+        c.scenario = Some(p.display().to_string());
+    }
+    toml::to_string(&c).context("writing the run's configuration")
+}
+
 /// The resolved run as a run file (the `etp.config` record).
 pub fn of_args(a: &Args, record: Option<&Path>) -> RunConfig {
     RunConfig {
@@ -190,5 +215,31 @@ mod tests {
         assert!(e.to_string().contains("episodez"), "{e}");
         let e = toml::from_str::<RunConfig>("episodes = \"ten\"").expect_err("bad type");
         assert!(e.to_string().contains("episodes"), "{e}");
+    }
+
+    #[test]
+    fn the_stored_run_file_runs_from_anywhere_under_a_new_run_id() {
+        let c = RunConfig {
+            strategy: Some("out/strategy.json".into()),
+            scenario: Some("my/scenario.toml".into()),
+            record: Some("rec.mcap".into()),
+            run_id: Some("old-run".into()),
+            ..RunConfig::default()
+        };
+        let back: RunConfig = toml::from_str(&stored(&c).expect("stored")).expect("toml");
+        let cwd = std::env::current_dir().expect("cwd");
+        assert_eq!(back.run_id, None);
+        assert_eq!(back.strategy, Some(cwd.join("out/strategy.json")));
+        assert_eq!(back.record, Some(cwd.join("rec.mcap")));
+        assert_eq!(
+            back.scenario,
+            Some(cwd.join("my/scenario.toml").display().to_string())
+        );
+        let builtin = RunConfig {
+            scenario: Some("winding-2d".into()),
+            ..RunConfig::default()
+        };
+        let back: RunConfig = toml::from_str(&stored(&builtin).expect("stored")).expect("toml");
+        assert_eq!(back.scenario.as_deref(), Some("winding-2d"));
     }
 }

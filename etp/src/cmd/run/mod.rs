@@ -26,7 +26,8 @@ pub mod sensor_host;
 mod supervise;
 
 use anyhow::{Context, Result, bail};
-use etp_runtime::wire::{RunId, cleanup};
+use etp_runtime::cleanup;
+use etp_runtime::wire::RunId;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -41,7 +42,18 @@ pub const EXIT_DEGRADED: u8 = 5;
 /// complete episodes.
 pub const EXIT_INTERRUPTED: u8 = 130;
 
+/// Exit codes (`etp run --help`; README "Exit codes").
+const EXIT_CODES: &str = "Exit codes: 0 a clean run; 4 an accounting identity fails (ledger \
+≠ received, a live sensor's ledger missing) or the recording failed (unfinished, its file \
+removed or replaced during the run, or the target changed by another writer: the recording \
+is then kept at FILE.<run-id>.partial) — never waived by --allow-degraded; 5 an episode ran \
+with a dead link, without --allow-degraded; 130 interrupted (Ctrl-C/SIGTERM: the report \
+covers the complete episodes); 1 an error before any report (nothing recorded, no file \
+touched). --allow-degraded excuses exactly a dead sensor's legs without a ledger: what the \
+agent received on them is reported apart (received_without_ledger).";
+
 #[derive(Debug, Clone, clap::Args)]
+#[command(after_help = EXIT_CODES)]
 pub struct Args {
     /// A run file (TOML; keys are the long flags: `strategy` or `scenario` +
     /// `delta`, `episodes`, `seed`, `record`, `slot_deadline`, …). Flags on
@@ -66,6 +78,10 @@ pub struct Args {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// The radio (docs/MODEL.md §8); the multi-process runtime runs the
+    /// ideal radio only for now, and refuses a lossy one.
+    #[command(flatten)]
+    pub radio: crate::input::RadioArgs,
     /// Kill everything and fail after this many seconds [default: 3600].
     #[arg(long)]
     pub deadline: Option<f64>,
@@ -88,7 +104,9 @@ pub struct Args {
     /// Record to the default file `recordings/<scenario>-<run-id>.mcap`.
     #[arg(long, conflicts_with = "record")]
     pub record_default: bool,
-    /// Overwrite the `--record` file if it exists.
+    /// Replace the `--record` file if it exists — only once the run ran and
+    /// its recording finished, and only if no other writer touched the file
+    /// meanwhile (the run records beside it, to `<FILE>.<run-id>.partial`).
     #[arg(long)]
     pub force: bool,
     /// Exit 0 even if some episodes ran with a dead link (a sensor died):
@@ -128,8 +146,17 @@ pub struct Args {
 /// ledger must equal what the agent received on that leg; a missing ledger
 /// is excused only for a sensor the run found dead (its episodes are then
 /// degraded), never for a live one.
+///
+/// What is excused for a dead sensor is exactly its legs without a ledger
+/// (the leg it died in, and its later legs): what the agent received on
+/// them is counted apart (`received_without_ledger`) and compared with
+/// nothing. Everything else is checked, dead sensor included: per leg
+/// ledger = received, and per sensor Σ ledgers (`transmitted`) = Σ received
+/// over the same legs (`received`), both equal to the sums of the episode
+/// records. None of this is waived by `--allow-degraded`, which accepts the
+/// degraded episodes only.
 pub fn verdict(
-    report: &etp_runtime::wire::report::RunReport,
+    report: &etp_runtime::report::RunReport,
     recording_ok: bool,
     allow_degraded: bool,
 ) -> Vec<(u8, String)> {
@@ -173,6 +200,40 @@ pub fn verdict(
                 "accounting mismatch: {unequal} leg(s) with ledger ≠ received, {lost} ledger(s) of live sensors missing (first: {})",
                 first.unwrap_or_default()
             ),
+        ));
+    }
+    // The totals, over exactly the legs they claim to cover.
+    let mut totals = Vec::new();
+    for (i, t) in report.sensors.iter().enumerate() {
+        let legs = report
+            .episode_results
+            .iter()
+            .flat_map(|e| &e.legs)
+            .filter(|l| l.sensor as usize == i);
+        let (mut led, mut got, mut unledgered) = (0u64, 0u64, 0u64);
+        for l in legs {
+            match l.transmitted {
+                Some(x) => {
+                    led += u64::from(x);
+                    got += u64::from(l.received);
+                }
+                None => unledgered += u64::from(l.received),
+            }
+        }
+        if t.transmitted != t.received
+            || (t.transmitted, t.received, t.received_without_ledger) != (led, got, unledgered)
+        {
+            totals.push(format!(
+                "sensor {}: ledgers {} vs received {} on legs with a ledger (+{} on legs without; episode records: {led} vs {got}, +{unledgered})",
+                t.name, t.transmitted, t.received, t.received_without_ledger
+            ));
+        }
+    }
+    // A leg already found unequal explains unequal totals: one problem.
+    if unequal == 0 && !totals.is_empty() {
+        v.push((
+            EXIT_ACCOUNTING,
+            format!("accounting mismatch in the totals: {}", totals.join("; ")),
         ));
     }
     if !recording_ok {
@@ -234,12 +295,15 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     if a.slot_deadline == Some(0) {
         bail!("--slot-deadline must be at least 1 ms");
     }
-    if let Some(p) = &a.record {
-        record::claim(p, a.force)?;
-    }
     let run_id = match &a.run_id {
         Some(id) => RunId::new(id)?,
         None => RunId::generate(),
+    };
+    // `--record PATH` is claimed before any work (an existing file is
+    // refused without --force); `--record-default` once its name is known.
+    let mut target = match &a.record {
+        Some(p) => Some(record::Target::claim(p, a.force, run_id.as_str())?),
+        None => None,
     };
     let stale_dirs = rundir::remove_stale();
     let stale = cleanup::remove_stale_runs();
@@ -247,18 +311,20 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         tracing::info!(?stale, ?stale_dirs, "removed what dead runs left");
     }
     let dir = rundir::RunDir::claim(&run_id)?;
-    let plan = match prepare::prepare(a, &run_id, &dir.path) {
-        Ok(mut p) => {
-            let record = match (&a.record, a.record_default) {
-                (Some(p), _) => Some(p.clone()),
-                (None, true) => Some(record::default_path(&p)),
-                (None, false) => None,
-            };
-            let mut c = config::of_args(a, record.as_deref());
-            c.run_id = Some(run_id.to_string());
-            p.config_toml = toml::to_string(&c).context("writing the run's configuration")?;
-            p
+    let prepared = prepare::prepare(a, &run_id, &dir.path).and_then(|mut p| {
+        if target.is_none() && a.record_default {
+            target = Some(record::Target::claim(
+                &record::default_path(&p),
+                a.force,
+                run_id.as_str(),
+            )?);
         }
+        let c = config::of_args(a, target.as_ref().map(|t| t.path.as_path()));
+        p.config_toml = config::stored(&c)?;
+        Ok(p)
+    });
+    let plan = match prepared {
+        Ok(p) => p,
         Err(e) => {
             dir.remove();
             return Err(e);
@@ -268,11 +334,6 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         .enable_all()
         .build()
         .context("starting the tokio runtime")?;
-    let record = match (&a.record, a.record_default) {
-        (Some(p), _) => Some(p.clone()),
-        (None, true) => Some(record::default_path(&plan)),
-        (None, false) => None,
-    };
     let remote = match &a.listen {
         Some(listen) => match remote::remote_indices(&plan, &a.remote) {
             Ok(r) => Some(remote::RemoteSpec {
@@ -290,7 +351,7 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     let outcome = rt.block_on(supervise::supervise(
         &plan,
         Duration::from_secs_f64(a.deadline()),
-        record.as_deref(),
+        target.as_ref().map(|t| t.partial.as_path()),
         a.slot_deadline,
         remote.as_ref(),
         a.json,
@@ -298,6 +359,20 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     // Whatever happened: no iceoryx2 leftovers of this run.
     let cleaned = cleanup::remove_run(&run_id);
     dir.remove();
+    // The recording replaces its target only once the run ran (record.rs).
+    let outcome = match (outcome, &target) {
+        (Ok(mut o), Some(t)) => {
+            if let Some(rec) = o.recording.as_mut() {
+                t.commit(rec);
+            }
+            Ok(o)
+        }
+        (Err(e), Some(t)) => {
+            t.abandon();
+            Err(e)
+        }
+        (o, None) => o,
+    };
     let outcome = outcome?;
     if !cleaned {
         tracing::warn!("run {run_id}: some iceoryx2 node still alive at the end; files left");
@@ -309,6 +384,9 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
 fn problems(a: &Args, outcome: &supervise::Supervised) -> Vec<(u8, String)> {
     let recording_ok = outcome.recording.as_ref().is_none_or(|r| r.finished);
     let mut problems = verdict(&outcome.report, recording_ok, a.allow_degraded);
+    if let Some(why) = outcome.recording.as_ref().and_then(|r| r.problem.clone()) {
+        problems.push((EXIT_ACCOUNTING, why));
+    }
     if outcome.interrupted {
         problems.insert(
             0,
@@ -362,6 +440,12 @@ pub fn execute(a: &Args) -> Result<(serde_json::Value, Vec<(u8, String)>)> {
 /// report and stderr say why).
 pub fn run(a: Args) -> Result<()> {
     let a = config::resolve(a)?;
+    if a.radio.loss.is_some_and(|p| p != 0.0) {
+        bail!(
+            "--loss: the multi-process runtime does not simulate a lossy radio yet \
+             (use `etp validate` or `etp simulate` with --loss)"
+        );
+    }
     let stem = a.plot.then(|| plot_stem(&a));
     if let Some(stem) = &stem {
         for p in [stem.with_extension("png"), stem.with_extension("svg")] {
@@ -384,9 +468,7 @@ pub fn run(a: Args) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use etp_runtime::wire::report::{
-        EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals,
-    };
+    use etp_runtime::report::{EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals};
     use etp_shared::strategy::Prediction;
 
     fn leg(sensor: u32, received: u32, transmitted: Option<u32>) -> LegRecord {
@@ -402,13 +484,25 @@ mod tests {
     }
 
     fn report(legs: Vec<LegRecord>, degraded: bool, dead: Option<&str>) -> RunReport {
-        let sensor = |name: &str| SensorTotals {
-            name: name.into(),
-            transmitted: 0,
-            received: 0,
-            slots: 0,
-            energy: 0.0,
-            missing_ledgers: 0,
+        // Totals as the coordinator sums them.
+        let sensor = |name: &str| {
+            let i = u32::from(name != "s0");
+            let mine = || legs.iter().filter(move |l| l.sensor == i);
+            SensorTotals {
+                name: name.into(),
+                transmitted: mine().filter_map(|l| l.transmitted).map(u64::from).sum(),
+                received: mine()
+                    .filter(|l| l.transmitted.is_some())
+                    .map(|l| u64::from(l.received))
+                    .sum(),
+                received_without_ledger: mine()
+                    .filter(|l| l.transmitted.is_none())
+                    .map(|l| u64::from(l.received))
+                    .sum(),
+                slots: 0,
+                energy: 0.0,
+                missing_ledgers: mine().filter(|l| l.transmitted.is_none()).count() as u64,
+            }
         };
         RunReport {
             run_id: "r".into(),
@@ -488,6 +582,29 @@ mod tests {
         let r = report(vec![leg(0, 3, Some(3)), leg(1, 1, None)], true, Some("s1"));
         assert_eq!(codes(&verdict(&r, true, false)), vec![EXIT_DEGRADED]);
         assert!(verdict(&r, true, true).is_empty());
+    }
+
+    #[test]
+    fn totals_must_hold_over_exactly_the_legs_they_cover() {
+        // Issue 24 item 2: a dead sensor's open leg (no ledger) excused,
+        // but totals that count its received measurements against the
+        // ledgers, or that disagree with the episode records, fail even
+        // with --allow-degraded.
+        let mut r = report(vec![leg(0, 3, Some(3)), leg(1, 7, None)], true, Some("s1"));
+        assert!(verdict(&r, true, true).is_empty());
+        r.sensors[1].received += 7;
+        r.sensors[1].received_without_ledger = 0;
+        let v = verdict(&r, true, true);
+        assert_eq!(codes(&v), vec![EXIT_ACCOUNTING]);
+        assert!(
+            v[0].1.contains("sensor s1: ledgers 0 vs received 7"),
+            "{}",
+            v[0].1
+        );
+        let mut r = report(vec![leg(0, 3, Some(3))], false, None);
+        r.sensors[0].transmitted = 4;
+        r.sensors[0].received = 4;
+        assert_eq!(codes(&verdict(&r, true, true)), vec![EXIT_ACCOUNTING]);
     }
 
     #[test]

@@ -89,7 +89,7 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         (Some(path), _, None) => {
             let s = std::fs::read_to_string(path)
                 .with_context(|| format!("reading {}", path.display()))?;
-            let st = Strategy::from_json(&s)
+            let st = Strategy::from_sealed_json(&s)
                 .with_context(|| format!("loading strategy {}", path.display()))?;
             let text = match (&a.scenario, &st.scenario_toml) {
                 (Some(arg), _) => scenario_text(arg)?,
@@ -119,6 +119,12 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         text = clone_sensors(&text, k)?;
     }
     let scenario = Scenario::from_toml(&text).context("scenario")?;
+    if !scenario.radio.is_ideal() {
+        bail!(
+            "the scenario's [radio] is lossy; the multi-process runtime runs the ideal radio only \
+             for now (use `etp validate` or `etp simulate`)"
+        );
+    }
     if scenario.sensors.len() > MAX_SENSORS {
         bail!(
             "the scenario has {} sensors; a run supports at most {MAX_SENSORS} sensor processes",

@@ -2,11 +2,29 @@
 //! the others and stopped (SIGTERM: it drains, calls `finish()` and reports
 //! its counts) after they ended.
 //!
-//! The output file is created exclusively by the recorder itself
-//! (`create_new`), before any other process of the run starts: of two runs
-//! recording to one path at once, the second's recorder cannot create it and
-//! that run fails before starting anything, leaving the first's file alone.
-//! [`claim`] is only the early, friendly check (and `--force`'s removal).
+//! Nothing is replaced before the run that replaces it succeeded. The
+//! recorder writes a new file beside the target, `<target>.<run-id>.partial`
+//! (created exclusively by the recorder, before any other process of the run
+//! starts); [`Target::commit`] moves it onto the target at the end:
+//!
+//! * a run that fails before it ran (bad arguments, a remote join that timed
+//!   out, no report) removes its partial file: the target is untouched;
+//! * a finished recording replaces the target only if the target is still
+//!   what it was when the run started — absent (then it is linked into
+//!   place without replacing: `link(2)` fails on an existing name), or the
+//!   same file (device and inode) that `--force` allowed to replace. A
+//!   target created, replaced or removed during the run (another run
+//!   recording to the same path, typically) is left alone; this run's
+//!   recording stays at its partial name, and the run says so and exits 4;
+//! * an unfinished recording (the recorder died) never replaces an existing
+//!   target (it stays at its partial name, for `etp replay --repair`); with
+//!   no target it is moved into place as before;
+//! * the partial file itself must still be the file the recorder created: a
+//!   partial file removed or replaced during the run is reported (exit 4).
+//!
+//! Left open: between the identity check and `rename(2)` of a `--force`
+//! replacement another writer may still slip in (Linux has no "rename if
+//! the target is inode N"); the window is microseconds, not the run's length.
 
 use super::prepare::Plan;
 use super::process::{ProcessExit, sibling_binary, signal, status_text};
@@ -26,30 +44,158 @@ const FINISH_TIMEOUT: Duration = Duration::from_secs(30);
 /// What the recorder reported.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Recording {
+    /// Where the recording is at the end: the target, or the partial file
+    /// when it could not replace the target (see [`Target::commit`]).
     pub path: PathBuf,
     /// Messages recorded per channel (empty when the recorder did not finish).
     pub counts: BTreeMap<String, u64>,
     pub bytes: u64,
     /// False when the recorder died (the file is unfinished: see `etp replay --repair`).
     pub finished: bool,
+    /// The file the recorder created (identity taken once it was ready).
+    #[serde(skip)]
+    file: Option<FileId>,
+    /// Why the recording is not at its target (set by [`Target::commit`]).
+    #[serde(skip)]
+    pub problem: Option<String>,
 }
 
-/// The early check of `--record PATH` (before the run is prepared): an
-/// existing file is refused unless `force`, which removes it now so that the
-/// recorder can create it exclusively. Not the guarantee: another run may
-/// create the file after this check; the recorder's `create_new` refuses then.
-pub fn claim(path: &Path, force: bool) -> Result<()> {
-    crate::output::refuse_existing(path, force)?;
-    if force {
-        match std::fs::remove_file(path) {
-            Ok(()) => {}
+/// A file's identity: "the same file", not "a file at the same path".
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct FileId {
+    dev: u64,
+    ino: u64,
+}
+
+/// The identity of what is at `path` (not following a symlink); `None`
+/// when nothing is.
+fn file_id(path: &Path) -> std::io::Result<Option<FileId>> {
+    use std::os::unix::fs::MetadataExt;
+    match std::fs::symlink_metadata(path) {
+        Ok(m) => Ok(Some(FileId {
+            dev: m.dev(),
+            ino: m.ino(),
+        })),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(e),
+    }
+}
+
+/// Where a run's recording goes: recorded to [`Target::partial`] beside
+/// [`Target::path`], moved onto it by [`Target::commit`] (module doc).
+#[derive(Debug)]
+pub struct Target {
+    pub path: PathBuf,
+    pub partial: PathBuf,
+    /// What was at `path` when the run claimed it.
+    before: Option<FileId>,
+}
+
+impl Target {
+    /// Claim `path` for run `run_id` (before anything of the run starts): an
+    /// existing file is refused unless `force`, and nothing is removed.
+    pub fn claim(path: &Path, force: bool, run_id: &str) -> Result<Self> {
+        crate::output::refuse_existing(path, force)?;
+        let before = file_id(path).with_context(|| format!("--record {}", path.display()))?;
+        if before.is_some() && path.is_dir() {
+            bail!("--record {}: is a directory", path.display());
+        }
+        let name = path
+            .file_name()
+            .with_context(|| format!("--record {}: not a file name", path.display()))?;
+        let partial = path.with_file_name(format!("{}.{run_id}.partial", name.to_string_lossy()));
+        // Left by a killed run of the same id: its recording, never ours to
+        // remove (so that [`Target::abandon`] removes only what this run made).
+        if partial.symlink_metadata().is_ok() {
+            bail!(
+                "{} exists: the recording of an earlier run with id {run_id} that never \
+                 finished (see etp replay --repair); move it away or use another run id",
+                partial.display()
+            );
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            partial,
+            before,
+        })
+    }
+
+    /// The run failed before it ran: remove the partial file (the target
+    /// was never touched).
+    pub fn abandon(&self) {
+        match std::fs::remove_file(&self.partial) {
+            Ok(()) => tracing::info!("removed {} (the run failed)", self.partial.display()),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => {
-                return Err(e).with_context(|| format!("--force: removing {}", path.display()));
-            }
+            Err(e) => tracing::warn!("cannot remove {}: {e}", self.partial.display()),
         }
     }
-    Ok(())
+
+    /// The run ran: move its recording onto the target by the rules of the
+    /// module doc. `rec.path` becomes where the recording is; `rec.problem`
+    /// says why it is not at the target (the run then exits 4).
+    pub fn commit(&self, rec: &mut Recording) {
+        rec.path = self.partial.clone();
+        rec.problem = self.move_into_place(rec).err();
+        if rec.problem.is_none() {
+            rec.path = self.path.clone();
+        }
+    }
+
+    fn move_into_place(&self, rec: &Recording) -> std::result::Result<(), String> {
+        let (target, partial) = (self.path.display(), self.partial.display());
+        let now = file_id(&self.partial).map_err(|e| format!("recording {partial}: {e}"))?;
+        match now {
+            None => {
+                return Err(format!(
+                    "the recording {partial} was removed during the run (by another process); \
+                     nothing of this run is recorded, {target} was not touched"
+                ));
+            }
+            Some(id) if rec.file.is_some_and(|f| f != id) => {
+                return Err(format!(
+                    "the recording {partial} was replaced by another file during the run; \
+                     it is not this run's recording and was not moved to {target}"
+                ));
+            }
+            Some(_) => {}
+        }
+        if !rec.finished && self.before.is_some() {
+            return Err(format!(
+                "the recording did not finish: the existing {target} was kept; the unfinished \
+                 recording is {partial} (see etp replay --repair)"
+            ));
+        }
+        let kept = format!("this run's recording is kept at {partial}");
+        let target_now = file_id(&self.path).map_err(|e| format!("{target}: {e}; {kept}"))?;
+        match (self.before, target_now) {
+            (None, None) => {
+                // link(2) never replaces: a file created since the check
+                // above still wins, and this run says so.
+                match std::fs::hard_link(&self.partial, &self.path) {
+                    Ok(()) => {}
+                    Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                        return Err(format!(
+                            "{target} already exists: it was created during this run by another \
+                             writer (another run recording to it?) and was not overwritten; {kept}"
+                        ));
+                    }
+                    Err(e) => return Err(format!("linking {partial} to {target}: {e}; {kept}")),
+                }
+                std::fs::remove_file(&self.partial)
+                    .map_err(|e| format!("removing {partial} after linking it to {target}: {e}"))
+            }
+            (None, Some(_)) => Err(format!(
+                "{target} already exists: it was created during this run by another writer \
+                 (another run recording to it?) and was not overwritten; {kept}"
+            )),
+            (Some(was), Some(is)) if was == is => std::fs::rename(&self.partial, &self.path)
+                .map_err(|e| format!("replacing {target} by {partial}: {e}; {kept}")),
+            (Some(_), _) => Err(format!(
+                "{target} was replaced or removed during this run by another writer (another \
+                 run recording to it with --force?) and was not overwritten; {kept}"
+            )),
+        }
+    }
 }
 
 /// The default file: `recordings/<scenario>-<run-id>.mcap`.
@@ -126,6 +272,7 @@ pub fn prediction_source(plan: &Plan) -> String {
 pub struct Recorder {
     path: PathBuf,
     pid: u32,
+    file: Option<FileId>,
     stdout: BufReader<ChildStdout>,
     waiter: tokio::task::JoinHandle<Option<std::process::ExitStatus>>,
     stopping: std::sync::Arc<std::sync::atomic::AtomicBool>,
@@ -177,6 +324,8 @@ pub async fn start(plan: &Plan, out: &Path) -> Result<Recorder> {
             status.map_or_else(|| "killed".to_string(), |st| status_text(&st))
         );
     }
+    // The recorder created `out` exclusively; remember which file that is.
+    let file = file_id(out).ok().flatten();
     let stopping = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let flag = stopping.clone();
     let cfg = etp_runtime::wire::config(&plan.run_id)?;
@@ -193,6 +342,7 @@ pub async fn start(plan: &Plan, out: &Path) -> Result<Recorder> {
     Ok(Recorder {
         path: out.to_path_buf(),
         pid,
+        file,
         stdout,
         waiter,
         stopping,
@@ -236,6 +386,8 @@ impl Recorder {
                 finished: counts.is_some(),
                 counts: counts.unwrap_or_default(),
                 bytes,
+                file: self.file,
+                problem: None,
             },
             exit,
         ))

@@ -8,7 +8,7 @@
 use super::prepare::Plan;
 use super::process::{ProcessExit, sibling_binary, signal, spawn, status_text};
 use anyhow::{Context, Result, bail};
-use etp_runtime::wire::report::SessionInfo;
+use etp_runtime::report::SessionInfo;
 use etp_runtime::wire::traffic::LinkTraffic;
 use std::collections::BTreeMap;
 use tokio::io::{AsyncBufReadExt, BufReader};

@@ -5,7 +5,7 @@ use super::prepare::Plan;
 use super::supervise::Supervised;
 use anyhow::Result;
 use etp_runtime::wire::traffic::LinkTraffic;
-use etp_shared::stats::{Estimate, MeanAccumulator, proportion};
+use etp_shared::stats::{Estimate, MeanAccumulator, proportion, wilson_interval};
 use serde_json::{Value, json};
 
 /// Outcomes of the run with 95 % intervals.
@@ -76,6 +76,7 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         .zip(&traffic)
         .map(|((t, per_ep), link)| {
             let mut v = json!({"name": t.name, "transmissions": t.transmitted, "received": t.received,
+                   "received_without_ledger": t.received_without_ledger,
                    "predicted_energy": crate::vocab::round_energy(per_ep * r.episodes as f64),
                    "energy": t.energy, "slots": t.slots, "missing_ledgers": t.missing_ledgers,
                    "traffic": link});
@@ -157,25 +158,45 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
         }
     );
     println!(
-        "  {:<12} {:>20}   {:>10}",
-        "", "measured (95 %)", "predicted"
+        "  {:<12} {:>10} {:<20}   {:>10}",
+        "", "measured", "(95 % interval)", "predicted"
     );
     let p = &r.predicted;
-    for (k, m, pr) in [
-        ("P_target", e.p_target, p.p_target),
-        ("P_collision", e.p_collision, p.p_collision),
-        ("P_free", e.p_free, p.p_free),
-        ("energy", e.energy, p.energy_mean),
+    // Probabilities with their Wilson interval, which stays in [0, 1]
+    // (value ± half-width would not: 0.98 ± 0.085 on 30 episodes).
+    for (k, count, pr) in [
+        ("P_target", r.target, p.p_target),
+        ("P_collision", r.collision, p.p_collision),
+        ("P_free", r.free, p.p_free),
     ] {
-        println!("  {k:<12} {:>10.4} ± {:<7.4}   {pr:>10.4}", m.value, m.ci95);
+        let (lo, hi) = wilson_interval(count, r.episodes);
+        let value = if r.episodes > 0 {
+            count as f64 / r.episodes as f64
+        } else {
+            0.0
+        };
+        println!(
+            "  {k:<12} {value:>10.4} {:<20}   {pr:>10.4}",
+            format!("[{lo:.4}, {hi:.4}]")
+        );
     }
+    println!(
+        "  {:<12} {:>10.4} {:<20}   {:>10.4}",
+        "energy",
+        e.energy.value,
+        format!("± {:.4}", e.energy.ci95),
+        p.energy_mean
+    );
     println!(
         "  {:<8} {:>12} {:>12} {:>16}",
         "sensor", "transmitted", "received", "predicted energy"
     );
     for (t, per_ep) in r.sensors.iter().zip(&plan.sensor_energy_per_episode) {
         let flag = if t.transmitted != t.received || t.missing_ledgers > 0 {
-            format!("  ({} ledgers missing)", t.missing_ledgers)
+            format!(
+                "  ({} ledger(s) missing; +{} received on those legs, checked against nothing)",
+                t.missing_ledgers, t.received_without_ledger
+            )
         } else {
             String::new()
         };

@@ -10,7 +10,8 @@
 
 use super::process::{ProcessExit, sibling_binary, signal, spawn_env, status_text};
 use anyhow::{Context, Result, bail};
-use etp_runtime::wire::{IPC_DOMAIN_ENV, RunId, cleanup};
+use etp_runtime::cleanup;
+use etp_runtime::wire::{IPC_DOMAIN_ENV, RunId};
 use std::time::Duration;
 use tokio::io::{AsyncBufReadExt, BufReader};
 

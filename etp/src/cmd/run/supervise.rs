@@ -3,7 +3,7 @@
 use super::prepare::Plan;
 use super::process::{ProcessExit, sibling_binary, signal, spawn, status_text};
 use anyhow::{Context, Result, anyhow};
-use etp_runtime::wire::report::RunReport;
+use etp_runtime::report::RunReport;
 use std::path::Path;
 use std::time::{Duration, Instant};
 use tokio::io::AsyncReadExt;

@@ -1,5 +1,7 @@
-//! `--repair OUT`: a finished copy (summary, indexes, footer) of a possibly
-//! unfinished recording, holding every complete record of it.
+//! `repair FILE OUT`: a finished copy (summary, indexes, footer) of a
+//! possibly unfinished recording, holding every complete record of it; and
+//! `filter FILE OUT`: the same copy of a selection (`crate::select`), like
+//! `mcap filter`. Both keep every metadata record.
 
 use anyhow::{Context, Result, bail};
 use etp_runtime::recording::{self, Contents};
@@ -7,11 +9,16 @@ use std::collections::BTreeMap;
 
 /// Write a finished copy of a (possibly unfinished) recording.
 pub fn repair(c: &Contents, out: &std::path::Path) -> Result<u64> {
-    crate::output::write_via_temp(out, |tmp| write_copy(c, tmp))
+    crate::files::write_via_temp(out, |tmp| write_copy(c, tmp, "--repair"))
 }
 
-fn write_copy(c: &Contents, tmp: &std::path::Path) -> Result<u64> {
-    let mut w = super::copy_writer(c, tmp, recording::PROFILE, "--repair")?;
+/// Write the (selected) messages of `c` to a new finished recording.
+pub fn filter(c: &Contents, out: &std::path::Path) -> Result<u64> {
+    crate::files::write_via_temp(out, |tmp| write_copy(c, tmp, "filter"))
+}
+
+fn write_copy(c: &Contents, tmp: &std::path::Path, what: &str) -> Result<u64> {
+    let mut w = crate::copy_writer(c, tmp, recording::PROFILE, what)?;
     let mut ids: BTreeMap<&str, u16> = BTreeMap::new();
     for topic in c.channels.keys() {
         let Some(kind) = recording::kind_of_topic(topic) else {
@@ -42,7 +49,8 @@ fn write_copy(c: &Contents, tmp: &std::path::Path) -> Result<u64> {
         )?;
         *s = s.wrapping_add(1);
     }
-    w.finish().context("finishing the repaired file")?;
+    w.finish()
+        .with_context(|| format!("finishing the {what} copy"))?;
     drop(w);
     Ok(c.messages.len() as u64)
 }

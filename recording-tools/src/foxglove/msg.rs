@@ -1,5 +1,5 @@
 //! The Foxglove messages we write, as serde structs that serialise to the
-//! JSON the official schemas (`etp/assets/foxglove/`) describe. Every field
+//! JSON the official schemas (`recording-tools/assets/foxglove/`) describe. Every field
 //! the schemas list as required is always written (empty arrays included):
 //! Foxglove's JSON reader does not fill in defaults.
 
@@ -8,9 +8,9 @@ use nalgebra::{UnitQuaternion, Vector3 as V3};
 use serde::Serialize;
 
 /// The official JSON schema of `foxglove.SceneUpdate` (text as published).
-pub const SCENE_UPDATE_SCHEMA: &str = include_str!("../../../../assets/foxglove/SceneUpdate.json");
+pub const SCENE_UPDATE_SCHEMA: &str = include_str!("../../assets/foxglove/SceneUpdate.json");
 /// The official JSON schema of `foxglove.Log`.
-pub const LOG_SCHEMA: &str = include_str!("../../../../assets/foxglove/Log.json");
+pub const LOG_SCHEMA: &str = include_str!("../../assets/foxglove/Log.json");
 pub const SCENE_UPDATE: &str = "foxglove.SceneUpdate";
 pub const LOG: &str = "foxglove.Log";
 /// The one frame every entity is drawn in (the scenario's coordinates).

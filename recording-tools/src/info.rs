@@ -44,7 +44,7 @@ pub fn info(file: &Path, bytes: u64, c: &Contents, layout: &Layout) -> Value {
                 "topic": topic,
                 "schema": schema,
                 "schema_encoding": c.schemas.get(schema),
-                "message_encoding": recording::MESSAGE_ENCODING,
+                "message_encoding": c.encodings.get(topic),
                 "messages": counts.get(topic).copied().unwrap_or(0),
             })
         })
@@ -84,7 +84,8 @@ pub fn info(file: &Path, bytes: u64, c: &Contents, layout: &Layout) -> Value {
         "seed": num("seed"),
         "requested_episodes": num("episodes"),
         "format_version": num("format_version"),
-        "episodes": outcomes,
+        // Episodes are etp's: null in a file without its `outcome` channel.
+        "episodes": c.channels.contains_key("outcome").then_some(outcomes),
     })
 }
 
@@ -126,16 +127,20 @@ fn write_info(out: &mut String, v: &Value) -> std::fmt::Result {
             format!("UNFINISHED ({})", s(&v["truncated"]))
         }
     )?;
-    writeln!(
-        out,
-        "run:         {} · scenario {} · seed {} · {} episodes recorded (requested {}) · format {}",
-        s(&v["run_id"]),
-        s(&v["scenario"]),
-        s(&v["seed"]),
-        s(&v["episodes"]),
-        s(&v["requested_episodes"]),
-        s(&v["format_version"])
-    )?;
+    // An MCAP file etp did not write has no run to describe.
+    let etp_run = !v["run_id"].is_null() || v["profile"] == recording::PROFILE;
+    if etp_run {
+        writeln!(
+            out,
+            "run:         {} · scenario {} · seed {} · {} episodes recorded (requested {}) · format {}",
+            s(&v["run_id"]),
+            s(&v["scenario"]),
+            s(&v["seed"]),
+            s(&v["episodes"]),
+            s(&v["requested_episodes"]),
+            s(&v["format_version"])
+        )?;
+    }
     let dur = v["duration_s"]
         .as_f64()
         .map_or("–".into(), |d| format!("{d:.3} s"));

@@ -20,9 +20,10 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Table file format.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Default)]
 pub enum Format {
     /// Comma-separated values with a header row (RFC 4180; empty cell = null).
+    #[default]
     Csv,
     /// JSON Lines: one object per row, keys in column order.
     Jsonl,
@@ -55,9 +56,37 @@ pub fn table_file(topic: &str, format: Format) -> String {
     format!("{}.{}", topic.replace('/', "-"), format.ext())
 }
 
+/// Is `topic` one of etp's channels in etp's encoding (decoded into typed
+/// rows), rather than a channel of another MCAP writer?
+pub fn is_etp_channel(c: &Contents, topic: &str) -> bool {
+    recording::kind_of_topic(topic).is_some()
+        && c.encodings
+            .get(topic)
+            .is_none_or(|e| e == recording::MESSAGE_ENCODING)
+}
+
+/// A message of a channel etp did not write, as `cat` shows it: `json`
+/// payloads decoded (`message`), any other encoding named with its size.
+fn foreign_line(c: &Contents, m: &recording::RawMessage) -> Value {
+    let encoding = c.encodings.get(&m.topic).map_or("", String::as_str);
+    let decoded = (encoding == "json")
+        .then(|| serde_json::from_slice::<Value>(&m.data).ok())
+        .flatten();
+    match decoded {
+        Some(v) => json!({"topic": m.topic, "log_time_ns": m.log_time, "message": v}),
+        None => json!({
+            "topic": m.topic,
+            "log_time_ns": m.log_time,
+            "message_encoding": encoding,
+            "schema": c.channels.get(&m.topic),
+            "bytes": m.data.len(),
+        }),
+    }
+}
+
 fn tables(c: &Contents, dim: Option<usize>) -> Result<BTreeMap<String, Table>> {
     let mut out = BTreeMap::new();
-    for topic in c.channels.keys() {
+    for topic in c.channels.keys().filter(|t| is_etp_channel(c, t)) {
         let kind: Kind = recording::kind_of_topic(topic)
             .with_context(|| format!("unknown channel `{topic}` in the recording"))?;
         let t = Table::of(kind, dim)
@@ -106,6 +135,58 @@ pub fn export(
     format: Format,
     force: bool,
 ) -> Result<Exported> {
+    export_with(c, source, dir, format, force, |row| {
+        c.messages.iter().try_for_each(row)
+    })
+}
+
+/// [`export`] of a finished file streamed from disk, one chunk at a time:
+/// peak memory does not grow with the recording's length. Two passes (the
+/// metadata that names the sensors may follow the messages). The file's
+/// contents without its messages are returned.
+pub fn export_streaming(
+    source: &Path,
+    dir: &Path,
+    format: Format,
+    force: bool,
+    selection: &crate::select::Selection,
+) -> Result<(Exported, Contents)> {
+    let mut t0 = u64::MAX;
+    let mut c = recording::stream_finished(source, |m| -> Result<()> {
+        t0 = t0.min(m.log_time);
+        Ok(())
+    })?;
+    if c.damaged {
+        bail!(
+            "{} is damaged: {} (`etp replay repair {} OUT` salvages the records before the damage)",
+            source.display(),
+            c.truncated.as_deref().unwrap_or("unreadable record"),
+            source.display()
+        );
+    }
+    recording::check_metadata(&c)?;
+    selection.prepare(&mut c)?;
+    let e = export_with(&c, source, dir, format, force, |row| {
+        recording::stream_finished(source, |m| -> Result<()> {
+            if selection.keeps(&c, t0, &m)? {
+                row(&m)?;
+            }
+            Ok(())
+        })
+        .map(|_| ())
+    })?;
+    Ok((e, c))
+}
+
+/// The export, its messages handed in by `messages` (from memory or streamed).
+fn export_with(
+    c: &Contents,
+    source: &Path,
+    dir: &Path,
+    format: Format,
+    force: bool,
+    messages: impl FnOnce(&mut dyn FnMut(&recording::RawMessage) -> Result<()>) -> Result<()>,
+) -> Result<Exported> {
     let (names, dim) = names(c);
     let tables = tables(c, dim)?;
     let files: BTreeMap<&str, PathBuf> = tables
@@ -114,7 +195,7 @@ pub fn export(
         .collect();
     let manifest = dir.join("tables.json");
     for p in files.values().chain([&manifest]) {
-        crate::output::refuse_existing(p, force)?;
+        crate::files::refuse_existing(p, force)?;
     }
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut writers: BTreeMap<&str, (std::io::BufWriter<std::fs::File>, PathBuf, u64)> =
@@ -129,22 +210,24 @@ pub fn export(
         }
         writers.insert(topic, (w, tmp, 0));
     }
-    let result = (|| -> Result<()> {
-        for m in &c.messages {
-            let (Some(t), Some((w, tmp, n))) =
-                (tables.get(&m.topic), writers.get_mut(m.topic.as_str()))
-            else {
-                bail!("message on undeclared channel `{}`", m.topic);
-            };
-            let rec = recording::decode(&m.topic, &m.data)
-                .with_context(|| format!("message at log time {}", m.log_time))?;
-            let row = t.row(m.log_time, &rec, &names);
-            writeln!(w, "{}", row_line(t, &row, format))
-                .with_context(|| format!("writing {}", tmp.display()))?;
-            *n += 1;
-        }
+    let result = messages(&mut |m: &recording::RawMessage| -> Result<()> {
+        let (Some(t), Some((w, tmp, n))) =
+            (tables.get(&m.topic), writers.get_mut(m.topic.as_str()))
+        else {
+            // A channel etp did not write has no typed table (`cat` shows it).
+            if c.channels.contains_key(&m.topic) {
+                return Ok(());
+            }
+            bail!("message on undeclared channel `{}`", m.topic);
+        };
+        let rec = recording::decode(&m.topic, &m.data)
+            .with_context(|| format!("message at log time {}", m.log_time))?;
+        let row = t.row(m.log_time, &rec, &names);
+        writeln!(w, "{}", row_line(t, &row, format))
+            .with_context(|| format!("writing {}", tmp.display()))?;
+        *n += 1;
         Ok(())
-    })();
+    });
     let mut rows = 0u64;
     let mut bytes = 0u64;
     let mut described = Vec::new();
@@ -179,7 +262,7 @@ pub fn export(
         "codes": codes(),
         "tables": described,
     }))?;
-    crate::output::write_new(&manifest, format!("{text}\n").as_bytes(), force)?;
+    crate::files::write_new(&manifest, format!("{text}\n").as_bytes(), force)?;
     Ok(Exported {
         dir: dir.display().to_string(),
         format: format.ext(),
@@ -212,7 +295,12 @@ pub fn cat(c: &Contents, out: &mut impl Write) -> Result<u64> {
     let mut n = 0u64;
     for m in order {
         let Some(t) = tables.get(&m.topic) else {
-            bail!("message on undeclared channel `{}`", m.topic);
+            if !c.channels.contains_key(&m.topic) {
+                bail!("message on undeclared channel `{}`", m.topic);
+            }
+            writeln!(out, "{}", foreign_line(c, m))?;
+            n += 1;
+            continue;
         };
         let rec = recording::decode(&m.topic, &m.data)
             .with_context(|| format!("message at log time {}", m.log_time))?;

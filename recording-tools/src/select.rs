@@ -102,6 +102,21 @@ impl Selection {
     /// that matches no channel is an error (a typo would otherwise select
     /// nothing silently).
     pub fn apply(&self, c: &mut Contents) -> Result<()> {
+        self.prepare(c)?;
+        let t0 = c.messages.iter().map(|m| m.log_time).min().unwrap_or(0);
+        let mut kept = Vec::with_capacity(c.messages.len());
+        for m in std::mem::take(&mut c.messages) {
+            if self.keeps(c, t0, &m)? {
+                kept.push(m);
+            }
+        }
+        c.messages = kept;
+        Ok(())
+    }
+
+    /// Check the selection against `c`'s channels and keep the selected
+    /// channels only.
+    pub fn prepare(&self, c: &mut Contents) -> Result<()> {
         if let (Some(s), Some(e)) = (self.start, self.end)
             && e <= s
         {
@@ -119,28 +134,26 @@ impl Selection {
             c.channels
                 .retain(|t, _| self.topics.iter().any(|p| glob(p, t)));
         }
-        let t0 = c.messages.iter().map(|m| m.log_time).min().unwrap_or(0);
+        Ok(())
+    }
+
+    /// Is `m` selected (`c` prepared, `t0` the first message's log time)?
+    pub fn keeps(&self, c: &Contents, t0: u64, m: &recording::RawMessage) -> Result<bool> {
         let ns = |s: f64| t0.saturating_add((s * 1e9).round() as u64);
-        let (lo, hi) = (self.start.map(ns), self.end.map(ns));
-        let mut kept = Vec::with_capacity(c.messages.len());
-        for m in std::mem::take(&mut c.messages) {
-            if !c.channels.contains_key(&m.topic)
-                || lo.is_some_and(|lo| m.log_time < lo)
-                || hi.is_some_and(|hi| m.log_time > hi)
-            {
-                continue;
-            }
-            if let Some(r) = &self.episodes {
+        if !c.channels.contains_key(&m.topic)
+            || self.start.is_some_and(|s| m.log_time < ns(s))
+            || self.end.is_some_and(|e| m.log_time > ns(e))
+        {
+            return Ok(false);
+        }
+        match &self.episodes {
+            Some(r) => {
                 let rec = recording::decode(&m.topic, &m.data)
                     .with_context(|| format!("message at log time {}", m.log_time))?;
-                if !r.contains(rec.header().episode) {
-                    continue;
-                }
+                Ok(r.contains(rec.header().episode))
             }
-            kept.push(m);
+            None => Ok(true),
         }
-        c.messages = kept;
-        Ok(())
     }
 }
 

@@ -1,7 +1,7 @@
 //! Removing iceoryx2 leftovers: a finished run's files, and stale runs whose
 //! processes all died (kill -9, crash) before they could clean up.
 
-use super::services::{ROOT_BASE, RunId, alive_nodes, config, remove_dead_nodes};
+use crate::wire::{ROOT_BASE, RunId, alive_nodes, config, remove_dead_nodes};
 use std::path::Path;
 
 /// Files in /dev/shm that belong to a run (its prefix).

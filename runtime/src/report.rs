@@ -52,10 +52,16 @@ pub struct FaultRecord {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SensorTotals {
     pub name: String,
-    /// Σ transmissions in the sensor's ledgers.
+    /// Σ transmissions in the sensor's ledgers (legs that have one).
     pub transmitted: u64,
-    /// Σ measurements the agent received from it.
+    /// Σ measurements the agent received from it on the legs that have a
+    /// ledger: the same legs as `transmitted`, so the two are equal in a
+    /// sound run (with or without dead sensors).
     pub received: u64,
+    /// Σ measurements the agent received on legs whose ledger never came (a
+    /// dead sensor's open leg): counted, but checked against nothing.
+    #[serde(default)]
+    pub received_without_ledger: u64,
     /// Σ slots it served.
     pub slots: u64,
     /// Σ c_m × transmitted.

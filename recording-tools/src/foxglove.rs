@@ -74,11 +74,12 @@ pub struct FoxgloveStats {
 }
 
 /// Which times the copy carries.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Clock {
-    /// Plant step k at [`STEP_NS`] × k after its episode's start; the
+    /// Plant step k at 10 ms × k after its episode's start; the
     /// episodes follow each other with one step of gap.
+    #[default]
     Step,
     /// The recorder's `log_time`s.
     Recorded,
@@ -369,7 +370,7 @@ pub fn write_foxglove(c: &Contents, out: &Path, clock: Clock) -> Result<Foxglove
             c.messages.iter().map(|m| m.log_time).min().unwrap_or(0),
         );
     }
-    let mut stats = crate::output::write_via_temp(out, |tmp| {
+    let mut stats = crate::files::write_via_temp(out, |tmp| {
         write_file(c, tmp, scenario.as_ref(), &names, &eps, clock)
     })?;
     stats.bytes = std::fs::metadata(out)
@@ -388,7 +389,7 @@ fn write_file(
 ) -> Result<FoxgloveStats> {
     // The source's metadata (run, scenario, strategy) travels along, with a
     // note on what the drawing means.
-    let mut w = super::copy_writer(c, tmp, "", "--foxglove")?;
+    let mut w = crate::copy_writer(c, tmp, "", "--foxglove")?;
     w.write_metadata(&mcap::records::Metadata {
         name: "etp.foxglove".into(),
         metadata: BTreeMap::from([

@@ -2,17 +2,76 @@
 //! episode (from the sensors' ledgers) and outcomes, with 95 % intervals,
 //! beside the recorded prediction (`etp.prediction`, `etp.strategy`).
 
-use crate::report_plot::{Bar, RunFigure, mean_ci, proportion};
 use anyhow::{Context, Result};
 use etp_runtime::recording::{self, Contents, Recorded};
 use etp_shared::strategy::Strategy;
 use std::collections::{BTreeMap, BTreeSet};
 
+/// One measured quantity beside its prediction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Bar {
+    pub name: String,
+    pub measured: f64,
+    /// 95 % half-width of `measured`.
+    pub ci95: f64,
+    pub predicted: Option<f64>,
+}
+
+/// What the figure shows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunFigure {
+    /// `run r1 · open-2d · constant δ = 1.05 · 200 episodes`.
+    pub title: String,
+    /// Where the per-sensor prediction comes from.
+    pub prediction_note: String,
+    pub sensors: Vec<Bar>,
+    pub outcomes: Vec<Bar>,
+}
+
+/// Mean and 95 % half-width (normal approximation) of `xs`.
+pub fn mean_ci(xs: &[f64]) -> (f64, f64) {
+    let n = xs.len() as f64;
+    if xs.is_empty() {
+        return (f64::NAN, f64::NAN);
+    }
+    let m = xs.iter().sum::<f64>() / n;
+    if xs.len() < 2 {
+        return (m, 0.0);
+    }
+    let var = xs.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
+    (m, 1.96 * (var / n).sqrt())
+}
+
+/// A proportion `k / n` with its 95 % half-width (normal approximation).
+pub fn proportion(k: u64, n: u64) -> (f64, f64) {
+    if n == 0 {
+        return (f64::NAN, f64::NAN);
+    }
+    let p = k as f64 / n as f64;
+    (p, 1.96 * (p * (1.0 - p) / n as f64).sqrt())
+}
+
+/// A strategy label without its parenthesised details, at most 50 characters.
+pub fn short_label(label: &str) -> String {
+    let head = label.split(" (").next().unwrap_or(label);
+    short_to(head, 50)
+}
+
+/// `s` cut to `n` characters (with `…` when cut).
+pub fn short_to(s: &str, n: usize) -> String {
+    let t: String = s.chars().take(n).collect();
+    if t.len() < s.len() {
+        format!("{t}…")
+    } else {
+        t
+    }
+}
+
 /// The figure of a recording (its selection, if any).
 pub fn figure(c: &Contents, names: &[String]) -> Result<RunFigure> {
     let mut energy: BTreeMap<(u32, u64), f64> = BTreeMap::new();
     let mut episodes: BTreeSet<u64> = BTreeSet::new();
-    let mut counts = super::OutcomeCounts::default();
+    let mut counts = crate::OutcomeCounts::default();
     for m in &c.messages {
         match recording::decode(&m.topic, &m.data)
             .with_context(|| format!("message at log time {}", m.log_time))?
@@ -91,7 +150,7 @@ pub fn figure(c: &Contents, names: &[String]) -> Result<RunFigure> {
         strategy
             .as_ref()
             .map_or("strategy unknown".to_string(), |s| {
-                crate::report_plot::short_label(&s.label)
+                short_label(&s.label)
             }),
     );
     Ok(RunFigure {
@@ -100,4 +159,20 @@ pub fn figure(c: &Contents, names: &[String]) -> Result<RunFigure> {
         sensors,
         outcomes,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn intervals() {
+        let (m, h) = mean_ci(&[1.0, 3.0]);
+        assert_eq!(m, 2.0);
+        assert!((h - 1.96 * (2.0f64 / 2.0).sqrt()).abs() < 1e-12);
+        assert_eq!(mean_ci(&[5.0]), (5.0, 0.0));
+        let (p, h) = proportion(50, 100);
+        assert_eq!(p, 0.5);
+        assert!((h - 0.098).abs() < 1e-12);
+    }
 }

@@ -1,0 +1,105 @@
+//! The recording tools of etpareto: everything `etp replay` does to an MCAP
+//! recording, as a library (`etp` parses the arguments and calls).
+//!
+//! * [`load`] — read a recording (finished or not) into
+//!   [`etp_runtime::recording::Contents`]; [`check_output`] refuses an
+//!   output that is the input or exists.
+//! * [`summary`] — the run's summary from the recording alone (episodes,
+//!   outcomes, per-sensor transmissions beside ledgers and received).
+//! * [`info`] — what a file holds (like `mcap info`); [`export`] — `cat`
+//!   (one JSON object per message) and the per-channel tables.
+//! * [`select`] — the `--topics`/`--episodes`/`--start`/`--end` selection.
+//! * [`repair`] — a finished copy; [`foxglove`] — a copy Foxglove draws;
+//!   [`publish`] — the traffic back on iceoryx2 (like `ros2 bag play`).
+//! * [`figure`] — measured against predicted, the data of the report figure
+//!   (drawn by `etp`'s plotters code).
+//! * [`vocab`] — THE JSON vocabulary shared by every command's `--json`.
+//! * [`files`] — the overwrite rule: `--force` or refuse; write beside, rename.
+
+pub mod export;
+pub mod figure;
+pub mod files;
+pub mod foxglove;
+pub mod info;
+pub mod publish;
+pub mod repair;
+pub mod select;
+pub mod summary;
+pub mod vocab;
+
+use anyhow::{Context, Result, bail};
+use etp_runtime::recording::{self, Contents};
+use std::path::Path;
+
+/// Episodes by recorded outcome (summary and figure count the same way).
+#[derive(Debug, Default, Clone, Copy)]
+pub struct OutcomeCounts {
+    pub target: u64,
+    pub collision: u64,
+    pub free: u64,
+}
+
+impl OutcomeCounts {
+    pub fn add(&mut self, outcome: &etp_runtime::wire::agent_to_coordinator::Outcome) {
+        use etp_runtime::wire::agent_to_coordinator::Outcome;
+        match outcome.outcome {
+            Outcome::TARGET => self.target += 1,
+            Outcome::COLLISION => self.collision += 1,
+            Outcome::FREE => self.free += 1,
+            _ => {}
+        }
+    }
+}
+
+/// The MCAP writer of `etp replay`'s copies (zstd, 1 MiB chunks), with the
+/// source's metadata records already written.
+pub fn copy_writer(
+    c: &Contents,
+    path: &Path,
+    profile: &str,
+    what: &str,
+) -> Result<mcap::Writer<std::io::BufWriter<std::fs::File>>> {
+    let file =
+        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+    let mut w = mcap::WriteOptions::new()
+        .compression(Some(mcap::Compression::Zstd))
+        .chunk_size(Some(1024 * 1024))
+        .profile(profile)
+        .library(format!("etp replay {what} {}", env!("CARGO_PKG_VERSION")))
+        .create(std::io::BufWriter::new(file))
+        .context("starting the MCAP writer")?;
+    for (name, metadata) in &c.metadata {
+        w.write_metadata(&mcap::records::Metadata {
+            name: name.clone(),
+            metadata: metadata.clone(),
+        })?;
+    }
+    Ok(w)
+}
+
+/// Read a recording (finished or not).
+pub fn load(path: &Path) -> Result<Contents> {
+    Ok(load_bytes(path)?.0)
+}
+
+/// Read a recording and the file's bytes.
+pub fn load_bytes(path: &Path) -> Result<(Contents, Vec<u8>)> {
+    let buf = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let c = recording::read_lenient(&path.display().to_string(), &buf)?;
+    Ok((c, buf))
+}
+
+/// Refuse an output path that exists (unless `force`) or is the input.
+pub fn check_output(input: &Path, out: &Path, force: bool) -> Result<()> {
+    if out == input
+        || std::fs::canonicalize(out)
+            .ok()
+            .is_some_and(|o| std::fs::canonicalize(input).ok() == Some(o))
+    {
+        bail!(
+            "{} is the recording being read: choose another output",
+            out.display()
+        );
+    }
+    files::refuse_existing(out, force)
+}

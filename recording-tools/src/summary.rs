@@ -1,0 +1,361 @@
+//! The run's summary from a recording alone: episodes, outcomes, per-sensor
+//! transmissions (`measurement` messages beside the sensors' ledgers and what
+//! the agent received), energy vs prediction.
+
+use anyhow::{Context, Result};
+use etp_runtime::recording::{self, Contents, Recorded};
+use etp_shared::strategy::Strategy;
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// One sensor, in the vocabulary of `crate::vocab`, over the complete
+/// episodes.
+#[derive(Debug, Default, Clone, serde::Serialize)]
+struct SensorSummary {
+    name: String,
+    /// `measurement` messages sent by this sensor.
+    measurements: u64,
+    /// Sum of the sensor's ledgers (transmissions).
+    transmissions: u64,
+    /// Measurements the agent received from this sensor (per leg: the next
+    /// waypoint's `prev_received`, the outcome's `last_received`).
+    received: u64,
+    /// Sum of the sensor's ledgers (energy).
+    energy: f64,
+    predicted_energy: Option<f64>,
+}
+
+/// What one episode left in the recording.
+#[derive(Debug, Default)]
+struct EpisodeTally {
+    outcome: Option<etp_runtime::wire::agent_to_coordinator::Outcome>,
+    /// Leg → (sensor, transmissions, energy) of its ledger.
+    ledgers: BTreeMap<u32, (u32, u64, f64)>,
+    /// Leg → measurements the agent received in it (from the next waypoint).
+    received: BTreeMap<u32, u64>,
+    /// Sensor → `measurement` messages.
+    measurements: BTreeMap<u32, u64>,
+    messages: u64,
+}
+
+impl EpisodeTally {
+    /// Complete: the outcome and the ledger of every leg it ran are recorded
+    /// (the last leg's ledger follows the outcome, so a cut between them
+    /// leaves the episode partial).
+    /// Without the `ledger` channel (a selection of topics), the outcome
+    /// alone.
+    fn complete(&self, ledgers_recorded: bool) -> bool {
+        self.outcome.is_some_and(|o| {
+            !ledgers_recorded || (0..=o.header.leg).all(|l| self.ledgers.contains_key(&l))
+        })
+    }
+
+    /// Received per leg, the last leg's from the outcome.
+    fn received_of(&self, leg: u32) -> u64 {
+        match self.outcome {
+            Some(o) if o.header.leg == leg => u64::from(o.last_received),
+            _ => self.received.get(&leg).copied().unwrap_or(0),
+        }
+    }
+}
+
+/// Sensor `i`'s summary, made (named after the scenario) on first use.
+fn sensor_entry<'a>(
+    sensors: &'a mut BTreeMap<u32, SensorSummary>,
+    names: &[String],
+    i: u32,
+) -> &'a mut SensorSummary {
+    sensors.entry(i).or_insert_with(|| SensorSummary {
+        name: names
+            .get(i as usize)
+            .cloned()
+            .unwrap_or_else(|| format!("sensor {i}")),
+        ..SensorSummary::default()
+    })
+}
+
+/// Every episode's tally, by episode number.
+fn tally(c: &Contents) -> Result<BTreeMap<u64, EpisodeTally>> {
+    let mut eps: BTreeMap<u64, EpisodeTally> = BTreeMap::new();
+    for m in c
+        .messages
+        .iter()
+        .filter(|m| crate::export::is_etp_channel(c, &m.topic))
+    {
+        let rec = recording::decode(&m.topic, &m.data)
+            .with_context(|| format!("message at log time {}", m.log_time))?;
+        let h = *rec.header();
+        // `hello` and the like belong to no episode.
+        if h.episode == u64::MAX {
+            continue;
+        }
+        let e = eps.entry(h.episode).or_default();
+        e.messages += 1;
+        match rec {
+            Recorded::Measurement(_) => *e.measurements.entry(h.sender).or_default() += 1,
+            Recorded::Ledger(l) => {
+                e.ledgers
+                    .insert(h.leg, (h.sender, u64::from(l.transmissions), l.energy));
+            }
+            Recorded::Waypoint(w) if h.leg > 0 => {
+                e.received.insert(h.leg - 1, u64::from(w.prev_received));
+            }
+            Recorded::Outcome(o) => e.outcome = Some(o),
+            _ => {}
+        }
+    }
+    Ok(eps)
+}
+
+/// The identities a complete episode keeps, per sensor: `measurement`
+/// messages = ledger transmissions, and = received unless the episode was
+/// degraded (a dead link). Each failure, in words.
+fn identity_failures(sensors: &BTreeMap<u32, SensorSummary>, degraded: u64) -> Vec<String> {
+    let mut out = Vec::new();
+    for s in sensors.values() {
+        if s.measurements != s.transmissions {
+            out.push(format!(
+                "{}: {} measurement messages but {} transmissions in its ledgers",
+                s.name, s.measurements, s.transmissions
+            ));
+        }
+        if degraded == 0 && s.received != s.measurements {
+            out.push(format!(
+                "{}: {} measurement messages but the agent received {}",
+                s.name, s.measurements, s.received
+            ));
+        }
+    }
+    out
+}
+
+/// The summary object of a recording: complete episodes only (outcome and
+/// every ledger recorded); the rest (the episode a crash or Ctrl-C cut) under
+/// `partial`. `identities_hold` is false when a count identity fails on the
+/// complete episodes (`etp replay` then exits 4).
+pub fn summarize(c: &Contents) -> Result<Value> {
+    let prediction: Option<Value> = c
+        .meta(recording::META_PREDICTION, "json")
+        .and_then(|t| serde_json::from_str(t).ok());
+    let names: Vec<String> = prediction
+        .as_ref()
+        .and_then(|p| p.get("sensors"))
+        .and_then(|s| serde_json::from_value(s.clone()).ok())
+        .unwrap_or_default();
+    let per_ep: Vec<f64> = prediction
+        .as_ref()
+        .and_then(|p| p.get("sensor_energy_per_episode"))
+        .and_then(|s| serde_json::from_value(s.clone()).ok())
+        .unwrap_or_default();
+    let mut sensors: BTreeMap<u32, SensorSummary> = BTreeMap::new();
+    let sensor = |sensors: &mut BTreeMap<u32, SensorSummary>, i: u32| {
+        sensor_entry(sensors, &names, i);
+    };
+    let mut counts = crate::OutcomeCounts::default();
+    let (mut steps, mut received, mut degraded) = (0u64, 0u64, 0u64);
+    let mut episodes = 0u64;
+    let mut energies: Vec<f64> = Vec::new();
+    let (mut partial, mut partial_messages, mut partial_measurements) = (Vec::new(), 0u64, 0u64);
+    let ledgers_recorded = c.channels.contains_key("ledger");
+    for (number, e) in tally(c)? {
+        let Some(o) = e.outcome.filter(|_| e.complete(ledgers_recorded)) else {
+            partial.push(number);
+            partial_messages += e.messages;
+            partial_measurements += e.measurements.values().sum::<u64>();
+            continue;
+        };
+        episodes += 1;
+        steps += u64::from(o.steps);
+        received += u64::from(o.received);
+        degraded += u64::from(o.degraded != 0);
+        counts.add(&o);
+        for (i, n) in &e.measurements {
+            sensor_entry(&mut sensors, &names, *i).measurements += n;
+        }
+        let mut energy = 0.0;
+        for (leg, (i, tx, en)) in &e.ledgers {
+            let s = sensor_entry(&mut sensors, &names, *i);
+            s.transmissions += tx;
+            s.energy += en;
+            s.received += e.received_of(*leg);
+            energy += en;
+        }
+        energies.push(energy);
+    }
+    // Every sensor of the scenario, those that never sent anything included.
+    for i in 0..names.len().max(per_ep.len()) {
+        sensor(&mut sensors, i as u32);
+    }
+    for (i, s) in &mut sensors {
+        s.predicted_energy = per_ep
+            .get(*i as usize)
+            .map(|e| crate::vocab::round_energy(e * episodes as f64));
+        s.energy = crate::vocab::round_energy(s.energy);
+    }
+    let failures = identity_failures(&sensors, degraded);
+    let measurements: u64 = sensors.values().map(|s| s.measurements).sum();
+    let ledgers: u64 = sensors.values().map(|s| s.transmissions).sum();
+    let frac = |n: u64| crate::figure::proportion(n, episodes);
+    let (p_target, p_target_ci95) = frac(counts.target);
+    let (p_collision, p_collision_ci95) = frac(counts.collision);
+    let (p_free, p_free_ci95) = frac(counts.free);
+    let num_or_null = |x: f64| if x.is_finite() { json!(x) } else { Value::Null };
+    let (energy_mean, energy_mean_ci95) = crate::figure::mean_ci(&energies);
+    let energy: f64 = sensors.values().map(|s| s.energy).sum();
+    let predicted_energy: Option<f64> = if per_ep.is_empty() {
+        None
+    } else {
+        Some(crate::vocab::round_energy(
+            per_ep.iter().sum::<f64>() * episodes as f64,
+        ))
+    };
+    let num = |k: &str| {
+        c.meta(recording::META_RUN, k)
+            .and_then(|v| v.parse::<u64>().ok())
+    };
+    let strategy: Option<Strategy> = c
+        .meta(recording::META_STRATEGY, "json")
+        .and_then(|t| Strategy::from_json(t).ok());
+    let scenario = c
+        .meta(recording::META_RUN, "scenario_name")
+        .map(str::to_string)
+        .or_else(|| strategy.as_ref().map(|s| s.scenario_name.clone()));
+    Ok(json!({
+        "run_id": c.meta(recording::META_RUN, "run_id"),
+        "scenario": scenario,
+        "seed": num("seed"),
+        "strategy": strategy.as_ref().map(|s| s.label.clone()),
+        "delta": strategy.as_ref().and_then(crate::vocab::constant_delta),
+        "predicted": strategy.as_ref().map(|s| crate::vocab::prediction(&s.predicted)),
+        "software_version": c.meta(recording::META_RUN, "software_version"),
+        "format_version": num("format_version"),
+        "requested_episodes": num("episodes"),
+        "finished": c.finished,
+        "truncated": c.truncated,
+        "messages": c.messages.len(),
+        "counts": c.counts(),
+        "episodes": episodes,
+        "degraded_episodes": degraded,
+        "partial": {
+            "episodes": partial,
+            "messages": partial_messages,
+            "measurements": partial_measurements,
+        },
+        "target": counts.target, "collision": counts.collision, "free": counts.free,
+        "p_target": num_or_null(p_target), "p_target_ci95": num_or_null(p_target_ci95),
+        "p_collision": num_or_null(p_collision), "p_collision_ci95": num_or_null(p_collision_ci95),
+        "p_free": num_or_null(p_free), "p_free_ci95": num_or_null(p_free_ci95),
+        "steps": steps,
+        "energy_mean": num_or_null(energy_mean),
+        "energy_mean_ci95": num_or_null(energy_mean_ci95),
+        "measurements": measurements,
+        "transmissions": ledgers,
+        "received": received,
+        "energy": crate::vocab::round_energy(energy),
+        "predicted_energy": predicted_energy,
+        "sensors": sensors.values().collect::<Vec<_>>(),
+        "identities_hold": failures.is_empty(),
+        "identity_failures": failures,
+    }))
+}
+
+/// The summary `s` of the recording `c` read from `file`, as a table.
+pub fn render(file: &Path, c: &Contents, s: &Value) -> String {
+    let mut t = String::new();
+    // Writing into a String cannot fail.
+    let _ = write_table(&mut t, file, c, s);
+    t
+}
+
+fn write_table(out: &mut String, file: &Path, c: &Contents, s: &Value) -> std::fmt::Result {
+    use std::fmt::Write;
+    let g = |k: &str| match s.get(k) {
+        Some(Value::String(t)) => t.clone(),
+        Some(Value::Null) | None => "unknown".into(),
+        Some(v) => v.to_string(),
+    };
+    writeln!(
+        out,
+        "recording {} · run {} · scenario {} · seed {} · {}",
+        file.display(),
+        g("run_id"),
+        g("scenario"),
+        g("seed"),
+        g("software_version")
+    )?;
+    if let Some(t) = &c.truncated {
+        writeln!(
+            out,
+            "  UNFINISHED file: read every complete record; stopped at: {t}"
+        )?;
+    }
+    writeln!(
+        out,
+        "  {} episodes (requested {}): target {} · collision {} · free {} · {} steps",
+        g("episodes"),
+        g("requested_episodes"),
+        g("target"),
+        g("collision"),
+        g("free"),
+        g("steps")
+    )?;
+    if let Some(p) = s
+        .get("partial")
+        .filter(|p| p["episodes"].as_array().is_some_and(|a| !a.is_empty()))
+    {
+        writeln!(
+            out,
+            "  partial (not counted): episodes {} · {} messages · {} measurement messages",
+            p["episodes"], p["messages"], p["measurements"]
+        )?;
+    }
+    writeln!(
+        out,
+        "  transmissions: {} measurement messages · {} in ledgers · {} received by the agent",
+        g("measurements"),
+        g("transmissions"),
+        g("received")
+    )?;
+    let h = |k: &str| {
+        s.get(k)
+            .and_then(Value::as_f64)
+            .map_or("–".into(), crate::vocab::human)
+    };
+    writeln!(
+        out,
+        "  energy {} (predicted {})",
+        h("energy"),
+        h("predicted_energy")
+    )?;
+    writeln!(
+        out,
+        "  {:<10} {:>12} {:>12} {:>12} {:>12} {:>12}",
+        "sensor", "measurements", "ledgers", "received", "energy", "predicted"
+    )?;
+    if let Some(arr) = s.get("sensors").and_then(Value::as_array) {
+        for x in arr {
+            let f = |k: &str| x.get(k).cloned().unwrap_or(Value::Null);
+            writeln!(
+                out,
+                "  {:<10} {:>12} {:>12} {:>12} {:>12.1} {:>12.1}",
+                f("name").as_str().unwrap_or("?"),
+                f("measurements").as_u64().unwrap_or(0),
+                f("transmissions").as_u64().unwrap_or(0),
+                f("received").as_u64().unwrap_or(0),
+                f("energy").as_f64().unwrap_or(f64::NAN),
+                f("predicted_energy").as_f64().unwrap_or(f64::NAN)
+            )?;
+        }
+    }
+    if let Some(f) = s.get("identity_failures").and_then(Value::as_array) {
+        for x in f {
+            writeln!(out, "  IDENTITY FAILS: {}", x.as_str().unwrap_or("?"))?;
+        }
+    }
+    writeln!(out, "  messages per channel:")?;
+    for (t, n) in c.counts() {
+        writeln!(out, "    {t:<20} {n}")?;
+    }
+    Ok(())
+}

@@ -1,0 +1,125 @@
+//! THE process shell: what every process of a run (agent, coordinator,
+//! sensor node, recorder, bridge) does around its own work, written once.
+//!
+//! [`main`] parses the arguments (help and usage errors exit 0 / 2, as clap
+//! does), sets up logging ([`init_logging`]: `tracing` on stderr, `RUST_LOG`,
+//! default `warn`), runs the process's body, and turns the result into the
+//! exit code: a [`Done`] is 0 (its stdout line for the parent printed first),
+//! an error is 1 with one line `<name>: error: <cause: cause …>` on stderr.
+//! A closed stdout or stderr (the parent died) never panics.
+//!
+//! Signals and the wait loop live beside the ports: [`crate::wire::create_node`]
+//! installs iceoryx2's SIGINT/SIGTERM handler before the first wait, and
+//! [`crate::wire::Waiter`] is the one place a process blocks — over its own
+//! wake-up event, or over several (the recorder, the bridge) — returning
+//! the closed set of [`crate::wire::Wake`]s.
+
+use std::ffi::OsString;
+use std::io::Write;
+use std::process::ExitCode;
+
+/// How the body of a process ended well.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Done {
+    /// Nothing for the parent.
+    Quiet,
+    /// One line on stdout for the parent (a report, a summary).
+    Line {
+        text: String,
+        /// An undelivered line (stdout closed) fails the process: the
+        /// parent needed it (the coordinator's report). Otherwise it is
+        /// logged and dropped (the recorder's summary: the file is done).
+        required: bool,
+    },
+}
+
+/// The entry point of every process (`main` of its binary, and `etp process
+/// <name>`): parse `args` (the first is the program name) as `A`, set up
+/// logging, run `body`, and map its result to the exit code.
+pub fn main<A, I, T, E>(name: &str, args: I, body: impl FnOnce(&A) -> Result<Done, E>) -> ExitCode
+where
+    A: clap::Parser,
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+    E: Into<anyhow::Error>,
+{
+    // Prints help or the usage error and exits (0 or 2), as `main` would.
+    let args = A::parse_from(args);
+    init_logging(name);
+    match body(&args) {
+        Ok(Done::Quiet) => ExitCode::SUCCESS,
+        Ok(Done::Line { text, required }) => {
+            let mut out = std::io::stdout().lock();
+            match writeln!(out, "{text}").and_then(|()| out.flush()) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) if required => {
+                    tracing::warn!("stdout closed ({e}): the line for the parent is lost");
+                    ExitCode::FAILURE
+                }
+                Err(e) => {
+                    tracing::info!("stdout closed ({e}); the line is dropped");
+                    ExitCode::SUCCESS
+                }
+            }
+        }
+        Err(e) => {
+            // The error and its causes; stderr may be closed too: never
+            // panic on it.
+            let e: anyhow::Error = e.into();
+            let _ = writeln!(std::io::stderr(), "{name}: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// iceoryx2 reports errors only: its warnings (no config file, the global
+/// config used while cleaning a dead node whose details are gone) are noise
+/// here, where every configuration is built in code.
+pub fn quiet_iceoryx2() {
+    iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
+}
+
+/// Logging of a process: a `tracing` subscriber on stderr filtered by
+/// `RUST_LOG` (default `warn`; Zenoh's own warnings at `error`). The process
+/// enters a span named after itself so every line says who wrote it.
+pub fn init_logging(process: &str) {
+    quiet_iceoryx2();
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        // Zenoh's own warnings (e.g. that gossip, which we turn off, cannot
+        // de-duplicate across region gateways) are noise by default.
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,zenoh=error"));
+    // Colour only on a terminal: logs redirected to a file or a pipe stay
+    // plain text (no ANSI escape codes).
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .try_init();
+    tracing::debug!(process, pid = std::process::id(), "logging ready");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, clap::Parser)]
+    struct Args {
+        #[arg(long)]
+        fail: bool,
+    }
+
+    #[test]
+    fn the_result_becomes_the_exit_code() {
+        let ok = main("t", ["t"], |_: &Args| Ok::<_, anyhow::Error>(Done::Quiet));
+        assert_eq!(ok, ExitCode::SUCCESS);
+        let failed = main("t", ["t", "--fail"], |a: &Args| {
+            if a.fail {
+                Err(anyhow::anyhow!("asked to"))
+            } else {
+                Ok(Done::Quiet)
+            }
+        });
+        assert_eq!(failed, ExitCode::FAILURE);
+    }
+}
