@@ -92,18 +92,19 @@ pub fn run(args: &Args) -> Result<(Exit, AgentStats), AgentError> {
     etp_shared::with_dim!(scenario.dim, N => runtime::Agent::<N>::new(&run, &scenario, deadline)?.serve())
 }
 
-/// The process entry point (`main` of the binary, and `etp process <name>`
-/// when the binary is not installed beside `etp`): the process shell with
-/// the agent's body.
-pub fn main_with<I, T>(args: I) -> std::process::ExitCode
-where
-    I: IntoIterator<Item = T>,
-    T: Into<std::ffi::OsString> + Clone,
-{
-    shell::main("etp-agent", args, |args: &Args| {
+/// The agent process, as the process shell runs it
+/// (`shell::main_with::<AgentProcess>`: `main` of the binary, and `etp
+/// process etp-agent` when the binary is not installed beside `etp`).
+pub struct AgentProcess;
+
+impl shell::Process for AgentProcess {
+    const NAME: &'static str = "etp-agent";
+    type Args = Args;
+    type Error = AgentError;
+    fn body(args: &Args) -> Result<Done, AgentError> {
         let _span = tracing::info_span!("agent").entered();
         let (exit, stats) = run(args)?;
         tracing::info!(?exit, ?stats, "agent done");
-        Ok::<_, AgentError>(Done::Quiet)
-    })
+        Ok(Done::Quiet)
+    }
 }

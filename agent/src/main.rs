@@ -1,5 +1,5 @@
-//! `etp-agent`: thin main over [`etp_agent::main_with`].
+//! `etp-agent`: the process shell with [`etp_agent::AgentProcess`].
 
 fn main() -> std::process::ExitCode {
-    etp_agent::main_with(std::env::args_os())
+    etp_runtime::shell::main_with::<etp_agent::AgentProcess, _, _>(std::env::args_os())
 }

@@ -88,17 +88,18 @@ pub enum Cli {
     SensorHost(sensor_host::Args),
 }
 
-/// The process entry point: the process shell with the bridge's body.
-pub fn main_with<I, T>(args: I) -> std::process::ExitCode
-where
-    I: IntoIterator<Item = T>,
-    T: Into<std::ffi::OsString> + Clone,
-{
-    etp_runtime::shell::main("etp-bridge", args, |cli: &Cli| {
+/// The bridge process, as the process shell runs it.
+pub struct BridgeProcess;
+
+impl etp_runtime::shell::Process for BridgeProcess {
+    const NAME: &'static str = "etp-bridge";
+    type Args = Cli;
+    type Error = BridgeError;
+    fn body(cli: &Cli) -> Result<etp_runtime::shell::Done, BridgeError> {
         match cli {
             Cli::AgentHost(a) => agent_host::run(a),
             Cli::SensorHost(a) => sensor_host::run(a),
         }
         .map(|()| etp_runtime::shell::Done::Quiet)
-    })
+    }
 }

@@ -1,3 +1,5 @@
+//! `etp-bridge`: the process shell with [`etp_bridge::BridgeProcess`].
+
 fn main() -> std::process::ExitCode {
-    etp_bridge::main_with(std::env::args_os())
+    etp_runtime::shell::main_with::<etp_bridge::BridgeProcess, _, _>(std::env::args_os())
 }

@@ -3,8 +3,8 @@
 //! a run, and the run description a sensor host fetches when it joins.
 
 use crate::BridgeError;
+pub use etp_runtime::report::SessionInfo;
 use etp_runtime::wire::ServiceId;
-pub use etp_runtime::wire::report::SessionInfo;
 use std::time::Duration;
 
 /// Key of the agent host's queryable answering [`SessionInfo`] (the joiner

@@ -93,22 +93,22 @@ pub fn run(args: &Args) -> Result<RunReport, CoordinatorError> {
 
 use anyhow::Context;
 
-/// The process entry point (`main` of the binary, and `etp process <name>`
-/// when the binary is not installed beside `etp`): the process shell with
-/// the coordinator's body; the report is its one line on stdout (an
-/// undelivered report fails the process).
-pub fn main_with<I, T>(args: I) -> std::process::ExitCode
-where
-    I: IntoIterator<Item = T>,
-    T: Into<std::ffi::OsString> + Clone,
-{
-    shell::main("etp-coordinator", args, |args: &Args| {
+/// The coordinator process, as the process shell runs it (`main` of the
+/// binary, and `etp process etp-coordinator`); the report is its one line
+/// on stdout (an undelivered report fails the process).
+pub struct CoordinatorProcess;
+
+impl shell::Process for CoordinatorProcess {
+    const NAME: &'static str = "etp-coordinator";
+    type Args = Args;
+    type Error = anyhow::Error;
+    fn body(args: &Args) -> anyhow::Result<Done> {
         let _span = tracing::info_span!("coordinator").entered();
         let report = run(args).context("coordinator")?;
         let text = serde_json::to_string(&report).context("encoding the report")?;
-        Ok::<_, anyhow::Error>(Done::Line {
+        Ok(Done::Line {
             text,
             required: true,
         })
-    })
+    }
 }

@@ -1,5 +1,6 @@
-//! `etp-coordinator`: thin main over [`etp_coordinator::main_with`]; prints the run
+//! `etp-coordinator`: the process shell with
+//! [`etp_coordinator::CoordinatorProcess`]; prints the run report.
 
 fn main() -> std::process::ExitCode {
-    etp_coordinator::main_with(std::env::args_os())
+    etp_runtime::shell::main_with::<etp_coordinator::CoordinatorProcess, _, _>(std::env::args_os())
 }

@@ -29,6 +29,9 @@ pub enum Command {
     Synthesize(crate::cmd::synthesize::Args),
     /// Export an MDP as PRISM explicit files (model.tra/.sta/.lab/.trew).
     ExportPrism(crate::cmd::export_prism::Args),
+    /// What the radio costs: the fronts of several syntheses of one scenario
+    /// (e.g. under different `--loss`) on one figure, least energy per P_tar.
+    Fronts(crate::cmd::fronts::Args),
     /// Measure simulator throughput (episode-steps per second).
     Bench(crate::cmd::bench::Args),
     /// Run a strategy as processes (coordinator, agent, one per sensor) over iceoryx2.

@@ -3,6 +3,7 @@
 
 use crate::output::write_new;
 use anyhow::{Context, Result};
+use etp_shared::radio::Radio;
 use etp_synthesis::certify::front::{FRONT_CONFIDENCE, certified_front};
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::{ParetoFront, compute_front};
@@ -19,15 +20,19 @@ pub struct FrontReport {
 
 /// Compute the front of `mdp` (and of a Method 1 MDP, attached as a baseline)
 /// and write `front.json`, `front.png`, `front.svg` and `scenario.toml` into `dir`.
+/// `radio`: the channel the MDP was sampled under when it is not the
+/// scenario text's own (recorded in the front, and so in its strategies).
 pub fn write_front(
     dir: &Path,
     mdp: &Mdp,
     method1: Option<&Mdp>,
     scenario_text: &str,
+    radio: Option<&Radio>,
     force: bool,
 ) -> Result<FrontReport> {
     let start = Instant::now();
     let mut front = compute_front(mdp, CostModel::Counted).context("computing the Pareto front")?;
+    front.radio = radio.cloned();
     let seconds = start.elapsed().as_secs_f64();
     front.certified = Some(
         certified_front(mdp, &front, CostModel::Counted, FRONT_CONFIDENCE)

@@ -32,7 +32,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 /// Record every message of an etpareto run to MCAP (spawned by `etp run --record`).
 #[derive(Debug, Parser)]
 #[command(name = "etp-recorder", version, about)]
-struct Cli {
+pub struct Cli {
     /// Run id: records the services `etp/<run-id>/…` (of an `etp run
     /// --run-id ID`, or of an `etp replay FILE --publish --run-id ID`).
     #[arg(long)]
@@ -264,16 +264,17 @@ fn write_handed_over_metadata<W: std::io::Write + std::io::Seek>(
     Ok(())
 }
 
-/// The process entry point (`main` of `etp-recorder`, and `etp process
-/// etp-recorder` when the binary is not installed beside `etp`): the process
-/// shell with the recorder's body; its summary JSON is its line on stdout (a
-/// closed stdout is not an error: the file is finished all the same).
-pub fn main_with<I, T>(args: I) -> std::process::ExitCode
-where
-    I: IntoIterator<Item = T>,
-    T: Into<std::ffi::OsString> + Clone,
-{
-    shell::main("etp-recorder", args, |cli: &Cli| {
+/// The recorder process, as the process shell runs it (`main` of
+/// `etp-recorder`, and `etp process etp-recorder`); its summary JSON is its
+/// line on stdout (a closed stdout is not an error: the file is finished all
+/// the same).
+pub struct RecorderProcess;
+
+impl shell::Process for RecorderProcess {
+    const NAME: &'static str = "etp-recorder";
+    type Args = Cli;
+    type Error = anyhow::Error;
+    fn body(cli: &Cli) -> anyhow::Result<Done> {
         let file = create_output(&cli.out)?;
         let mut ready = false;
         let r = run(cli, file, &mut ready);
@@ -286,5 +287,5 @@ where
             text: v.to_string(),
             required: false,
         })
-    })
+    }
 }

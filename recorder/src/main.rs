@@ -1,5 +1,5 @@
-//! `etp-recorder`: thin main over [`etp_recorder::main_with`].
+//! `etp-recorder`: the process shell with [`etp_recorder::RecorderProcess`].
 
 fn main() -> std::process::ExitCode {
-    etp_recorder::main_with(std::env::args_os())
+    etp_runtime::shell::main_with::<etp_recorder::RecorderProcess, _, _>(std::env::args_os())
 }

@@ -165,7 +165,7 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Res
     drop(wakes);
     drop(node);
     // Leaves the run's folder to any subscriber still alive.
-    wire::cleanup::remove_run(run);
+    etp_runtime::cleanup::remove_run(run);
     Ok(Published {
         run_id: run.to_string(),
         rate,

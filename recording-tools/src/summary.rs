@@ -18,6 +18,9 @@ struct SensorSummary {
     measurements: u64,
     /// Sum of the sensor's ledgers (transmissions).
     transmissions: u64,
+    /// `measurement` messages on the legs of degraded episodes that have no
+    /// ledger (a dead sensor's open leg): excused from the identities.
+    measurements_without_ledger: u64,
     /// Measurements the agent received from this sensor (per leg: the next
     /// waypoint's `prev_received`, the outcome's `last_received`).
     received: u64,
@@ -34,20 +37,24 @@ struct EpisodeTally {
     ledgers: BTreeMap<u32, (u32, u64, f64)>,
     /// Leg → measurements the agent received in it (from the next waypoint).
     received: BTreeMap<u32, u64>,
-    /// Sensor → `measurement` messages.
-    measurements: BTreeMap<u32, u64>,
+    /// (Leg, sensor) → `measurement` messages.
+    measurements: BTreeMap<(u32, u32), u64>,
     messages: u64,
 }
 
 impl EpisodeTally {
     /// Complete: the outcome and the ledger of every leg it ran are recorded
     /// (the last leg's ledger follows the outcome, so a cut between them
-    /// leaves the episode partial).
+    /// leaves the episode partial) — or the outcome of a degraded episode
+    /// (a dead link): its legs without a ledger are excused, as `etp run
+    /// --allow-degraded` excuses them, their measurements counted apart.
     /// Without the `ledger` channel (a selection of topics), the outcome
     /// alone.
     fn complete(&self, ledgers_recorded: bool) -> bool {
         self.outcome.is_some_and(|o| {
-            !ledgers_recorded || (0..=o.header.leg).all(|l| self.ledgers.contains_key(&l))
+            !ledgers_recorded
+                || o.degraded != 0
+                || (0..=o.header.leg).all(|l| self.ledgers.contains_key(&l))
         })
     }
 
@@ -75,25 +82,46 @@ fn sensor_entry<'a>(
     })
 }
 
-/// Every episode's tally, by episode number.
-fn tally(c: &Contents) -> Result<BTreeMap<u64, EpisodeTally>> {
-    let mut eps: BTreeMap<u64, EpisodeTally> = BTreeMap::new();
-    for m in c
-        .messages
-        .iter()
-        .filter(|m| crate::export::is_etp_channel(c, &m.topic))
-    {
+/// What the summary counts, message by message: every episode's tally, by
+/// episode number, and the messages per channel. Fed from memory
+/// ([`summarize`]) or streamed from disk ([`summarize_file`]): it holds a
+/// few numbers per episode, never a message.
+#[derive(Debug, Default)]
+pub struct Tally {
+    eps: BTreeMap<u64, EpisodeTally>,
+    counts: BTreeMap<String, u64>,
+    messages: u64,
+}
+
+impl Tally {
+    /// An empty tally of the channels of `c`.
+    pub fn new(c: &Contents) -> Self {
+        Self {
+            counts: c.channels.keys().map(|t| (t.clone(), 0)).collect(),
+            ..Self::default()
+        }
+    }
+
+    /// Count one message of the recording `c`.
+    pub fn add(&mut self, c: &Contents, m: &recording::RawMessage) -> Result<()> {
+        self.messages += 1;
+        *self.counts.entry(m.topic.clone()).or_default() += 1;
+        if !crate::export::is_etp_channel(c, &m.topic) {
+            return Ok(());
+        }
         let rec = recording::decode(&m.topic, &m.data)
             .with_context(|| format!("message at log time {}", m.log_time))?;
         let h = *rec.header();
         // `hello` and the like belong to no episode.
         if h.episode == u64::MAX {
-            continue;
+            return Ok(());
         }
-        let e = eps.entry(h.episode).or_default();
+        let e = self.eps.entry(h.episode).or_default();
         e.messages += 1;
         match rec {
-            Recorded::Measurement(_) => *e.measurements.entry(h.sender).or_default() += 1,
+            Recorded::Measurement(_) => {
+                *e.measurements.entry((h.leg, h.sender)).or_default() += 1;
+            }
             Recorded::Ledger(l) => {
                 e.ledgers
                     .insert(h.leg, (h.sender, u64::from(l.transmissions), l.energy));
@@ -104,8 +132,27 @@ fn tally(c: &Contents) -> Result<BTreeMap<u64, EpisodeTally>> {
             Recorded::Outcome(o) => e.outcome = Some(o),
             _ => {}
         }
+        Ok(())
     }
-    Ok(eps)
+}
+
+/// [`summarize`] of a finished file streamed from disk, one chunk at a time
+/// (two passes: the channels and metadata first, then the messages): peak
+/// memory does not grow with the messages. The file's contents without
+/// its messages are returned beside the summary. `None` when the stream
+/// does not read as a sound finished file: the caller reads it whole, which
+/// says precisely what is wrong with it (cut, damaged).
+pub fn summarize_file(path: &Path) -> Result<Option<(Value, Contents)>> {
+    let c = recording::stream_finished(path, |_| -> Result<()> { Ok(()) })?;
+    if c.damaged || !c.finished {
+        return Ok(None);
+    }
+    let mut t = Tally::new(&c);
+    let again = recording::stream_finished(path, |m| t.add(&c, &m))?;
+    if again.damaged || !again.finished {
+        return Ok(None);
+    }
+    Ok(Some((summarize_tally(&c, t)?, c)))
 }
 
 /// The identities a complete episode keeps, per sensor: `measurement`
@@ -135,6 +182,15 @@ fn identity_failures(sensors: &BTreeMap<u32, SensorSummary>, degraded: u64) -> V
 /// `partial`. `identities_hold` is false when a count identity fails on the
 /// complete episodes (`etp replay` then exits 4).
 pub fn summarize(c: &Contents) -> Result<Value> {
+    let mut t = Tally::new(c);
+    for m in &c.messages {
+        t.add(c, m)?;
+    }
+    summarize_tally(c, t)
+}
+
+/// The summary object from the tally of `c`'s messages (see [`summarize`]).
+pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
     let prediction: Option<Value> = c
         .meta(recording::META_PREDICTION, "json")
         .and_then(|t| serde_json::from_str(t).ok());
@@ -158,7 +214,7 @@ pub fn summarize(c: &Contents) -> Result<Value> {
     let mut energies: Vec<f64> = Vec::new();
     let (mut partial, mut partial_messages, mut partial_measurements) = (Vec::new(), 0u64, 0u64);
     let ledgers_recorded = c.channels.contains_key("ledger");
-    for (number, e) in tally(c)? {
+    for (number, e) in t.eps {
         let Some(o) = e.outcome.filter(|_| e.complete(ledgers_recorded)) else {
             partial.push(number);
             partial_messages += e.messages;
@@ -170,8 +226,15 @@ pub fn summarize(c: &Contents) -> Result<Value> {
         received += u64::from(o.received);
         degraded += u64::from(o.degraded != 0);
         counts.add(&o);
-        for (i, n) in &e.measurements {
-            sensor_entry(&mut sensors, &names, *i).measurements += n;
+        for ((leg, i), n) in &e.measurements {
+            let s = sensor_entry(&mut sensors, &names, *i);
+            // A degraded episode's legs without a ledger (a dead sensor's
+            // open leg and its later ones) are excused, counted apart.
+            if ledgers_recorded && !e.ledgers.contains_key(leg) {
+                s.measurements_without_ledger += n;
+            } else {
+                s.measurements += n;
+            }
         }
         let mut energy = 0.0;
         for (leg, (i, tx, en)) in &e.ledgers {
@@ -233,8 +296,8 @@ pub fn summarize(c: &Contents) -> Result<Value> {
         "requested_episodes": num("episodes"),
         "finished": c.finished,
         "truncated": c.truncated,
-        "messages": c.messages.len(),
-        "counts": c.counts(),
+        "messages": t.messages,
+        "counts": t.counts,
         "episodes": episodes,
         "degraded_episodes": degraded,
         "partial": {
@@ -354,8 +417,10 @@ fn write_table(out: &mut String, file: &Path, c: &Contents, s: &Value) -> std::f
         }
     }
     writeln!(out, "  messages per channel:")?;
-    for (t, n) in c.counts() {
-        writeln!(out, "    {t:<20} {n}")?;
+    if let Some(counts) = s.get("counts").and_then(Value::as_object) {
+        for (t, n) in counts {
+            writeln!(out, "    {t:<20} {n}")?;
+        }
     }
     Ok(())
 }

@@ -18,7 +18,7 @@
 //!   ([`wire::Waiter`], over one wake-up event or several), the liveness
 //!   [`wire::Watchdog`] and the header [`wire::Stamper`].
 //! * [`shell`] — the one process shell: argument parsing, logging, exit
-//!   codes ([`shell::main`]).
+//!   codes ([`shell::main_with`]).
 //! * [`scenario_arg`] — a `SCENARIO` argument (built-in name or TOML path).
 //! * [`report`] — the coordinator's run report and a run's session info;
 //!   [`cleanup`] — removing what a run left in /dev/shm and its folder.

@@ -1,7 +1,9 @@
 //! THE process shell: what every process of a run (agent, coordinator,
 //! sensor node, recorder, bridge) does around its own work, written once.
 //!
-//! [`main`] parses the arguments (help and usage errors exit 0 / 2, as clap
+//! Each process is a [`Process`] (its name, arguments and body); [`main_with`]
+//! — the one entry point of every process, `main` of its binary and `etp
+//! process <name>` alike — parses the arguments (help and usage errors exit 0 / 2, as clap
 //! does), sets up logging ([`init_logging`]: `tracing` on stderr, `RUST_LOG`,
 //! default `warn`), runs the process's body, and turns the result into the
 //! exit code: a [`Done`] is 0 (its stdout line for the parent printed first),
@@ -14,6 +16,7 @@
 //! wake-up event, or over several (the recorder, the bridge) — returning
 //! the closed set of [`crate::wire::Wake`]s.
 
+use clap::Parser;
 use std::ffi::OsString;
 use std::io::Write;
 use std::process::ExitCode;
@@ -33,20 +36,33 @@ pub enum Done {
     },
 }
 
-/// The entry point of every process (`main` of its binary, and `etp process
-/// <name>`): parse `args` (the first is the program name) as `A`, set up
-/// logging, run `body`, and map its result to the exit code.
-pub fn main<A, I, T, E>(name: &str, args: I, body: impl FnOnce(&A) -> Result<Done, E>) -> ExitCode
+/// One process of a run as the shell runs it: what differs between agent,
+/// coordinator, sensor node, recorder and bridge, and nothing else.
+pub trait Process {
+    /// The binary's name: the logs' and the error line's prefix.
+    const NAME: &'static str;
+    /// Its command line.
+    type Args: clap::Parser;
+    /// What its body fails with.
+    type Error: Into<anyhow::Error>;
+    /// The process's own work.
+    fn body(args: &Self::Args) -> Result<Done, Self::Error>;
+}
+
+/// THE entry point of every process (`main` of its binary, and `etp process
+/// <name>`): parse `args` (the first is the program name) as `P::Args`, set
+/// up logging, run `P::body`, and map its result to the exit code.
+pub fn main_with<P, I, T>(args: I) -> ExitCode
 where
-    A: clap::Parser,
+    P: Process,
     I: IntoIterator<Item = T>,
     T: Into<OsString> + Clone,
-    E: Into<anyhow::Error>,
 {
     // Prints help or the usage error and exits (0 or 2), as `main` would.
-    let args = A::parse_from(args);
+    let args = P::Args::parse_from(args);
+    let name = P::NAME;
     init_logging(name);
-    match body(&args) {
+    match P::body(&args) {
         Ok(Done::Quiet) => ExitCode::SUCCESS,
         Ok(Done::Line { text, required }) => {
             let mut out = std::io::stdout().lock();
@@ -109,17 +125,25 @@ mod tests {
         fail: bool,
     }
 
-    #[test]
-    fn the_result_becomes_the_exit_code() {
-        let ok = main("t", ["t"], |_: &Args| Ok::<_, anyhow::Error>(Done::Quiet));
-        assert_eq!(ok, ExitCode::SUCCESS);
-        let failed = main("t", ["t", "--fail"], |a: &Args| {
+    /// A process that fails when asked to.
+    struct Probe;
+
+    impl Process for Probe {
+        const NAME: &'static str = "t";
+        type Args = Args;
+        type Error = anyhow::Error;
+        fn body(a: &Args) -> anyhow::Result<Done> {
             if a.fail {
                 Err(anyhow::anyhow!("asked to"))
             } else {
                 Ok(Done::Quiet)
             }
-        });
-        assert_eq!(failed, ExitCode::FAILURE);
+        }
+    }
+
+    #[test]
+    fn the_result_becomes_the_exit_code() {
+        assert_eq!(main_with::<Probe, _, _>(["t"]), ExitCode::SUCCESS);
+        assert_eq!(main_with::<Probe, _, _>(["t", "--fail"]), ExitCode::FAILURE);
     }
 }

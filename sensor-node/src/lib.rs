@@ -102,18 +102,18 @@ pub fn run(args: &Args) -> Result<(Exit, SensorStats), SensorError> {
 
 use anyhow::Context;
 
-/// The process entry point (`main` of the binary, and `etp process <name>`
-/// when the binary is not installed beside `etp`): the process shell with
-/// the sensor's body.
-pub fn main_with<I, T>(args: I) -> std::process::ExitCode
-where
-    I: IntoIterator<Item = T>,
-    T: Into<std::ffi::OsString> + Clone,
-{
-    shell::main("etp-sensor-node", args, |args: &Args| {
+/// The sensor process, as the process shell runs it (`main` of the binary,
+/// and `etp process etp-sensor-node`).
+pub struct SensorProcess;
+
+impl shell::Process for SensorProcess {
+    const NAME: &'static str = "etp-sensor-node";
+    type Args = Args;
+    type Error = anyhow::Error;
+    fn body(args: &Args) -> anyhow::Result<Done> {
         let _span = tracing::info_span!("sensor", name = %args.sensor).entered();
         let (exit, stats) = run(args).with_context(|| format!("sensor `{}`", args.sensor))?;
         tracing::info!(?exit, ?stats, "sensor node done");
-        Ok::<_, anyhow::Error>(Done::Quiet)
-    })
+        Ok(Done::Quiet)
+    }
 }

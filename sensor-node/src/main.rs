@@ -1,5 +1,5 @@
-//! `etp-sensor-node`: thin main over [`etp_sensor_node::main_with`].
+//! `etp-sensor-node`: the process shell with [`etp_sensor_node::SensorProcess`].
 
 fn main() -> std::process::ExitCode {
-    etp_sensor_node::main_with(std::env::args_os())
+    etp_runtime::shell::main_with::<etp_sensor_node::SensorProcess, _, _>(std::env::args_os())
 }

@@ -15,6 +15,7 @@
 //! checks the seal when present and accepts old, unsealed ones.
 
 use crate::discretization::{Discretization, Region};
+use crate::radio::Radio;
 use crate::scenario::Scenario;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
@@ -158,6 +159,12 @@ pub struct Strategy {
     /// made without an MDP.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub leg_energy: Option<Vec<f64>>,
+    /// The radio the strategy was synthesized for (docs/MODEL.md §8) when it
+    /// is not its scenario text's own `[radio]` (`etp synthesize --loss …`);
+    /// absent = the scenario's own. [`Strategy::scenario`] applies it, so a
+    /// strategy is evaluated under its own channel unless told otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radio: Option<Radio>,
 }
 
 impl Strategy {
@@ -199,6 +206,7 @@ impl Strategy {
             certified: None,
             scenario_toml: None,
             leg_energy: None,
+            radio: None,
         }
     }
 
@@ -213,7 +221,25 @@ impl Strategy {
             StrategyError::Invalid(format!("its scenario `{}`: {e}", self.scenario_name))
         })?;
         self.check_scenario(&parsed)?;
-        Ok(parsed)
+        self.with_own_radio(parsed)
+    }
+
+    /// `scenario` (this strategy's, hash checked) under the radio the
+    /// strategy was synthesized for: [`Strategy::radio`] when present (one
+    /// link per sensor), else the scenario's own.
+    pub fn with_own_radio(&self, mut scenario: Scenario) -> Result<Scenario, StrategyError> {
+        if let Some(r) = &self.radio {
+            if !r.links.is_empty() && r.links.len() != scenario.sensors.len() {
+                return Err(StrategyError::Invalid(format!(
+                    "its `radio` has {} links for the {} sensors of scenario `{}`",
+                    r.links.len(),
+                    scenario.sensors.len(),
+                    scenario.name
+                )));
+            }
+            scenario.radio = r.clone();
+        }
+        Ok(scenario)
     }
 
     /// A strategy file: the seal must be present and match (see the module

@@ -325,6 +325,118 @@ fn a_killed_sensor_is_detected_the_episode_degraded_and_the_run_continues() {
     no_leftovers(&id).expect("clean /dev/shm and root folder");
 }
 
+/// Issue 24 item 2: `--allow-degraded` after a sensor dies with its leg
+/// open (the issue's run: seed 9, δ = 1.4986, kill -9 of s2). The death is
+/// made to fall inside one of s2's legs: s2 is stopped first, so the run
+/// goes on until the agent waits on a slot of s2's next (or current) leg,
+/// and is killed there. Every identity holds over what is counted (the
+/// legs with a ledger), the open leg's received measurements are excused
+/// and reported apart (`received_without_ledger`), exit 0; the recording's
+/// replay agrees and exits 0 too.
+#[test]
+fn a_sensor_killed_with_its_leg_open_is_excused_exactly_and_every_identity_holds() {
+    let _serial = serial();
+    let id = unique_run_id("openleg");
+    let dir = std::env::temp_dir().join(format!("etp-{id}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch");
+    let rec = dir.join("run.mcap");
+    let run = EtpRun::spawn(
+        &id,
+        &[
+            "--scenario",
+            "winding-2d",
+            "--delta",
+            DELTA,
+            "--episodes",
+            "300",
+            "--seed",
+            "9",
+            "--episode-details",
+            "--allow-degraded",
+            "--record",
+            rec.to_str().expect("utf-8"),
+        ],
+    );
+    let victim = wait_for_process(&id, "etp-sensor-node", Some(("--sensor", "s2")));
+    std::thread::sleep(Duration::from_millis(1000));
+    kill("-STOP", &victim.to_string());
+    // The agent now runs on until it waits on a slot of s2 (a stopped
+    // sensor is alive: it is waited for), i.e. until s2's leg is open.
+    std::thread::sleep(Duration::from_millis(500));
+    kill("-KILL", &victim.to_string());
+    let (ok, out, err) = run.finish();
+    assert!(ok, "etp run --allow-degraded failed: {err}");
+    let v: Value = serde_json::from_str(&out).expect("JSON");
+    assert_eq!(num(&v, "episodes"), 300.0, "the run continued to the end");
+    let f = &v["faults"][0];
+    assert_eq!(f["sensor"].as_str(), Some("s2"), "{}", v["faults"]);
+    // The episode s2 died in: its open leg is one of s2's, without a ledger.
+    let episode = f["episode"].as_u64().expect("episode");
+    let e = v["episode_results"]
+        .as_array()
+        .expect("episode_results")
+        .iter()
+        .find(|e| e["episode"].as_u64() == Some(episode))
+        .expect("the fault's episode");
+    assert_eq!(e["degraded"].as_bool(), Some(true), "{e}");
+    let open: Vec<&Value> = e["legs"]
+        .as_array()
+        .expect("legs")
+        .iter()
+        .filter(|l| l["transmissions"].is_null())
+        .collect();
+    assert!(
+        !open.is_empty() && open.iter().all(|l| l["sensor"].as_u64() == Some(2)),
+        "the open leg is s2's: {e}"
+    );
+    let (without, open_received) = assert_totals_over_ledgered_legs(&v);
+    // Only s2 has anything excused; every other sensor balances in full.
+    for (i, w) in without.iter().enumerate() {
+        if i != 2 {
+            assert_eq!(*w, 0, "sensor {i}");
+        }
+    }
+    let s2 = &v["sensors"][2];
+    assert_eq!(s2["received_without_ledger"].as_u64(), Some(without[2]));
+    assert!(s2["missing_ledgers"].as_u64() >= Some(1), "{s2}");
+    eprintln!(
+        "s2 killed with its leg open: {open_received} measurement(s) received on it, excused; \
+         {} in all on legs without a ledger",
+        without[2]
+    );
+    // The recording tells the same: identities hold, exit 0.
+    let replay = std::process::Command::new(etp_tests::bin_dir().join("etp"))
+        .args(["replay", rec.to_str().expect("utf-8"), "--json"])
+        .output()
+        .expect("etp replay");
+    let r: Value = serde_json::from_slice(&replay.stdout).unwrap_or_else(|e| {
+        panic!(
+            "replay JSON ({e}): {}",
+            String::from_utf8_lossy(&replay.stderr)
+        )
+    });
+    assert_eq!(
+        replay.status.code(),
+        Some(0),
+        "{}: {}",
+        r["identity_failures"],
+        String::from_utf8_lossy(&replay.stderr)
+    );
+    assert_eq!(r["identities_hold"].as_bool(), Some(true), "{r}");
+    // Degraded episodes are complete episodes (their dead legs excused),
+    // not partial ones: the replay counts what the run counted.
+    assert_eq!(r["episodes"].as_u64(), Some(300), "{}", r["partial"]);
+    assert_eq!(r["degraded_episodes"], v["degraded"]);
+    for (i, s) in r["sensors"].as_array().expect("sensors").iter().enumerate() {
+        assert_eq!(s["transmissions"], v["sensors"][i]["transmissions"], "{s}");
+        assert_eq!(s["received"], v["sensors"][i]["received"], "{s}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(processes_of_run(&id).is_empty());
+    no_leftovers(&id).expect("clean /dev/shm and root folder");
+}
+
 #[test]
 fn when_the_coordinator_dies_agent_and_sensors_exit_within_a_second() {
     let _serial = serial();

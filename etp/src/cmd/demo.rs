@@ -109,7 +109,7 @@ pub fn run(a: Args) -> Result<()> {
         aggregation_alpha: 0.05,
     };
     let built = synthesize::build_mdp(&sargs)?;
-    let front = write_front(&built.dir, &built.mdp, None, &text, false)?;
+    let front = write_front(&built.dir, &built.mdp, None, &text, None, false)?;
 
     // 2. Strategy.
     stage(

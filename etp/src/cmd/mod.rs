@@ -5,6 +5,7 @@ pub mod bench;
 pub mod check;
 pub mod demo;
 pub mod export_prism;
+pub mod fronts;
 pub mod honest;
 pub mod process;
 pub mod replay;
@@ -30,6 +31,7 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Replay(a) => replay::run(a),
         Command::Synthesize(a) => synthesize::run(a),
         Command::ExportPrism(a) => export_prism::run(a),
+        Command::Fronts(a) => fronts::run(a),
         Command::Strategy(a) => strategy::run(a),
         Command::Validate(a) => validate::run(a),
         Command::Process(_) => anyhow::bail!("`etp process` is dispatched by etp::run"),

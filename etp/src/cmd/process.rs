@@ -5,6 +5,7 @@
 //! checkout builds only `etp`). It calls the same library entry point as the
 //! standalone binary, in a process of its own: nothing is shared in memory.
 
+use etp_runtime::shell::main_with;
 use std::ffi::OsString;
 use std::process::ExitCode;
 
@@ -32,10 +33,10 @@ pub fn known(name: &str) -> bool {
 pub fn run(a: Args) -> ExitCode {
     let argv = std::iter::once(OsString::from(&a.name)).chain(a.args);
     match a.name.as_str() {
-        "etp-agent" => etp_agent::main_with(argv),
-        "etp-sensor-node" => etp_sensor_node::main_with(argv),
-        "etp-coordinator" => etp_coordinator::main_with(argv),
-        "etp-recorder" => etp_recorder::main_with(argv),
+        "etp-agent" => main_with::<etp_agent::AgentProcess, _, _>(argv),
+        "etp-sensor-node" => main_with::<etp_sensor_node::SensorProcess, _, _>(argv),
+        "etp-coordinator" => main_with::<etp_coordinator::CoordinatorProcess, _, _>(argv),
+        "etp-recorder" => main_with::<etp_recorder::RecorderProcess, _, _>(argv),
         other => {
             eprintln!(
                 "error: `{other}` is not a process of a run ({})",

@@ -100,7 +100,7 @@ pub fn summary_json(s: &Scenario, sum: &SimulationSummary) -> Value {
         m.insert(k.into(), json!(e.value));
         m.insert(format!("{k}_ci95"), json!(e.ci95));
     }
-    m.insert("total_steps".into(), json!(sum.total_steps));
+    m.insert("steps".into(), json!(sum.total_steps));
     let total = sum
         .sensors
         .iter()

@@ -153,6 +153,7 @@ pub fn run(a: Args) -> Result<()> {
     };
     let mut strategy = to_strategy(&mdp, &omega, label.clone(), predicted);
     strategy.scenario_toml = scenario_text;
+    strategy.radio = front.radio.clone();
     let honest = certified::assess(&mdp, &omega, cost, level)?;
     super::honest::attach(&mut strategy, honest.crossfit.as_ref(), &honest.certified);
     write_new(&output, strategy.to_json().as_bytes(), a.force)?;

@@ -410,9 +410,20 @@ pub fn run(a: Args) -> Result<()> {
     } else {
         None
     };
+    // The channel is recorded when the options changed the scenario text's own.
+    let own_radio = etp_shared::scenario::Scenario::from_toml(&text)
+        .context("scenario")?
+        .radio;
+    let radio = (built.scenario.radio != own_radio).then_some(&built.scenario.radio);
     let replaced = front_path.exists();
-    let front =
-        crate::front::write_front(&built.dir, &built.mdp, method1.as_ref(), &text, a.force)?;
+    let front = crate::front::write_front(
+        &built.dir,
+        &built.mdp,
+        method1.as_ref(),
+        &text,
+        radio,
+        a.force,
+    )?;
     // Only now that the new front is written: what was derived from the
     // old MDP would sit beside it as if derived from the new one.
     let stale = if replaced {

@@ -64,6 +64,9 @@ pub fn run(a: Args) -> Result<()> {
         bail!("--episodes must be at least 1");
     }
     let (strategy, scenario) = load_strategy(&a.strategy)?;
+    // The strategy's own channel unless the options say otherwise (a
+    // robustness study); the report names both.
+    let synthesized = scenario.radio.clone();
     let scenario = a.radio.apply(scenario)?;
     let pb = progress::bar(a.episodes, "validate", a.json);
     let sum = simulate_strategy(&scenario, &strategy, a.episodes, a.seed, &|k| pb.inc(k)).summary();
@@ -88,7 +91,13 @@ pub fn run(a: Args) -> Result<()> {
     if a.json {
         println!(
             "{}",
-            serde_json::to_string_pretty(&comparison_json(&scenario, &strategy, &sum, a.seed))?
+            serde_json::to_string_pretty(&comparison_json(
+                &scenario,
+                &synthesized,
+                &strategy,
+                &sum,
+                a.seed
+            ))?
         );
     } else {
         println!("{} — {}", scenario.name, strategy.label);
@@ -98,10 +107,10 @@ pub fn run(a: Args) -> Result<()> {
         print!("{}", honest_check_text(&strategy, &sum));
         let names: Vec<String> = scenario.sensors.iter().map(|x| x.name.clone()).collect();
         println!(
-            "\nsimulation details ({} episodes, seed {}, radio: {}):",
+            "\nsimulation details ({} episodes, seed {}, {}):",
             sum.episodes,
             a.seed,
-            scenario.radio.describe(&names)
+            channels_text(&synthesized, &scenario.radio, &names)
         );
         print!("{}", summary_table(&sum));
         print!("{}", crate::cmd::simulate::radio_table(&scenario, &sum));
@@ -185,6 +194,7 @@ fn honest_check_text(strategy: &Strategy, sum: &SimulationSummary) -> String {
 /// checks of each prediction against the simulation.
 pub fn comparison_json(
     scenario: &etp_shared::scenario::Scenario,
+    synthesized: &etp_shared::radio::Radio,
     strategy: &Strategy,
     sum: &SimulationSummary,
     seed: u64,
@@ -202,6 +212,11 @@ pub fn comparison_json(
     }
     if let Some(m) = v.as_object_mut() {
         m.insert("scenario".into(), json!(scenario.name));
+        let names: Vec<String> = scenario.sensors.iter().map(|x| x.name.clone()).collect();
+        m.insert(
+            "radio_synthesized".into(),
+            json!(synthesized.describe(&names)),
+        );
         m.insert("seed".into(), json!(seed));
         m.insert("strategy".into(), json!(strategy.label));
         m.insert(
@@ -264,4 +279,22 @@ pub fn comparison_table(strategy: &Strategy, sum: &SimulationSummary) -> String 
         }
     }
     o
+}
+
+/// The radio of a validation: the strategy's own channel, or both when the
+/// options evaluate it under another one (a robustness study).
+fn channels_text(
+    synthesized: &etp_shared::radio::Radio,
+    evaluated: &etp_shared::radio::Radio,
+    names: &[String],
+) -> String {
+    if synthesized == evaluated {
+        format!("radio: {}, the strategy's own", evaluated.describe(names))
+    } else {
+        format!(
+            "radio: {} — the strategy was synthesized for {}",
+            evaluated.describe(names),
+            synthesized.describe(names)
+        )
+    }
 }

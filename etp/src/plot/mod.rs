@@ -8,12 +8,15 @@
 //! a machine without any installed fonts.
 //!
 //! * `front.rs` — the Pareto front (`etp synthesize`).
+//! * `fronts.rs` — several fronts of one scenario, one per radio channel (`etp fronts`).
 //! * `map.rs` — the scenario map with sampled trajectories (`etp validate --plot`).
 
 mod front;
+mod fronts;
 mod map;
 
 pub use front::front_plot;
+pub use fronts::fronts_plot;
 pub use map::map_plot;
 
 use anyhow::{Context, Result};

@@ -12,7 +12,7 @@ fn schema(name: &str) -> PathBuf {
 }
 
 /// Validate `doc` against `schemas/<name>.json`; the validator's complaint on failure.
-fn validate(dir: &Path, name: &str, doc: &Value) -> Result<(), String> {
+pub(super) fn validate(dir: &Path, name: &str, doc: &Value) -> Result<(), String> {
     let file = dir.join(format!("{name}-output.json"));
     std::fs::write(&file, doc.to_string()).expect("write output");
     let script = r#"
@@ -131,6 +131,21 @@ fn every_command_json_matches_its_schema_and_the_vocabulary() {
             "{what}: every sensor, by name"
         );
         assert!(v["transmissions"].as_u64().is_some(), "{what}");
+        // One name for the total plant steps (was `total_steps` in
+        // simulate/validate), intervals where run has them.
+        assert!(v["steps"].as_u64().is_some_and(|n| n > 0), "{what}: steps");
+        assert!(v.get("total_steps").is_none(), "{what}");
+        for k in ["p_target_ci95", "energy_mean_ci95"] {
+            assert!(v[k].as_f64().is_some(), "{what}: {k}");
+        }
+    }
+    for (i, s) in replay["sensors"]
+        .as_array()
+        .expect("sensors")
+        .iter()
+        .enumerate()
+    {
+        assert_eq!(s["received"], run["sensors"][i]["received"], "{s}");
     }
     assert_eq!(run["transmissions"], replay["transmissions"]);
     assert_eq!(run["received"], replay["received"]);
@@ -150,4 +165,126 @@ fn every_command_json_matches_its_schema_and_the_vocabulary() {
     let mut bad = replay.clone();
     bad["seed"] = Value::from("5");
     assert!(validate(&dir.0, "replay", &bad).is_err());
+}
+
+/// `check`, `synthesize`, `strategy`, `bench` and `demo` against their
+/// schemas; every schema in `schemas/` is exercised by one of these two
+/// tests, and every schema is strict (an unknown key is refused) and
+/// describes every field it declares.
+#[test]
+fn the_pipeline_commands_json_match_their_strict_described_schemas() {
+    let dir = Scratch::new("schemas-pipeline");
+    let syn = dir.path("syn");
+    let check = ok_json(&["check", "open-2d", "--json"]);
+    let synthesize = ok_json(&[
+        "synthesize",
+        "open-2d",
+        "--samples",
+        "200",
+        "--holdout-samples",
+        "0",
+        "-o",
+        s(&syn),
+        "--json",
+    ]);
+    let strategy = ok_json(&["strategy", s(&syn), "--min-target", "0.5", "--json"]);
+    let bench = ok_json(&[
+        "bench",
+        "open-2d",
+        "--episodes",
+        "20",
+        "--repeats",
+        "1",
+        "--json",
+    ]);
+    let demo = ok_json(&[
+        "demo",
+        "--scenario",
+        "open-2d",
+        "--samples",
+        "200",
+        "--min-target",
+        "0.5",
+        "--validate-episodes",
+        "40",
+        "--run-episodes",
+        "3",
+        "-o",
+        s(&dir.path("demo")),
+        "--json",
+    ]);
+    let docs = [
+        ("check", &check),
+        ("synthesize", &synthesize),
+        ("strategy", &strategy),
+        ("bench", &bench),
+        ("demo", &demo),
+    ];
+    for (name, v) in docs {
+        validate(&dir.0, name, v)
+            .unwrap_or_else(|e| panic!("etp {name} --json against schemas/{name}.json:\n{e}\n{v}"));
+    }
+    // The multi-process part of the demo is a run report.
+    validate(&dir.0, "run", &demo["multi_process"]).expect("demo's run against run.json");
+    // Every schema is one of the tested commands'.
+    let tested = [
+        "run",
+        "replay",
+        "replay-info",
+        "simulate",
+        "validate",
+        "check",
+        "synthesize",
+        "strategy",
+        "bench",
+        "demo",
+        "fronts",
+    ];
+    let root = schema("x").parent().expect("schemas/").to_path_buf();
+    let mut files: Vec<String> = std::fs::read_dir(&root)
+        .expect("schemas/")
+        .filter_map(|e| {
+            e.ok()?
+                .file_name()
+                .to_str()?
+                .strip_suffix(".json")
+                .map(str::to_string)
+        })
+        .collect();
+    files.sort();
+    let mut want: Vec<String> = tested.iter().map(|s| s.to_string()).collect();
+    want.sort();
+    assert_eq!(
+        files, want,
+        "a schema without a test, or a test without a schema"
+    );
+    // Strict and described: every object with properties refuses other keys,
+    // every declared property has a description.
+    fn walk(v: &Value, at: &str, bad: &mut Vec<String>) {
+        if let Some(props) = v.get("properties").and_then(Value::as_object) {
+            if v.get("additionalProperties") != Some(&Value::Bool(false)) {
+                bad.push(format!("{at}: additionalProperties is not false"));
+            }
+            for (k, p) in props {
+                if !p.get("description").is_some_and(Value::is_string) {
+                    bad.push(format!("{at}.{k}: no description"));
+                }
+                walk(p, &format!("{at}.{k}"), bad);
+            }
+        }
+        if let Some(items) = v.get("items") {
+            walk(items, &format!("{at}[]"), bad);
+        }
+    }
+    let mut bad = Vec::new();
+    for name in tested {
+        let text = std::fs::read_to_string(schema(name)).expect("schema");
+        let v: Value = serde_json::from_str(&text).expect("schema JSON");
+        walk(&v, name, &mut bad);
+    }
+    assert!(bad.is_empty(), "{bad:#?}");
+    // Strict for real: an unknown key is refused.
+    let mut extra = check.clone();
+    extra["colour"] = Value::from("blue");
+    assert!(validate(&dir.0, "check", &extra).is_err());
 }

@@ -54,10 +54,6 @@ pub use ports::{
     open_pubsub,
 };
 pub use run_id::{IPC_DOMAIN_ENV, ROOT_BASE, RunId, config};
-// The old paths of the run report and the cleanup (moved out of `wire`),
-// kept while branches written against them merge; new code uses
-// `etp_runtime::report` and `etp_runtime::cleanup`.
-pub use crate::{cleanup, report};
 pub use waiter::{Stamper, Waiter, Wake, Watchdog, note_termination, termination_requested};
 
 use etp_shared::etkf::{Belief, Matrix, Vector};

@@ -86,6 +86,11 @@ pub struct ParetoFront {
     pub rounds: usize,
     pub mdp_states: usize,
     pub mdp_transitions: usize,
+    /// The radio the MDP's segments were sampled under when it is not the
+    /// scenario text's own `[radio]` (`etp synthesize --loss …`, docs/MODEL.md
+    /// §8); strategies made from this front carry it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radio: Option<etp_shared::radio::Radio>,
 }
 
 impl ParetoFront {
@@ -210,6 +215,7 @@ pub fn compute_front_to(
         rounds: en.rounds,
         mdp_states: mdp.states.len(),
         mdp_transitions: mdp.num_transitions(),
+        radio: None,
     })
 }
 
@@ -262,6 +268,7 @@ pub fn to_strategy(
         certified: None,
         scenario_toml: None,
         leg_energy: Some(policy::leg_energy(mdp, policy, CostModel::Counted)),
+        radio: None,
     }
 }
 

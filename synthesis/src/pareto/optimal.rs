@@ -27,8 +27,7 @@
 //! the bound tightened by [`MARGINS`] in turn.
 
 use super::policy::{
-    DeterministicPolicy, Objectives, RandomisedPolicy, as_randomised, evaluate, occupation,
-    weighted_optimum,
+    DeterministicPolicy, Objectives, RandomisedPolicy, evaluate, mixed_occupation, weighted_optimum,
 };
 use super::select::SelectError;
 use crate::mdp::{CostModel, Mdp, Next};
@@ -341,22 +340,13 @@ pub fn solve_by_columns(
     generate(mdp, cost, &master, &mut cols)?;
     let (mu, value) = master_primal(&master, &cols)?
         .ok_or_else(|| SelectError::Solver("master LP infeasible after phase 1".into()))?;
-    let n = mdp.states.len();
-    let mut x: Vec<Vec<f64>> = mdp
-        .states
-        .iter()
-        .map(|s| vec![0.0; s.choices.len()])
-        .collect();
-    for (w, c) in mu.iter().zip(&cols) {
-        if *w > 0.0 {
-            let occ = occupation(mdp, &as_randomised(mdp, &c.policy));
-            for s in 0..n {
-                for (k, o) in occ[s].iter().enumerate() {
-                    x[s][k] += w * o;
-                }
-            }
-        }
-    }
+    let x = mixed_occupation(
+        mdp,
+        mu.iter()
+            .zip(&cols)
+            .filter(|(w, _)| **w > 0.0)
+            .map(|(w, c)| (*w, &c.policy)),
+    );
     Ok((x, value))
 }
 

@@ -201,6 +201,28 @@ pub fn as_randomised(mdp: &Mdp, policy: &DeterministicPolicy) -> RandomisedPolic
         .collect()
 }
 
+/// The occupation measure of a mixture of deterministic policies,
+/// `x(s, c) = Σ_k w_k x_k(s, c)`, summed in the order given.
+pub fn mixed_occupation<'a>(
+    mdp: &Mdp,
+    weighted: impl IntoIterator<Item = (f64, &'a DeterministicPolicy)>,
+) -> Vec<Vec<f64>> {
+    let mut x: Vec<Vec<f64>> = mdp
+        .states
+        .iter()
+        .map(|s| vec![0.0; s.choices.len()])
+        .collect();
+    for (w, policy) in weighted {
+        let occ = occupation(mdp, &as_randomised(mdp, policy));
+        for (xs, os) in x.iter_mut().zip(&occ) {
+            for (xc, o) in xs.iter_mut().zip(os) {
+                *xc += w * o;
+            }
+        }
+    }
+    x
+}
+
 /// Occupation measure `x(s, c)`: the probability that the policy visits state s
 /// and takes choice c (each state is visited at most once per episode).
 pub fn occupation(mdp: &Mdp, policy: &RandomisedPolicy) -> Vec<Vec<f64>> {

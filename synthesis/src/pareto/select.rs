@@ -5,7 +5,7 @@
 //! front's certified gap.
 
 use super::ParetoFront;
-use super::policy::{Objectives, RandomisedPolicy, as_randomised, occupation};
+use super::policy::{Objectives, RandomisedPolicy, as_randomised, mixed_occupation};
 use crate::mdp::Mdp;
 use good_lp::{Expression, Solution, SolverModel, constraint, microlp, variable, variables};
 
@@ -184,19 +184,13 @@ pub fn least_collision_with_target(front: &ParetoFront, min_target: f64) -> Opti
 /// mixture reaches take the policy of the heaviest vertex.
 pub fn realise(mdp: &Mdp, front: &ParetoFront, selection: &Selection) -> RandomisedPolicy {
     let n = mdp.states.len();
-    let mut x: Vec<Vec<f64>> = mdp
-        .states
-        .iter()
-        .map(|s| vec![0.0; s.choices.len()])
-        .collect();
-    for &(k, w) in &selection.weights {
-        let occ = occupation(mdp, &as_randomised(mdp, &front.vertices[k].policy));
-        for s in 0..n {
-            for (c, o) in occ[s].iter().enumerate() {
-                x[s][c] += w * o;
-            }
-        }
-    }
+    let x = mixed_occupation(
+        mdp,
+        selection
+            .weights
+            .iter()
+            .map(|&(k, w)| (w, &front.vertices[k].policy)),
+    );
     let heaviest = selection
         .weights
         .iter()

@@ -370,6 +370,15 @@ pub struct Job {
 }
 
 impl Job {
+    /// Nothing but the summary is asked for.
+    fn summary_alone(&self) -> bool {
+        !(self.only || self.verify || self.publish || self.cat || self.info || self.plot)
+            && self.repair.is_none()
+            && self.foxglove.is_none()
+            && self.export.is_none()
+            && self.filter.is_none()
+    }
+
     fn selection(&self) -> select::Selection {
         select::Selection {
             topics: self.select.topics.clone(),
@@ -473,6 +482,26 @@ fn run_job(a: Job) -> Result<()> {
             emit(&format!("{}\n", json!({ "exported": e })))?;
         }
         return Ok(());
+    }
+    // The summary alone of a whole finished file streams it too.
+    if a.summary_alone()
+        && selection.is_all()
+        && recording::ends_finished(&file).unwrap_or(false)
+        && let Some((s, c)) = summary::summarize_file(&file)?
+    {
+        if let Err(e) = recording::check_metadata(&c) {
+            bail!(
+                "{} is damaged: {e}; `etp replay repair {} OUT` copies its records anyway",
+                file.display(),
+                file.display()
+            );
+        }
+        emit(&if a.json {
+            format!("{s}\n")
+        } else {
+            summary::render(&file, &c, &s)
+        })?;
+        return summary_exit(&a, &file, &c, &s);
     }
     let (mut c, buf) = load_bytes(&file)?;
     // A damaged file is refused unless the user asked to salvage it.
@@ -640,6 +669,12 @@ fn run_job(a: Job) -> Result<()> {
             v.mismatch_count
         );
     }
+    summary_exit(&a, &file, &c, &s)
+}
+
+/// The exit of a summary `s`: 4 when an identity fails, 3 for an
+/// unfinished file.
+fn summary_exit(a: &Job, file: &Path, c: &Contents, s: &serde_json::Value) -> Result<()> {
     // A selection of channels leaves the identities' other side out.
     if !a.only && a.select.topics.is_empty() && s["identities_hold"] == json!(false) {
         return Err(crate::ExitWith {
@@ -652,7 +687,7 @@ fn run_job(a: Job) -> Result<()> {
         }
         .into());
     }
-    unfinished_exit(&a, &file, &c)
+    unfinished_exit(a, file, c)
 }
 
 /// Exit code 3 (with a warning) for an unfinished file, unless repaired.

@@ -119,9 +119,14 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         text = clone_sensors(&text, k)?;
     }
     let scenario = Scenario::from_toml(&text).context("scenario")?;
+    // A strategy synthesized for a lossy channel carries it.
+    let scenario = match &strategy_in {
+        Some(st) => st.with_own_radio(scenario).context("strategy")?,
+        None => scenario,
+    };
     if !scenario.radio.is_ideal() {
         bail!(
-            "the scenario's [radio] is lossy; the multi-process runtime runs the ideal radio only \
+            "the scenario's [radio] (or the strategy's) is lossy; the multi-process runtime runs the ideal radio only \
              for now (use `etp validate` or `etp simulate`)"
         );
     }

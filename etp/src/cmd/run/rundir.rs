@@ -15,7 +15,8 @@
 //! only for those few milliseconds.
 
 use anyhow::{Context, Result, bail};
-use etp_runtime::wire::{RunId, cleanup};
+use etp_runtime::cleanup;
+use etp_runtime::wire::RunId;
 use std::fs::{File, OpenOptions, TryLockError};
 use std::path::{Path, PathBuf};
 

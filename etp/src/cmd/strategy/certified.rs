@@ -86,8 +86,12 @@ pub fn run(
         let text = scenario_text
             .as_deref()
             .context("sample allocation needs DIR/scenario.toml (written by `etp synthesize`)")?;
-        let scenario =
+        let mut scenario =
             etp_shared::scenario::Scenario::from_toml(text).context("parsing DIR/scenario.toml")?;
+        // The extra segments are sampled under the channel of the first ones.
+        if let Some(r) = &front.radio {
+            scenario.radio = r.clone();
+        }
         let prepared = prepare(mdp, a.refine_rounds);
         let mut p = etp_synthesis::abstraction::params_of(mdp);
         p.holdout_samples = 0;
@@ -135,6 +139,7 @@ pub fn run(
     let policy = &chosen.strategy.policy;
     let mut strategy = to_strategy(&work, policy, label.clone(), chosen.strategy.predicted);
     strategy.scenario_toml = scenario_text;
+    strategy.radio = front.radio.clone();
     let xf = crossfit(&work, policy, cost);
     honest::attach(
         &mut strategy,

@@ -1,0 +1,169 @@
+//! Issue 24 item 8: every command of the README is run by a test. The
+//! README's `sh` blocks run here, verbatim, as shell scripts in a scratch
+//! folder (`etp` on the PATH, `python3` the pinned venv's), in the README's
+//! order; the few commands that cannot run on one machine without extra
+//! software are listed in [`ELSEWHERE`] with the test that covers them. A
+//! new README command is run (or must be listed), and a listed command that
+//! left the README fails the test too.
+
+use super::Scratch;
+use std::path::PathBuf;
+use std::process::Command;
+
+/// Commands not run here, and why (each still exercised elsewhere).
+const ELSEWHERE: &[(&str, &str)] = &[
+    ("cargo test --release --workspace", "the test suite itself"),
+    (
+        "target/release/etp run --scenario winding-2d --delta 1.4986 --episodes 300 --listen tcp/10.0.0.1:7447 --remote s0,s3 --record-default",
+        "two hosts: tests/tests/runtime/remote.rs runs it between network namespaces",
+    ),
+    (
+        "target/release/etp sensor-host --connect tcp/10.0.0.1:7447",
+        "two hosts: tests/tests/runtime/remote.rs",
+    ),
+    (
+        "prism -importmodel out/winding-2d/prism/model.all -mdp out/winding-2d/prism/model.props",
+        "PRISM is not installed here; synthesis/tests check the files it reads",
+    ),
+];
+
+/// The README's `sh` blocks: per block, its commands (continuation lines
+/// joined, comments kept out).
+fn sh_blocks(text: &str) -> Vec<Vec<String>> {
+    let mut blocks = Vec::new();
+    let mut cur = Vec::new();
+    // Inside a fenced block: Some(it is an `sh` block).
+    let mut fence: Option<bool> = None;
+    let mut pending = String::new();
+    for line in text.lines() {
+        let t = line.trim();
+        if t.starts_with("```") {
+            match fence.take() {
+                Some(true) => blocks.push(std::mem::take(&mut cur)),
+                Some(false) => {}
+                None => fence = Some(t == "```sh"),
+            }
+            continue;
+        }
+        if fence != Some(true) || t.is_empty() || t.starts_with('#') {
+            continue;
+        }
+        pending.push_str(t.strip_suffix('\\').unwrap_or(t).trim_end());
+        if t.ends_with('\\') {
+            pending.push(' ');
+            continue;
+        }
+        cur.push(std::mem::take(&mut pending));
+    }
+    blocks
+}
+
+/// The command without its trailing comment.
+fn command(line: &str) -> String {
+    // A comment starts at " #" outside quotes.
+    let mut quote = None;
+    let bytes: Vec<char> = line.chars().collect();
+    for (i, c) in bytes.iter().enumerate() {
+        match (quote, c) {
+            (None, '"' | '\'') => quote = Some(*c),
+            (Some(q), c) if *c == q => quote = None,
+            (None, '#') if i > 0 && bytes[i - 1] == ' ' => {
+                return bytes[..i].iter().collect::<String>().trim().to_string();
+            }
+            _ => {}
+        }
+    }
+    line.trim().to_string()
+}
+
+#[test]
+fn every_command_of_the_readme_runs() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let text = std::fs::read_to_string(root.join("README.md")).expect("README");
+    let blocks = sh_blocks(&text);
+    let all: Vec<String> = blocks.iter().flatten().map(|l| command(l)).collect();
+    for (cmd, why) in ELSEWHERE {
+        assert!(
+            all.iter().any(|c| c == cmd),
+            "listed as run elsewhere ({why}) but no longer in the README: {cmd}"
+        );
+    }
+    let dir = Scratch::new("readme");
+    let bin = PathBuf::from(env!("CARGO_BIN_EXE_etp"));
+    let bin_dir = bin.parent().expect("bin dir");
+    let py = super::pyenv::python();
+    let py_dir = py.parent().expect("venv bin");
+    // `python3` of the recipes is the venv's (its bin holds `python3`).
+    let path = format!(
+        "{}:{}:{}",
+        bin_dir.display(),
+        py_dir.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    // The README's placeholders: the recording of the example session, and
+    // a run id of this test's own for the publish recipe.
+    let copy = format!("readme{}", std::process::id());
+    let mut ran = 0;
+    for block in &blocks {
+        let mut script = String::from("set -e\n");
+        let mut n = 0;
+        for line in block {
+            let cmd = command(line);
+            if ELSEWHERE.iter().any(|(c, _)| *c == cmd) {
+                continue;
+            }
+            let first = cmd.split_whitespace().next().unwrap_or("");
+            assert!(
+                matches!(first, "etp" | "cargo" | "python3" | "kill"),
+                "a README command this test does not know how to run: {cmd}"
+            );
+            let cmd = cmd
+                .replace("cargo run --release -p etp -- ", "etp ")
+                .replace("recordings/winding-2d-<run-id>.mcap", "out/w/run.mcap")
+                .replace("--run-id copy", &format!("--run-id {copy}"));
+            assert!(
+                !cmd.contains('<'),
+                "a placeholder this test cannot fill: {cmd}"
+            );
+            script.push_str(&format!("echo '+ {}' >&2\n{cmd}\n", cmd.replace('\'', "")));
+            n += 1;
+        }
+        if n == 0 {
+            continue;
+        }
+        // A recipe's background process (`&`) is waited for.
+        script.push_str("wait\n");
+        let out = Command::new("bash")
+            .args(["-c", &script])
+            .current_dir(&dir.0)
+            .env("PATH", &path)
+            .env("RAYON_NUM_THREADS", "2")
+            .output()
+            .expect("bash");
+        assert!(
+            out.status.success(),
+            "README block failed:\n{script}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        ran += n;
+    }
+    // What the recipes promise is there.
+    for f in [
+        "out/w/strategy.json",
+        "out/w/run.mcap",
+        "out/w/run-report.png",
+        "out/w/first50-replay.png",
+        "out/w/tables/measurement.csv",
+        "out/w/prism/model.tra",
+        "out/winding-2d/mdp.bin",
+        "copy.mcap",
+        "winding-foxglove.mcap",
+    ] {
+        assert!(dir.path(f).is_file(), "{f} missing");
+    }
+    assert!(
+        ran + ELSEWHERE.len() == all.len(),
+        "{ran} run of {}",
+        all.len()
+    );
+}
