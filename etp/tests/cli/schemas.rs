@@ -197,22 +197,35 @@ fn the_pipeline_commands_json_match_their_strict_described_schemas() {
         "1",
         "--json",
     ]);
-    let demo = ok_json(&[
-        "demo",
-        "--scenario",
-        "open-2d",
-        "--samples",
-        "200",
-        "--min-target",
-        "0.5",
-        "--validate-episodes",
-        "40",
-        "--run-episodes",
-        "3",
-        "-o",
-        s(&dir.path("demo")),
-        "--json",
-    ]);
+    // The demo records into `recordings/` of its working directory: the
+    // scratch folder, not the crate's.
+    let demo_out = Command::new(env!("CARGO_BIN_EXE_etp"))
+        .args([
+            "demo",
+            "--scenario",
+            "open-2d",
+            "--samples",
+            "200",
+            "--min-target",
+            "0.5",
+            "--validate-episodes",
+            "40",
+            "--run-episodes",
+            "3",
+            "-o",
+            s(&dir.path("demo")),
+            "--json",
+        ])
+        .current_dir(&dir.0)
+        .env("RAYON_NUM_THREADS", "2")
+        .output()
+        .expect("spawn etp demo");
+    assert!(
+        demo_out.status.success(),
+        "etp demo: {}",
+        String::from_utf8_lossy(&demo_out.stderr)
+    );
+    let demo: Value = serde_json::from_slice(&demo_out.stdout).expect("demo prints one JSON value");
     let docs = [
         ("check", &check),
         ("synthesize", &synthesize),
