@@ -7,11 +7,11 @@
 
 use crate::AgentError;
 use etp_runtime::wire::PortError;
-use etp_runtime::wire::agent_to_sensor::{Handover, Truth};
+use etp_runtime::wire::agent_to_sensor::{Ack, Handover, Truth};
 use etp_runtime::wire::coordinator_to_all::Threshold;
 use etp_runtime::wire::sensor_to_agent::{Measurement, Slot};
 use etp_runtime::wire::{
-    Header, Notifier, Ports, Pub, ServiceId, Sub, WireVec, belief_to_wire, to_wire_vec,
+    Header, Notifier, Ports, Pub, ServiceId, Stamper, Sub, WireVec, belief_to_wire, to_wire_vec,
 };
 use etp_shared::etkf::{Belief, Vector};
 
@@ -42,6 +42,8 @@ pub struct Fault {
 pub struct Links {
     truth: Vec<Pub<Truth>>,
     handover: Vec<Pub<Handover>>,
+    /// The radio's ACK of each received measurement (docs/MODEL.md §8).
+    ack: Vec<Pub<Ack>>,
     wake: Vec<Notifier>,
     /// Every sensor's `threshold` service (the agent takes its δ from the
     /// OPEN of the serving sensor, and drains the others so they never fill).
@@ -61,6 +63,9 @@ impl Links {
                 .collect::<Result<_, _>>()?,
             handover: (0..n)
                 .map(|i| ports.publisher::<Handover>(ServiceId::Handover(i)))
+                .collect::<Result<_, _>>()?,
+            ack: (0..n)
+                .map(|i| ports.publisher::<Ack>(ServiceId::Ack(i)))
                 .collect::<Result<_, _>>()?,
             wake: (0..n)
                 .map(|i| ports.notifier(ServiceId::SensorWake(i)))
@@ -120,12 +125,15 @@ impl Links {
     }
 
     /// The slot of (episode, step, sensor) if it closed: its measurement and
-    /// the replica's prior digest. Records of earlier slots are dropped.
+    /// the replica's prior digest. Records of earlier slots are dropped. A
+    /// received measurement is acknowledged to its sensor (no wake-up: the
+    /// sensor reads the ACK with its next message).
     pub fn take_slot(
         &mut self,
         episode: u64,
         step: u32,
         sensor: u32,
+        stamp: &mut Stamper,
     ) -> Result<Option<(Option<WireVec>, u64)>, AgentError> {
         let mut closed = None;
         while let Some(s) = self
@@ -135,28 +143,38 @@ impl Links {
         {
             let h = s.header;
             if h.episode == episode && h.step == step && h.sender == sensor {
-                closed = Some((s.transmitted == 1, s.prior_digest));
+                closed = Some((s.delivered == 1, s.prior_digest, h.leg));
             }
         }
-        let Some((transmitted, digest)) = closed else {
+        let Some((delivered, digest, leg)) = closed else {
             return Ok(None);
         };
-        let y = self.take_measurement(episode, step, sensor)?;
-        if transmitted && y.is_none() {
+        let m = self.take_measurement(episode, step, sensor)?;
+        if delivered && m.is_none() {
             return Err(AgentError::Protocol(format!(
-                "sensor {sensor} closed slot {step} of episode {episode} as transmitted but no measurement arrived"
+                "sensor {sensor} closed slot {step} of episode {episode} as delivered but no measurement arrived"
             )));
         }
-        Ok(Some((y, digest)))
+        if let Some((_, sequence)) = m {
+            self.ack[sensor as usize]
+                .send_copy(Ack {
+                    header: stamp.header(episode, leg, step),
+                    sequence,
+                    _pad: 0,
+                })
+                .map_err(|e| PortError::send("ack", e))?;
+        }
+        Ok(Some((m.map(|(y, _)| y), digest)))
     }
 
-    /// The measurement of (episode, step, sensor), if one arrived.
+    /// The measurement of (episode, step, sensor), if one arrived: y and its
+    /// sequence.
     pub fn take_measurement(
         &mut self,
         episode: u64,
         step: u32,
         sensor: u32,
-    ) -> Result<Option<WireVec>, AgentError> {
+    ) -> Result<Option<(WireVec, u32)>, AgentError> {
         let mut found = None;
         while let Some(s) = self
             .measurement
@@ -165,7 +183,7 @@ impl Links {
         {
             let h = s.header;
             if h.episode == episode && h.step == step && h.sender == sensor {
-                found = Some(s.y);
+                found = Some((s.y, s.sequence));
             }
         }
         Ok(found)

@@ -22,7 +22,6 @@ use etp_runtime::wire::{
     SENDER_AGENT, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, belief_to_wire,
 };
 use etp_shared::episode::{CompiledScenario, SlotOutcome, belief_digest};
-use etp_shared::etkf::Threshold as Th;
 use etp_shared::rng::{stream_rng, streams};
 use etp_shared::scenario::Scenario;
 use iceoryx2::prelude::*;
@@ -243,12 +242,17 @@ impl<const N: usize> Agent<N> {
             since: Instant::now(),
             since_wall: SystemTime::now(),
         };
-        match self.wait_until(awaiting, |a| a.links.take_slot(episode, k, who))? {
+        match self.wait_until(awaiting, |a| {
+            a.links.take_slot(episode, k, who, &mut a.stamp)
+        })? {
             Waited::Got((y, digest)) => Ok(Ok((SlotResult::Closed(y, digest), None))),
             Waited::Exit(e) => Ok(Err(e)),
             Waited::DeadLink(fault) => {
                 self.links.alive[sensor] = false;
-                let y = self.links.take_measurement(episode, k, who)?;
+                let y = self
+                    .links
+                    .take_measurement(episode, k, who)?
+                    .map(|(y, _)| y);
                 tracing::warn!(
                     episode,
                     leg,
@@ -314,7 +318,8 @@ impl<const N: usize> Agent<N> {
                     self.c.legs[leg].sensor
                 )));
             }
-            let beta = Th::new(delta).beta;
+            // β(δ), or the radio's factor on a lossy link (docs/MODEL.md §8).
+            let beta = self.c.silence_beta(sensor, delta);
             if self.links.alive[sensor] {
                 let header = self.stamp.header(episode, leg32, k);
                 self.links.hand_over(sensor, header, &state.belief)?;

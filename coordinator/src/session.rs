@@ -233,6 +233,9 @@ impl<'a> Coordinator<'a> {
             steps: 0,
             received: 0,
             transmitted: None,
+            delivered: None,
+            lost: None,
+            triggers: None,
             slots: None,
         });
         self.send_threshold(episode, leg, Threshold::OPEN, sensor, index as u32, delta)?;
@@ -484,6 +487,9 @@ impl<'a> Coordinator<'a> {
             .map(|x| SensorTotals {
                 name: x.name.clone(),
                 transmitted: 0,
+                delivered: 0,
+                lost: 0,
+                triggers: 0,
                 received: 0,
                 received_without_ledger: 0,
                 slots: 0,
@@ -501,8 +507,14 @@ impl<'a> Coordinator<'a> {
                     Some(led) => {
                         t.received += u64::from(l.received);
                         l.transmitted = Some(led.transmissions);
+                        l.delivered = Some(led.delivered);
+                        l.lost = Some(led.lost);
+                        l.triggers = Some(led.triggers);
                         l.slots = Some(led.slots);
                         t.transmitted += u64::from(led.transmissions);
+                        t.delivered += u64::from(led.delivered);
+                        t.lost += u64::from(led.lost);
+                        t.triggers += u64::from(led.triggers);
                         t.slots += u64::from(led.slots);
                         t.energy += led.energy;
                         energy += led.energy;

@@ -280,7 +280,7 @@ fn codes() -> Value {
         "kind (control)": "start | stop",
         "kind (threshold)": "open | close | stop",
         "sensor, dead_sensor": "a sensor's name (dead_sensor: empty / null = none)",
-        "transmitted, degraded, prev_degraded": "true | false",
+        "delivered, degraded, prev_degraded": "true | false",
         "arrays": "one column per entry up to the scenario's dimension n: y_<i>, x_<i>, mean_<i>, cov_<row>_<col> (row-major)",
         "log_time_ns": "the recorder's time stamp (ns since the Unix epoch)",
     })

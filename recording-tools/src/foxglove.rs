@@ -198,7 +198,7 @@ fn gather(c: &Contents) -> Result<BTreeMap<u64, Episode>> {
             }
             Recorded::Slot(x) => {
                 let s = step_of(ep, &header, t, None, Some(header.sender));
-                s.view.transmitted = Some(x.transmitted != 0);
+                s.view.transmitted = Some(x.delivered != 0);
             }
             Recorded::Measurement(x) => ep.measurements.push((t, x)),
             Recorded::Outcome(x) => ep.outcome = Some((t, x)),

@@ -1,6 +1,7 @@
 //! The run's summary from a recording alone: episodes, outcomes, per-sensor
 //! transmissions (`measurement` messages beside the sensors' ledgers and what
-//! the agent received), energy vs prediction.
+//! the agent received; on a lossy radio the attempts recorded in `slot`
+//! beside the ledgers' attempts = delivered + lost), energy vs prediction.
 
 use anyhow::{Context, Result};
 use etp_runtime::recording::{self, Contents, Recorded};
@@ -14,10 +15,14 @@ use std::path::Path;
 #[derive(Debug, Default, Clone, serde::Serialize)]
 struct SensorSummary {
     name: String,
-    /// `measurement` messages sent by this sensor.
+    /// `measurement` messages sent by this sensor (delivered attempts).
     measurements: u64,
-    /// Sum of the sensor's ledgers (transmissions).
+    /// Sum of the sensor's ledgers: transmission attempts, delivered, lost.
     transmissions: u64,
+    delivered: u64,
+    lost: u64,
+    /// Attempts recorded slot by slot (`slot.attempts`).
+    attempts_recorded: u64,
     /// `measurement` messages on the legs of degraded episodes that have no
     /// ledger (a dead sensor's open leg): excused from the identities.
     measurements_without_ledger: u64,
@@ -33,8 +38,10 @@ struct SensorSummary {
 #[derive(Debug, Default)]
 struct EpisodeTally {
     outcome: Option<etp_runtime::wire::agent_to_coordinator::Outcome>,
-    /// Leg → (sensor, transmissions, energy) of its ledger.
-    ledgers: BTreeMap<u32, (u32, u64, f64)>,
+    /// Leg → its ledger.
+    ledgers: BTreeMap<u32, etp_runtime::wire::sensor_to_coordinator::Ledger>,
+    /// (Leg, sensor) → attempts recorded in its slots.
+    attempts: BTreeMap<(u32, u32), u64>,
     /// Leg → measurements the agent received in it (from the next waypoint).
     received: BTreeMap<u32, u64>,
     /// (Leg, sensor) → `measurement` messages.
@@ -123,8 +130,10 @@ impl Tally {
                 *e.measurements.entry((h.leg, h.sender)).or_default() += 1;
             }
             Recorded::Ledger(l) => {
-                e.ledgers
-                    .insert(h.leg, (h.sender, u64::from(l.transmissions), l.energy));
+                e.ledgers.insert(h.leg, l);
+            }
+            Recorded::Slot(sl) => {
+                *e.attempts.entry((h.leg, h.sender)).or_default() += u64::from(sl.attempts);
             }
             Recorded::Waypoint(w) if h.leg > 0 => {
                 e.received.insert(h.leg - 1, u64::from(w.prev_received));
@@ -155,16 +164,34 @@ pub fn summarize_file(path: &Path) -> Result<Option<(Value, Contents)>> {
     Ok(Some((summarize_tally(&c, t)?, c)))
 }
 
-/// The identities a complete episode keeps, per sensor: `measurement`
-/// messages = ledger transmissions, and = received unless the episode was
-/// degraded (a dead link). Each failure, in words.
-fn identity_failures(sensors: &BTreeMap<u32, SensorSummary>, degraded: u64) -> Vec<String> {
+/// The identities a complete episode keeps, per sensor: ledger attempts =
+/// delivered + lost; `measurement` messages = ledger delivered, and =
+/// received unless the episode was degraded (a dead link); attempts
+/// recorded in `slot` = ledger attempts (when `slot` is recorded). Each
+/// failure, in words.
+fn identity_failures(
+    sensors: &BTreeMap<u32, SensorSummary>,
+    degraded: u64,
+    slots_recorded: bool,
+) -> Vec<String> {
     let mut out = Vec::new();
     for s in sensors.values() {
-        if s.measurements != s.transmissions {
+        if s.transmissions != s.delivered + s.lost {
             out.push(format!(
-                "{}: {} measurement messages but {} transmissions in its ledgers",
-                s.name, s.measurements, s.transmissions
+                "{}: its ledgers count {} attempts but {} delivered + {} lost",
+                s.name, s.transmissions, s.delivered, s.lost
+            ));
+        }
+        if s.measurements != s.delivered {
+            out.push(format!(
+                "{}: {} measurement messages but {} delivered in its ledgers",
+                s.name, s.measurements, s.delivered
+            ));
+        }
+        if slots_recorded && s.attempts_recorded != s.transmissions {
+            out.push(format!(
+                "{}: {} attempts recorded in its slots but {} in its ledgers",
+                s.name, s.attempts_recorded, s.transmissions
             ));
         }
         if degraded == 0 && s.received != s.measurements {
@@ -237,12 +264,16 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
             }
         }
         let mut energy = 0.0;
-        for (leg, (i, tx, en)) in &e.ledgers {
-            let s = sensor_entry(&mut sensors, &names, *i);
-            s.transmissions += tx;
-            s.energy += en;
+        for (leg, l) in &e.ledgers {
+            let i = l.header.sender;
+            let s = sensor_entry(&mut sensors, &names, i);
+            s.transmissions += u64::from(l.transmissions);
+            s.delivered += u64::from(l.delivered);
+            s.lost += u64::from(l.lost);
+            s.attempts_recorded += e.attempts.get(&(*leg, i)).copied().unwrap_or(0);
+            s.energy += l.energy;
             s.received += e.received_of(*leg);
-            energy += en;
+            energy += l.energy;
         }
         energies.push(energy);
     }
@@ -256,9 +287,11 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
             .map(|e| crate::vocab::round_energy(e * episodes as f64));
         s.energy = crate::vocab::round_energy(s.energy);
     }
-    let failures = identity_failures(&sensors, degraded);
+    let failures = identity_failures(&sensors, degraded, c.channels.contains_key("slot"));
     let measurements: u64 = sensors.values().map(|s| s.measurements).sum();
     let ledgers: u64 = sensors.values().map(|s| s.transmissions).sum();
+    let delivered: u64 = sensors.values().map(|s| s.delivered).sum();
+    let lost: u64 = sensors.values().map(|s| s.lost).sum();
     let frac = |n: u64| crate::figure::proportion(n, episodes);
     let (p_target, p_target_ci95) = frac(counts.target);
     let (p_collision, p_collision_ci95) = frac(counts.collision);
@@ -314,6 +347,8 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
         "energy_mean_ci95": num_or_null(energy_mean_ci95),
         "measurements": measurements,
         "transmissions": ledgers,
+        "delivered": delivered,
+        "lost": lost,
         "received": received,
         "energy": crate::vocab::round_energy(energy),
         "predicted_energy": predicted_energy,
@@ -375,9 +410,11 @@ fn write_table(out: &mut String, file: &Path, c: &Contents, s: &Value) -> std::f
     }
     writeln!(
         out,
-        "  transmissions: {} measurement messages · {} in ledgers · {} received by the agent",
-        g("measurements"),
+        "  transmissions: {} attempts in ledgers = {} delivered + {} lost · {} measurement messages · {} received by the agent",
         g("transmissions"),
+        g("delivered"),
+        g("lost"),
+        g("measurements"),
         g("received")
     )?;
     let h = |k: &str| {
@@ -393,18 +430,20 @@ fn write_table(out: &mut String, file: &Path, c: &Contents, s: &Value) -> std::f
     )?;
     writeln!(
         out,
-        "  {:<10} {:>12} {:>12} {:>12} {:>12} {:>12}",
-        "sensor", "measurements", "ledgers", "received", "energy", "predicted"
+        "  {:<10} {:>12} {:>12} {:>10} {:>8} {:>12} {:>12} {:>12}",
+        "sensor", "measurements", "attempts", "delivered", "lost", "received", "energy", "predicted"
     )?;
     if let Some(arr) = s.get("sensors").and_then(Value::as_array) {
         for x in arr {
             let f = |k: &str| x.get(k).cloned().unwrap_or(Value::Null);
             writeln!(
                 out,
-                "  {:<10} {:>12} {:>12} {:>12} {:>12.1} {:>12.1}",
+                "  {:<10} {:>12} {:>12} {:>10} {:>8} {:>12} {:>12.1} {:>12.1}",
                 f("name").as_str().unwrap_or("?"),
                 f("measurements").as_u64().unwrap_or(0),
                 f("transmissions").as_u64().unwrap_or(0),
+                f("delivered").as_u64().unwrap_or(0),
+                f("lost").as_u64().unwrap_or(0),
                 f("received").as_u64().unwrap_or(0),
                 f("energy").as_f64().unwrap_or(f64::NAN),
                 f("predicted_energy").as_f64().unwrap_or(f64::NAN)

@@ -14,9 +14,18 @@ pub struct LegRecord {
     pub steps: u32,
     /// Measurements the agent received on this leg.
     pub received: u32,
-    /// Transmissions in the sensor's ledger (`None`: no ledger, sensor dead).
+    /// Transmission attempts in the sensor's ledger (`None`: no ledger,
+    /// sensor dead); each costs c_m.
     #[serde(rename = "transmissions")]
     pub transmitted: Option<u32>,
+    /// Of those, delivered to the agent and lost on the radio (the ledger's).
+    #[serde(default)]
+    pub delivered: Option<u32>,
+    #[serde(default)]
+    pub lost: Option<u32>,
+    /// Slots in which the trigger fired (the ledger's).
+    #[serde(default)]
+    pub triggers: Option<u32>,
     /// Slots in the sensor's ledger.
     pub slots: Option<u32>,
 }
@@ -52,10 +61,19 @@ pub struct FaultRecord {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SensorTotals {
     pub name: String,
-    /// Σ transmissions in the sensor's ledgers (legs that have one).
+    /// Σ transmission attempts in the sensor's ledgers (legs that have one).
     pub transmitted: u64,
+    /// Σ attempts delivered and lost, from the same ledgers: `transmitted =
+    /// delivered + lost` in a sound run.
+    #[serde(default)]
+    pub delivered: u64,
+    #[serde(default)]
+    pub lost: u64,
+    /// Σ slots in which the trigger fired, from the same ledgers.
+    #[serde(default)]
+    pub triggers: u64,
     /// Σ measurements the agent received from it on the legs that have a
-    /// ledger: the same legs as `transmitted`, so the two are equal in a
+    /// ledger: the same legs as `delivered`, so the two are equal in a
     /// sound run (with or without dead sensors).
     pub received: u64,
     /// Σ measurements the agent received on legs whose ledger never came (a

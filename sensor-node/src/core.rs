@@ -8,13 +8,27 @@
 //! and from then on a [`LegReplica`] computes each prior with the agent's own
 //! step functions from what the sensor itself did (transmitted y, or stayed
 //! silent). The slot carries the replica prior's digest; the agent checks it.
+//!
+//! The radio (docs/MODEL.md §8) is simulated here, at its sender: when the
+//! trigger fires, the fate of each attempt is drawn from the link's own
+//! stream (`link_rng(seed, streams::AGENT, episode, sensor)`, the channel of
+//! the in-process simulation's episodes), retries follow a lost attempt
+//! within the step, and only a delivered attempt is published to the agent.
+//! The link is acknowledged: the agent ACKs each measurement it received,
+//! and [`SensorCore::on_ack`] checks every ACK against a delivery made here.
+//! A lost attempt's missing ACK is known at once (the ether is simulated
+//! here; no timeout is waited for). The replica applies what the agent
+//! applied: the measurement if delivered, else the silence update with the
+//! radio's factor ([`CompiledScenario::silence_beta`]).
 
-use etp_runtime::wire::agent_to_sensor::{Handover, Truth};
+use etp_runtime::wire::agent_to_sensor::{Ack, Handover, Truth};
 use etp_runtime::wire::coordinator_to_all::Threshold;
 use etp_runtime::wire::{ThresholdKind, WireVec, belief_from_wire, to_wire_vec, vec_from_wire};
 use etp_shared::episode::{CompiledScenario, LegReplica, SlotOutcome, belief_digest};
-use etp_shared::etkf::{EtKalmanFilter, Threshold as Th, Vector};
-use etp_shared::rng::{stream_rng, streams};
+use etp_shared::etkf::{EtKalmanFilter, Vector};
+use etp_shared::radio::{LinkChannel, Transmission};
+use etp_shared::rng::{link_rng, stream_rng, streams};
+use std::collections::VecDeque;
 
 /// What the sensor spent on one leg.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -22,7 +36,12 @@ pub struct LegLedger {
     pub episode: u64,
     pub leg: u32,
     pub slots: u32,
+    /// Slots in which the trigger fired.
+    pub triggers: u32,
+    /// Attempts (each costs c_m) = delivered + lost.
     pub transmissions: u32,
+    pub delivered: u32,
+    pub lost: u32,
 }
 
 /// Totals of a sensor process (logged at exit).
@@ -30,6 +49,10 @@ pub struct LegLedger {
 pub struct SensorStats {
     pub slots: u64,
     pub transmissions: u64,
+    pub delivered: u64,
+    pub lost: u64,
+    /// ACKs received (each matched a delivery).
+    pub acks: u64,
     pub handovers: u64,
     pub wakeups: u64,
 }
@@ -46,14 +69,17 @@ pub enum ControlAction {
 }
 
 /// The outcome of one slot: always a `slot` message, and a `measurement`
-/// (costed) when the trigger fired.
+/// when the trigger fired and an attempt was delivered.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SlotDecision {
     pub episode: u64,
     pub leg: u32,
     pub step: u32,
-    /// `Some((y, n))`: transmit y, the n-th transmission of this episode.
+    /// `Some((y, n))`: publish y, delivered by the n-th attempt of this
+    /// episode.
     pub transmit: Option<(WireVec, u32)>,
+    /// Attempts made in this slot (0: no trigger; each costs c_m).
+    pub attempts: u32,
     /// `belief_digest` of the replica's prior this slot triggered on.
     pub prior_digest: u64,
 }
@@ -81,6 +107,16 @@ pub enum SlotError {
         step: u32,
         expected: u32,
     },
+    /// An ACK of a measurement this sensor did not deliver (or out of order).
+    #[error(
+        "ack of episode {episode} step {step} (sequence {sequence}) matches no delivery; the next unacknowledged is {expected:?}"
+    )]
+    UnexpectedAck {
+        episode: u64,
+        step: u32,
+        sequence: u32,
+        expected: Option<(u64, u32, u32)>,
+    },
 }
 
 /// The open leg: its threshold, its ledger so far and, once handed over,
@@ -101,6 +137,10 @@ pub struct SensorCore<const N: usize, const M: usize> {
     seed: u64,
     tag: u64,
     open: Option<OpenLeg<N>>,
+    /// This sensor's radio channel in the episode it last transmitted in.
+    channel: Option<(u64, LinkChannel)>,
+    /// Deliveries not acknowledged yet: (episode, step, sequence), in order.
+    unacked: VecDeque<(u64, u32, u32)>,
     /// The latest (episode, leg) closed here: a handover of it or of an
     /// earlier leg is stale (a leg can close before its handover is read,
     /// e.g. when it ends by a collision on its first step).
@@ -130,6 +170,8 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
             seed,
             tag,
             open: None,
+            channel: None,
+            unacked: VecDeque::new(),
             closed: None,
             episode_count: (u64::MAX, 0),
             stats: SensorStats::default(),
@@ -149,8 +191,7 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
                     ledger: LegLedger {
                         episode: t.header.episode,
                         leg: t.header.leg,
-                        slots: 0,
-                        transmissions: 0,
+                        ..LegLedger::default()
                     },
                     replica: None,
                 });
@@ -208,9 +249,10 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
         if self.is_closed(episode, leg) {
             return Ok(());
         }
-        let open = self.open_leg(episode, leg)?;
+        let delta = self.open_leg(episode, leg)?.delta;
+        let beta = self.scenario.silence_beta(self.index as usize, delta);
         let belief = belief_from_wire::<N>(&h.mean, &h.cov);
-        let beta = Th::new(open.delta).beta;
+        let open = self.open_leg(episode, leg)?;
         open.replica = Some(LegReplica::handed_over(
             leg as usize,
             beta,
@@ -256,23 +298,50 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
         let x: Vector<N> = vec_from_wire(&t.x);
         let y = filter.sensor.measure(&x, &mut rng);
         let fired = filter.innovation(&prior).triggers(&y, open.delta);
+        // The attempts' fate on this link (the ideal link draws nothing).
+        let sent = if fired {
+            let channel = match &mut self.channel {
+                Some((e, c)) if *e == episode => c,
+                slot => {
+                    let index = u64::from(self.index);
+                    let link = scenario.radio.link(self.index as usize);
+                    let rng = link_rng(seed, streams::AGENT, episode, index);
+                    &mut slot.insert((episode, LinkChannel::new(link, rng))).1
+                }
+            };
+            channel.advance_to(u64::from(step));
+            channel.transmit()
+        } else {
+            Transmission {
+                attempts: 0,
+                delivered: false,
+            }
+        };
         // What the agent will receive: the wire copy of y (same bits).
         let y_wire = to_wire_vec(y.as_slice());
-        let slot = if fired {
+        let slot = if sent.delivered {
             SlotOutcome::Transmitted(&y_wire[..])
         } else {
             SlotOutcome::Silent
         };
         replica.close(scenario, &prior, slot);
-        open.ledger.slots += 1;
+        let l = &mut open.ledger;
+        l.slots += 1;
+        l.triggers += u32::from(fired);
+        l.transmissions += sent.attempts;
+        l.delivered += u32::from(sent.delivered);
+        l.lost += sent.lost();
         self.stats.slots += 1;
+        self.stats.transmissions += u64::from(sent.attempts);
+        self.stats.delivered += u64::from(sent.delivered);
+        self.stats.lost += u64::from(sent.lost());
         if self.episode_count.0 != episode {
             self.episode_count = (episode, 0);
         }
-        let transmit = fired.then(|| {
-            open.ledger.transmissions += 1;
-            self.stats.transmissions += 1;
-            self.episode_count.1 += 1;
+        self.episode_count.1 += sent.attempts;
+        let transmit = sent.delivered.then(|| {
+            self.unacked
+                .push_back((episode, step, self.episode_count.1));
             (y_wire, self.episode_count.1)
         });
         Ok(SlotDecision {
@@ -280,8 +349,37 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
             leg,
             step,
             transmit,
+            attempts: sent.attempts,
             prior_digest: belief_digest(&prior),
         })
+    }
+
+    /// An ACK from the agent: it must acknowledge the oldest delivery not yet
+    /// acknowledged (the agent ACKs in the order it received, which is the
+    /// order this sensor delivered). Another run's ACK is ignored.
+    pub fn on_ack(&mut self, a: &Ack) -> Result<(), SlotError> {
+        if a.header.run != self.tag {
+            return Ok(());
+        }
+        let got = (a.header.episode, a.header.step, a.sequence);
+        match self.unacked.front() {
+            Some(&d) if d == got => {
+                self.unacked.pop_front();
+                self.stats.acks += 1;
+                Ok(())
+            }
+            other => Err(SlotError::UnexpectedAck {
+                episode: got.0,
+                step: got.1,
+                sequence: got.2,
+                expected: other.copied(),
+            }),
+        }
+    }
+
+    /// Deliveries not acknowledged (yet).
+    pub fn unacknowledged(&self) -> usize {
+        self.unacked.len()
     }
 }
 
@@ -480,7 +578,7 @@ mod tests {
         c.on_threshold(&th(Threshold::OPEN, 0, 0, 1.0));
         let mut agent = belief();
         hand_over(&mut c, 0, 0, 0, &agent);
-        let beta = Th::new(1.0).beta;
+        let beta = compiled.silence_beta(0, 1.0);
         for k in 1..=10 {
             let d = slot(&mut c, 0, 0, k);
             let u = compiled.input(0, &agent.mean);
@@ -509,5 +607,98 @@ mod tests {
         for (x, y) in ya[6..].iter().zip(&yb) {
             assert_eq!(x.map(|t| t.0), y.map(|t| t.0));
         }
+    }
+
+    /// open-2d with every link lossy (loss 0.5, one retry).
+    fn lossy_core() -> (SensorCore<2, 2>, CompiledScenario<2>) {
+        let s = Scenario::builtin("open-2d")
+            .expect("built-in")
+            .with_radio_override(&etp_shared::radio::RadioOverride {
+                loss: Some(0.5),
+                retries: Some(1),
+                ..Default::default()
+            })
+            .expect("valid radio");
+        let f = EtKalmanFilter::<2, 2>::new(&s.plant, &s.sensors[0]);
+        let c = CompiledScenario::new(&s);
+        (SensorCore::new(c.clone(), f, 1.5, 0, 3, TAG), c)
+    }
+
+    /// docs/MODEL.md §8 at the sensor: each trigger's attempts are drawn
+    /// from the link's own stream (the in-process simulation's channel of
+    /// this episode and link), only a delivered attempt is published, the
+    /// ledger counts attempts = delivered + lost, and the replica applies
+    /// what the agent applies (a lost trigger is a silence with β_q).
+    #[test]
+    fn a_lossy_link_draws_each_attempt_from_its_own_stream_and_the_replica_follows_the_agent() {
+        let (mut c, compiled) = lossy_core();
+        let (episode, delta) = (6, 0.0);
+        c.on_threshold(&th(Threshold::OPEN, episode, 0, delta));
+        let mut agent = belief();
+        hand_over(&mut c, episode, 0, 0, &agent);
+        let mut reference = LinkChannel::new(
+            compiled.radio.link(0),
+            link_rng(3, streams::AGENT, episode, 0),
+        );
+        let beta = compiled.silence_beta(0, delta);
+        assert_eq!(beta, 0.0, "at δ = 0 a silence is always a loss");
+        let (mut delivered, mut lost, mut attempts) = (0, 0, 0);
+        for k in 1..=60 {
+            let d = slot(&mut c, episode, 0, k);
+            reference.advance_to(u64::from(k));
+            let t = reference.transmit();
+            assert_eq!((d.attempts, d.transmit.is_some()), (t.attempts, t.delivered), "step {k}");
+            attempts += t.attempts;
+            delivered += u32::from(t.delivered);
+            lost += t.lost();
+            let u = compiled.input(0, &agent.mean);
+            let prior = compiled.prior(&agent, &u);
+            assert_eq!(d.prior_digest, belief_digest(&prior), "step {k}");
+            let outcome = match &d.transmit {
+                Some((y, _)) => SlotOutcome::Transmitted(&y[..]),
+                None => SlotOutcome::Silent,
+            };
+            agent = compiled.close_slot(0, &prior, outcome, beta);
+        }
+        // q = 0.25 per trigger: both fates occur in 60 triggers.
+        assert!(lost > 0 && delivered > 0, "{lost} lost, {delivered} delivered");
+        let ControlAction::Ledger { ledger, energy } =
+            c.on_threshold(&th(Threshold::CLOSE, episode, 0, delta))
+        else {
+            panic!("no ledger")
+        };
+        assert_eq!(ledger.triggers, 60);
+        assert_eq!(ledger.transmissions, attempts);
+        assert_eq!(ledger.transmissions, ledger.delivered + ledger.lost);
+        assert_eq!((ledger.delivered, ledger.lost), (delivered, lost));
+        assert_eq!(energy, f64::from(attempts) * 1.5, "every attempt costs");
+        assert_eq!(c.unacknowledged(), delivered as usize);
+    }
+
+    /// Every ACK must acknowledge the oldest unacknowledged delivery.
+    #[test]
+    fn acks_are_checked_against_the_deliveries() {
+        let mut c = core();
+        c.on_threshold(&th(Threshold::OPEN, 2, 0, 0.0));
+        hand_over(&mut c, 2, 0, 0, &belief());
+        let seq: Vec<u32> = (1..=2)
+            .map(|k| slot(&mut c, 2, 0, k).transmit.expect("δ = 0 delivers").1)
+            .collect();
+        let ack = |step: u32, sequence: u32| Ack {
+            header: header(2, 0, step),
+            sequence,
+            _pad: 0,
+        };
+        let mut other_run = ack(1, seq[0]);
+        other_run.header.run = TAG + 1;
+        assert_eq!(c.on_ack(&other_run), Ok(()));
+        assert!(matches!(
+            c.on_ack(&ack(2, seq[1])),
+            Err(SlotError::UnexpectedAck { expected: Some((2, 1, _)), .. })
+        ));
+        assert_eq!(c.on_ack(&ack(1, seq[0])), Ok(()));
+        assert_eq!(c.on_ack(&ack(2, seq[1])), Ok(()));
+        assert!(c.on_ack(&ack(2, seq[1])).is_err(), "acknowledged twice");
+        assert_eq!((c.stats.acks, c.unacknowledged()), (2, 0));
     }
 }

@@ -4,7 +4,7 @@
 use crate::core::{ControlAction, SensorCore, SensorStats, SlotError};
 use crate::{Exit, IDLE_CHECK, LIST_EVERY, SensorError};
 use etp_runtime::wire::PortError;
-use etp_runtime::wire::agent_to_sensor::{Handover, Truth};
+use etp_runtime::wire::agent_to_sensor::{Ack, Handover, Truth};
 use etp_runtime::wire::coordinator_to_all::Threshold;
 use etp_runtime::wire::sensor_to_agent::{Measurement, Slot};
 use etp_runtime::wire::sensor_to_coordinator::Ledger;
@@ -20,6 +20,7 @@ use iceoryx2::prelude::*;
 struct SensorPorts {
     truth: Sub<Truth>,
     handover: Sub<Handover>,
+    ack: Sub<Ack>,
     threshold: Sub<Threshold>,
     measurement: Pub<Measurement>,
     slot: Pub<Slot>,
@@ -70,6 +71,7 @@ pub(crate) fn serve<const N: usize, const M: usize>(
     let p = SensorPorts {
         truth: ports.subscriber(ServiceId::Truth(index))?,
         handover: ports.subscriber(ServiceId::Handover(index))?,
+        ack: ports.subscriber(ServiceId::Ack(index))?,
         threshold: ports.subscriber(ServiceId::Threshold(index))?,
         measurement: ports.publisher(ServiceId::Measurement)?,
         slot: ports.publisher(ServiceId::Slot)?,
@@ -137,6 +139,12 @@ fn serve_pending<const N: usize, const M: usize>(
     if let Some(exit) = drain_thresholds(p, core, stamp)? {
         return Ok(Some(exit));
     }
+    // ACKs of earlier deliveries (the agent sends each before the next
+    // truth); one that matches no delivery is a protocol error.
+    while let Some(a) = receive(&p.ack, "ack")? {
+        core.on_ack(&a)
+            .map_err(|e| SensorError::Protocol(e.to_string()))?;
+    }
     while let Some(h) = receive(&p.handover, "handover")? {
         pending.handovers.push_back(h);
     }
@@ -182,8 +190,8 @@ fn serve_pending<const N: usize, const M: usize>(
             "slot",
             Slot {
                 header,
-                transmitted: u32::from(decision.transmit.is_some()),
-                _pad: 0,
+                delivered: u32::from(decision.transmit.is_some()),
+                attempts: decision.attempts,
                 prior_digest: decision.prior_digest,
             },
         )?;
@@ -215,7 +223,11 @@ fn drain_thresholds<const N: usize, const M: usize>(
                     Ledger {
                         header,
                         slots: ledger.slots,
+                        triggers: ledger.triggers,
                         transmissions: ledger.transmissions,
+                        delivered: ledger.delivered,
+                        lost: ledger.lost,
+                        _pad: 0,
                         energy,
                     },
                 )?;

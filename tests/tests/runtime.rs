@@ -29,6 +29,9 @@ mod faults;
 #[path = "runtime/remote.rs"]
 mod remote;
 
+#[path = "runtime/lossy.rs"]
+mod lossy;
+
 const DELTA: &str = "1.4986";
 
 /// Multi-process runs take both cores; run them one at a time so the timing
@@ -62,9 +65,10 @@ fn est(v: &Value, k: &str) -> Estimate {
     }
 }
 
-/// Every leg's ledger equals what the agent received; per sensor too.
+/// Every leg's ledger: attempts = delivered + lost and delivered = what
+/// the agent received; per sensor too.
 fn assert_ledgers_match(v: &Value, skip_degraded: bool) {
-    let mut per_sensor = std::collections::HashMap::<u64, (u64, u64)>::new();
+    let mut per_sensor = std::collections::HashMap::<u64, [u64; 4]>::new();
     for e in v["episode_results"].as_array().expect("episode_results") {
         if skip_degraded && e["degraded"].as_bool() == Some(true) {
             continue;
@@ -72,26 +76,26 @@ fn assert_ledgers_match(v: &Value, skip_degraded: bool) {
         assert_eq!(e["degraded"].as_bool(), Some(false), "episode {e}");
         for l in e["legs"].as_array().expect("legs") {
             let received = l["received"].as_u64().expect("received");
-            let transmitted = l["transmissions"]
-                .as_u64()
-                .unwrap_or_else(|| panic!("no ledger: {l}"));
-            assert_eq!(
-                transmitted, received,
-                "episode {} leg {}",
-                e["episode"], l["leg"]
-            );
+            let count = |k: &str| l[k].as_u64().unwrap_or_else(|| panic!("no ledger: {l}"));
+            let (attempts, delivered, lost) =
+                (count("transmissions"), count("delivered"), count("lost"));
+            let at = format!("episode {} leg {}", e["episode"], l["leg"]);
+            assert_eq!(attempts, delivered + lost, "{at}");
+            assert_eq!(delivered, received, "{at}");
             let s = per_sensor
                 .entry(l["sensor"].as_u64().expect("sensor"))
                 .or_default();
-            s.0 += transmitted;
-            s.1 += received;
+            for (t, x) in s.iter_mut().zip([attempts, delivered, lost, received]) {
+                *t += x;
+            }
         }
     }
     if !skip_degraded {
         for (i, s) in v["sensors"].as_array().expect("sensors").iter().enumerate() {
-            let (t, r) = per_sensor.get(&(i as u64)).copied().unwrap_or_default();
-            assert_eq!(s["transmissions"].as_u64(), Some(t), "{s}");
-            assert_eq!(s["received"].as_u64(), Some(r), "{s}");
+            let t = per_sensor.get(&(i as u64)).copied().unwrap_or_default();
+            for (k, x) in ["transmissions", "delivered", "lost", "received"].iter().zip(t) {
+                assert_eq!(s[*k].as_u64(), Some(x), "{k}: {s}");
+            }
         }
     }
 }

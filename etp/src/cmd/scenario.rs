@@ -1,5 +1,7 @@
 //! `etp scenario random --dim-agent N --seed S [-o FILE]`: a scenario of the
-//! random family (`etp_shared::scenario::random`), as TOML text.
+//! random family (`etp_shared::scenario::random`), as TOML text; `etp
+//! scenario radio SCENARIO --loss P … [-o FILE]`: a scenario's text with a
+//! lossy radio written into it (what `etp run` reads, docs/MODEL.md §8).
 
 use anyhow::{Context, Result};
 use etp_shared::scenario::random::{AgentKind, random_scenario};
@@ -17,6 +19,24 @@ pub enum ScenarioCommand {
     /// sensors with rotated anisotropic noise, gates and walls the route must
     /// thread); the same seed gives the same text.
     Random(RandomArgs),
+    /// A scenario's TOML text with the radio options written into it as a
+    /// `[radio]` table (docs/MODEL.md §8): a file `etp run`, `synthesize`
+    /// and every other command read with its channel.
+    Radio(RadioTextArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct RadioTextArgs {
+    /// A built-in scenario name or a TOML file without a [radio] of its own.
+    pub scenario: String,
+    #[command(flatten)]
+    pub radio: crate::input::RadioArgs,
+    /// Write the TOML here (refused if it exists, unless --force) instead of stdout.
+    #[arg(short = 'o', long = "out")]
+    pub out: Option<PathBuf>,
+    /// Overwrite an existing output file.
+    #[arg(long)]
+    pub force: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -37,7 +57,10 @@ pub struct RandomArgs {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    let ScenarioCommand::Random(r) = a.command;
+    let r = match a.command {
+        ScenarioCommand::Random(r) => r,
+        ScenarioCommand::Radio(r) => return radio(r),
+    };
     let n: usize = r.dim_agent.parse().context("--dim-agent")?;
     let kind = AgentKind::from_dim(n).context("--dim-agent")?;
     let (text, s) = random_scenario(kind, r.seed)
@@ -55,6 +78,22 @@ pub fn run(a: Args) -> Result<()> {
                 s.sensors.len(),
                 s.obstacles.len()
             );
+        }
+    }
+    Ok(())
+}
+
+fn radio(r: RadioTextArgs) -> Result<()> {
+    if r.radio.to_override().is_empty() {
+        anyhow::bail!("give the channel: --loss P [--retries R] [--burst B] [--estimator aware|naive]");
+    }
+    let text = crate::input::scenario_text(&r.scenario)?;
+    let out = crate::input::text_with_radio(&text, &r.radio)?;
+    match &r.out {
+        None => print!("{out}"),
+        Some(path) => {
+            crate::output::write_new(path, out.as_bytes(), r.force)?;
+            eprintln!("wrote {}", path.display());
         }
     }
     Ok(())

@@ -25,7 +25,8 @@ pub fn check_metadata(c: &Contents) -> Result<Option<Scenario>, RecordingError> 
     {
         return bad(format!(
             "format version {v}: this etp reads format {} (format 2 and older sent the agent's \
-             prior every step; since 3 a handover per leg and the sensor's replica digest in `slot`)",
+             prior every step; 3 a handover per leg and the sensor's replica digest in `slot`; since 4 \
+             the radio's attempts, deliveries and losses in `slot` and `ledger`)",
             super::FORMAT_VERSION
         ));
     }

@@ -38,8 +38,11 @@ pub use verify::{Mismatch, PriorTable, VerifyReport, priors, verify};
 /// per-leg `handover` replaces the per-step `prior`, and `slot` carries the
 /// sensor replica's prior digest; files written since issue 16 also hold the
 /// `etp.config` record (the run's launch file) and schema texts with the
-/// payload's size and Python `struct` format (readers need neither).
-pub const FORMAT_VERSION: &str = "3";
+/// payload's size and Python `struct` format (readers need neither). 4: the
+/// lossy radio (docs/MODEL.md §8): `slot` carries the slot's `attempts` and
+/// `delivered`, `ledger` triggers, delivered and lost, and the agent's
+/// `sensor/<i>/ack` is recorded.
+pub const FORMAT_VERSION: &str = "4";
 /// MCAP profile string.
 pub const PROFILE: &str = "etpareto";
 /// Message encoding of every channel.

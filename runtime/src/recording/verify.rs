@@ -14,6 +14,13 @@
 //! and episodes end at the recorded steps. [`priors`] gives the re-run's
 //! prior of every slot (what the agent believed, for drawing).
 //!
+//! The radio (docs/MODEL.md §8) is re-drawn too: every slot that recorded
+//! attempts gets its fate drawn again from the sensor link's own stream
+//! (`link_rng(seed, streams::AGENT, episode, sensor)`, the seed from the
+//! episode's `control`), which must give the recorded attempts and delivery;
+//! a silence after lost attempts is re-run with the radio's silence factor
+//! ([`CompiledScenario::silence_beta`]), bit for bit.
+//!
 //! Degraded episodes (a dead link) are skipped and counted: whether a late
 //! slot was taken as closed or dead depended on wall-clock timing the file
 //! does not hold. An episode cut by the end of an unfinished file is checked
@@ -27,7 +34,9 @@ use crate::wire::coordinator_to_all::Threshold;
 use crate::wire::sensor_to_agent::{Measurement, Slot};
 use crate::wire::{WireMat, WireVec, belief_to_wire};
 use etp_shared::episode::{CompiledScenario, SlotOutcome, belief_digest};
-use etp_shared::etkf::{Belief, Threshold as Th};
+use etp_shared::etkf::Belief;
+use etp_shared::radio::LinkChannel;
+use etp_shared::rng::{link_rng, streams};
 use etp_shared::scenario::Scenario;
 use std::collections::BTreeMap;
 
@@ -67,6 +76,10 @@ pub struct VerifyReport {
     /// Explicit updates (recorded measurements) and implicit updates (silent slots).
     pub explicit_updates: u64,
     pub implicit_updates: u64,
+    /// Transmission attempts re-drawn from the radio's stream and found as
+    /// recorded (`slot.attempts`), and of those the lost ones.
+    pub attempts_redrawn: u64,
+    pub lost_redrawn: u64,
     pub mismatch_count: u64,
     /// The first mismatches (at most 50), in episode order.
     pub mismatches: Vec<Mismatch>,
@@ -296,6 +309,8 @@ fn rerun<const N: usize>(
         return Err(miss(0, 0, "initial belief (control)".into(), d));
     }
     let outcome = r.outcome;
+    // Each sensor link's channel in this episode, made at its first attempt.
+    let mut channels: BTreeMap<usize, LinkChannel> = BTreeMap::new();
     let mut k: u32 = 0;
     let legs = c.legs.len() as u32;
     for leg in 0..legs {
@@ -324,8 +339,8 @@ fn rerun<const N: usize>(
         let Some(&delta) = r.opens.get(&leg) else {
             return missing(leg, k, "no threshold opened this leg");
         };
-        let beta = Th::new(delta).beta;
         let sensor = c.legs[leg as usize].sensor;
+        let beta = c.silence_beta(sensor, delta);
         let Some(h) = r.handovers.get(&leg) else {
             return missing(leg, k, "no handover recorded for this leg");
         };
@@ -388,24 +403,48 @@ fn rerun<const N: usize>(
                 ));
             }
             rep.priors_checked += 1;
-            if slot.transmitted == 1 && y.is_none() {
-                return missing(
-                    leg,
-                    k,
-                    "slot says transmitted but no measurement is recorded",
-                );
+            if slot.delivered == 1 && y.is_none() {
+                return missing(leg, k, "slot says delivered but no measurement is recorded");
             }
-            if slot.transmitted != 1 && y.is_some() {
+            if slot.delivered != 1 && y.is_some() {
                 return Err(miss(
                     leg,
                     k,
                     format!(
-                        "slot says transmitted = {} but a measurement is recorded",
-                        slot.transmitted
+                        "slot says delivered = {} but a measurement is recorded",
+                        slot.delivered
                     ),
                     0.0,
                 ));
             }
+            // The radio's draw of this slot's attempts, again.
+            let redrawn = if slot.attempts == 0 {
+                (0, false)
+            } else {
+                let Some(ctrl) = &r.control else {
+                    return missing(leg, k, "no control recorded (the run's seed, for the radio)");
+                };
+                let channel = channels.entry(sensor).or_insert_with(|| {
+                    let rng = link_rng(ctrl.seed, streams::AGENT, episode, sensor as u64);
+                    LinkChannel::new(c.radio.link(sensor), rng)
+                });
+                channel.advance_to(u64::from(k));
+                let t = channel.transmit();
+                (t.attempts, t.delivered)
+            };
+            if redrawn != (slot.attempts, slot.delivered == 1) {
+                return Err(miss(
+                    leg,
+                    k,
+                    format!(
+                        "the radio re-drawn gives {} attempt(s), delivered {}; the slot records {}, delivered {}",
+                        redrawn.0, redrawn.1, slot.attempts, slot.delivered
+                    ),
+                    0.0,
+                ));
+            }
+            rep.attempts_redrawn += u64::from(slot.attempts);
+            rep.lost_redrawn += u64::from(slot.attempts - u32::from(redrawn.1));
             match y {
                 Some(_) => rep.explicit_updates += 1,
                 None => rep.implicit_updates += 1,

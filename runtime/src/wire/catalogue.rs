@@ -393,7 +393,7 @@ catalogue! {
     Truth(sensor) => a2s::Truth {
         topic: "sensor/{sensor}/truth",
         owner: Agent, reader: Sensor,
-        limits: OneToOne(8), link: Plumbing, recorded: true, forward: Down(2),
+        limits: OneToOne(8), link: Plumbing, recorded: true, forward: Down(3),
         names: [],
         codes: "x: the true state (simulation only: stands in for the physical world); entries past dim are 0",
     }
@@ -404,19 +404,27 @@ catalogue! {
         names: [],
         codes: "radio, once per leg served: mean, cov = the agent's belief at the start of leg header.leg after header.step steps (row-major; entries past dim are 0); the sensor's replica computes the leg's priors from it",
     }
+    Ack(sensor) => a2s::Ack {
+        topic: "sensor/{sensor}/ack",
+        owner: Agent, reader: Sensor,
+        // At most one per slot, drained at the sensor's next wake-up.
+        limits: OneToOne(16), link: Radio, recorded: true, forward: Down(2),
+        names: [],
+        codes: "radio, towards the sensor: the agent received the measurement of step header.step (sequence = its sequence); never lost (docs/MODEL.md §8)",
+    }
     Measurement => s2a::Measurement {
         topic: "measurement",
         owner: Sensor, reader: Agent,
         limits: FromSensors(16), link: Radio, recorded: true, forward: Up(1),
         names: [],
-        codes: "costed: one transmission; sequence: transmissions of this sensor in this episode, this one included; y: entries past dim are 0",
+        codes: "costed: one delivered transmission attempt; sequence: attempts of this sensor in this episode, this one included (a gap = attempts lost on the radio); y: entries past dim are 0",
     }
     Slot => s2a::Slot {
         topic: "slot",
         owner: Sensor, reader: Agent,
         limits: FromSensors(16), link: Plumbing, recorded: true, forward: Up(2),
-        names: ["transmitted": Flag],
-        codes: "transmitted: 1 if a measurement was sent for this slot, 0 if silent; prior_digest: FNV-1a of the bits of the replica's prior (mean, then cov row by row)",
+        names: ["delivered": Flag],
+        codes: "delivered: 1 if a measurement reached the agent in this slot, 0 if not (silent, or every attempt lost); attempts: transmission attempts in this slot (0 = no trigger; each costs c_m; lost = attempts - delivered); prior_digest: FNV-1a of the bits of the replica's prior (mean, then cov row by row)",
     }
     Waypoint => a2c::Waypoint {
         topic: "waypoint",
@@ -438,7 +446,7 @@ catalogue! {
         // Drained at leg boundaries: a generous buffer per sensor.
         limits: FromSensors(256), link: Plumbing, recorded: true, forward: Up(3),
         names: [],
-        codes: "what the sensor spent on leg header.leg: slots served, transmissions, energy = transmissions x cost",
+        codes: "what the sensor spent on leg header.leg: slots served, triggers, transmissions (attempts) = delivered + lost, energy = transmissions x cost",
     }
     Hello => tc::Hello {
         topic: "hello",
@@ -453,7 +461,7 @@ catalogue! {
     Probe(sensor) => super::messages::test_only::Probe {
         topic: "sensor/{sensor}/probe",
         owner: Agent, reader: Sensor,
-        limits: OneToOne(8), link: Radio, recorded: true, forward: Down(3),
+        limits: OneToOne(8), link: Radio, recorded: true, forward: Down(4),
         names: ["flag": Flag],
         codes: "flag: test only",
     }

@@ -132,6 +132,20 @@ pub mod agent_to_sensor {
         pub mean: WireVec,
         pub cov: WireMat,
     }
+
+    /// `ack` (radio, towards the sensor): the agent received the sensor's
+    /// measurement of step `header.step` (docs/MODEL.md §8: the link is
+    /// acknowledged, and ACKs are never lost). The sensor checks every ACK
+    /// against a delivery it made.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+    #[type_name("etp::Ack")]
+    pub struct Ack {
+        pub header: Header,
+        /// The acknowledged measurement's `sequence`.
+        pub sequence: u32,
+        pub _pad: u32,
+    }
 }
 
 /// Sensor → agent.
@@ -146,21 +160,27 @@ pub mod sensor_to_agent {
         pub header: Header,
         /// Measurement dimension m.
         pub dim: u32,
-        /// Transmissions of this sensor in this episode, this one included.
+        /// Transmission attempts of this sensor in this episode, this one
+        /// included (a gap in the sequence = attempts lost on the radio).
         pub sequence: u32,
         pub y: WireVec,
     }
 
     /// `slot`: "slot k closed" (sent after the measurement, if any;
-    /// simulation plumbing: the slot clock).
+    /// simulation plumbing: the slot clock, and the record of the slot's
+    /// attempts on the radio, delivered or lost).
     #[repr(C)]
     #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
     #[type_name("etp::Slot")]
     pub struct Slot {
         pub header: Header,
-        /// 1 if a measurement was transmitted for this slot.
-        pub transmitted: u32,
-        pub _pad: u32,
+        /// 1 if a measurement was delivered to the agent in this slot (the
+        /// agent must find it).
+        pub delivered: u32,
+        /// Transmission attempts in this slot, each costing c_m: 0 (no
+        /// trigger), else 1 + retries after lost ones; lost = attempts −
+        /// delivered.
+        pub attempts: u32,
         /// `episode::belief_digest` of the prior the sensor's replica
         /// triggered on: the agent checks it against its own prior.
         pub prior_digest: u64,
@@ -237,7 +257,15 @@ pub mod sensor_to_coordinator {
     pub struct Ledger {
         pub header: Header,
         pub slots: u32,
+        /// Slots in which the trigger fired.
+        pub triggers: u32,
+        /// Transmission attempts (each costs c_m) = delivered + lost.
         pub transmissions: u32,
+        /// Attempts that reached the agent (= what it received).
+        pub delivered: u32,
+        /// Attempts lost on the radio.
+        pub lost: u32,
+        pub _pad: u32,
         /// transmissions × c_m.
         pub energy: f64,
     }

@@ -152,8 +152,8 @@ mod tests {
         ] {
             assert_eq!(ServiceId::from_topic(bad), None, "{bad}");
         }
-        // Ten messages, and this crate's test-only probe.
-        assert_eq!(Kind::ALL.len(), 11);
+        // Eleven messages, and this crate's test-only probe.
+        assert_eq!(Kind::ALL.len(), 12);
     }
 
     /// Every row has every column, and the columns agree: a per-sensor
@@ -195,10 +195,12 @@ mod tests {
             [
                 S::Threshold(1),
                 S::Handover(1),
+                S::Ack(1),
                 S::Truth(1),
                 S::Probe(1),
                 S::Threshold(3),
                 S::Handover(3),
+                S::Ack(3),
                 S::Truth(3),
                 S::Probe(3)
             ]
@@ -228,10 +230,12 @@ mod tests {
             S::Threshold(0),
             S::Truth(0),
             S::Handover(0),
+            S::Ack(0),
             S::Probe(0),
             S::Threshold(1),
             S::Truth(1),
             S::Handover(1),
+            S::Ack(1),
             S::Probe(1),
         ];
         assert_eq!(r, expected);

@@ -1,6 +1,7 @@
 //! What crosses the link between the agent's host and a sensor, split the
 //! way a deployment would see it: **radio** traffic a real sensor network
-//! transmits (measurements up; the belief handover down, once per leg) and
+//! transmits (measurements up; the belief handover down, once per leg, and
+//! the ACK of each received measurement) and
 //! **simulation plumbing** that stands in for the physical world or drives
 //! the simulation (the true state, the slot clock, thresholds and their
 //! ledgers, hello). Sizes are those of the encoded payload (the recording's
@@ -71,9 +72,10 @@ impl LinkTraffic {
 
     /// What one sensor's link carries in a run, from its counts: `legs`
     /// served (each: OPEN, CLOSE, ledger, and a handover when the sensor was
-    /// alive at its start), `slots` (each: truth, slot), `transmitted`
-    /// measurements, plus the hello and the final STOP.
-    pub fn expected(legs: u64, handovers: u64, slots: u64, transmitted: u64) -> Self {
+    /// alive at its start), `slots` (each: truth, slot), `delivered`
+    /// measurements (each ACKed; an attempt lost on the radio never reaches
+    /// the link's other end), plus the hello and the final STOP.
+    pub fn expected(legs: u64, handovers: u64, slots: u64, delivered: u64) -> Self {
         let size = |s: ServiceId| s.kind().map_or(0, encoded_size) as u64;
         let mut t = Self::default();
         t.add(
@@ -89,9 +91,10 @@ impl LinkTraffic {
         );
         t.add(
             ServiceId::Measurement,
-            transmitted,
+            delivered,
             size(ServiceId::Measurement),
         );
+        t.add(ServiceId::Ack(0), delivered, size(ServiceId::Ack(0)));
         t.add(ServiceId::Slot, slots, size(ServiceId::Slot));
         t.add(ServiceId::Ledger, legs, size(ServiceId::Ledger));
         t.add(ServiceId::Hello, 1, size(ServiceId::Hello));
@@ -132,7 +135,8 @@ mod tests {
             assert_eq!(classed, link, "{s:?}");
         }
         let t = LinkTraffic::expected(3, 3, 40, 10);
-        assert_eq!(t.down_radio.messages, 3);
+        // Handovers and one ACK per delivered measurement.
+        assert_eq!(t.down_radio.messages, 3 + 10);
         assert_eq!(t.up_radio.messages, 10);
         assert_eq!(t.down_plumbing.messages, 40 + 7);
         assert_eq!(t.up_plumbing.messages, 40 + 3 + 1);

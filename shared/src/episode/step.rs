@@ -17,8 +17,8 @@
 //! end?   = leg_ends(leg, post, steps in leg)        step 5
 //! ```
 
-use super::{CompiledScenario, Outcome};
-use crate::etkf::{Belief, Vector};
+use super::{CompiledScenario, Outcome, SensorFilter};
+use crate::etkf::{Belief, Threshold, Vector};
 use rand::Rng;
 
 /// What the serving sensor's slot brought the agent.
@@ -68,6 +68,28 @@ impl<const N: usize> CompiledScenario<N> {
             SlotOutcome::Transmitted(y) => filter.posterior(prior, Some(y), beta),
             SlotOutcome::Silent => filter.posterior(prior, None, beta),
             SlotOutcome::Dead => *prior,
+        }
+    }
+
+    /// The factor β of the silence update (`Silent` in [`Self::close_slot`])
+    /// at sensor `sensor` with threshold δ: β(δ) on an ideal link (§2), the
+    /// radio's on a lossy one (§8: β_q(δ) for the aware estimator, β(δ) for
+    /// the naive one). The agent process, the sensor's replica and
+    /// `replay --verify` all take it from here, as the in-process leg loop
+    /// does (same operations, same bits).
+    pub fn silence_beta(&self, sensor: usize, delta: f64) -> f64 {
+        if self.radio.link(sensor).is_ideal() {
+            Threshold::new(delta).beta
+        } else {
+            let m = match &self.filters[sensor] {
+                SensorFilter::M1(_) => 1,
+                SensorFilter::M2(_) => 2,
+                SensorFilter::M3(_) => 3,
+                SensorFilter::M4(_) => 4,
+                SensorFilter::M5(_) => 5,
+                SensorFilter::M6(_) => 6,
+            };
+            self.radio.silence_beta(sensor, delta, m)
         }
     }
 

@@ -308,20 +308,41 @@ fn unix_ns() -> u64 {
 
 #[test]
 fn a_run_across_three_hosts_counts_exactly_and_verifies() {
+    across_three_hosts("ok", None);
+}
+
+/// The same with a lossy radio (docs/MODEL.md §8) on every link: the
+/// scenario text, and with it the channel, reaches the sensor hosts through
+/// the session; losses are drawn on the sensor hosts, ACKs cross the link.
+#[test]
+fn a_lossy_run_across_three_hosts_counts_exactly_and_verifies() {
+    across_three_hosts("lossy", Some("[radio]\nloss = 0.3\nretries = 1\n"));
+}
+
+fn across_three_hosts(tag: &str, radio: Option<&str>) {
     let _serial = serial();
-    let Some(h) = hosts("ok", 2) else { return };
+    let Some(h) = hosts(tag, 2) else { return };
     let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
-        .join(format!("remote-{}", std::process::id()));
+        .join(format!("remote-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("scratch");
     let rec = dir.join("across.mcap");
     let _ = std::fs::remove_file(&rec);
+    let base = etp_shared::scenario::builtin_text("open-2d").expect("built-in");
+    let text = match radio {
+        Some(r) => format!("{base}\n{r}"),
+        None => base.to_string(),
+    };
+    let scenario_file = dir.join("scenario.toml");
+    std::fs::write(&scenario_file, &text).expect("scenario");
+    // The agent host sees `dir` as NS_OUT.
+    let scenario_arg = format!("{NS_OUT}/scenario.toml");
     let run = h.spawn_out(
         &h.agent,
         &dir,
         &[
             "run",
             "--scenario",
-            "open-2d",
+            &scenario_arg,
             "--delta",
             DELTA,
             "--episodes",
@@ -393,9 +414,10 @@ fn a_run_across_three_hosts_counts_exactly_and_verifies() {
                 s["traffic_carried"], s["traffic"],
                 "{name}: carried vs counted"
             );
+            // Up: the delivered measurements (a lost attempt never crosses).
             assert_eq!(
                 s["traffic_carried"]["up_radio"]["messages"].as_u64(),
-                s["transmissions"].as_u64(),
+                s["delivered"].as_u64(),
                 "{name}"
             );
         }
@@ -405,8 +427,9 @@ fn a_run_across_three_hosts_counts_exactly_and_verifies() {
         "{}",
         v["downlink"]
     );
-    // Outcomes agree with the in-process simulation of the same δ.
-    let s = Scenario::builtin("open-2d").expect("built-in");
+    // Outcomes agree with the in-process simulation of the same δ (and
+    // the same channel).
+    let s = Scenario::from_toml(&text).expect("scenario");
     let cs = CompiledScenario::<2>::new(&s);
     let t = Threshold::new(DELTA.parse().expect("δ"));
     let policy = move |_: usize, _: &_, _: &mut _| LegMode::<2>::EventTriggered(t);
@@ -431,19 +454,29 @@ fn a_run_across_three_hosts_counts_exactly_and_verifies() {
     let r: Value = serde_json::from_slice(&out.stdout).expect("JSON");
     assert_eq!(r["verify"]["episodes_checked"].as_u64(), Some(60), "{r}");
     // Recorded on the agent host == the sensors' ledgers == agent received.
-    let ledgers: u64 = v["sensors"]
-        .as_array()
-        .expect("sensors")
-        .iter()
-        .filter_map(|s| s["transmissions"].as_u64())
-        .sum();
-    assert!(ledgers > 0, "{v}");
-    // `measurements`: messages on the recorded channel; `transmissions`: the
-    // recorded ledgers; `received`: the agent's counts in the outcomes.
-    assert_eq!(r["measurements"].as_u64(), Some(ledgers), "{r}");
-    assert_eq!(r["transmissions"].as_u64(), Some(ledgers), "{r}");
-    assert_eq!(r["received"].as_u64(), Some(ledgers), "{r}");
+    let total = |k: &str| -> u64 {
+        v["sensors"]
+            .as_array()
+            .expect("sensors")
+            .iter()
+            .filter_map(|s| s[k].as_u64())
+            .sum()
+    };
+    let (attempts, delivered, lost) = (total("transmissions"), total("delivered"), total("lost"));
+    assert!(delivered > 0, "{v}");
+    assert_eq!(attempts, delivered + lost, "{v}");
+    assert_eq!(lost > 0, radio.is_some(), "losses exactly on a lossy radio: {v}");
+    // `measurements`: messages on the recorded channel; `transmissions`,
+    // `delivered`, `lost`: the recorded ledgers; `received`: the agent's
+    // counts in the outcomes.
+    assert_eq!(r["measurements"].as_u64(), Some(delivered), "{r}");
+    assert_eq!(r["transmissions"].as_u64(), Some(attempts), "{r}");
+    assert_eq!(r["delivered"].as_u64(), Some(delivered), "{r}");
+    assert_eq!(r["lost"].as_u64(), Some(lost), "{r}");
+    assert_eq!(r["received"].as_u64(), Some(delivered), "{r}");
+    assert_eq!(r["identities_hold"].as_bool(), Some(true), "{r}");
     assert_eq!(r["verify"]["mismatch_count"].as_u64(), Some(0), "{r}");
+    assert_eq!(r["verify"]["attempts_redrawn"].as_u64(), Some(attempts), "{r}");
     drop(h);
     let _ = std::fs::remove_dir_all(&dir);
 }

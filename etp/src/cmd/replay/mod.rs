@@ -753,6 +753,11 @@ fn write_verify(out: &mut String, v: &recording::VerifyReport) -> std::fmt::Resu
         v.episodes_incomplete,
         v.episodes_degraded_skipped
     )?;
+    writeln!(
+        out,
+        "  radio: {} transmission attempts re-drawn from the links' streams as recorded ({} lost)",
+        v.attempts_redrawn, v.lost_redrawn
+    )?;
     for m in &v.mismatches {
         writeln!(
             out,

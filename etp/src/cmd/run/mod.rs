@@ -78,8 +78,9 @@ pub struct Args {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
-    /// The radio (docs/MODEL.md §8); the multi-process runtime runs the
-    /// ideal radio only for now, and refuses a lossy one.
+    /// The radio (docs/MODEL.md §8), with `--scenario`/`--delta`: written
+    /// into the run's scenario text as its `[radio]` (every process and the
+    /// recording read that text).
     #[command(flatten)]
     pub radio: crate::input::RadioArgs,
     /// Kill everything and fail after this many seconds [default: 3600].
@@ -143,7 +144,8 @@ pub struct Args {
 }
 
 /// Why a completed run is not clean (empty: exit 0), checked leg by leg: a
-/// ledger must equal what the agent received on that leg; a missing ledger
+/// ledger's attempts must equal its delivered + lost (docs/MODEL.md §8), and
+/// its delivered what the agent received on that leg; a missing ledger
 /// is excused only for a sensor the run found dead (its episodes are then
 /// degraded), never for a live one.
 ///
@@ -151,8 +153,9 @@ pub struct Args {
 /// (the leg it died in, and its later legs): what the agent received on
 /// them is counted apart (`received_without_ledger`) and compared with
 /// nothing. Everything else is checked, dead sensor included: per leg
-/// ledger = received, and per sensor Σ ledgers (`transmitted`) = Σ received
-/// over the same legs (`received`), both equal to the sums of the episode
+/// attempts = delivered + lost and delivered = received, and per sensor the
+/// same over the sums (`transmitted`, `delivered`, `lost` of the ledgers,
+/// `received` over the same legs), each equal to the sums of the episode
 /// records. None of this is waived by `--allow-degraded`, which accepts the
 /// degraded episodes only.
 pub fn verdict(
@@ -174,11 +177,11 @@ pub fn verdict(
     for e in &report.episode_results {
         for l in &e.legs {
             let sensor = name(l.sensor);
-            match l.transmitted {
-                Some(t) if t != l.received => {
+            match (l.transmitted, l.delivered.or(l.transmitted), l.lost.unwrap_or(0)) {
+                (Some(t), Some(d), lost) if t != d + lost || d != l.received => {
                     unequal += 1;
                     first.get_or_insert(format!(
-                        "episode {} leg {}: sensor {sensor} ledger {t} ≠ agent received {}",
+                        "episode {} leg {}: sensor {sensor} ledger {t} attempts = {d} delivered + {lost} lost, agent received {}",
                         e.episode, l.leg, l.received
                     ));
                 }
@@ -197,7 +200,7 @@ pub fn verdict(
         v.push((
             EXIT_ACCOUNTING,
             format!(
-                "accounting mismatch: {unequal} leg(s) with ledger ≠ received, {lost} ledger(s) of live sensors missing (first: {})",
+                "accounting mismatch: {unequal} leg(s) with attempts ≠ delivered + lost or delivered ≠ received, {lost} ledger(s) of live sensors missing (first: {})",
                 first.unwrap_or_default()
             ),
         ));
@@ -210,22 +213,32 @@ pub fn verdict(
             .iter()
             .flat_map(|e| &e.legs)
             .filter(|l| l.sensor as usize == i);
-        let (mut led, mut got, mut unledgered) = (0u64, 0u64, 0u64);
+        let (mut led, mut delivered, mut lost, mut got, mut unledgered) = (0u64, 0, 0, 0, 0);
         for l in legs {
             match l.transmitted {
                 Some(x) => {
                     led += u64::from(x);
+                    delivered += u64::from(l.delivered.unwrap_or(x));
+                    lost += u64::from(l.lost.unwrap_or(0));
                     got += u64::from(l.received);
                 }
                 None => unledgered += u64::from(l.received),
             }
         }
-        if t.transmitted != t.received
-            || (t.transmitted, t.received, t.received_without_ledger) != (led, got, unledgered)
+        let mine = (
+            t.transmitted,
+            t.delivered,
+            t.lost,
+            t.received,
+            t.received_without_ledger,
+        );
+        if t.transmitted != t.delivered + t.lost
+            || t.delivered != t.received
+            || mine != (led, delivered, lost, got, unledgered)
         {
             totals.push(format!(
-                "sensor {}: ledgers {} vs received {} on legs with a ledger (+{} on legs without; episode records: {led} vs {got}, +{unledgered})",
-                t.name, t.transmitted, t.received, t.received_without_ledger
+                "sensor {}: ledgers {} attempts = {} delivered + {} lost vs received {} on legs with a ledger (+{} on legs without; episode records: {led} = {delivered} + {lost} vs {got}, +{unledgered})",
+                t.name, t.transmitted, t.delivered, t.lost, t.received, t.received_without_ledger
             ));
         }
     }
@@ -440,12 +453,7 @@ pub fn execute(a: &Args) -> Result<(serde_json::Value, Vec<(u8, String)>)> {
 /// report and stderr say why).
 pub fn run(a: Args) -> Result<()> {
     let a = config::resolve(a)?;
-    if a.radio.loss.is_some_and(|p| p != 0.0) {
-        bail!(
-            "--loss: the multi-process runtime does not simulate a lossy radio yet \
-             (use `etp validate` or `etp simulate` with --loss)"
-        );
-    }
+
     let stem = a.plot.then(|| plot_stem(&a));
     if let Some(stem) = &stem {
         for p in [stem.with_extension("png"), stem.with_extension("svg")] {
@@ -479,6 +487,9 @@ mod tests {
             steps: 10,
             received,
             transmitted,
+            delivered: transmitted,
+            lost: transmitted.map(|_| 0),
+            triggers: transmitted,
             slots: transmitted.map(|_| 10),
         }
     }
@@ -491,6 +502,9 @@ mod tests {
             SensorTotals {
                 name: name.into(),
                 transmitted: mine().filter_map(|l| l.transmitted).map(u64::from).sum(),
+                delivered: mine().filter_map(|l| l.delivered).map(u64::from).sum(),
+                lost: mine().filter_map(|l| l.lost).map(u64::from).sum(),
+                triggers: mine().filter_map(|l| l.triggers).map(u64::from).sum(),
                 received: mine()
                     .filter(|l| l.transmitted.is_some())
                     .map(|l| u64::from(l.received))
@@ -577,6 +591,33 @@ mod tests {
         assert_eq!(codes(&verdict(&r, true, true)), vec![EXIT_ACCOUNTING]);
     }
 
+    /// A lossy radio (docs/MODEL.md §8): attempts = delivered + lost and
+    /// delivered = received, per leg and in the totals.
+    #[test]
+    fn lost_attempts_are_counted_and_both_identities_are_checked() {
+        let lossy = |received: u32, attempts: u32, delivered: u32, lost: u32| LegRecord {
+            delivered: Some(delivered),
+            lost: Some(lost),
+            ..leg(0, received, Some(attempts))
+        };
+        let clean = report(vec![lossy(3, 5, 3, 2), leg(1, 0, Some(0))], false, None);
+        assert!(verdict(&clean, true, false).is_empty());
+        for (bad, what) in [
+            (lossy(3, 5, 3, 1), "attempts ≠ delivered + lost"),
+            (lossy(4, 5, 3, 2), "delivered ≠ received"),
+        ] {
+            let r = report(vec![bad, leg(1, 0, Some(0))], false, None);
+            let v = verdict(&r, true, true);
+            assert_eq!(codes(&v), vec![EXIT_ACCOUNTING], "{what}");
+        }
+        // Totals that drop the lost attempts fail though every leg holds.
+        let mut r = clean;
+        r.sensors[0].lost = 0;
+        let v = verdict(&r, true, true);
+        assert_eq!(codes(&v), vec![EXIT_ACCOUNTING]);
+        assert!(v[0].1.contains("in the totals"), "{}", v[0].1);
+    }
+
     #[test]
     fn a_dead_sensor_degrades_and_is_accepted_only_on_request() {
         let r = report(vec![leg(0, 3, Some(3)), leg(1, 1, None)], true, Some("s1"));
@@ -597,7 +638,7 @@ mod tests {
         let v = verdict(&r, true, true);
         assert_eq!(codes(&v), vec![EXIT_ACCOUNTING]);
         assert!(
-            v[0].1.contains("sensor s1: ledgers 0 vs received 7"),
+            v[0].1.contains("sensor s1: ledgers 0 attempts = 0 delivered + 0 lost vs received 7"),
             "{}",
             v[0].1
         );

@@ -118,16 +118,27 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         }
         text = clone_sensors(&text, k)?;
     }
+    if !a.radio.to_override().is_empty() {
+        if strategy_in.is_some() {
+            bail!(
+                "--loss/--retries/--burst/--estimator work with --scenario/--delta only (a \
+                 strategy is tied to its scenario's hash; `etp validate` evaluates it under any channel)"
+            );
+        }
+        text = crate::input::text_with_radio(&text, &a.radio).context("radio options")?;
+    }
     let scenario = Scenario::from_toml(&text).context("scenario")?;
-    // A strategy synthesized for a lossy channel carries it.
-    let scenario = match &strategy_in {
-        Some(st) => st.with_own_radio(scenario).context("strategy")?,
-        None => scenario,
-    };
-    if !scenario.radio.is_ideal() {
+    // The processes and the recording take the channel from the scenario
+    // text (its `[radio]`, docs/MODEL.md §8); a strategy synthesized for
+    // another channel (`etp synthesize --loss …`) cannot run yet.
+    if let Some(st) = &strategy_in
+        && st.with_own_radio(scenario.clone()).context("strategy")?.radio != scenario.radio
+    {
         bail!(
-            "the scenario's [radio] (or the strategy's) is lossy; the multi-process runtime runs the ideal radio only \
-             for now (use `etp validate` or `etp simulate`)"
+            "the strategy was synthesized for a channel other than its scenario's own [radio] \
+             (`etp synthesize --loss …`); `etp run` takes the channel from the scenario text: put it \
+             in the scenario's [radio] and synthesize from that file (`etp validate` evaluates the \
+             strategy under any channel)"
         );
     }
     if scenario.sensors.len() > MAX_SENSORS {

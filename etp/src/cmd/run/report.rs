@@ -31,7 +31,7 @@ fn estimates(s: &Supervised) -> Estimates {
 }
 
 /// Per sensor, what its link carried (derived from the run's counts: legs,
-/// handovers, slots, transmissions; `wire::traffic`).
+/// handovers, slots, delivered measurements; `wire::traffic`).
 fn expected_traffic(s: &Supervised) -> Vec<LinkTraffic> {
     let r = &s.report;
     (0..r.sensors.len())
@@ -47,7 +47,7 @@ fn expected_traffic(s: &Supervised) -> Vec<LinkTraffic> {
                 // A leg whose sensor was alive at its start got a handover.
                 handovers += u64::from(l.transmitted.is_some());
                 slots += u64::from(l.slots.unwrap_or(0));
-                sent += u64::from(l.transmitted.unwrap_or(0));
+                sent += u64::from(l.delivered.or(l.transmitted).unwrap_or(0));
             }
             LinkTraffic::expected(legs, handovers, slots, sent)
         })
@@ -75,7 +75,9 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         .zip(&plan.sensor_energy_per_episode)
         .zip(&traffic)
         .map(|((t, per_ep), link)| {
-            let mut v = json!({"name": t.name, "transmissions": t.transmitted, "received": t.received,
+            let mut v = json!({"name": t.name, "transmissions": t.transmitted,
+                   "delivered": t.delivered, "lost": t.lost, "triggers": t.triggers,
+                   "received": t.received,
                    "received_without_ledger": t.received_without_ledger,
                    "predicted_energy": crate::vocab::round_energy(per_ep * r.episodes as f64),
                    "energy": t.energy, "slots": t.slots, "missing_ledgers": t.missing_ledgers,
@@ -103,7 +105,10 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         "energy_mean": e.energy.value, "energy_mean_ci95": e.energy.ci95,
         "predicted": crate::vocab::prediction(&r.predicted),
         "transmissions": r.sensors.iter().map(|t| t.transmitted).sum::<u64>(),
+        "delivered": r.sensors.iter().map(|t| t.delivered).sum::<u64>(),
+        "lost": r.sensors.iter().map(|t| t.lost).sum::<u64>(),
         "received": r.sensors.iter().map(|t| t.received).sum::<u64>(),
+        "radio": plan.scenario.radio.describe(&plan.scenario.sensors.iter().map(|x| x.name.clone()).collect::<Vec<_>>()),
         "sensors": sensors,
         "predicted_energy_from": super::record::prediction_source(plan),
         "processes": s.processes.len(),
@@ -188,11 +193,11 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
         p.energy_mean
     );
     println!(
-        "  {:<8} {:>12} {:>12} {:>16}",
-        "sensor", "transmitted", "received", "predicted energy"
+        "  {:<8} {:>12} {:>10} {:>8} {:>10} {:>16}",
+        "sensor", "transmitted", "delivered", "lost", "received", "predicted energy"
     );
     for (t, per_ep) in r.sensors.iter().zip(&plan.sensor_energy_per_episode) {
-        let flag = if t.transmitted != t.received || t.missing_ledgers > 0 {
+        let flag = if t.delivered != t.received || t.missing_ledgers > 0 {
             format!(
                 "  ({} ledger(s) missing; +{} received on those legs, checked against nothing)",
                 t.missing_ledgers, t.received_without_ledger
@@ -201,9 +206,11 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
             String::new()
         };
         println!(
-            "  {:<8} {:>12} {:>12} {:>16.1}{flag}",
+            "  {:<8} {:>12} {:>10} {:>8} {:>10} {:>16.1}{flag}",
             t.name,
             t.transmitted,
+            t.delivered,
+            t.lost,
             t.received,
             per_ep * r.episodes as f64
         );

@@ -1,0 +1,123 @@
+//! The lossy, acknowledged radio (docs/MODEL.md §8) in the multi-process
+//! runtime: a scenario with a `[radio]`, run by the real processes and
+//! recorded; every count identity per leg and per sensor, the recording's
+//! attempts against the ledgers, and `replay --verify` re-drawing every loss.
+
+use super::recording::{out_file, python_json, replay};
+use super::{DELTA, assert_ledgers_match, serial};
+use etp_tests::{EtpRun, unique_run_id};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+/// winding-2d with every link lossy: loss 0.3, one retry, aware estimator.
+fn lossy_scenario(id: &str) -> PathBuf {
+    let text = etp_shared::scenario::builtin_text("winding-2d").expect("built-in");
+    let path = std::env::temp_dir().join(format!("etp-test-{id}.toml"));
+    std::fs::write(
+        &path,
+        format!("{text}\n[radio]\nloss = 0.3\nretries = 1\nestimator = \"aware\"\n"),
+    )
+    .expect("write scenario");
+    path
+}
+
+fn sum(v: &Value, k: &str) -> u64 {
+    v["sensors"]
+        .as_array()
+        .expect("sensors")
+        .iter()
+        .map(|s| s[k].as_u64().unwrap_or_else(|| panic!("no `{k}` in {s}")))
+        .sum()
+}
+
+/// Per-channel message counts of a recording, by the Python `mcap` reader,
+/// and the sum of `slot.attempts` decoded from the payload by the schema's
+/// `struct` format (header 32 B, then delivered u32, attempts u32).
+fn python_attempts(file: &Path) -> Value {
+    let script = r#"
+import sys, json, struct
+from mcap.reader import make_reader
+with open(sys.argv[1], "rb") as f:
+    r = make_reader(f)
+    counts, attempts, delivered = {}, 0, 0
+    for schema, channel, message in r.iter_messages():
+        counts[channel.topic] = counts.get(channel.topic, 0) + 1
+        if channel.topic == "slot":
+            d, a = struct.unpack_from("<II", message.data, 32)
+            attempts += a
+            delivered += d
+    print(json.dumps({"counts": counts, "attempts": attempts, "delivered": delivered}))
+"#;
+    python_json(script, file)
+}
+
+#[test]
+fn a_lossy_run_counts_attempts_delivered_and_lost_and_replay_redraws_every_loss() {
+    let _serial = serial();
+    let id = unique_run_id("lossy");
+    let scenario = lossy_scenario(&id);
+    let file = out_file(&id);
+    let (ok, out, err) = EtpRun::spawn(
+        &id,
+        &[
+            "--scenario",
+            &scenario.display().to_string(),
+            "--delta",
+            DELTA,
+            "--episodes",
+            "40",
+            "--seed",
+            "5",
+            "--record",
+            &file.display().to_string(),
+            "--episode-details",
+        ],
+    )
+    .finish();
+    assert!(ok, "etp run of a lossy scenario failed: {err}");
+    let v: Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("bad JSON ({e}): {out}"));
+    assert_ledgers_match(&v, false);
+    let (attempts, delivered, lost) = (
+        sum(&v, "transmissions"),
+        sum(&v, "delivered"),
+        sum(&v, "lost"),
+    );
+    assert_eq!(attempts, delivered + lost);
+    assert_eq!(sum(&v, "received"), delivered);
+    // loss 0.3 per attempt: between 20 % and 40 % of attempts lost (a
+    // binomial with thousands of attempts; ±6σ).
+    let rate = lost as f64 / attempts as f64;
+    assert!(attempts > 1000, "{attempts} attempts");
+    assert!((0.2..0.4).contains(&rate), "loss rate {rate}");
+    assert!(v["radio"].as_str().is_some_and(|r| r.contains("loss 0.3")), "{}", v["radio"]);
+    // One ACK per delivered measurement went down the radio.
+    let acks: u64 = v["recording"]["counts"]
+        .as_object()
+        .expect("counts")
+        .iter()
+        .filter(|(t, _)| t.ends_with("/ack"))
+        .map(|(_, n)| n.as_u64().expect("count"))
+        .sum();
+    assert_eq!(acks, delivered, "ACKs recorded");
+    // The file alone: four counts per sensor and both identities.
+    let r = replay(&[&file.display().to_string(), "--verify"]);
+    assert_eq!(r["identities_hold"].as_bool(), Some(true), "{r}");
+    assert_eq!(r["transmissions"].as_u64(), Some(attempts));
+    assert_eq!(r["delivered"].as_u64(), Some(delivered));
+    assert_eq!(r["lost"].as_u64(), Some(lost));
+    assert_eq!(r["measurements"].as_u64(), Some(delivered));
+    for s in r["sensors"].as_array().expect("sensors") {
+        assert_eq!(s["attempts_recorded"], s["transmissions"], "{s}");
+    }
+    // Every loss re-drawn, every belief reproduced with the aware update.
+    let verify = &r["verify"];
+    assert_eq!(verify["passed"].as_bool(), Some(true), "{verify}");
+    assert_eq!(verify["attempts_redrawn"].as_u64(), Some(attempts));
+    assert_eq!(verify["lost_redrawn"].as_u64(), Some(lost));
+    // The independent reader decodes the attempts from the schema's layout.
+    let py = python_attempts(&file);
+    assert_eq!(py["attempts"].as_u64(), Some(attempts));
+    assert_eq!(py["delivered"].as_u64(), Some(delivered));
+    let _ = std::fs::remove_file(&file);
+    let _ = std::fs::remove_file(&scenario);
+}
