@@ -220,8 +220,8 @@ fn synthetic() -> Contents {
     let slot = |e, k, sent| {
         enc(recording::encode(&s2a::Slot {
             header: h(e, k),
-            transmitted: sent,
-            _pad: 0,
+            delivered: sent,
+            attempts: sent,
             prior_digest: 0,
         }))
     };

@@ -185,7 +185,7 @@ pub fn verdict(
                         e.episode, l.leg, l.received
                     ));
                 }
-                None if !dead.contains(sensor.as_str()) => {
+                (None, _, _) if !dead.contains(sensor.as_str()) => {
                     lost += 1;
                     first.get_or_insert(format!(
                         "episode {} leg {}: no ledger from live sensor {sensor}",
