@@ -1,7 +1,8 @@
 //! A strategy synthesized for a lossy channel carries it (docs/MODEL.md §8):
 //! `validate` evaluates it under that channel by default and names both when
-//! told another (a robustness study), `run` refuses it while the runtime runs
-//! the ideal radio only, and `etp fronts` draws what the channel costs.
+//! told another (a robustness study), `run` refuses it (a run takes its
+//! channel from the scenario text: `etp scenario radio`), and `etp fronts`
+//! draws what the channel costs.
 
 use super::{Scratch, etp, fails_with, ok_json, s};
 
@@ -110,10 +111,11 @@ fn a_lossy_synthesis_is_recorded_validated_under_its_channel_and_drawn() {
         "{stdout}"
     );
 
-    // The runtime runs the ideal radio only: a lossy strategy is refused, by name.
+    // The runtime takes its channel from the scenario text: a strategy
+    // synthesized under options is refused, saying how to run one.
     fails_with(
         &["run", s(&strategy), "--episodes", "2"],
-        &["lossy", "etp validate"],
+        &["lossy", "etp scenario radio", "etp validate"],
     );
 
     // The figure: one curve per synthesis; least energy never decreases in P_tar.

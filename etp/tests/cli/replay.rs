@@ -255,9 +255,11 @@ fn edited_metadata_is_refused() {
             "scenario hash mismatch",
         ),
         (
+            // The recorded strategy's Δ: its seal (`content_sha256`) no
+            // longer matches.
             "delta",
             edit(b"\n    1.0518,\n", b"\n    3.5000,\n"),
-            "`deltas`",
+            "was changed after it was written",
         ),
     ] {
         let whole = dir.path(&format!("{name}.mcap"));

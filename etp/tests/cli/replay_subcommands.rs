@@ -303,6 +303,7 @@ fn readme_replay_commands(text: &str, file: &str) -> Vec<Vec<String>> {
                 match w {
                     "FILE"
                     | "out/w/run.mcap"
+                    | "out/lossy.mcap"
                     | "recordings/winding-2d-<run-id>.mcap"
                     | "crashed.mcap" => file.to_string(),
                     _ => w.replace("out/w/", "w-"),

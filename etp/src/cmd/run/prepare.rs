@@ -135,10 +135,10 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         && st.with_own_radio(scenario.clone()).context("strategy")?.radio != scenario.radio
     {
         bail!(
-            "the strategy was synthesized for a channel other than its scenario's own [radio] \
-             (`etp synthesize --loss …`); `etp run` takes the channel from the scenario text: put it \
-             in the scenario's [radio] and synthesize from that file (`etp validate` evaluates the \
-             strategy under any channel)"
+            "the strategy was synthesized for a lossy channel that is not its scenario's own \
+             [radio] (`etp synthesize --loss …`); `etp run` takes the channel from the scenario \
+             text: write it there (`etp scenario radio SCENARIO --loss …`) and synthesize from \
+             that file (`etp validate` evaluates this strategy under any channel)"
         );
     }
     if scenario.sensors.len() > MAX_SENSORS {
