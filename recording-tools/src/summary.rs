@@ -431,7 +431,14 @@ fn write_table(out: &mut String, file: &Path, c: &Contents, s: &Value) -> std::f
     writeln!(
         out,
         "  {:<10} {:>12} {:>12} {:>10} {:>8} {:>12} {:>12} {:>12}",
-        "sensor", "measurements", "attempts", "delivered", "lost", "received", "energy", "predicted"
+        "sensor",
+        "measurements",
+        "attempts",
+        "delivered",
+        "lost",
+        "received",
+        "energy",
+        "predicted"
     )?;
     if let Some(arr) = s.get("sensors").and_then(Value::as_array) {
         for x in arr {

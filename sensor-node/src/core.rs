@@ -647,7 +647,11 @@ mod tests {
             let d = slot(&mut c, episode, 0, k);
             reference.advance_to(u64::from(k));
             let t = reference.transmit();
-            assert_eq!((d.attempts, d.transmit.is_some()), (t.attempts, t.delivered), "step {k}");
+            assert_eq!(
+                (d.attempts, d.transmit.is_some()),
+                (t.attempts, t.delivered),
+                "step {k}"
+            );
             attempts += t.attempts;
             delivered += u32::from(t.delivered);
             lost += t.lost();
@@ -661,7 +665,10 @@ mod tests {
             agent = compiled.close_slot(0, &prior, outcome, beta);
         }
         // q = 0.25 per trigger: both fates occur in 60 triggers.
-        assert!(lost > 0 && delivered > 0, "{lost} lost, {delivered} delivered");
+        assert!(
+            lost > 0 && delivered > 0,
+            "{lost} lost, {delivered} delivered"
+        );
         let ControlAction::Ledger { ledger, energy } =
             c.on_threshold(&th(Threshold::CLOSE, episode, 0, delta))
         else {
@@ -694,7 +701,10 @@ mod tests {
         assert_eq!(c.on_ack(&other_run), Ok(()));
         assert!(matches!(
             c.on_ack(&ack(2, seq[1])),
-            Err(SlotError::UnexpectedAck { expected: Some((2, 1, _)), .. })
+            Err(SlotError::UnexpectedAck {
+                expected: Some((2, 1, _)),
+                ..
+            })
         ));
         assert_eq!(c.on_ack(&ack(1, seq[0])), Ok(()));
         assert_eq!(c.on_ack(&ack(2, seq[1])), Ok(()));

@@ -93,7 +93,10 @@ fn assert_ledgers_match(v: &Value, skip_degraded: bool) {
     if !skip_degraded {
         for (i, s) in v["sensors"].as_array().expect("sensors").iter().enumerate() {
             let t = per_sensor.get(&(i as u64)).copied().unwrap_or_default();
-            for (k, x) in ["transmissions", "delivered", "lost", "received"].iter().zip(t) {
+            for (k, x) in ["transmissions", "delivered", "lost", "received"]
+                .iter()
+                .zip(t)
+            {
                 assert_eq!(s[*k].as_u64(), Some(x), "{k}: {s}");
             }
         }

@@ -85,7 +85,9 @@ pub fn run(a: Args) -> Result<()> {
 
 fn radio(r: RadioTextArgs) -> Result<()> {
     if r.radio.to_override().is_empty() {
-        anyhow::bail!("give the channel: --loss P [--retries R] [--burst B] [--estimator aware|naive]");
+        anyhow::bail!(
+            "give the channel: --loss P [--retries R] [--burst B] [--estimator aware|naive]"
+        );
     }
     let text = crate::input::scenario_text(&r.scenario)?;
     let out = crate::input::text_with_radio(&text, &r.radio)?;

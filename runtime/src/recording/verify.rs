@@ -422,7 +422,11 @@ fn rerun<const N: usize>(
                 (0, false)
             } else {
                 let Some(ctrl) = &r.control else {
-                    return missing(leg, k, "no control recorded (the run's seed, for the radio)");
+                    return missing(
+                        leg,
+                        k,
+                        "no control recorded (the run's seed, for the radio)",
+                    );
                 };
                 let channel = channels.entry(sensor).or_insert_with(|| {
                     let rng = link_rng(ctrl.seed, streams::AGENT, episode, sensor as u64);

@@ -89,7 +89,11 @@ fn a_lossy_run_counts_attempts_delivered_and_lost_and_replay_redraws_every_loss(
     let rate = lost as f64 / attempts as f64;
     assert!(attempts > 1000, "{attempts} attempts");
     assert!((0.2..0.4).contains(&rate), "loss rate {rate}");
-    assert!(v["radio"].as_str().is_some_and(|r| r.contains("loss 0.3")), "{}", v["radio"]);
+    assert!(
+        v["radio"].as_str().is_some_and(|r| r.contains("loss 0.3")),
+        "{}",
+        v["radio"]
+    );
     // One ACK per delivered measurement went down the radio.
     let acks: u64 = v["recording"]["counts"]
         .as_object()

@@ -465,7 +465,11 @@ fn across_three_hosts(tag: &str, radio: Option<&str>) {
     let (attempts, delivered, lost) = (total("transmissions"), total("delivered"), total("lost"));
     assert!(delivered > 0, "{v}");
     assert_eq!(attempts, delivered + lost, "{v}");
-    assert_eq!(lost > 0, radio.is_some(), "losses exactly on a lossy radio: {v}");
+    assert_eq!(
+        lost > 0,
+        radio.is_some(),
+        "losses exactly on a lossy radio: {v}"
+    );
     // `measurements`: messages on the recorded channel; `transmissions`,
     // `delivered`, `lost`: the recorded ledgers; `received`: the agent's
     // counts in the outcomes.
@@ -476,7 +480,11 @@ fn across_three_hosts(tag: &str, radio: Option<&str>) {
     assert_eq!(r["received"].as_u64(), Some(delivered), "{r}");
     assert_eq!(r["identities_hold"].as_bool(), Some(true), "{r}");
     assert_eq!(r["verify"]["mismatch_count"].as_u64(), Some(0), "{r}");
-    assert_eq!(r["verify"]["attempts_redrawn"].as_u64(), Some(attempts), "{r}");
+    assert_eq!(
+        r["verify"]["attempts_redrawn"].as_u64(),
+        Some(attempts),
+        "{r}"
+    );
     drop(h);
     let _ = std::fs::remove_dir_all(&dir);
 }

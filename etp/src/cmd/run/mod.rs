@@ -177,7 +177,11 @@ pub fn verdict(
     for e in &report.episode_results {
         for l in &e.legs {
             let sensor = name(l.sensor);
-            match (l.transmitted, l.delivered.or(l.transmitted), l.lost.unwrap_or(0)) {
+            match (
+                l.transmitted,
+                l.delivered.or(l.transmitted),
+                l.lost.unwrap_or(0),
+            ) {
                 (Some(t), Some(d), lost) if t != d + lost || d != l.received => {
                     unequal += 1;
                     first.get_or_insert(format!(
@@ -638,7 +642,8 @@ mod tests {
         let v = verdict(&r, true, true);
         assert_eq!(codes(&v), vec![EXIT_ACCOUNTING]);
         assert!(
-            v[0].1.contains("sensor s1: ledgers 0 attempts = 0 delivered + 0 lost vs received 7"),
+            v[0].1
+                .contains("sensor s1: ledgers 0 attempts = 0 delivered + 0 lost vs received 7"),
             "{}",
             v[0].1
         );

@@ -132,7 +132,11 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
     // text (its `[radio]`, docs/MODEL.md §8); a strategy synthesized for
     // another channel (`etp synthesize --loss …`) cannot run yet.
     if let Some(st) = &strategy_in
-        && st.with_own_radio(scenario.clone()).context("strategy")?.radio != scenario.radio
+        && st
+            .with_own_radio(scenario.clone())
+            .context("strategy")?
+            .radio
+            != scenario.radio
     {
         bail!(
             "the strategy was synthesized for a lossy channel that is not its scenario's own \
