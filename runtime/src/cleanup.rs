@@ -1,8 +1,7 @@
 //! Removing iceoryx2 leftovers: a finished run's files, and stale runs whose
 //! processes all died (kill -9, crash) before they could clean up.
 
-use crate::wire::{ROOT_BASE, RunId, alive_nodes, config, remove_dead_nodes};
-use std::path::Path;
+use crate::wire::{ROOT_FOLDER, RunId, alive_nodes, config, remove_dead_nodes};
 
 /// Files in /dev/shm that belong to a run (its prefix).
 pub fn shm_files(run: &RunId) -> Vec<std::path::PathBuf> {
@@ -33,11 +32,15 @@ pub fn remove_run(run: &RunId) -> bool {
     true
 }
 
-/// Clean every stale run under [`ROOT_BASE`] (runs with no live node);
-/// returns the ids removed. Runs with a live node are left alone.
+/// Clean every stale run in the user's iceoryx2 folder ([`ROOT_FOLDER`] of
+/// `crate::folders`; nothing if it is not private) — runs with no live
+/// node; returns the ids removed. Runs with a live node are left alone.
 pub fn remove_stale_runs() -> Vec<String> {
     let mut removed = Vec::new();
-    let Ok(dir) = std::fs::read_dir(Path::new(ROOT_BASE)) else {
+    let Ok(base) = crate::folders::private(ROOT_FOLDER) else {
+        return removed;
+    };
+    let Ok(dir) = std::fs::read_dir(base) else {
         return removed;
     };
     for e in dir.filter_map(Result::ok) {

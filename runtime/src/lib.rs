@@ -21,13 +21,16 @@
 //!   codes ([`shell::main_with`]).
 //! * [`scenario_arg`] — a `SCENARIO` argument (built-in name or TOML path).
 //! * [`report`] — the coordinator's run report and a run's session info;
-//!   [`cleanup`] — removing what a run left in /dev/shm and its folder.
+//!   [`cleanup`] — removing what a run left in /dev/shm and its folder;
+//!   [`folders`] — the user's private folders (iceoryx2 roots, run folders),
+//!   created 0700 and checked without following links.
 //! * [`recording`] — the versioned MCAP recording: a sans-io reader
 //!   ([`recording::read_lenient`]), integrity checks (CRCs, scenario hash) and the
 //!   bit-for-bit re-simulation behind `replay --verify` ([`recording::verify`]),
 //!   which runs the same episode stepper as simulation and the agent.
 
 pub mod cleanup;
+pub mod folders;
 pub mod recording;
 pub mod report;
 pub mod scenario_arg;

@@ -568,6 +568,26 @@ mod tests {
         );
     }
 
+    /// The agent's step of leg 0 after slot decision `d`: its prior must be
+    /// the one the sensor's replica triggered on (the digest); then the
+    /// update with what reached the agent.
+    fn agents_step(
+        compiled: &CompiledScenario<2>,
+        agent: &Belief<2>,
+        d: &SlotDecision,
+        beta: f64,
+        k: u32,
+    ) -> Belief<2> {
+        let u = compiled.input(0, &agent.mean);
+        let prior = compiled.prior(agent, &u);
+        assert_eq!(d.prior_digest, belief_digest(&prior), "step {k}");
+        let outcome = match &d.transmit {
+            Some((y, _)) => SlotOutcome::Transmitted(&y[..]),
+            None => SlotOutcome::Silent,
+        };
+        compiled.close_slot(0, &prior, outcome, beta)
+    }
+
     /// The replica's priors are the agent's: the slot digests equal those of
     /// the priors `episode::step` computes from the same slot outcomes.
     #[test]
@@ -581,14 +601,7 @@ mod tests {
         let beta = compiled.silence_beta(0, 1.0);
         for k in 1..=10 {
             let d = slot(&mut c, 0, 0, k);
-            let u = compiled.input(0, &agent.mean);
-            let prior = compiled.prior(&agent, &u);
-            assert_eq!(d.prior_digest, belief_digest(&prior), "step {k}");
-            let outcome = match &d.transmit {
-                Some((y, _)) => SlotOutcome::Transmitted(&y[..]),
-                None => SlotOutcome::Silent,
-            };
-            agent = compiled.close_slot(0, &prior, outcome, beta);
+            agent = agents_step(&compiled, &agent, &d, beta, k);
         }
     }
 
@@ -655,14 +668,7 @@ mod tests {
             attempts += t.attempts;
             delivered += u32::from(t.delivered);
             lost += t.lost();
-            let u = compiled.input(0, &agent.mean);
-            let prior = compiled.prior(&agent, &u);
-            assert_eq!(d.prior_digest, belief_digest(&prior), "step {k}");
-            let outcome = match &d.transmit {
-                Some((y, _)) => SlotOutcome::Transmitted(&y[..]),
-                None => SlotOutcome::Silent,
-            };
-            agent = compiled.close_slot(0, &prior, outcome, beta);
+            agent = agents_step(&compiled, &agent, &d, beta, k);
         }
         // q = 0.25 per trigger: both fates occur in 60 triggers.
         assert!(

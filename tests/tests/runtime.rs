@@ -32,6 +32,9 @@ mod remote;
 #[path = "runtime/lossy.rs"]
 mod lossy;
 
+#[path = "runtime/folders.rs"]
+mod folders;
+
 const DELTA: &str = "1.4986";
 
 /// Multi-process runs take both cores; run them one at a time so the timing

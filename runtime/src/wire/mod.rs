@@ -53,7 +53,7 @@ pub use ports::{
     DEAD_NOTIFIER_EVENT, Event, Listener, Notifier, PortError, Ports, Pub, PubSub, Sub, open_event,
     open_pubsub,
 };
-pub use run_id::{IPC_DOMAIN_ENV, ROOT_BASE, RunId, config};
+pub use run_id::{IPC_DOMAIN_ENV, ROOT_FOLDER, RunId, config};
 pub use waiter::{Stamper, Waiter, Wake, Watchdog, note_termination, termination_requested};
 
 use etp_shared::etkf::{Belief, Matrix, Vector};

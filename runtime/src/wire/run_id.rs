@@ -7,8 +7,9 @@ use iceoryx2::config::Config;
 use iceoryx2::prelude::*;
 use std::path::PathBuf;
 
-/// Folder under which every run keeps its iceoryx2 root (`<base>/<run-id>/`).
-pub const ROOT_BASE: &str = "/tmp/etp-iox2";
+/// Folder of the user's private base (`crate::folders`) under which every
+/// run keeps its iceoryx2 root (`<base>/iox2/<run-id>/`).
+pub const ROOT_FOLDER: &str = "iox2";
 
 /// A run id: 1–40 characters of `[a-z0-9-]`. It names the services
 /// (`etp/<run-id>/…`), the shared-memory prefix and the root folder, so two
@@ -103,9 +104,12 @@ impl RunId {
         format!("etp_{}_", self.local_name())
     }
 
-    /// The run's iceoryx2 root folder.
+    /// The run's iceoryx2 root folder, in the user's private folder
+    /// ([`config`] creates and checks that folder).
     pub fn root_dir(&self) -> PathBuf {
-        PathBuf::from(ROOT_BASE).join(self.local_name())
+        crate::folders::base()
+            .join(ROOT_FOLDER)
+            .join(self.local_name())
     }
 }
 
@@ -116,8 +120,11 @@ impl std::fmt::Display for RunId {
 }
 
 /// The iceoryx2 configuration of a run: its own prefix and root path, built in
-/// code (no config file is read, whatever the working directory).
+/// code (no config file is read, whatever the working directory). The root
+/// lies in the user's private folder, created and checked here (a planted
+/// link or a folder of another user is refused, never followed).
 pub fn config(run: &RunId) -> Result<Config, WireError> {
+    crate::folders::private(ROOT_FOLDER).map_err(|e| WireError::Config(e.to_string()))?;
     let mut cfg = Config::default();
     cfg.global.prefix = FileName::new(run.shm_prefix().as_bytes())
         .map_err(|e| WireError::Config(format!("prefix: {e:?}")))?;

@@ -1,6 +1,6 @@
-//! The run's private folder (`$TMPDIR/etp-run/<run-id>/`: the scenario,
-//! strategy and recording metadata its processes read), owned by exactly one
-//! live `etp run`.
+//! The run's folder (`<private>/run/<run-id>/` in the user's private folder
+//! of `etp_runtime::folders`: the scenario, strategy and recording metadata
+//! its processes read), owned by exactly one live `etp run`.
 //!
 //! The owner holds an exclusive lock on `<folder>/owner.lock` for the whole
 //! run. The kernel drops the lock when the owner dies, kill -9 included, so
@@ -24,21 +24,23 @@ const LOCK: &str = "owner.lock";
 const GUARD: &str = ".guard";
 
 /// The base-wide lock that serialises claims and sweeps (see module doc).
-fn guard() -> std::io::Result<File> {
-    let base = base();
-    std::fs::create_dir_all(&base)?;
+fn guard() -> Result<File> {
+    let base = base()?;
     let g = OpenOptions::new()
         .create(true)
         .truncate(false)
         .write(true)
-        .open(base.join(GUARD))?;
-    g.lock()?;
+        .open(base.join(GUARD))
+        .with_context(|| format!("creating {}", base.join(GUARD).display()))?;
+    g.lock()
+        .with_context(|| format!("locking {}", base.join(GUARD).display()))?;
     Ok(g)
 }
 
-/// Where every run keeps its folder.
-pub fn base() -> PathBuf {
-    std::env::temp_dir().join("etp-run")
+/// Where every run of this user keeps its folder (created 0700 and checked:
+/// a planted link or a foreign folder is refused, never followed).
+pub fn base() -> Result<PathBuf> {
+    Ok(etp_runtime::folders::private("run")?)
 }
 
 /// A claimed run folder; removed on [`RunDir::remove`] (or by the next start
@@ -69,9 +71,8 @@ impl RunDir {
     /// Create and lock the folder of `run`; refused if another live run
     /// (a locked folder, or live iceoryx2 nodes) uses this id.
     pub fn claim(run: &RunId) -> Result<Self> {
-        let _guard =
-            guard().with_context(|| format!("locking {}", base().join(GUARD).display()))?;
-        let path = base().join(run.as_str());
+        let _guard = guard()?;
+        let path = base()?.join(run.as_str());
         std::fs::create_dir_all(&path).with_context(|| format!("creating {}", path.display()))?;
         let lock =
             open_lock(&path).with_context(|| format!("creating {}", path.join(LOCK).display()))?;
@@ -110,7 +111,7 @@ pub fn remove_stale() -> Vec<String> {
     let Ok(_guard) = guard() else {
         return removed;
     };
-    let Ok(dir) = std::fs::read_dir(base()) else {
+    let Ok(dir) = base().and_then(|b| Ok(std::fs::read_dir(b)?)) else {
         return removed;
     };
     for e in dir.filter_map(Result::ok) {
