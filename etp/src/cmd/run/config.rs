@@ -1,6 +1,7 @@
 //! `etp run --config RUN.toml`: the launch file of a run. Its keys are the
 //! long flags of `etp run` (`strategy` or `scenario` + `delta`, `episodes`,
-//! `seed`, `record`, `slot_deadline`, `listen` + `remote` sensors, …); a flag
+//! `seed`, `record`, `slot_deadline`, `listen` + `remote` sensors, the radio
+//! `loss`, `retries`, `burst`, `estimator`, …); a flag
 //! given on the command line
 //! wins over the file. Relative paths in the file are relative to the file.
 //! The resolved configuration of every run — file or flags — is stored in the
@@ -64,6 +65,16 @@ pub struct RunConfig {
     pub remote: Option<Vec<String>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub join_timeout: Option<f64>,
+    /// The radio options (`--loss`, `--retries`, `--burst`, `--estimator`,
+    /// docs/MODEL.md §8), written into the run's scenario text.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loss: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub retries: Option<i64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub burst: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub estimator: Option<String>,
 }
 
 /// Read a run file (errors name the file and the key).
@@ -119,6 +130,10 @@ pub fn resolve(mut a: Args) -> Result<Args> {
             a.remote = c.remote.unwrap_or_default();
         }
         a.join_timeout = a.join_timeout.or(c.join_timeout);
+        a.radio.loss = a.radio.loss.or(c.loss);
+        a.radio.retries = a.radio.retries.or(c.retries);
+        a.radio.burst = a.radio.burst.or(c.burst);
+        a.radio.estimator = a.radio.estimator.or(c.estimator);
         if a.listen.is_some() == a.remote.is_empty() {
             bail!(
                 "run file {}: `listen` and `remote` go together (sensors served from other hosts)",
@@ -194,6 +209,10 @@ pub fn of_args(a: &Args, record: Option<&Path>) -> RunConfig {
         listen: a.listen.clone(),
         remote: (!a.remote.is_empty()).then(|| a.remote.clone()),
         join_timeout: a.join_timeout,
+        loss: a.radio.loss,
+        retries: a.radio.retries,
+        burst: a.radio.burst,
+        estimator: a.radio.estimator.clone(),
     }
 }
 
@@ -207,9 +226,14 @@ mod tests {
             scenario: Some("open-2d".into()),
             delta: Some(1.0518),
             episodes: Some(50),
+            // A lossy run keeps its channel in the stored run file.
+            loss: Some(0.3),
+            retries: Some(1),
+            estimator: Some("aware".into()),
             ..RunConfig::default()
         };
         let text = toml::to_string(&c).expect("toml");
+        assert!(text.contains("loss = 0.3"), "{text}");
         assert_eq!(toml::from_str::<RunConfig>(&text).expect("back"), c);
         let e = toml::from_str::<RunConfig>("episodez = 3").expect_err("unknown key");
         assert!(e.to_string().contains("episodez"), "{e}");
