@@ -76,6 +76,24 @@ impl Drop for Scratch {
     }
 }
 
+/// The iceoryx2 run a test publishes on (`--run-id`): whatever its
+/// processes left (the `global_mgmt` file in /dev/shm, the run's root
+/// folder) is removed when the test ends, passed or failed.
+struct RunLeftovers(String);
+impl RunLeftovers {
+    /// A run id of this test process's own, `<tag><pid>`.
+    fn new(tag: &str) -> Self {
+        Self(format!("{tag}{}", std::process::id()))
+    }
+}
+impl Drop for RunLeftovers {
+    fn drop(&mut self) {
+        if let Ok(run) = etp_runtime::wire::RunId::new(&self.0) {
+            etp_runtime::cleanup::remove_run(&run);
+        }
+    }
+}
+
 fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
 }

@@ -102,7 +102,8 @@ fn every_command_of_the_readme_runs() {
     );
     // The README's placeholders: the recording of the example session, and
     // a run id of this test's own for the publish recipe.
-    let copy = format!("readme{}", std::process::id());
+    let leftovers = super::RunLeftovers::new("readme");
+    let copy = leftovers.0.clone();
     let mut ran = 0;
     for block in &blocks {
         let mut script = String::from("set -e\n");

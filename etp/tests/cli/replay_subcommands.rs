@@ -322,6 +322,8 @@ fn every_replay_command_of_the_readmes_runs() {
     let dir = Scratch::new("replay-readme");
     let rec = dir.path("run.mcap");
     std::fs::copy(fixture(), &rec).expect("copy");
+    // `--run-id copy`: a run id of this test's own, cleaned up at the end.
+    let copy = super::RunLeftovers::new("replaycmds");
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let mut ran = 0;
     for readme in ["README.md", "recordings/README.md"] {
@@ -329,7 +331,7 @@ fn every_replay_command_of_the_readmes_runs() {
         for mut args in readme_replay_commands(&text, s(&rec)) {
             for a in &mut args {
                 if a == "copy" {
-                    *a = format!("readme{}", std::process::id());
+                    *a = copy.0.clone();
                 }
             }
             let out = Command::new(env!("CARGO_BIN_EXE_etp"))
