@@ -27,7 +27,7 @@ use etp_runtime::wire::{ThresholdKind, WireVec, belief_from_wire, to_wire_vec, v
 use etp_shared::episode::{CompiledScenario, LegReplica, SlotOutcome, belief_digest};
 use etp_shared::etkf::{EtKalmanFilter, Vector};
 use etp_shared::radio::{LinkChannel, Transmission};
-use etp_shared::rng::{link_rng, stream_rng, streams};
+use etp_shared::rng::{stream_rng, streams};
 use std::collections::VecDeque;
 
 /// What the sensor spent on one leg.
@@ -303,10 +303,13 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
             let channel = match &mut self.channel {
                 Some((e, c)) if *e == episode => c,
                 slot => {
-                    let index = u64::from(self.index);
-                    let link = scenario.radio.link(self.index as usize);
-                    let rng = link_rng(seed, streams::AGENT, episode, index);
-                    &mut slot.insert((episode, LinkChannel::new(link, rng))).1
+                    let c = etp_runtime::wire::link_channel(
+                        &scenario.radio,
+                        seed,
+                        episode,
+                        self.index as usize,
+                    );
+                    &mut slot.insert((episode, c)).1
                 }
             };
             channel.advance_to(u64::from(step));
@@ -388,6 +391,7 @@ mod tests {
     use super::*;
     use etp_runtime::wire::{Header, belief_to_wire};
     use etp_shared::etkf::{Belief, Matrix};
+    use etp_shared::rng::link_rng;
     use etp_shared::scenario::Scenario;
 
     const TAG: u64 = 7;

@@ -36,7 +36,6 @@ use crate::wire::{WireMat, WireVec, belief_to_wire};
 use etp_shared::episode::{CompiledScenario, SlotOutcome, belief_digest};
 use etp_shared::etkf::Belief;
 use etp_shared::radio::LinkChannel;
-use etp_shared::rng::{link_rng, streams};
 use etp_shared::scenario::Scenario;
 use std::collections::BTreeMap;
 
@@ -429,8 +428,7 @@ fn rerun<const N: usize>(
                     );
                 };
                 let channel = channels.entry(sensor).or_insert_with(|| {
-                    let rng = link_rng(ctrl.seed, streams::AGENT, episode, sensor as u64);
-                    LinkChannel::new(c.radio.link(sensor), rng)
+                    crate::wire::link_channel(&c.radio, ctrl.seed, episode, sensor)
                 });
                 channel.advance_to(u64::from(k));
                 let t = channel.transmit();
