@@ -8,10 +8,10 @@
 //! coordinator's existing dead-link detection (the node list) sees a
 //! killed host or a cut link like a dead local sensor, within the link lease.
 
+use crate::admit::{Admission, Admitted};
 use crate::forward::{Counters, Inbound, Incoming, Outbound, subscribe};
 use crate::session::{SESSION_KEY, SessionInfo, agent_host_alive_key, config, data_keys};
 use crate::{BridgeError, emit};
-use etp_runtime::recording::Recorded;
 use etp_runtime::wire::to_coordinator::Hello;
 use etp_runtime::wire::traffic::Direction;
 use etp_runtime::wire::{
@@ -100,7 +100,8 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let hello = open_pubsub::<Hello>(&node, &run, ServiceId::Hello, sensors)?;
     let remote: BTreeSet<usize> = info.remote.iter().copied().collect();
     let mut proxies: BTreeMap<usize, Node<ipc::Service>> = BTreeMap::new();
-    let mut hellos: Vec<(Recorded, usize)> = Vec::new();
+    let mut hellos: Vec<Admitted> = Vec::new();
+    let mut admission = Admission::towards_agent(run.tag(), &info.remote);
     let mut said_hello = BTreeSet::new();
     let mut ready = false;
     let started = Instant::now();
@@ -136,19 +137,20 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
             && wire::liveness(node.config(), COORDINATOR_NODE) == Liveness::Alive
             && hello.dynamic_config().number_of_subscribers() >= wire::hello_readers(node.config())
         {
-            for (r, bytes) in hellos.drain(..) {
-                inbound.deliver(ServiceId::Hello, r, bytes, &counters)?;
+            for m in hellos.drain(..) {
+                inbound.deliver(m, &counters)?;
             }
         }
         let wait = if hellos.is_empty() { 100 } else { 5 };
         match rx.recv_timeout(Duration::from_millis(wait)) {
             Ok(Incoming::Data { key, bytes }) => {
-                let (s, r) = inbound.decode(&key, &bytes)?;
-                if s == ServiceId::Hello {
-                    said_hello.insert(r.header().sender as usize);
-                    hellos.push((r, bytes.len()));
-                } else {
-                    inbound.deliver(s, r, bytes.len(), &counters)?;
+                for m in inbound.receive(&mut admission, &key, &bytes) {
+                    if m.service == ServiceId::Hello {
+                        said_hello.insert(m.message.header().sender as usize);
+                        hellos.push(m);
+                    } else {
+                        inbound.deliver(m, &counters)?;
+                    }
                 }
             }
             Ok(Incoming::Alive { key, alive }) => {
@@ -175,6 +177,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let out = outbound
         .join()
         .map_err(|_| BridgeError::Wire("the outbound thread panicked".into()))?;
+    crate::emit_refused(&admission, &info.sensors);
     crate::emit_traffic(&counters, &info.sensors);
     drop(proxies);
     result.and(out)

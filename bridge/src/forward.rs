@@ -8,6 +8,7 @@
 //! measured traffic, radio and plumbing, in each direction.
 
 use crate::BridgeError;
+use crate::admit::{Admission, Admitted, Refusal};
 use crate::session::{data_key, topic_of_key};
 use etp_runtime::recording::{
     self,
@@ -37,6 +38,9 @@ fn count(counters: &Counters, s: ServiceId, h: &Header, bytes: usize) {
             .add(s, 1, bytes as u64);
     }
 }
+
+/// Refusals logged per reason (all are counted).
+const LOGGED_REFUSALS: u64 = 10;
 
 /// How often the outbound loop looks at its stop flag without a wake-up.
 const TICK: Duration = Duration::from_millis(100);
@@ -194,27 +198,51 @@ impl Inbound {
         Ok(Self { publishers, wakes })
     }
 
-    /// Decode a sample of `key`; its service and payload (not delivered yet).
-    pub fn decode(
-        &self,
-        key: &str,
-        bytes: &[u8],
-    ) -> Result<(ServiceId, recording::Recorded), BridgeError> {
-        let topic = topic_of_key(key).ok_or_else(|| BridgeError::Protocol(format!("key {key}")))?;
-        let s = recording::service_of_topic(topic)
+    /// Decode a sample of `key` (not delivered yet); garbage, or a key of
+    /// no service this end delivers, is refused.
+    pub fn decode(&self, key: &str, bytes: &[u8]) -> Result<Admitted, Refusal> {
+        let s = topic_of_key(key)
+            .and_then(recording::service_of_topic)
             .filter(|s| self.publishers.contains_key(s))
-            .ok_or_else(|| BridgeError::Protocol(format!("no local service for {key}")))?;
-        Ok((s, recording::decode(topic, bytes)?))
+            .ok_or(Refusal::UnknownKey)?;
+        let topic = topic_of_key(key).ok_or(Refusal::UnknownKey)?;
+        let message = recording::decode(topic, bytes).map_err(|_| Refusal::Malformed)?;
+        Ok(Admitted {
+            service: s,
+            message,
+            bytes: bytes.len(),
+        })
+    }
+
+    /// Decode and check a sample: the messages now deliverable, in order.
+    /// A refused one is counted in `admission`, logged (the first few of
+    /// each reason, with its key) and dropped: never an error.
+    pub fn receive(&self, admission: &mut Admission, key: &str, bytes: &[u8]) -> Vec<Admitted> {
+        let r = match self.decode(key, bytes) {
+            Ok(m) => admission.admit(m),
+            Err(r) => Err(admission.refuse(r)),
+        };
+        r.unwrap_or_else(|r| {
+            let n = admission.refused().get(&r).copied().unwrap_or(0);
+            if n <= LOGGED_REFUSALS {
+                tracing::warn!(
+                    key,
+                    bytes = bytes.len(),
+                    reason = r.name(),
+                    "refused a message from the link"
+                );
+            }
+            Vec::new()
+        })
     }
 
     /// Publish a decoded payload on its service and wake its reader; counted.
-    pub fn deliver(
-        &self,
-        s: ServiceId,
-        r: recording::Recorded,
-        bytes: usize,
-        counters: &Counters,
-    ) -> Result<(), BridgeError> {
+    pub fn deliver(&self, m: Admitted, counters: &Counters) -> Result<(), BridgeError> {
+        let Admitted {
+            service: s,
+            message: r,
+            bytes,
+        } = m;
         let h = *r.header();
         let publisher = self
             .publishers

@@ -12,6 +12,11 @@
 //!   wake-up events, Zenoh → iceoryx2 with the reader's wake-up; the bytes
 //!   on the wire are the recording's encoding; per-sensor traffic counted as
 //!   radio or plumbing.
+//! * [`admit`] — what may come in from the link: a sample decodes, carries
+//!   this run's tag, comes from its kind's owner about a sensor this link
+//!   carries and, towards the agent, is its sensor's next message (each
+//!   sensor's messages reach the agent in the order it sent them). Anything
+//!   else is refused, counted and dropped.
 //! * [`agent_host`] — `etp-bridge agent-host` (started by `etp run --listen`):
 //!   waits for the remote sensors, then forwards; a remote sensor's
 //!   liveliness is mirrored by a proxy iceoryx2 node, so its death is a dead
@@ -21,8 +26,10 @@
 //!   mirrored by proxies of the coordinator and agent nodes.
 //!
 //! The bridge prints one JSON object per line on stdout for its parent
-//! (`ready`, `joined`, `lost`, `agent-host-gone`, and `traffic` at the end).
+//! (`ready`, `joined`, `lost`, `agent-host-gone`, and `refused` and `traffic`
+//! at the end).
 
+pub mod admit;
 pub mod agent_host;
 pub mod forward;
 pub mod sensor_host;
@@ -54,6 +61,27 @@ pub enum BridgeError {
 pub fn emit(v: &serde_json::Value) {
     let mut out = std::io::stdout().lock();
     let _ = writeln!(out, "{v}").and_then(|()| out.flush());
+}
+
+/// The `refused` line: what this end refused from the link, by reason; per
+/// sensor the messages still held for an earlier one that never came; and
+/// how many messages overtook an earlier one and were put back in order.
+pub fn emit_refused(admission: &admit::Admission, names: &[String]) {
+    let name = |i: usize| names.get(i).cloned().unwrap_or_else(|| format!("#{i}"));
+    let counts: serde_json::Map<String, serde_json::Value> = admission
+        .refused()
+        .iter()
+        .map(|(r, n)| (r.name().to_string(), serde_json::json!(n)))
+        .collect();
+    let held: serde_json::Map<String, serde_json::Value> = admission
+        .held()
+        .into_iter()
+        .map(|(i, n)| (name(i), serde_json::json!(n)))
+        .collect();
+    emit(
+        &serde_json::json!({"event": "refused", "counts": counts, "held": held,
+        "reordered": admission.reordered()}),
+    );
 }
 
 /// The final `traffic` line: per sensor name, what this end carried.

@@ -7,6 +7,7 @@
 //! proxies of the coordinator and agent on this host go, and the local
 //! sensors see their coordinator gone and exit.
 
+use crate::admit::Admission;
 use crate::forward::{Counters, Inbound, Incoming, Outbound, subscribe};
 use crate::session::{SESSION_KEY, SessionInfo, agent_host_alive_key, config, sensor_alive_key};
 use crate::{BridgeError, emit};
@@ -142,6 +143,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         tx.clone(),
     )?;
     let counters = Counters::default();
+    let mut admission = Admission::towards_sensors(run.tag(), &served);
     let stop = Arc::new(AtomicBool::new(false));
     let (ready_tx, ready_rx) = std::sync::mpsc::channel::<()>();
     let hello_tx = tx.clone();
@@ -204,8 +206,9 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                 tokens.insert(i, t);
             }
             Ok(Incoming::Data { key, bytes }) => {
-                let (s, r) = inbound.decode(&key, &bytes)?;
-                inbound.deliver(s, r, bytes.len(), &counters)?;
+                for m in inbound.receive(&mut admission, &key, &bytes) {
+                    inbound.deliver(m, &counters)?;
+                }
             }
             Ok(Incoming::Alive { alive: true, .. }) => {}
             Ok(Incoming::Alive { alive: false, .. }) => {
@@ -224,6 +227,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let out = outbound
         .join()
         .map_err(|_| BridgeError::Wire("the outbound thread panicked".into()))?;
+    crate::emit_refused(&admission, &info.sensors);
     crate::emit_traffic(&counters, &info.sensors);
     result.and(out)
 }

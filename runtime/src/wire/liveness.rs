@@ -6,6 +6,7 @@ use super::{RunId, WireError, config};
 use iceoryx2::config::Config;
 use iceoryx2::node::NodeView;
 use iceoryx2::prelude::*;
+use std::time::Duration;
 
 /// Node names of the run's processes (used for liveness checks).
 pub const COORDINATOR_NODE: &str = "etp-coordinator";
@@ -68,6 +69,7 @@ fn node_state(cfg: &Config, name: &str, cleanup: bool) -> Liveness {
             NodeState::Dead(view) if named(view.details()) => {
                 found = Liveness::Dead;
                 if cleanup {
+                    remove_abandoned_storage(cfg);
                     let _ = view.try_remove_stale_resources();
                 }
             }
@@ -80,6 +82,7 @@ fn node_state(cfg: &Config, name: &str, cleanup: bool) -> Liveness {
 
 /// Remove what dead nodes of a run left behind; returns how many were removed.
 pub fn remove_dead_nodes(cfg: &Config) -> usize {
+    remove_abandoned_storage(cfg);
     let mut removed = 0;
     let _ = Node::<ipc::Service>::list(cfg, |state| {
         if let NodeState::Dead(view) = state
@@ -102,4 +105,87 @@ pub fn alive_nodes(cfg: &Config) -> usize {
         CallbackProgression::Continue
     });
     alive
+}
+
+/// How long a run's shared-memory file may stay empty before it counts as
+/// abandoned: iceoryx2 sizes a new one right after creating it (within
+/// microseconds), so one still empty after this was left by a process killed
+/// in between.
+pub const ABANDONED_AFTER: Duration = Duration::from_secs(2);
+
+/// Remove the run's shared-memory files (`/dev/shm/<prefix>…`) that are empty
+/// and older than [`ABANDONED_AFTER`]; returns how many.
+///
+/// Why: iceoryx2 0.10 opens a service's dynamic configuration in a loop
+/// that retries a zero-size mapping without a deadline, and as root (who
+/// may open the creator's write-only file) the removal of a dead node's
+/// resources then waits forever on a service its process was killed while
+/// creating. That hung every later sweep of the stale run, and with it
+/// every later `etp run` on the machine. So every removal of dead nodes'
+/// resources ([`remove_dead_nodes`], [`liveness`]) runs this first.
+pub fn remove_abandoned_storage(cfg: &Config) -> usize {
+    let prefix = String::from_utf8_lossy(cfg.global.prefix.as_bytes()).into_owned();
+    let Ok(dir) = std::fs::read_dir("/dev/shm") else {
+        return 0;
+    };
+    let mut removed = 0;
+    for e in dir.filter_map(Result::ok) {
+        if !e.file_name().to_string_lossy().starts_with(&prefix) {
+            continue;
+        }
+        // The entry itself (never a link's target): an empty regular file.
+        let Ok(m) = e.metadata() else { continue };
+        let old = m
+            .modified()
+            .ok()
+            .and_then(|t| t.elapsed().ok())
+            .is_some_and(|age| age >= ABANDONED_AFTER);
+        if m.is_file() && m.len() == 0 && old && std::fs::remove_file(e.path()).is_ok() {
+            tracing::warn!(file = %e.path().display(), "removed an empty shared-memory file a killed process left half-made");
+            removed += 1;
+        }
+    }
+    removed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_old_empty_files_of_the_run_are_abandoned() {
+        let run = RunId::new(&format!("unit-abandoned-{}", std::process::id())).expect("id");
+        let cfg = config(&run).expect("config");
+        let prefix = run.shm_prefix();
+        let path = |name: &str| std::path::PathBuf::from(format!("/dev/shm/{prefix}{name}"));
+        let long_ago = std::time::SystemTime::now() - Duration::from_secs(60);
+        let make = |name: &str, bytes: &[u8], old: bool| {
+            std::fs::write(path(name), bytes).expect("shm file");
+            if old {
+                let f = std::fs::File::options()
+                    .write(true)
+                    .open(path(name))
+                    .expect("open");
+                f.set_modified(long_ago).expect("mtime");
+            }
+        };
+        make("half.dynamic", b"", true);
+        make("new.dynamic", b"", false);
+        make("full.dynamic", b"x", true);
+        // Another run's empty file is not this run's business.
+        let other = format!("/dev/shm/etp_unit-other-{}_x.dynamic", std::process::id());
+        std::fs::write(&other, b"").expect("other");
+        std::fs::File::options()
+            .write(true)
+            .open(&other)
+            .and_then(|f| f.set_modified(long_ago))
+            .expect("mtime");
+        assert_eq!(remove_abandoned_storage(&cfg), 1);
+        assert!(!path("half.dynamic").exists());
+        assert!(path("new.dynamic").exists() && path("full.dynamic").exists());
+        assert!(std::path::Path::new(&other).exists());
+        for f in [path("new.dynamic"), path("full.dynamic"), other.into()] {
+            let _ = std::fs::remove_file(f);
+        }
+    }
 }

@@ -224,6 +224,71 @@ fn a_run_id_in_use_is_refused_clearly_and_too_many_sensors_too() {
     );
 }
 
+/// A process killed while creating a service leaves an empty, write-only
+/// shared-memory file. iceoryx2 0.10, removing the dead node's resources as
+/// root, then retries opening it forever: the next `etp run`'s sweep of stale
+/// runs (and a test's own cleanup) hung on it, a CI run among them. The
+/// half-made file is reproduced here on a killed run; the next run must
+/// sweep it and finish.
+#[test]
+fn a_service_left_half_made_by_a_killed_process_does_not_hang_the_next_run() {
+    use std::os::unix::fs::PermissionsExt;
+    let _serial = serial();
+    let id = unique_run_id("half");
+    let mut first = spawn(&id, &winding("100000", "1"));
+    wait_for_process(&id, "etp-agent", None);
+    std::thread::sleep(Duration::from_millis(500));
+    // kill -9 of everyone: the run's files stay for the next start.
+    kill("-KILL", &first.pid().to_string());
+    for (pid, _) in processes_of_run(&id) {
+        kill("-KILL", &pid.to_string());
+    }
+    if let Some(mut c) = first.child.take() {
+        let _ = c.wait();
+    }
+    for _ in 0..250 {
+        if processes_of_run(&id).is_empty() {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let run = etp_runtime::wire::RunId::new(&id).expect("id");
+    let dynamic = etp_runtime::cleanup::shm_files(&run)
+        .into_iter()
+        .find(|f| f.extension().is_some_and(|e| e == "dynamic"))
+        .expect("a dynamic service config of the killed run");
+    // As its creator leaves it between creating and sizing it.
+    let f = std::fs::File::options()
+        .write(true)
+        .open(&dynamic)
+        .expect("open");
+    f.set_len(0).expect("truncate");
+    f.set_modified(std::time::SystemTime::now() - Duration::from_secs(60))
+        .expect("mtime");
+    std::fs::set_permissions(&dynamic, std::fs::Permissions::from_mode(0o200)).expect("mode");
+    let next = unique_run_id("half-next");
+    let r = spawn(&next, &winding("5", "2"));
+    let pid = r.pid();
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let watchdog = {
+        let done = done.clone();
+        std::thread::spawn(move || {
+            for _ in 0..1800 {
+                if done.load(std::sync::atomic::Ordering::Relaxed) {
+                    return false;
+                }
+                std::thread::sleep(Duration::from_millis(100));
+            }
+            kill("-KILL", &format!("-{pid}"));
+            true
+        })
+    };
+    assert_clean(&next, r, 5.0);
+    done.store(true, std::sync::atomic::Ordering::Relaxed);
+    assert!(!watchdog.join().expect("watchdog"), "the next run hung");
+    no_leftovers(&id).expect("the killed run was swept");
+}
+
 /// The soak test: both cores saturated by a hog, runs back to back and two
 /// at once; every count exact, exit 0, nothing degraded, every time.
 #[test]

@@ -47,7 +47,8 @@ const EXIT_CODES: &str = "Exit codes: 0 a clean run; 4 an accounting identity fa
 ≠ received, a live sensor's ledger missing) or the recording failed (unfinished, its file \
 removed or replaced during the run, or the target changed by another writer: the recording \
 is then kept at FILE.<run-id>.partial) — never waived by --allow-degraded; 5 an episode ran \
-with a dead link, without --allow-degraded; 130 interrupted (Ctrl-C/SIGTERM: the report \
+with a dead link, or the link to remote sensors refused a message (garbage, forged, out of \
+place), without --allow-degraded; 130 interrupted (Ctrl-C/SIGTERM: the report \
 covers the complete episodes); 1 an error before any report (nothing recorded, no file \
 touched). --allow-degraded excuses exactly a dead sensor's legs without a ledger: what the \
 agent received on them is reported apart (received_without_ledger).";
@@ -403,6 +404,16 @@ fn problems(a: &Args, outcome: &supervise::Supervised) -> Vec<(u8, String)> {
     let mut problems = verdict(&outcome.report, recording_ok, a.allow_degraded);
     if let Some(why) = outcome.recording.as_ref().and_then(|r| r.problem.clone()) {
         problems.push((EXIT_ACCOUNTING, why));
+    }
+    // Refused traffic never got in: the run is intact, but somebody sent
+    // what a sensor host may not (or the link broke order for good).
+    if let Some(why) = outcome.link.as_ref().and_then(|l| l.faults())
+        && !a.allow_degraded
+    {
+        problems.push((
+            EXIT_DEGRADED,
+            format!("{why} (accept with --allow-degraded)"),
+        ));
     }
     if outcome.interrupted {
         problems.insert(

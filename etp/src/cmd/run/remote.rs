@@ -30,6 +30,45 @@ pub struct LinkReport {
     pub traffic: BTreeMap<String, LinkTraffic>,
     /// Remote sensors lost during the run (name, wall clock ns).
     pub lost: Vec<(String, u64)>,
+    /// Messages from the link the bridge refused, by reason (`malformed`,
+    /// `other-run`, `wrong-sender`, `duplicate`, …): each is a fault.
+    pub refused: BTreeMap<String, u64>,
+    /// Per remote sensor: messages still held at the end for an earlier
+    /// one that never arrived (a fault too).
+    pub held: BTreeMap<String, u64>,
+    /// Messages that overtook an earlier one of their sensor on the link
+    /// and were delivered after it (the order restored; not a fault).
+    pub reordered: u64,
+}
+
+impl LinkReport {
+    /// The link's faults in words (empty: none).
+    pub fn faults(&self) -> Option<String> {
+        let list = |m: &BTreeMap<String, u64>| {
+            m.iter()
+                .map(|(k, n)| format!("{n} {k}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let refused: u64 = self.refused.values().sum();
+        let held: u64 = self.held.values().sum();
+        match (refused, held) {
+            (0, 0) => None,
+            (r, 0) => Some(format!(
+                "the link refused {r} message(s): {}",
+                list(&self.refused)
+            )),
+            (0, h) => Some(format!(
+                "{h} message(s) from the link waited for an earlier one that never came ({})",
+                list(&self.held)
+            )),
+            (r, h) => Some(format!(
+                "the link refused {r} message(s): {}; {h} waited for an earlier one that never came ({})",
+                list(&self.refused),
+                list(&self.held)
+            )),
+        }
+    }
 }
 
 pub struct Bridge {
@@ -144,6 +183,12 @@ impl Bridge {
                         v["sensor"].as_str().unwrap_or_default().to_string(),
                         v["unix_ns"].as_u64().unwrap_or(0),
                     )),
+                    Some("refused") => {
+                        report.refused =
+                            serde_json::from_value(v["counts"].clone()).unwrap_or_default();
+                        report.held = serde_json::from_value(v["held"].clone()).unwrap_or_default();
+                        report.reordered = v["reordered"].as_u64().unwrap_or(0);
+                    }
                     Some("traffic") => {
                         report.traffic =
                             serde_json::from_value(v["sensors"].clone()).unwrap_or_default();

@@ -129,6 +129,7 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
     // Until the sensors end (the run's STOP) or the bridge does (agent host
     // gone, or a signal).
     let mut traffic = serde_json::Value::Null;
+    let mut refused = serde_json::json!({});
     let mut sigterm = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
         .context("installing the SIGTERM handler")?;
     let all_sensors = async {
@@ -141,6 +142,9 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
             let v: serde_json::Value = serde_json::from_str(&l).unwrap_or_default();
             if v["event"] == "traffic" {
                 traffic = v["sensors"].clone();
+            }
+            if v["event"] == "refused" {
+                refused = v["counts"].clone();
             }
             if v["event"] == "agent-host-gone" {
                 eprintln!("etp sensor-host: the agent host is gone");
@@ -180,6 +184,9 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
             if v["event"] == "traffic" {
                 traffic = v["sensors"].clone();
             }
+            if v["event"] == "refused" {
+                refused = v["counts"].clone();
+            }
         }
     };
     let _ = tokio::time::timeout(GRACE, rest).await;
@@ -199,6 +206,15 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
     if let Ok(run) = RunId::in_domain(&run_id, Some(domain)) {
         cleanup::remove_run(&run);
     }
+    // What the agent host's side sent that this host refused (garbage,
+    // another run's, a sender that may not send it): a fault of the link.
+    let refused_any = refused
+        .as_object()
+        .is_some_and(|m| m.values().any(|n| n.as_u64() != Some(0)));
+    if refused_any {
+        eprintln!("etp sensor-host: the link refused messages: {refused}");
+        ok = false;
+    }
     Ok((
         serde_json::json!({
             "run_id": run_id,
@@ -206,6 +222,7 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
             "sensors": joined["sensors"],
             "processes": processes,
             "traffic": traffic,
+            "refused": refused,
         }),
         ok,
     ))
