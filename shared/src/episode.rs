@@ -352,7 +352,7 @@ impl<const N: usize> CompiledScenario<N> {
         let result = if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked just above), the one
             // requirement of calling a `#[target_feature]` function.
-            on_filter!(&self.filters[sensor], f => unsafe { self.run_leg_avx2(f, leg, state, mode, rng, channels, observer) })
+            unsafe { self.run_leg_avx2(sensor, leg, state, mode, rng, channels, observer) }
         } else {
             on_filter!(&self.filters[sensor], f => self.run_leg_portable(f, leg, state, mode, rng, channels, observer))
         };
@@ -368,19 +368,17 @@ impl<const N: usize> CompiledScenario<N> {
     /// `a * b + c`, so every operation rounds as in the baseline build (the
     /// golden numbers and the `simulate` outputs are compared in the tests).
     /// Callable only where AVX2 is known to be present ([`Self::run_leg`]
-    /// checks at run time).
-    ///
-    /// One function per measurement dimension M (not one holding the six
-    /// inlined loops): each is a unit of its own for the optimiser, which
-    /// keeps compile time linear in the number of instantiations.
+    /// checks at run time). The six loops (one per measurement dimension)
+    /// are inlined here: split into one function per M, winding-2d ran 23 %
+    /// slower per thread (`etp bench`, interleaved medians).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     // The leg's state travels by reference into the inlined loop: a struct
     // of eight borrows would add nothing but a name.
     #[allow(clippy::too_many_arguments)]
-    fn run_leg_avx2<const M: usize, R: Rng + ?Sized, O: EpisodeObserver<N>>(
+    fn run_leg_avx2<R: Rng + ?Sized, O: EpisodeObserver<N>>(
         &self,
-        filter: &EtKalmanFilter<N, M>,
+        sensor: usize,
         leg: usize,
         state: &mut AgentState<N>,
         mode: &LegMode<N>,
@@ -388,11 +386,14 @@ impl<const N: usize> CompiledScenario<N> {
         channels: &mut EpisodeChannels,
         observer: &mut O,
     ) -> LegResult {
-        self.run_leg_with(filter, leg, state, mode, rng, channels, observer)
+        on_filter!(&self.filters[sensor], f => self.run_leg_with(f, leg, state, mode, rng, channels, observer))
     }
 
     /// [`Self::run_leg_with`] in the baseline instruction set, one function
-    /// per M as [`Self::run_leg_avx2`].
+    /// per measurement dimension M: a function (or a test) that inlined the
+    /// loops of every M and every N it dispatches over costs the optimiser
+    /// super-linear time (the AVX2 comparison test held 36 of them: 31
+    /// CPU-minutes of one rustc).
     #[inline(never)]
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn run_leg_portable<const M: usize, R: Rng + ?Sized, O: EpisodeObserver<N>>(
