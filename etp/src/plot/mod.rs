@@ -2,7 +2,7 @@
 //! bound on P_coll, baselines marked) and the scenario map with sampled
 //! trajectories coloured by the expected rate of the threshold in force (the
 //! paper's Fig. 4). The run report figure is `crate::report_plot`; all three are written by
-//! [`png_and_svg`].
+//! `png_and_svg`.
 //!
 //! The font is embedded (DejaVu Sans, see `assets/`), so plots render the same on
 //! a machine without any installed fonts.

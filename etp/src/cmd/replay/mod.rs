@@ -12,7 +12,7 @@
 //! verification; 3 an unfinished file (cut by a crash or a copy: every
 //! complete record is summarised); 4 a count identity fails on the complete
 //! episodes (`measurement` messages ≠ ledger transmissions, or ≠ received
-//! without a dead link). Output goes through [`emit`]: a closed stdout never
+//! without a dead link). Output goes through `emit`: a closed stdout never
 //! panics.
 
 use anyhow::{Context, Result, bail};

@@ -7,11 +7,11 @@
 //! prediction, and per sensor its ledger (transmitted), what the agent
 //! received, and its predicted energy.
 //!
-//! * [`prepare`] — strategy and scenario (a strategy file, or `--scenario
+//! * `prepare` — strategy and scenario (a strategy file, or `--scenario
 //!   NAME --delta D` for a constant-δ strategy made on the fly), the run
 //!   folder, `--clone-sensors K` for the scaling benchmark.
-//! * [`supervise`] — spawning and supervising the processes.
-//! * [`report`] — the table and the `--json` object.
+//! * `supervise` — spawning and supervising the processes.
+//! * `report` — the table and the `--json` object.
 //! * [`config`] — `--config RUN.toml`, the launch file of a run.
 
 pub mod config;
