@@ -201,11 +201,10 @@ impl Inbound {
     /// Decode a sample of `key` (not delivered yet); garbage, or a key of
     /// no service this end delivers, is refused.
     pub fn decode(&self, key: &str, bytes: &[u8]) -> Result<Admitted, Refusal> {
-        let s = topic_of_key(key)
-            .and_then(recording::service_of_topic)
+        let topic = topic_of_key(key).ok_or(Refusal::UnknownKey)?;
+        let s = recording::service_of_topic(topic)
             .filter(|s| self.publishers.contains_key(s))
             .ok_or(Refusal::UnknownKey)?;
-        let topic = topic_of_key(key).ok_or(Refusal::UnknownKey)?;
         let message = recording::decode(topic, bytes).map_err(|_| Refusal::Malformed)?;
         Ok(Admitted {
             service: s,
