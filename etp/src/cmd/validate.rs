@@ -283,7 +283,7 @@ pub fn comparison_table(strategy: &Strategy, sum: &SimulationSummary) -> String 
 
 /// The radio of a validation: the strategy's own channel, or both when the
 /// options evaluate it under another one (a robustness study).
-fn channels_text(
+pub(crate) fn channels_text(
     synthesized: &etp_shared::radio::Radio,
     evaluated: &etp_shared::radio::Radio,
     names: &[String],

@@ -1,8 +1,8 @@
 //! A strategy synthesized for a lossy channel carries it (docs/MODEL.md §8):
 //! `validate` evaluates it under that channel by default and names both when
-//! told another (a robustness study), `run` refuses it (a run takes its
-//! channel from the scenario text: `etp scenario radio`), and `etp fronts`
-//! draws what the channel costs.
+//! told another (a robustness study), `run` runs it under either (the
+//! channel written into the run's scenario text), and `etp fronts` draws
+//! what the channel costs.
 
 use super::{Scratch, etp, fails_with, ok_json, s};
 
@@ -111,12 +111,37 @@ fn a_lossy_synthesis_is_recorded_validated_under_its_channel_and_drawn() {
         "{stdout}"
     );
 
-    // The runtime takes its channel from the scenario text: a strategy
-    // synthesized under options is refused, saying how to run one.
-    fails_with(
-        &["run", s(&strategy), "--episodes", "2"],
-        &["lossy", "etp scenario radio", "etp validate"],
-    );
+    // A run takes the strategy's own channel (written into the run's copy of
+    // the scenario text, which every process reads) or, under radio options,
+    // another one (a robustness study, predicted by simulation under it);
+    // the report names both and both identities hold exactly.
+    for (extra, radio) in [
+        (&[][..], "loss 0.3, retries 1"),
+        (&["--loss", "0.1"][..], "loss 0.1, retries 1"),
+    ] {
+        let mut args = vec!["run", s(&strategy), "--episodes", "4", "--json"];
+        args.extend_from_slice(extra);
+        let v = ok_json(&args);
+        assert!(
+            v["radio"].as_str().is_some_and(|r| r.contains(radio)),
+            "{v}"
+        );
+        assert_eq!(v["radio_synthesized"], own["radio"], "{v}");
+        let robustness = !extra.is_empty();
+        assert_eq!(
+            v["predicted_energy_from"]
+                .as_str()
+                .is_some_and(|f| f.starts_with("in-process simulation")),
+            robustness,
+            "{v}"
+        );
+        let n = |k: &str| v[k].as_u64().unwrap_or_else(|| panic!("{k}: {v}"));
+        assert_eq!(n("transmissions"), n("delivered") + n("lost"), "{v}");
+        assert_eq!(n("received"), n("delivered"), "{v}");
+        assert!(n("lost") > 0, "{v}");
+        super::schemas::validate(&tmp.0, "run", &v)
+            .unwrap_or_else(|e| panic!("etp run --json against schemas/run.json:\n{e}\n{v}"));
+    }
 
     // The figure: one curve per synthesis; least energy never decreases in P_tar.
     let stem = tmp.path("fronts");

@@ -79,8 +79,9 @@ pub struct Args {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
-    /// The radio (docs/MODEL.md §8), with `--scenario`/`--delta`: written
-    /// into the run's scenario text as its `[radio]` (every process and the
+    /// The radio (docs/MODEL.md §8): each option given replaces the
+    /// strategy's own channel (or the scenario's) on every link; the run's
+    /// channel is written into the run's scenario text (every process and the
     /// recording read that text).
     #[command(flatten)]
     pub radio: crate::input::RadioArgs,

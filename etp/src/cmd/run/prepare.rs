@@ -3,6 +3,7 @@
 use super::Args;
 use anyhow::{Context, Result, bail};
 use etp_runtime::wire::RunId;
+use etp_shared::radio::Radio;
 use etp_shared::scenario::{Scenario, builtin_text};
 use etp_shared::strategy::{Prediction, Strategy};
 use etp_synthesis::validate::simulate_strategy;
@@ -28,6 +29,9 @@ pub struct Plan {
     pub config_toml: String,
     /// The strategy's constant threshold, if it is constant (`crate::vocab`).
     pub delta: Option<f64>,
+    /// The channel a strategy file was synthesized for (`None` for a
+    /// constant threshold made here); the run's is `scenario.radio`.
+    pub radio_synthesized: Option<Radio>,
 }
 
 fn scenario_text(arg: &str) -> Result<String> {
@@ -118,33 +122,27 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         }
         text = clone_sensors(&text, k)?;
     }
-    if !a.radio.to_override().is_empty() {
-        if strategy_in.is_some() {
-            bail!(
-                "--loss/--retries/--burst/--estimator work with --scenario/--delta only (a \
-                 strategy is tied to its scenario's hash; `etp validate` evaluates it under any channel)"
-            );
+    // The run's channel (docs/MODEL.md §8): the strategy's own (its
+    // scenario's `[radio]`, or the channel it was synthesized for), under the
+    // radio options when given (a robustness study). Every process and the
+    // recording read the channel from the run's copy of the scenario text, so
+    // it is written there; the strategy is checked against its own text
+    // first and then re-stamped with the run text's hash.
+    let own_text = Scenario::from_toml(&text).context("scenario")?;
+    let own = match &strategy_in {
+        Some(st) => {
+            st.check_scenario(&own_text)
+                .context("strategy and scenario")?;
+            st.with_own_radio(own_text).context("strategy")?
         }
-        text = crate::input::text_with_radio(&text, &a.radio).context("radio options")?;
-    }
+        None => own_text,
+    };
+    let own_radio = own.radio.clone();
+    let run_radio = a.radio.apply(own)?.radio;
+    text = crate::input::text_with_channel(&text, &run_radio).context("the run's channel")?;
     let scenario = Scenario::from_toml(&text).context("scenario")?;
-    // The processes and the recording take the channel from the scenario
-    // text (its `[radio]`, docs/MODEL.md §8); a strategy synthesized for
-    // another channel (`etp synthesize --loss …`) cannot run yet.
-    if let Some(st) = &strategy_in
-        && st
-            .with_own_radio(scenario.clone())
-            .context("strategy")?
-            .radio
-            != scenario.radio
-    {
-        bail!(
-            "the strategy was synthesized for a lossy channel that is not its scenario's own \
-             [radio] (`etp synthesize --loss …`); `etp run` takes the channel from the scenario \
-             text: write it there (`etp scenario radio SCENARIO --loss …`) and synthesize from \
-             that file (`etp validate` evaluates this strategy under any channel)"
-        );
-    }
+    let radio_synthesized = strategy_in.as_ref().map(|_| own_radio.clone());
+    let robustness = strategy_in.is_some() && run_radio != own_radio;
     if scenario.sensors.len() > MAX_SENSORS {
         bail!(
             "the scenario has {} sensors; a run supports at most {MAX_SENSORS} sensor processes",
@@ -152,9 +150,11 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         );
     }
     let mut strategy = match strategy_in {
-        Some(st) => {
-            st.check_scenario(&scenario)
-                .context("strategy and scenario")?;
+        Some(mut st) => {
+            // Checked against its own text above; the run's text carries the
+            // channel (and so another hash when it is not the text's own).
+            st.scenario_hash = scenario.content_hash.clone();
+            st.radio = None;
             st
         }
         None => {
@@ -183,23 +183,31 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
     // same strategy (which also predicts everything for a constant strategy
     // made here).
     let predict_episodes = a.predict_episodes().max(1);
+    // Under another channel than its own, the strategy file's predictions
+    // (the MDP's, of its own channel) are not the run's: the in-process
+    // simulation under the run's channel predicts instead.
     let (sensor_energy_per_episode, prediction_from) = match strategy.sensor_energy(&scenario) {
-        Some(e) if a.strategy.is_some() => (
+        Some(e) if a.strategy.is_some() && !robustness => (
             e,
             "the MDP: the strategy's expected energy per leg (strategy.json `leg_energy`, occupation measure × segment energy), summed over each sensor's legs".to_string(),
         ),
         _ => {
             let sim =
                 simulate_strategy(&scenario, &strategy, predict_episodes, a.seed(), &|_| {}).summary();
-            if a.strategy.is_none() {
+            if a.strategy.is_none() || robustness {
                 strategy.predicted = Prediction {
                     p_target: sim.p_target.value,
                     p_collision: sim.p_collision.value,
                     p_free: sim.p_free.value,
                     energy_mean: sim.energy_mean.value,
                 };
+                let under = if robustness {
+                    " under the run's channel"
+                } else {
+                    ""
+                };
                 strategy.label = format!(
-                    "{} (prediction: in-process simulation, {predict_episodes} episodes)",
+                    "{} (prediction: in-process simulation{under}, {predict_episodes} episodes)",
                     strategy.label
                 );
             }
@@ -239,5 +247,6 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         predict_episodes,
         config_toml: String::new(),
         delta: crate::vocab::constant_delta(&strategy),
+        radio_synthesized,
     })
 }

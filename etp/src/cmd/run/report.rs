@@ -108,7 +108,7 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         "delivered": r.sensors.iter().map(|t| t.delivered).sum::<u64>(),
         "lost": r.sensors.iter().map(|t| t.lost).sum::<u64>(),
         "received": r.sensors.iter().map(|t| t.received).sum::<u64>(),
-        "radio": plan.scenario.radio.describe(&plan.scenario.sensors.iter().map(|x| x.name.clone()).collect::<Vec<_>>()),
+        "radio": plan.scenario.radio.describe(&sensor_names(plan)),
         "sensors": sensors,
         "predicted_energy_from": super::record::prediction_source(plan),
         "processes": s.processes.len(),
@@ -122,6 +122,14 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         "aborted": r.aborted,
         "downlink": downlink(s, &traffic),
     });
+    if let Some(own) = &plan.radio_synthesized
+        && let Some(m) = v.as_object_mut()
+    {
+        m.insert(
+            "radio_synthesized".into(),
+            json!(own.describe(&sensor_names(plan))),
+        );
+    }
     if let Some(link) = &s.link
         && let Some(m) = v.as_object_mut()
     {
@@ -138,6 +146,14 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         m.insert("episode_results".into(), json!(r.episode_results));
     }
     v
+}
+
+fn sensor_names(plan: &Plan) -> Vec<String> {
+    plan.scenario
+        .sensors
+        .iter()
+        .map(|x| x.name.clone())
+        .collect()
 }
 
 pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
@@ -160,6 +176,14 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
             r.steps as f64 / r.seconds
         } else {
             0.0
+        }
+    );
+    let names = sensor_names(plan);
+    println!(
+        "  {}",
+        match &plan.radio_synthesized {
+            Some(own) => crate::cmd::validate::channels_text(own, &plan.scenario.radio, &names),
+            None => format!("radio: {}", plan.scenario.radio.describe(&names)),
         }
     );
     println!(
