@@ -10,7 +10,9 @@
 
 use crate::admit::{Admission, Admitted};
 use crate::forward::{Counters, Inbound, Incoming, Outbound, subscribe};
-use crate::session::{SESSION_KEY, SessionInfo, agent_host_alive_key, config, data_keys};
+use crate::session::{
+    End, SESSION_KEY, SessionInfo, agent_host_alive_key, config, data_keys,
+};
 use crate::{BridgeError, emit};
 use etp_runtime::wire::to_coordinator::Hello;
 use etp_runtime::wire::traffic::Direction;
@@ -39,6 +41,8 @@ pub struct Args {
     /// Link lease, ms: a silent link is dead after this long.
     #[arg(long, default_value_t = crate::session::DEFAULT_LEASE.as_millis() as u64)]
     pub lease_ms: u64,
+    #[command(flatten)]
+    pub link: crate::session::LinkArgs,
 }
 
 pub fn run(a: &Args) -> Result<(), BridgeError> {
@@ -54,10 +58,12 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
             .cloned()
             .unwrap_or_else(|| format!("#{i}"))
     };
+    let identity = a.link.resolve(&a.listen, End::AgentHost)?;
     let session = zenoh::open(config(
         Some(&a.listen),
         None,
         Duration::from_millis(a.lease_ms),
+        identity.as_ref(),
     )?)
     .wait()
     .map_err(|e| BridgeError::Zenoh(format!("listening on {}: {e}", a.listen)))?;

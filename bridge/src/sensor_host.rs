@@ -37,6 +37,8 @@ pub struct Args {
     /// Link lease, ms.
     #[arg(long, default_value_t = crate::session::DEFAULT_LEASE.as_millis() as u64)]
     pub lease_ms: u64,
+    #[command(flatten)]
+    pub link: crate::session::LinkArgs,
 }
 
 /// How often the local sensors' liveness is checked (a dead one's token is
@@ -76,10 +78,12 @@ fn fetch(
 }
 
 pub fn run(a: &Args) -> Result<(), BridgeError> {
+    let identity = a.link.resolve(&a.connect, crate::session::End::SensorHost)?;
     let session = zenoh::open(config(
         None,
         Some(&a.connect),
         Duration::from_millis(a.lease_ms),
+        identity.as_ref(),
     )?)
     .wait()
     .map_err(|e| BridgeError::Zenoh(format!("connecting to {}: {e}", a.connect)))?;

@@ -4,6 +4,7 @@
 
 use crate::BridgeError;
 pub use etp_runtime::report::SessionInfo;
+use etp_runtime::link_keys;
 use etp_runtime::wire::ServiceId;
 use std::time::Duration;
 
@@ -48,19 +49,86 @@ pub fn agent_host_alive_key(run: &str) -> String {
 /// every third of it), so a cut cable or a dead host is seen within it.
 pub const DEFAULT_LEASE: Duration = Duration::from_millis(300);
 
+/// How a link is protected: mutual TLS with the key folder's certificates
+/// (the default), or nothing (`--insecure`, for isolated test networks).
+#[derive(Debug, Clone, clap::Args)]
+pub struct LinkArgs {
+    /// Key folder of `etp certs init DIR`: the link is TLS with both ends
+    /// authenticated by the folder's CA (endpoints `tls/ADDR:PORT`).
+    #[arg(long, value_name = "DIR", conflicts_with = "insecure")]
+    pub tls: Option<std::path::PathBuf>,
+    /// This host's name in the key folder (a sensor host's `--sensor-host`
+    /// of `etp certs init`).
+    #[arg(long, value_name = "NAME", requires = "tls")]
+    pub name: Option<String>,
+    /// Plain TCP: no authentication, no encryption (isolated test networks only).
+    #[arg(long)]
+    pub insecure: bool,
+}
+
+/// Which end of the link: the agent host listens (TLS server), a sensor
+/// host connects (TLS client).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum End {
+    AgentHost,
+    SensorHost,
+}
+
+impl LinkArgs {
+    /// Check the endpoint against the protection asked for, and the key
+    /// folder's files of this end (`etp_runtime::link_keys::resolve`).
+    pub fn resolve(
+        &self,
+        endpoint: &str,
+        end: End,
+    ) -> Result<Option<link_keys::Identity>, BridgeError> {
+        let name = match end {
+            End::AgentHost => link_keys::AGENT_HOST,
+            End::SensorHost => self
+                .name
+                .as_deref()
+                .unwrap_or(link_keys::DEFAULT_SENSOR_HOST),
+        };
+        link_keys::resolve(endpoint, self.tls.as_deref(), name, self.insecure)
+            .map_err(|e| BridgeError::Input(e.to_string()))
+    }
+}
+
 /// The Zenoh configuration of one end: peer mode, no multicast or gossip
 /// scouting, only the given endpoints, a short link lease and fast connect
-/// retries.
+/// retries; with an identity, TLS with mutual authentication (the listener
+/// demands a client certificate chaining to the folder's CA; the connecting
+/// end checks the listener's against the same CA).
 pub fn config(
     listen: Option<&str>,
     connect: Option<&str>,
     lease: Duration,
+    identity: Option<&link_keys::Identity>,
 ) -> Result<zenoh::Config, BridgeError> {
     let mut c = zenoh::Config::default();
     let set = |c: &mut zenoh::Config, k: &str, v: String| {
         c.insert_json5(k, &v)
             .map_err(|e| BridgeError::Zenoh(format!("config {k} = {v}: {e}")))
     };
+    if let Some(id) = identity {
+        let path = |p: &std::path::Path| {
+            serde_json::to_string(&p.display().to_string()).unwrap_or_else(|_| "\"\"".into())
+        };
+        set(&mut c, "transport/link/tls/root_ca_certificate", path(&id.ca))?;
+        if listen.is_some() {
+            set(&mut c, "transport/link/tls/listen_certificate", path(&id.certificate))?;
+            set(&mut c, "transport/link/tls/listen_private_key", path(&id.private_key))?;
+            set(&mut c, "transport/link/tls/enable_mtls", "true".into())?;
+        }
+        if connect.is_some() {
+            set(&mut c, "transport/link/tls/connect_certificate", path(&id.certificate))?;
+            set(&mut c, "transport/link/tls/connect_private_key", path(&id.private_key))?;
+            // Hosts are reached by address; the CA and the certificates' key
+            // usage (server for the agent host only) authenticate the ends.
+            set(&mut c, "transport/link/tls/verify_name_on_connect", "false".into())?;
+            set(&mut c, "transport/link/tls/enable_mtls", "true".into())?;
+        }
+    }
     set(&mut c, "mode", "\"peer\"".into())?;
     set(&mut c, "scouting/multicast/enabled", "false".into())?;
     set(&mut c, "scouting/gossip/enabled", "false".into())?;
@@ -99,7 +167,7 @@ mod tests {
 
     #[test]
     fn the_configuration_turns_scouting_off_and_names_the_endpoints() {
-        let c = config(Some("tcp/127.0.0.1:7447"), None, DEFAULT_LEASE).expect("config");
+        let c = config(Some("tcp/127.0.0.1:7447"), None, DEFAULT_LEASE, None).expect("config");
         let text = format!("{c}");
         assert!(text.contains("tcp/127.0.0.1:7447"), "{text}");
         assert!(text.contains("\"lease\":300"), "{text}");

@@ -38,6 +38,9 @@ pub enum Command {
     Run(crate::cmd::run::Args),
     /// Serve remote sensors of a run on this host (`etp run --listen … --remote …` on the agent host).
     SensorHost(crate::cmd::run::sensor_host::Args),
+    /// Key material of an authenticated, encrypted run across hosts:
+    /// `etp certs init DIR` (then `--tls DIR` on `run` and `sensor-host`).
+    Certs(crate::cmd::certs::Args),
     /// Recording tools: `etp replay FILE` summarises a run's MCAP recording (finished
     /// or not); `etp replay info|cat|export|filter|verify|repair|publish|foxglove|plot`.
     Replay(crate::cmd::replay::Args),

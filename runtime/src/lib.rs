@@ -24,6 +24,8 @@
 //!   [`cleanup`] — removing what a run left in /dev/shm and its folder;
 //!   [`folders`] — the user's private folders (iceoryx2 roots, run folders),
 //!   created 0700 and checked without following links.
+//! * [`link_keys`] — the key folder of an authenticated link (`--tls DIR`):
+//!   file names and the checks made before Zenoh reads it.
 //! * [`recording`] — the versioned MCAP recording: a sans-io reader
 //!   ([`recording::read_lenient`]), integrity checks (CRCs, scenario hash) and the
 //!   bit-for-bit re-simulation behind `replay --verify` ([`recording::verify`]),
@@ -31,6 +33,7 @@
 
 pub mod cleanup;
 pub mod folders;
+pub mod link_keys;
 pub mod recording;
 pub mod report;
 pub mod scenario_arg;

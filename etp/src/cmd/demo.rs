@@ -190,6 +190,7 @@ pub fn run(a: Args) -> Result<()> {
         listen: None,
         remote: Vec::new(),
         join_timeout: None,
+        link: Default::default(),
         radio: Default::default(),
     };
     let (mp, problems) = run_cmd::execute(&rargs)?;

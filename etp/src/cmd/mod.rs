@@ -2,6 +2,7 @@
 
 pub mod aggregation;
 pub mod bench;
+pub mod certs;
 pub mod check;
 pub mod demo;
 pub mod export_prism;
@@ -28,6 +29,7 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Bench(a) => bench::run(a),
         Command::Run(a) => run::run(a),
         Command::SensorHost(a) => run::sensor_host::run(a),
+        Command::Certs(a) => certs::run(a),
         Command::Replay(a) => replay::run(a),
         Command::Synthesize(a) => synthesize::run(a),
         Command::ExportPrism(a) => export_prism::run(a),

@@ -441,6 +441,7 @@ fn a_failed_remote_join_leaves_the_old_recording_alone() {
             "5",
             "--listen",
             &format!("tcp/127.0.0.1:{port}"),
+            "--insecure",
             "--remote",
             "s1",
             "--join-timeout",

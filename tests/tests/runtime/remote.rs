@@ -105,6 +105,19 @@ impl Hosts {
         (g, w)
     }
 
+    /// [`Hosts::spawn_watched`] with `out` visible inside as [`NS_OUT`].
+    fn spawn_watched_out(
+        &self,
+        ns: &str,
+        out: &std::path::Path,
+        args: &[&str],
+    ) -> (Guard, LogWatch) {
+        let env = [("RUST_LOG", "warn,zenoh=error,etp_sensor_node=debug")];
+        let mut g = self.spawn_in_env(ns, Some(out), args, &env);
+        let w = LogWatch::start(&mut g);
+        (g, w)
+    }
+
     /// [`Hosts::spawn`] with `out` visible inside as [`NS_OUT`].
     fn spawn_out(&self, ns: &str, out: &std::path::Path, args: &[&str]) -> Guard {
         self.spawn_in(ns, Some(out), args)
@@ -300,6 +313,21 @@ fn hosts(tag: &str, n: usize) -> Option<Hosts> {
     }
 }
 
+/// `etp certs init DIR --sensor-host …` (DIR replaced if it exists).
+fn certs_init(dir: &std::path::Path, hosts: &[&str]) {
+    let mut c = Command::new(bin_dir().join("etp"));
+    c.args(["certs", "init", "--force"]).arg(dir);
+    for h in hosts {
+        c.args(["--sensor-host", h]);
+    }
+    let out = c.output().expect("etp certs init");
+    assert!(
+        out.status.success(),
+        "etp certs init: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 fn unix_ns() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
@@ -334,6 +362,10 @@ fn across_three_hosts(tag: &str, radio: Option<&str>) {
     };
     let scenario_file = dir.join("scenario.toml");
     std::fs::write(&scenario_file, &text).expect("scenario");
+    // The link is TLS with both ends authenticated (the default): one key
+    // folder for all three hosts.
+    certs_init(&dir.join("keys"), &["b", "c"]);
+    let keys = format!("{NS_OUT}/keys");
     // The agent host sees `dir` as NS_OUT.
     let scenario_arg = format!("{NS_OUT}/scenario.toml");
     let run = h.spawn_out(
@@ -350,7 +382,9 @@ fn across_three_hosts(tag: &str, radio: Option<&str>) {
             "--seed",
             "9",
             "--listen",
-            "tcp/0.0.0.0:7447",
+            "tls/0.0.0.0:7447",
+            "--tls",
+            &keys,
             "--remote",
             "s1,s3,s4",
             "--record",
@@ -361,12 +395,17 @@ fn across_three_hosts(tag: &str, radio: Option<&str>) {
             "30",
         ],
     );
-    let b = h.spawn(
+    let b = h.spawn_out(
         &h.sensors[0],
+        &dir,
         &[
             "sensor-host",
             "--connect",
-            "tcp/10.77.1.1:7447",
+            "tls/10.77.1.1:7447",
+            "--tls",
+            &keys,
+            "--name",
+            "b",
             "--sensor",
             "s1",
             "--sensor",
@@ -374,12 +413,17 @@ fn across_three_hosts(tag: &str, radio: Option<&str>) {
             "--json",
         ],
     );
-    let c = h.spawn(
+    let c = h.spawn_out(
         &h.sensors[1],
+        &dir,
         &[
             "sensor-host",
             "--connect",
-            "tcp/10.77.2.1:7447",
+            "tls/10.77.2.1:7447",
+            "--tls",
+            &keys,
+            "--name",
+            "c",
             "--sensor",
             "s4",
             "--json",
@@ -507,6 +551,7 @@ fn a_killed_sensor_host_and_a_cut_link_are_detected_within_500_ms_and_the_run_go
             "4",
             "--listen",
             "tcp/0.0.0.0:7447",
+            "--insecure",
             "--remote",
             "s1,s4",
             "--allow-degraded",
@@ -522,6 +567,7 @@ fn a_killed_sensor_host_and_a_cut_link_are_detected_within_500_ms_and_the_run_go
             "sensor-host",
             "--connect",
             "tcp/10.77.1.1:7447",
+            "--insecure",
             "--sensor",
             "s1",
             "--json",
@@ -533,6 +579,7 @@ fn a_killed_sensor_host_and_a_cut_link_are_detected_within_500_ms_and_the_run_go
             "sensor-host",
             "--connect",
             "tcp/10.77.2.1:7447",
+            "--insecure",
             "--sensor",
             "s4",
             "--json",
@@ -607,17 +654,84 @@ fn a_killed_sensor_host_and_a_cut_link_are_detected_within_500_ms_and_the_run_go
     assert_ledgers_match(&v, true);
 }
 
-/// An outsider on the agent host's network (a real Zenoh client: Python
-/// `eclipse-zenoh`, plain TCP as `--insecure` allows) learns the run from the
-/// downlink and puts garbage and forged measurements on the uplink. None gets
-/// in: each is refused by its reason, the run stays exact, and its exit says
-/// so (5, a link fault, without `--allow-degraded`).
+/// Python `eclipse-zenoh` on the second sensor host's network: a real
+/// outside Zenoh client. `tls`: (CA, certificate and key) files; the CA
+/// alone is an outsider who knows the public CA but holds no certificate.
+const PY_CONNECT: &str = r#"
+import json, struct, sys, time, zenoh
+def session(ep, ca, cert, key):
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("scouting/gossip/enabled", "false")
+    conf.insert_json5("connect/endpoints", json.dumps([ep]))
+    if ca:
+        conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(ca))
+        conf.insert_json5("transport/link/tls/verify_name_on_connect", "false")
+    if cert:
+        conf.insert_json5("transport/link/tls/connect_certificate", json.dumps(cert))
+        conf.insert_json5("transport/link/tls/connect_private_key", json.dumps(key))
+        conf.insert_json5("transport/link/tls/enable_mtls", "true")
+    return zenoh.open(conf)
+"#;
+
+/// An outsider without a certificate, on the agent host's network: whether
+/// it connects over plain TCP to the TLS port or over TLS with the CA but no
+/// certificate of its own, for 4 s it gets no answer to the session query and
+/// no sample of the running run.
+fn outsider_learns_nothing(h: &Hosts, keys: &std::path::Path) {
+    let script = format!(
+        r#"{PY_CONNECT}
+seen, answers = [], []
+for ep, ca in [("tcp/10.77.2.1:7447", ""), ("tls/10.77.2.1:7447", sys.argv[1])]:
+    s = session(ep, ca, "", "")
+    sub = s.declare_subscriber("etp/**", lambda smp: seen.append(str(smp.key_expr)))
+    end = time.time() + 2
+    while time.time() < end:
+        for r in s.get("etp/session", timeout=0.5):
+            if r.ok is not None:
+                answers.append(ep)
+    s.close()
+print(json.dumps({{"answers": answers, "samples": len(seen)}}))
+"#
+    );
+    let out = Command::new("ip")
+        .args(["netns", "exec", &h.sensors[1]])
+        .arg(etp_tests::pyenv::python())
+        .args(["-c", &script])
+        .arg(keys.join("ca.pem"))
+        .output()
+        .expect("python zenoh");
+    assert!(
+        out.status.success(),
+        "outsider: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).expect("one JSON line");
+    assert_eq!(v["answers"], serde_json::json!([]), "{v}");
+    assert_eq!(v["samples"], 0, "{v}");
+}
+
+/// The trust boundary of a TLS run (the default). An outsider without a
+/// certificate learns nothing ([`outsider_learns_nothing`]). A host with a
+/// valid certificate of the run's key folder — a compromised sensor host —
+/// learns the run from the downlink and puts garbage and forged
+/// measurements on the uplink. None gets in: each is refused by its reason,
+/// the run stays exact, and its exit says so (5, a link fault, without
+/// `--allow-degraded`).
 #[test]
 fn garbage_and_forged_uplink_messages_are_refused_by_name_and_the_run_stays_exact() {
     let _serial = serial();
     let Some(h) = hosts("in", 2) else { return };
-    let (run, run_log) = h.spawn_watched(
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("remote-in-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("scratch");
+    let keys = dir.join("keys");
+    certs_init(&keys, &["b", "rogue"]);
+    let ns_keys = format!("{NS_OUT}/keys");
+    let (run, run_log) = h.spawn_watched_out(
         &h.agent,
+        &dir,
         &[
             "run",
             "--scenario",
@@ -629,7 +743,9 @@ fn garbage_and_forged_uplink_messages_are_refused_by_name_and_the_run_stays_exac
             "--seed",
             "6",
             "--listen",
-            "tcp/0.0.0.0:7447",
+            "tls/0.0.0.0:7447",
+            "--tls",
+            &ns_keys,
             "--remote",
             "s1",
             "--episode-details",
@@ -638,20 +754,26 @@ fn garbage_and_forged_uplink_messages_are_refused_by_name_and_the_run_stays_exac
             "30",
         ],
     );
-    let b = h.spawn(
+    let b = h.spawn_out(
         &h.sensors[0],
-        &["sensor-host", "--connect", "tcp/10.77.1.1:7447", "--json"],
+        &dir,
+        &[
+            "sensor-host",
+            "--connect",
+            "tls/10.77.1.1:7447",
+            "--tls",
+            &ns_keys,
+            "--name",
+            "b",
+            "--json",
+        ],
     );
-    // The intruder sits on the second host's network.
-    let script = r#"
-import json, struct, sys, time, zenoh
-conf = zenoh.Config()
-conf.insert_json5("mode", '"peer"')
-conf.insert_json5("scouting/multicast/enabled", "false")
-conf.insert_json5("scouting/gossip/enabled", "false")
-conf.insert_json5("connect/endpoints", json.dumps([sys.argv[1]]))
-s = zenoh.open(conf)
-seen = {}
+    outsider_learns_nothing(&h, &keys);
+    // The rogue sits on the second host's network with a valid certificate.
+    let script = format!(
+        r#"{PY_CONNECT}
+s = session(sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4])
+seen = {{}}
 def on(sample):
     seen.setdefault("first", (str(sample.key_expr), bytes(sample.payload.to_bytes())))
 sub = s.declare_subscriber("etp/*/down/**", on)
@@ -666,20 +788,26 @@ tag = struct.unpack_from("<Q", payload, 0)[0]
 def measurement(tag, sender, seq):
     # header (run, episode, step, leg, sender, seq), dim, sequence, y[6]
     return struct.pack("<QQIIIIII", tag, 0, 1, 0, sender, seq, 2, 1) + bytes(48)
-up = f"etp/{run}/up/measurement"
+up = f"etp/{{run}}/up/measurement"
 s.put(up, bytes(7))                              # garbage
 s.put(up, measurement(tag, 3, 2))                # for s3, a local sensor
 s.put(up, measurement(tag, 1, 1))                # s1's seq 1 (its hello) again
 s.put(up, measurement(tag, 1, 0xFFFF0000))       # far ahead of s1
 s.put(up, measurement(tag ^ 1, 1, 2))            # another run's tag
 time.sleep(1.0)
-print(json.dumps({"run": run}))
+print(json.dumps({{"run": run}}))
 s.close()
-"#;
+"#
+    );
     let intruder = Command::new("ip")
         .args(["netns", "exec", &h.sensors[1]])
         .arg(etp_tests::pyenv::python())
-        .args(["-c", script, "tcp/10.77.2.1:7447"])
+        .args(["-c", &script, "tls/10.77.2.1:7447"])
+        .args([
+            keys.join("ca.pem"),
+            keys.join("rogue.pem"),
+            keys.join("rogue.key"),
+        ])
         .output()
         .expect("python zenoh");
     assert!(
@@ -709,6 +837,8 @@ s.close()
     assert_eq!(num(&v, "episodes"), 300.0);
     assert_eq!(num(&v, "degraded"), 0.0);
     assert_ledgers_match(&v, false);
+    drop(h);
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Issue 26 finding 6: all seven sensors of winding-2d on one sensor host.
@@ -743,6 +873,7 @@ fn all_sensors_on_one_sensor_host_keep_their_order_run_after_run() {
                 &seed,
                 "--listen",
                 "tcp/0.0.0.0:7461",
+                "--insecure",
                 "--remote",
                 remote,
                 "--episode-details",
@@ -753,7 +884,13 @@ fn all_sensors_on_one_sensor_host_keep_their_order_run_after_run() {
         );
         let b = h.spawn(
             &h.sensors[0],
-            &["sensor-host", "--connect", "tcp/10.77.1.1:7461", "--json"],
+            &[
+                "sensor-host",
+                "--connect",
+                "tcp/10.77.1.1:7461",
+                "--insecure",
+                "--json",
+            ],
         );
         let (code, out, err) = run.finish();
         let (bcode, _, berr) = b.finish();

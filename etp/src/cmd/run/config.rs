@@ -65,6 +65,12 @@ pub struct RunConfig {
     pub remote: Option<Vec<String>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub join_timeout: Option<f64>,
+    /// The link's protection: the key folder (`--tls`) or plain TCP
+    /// (`--insecure`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tls: Option<PathBuf>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub insecure: Option<bool>,
     /// The radio options (`--loss`, `--retries`, `--burst`, `--estimator`,
     /// docs/MODEL.md §8), written into the run's scenario text.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -130,6 +136,8 @@ pub fn resolve(mut a: Args) -> Result<Args> {
             a.remote = c.remote.unwrap_or_default();
         }
         a.join_timeout = a.join_timeout.or(c.join_timeout);
+        a.link.tls = a.link.tls.or(c.tls);
+        a.link.insecure |= c.insecure.unwrap_or(false);
         a.radio.loss = a.radio.loss.or(c.loss);
         a.radio.retries = a.radio.retries.or(c.retries);
         a.radio.burst = a.radio.burst.or(c.burst);
@@ -209,6 +217,8 @@ pub fn of_args(a: &Args, record: Option<&Path>) -> RunConfig {
         listen: a.listen.clone(),
         remote: (!a.remote.is_empty()).then(|| a.remote.clone()),
         join_timeout: a.join_timeout,
+        tls: a.link.tls.clone(),
+        insecure: a.link.insecure.then_some(true),
         loss: a.radio.loss,
         retries: a.radio.retries,
         burst: a.radio.burst,

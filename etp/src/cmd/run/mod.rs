@@ -19,6 +19,7 @@ mod figure;
 mod prepare;
 mod process;
 mod record;
+pub mod link;
 mod remote;
 mod report;
 mod rundir;
@@ -126,9 +127,9 @@ pub struct Args {
     /// (with `--record`), else `run-<run-id>-report.png` here.
     #[arg(long)]
     pub plot: bool,
-    /// Across hosts: listen on this Zenoh endpoint (e.g. `tcp/10.0.0.1:7447`)
-    /// for sensor hosts (`etp sensor-host --connect …`). Scouting is off:
-    /// only this endpoint is used.
+    /// Across hosts: listen on this Zenoh endpoint (e.g. `tls/10.0.0.1:7447`
+    /// with `--tls DIR`; `tcp/…` with `--insecure`) for sensor hosts (`etp
+    /// sensor-host --connect …`). Scouting is off: only this endpoint is used.
     #[arg(long, value_name = "ENDPOINT", requires = "remote")]
     pub listen: Option<String>,
     /// Sensors served from other hosts (names, comma-separated); the run
@@ -143,6 +144,9 @@ pub struct Args {
     /// Seconds to wait for the remote sensors to join [default: 60].
     #[arg(long)]
     pub join_timeout: Option<f64>,
+    /// The link's protection (with `--listen`).
+    #[command(flatten)]
+    pub link: link::LinkArgs,
 }
 
 /// Why a completed run is not clean (empty: exit 0), checked leg by leg: a
@@ -355,11 +359,18 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         .context("starting the tokio runtime")?;
     let remote = match &a.listen {
         Some(listen) => match remote::remote_indices(&plan, &a.remote) {
-            Ok(r) => Some(remote::RemoteSpec {
-                listen: listen.clone(),
-                remote: r,
-                join_timeout: a.join_timeout(),
-            }),
+            Ok(r) => match a.link.bridge_args(listen, etp_runtime::link_keys::AGENT_HOST) {
+                Ok(link) => Some(remote::RemoteSpec {
+                    listen: listen.clone(),
+                    remote: r,
+                    join_timeout: a.join_timeout(),
+                    link,
+                }),
+                Err(e) => {
+                    dir.remove();
+                    return Err(e);
+                }
+            },
             Err(e) => {
                 dir.remove();
                 return Err(e);

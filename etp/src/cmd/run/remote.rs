@@ -21,6 +21,8 @@ pub struct RemoteSpec {
     /// Indices of the sensors served from other hosts.
     pub remote: Vec<usize>,
     pub join_timeout: f64,
+    /// The bridge's link arguments (`--tls DIR` or `--insecure`).
+    pub link: Vec<String>,
 }
 
 /// What the bridge saw.
@@ -125,19 +127,17 @@ pub async fn start(plan: &Plan, spec: &RemoteSpec) -> Result<Bridge> {
     std::fs::write(&path, serde_json::to_string(&info)?)
         .with_context(|| format!("writing {}", path.display()))?;
     let bin = sibling_binary("etp-bridge")?;
-    let mut child = spawn(
-        &bin,
-        &[
-            "agent-host".into(),
-            "--session".into(),
-            path.display().to_string(),
-            "--listen".into(),
-            spec.listen.clone(),
-            "--join-timeout".into(),
-            spec.join_timeout.to_string(),
-        ],
-        true,
-    )?;
+    let mut args = vec![
+        "agent-host".into(),
+        "--session".into(),
+        path.display().to_string(),
+        "--listen".into(),
+        spec.listen.clone(),
+        "--join-timeout".into(),
+        spec.join_timeout.to_string(),
+    ];
+    args.extend(spec.link.iter().cloned());
+    let mut child = spawn(&bin, &args, true)?;
     let pid = child.id().unwrap_or(0);
     let mut lines = BufReader::new(child.stdout.take().context("bridge stdout")?).lines();
     eprintln!(

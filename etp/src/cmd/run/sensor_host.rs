@@ -17,7 +17,7 @@ use tokio::io::{AsyncBufReadExt, BufReader};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The agent host's endpoint (its `etp run --listen`), e.g. `tcp/10.0.0.1:7447`.
+    /// The agent host's endpoint (its `etp run --listen`), e.g. `tls/10.0.0.1:7447`.
     #[arg(long, value_name = "ENDPOINT")]
     pub connect: String,
     /// Sensors to serve here (names; repeat; default: every remote sensor of the run).
@@ -29,6 +29,12 @@ pub struct Args {
     /// Print one JSON object at the end.
     #[arg(long)]
     pub json: bool,
+    /// The link's protection.
+    #[command(flatten)]
+    pub link: super::link::LinkArgs,
+    /// This host's name in the key folder (`etp certs init --sensor-host NAME`).
+    #[arg(long, value_name = "NAME", requires = "tls", default_value = etp_runtime::link_keys::DEFAULT_SENSOR_HOST)]
+    pub name: String,
 }
 
 /// How long the sensors get to exit once the bridge has ended.
@@ -80,6 +86,10 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
     ];
     for s in &a.sensors {
         args.extend(["--sensor".to_string(), s.clone()]);
+    }
+    args.extend(a.link.bridge_args(&a.connect, &a.name)?);
+    if a.link.tls.is_some() {
+        args.extend(["--name".to_string(), a.name.clone()]);
     }
     let bin = sibling_binary("etp-bridge")?;
     let mut bridge = spawn_env(&bin, &args, true, &env)?;

@@ -1,0 +1,169 @@
+//! The key folder of an authenticated, encrypted link (`etp certs init DIR`,
+//! `--tls DIR` on `etp run` and `etp sensor-host`): where each file is, and
+//! the checks made before a process hands it to Zenoh's TLS.
+//!
+//! One folder serves every host (copy it whole): the run's CA certificate,
+//! the agent host's key pair and one key pair per sensor host. The CA's own
+//! private key is never written: nobody can mint a certificate for this
+//! folder later (run `etp certs init` again to replace every key at once).
+//! The agent host's certificate is for TLS servers only and a sensor host's
+//! for TLS clients only, so a sensor host cannot pose as the agent host.
+
+use std::os::unix::fs::MetadataExt;
+use std::path::{Path, PathBuf};
+
+/// The CA every certificate of the folder chains to.
+pub const CA_CERTIFICATE: &str = "ca.pem";
+/// The agent host's identity (certificate common name and file stem).
+pub const AGENT_HOST: &str = "agent-host";
+/// The default sensor host name.
+pub const DEFAULT_SENSOR_HOST: &str = "sensor-host";
+
+/// Why a key folder cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum KeyFolderError {
+    #[error("{0}: {1} (make the folder with `etp certs init DIR`)")]
+    Missing(PathBuf, std::io::Error),
+    #[error(
+        "{0}: a private key readable by other users (mode {1:o}); `chmod 600` it, or make the folder again with `etp certs init`"
+    )]
+    KeyReadable(PathBuf, u32),
+    #[error("{0}: not a regular file (a link or a folder is refused)")]
+    NotAFile(PathBuf),
+    #[error("`{0}` is not a host name: use letters, digits and - (at most 48)")]
+    BadName(String),
+    #[error("--tls needs a `tls/ADDR:PORT` endpoint, got `{0}`")]
+    TlsNeedsTlsEndpoint(String),
+    #[error("--insecure carries plain `tcp/ADDR:PORT` only, got `{0}`")]
+    InsecureNeedsTcp(String),
+    #[error(
+        "the link to `{0}` would be unauthenticated and unencrypted: give --tls DIR (made by \
+         `etp certs init DIR`) with a `tls/ADDR:PORT` endpoint, or --insecure for plain TCP on an \
+         isolated test network"
+    )]
+    Unprotected(String),
+}
+
+/// The protection of a link: the key folder's identity `name` (TLS, both
+/// ends authenticated by the folder's CA) for a `tls/` endpoint, or nothing
+/// for a `tcp/` endpoint with `insecure`. Anything else is refused: plain
+/// TCP is never chosen silently.
+pub fn resolve(
+    endpoint: &str,
+    tls: Option<&Path>,
+    name: &str,
+    insecure: bool,
+) -> Result<Option<Identity>, KeyFolderError> {
+    let proto = endpoint.split('/').next().unwrap_or("");
+    match (tls, insecure, proto) {
+        (Some(dir), false, "tls") => identity(dir, name).map(Some),
+        (Some(_), false, _) => Err(KeyFolderError::TlsNeedsTlsEndpoint(endpoint.into())),
+        (_, true, "tcp") => Ok(None),
+        (_, true, _) => Err(KeyFolderError::InsecureNeedsTcp(endpoint.into())),
+        (None, false, _) => Err(KeyFolderError::Unprotected(endpoint.into())),
+    }
+}
+
+/// A host's files in a key folder.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Identity {
+    pub ca: PathBuf,
+    pub certificate: PathBuf,
+    pub private_key: PathBuf,
+}
+
+/// A host name as it appears in file names and certificates.
+pub fn check_name(name: &str) -> Result<(), KeyFolderError> {
+    let ok = !name.is_empty()
+        && name.len() <= 48
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-')
+        && !name.starts_with('-');
+    if ok {
+        Ok(())
+    } else {
+        Err(KeyFolderError::BadName(name.to_string()))
+    }
+}
+
+/// The certificate and key file names of host `name`.
+pub fn files_of(name: &str) -> (String, String) {
+    (format!("{name}.pem"), format!("{name}.key"))
+}
+
+/// The common name in host `name`'s certificate.
+pub fn common_name(name: &str) -> String {
+    format!("etp {name}")
+}
+
+/// The files of host `name` in `dir`, checked: each a regular file (not
+/// followed through a link), the private key readable by its owner only.
+pub fn identity(dir: &Path, name: &str) -> Result<Identity, KeyFolderError> {
+    check_name(name)?;
+    let (cert, key) = files_of(name);
+    let id = Identity {
+        ca: dir.join(CA_CERTIFICATE),
+        certificate: dir.join(cert),
+        private_key: dir.join(key),
+    };
+    for p in [&id.ca, &id.certificate, &id.private_key] {
+        let m =
+            std::fs::symlink_metadata(p).map_err(|e| KeyFolderError::Missing(p.clone(), e))?;
+        if !m.file_type().is_file() {
+            return Err(KeyFolderError::NotAFile(p.clone()));
+        }
+    }
+    let m = std::fs::symlink_metadata(&id.private_key)
+        .map_err(|e| KeyFolderError::Missing(id.private_key.clone(), e))?;
+    if m.mode() & 0o077 != 0 {
+        return Err(KeyFolderError::KeyReadable(
+            id.private_key.clone(),
+            m.mode() & 0o777,
+        ));
+    }
+    Ok(id)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::os::unix::fs::PermissionsExt;
+
+    #[test]
+    fn an_identity_needs_its_three_files_and_a_private_key() {
+        let dir = std::env::temp_dir().join(format!("etp-link-keys-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        assert!(matches!(
+            identity(&dir, "h1"),
+            Err(KeyFolderError::Missing(..))
+        ));
+        for f in ["ca.pem", "h1.pem", "h1.key"] {
+            std::fs::write(dir.join(f), "x").expect("write");
+        }
+        let key = dir.join("h1.key");
+        std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o644)).expect("chmod");
+        let e = identity(&dir, "h1").expect_err("readable key");
+        assert!(e.to_string().contains("chmod 600"), "{e}");
+        std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o600)).expect("chmod");
+        let id = identity(&dir, "h1").expect("usable");
+        assert_eq!(id.private_key, key);
+        std::fs::remove_file(&key).expect("rm");
+        std::os::unix::fs::symlink(dir.join("h1.pem"), &key).expect("link");
+        assert!(matches!(
+            identity(&dir, "h1"),
+            Err(KeyFolderError::NotAFile(_))
+        ));
+        assert!(identity(&dir, "../x").is_err());
+        // The endpoint and the protection asked for must agree.
+        assert!(resolve("tcp/1.2.3.4:7447", None, "h1", false).is_err());
+        assert!(resolve("tls/1.2.3.4:7447", None, "h1", false).is_err());
+        assert!(resolve("tcp/1.2.3.4:7447", Some(&dir), "h1", false).is_err());
+        assert!(resolve("tls/1.2.3.4:7447", None, "h1", true).is_err());
+        assert_eq!(
+            resolve("tcp/1.2.3.4:7447", None, "h1", true).expect("insecure"),
+            None
+        );
+        std::fs::remove_dir_all(&dir).expect("cleanup");
+    }
+}
