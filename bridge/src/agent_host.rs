@@ -10,9 +10,7 @@
 
 use crate::admit::{Admission, Admitted};
 use crate::forward::{Counters, Inbound, Incoming, Outbound, subscribe};
-use crate::session::{
-    End, SESSION_KEY, SessionInfo, agent_host_alive_key, config, data_keys,
-};
+use crate::session::{End, SESSION_KEY, SessionInfo, agent_host_alive_key, config, data_keys};
 use crate::{BridgeError, emit};
 use etp_runtime::wire::to_coordinator::Hello;
 use etp_runtime::wire::traffic::Direction;
@@ -59,11 +57,18 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
             .unwrap_or_else(|| format!("#{i}"))
     };
     let identity = a.link.resolve(&a.listen, End::AgentHost)?;
+    // With identities, access control by certificate: each sensor host only
+    // its sensors' keys.
+    let acl = match (&identity, &a.link.tls) {
+        (Some(_), Some(dir)) => Some(crate::session::access_control_of(dir, &info)?),
+        _ => None,
+    };
     let session = zenoh::open(config(
         Some(&a.listen),
         None,
         Duration::from_millis(a.lease_ms),
         identity.as_ref(),
+        acl.as_ref(),
     )?)
     .wait()
     .map_err(|e| BridgeError::Zenoh(format!("listening on {}: {e}", a.listen)))?;

@@ -9,7 +9,7 @@
 
 use crate::BridgeError;
 use crate::admit::{Admission, Admitted, Refusal};
-use crate::session::{data_key, topic_of_key};
+use crate::session::{down_key, parse_data_key, up_key};
 use etp_runtime::recording::{
     self,
     ports::{DecodedPublisher, EncodedSubscriber, decoded_publisher, encoded_subscriber},
@@ -55,6 +55,8 @@ pub struct Outbound {
     pub events: Vec<ServiceId>,
     /// `true` on the agent host.
     pub down: bool,
+    /// The remote sensors this link carries (up keys name their sender).
+    pub remote: Vec<usize>,
 }
 
 impl Outbound {
@@ -69,6 +71,7 @@ impl Outbound {
             events: ServiceId::wakes_of(&services),
             services,
             down: direction == Direction::Down,
+            remote: remote.to_vec(),
         }
     }
 
@@ -114,20 +117,30 @@ impl Outbound {
             sensors: self.sensors,
         };
         let run = self.run.as_str().to_string();
-        let mut links: Vec<(
-            ServiceId,
-            Box<dyn EncodedSubscriber>,
-            zenoh::pubsub::Publisher<'static>,
-        )> = Vec::new();
-        for &s in &self.services {
-            let sub = encoded_subscriber(&ports, s, false)?;
-            let publisher = session
-                .declare_publisher(data_key(&run, s, self.down))
+        // Per service its subscriber and its Zenoh publishers: one down
+        // (the topic names the sensor), one per remote sensor up (the key
+        // names the sender).
+        type Publishers = BTreeMap<Option<usize>, zenoh::pubsub::Publisher<'static>>;
+        let mut links: Vec<(ServiceId, Box<dyn EncodedSubscriber>, Publishers)> = Vec::new();
+        let declare = |key: String| {
+            session
+                .declare_publisher(key.clone())
                 .congestion_control(zenoh::qos::CongestionControl::Block)
                 .express(true)
                 .wait()
-                .map_err(|e| BridgeError::Zenoh(format!("publisher {s:?}: {e}")))?;
-            links.push((s, sub, publisher));
+                .map_err(|e| BridgeError::Zenoh(format!("publisher {key}: {e}")))
+        };
+        for &s in &self.services {
+            let sub = encoded_subscriber(&ports, s, false)?;
+            let mut publishers = Publishers::new();
+            if self.down {
+                publishers.insert(None, declare(down_key(&run, s))?);
+            } else {
+                for &i in &self.remote {
+                    publishers.insert(Some(i), declare(up_key(&run, i, s))?);
+                }
+            }
+            links.push((s, sub, publishers));
         }
         let waiter = Waiter::over(
             self.events
@@ -138,10 +151,21 @@ impl Outbound {
         on_ready();
         let mut batch = Vec::new();
         loop {
-            for (s, sub, publisher) in &links {
+            for (s, sub, publishers) in &links {
                 batch.clear();
                 sub.drain(&mut batch)?;
                 for (h, bytes) in &batch {
+                    let target = (!self.down).then(|| sensor_of(*s, h));
+                    let Some(publisher) = publishers.get(&target) else {
+                        // Only the served sensors publish in a sensor
+                        // host's own iceoryx2 domain.
+                        tracing::warn!(
+                            ?s,
+                            sender = h.sender,
+                            "a message of a sensor this link does not carry"
+                        );
+                        continue;
+                    };
                     publisher
                         .put(bytes.clone())
                         .wait()
@@ -198,14 +222,20 @@ impl Inbound {
         Ok(Self { publishers, wakes })
     }
 
-    /// Decode a sample of `key` (not delivered yet); garbage, or a key of
-    /// no service this end delivers, is refused.
+    /// Decode a sample of `key` (not delivered yet); garbage, a key of no
+    /// service this end delivers, or an up key naming another sensor than
+    /// the message's sender, is refused.
     pub fn decode(&self, key: &str, bytes: &[u8]) -> Result<Admitted, Refusal> {
-        let topic = topic_of_key(key).ok_or(Refusal::UnknownKey)?;
+        let (key_sensor, topic) = parse_data_key(key).ok_or(Refusal::UnknownKey)?;
         let s = recording::service_of_topic(topic)
             .filter(|s| self.publishers.contains_key(s))
             .ok_or(Refusal::UnknownKey)?;
         let message = recording::decode(topic, bytes).map_err(|_| Refusal::Malformed)?;
+        if let Some(i) = key_sensor
+            && sensor_of(s, message.header()) != i
+        {
+            return Err(Refusal::WrongSender);
+        }
         Ok(Admitted {
             service: s,
             message,

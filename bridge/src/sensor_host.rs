@@ -78,12 +78,15 @@ fn fetch(
 }
 
 pub fn run(a: &Args) -> Result<(), BridgeError> {
-    let identity = a.link.resolve(&a.connect, crate::session::End::SensorHost)?;
+    let identity = a
+        .link
+        .resolve(&a.connect, crate::session::End::SensorHost)?;
     let session = zenoh::open(config(
         None,
         Some(&a.connect),
         Duration::from_millis(a.lease_ms),
         identity.as_ref(),
+        None,
     )?)
     .wait()
     .map_err(|e| BridgeError::Zenoh(format!("connecting to {}: {e}", a.connect)))?;

@@ -3,8 +3,8 @@
 //! a run, and the run description a sensor host fetches when it joins.
 
 use crate::BridgeError;
-pub use etp_runtime::report::SessionInfo;
 use etp_runtime::link_keys;
+pub use etp_runtime::report::SessionInfo;
 use etp_runtime::wire::ServiceId;
 use std::time::Duration;
 
@@ -12,13 +12,19 @@ use std::time::Duration;
 /// does not know the run id yet).
 pub const SESSION_KEY: &str = "etp/session";
 
-/// Which way a service crosses: `down` = agent host → sensor host.
-pub fn data_key(run: &str, s: ServiceId, down: bool) -> String {
-    format!(
-        "etp/{run}/{}/{}",
-        if down { "down" } else { "up" },
-        s.topic()
-    )
+/// Key of a message going down (agent host → sensor host):
+/// `etp/<run>/down/<topic>` (every service going down is per sensor, so its
+/// topic names the sensor).
+pub fn down_key(run: &str, s: ServiceId) -> String {
+    format!("etp/{run}/down/{}", s.topic())
+}
+
+/// Key of a message going up from `sensor`: `etp/<run>/up/<sensor>/<topic>`.
+/// The sending sensor is in the key so that access control can grant a
+/// sensor host exactly its sensors' keys (and admission checks the key
+/// against the message's sender).
+pub fn up_key(run: &str, sensor: usize, s: ServiceId) -> String {
+    format!("etp/{run}/up/{sensor}/{}", s.topic())
 }
 
 /// Every data key of one direction.
@@ -26,12 +32,119 @@ pub fn data_keys(run: &str, down: bool) -> String {
     format!("etp/{run}/{}/**", if down { "down" } else { "up" })
 }
 
-/// The topic of a data key (`etp/<run>/<dir>/<topic>`).
-pub fn topic_of_key(key: &str) -> Option<&str> {
+/// A data key's parts: the sending sensor (up keys) and the topic.
+pub fn parse_data_key(key: &str) -> Option<(Option<usize>, &str)> {
     let rest = key.strip_prefix("etp/")?;
     let (_, rest) = rest.split_once('/')?;
-    let (_, topic) = rest.split_once('/')?;
-    Some(topic)
+    let (dir, rest) = rest.split_once('/')?;
+    match dir {
+        "down" => Some((None, rest)),
+        "up" => {
+            let (sensor, topic) = rest.split_once('/')?;
+            // Digits only: `+1` or `01` would name a sensor twice.
+            if sensor.is_empty()
+                || sensor.len() > 4
+                || !sensor.bytes().all(|b| b.is_ascii_digit())
+                || (sensor.len() > 1 && sensor.starts_with('0'))
+            {
+                return None;
+            }
+            Some((Some(sensor.parse().ok()?), topic))
+        }
+        _ => None,
+    }
+}
+
+/// The agent host's access control for the sensor hosts of the key folder
+/// `dir` (`hosts.json`): each host's sensors among the run's remote ones
+/// (a name the run does not have is no grant).
+pub fn access_control_of(
+    dir: &std::path::Path,
+    info: &SessionInfo,
+) -> Result<serde_json::Value, BridgeError> {
+    let hosts = link_keys::hosts(dir).map_err(|e| BridgeError::Input(format!("--tls: {e}")))?;
+    let grants: Vec<(String, Vec<usize>)> = hosts
+        .iter()
+        .map(|(name, sensors)| {
+            let served = match sensors {
+                None => info.remote.clone(),
+                Some(list) => info
+                    .remote
+                    .iter()
+                    .copied()
+                    .filter(|&i| info.sensors.get(i).is_some_and(|n| list.contains(n)))
+                    .collect(),
+            };
+            (link_keys::common_name(name), served)
+        })
+        .collect();
+    Ok(access_control(&info.run_id, &grants))
+}
+
+/// The agent host's access control (Zenoh's `access_control`, by the
+/// certificate's common name): anything not granted is denied. Every sensor
+/// host may ask for the run (`etp/session`) and follow the agent host's
+/// liveliness; host `h` may, for each sensor `i` of `hosts[h]`, put on
+/// `etp/<run>/up/<i>/**`, subscribe to `etp/<run>/down/sensor/<i>/**` and
+/// declare the token `etp/<run>/alive/sensor/<i>` — nothing of another
+/// sensor, and no wider key expression (a subscription to `etp/**` is
+/// denied). What the agent host itself sends out is allowed (its puts reach
+/// only the subscriptions granted).
+pub fn access_control(run: &str, hosts: &[(String, Vec<usize>)]) -> serde_json::Value {
+    use serde_json::json;
+    let mut rules = vec![
+        json!({"id": "session", "flows": ["ingress"], "messages": ["query"],
+               "key_exprs": [SESSION_KEY], "permission": "allow"}),
+        json!({"id": "session-reply", "flows": ["egress"],
+               "messages": ["declare_queryable", "reply"],
+               "key_exprs": [SESSION_KEY], "permission": "allow"}),
+        json!({"id": "agent-host-alive", "flows": ["ingress"],
+               "messages": ["declare_liveliness_subscriber", "liveliness_query"],
+               "key_exprs": [agent_host_alive_key(run)], "permission": "allow"}),
+        json!({"id": "agent-host-out", "flows": ["egress"],
+               "messages": ["put", "declare_subscriber", "liveliness_token",
+                            "declare_liveliness_subscriber", "liveliness_query", "reply"],
+               "key_exprs": [format!("etp/{run}/**")], "permission": "allow"}),
+    ];
+    let mut subjects = Vec::new();
+    let mut policies = Vec::new();
+    for (cn, sensors) in hosts {
+        let id = format!("host {cn}");
+        let mut host_rules = vec![
+            "session".to_string(),
+            "session-reply".into(),
+            "agent-host-alive".into(),
+            "agent-host-out".into(),
+        ];
+        if !sensors.is_empty() {
+            let keys =
+                |f: &dyn Fn(usize) -> String| sensors.iter().map(|&i| f(i)).collect::<Vec<_>>();
+            for (what, message, key_exprs) in [
+                ("up", "put", keys(&|i| format!("etp/{run}/up/{i}/**"))),
+                (
+                    "down",
+                    "declare_subscriber",
+                    keys(&|i| format!("etp/{run}/down/sensor/{i}/**")),
+                ),
+                (
+                    "alive",
+                    "liveliness_token",
+                    keys(&|i| sensor_alive_key(run, i)),
+                ),
+            ] {
+                let rule = format!("{id}: {what}");
+                rules.push(
+                    json!({"id": rule, "flows": ["ingress"], "messages": [message],
+                                  "key_exprs": key_exprs, "permission": "allow"}),
+                );
+                host_rules.push(rule);
+            }
+        }
+        subjects.push(json!({"id": id, "cert_common_names": [cn]}));
+        policies.push(json!({"rules": host_rules, "subjects": [id]}));
+    }
+    json!({"enabled": true, "default_permission": "deny", "rules": rules,
+           "subjects": subjects, "policies": policies})
 }
 
 /// Liveliness token of a remote sensor, declared by its host once the
@@ -104,6 +217,7 @@ pub fn config(
     connect: Option<&str>,
     lease: Duration,
     identity: Option<&link_keys::Identity>,
+    access_control: Option<&serde_json::Value>,
 ) -> Result<zenoh::Config, BridgeError> {
     let mut c = zenoh::Config::default();
     let set = |c: &mut zenoh::Config, k: &str, v: String| {
@@ -114,18 +228,42 @@ pub fn config(
         let path = |p: &std::path::Path| {
             serde_json::to_string(&p.display().to_string()).unwrap_or_else(|_| "\"\"".into())
         };
-        set(&mut c, "transport/link/tls/root_ca_certificate", path(&id.ca))?;
+        set(
+            &mut c,
+            "transport/link/tls/root_ca_certificate",
+            path(&id.ca),
+        )?;
         if listen.is_some() {
-            set(&mut c, "transport/link/tls/listen_certificate", path(&id.certificate))?;
-            set(&mut c, "transport/link/tls/listen_private_key", path(&id.private_key))?;
+            set(
+                &mut c,
+                "transport/link/tls/listen_certificate",
+                path(&id.certificate),
+            )?;
+            set(
+                &mut c,
+                "transport/link/tls/listen_private_key",
+                path(&id.private_key),
+            )?;
             set(&mut c, "transport/link/tls/enable_mtls", "true".into())?;
         }
         if connect.is_some() {
-            set(&mut c, "transport/link/tls/connect_certificate", path(&id.certificate))?;
-            set(&mut c, "transport/link/tls/connect_private_key", path(&id.private_key))?;
+            set(
+                &mut c,
+                "transport/link/tls/connect_certificate",
+                path(&id.certificate),
+            )?;
+            set(
+                &mut c,
+                "transport/link/tls/connect_private_key",
+                path(&id.private_key),
+            )?;
             // Hosts are reached by address; the CA and the certificates' key
             // usage (server for the agent host only) authenticate the ends.
-            set(&mut c, "transport/link/tls/verify_name_on_connect", "false".into())?;
+            set(
+                &mut c,
+                "transport/link/tls/verify_name_on_connect",
+                "false".into(),
+            )?;
             set(&mut c, "transport/link/tls/enable_mtls", "true".into())?;
         }
     }
@@ -149,6 +287,9 @@ pub fn config(
         lease.as_millis().to_string(),
     )?;
     set(&mut c, "transport/link/tx/keep_alive", "3".into())?;
+    if let Some(acl) = access_control {
+        set(&mut c, "access_control", acl.to_string())?;
+    }
     Ok(c)
 }
 
@@ -157,17 +298,55 @@ mod tests {
     use super::*;
 
     #[test]
-    fn keys_name_the_run_direction_and_topic() {
-        let k = data_key("r1", ServiceId::Truth(3), true);
+    fn keys_name_the_run_direction_sender_and_topic() {
+        let k = down_key("r1", ServiceId::Truth(3));
         assert_eq!(k, "etp/r1/down/sensor/3/truth");
-        assert_eq!(topic_of_key(&k), Some("sensor/3/truth"));
-        assert_eq!(topic_of_key("etp/r1/up/measurement"), Some("measurement"));
-        assert_eq!(topic_of_key("nope"), None);
+        assert_eq!(parse_data_key(&k), Some((None, "sensor/3/truth")));
+        let k = up_key("r1", 12, ServiceId::Measurement);
+        assert_eq!(k, "etp/r1/up/12/measurement");
+        assert_eq!(parse_data_key(&k), Some((Some(12), "measurement")));
+        for bad in [
+            "nope",
+            "etp/r1/up/measurement",
+            "etp/r1/up/01/measurement",
+            "etp/r1/up/+1/measurement",
+            "etp/r1/up/99999/measurement",
+            "etp/r1/sideways/x",
+        ] {
+            assert_eq!(parse_data_key(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn access_control_grants_each_host_only_its_sensors_keys() {
+        let acl = access_control(
+            "r1",
+            &[("etp b".into(), vec![1, 3]), ("etp c".into(), vec![])],
+        );
+        assert_eq!(acl["default_permission"], "deny");
+        let text = acl.to_string();
+        for k in [
+            "etp/r1/up/1/**",
+            "etp/r1/up/3/**",
+            "etp/r1/down/sensor/3/**",
+            "etp/r1/alive/sensor/1",
+        ] {
+            assert!(text.contains(k), "{k}: {text}");
+        }
+        assert!(!text.contains("etp/r1/up/**"), "{text}");
+        // A host with no sensor of this run gets the session only.
+        let c = &acl["policies"][1]["rules"];
+        assert_eq!(c.as_array().map(Vec::len), Some(4), "{c}");
+        // Zenoh accepts it.
+        let mut cfg = zenoh::Config::default();
+        cfg.insert_json5("access_control", &acl.to_string())
+            .expect("a valid ACL");
     }
 
     #[test]
     fn the_configuration_turns_scouting_off_and_names_the_endpoints() {
-        let c = config(Some("tcp/127.0.0.1:7447"), None, DEFAULT_LEASE, None).expect("config");
+        let c =
+            config(Some("tcp/127.0.0.1:7447"), None, DEFAULT_LEASE, None, None).expect("config");
         let text = format!("{c}");
         assert!(text.contains("tcp/127.0.0.1:7447"), "{text}");
         assert!(text.contains("\"lease\":300"), "{text}");

@@ -32,6 +32,8 @@ pub enum KeyFolderError {
     NotAFile(PathBuf),
     #[error("`{0}` is not a host name: use letters, digits and - (at most 48)")]
     BadName(String),
+    #[error("{0}: {1}")]
+    BadHosts(PathBuf, String),
     #[error("--tls needs a `tls/ADDR:PORT` endpoint, got `{0}`")]
     TlsNeedsTlsEndpoint(String),
     #[error("--insecure carries plain `tcp/ADDR:PORT` only, got `{0}`")]
@@ -64,6 +66,33 @@ pub fn resolve(
     }
 }
 
+/// Which sensors each sensor host of a key folder may serve (`hosts.json`,
+/// written by `etp certs init --sensor-host NAME[=s0,s3]`): `None` = any
+/// remote sensor of a run. The agent host's access control grants a host
+/// only its sensors' keys.
+pub const HOSTS: &str = "hosts.json";
+
+/// The sensor hosts of a key folder and the sensors each may serve.
+pub type Hosts = std::collections::BTreeMap<String, Option<Vec<String>>>;
+
+/// Read `hosts.json` of `dir` (a regular file, not followed through a link).
+pub fn hosts(dir: &Path) -> Result<Hosts, KeyFolderError> {
+    let path = dir.join(HOSTS);
+    let m =
+        std::fs::symlink_metadata(&path).map_err(|e| KeyFolderError::Missing(path.clone(), e))?;
+    if !m.file_type().is_file() {
+        return Err(KeyFolderError::NotAFile(path));
+    }
+    let text =
+        std::fs::read_to_string(&path).map_err(|e| KeyFolderError::Missing(path.clone(), e))?;
+    let hosts: Hosts = serde_json::from_str(&text)
+        .map_err(|e| KeyFolderError::BadHosts(path.clone(), e.to_string()))?;
+    for name in hosts.keys() {
+        check_name(name)?;
+    }
+    Ok(hosts)
+}
+
 /// A host's files in a key folder.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Identity {
@@ -76,9 +105,7 @@ pub struct Identity {
 pub fn check_name(name: &str) -> Result<(), KeyFolderError> {
     let ok = !name.is_empty()
         && name.len() <= 48
-        && name
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || c == '-')
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-')
         && !name.starts_with('-');
     if ok {
         Ok(())
@@ -108,8 +135,7 @@ pub fn identity(dir: &Path, name: &str) -> Result<Identity, KeyFolderError> {
         private_key: dir.join(key),
     };
     for p in [&id.ca, &id.certificate, &id.private_key] {
-        let m =
-            std::fs::symlink_metadata(p).map_err(|e| KeyFolderError::Missing(p.clone(), e))?;
+        let m = std::fs::symlink_metadata(p).map_err(|e| KeyFolderError::Missing(p.clone(), e))?;
         if !m.file_type().is_file() {
             return Err(KeyFolderError::NotAFile(p.clone()));
         }

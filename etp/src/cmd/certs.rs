@@ -12,11 +12,11 @@
 
 use anyhow::{Context, Result, bail};
 use etp_runtime::link_keys::{
-    AGENT_HOST, CA_CERTIFICATE, DEFAULT_SENSOR_HOST, check_name, common_name, files_of,
+    self, AGENT_HOST, CA_CERTIFICATE, DEFAULT_SENSOR_HOST, check_name, common_name, files_of,
 };
 use rcgen::{
-    BasicConstraints, CertificateParams, DistinguishedName, DnType, ExtendedKeyUsagePurpose,
-    IsCa, Issuer, KeyPair, KeyUsagePurpose,
+    BasicConstraints, CertificateParams, DistinguishedName, DnType, ExtendedKeyUsagePurpose, IsCa,
+    Issuer, KeyPair, KeyUsagePurpose,
 };
 use std::io::Write;
 use std::os::unix::fs::{OpenOptionsExt, PermissionsExt};
@@ -39,9 +39,11 @@ pub enum Sub {
 pub struct InitArgs {
     /// The folder to make (mode 0700; private keys 0600).
     pub dir: PathBuf,
-    /// A sensor host's name (its files NAME.pem/NAME.key; `etp sensor-host
-    /// --tls DIR --name NAME`). Repeat for several [default: sensor-host].
-    #[arg(long = "sensor-host", value_name = "NAME")]
+    /// A sensor host: its name (files NAME.pem/NAME.key; `etp sensor-host
+    /// --tls DIR --name NAME`) and, after `=`, the only sensors it may serve
+    /// (`b=s1,s3`; without: any remote sensor). Repeat for several
+    /// [default: sensor-host].
+    #[arg(long = "sensor-host", value_name = "NAME[=SENSORS]")]
     pub sensor_hosts: Vec<String>,
     /// Days the certificates are valid.
     #[arg(long, default_value_t = 365)]
@@ -61,23 +63,36 @@ pub fn run(a: Args) -> Result<()> {
 }
 
 fn init(a: InitArgs) -> Result<()> {
-    let mut hosts = a.sensor_hosts.clone();
-    if hosts.is_empty() {
-        hosts.push(DEFAULT_SENSOR_HOST.to_string());
+    let mut given = a.sensor_hosts.clone();
+    if given.is_empty() {
+        given.push(DEFAULT_SENSOR_HOST.to_string());
     }
-    for h in &hosts {
-        check_name(h).context("--sensor-host")?;
-        if h == AGENT_HOST {
+    let mut map = link_keys::Hosts::new();
+    for g in &given {
+        let (name, sensors) = match g.split_once('=') {
+            Some((n, list)) => {
+                let list: Vec<String> = list
+                    .split(',')
+                    .map(str::trim)
+                    .filter(|s| !s.is_empty())
+                    .map(str::to_string)
+                    .collect();
+                if list.is_empty() {
+                    bail!("--sensor-host `{g}`: no sensor after `=`");
+                }
+                (n, Some(list))
+            }
+            None => (g.as_str(), None),
+        };
+        check_name(name).context("--sensor-host")?;
+        if name == AGENT_HOST {
             bail!("--sensor-host: `{AGENT_HOST}` is the agent host's name");
         }
+        if map.insert(name.to_string(), sensors).is_some() {
+            bail!("--sensor-host: `{name}` is given twice");
+        }
     }
-    if let Some(d) = hosts
-        .iter()
-        .enumerate()
-        .find(|(i, h)| hosts[..*i].contains(h))
-    {
-        bail!("--sensor-host: `{}` is given twice", d.1);
-    }
+    let hosts: Vec<String> = map.keys().cloned().collect();
     if a.days == 0 || a.days > 3650 {
         bail!("--days must be between 1 and 3650, got {}", a.days);
     }
@@ -87,7 +102,12 @@ fn init(a: InitArgs) -> Result<()> {
             a.dir.display()
         );
     }
-    let files = material(&hosts, a.days).context("making the certificates")?;
+    let mut files = material(&hosts, a.days).context("making the certificates")?;
+    files.push((
+        link_keys::HOSTS.to_string(),
+        serde_json::to_string_pretty(&map)?,
+        false,
+    ));
     let parent = a
         .dir
         .parent()
@@ -137,7 +157,7 @@ fn init(a: InitArgs) -> Result<()> {
             serde_json::to_string_pretty(&serde_json::json!({
                 "dir": a.dir.display().to_string(),
                 "agent_host": AGENT_HOST,
-                "sensor_hosts": hosts,
+                "sensor_hosts": map,
                 "files": names,
                 "days": a.days,
             }))?
@@ -165,8 +185,7 @@ fn material(hosts: &[String], days: u32) -> Result<Files> {
     let ca_key = KeyPair::generate()?;
     let mut ca = CertificateParams::new(Vec::<String>::new())?;
     ca.distinguished_name = DistinguishedName::new();
-    ca.distinguished_name
-        .push(DnType::CommonName, "etp run CA");
+    ca.distinguished_name.push(DnType::CommonName, "etp run CA");
     ca.is_ca = IsCa::Ca(BasicConstraints::Constrained(0));
     ca.key_usages = vec![KeyUsagePurpose::KeyCertSign, KeyUsagePurpose::CrlSign];
     validity(&mut ca);

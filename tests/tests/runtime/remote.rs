@@ -712,13 +712,65 @@ print(json.dumps({{"answers": answers, "samples": len(seen)}}))
     assert_eq!(v["samples"], 0, "{v}");
 }
 
+/// A host of the key folder that may serve s4 only, on the agent host's
+/// network (s4 is local in the run): it is authenticated, so the session
+/// query answers it, but access control grants it no key of s1. Its
+/// subscriptions to the downlink stay silent and its puts on s1's up keys
+/// never reach the bridge (the caller's refusal count shows none got in).
+fn a_stranger_gets_no_key_of_another_sensor(h: &Hosts, keys: &std::path::Path) {
+    let script = format!(
+        r#"{PY_CONNECT}
+s = session(sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4])
+run = None
+end = time.time() + 10
+while run is None and time.time() < end:
+    for r in s.get("etp/session", timeout=0.5):
+        if r.ok is not None:
+            run = json.loads(bytes(r.ok.payload.to_bytes()))["run_id"]
+if run is None:
+    sys.exit("the session query was not answered: not connected?")
+seen = []
+for k in ["etp/**", f"etp/{{run}}/down/**", f"etp/{{run}}/down/sensor/1/**"]:
+    s.declare_subscriber(k, lambda smp: seen.append(str(smp.key_expr)))
+puts = [f"etp/{{run}}/up/1/measurement", f"etp/{{run}}/up/1/slot", f"etp/{{run}}/up/measurement"]
+for k in puts:
+    s.put(k, bytes(7))
+time.sleep(2.0)
+# Its own puts reach its own `etp/**` subscriber (local delivery); nothing else may.
+print(json.dumps({{"run": run, "samples": len([k for k in seen if k not in puts])}}))
+s.close()
+"#
+    );
+    let out = Command::new("ip")
+        .args(["netns", "exec", &h.sensors[1]])
+        .arg(etp_tests::pyenv::python())
+        .args(["-c", &script, "tls/10.77.2.1:7447"])
+        .args([
+            keys.join("ca.pem"),
+            keys.join("stranger.pem"),
+            keys.join("stranger.key"),
+        ])
+        .output()
+        .expect("python zenoh");
+    assert!(
+        out.status.success(),
+        "stranger: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).expect("one JSON line");
+    assert_eq!(v["samples"], 0, "{v}");
+}
+
 /// The trust boundary of a TLS run (the default). An outsider without a
-/// certificate learns nothing ([`outsider_learns_nothing`]). A host with a
-/// valid certificate of the run's key folder — a compromised sensor host —
-/// learns the run from the downlink and puts garbage and forged
-/// measurements on the uplink. None gets in: each is refused by its reason,
-/// the run stays exact, and its exit says so (5, a link fault, without
-/// `--allow-degraded`).
+/// certificate learns nothing ([`outsider_learns_nothing`]); a certified
+/// host of another sensor gets no key of this one
+/// ([`a_stranger_gets_no_key_of_another_sensor`]). A second certified host
+/// of s1 — a compromised sensor host — learns the run from the downlink and
+/// puts garbage and forged measurements on s1's up keys, which access
+/// control lets through: admission refuses each by its reason, the run stays
+/// exact, and its exit says so (5, a link fault, without
+/// `--allow-degraded`). Exactly five refusals: nothing of the stranger's got
+/// in.
 #[test]
 fn garbage_and_forged_uplink_messages_are_refused_by_name_and_the_run_stays_exact() {
     let _serial = serial();
@@ -727,7 +779,7 @@ fn garbage_and_forged_uplink_messages_are_refused_by_name_and_the_run_stays_exac
         .join(format!("remote-in-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("scratch");
     let keys = dir.join("keys");
-    certs_init(&keys, &["b", "rogue"]);
+    certs_init(&keys, &["b=s1", "rogue=s1", "stranger=s4"]);
     let ns_keys = format!("{NS_OUT}/keys");
     let (run, run_log) = h.spawn_watched_out(
         &h.agent,
@@ -769,6 +821,7 @@ fn garbage_and_forged_uplink_messages_are_refused_by_name_and_the_run_stays_exac
         ],
     );
     outsider_learns_nothing(&h, &keys);
+    a_stranger_gets_no_key_of_another_sensor(&h, &keys);
     // The rogue sits on the second host's network with a valid certificate.
     let script = format!(
         r#"{PY_CONNECT}
@@ -776,7 +829,14 @@ s = session(sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4])
 seen = {{}}
 def on(sample):
     seen.setdefault("first", (str(sample.key_expr), bytes(sample.payload.to_bytes())))
-sub = s.declare_subscriber("etp/*/down/**", on)
+run = None
+end = time.time() + 10
+while run is None and time.time() < end:
+    for r in s.get("etp/session", timeout=0.5):
+        if r.ok is not None:
+            run = json.loads(bytes(r.ok.payload.to_bytes()))["run_id"]
+# Access control grants a host of s1 exactly s1's downlink.
+sub = s.declare_subscriber(f"etp/{{run}}/down/sensor/1/**", on)
 end = time.time() + 120
 while "first" not in seen and time.time() < end:
     time.sleep(0.02)
@@ -788,9 +848,9 @@ tag = struct.unpack_from("<Q", payload, 0)[0]
 def measurement(tag, sender, seq):
     # header (run, episode, step, leg, sender, seq), dim, sequence, y[6]
     return struct.pack("<QQIIIIII", tag, 0, 1, 0, sender, seq, 2, 1) + bytes(48)
-up = f"etp/{{run}}/up/measurement"
+up = f"etp/{{run}}/up/1/measurement"
 s.put(up, bytes(7))                              # garbage
-s.put(up, measurement(tag, 3, 2))                # for s3, a local sensor
+s.put(up, measurement(tag, 3, 2))                # for s3, a local sensor, on s1's key
 s.put(up, measurement(tag, 1, 1))                # s1's seq 1 (its hello) again
 s.put(up, measurement(tag, 1, 0xFFFF0000))       # far ahead of s1
 s.put(up, measurement(tag ^ 1, 1, 2))            # another run's tag

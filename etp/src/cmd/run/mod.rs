@@ -16,10 +16,10 @@
 
 pub mod config;
 mod figure;
+pub mod link;
 mod prepare;
 mod process;
 mod record;
-pub mod link;
 mod remote;
 mod report;
 mod rundir;
@@ -359,7 +359,10 @@ fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         .context("starting the tokio runtime")?;
     let remote = match &a.listen {
         Some(listen) => match remote::remote_indices(&plan, &a.remote) {
-            Ok(r) => match a.link.bridge_args(listen, etp_runtime::link_keys::AGENT_HOST) {
+            Ok(r) => match a
+                .link
+                .bridge_args(listen, etp_runtime::link_keys::AGENT_HOST)
+            {
                 Ok(link) => Some(remote::RemoteSpec {
                     listen: listen.clone(),
                     remote: r,
