@@ -16,6 +16,7 @@ fn a_sensor_host_with_no_agent_host_fails_naming_the_endpoint() {
             "sensor-host",
             "--connect",
             "tcp/127.0.0.1:9",
+            "--insecure",
             "--dir",
             &dir.display().to_string(),
             "--join-timeout",
@@ -41,9 +42,54 @@ fn an_agent_host_refuses_a_missing_session_file() {
             "/nonexistent/session.json",
             "--listen",
             "tcp/127.0.0.1:0",
+            "--insecure",
         ])
         .output()
         .expect("runs");
     assert_eq!(out.status.code(), Some(1), "{out:?}");
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/session.json"));
+}
+
+#[test]
+fn a_link_without_tls_or_insecure_is_refused_before_it_opens() {
+    for (args, needle) in [
+        (
+            vec![
+                "sensor-host",
+                "--connect",
+                "tcp/127.0.0.1:9",
+                "--dir",
+                "/nonexistent/d",
+            ],
+            "unauthenticated and unencrypted",
+        ),
+        (
+            vec![
+                "sensor-host",
+                "--connect",
+                "tls/127.0.0.1:9",
+                "--dir",
+                "/nonexistent/d",
+                "--tls",
+                "/nonexistent/keys",
+            ],
+            "/nonexistent/keys/ca.pem",
+        ),
+        (
+            vec![
+                "sensor-host",
+                "--connect",
+                "tls/127.0.0.1:9",
+                "--dir",
+                "/nonexistent/d",
+                "--insecure",
+            ],
+            "--insecure carries plain `tcp/ADDR:PORT` only",
+        ),
+    ] {
+        let out = bridge().args(&args).output().expect("runs");
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {out:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
 }

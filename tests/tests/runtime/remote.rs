@@ -92,11 +92,7 @@ impl Hosts {
         (format!("va{p}{k}"), format!("vs{p}{k}"))
     }
 
-    fn spawn(&self, ns: &str, args: &[&str]) -> Guard {
-        self.spawn_in(ns, None, args)
-    }
-
-    /// [`Hosts::spawn`] with its stderr watched ([`LogWatch`]); `RUST_LOG`
+    /// [`Hosts::spawn_in`] with its stderr watched ([`LogWatch`]); `RUST_LOG`
     /// debug of `etp_sensor_node` (a sensor host's sensors log their ledgers).
     fn spawn_watched(&self, ns: &str, args: &[&str]) -> (Guard, LogWatch) {
         let env = [("RUST_LOG", "warn,zenoh=error,etp_sensor_node=debug")];
@@ -118,7 +114,7 @@ impl Hosts {
         (g, w)
     }
 
-    /// [`Hosts::spawn`] with `out` visible inside as [`NS_OUT`].
+    /// [`Hosts::spawn_in`] with `out` visible inside as [`NS_OUT`].
     fn spawn_out(&self, ns: &str, out: &std::path::Path, args: &[&str]) -> Guard {
         self.spawn_in(ns, Some(out), args)
     }
