@@ -64,40 +64,21 @@ pub fn load_scenario_with_radio(arg: &str, radio: &RadioArgs) -> Result<Scenario
 /// The scenario `text` with the radio options written into it as a
 /// `[radio]` table (docs/MODEL.md §8), for runs and files that must carry
 /// their channel in the text (every process of a run, and its recording,
-/// read the scenario text). Only a text without a lossy radio of its own
-/// takes one; the result is parsed again and must give exactly the channel
-/// the options give. No options: `text` itself.
+/// read the scenario text). Only a text without a channel of its own takes
+/// one ([`text_with_channel`] appends it). No options: `text` itself.
 pub fn text_with_radio(text: &str, radio: &RadioArgs) -> Result<String> {
     let o = radio.to_override();
     if o.is_empty() {
         return Ok(text.to_string());
     }
     let scenario = Scenario::from_toml(text).context("scenario")?;
-    if !scenario.radio.is_ideal() || text.lines().any(|l| l.trim() == "[radio]") {
+    if sets_a_channel(text)? {
         bail!(
-            "the scenario has a [radio] of its own; edit it there instead of giving radio options"
+            "the scenario sets a channel of its own ([radio] or a sensor's loss, retries or \
+             burst); edit it there instead of giving radio options"
         );
     }
-    let wanted = radio.apply(scenario)?.radio;
-    let link = wanted.link(0);
-    let mut table = format!(
-        "\n[radio]\nloss = {:?}\nretries = {}\nestimator = \"{}\"\n",
-        link.loss,
-        link.retries,
-        wanted.estimator.name()
-    );
-    if let Some(b) = link.burst {
-        table.push_str(&format!("burst = {b:?}\n"));
-    }
-    let out = format!("{}\n{table}", text.trim_end());
-    let parsed = Scenario::from_toml(&out).context("the scenario with its [radio]")?;
-    if parsed.radio != wanted {
-        bail!(
-            "the radio options cannot be written into this scenario's text (it sets a link of \
-             its own): edit its [radio] or [[sensor]] entries instead"
-        );
-    }
-    Ok(out)
+    text_with_channel(text, &radio.apply(scenario)?.radio)
 }
 
 /// The scenario `text` carrying exactly the channel `wanted` (docs/MODEL.md

@@ -671,6 +671,37 @@ def session(ep, ca, cert, key):
     return zenoh.open(conf)
 "#;
 
+/// The TLS arguments of [`PY_CONNECT`]'s `session` for host `name` of the
+/// key folder: endpoint, CA, certificate, key.
+fn tls_args(keys: &std::path::Path, name: &str) -> Vec<std::path::PathBuf> {
+    vec![
+        "tls/10.77.2.1:7447".into(),
+        keys.join("ca.pem"),
+        keys.join(format!("{name}.pem")),
+        keys.join(format!("{name}.key")),
+    ]
+}
+
+/// Run a Python Zenoh `script` with `args` in the second sensor host's
+/// namespace; it must exit 0 and print one JSON value last.
+fn python_peer(h: &Hosts, who: &str, script: &str, args: &[std::path::PathBuf]) -> Value {
+    let out = Command::new("ip")
+        .args(["netns", "exec", &h.sensors[1]])
+        .arg(etp_tests::pyenv::python())
+        .args(["-c", script])
+        .args(args)
+        .output()
+        .expect("python zenoh");
+    assert!(
+        out.status.success(),
+        "{who}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    let last = text.lines().last().unwrap_or_default();
+    serde_json::from_str(last).unwrap_or_else(|e| panic!("{who}: {e}: {text}"))
+}
+
 /// An outsider without a certificate, on the agent host's network: whether
 /// it connects over plain TCP to the TLS port or over TLS with the CA but no
 /// certificate of its own, for 4 s it gets no answer to the session query and
@@ -691,19 +722,7 @@ for ep, ca in [("tcp/10.77.2.1:7447", ""), ("tls/10.77.2.1:7447", sys.argv[1])]:
 print(json.dumps({{"answers": answers, "samples": len(seen)}}))
 "#
     );
-    let out = Command::new("ip")
-        .args(["netns", "exec", &h.sensors[1]])
-        .arg(etp_tests::pyenv::python())
-        .args(["-c", &script])
-        .arg(keys.join("ca.pem"))
-        .output()
-        .expect("python zenoh");
-    assert!(
-        out.status.success(),
-        "outsider: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: Value = serde_json::from_slice(&out.stdout).expect("one JSON line");
+    let v = python_peer(h, "outsider", &script, &[keys.join("ca.pem")]);
     assert_eq!(v["answers"], serde_json::json!([]), "{v}");
     assert_eq!(v["samples"], 0, "{v}");
 }
@@ -737,23 +756,7 @@ print(json.dumps({{"run": run, "samples": len([k for k in seen if k not in puts]
 s.close()
 "#
     );
-    let out = Command::new("ip")
-        .args(["netns", "exec", &h.sensors[1]])
-        .arg(etp_tests::pyenv::python())
-        .args(["-c", &script, "tls/10.77.2.1:7447"])
-        .args([
-            keys.join("ca.pem"),
-            keys.join("stranger.pem"),
-            keys.join("stranger.key"),
-        ])
-        .output()
-        .expect("python zenoh");
-    assert!(
-        out.status.success(),
-        "stranger: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: Value = serde_json::from_slice(&out.stdout).expect("one JSON line");
+    let v = python_peer(h, "stranger", &script, &tls_args(keys, "stranger"));
     assert_eq!(v["samples"], 0, "{v}");
 }
 
@@ -855,22 +858,7 @@ print(json.dumps({{"run": run}}))
 s.close()
 "#
     );
-    let intruder = Command::new("ip")
-        .args(["netns", "exec", &h.sensors[1]])
-        .arg(etp_tests::pyenv::python())
-        .args(["-c", &script, "tls/10.77.2.1:7447"])
-        .args([
-            keys.join("ca.pem"),
-            keys.join("rogue.pem"),
-            keys.join("rogue.key"),
-        ])
-        .output()
-        .expect("python zenoh");
-    assert!(
-        intruder.status.success(),
-        "intruder: {}",
-        String::from_utf8_lossy(&intruder.stderr)
-    );
+    python_peer(&h, "intruder", &script, &tls_args(&keys, "rogue"));
     let (code, out, _) = run.finish();
     let _ = b.finish();
     let err = run_log.lines().join("\n");
