@@ -31,6 +31,8 @@ pub enum Refusal {
     Duplicate,
     /// A sequence number too far ahead of the sensor's next one.
     OutOfWindow,
+    /// A second host claimed a sensor another host serves (at join).
+    DuplicateHost,
 }
 
 impl Refusal {
@@ -43,6 +45,7 @@ impl Refusal {
             Self::WrongSender => "wrong-sender",
             Self::Duplicate => "duplicate",
             Self::OutOfWindow => "out-of-window",
+            Self::DuplicateHost => "duplicate-host",
         }
     }
 }
@@ -83,7 +86,14 @@ pub struct Admission {
     /// Messages that arrived before an earlier one of their sensor and
     /// waited for it (not a fault: the link overtook).
     reordered: u64,
+    /// Towards the agent: the host each remote sensor was granted to at
+    /// join (its Zenoh id), first claim wins.
+    hosts: BTreeMap<usize, String>,
 }
+
+/// The longest host identity a claim may carry (a Zenoh id is at most 32
+/// hexadecimal digits).
+pub const MAX_HOST_ID: usize = 64;
 
 impl Admission {
     /// The agent host's end: messages of the remote `sensors`, each sensor's
@@ -108,6 +118,7 @@ impl Admission {
             ),
             refused: BTreeMap::new(),
             reordered: 0,
+            hosts: BTreeMap::new(),
         }
     }
 
@@ -120,6 +131,7 @@ impl Admission {
             order: None,
             refused: BTreeMap::new(),
             reordered: 0,
+            hosts: BTreeMap::new(),
         }
     }
 
@@ -182,6 +194,33 @@ impl Admission {
             o.next = o.next.wrapping_add(1);
         }
         Ok(ready)
+    }
+
+    /// A host's claim, at join, to serve remote sensor `sensor`: granted to
+    /// the first host that claims it (again to the same host, which may
+    /// ask twice), refused for any other (`DuplicateHost`: one sensor, one
+    /// process, one stream of sequence numbers). A claim of a sensor this
+    /// end does not carry is `WrongSender`; a host id that is empty, too
+    /// long or not plain ASCII alphanumerics is `Malformed`. Every refusal
+    /// is counted: a fault of the run.
+    pub fn claim(&mut self, sensor: usize, host: &str) -> Result<(), Refusal> {
+        if host.is_empty()
+            || host.len() > MAX_HOST_ID
+            || !host.bytes().all(|b| b.is_ascii_alphanumeric())
+        {
+            return Err(self.refuse(Refusal::Malformed));
+        }
+        if self.order.is_none() || !self.sensors.contains(&sensor) {
+            return Err(self.refuse(Refusal::WrongSender));
+        }
+        match self.hosts.get(&sensor) {
+            None => {
+                self.hosts.insert(sensor, host.to_string());
+                Ok(())
+            }
+            Some(h) if h == host => Ok(()),
+            Some(_) => Err(self.refuse(Refusal::DuplicateHost)),
+        }
     }
 
     /// Count a refusal made outside [`Self::admit`] (an unknown key, bytes
@@ -306,6 +345,35 @@ mod tests {
                 (Refusal::OutOfWindow, 1),
             ])
         );
+    }
+
+    #[test]
+    fn a_sensor_is_granted_to_the_first_host_that_claims_it() {
+        let mut a = Admission::towards_agent(TAG, &[1, 3]);
+        assert_eq!(a.claim(1, "a1b2"), Ok(()));
+        // The same host may ask again (a retried query).
+        assert_eq!(a.claim(1, "a1b2"), Ok(()));
+        assert_eq!(a.claim(3, "ffee"), Ok(()));
+        assert_eq!(a.claim(1, "ffee"), Err(Refusal::DuplicateHost));
+        // Sensor 0 is local; a host id must be a plain id.
+        assert_eq!(a.claim(0, "ffee"), Err(Refusal::WrongSender));
+        assert_eq!(a.claim(3, ""), Err(Refusal::Malformed));
+        assert_eq!(a.claim(3, "a/b"), Err(Refusal::Malformed));
+        assert_eq!(
+            a.claim(3, &"a".repeat(MAX_HOST_ID + 1)),
+            Err(Refusal::Malformed)
+        );
+        assert_eq!(
+            a.refused(),
+            &BTreeMap::from([
+                (Refusal::Malformed, 3),
+                (Refusal::WrongSender, 1),
+                (Refusal::DuplicateHost, 1),
+            ])
+        );
+        // Towards the sensors nobody claims anything.
+        let mut s = Admission::towards_sensors(TAG, &[1]);
+        assert_eq!(s.claim(1, "a1b2"), Err(Refusal::WrongSender));
     }
 
     #[test]

@@ -1,6 +1,13 @@
 //! The agent host's end: listens, tells joining sensor hosts the run
-//! (queryable [`SESSION_KEY`]), waits (bounded) until every remote sensor
+//! (queryable [`SESSION_KEY`]), grants each remote sensor to the first host
+//! that claims it (queryable [`join_key`]; a second claimant is refused and
+//! counted, `duplicate-host`), waits (bounded) until every remote sensor
 //! has joined, then carries the remote sensors' services both ways.
+//!
+//! Down, each remote sensor has an outbound thread of its own: a put waits
+//! while a subscribed peer's queue is full, so a peer that stops reading
+//! holds up only the sensor whose keys it subscribed to (and only until
+//! Zenoh closes it, [`crate::session::STALLED_PEER_CLOSE`]).
 //!
 //! A remote sensor is alive on this host as long as its host's liveliness
 //! token is: the bridge keeps an iceoryx2 *proxy node* named like the sensor
@@ -9,8 +16,11 @@
 //! killed host or a cut link like a dead local sensor, within the link lease.
 
 use crate::admit::{Admission, Admitted};
-use crate::forward::{Counters, Inbound, Incoming, Outbound, subscribe};
-use crate::session::{End, SESSION_KEY, SessionInfo, agent_host_alive_key, config, data_keys};
+use crate::forward::{Counters, Inbound, Incoming, Outbound, Stalls, subscribe};
+use crate::session::{
+    End, SESSION_KEY, SessionInfo, agent_host_alive_key, config, data_keys, join_keys,
+    parse_join_key,
+};
 use crate::{BridgeError, emit};
 use etp_runtime::wire::to_coordinator::Hello;
 use etp_runtime::wire::traffic::Direction;
@@ -86,6 +96,14 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         .wait()
         .map_err(|e| BridgeError::Zenoh(format!("queryable: {e}")))?;
     let (tx, rx) = std::sync::mpsc::channel();
+    let claims = tx.clone();
+    let _claims = session
+        .declare_queryable(join_keys(run.as_str()))
+        .callback(move |q| {
+            let _ = claims.send(Incoming::Claim(q));
+        })
+        .wait()
+        .map_err(|e| BridgeError::Zenoh(format!("queryable of claims: {e}")))?;
     let _subs = subscribe(
         &session,
         &[data_keys(run.as_str(), false)],
@@ -93,14 +111,23 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         tx,
     )?;
     let counters = Counters::default();
+    let stalls = Stalls::default();
     let stop = Arc::new(AtomicBool::new(false));
-    let outbound = Outbound::new(&run, sensors, Direction::Down, &info.remote).spawn(
-        &session,
-        &counters,
-        &stop,
-        || {},
-        |_, _| {},
-    );
+    let outbound: Vec<_> = info
+        .remote
+        .iter()
+        .map(|&i| {
+            Outbound::new(&run, sensors, Direction::Down, &[i]).spawn(
+                format!("etp-bridge-out-{i}"),
+                &session,
+                &counters,
+                &stalls,
+                &stop,
+                || {},
+                |_, _| {},
+            )
+        })
+        .collect();
     let node = wire::create_node(&run, "etp-bridge-in")?;
     let ports = Ports {
         node: &node,
@@ -180,16 +207,50 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                         "unix_ns": wire_now_ns()}));
                 }
             }
+            Ok(Incoming::Claim(q)) => {
+                let host = q
+                    .payload()
+                    .map(|p| String::from_utf8_lossy(&p.to_bytes()).into_owned())
+                    .unwrap_or_default();
+                let verdict = match parse_join_key(run.as_str(), q.key_expr().as_str()) {
+                    Some(i) => admission.claim(i, &host).map(|()| i),
+                    None => Err(admission.refuse(crate::admit::Refusal::UnknownKey)),
+                };
+                let key = q.key_expr().clone();
+                let _ = match verdict {
+                    Ok(i) => {
+                        tracing::info!(sensor = %name(i), host, "sensor granted");
+                        q.reply(key, "granted").wait()
+                    }
+                    Err(r) => {
+                        tracing::warn!(key = %key, host, reason = r.name(), "refused a claim");
+                        q.reply_err(format!(
+                            "{} ({})",
+                            match r {
+                                crate::admit::Refusal::DuplicateHost =>
+                                    "another host serves this sensor in this run",
+                                _ => "this host may not serve this sensor in this run",
+                            },
+                            r.name()
+                        ))
+                        .wait()
+                    }
+                };
+            }
             Ok(Incoming::Hello(_)) | Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break Ok(()),
         }
     };
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
-    let out = outbound
-        .join()
-        .map_err(|_| BridgeError::Wire("the outbound thread panicked".into()))?;
+    let mut out = Ok(());
+    for t in outbound {
+        let r = t
+            .join()
+            .map_err(|_| BridgeError::Wire("an outbound thread panicked".into()))?;
+        out = out.and(r);
+    }
     crate::emit_refused(&admission, &info.sensors);
-    crate::emit_traffic(&counters, &info.sensors);
+    crate::emit_traffic(&counters, &stalls, &info.sensors);
     drop(proxies);
     result.and(out)
 }

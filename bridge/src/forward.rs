@@ -39,6 +39,20 @@ fn count(counters: &Counters, s: ServiceId, h: &Header, bytes: usize) {
     }
 }
 
+/// A put that took at least this long was held up by a peer that stopped
+/// reading (its Zenoh queue full): counted per sensor as a stall.
+pub const STALL: Duration = Duration::from_millis(250);
+
+/// Puts held up by a stalled peer, per sensor: how many, and the longest.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
+pub struct Stall {
+    pub puts: u64,
+    pub longest_ms: u64,
+}
+
+/// Per-sensor stalls, shared by the outbound threads.
+pub type Stalls = Arc<Mutex<BTreeMap<usize, Stall>>>;
+
 /// Refusals logged per reason (all are counted).
 const LOGGED_REFUSALS: u64 = 10;
 
@@ -75,24 +89,27 @@ impl Outbound {
         }
     }
 
-    /// [`Outbound::run`] on a thread of its own (node `etp-bridge-out`).
+    /// [`Outbound::run`] on a thread of its own (iceoryx2 node `node_name`).
+    #[allow(clippy::too_many_arguments)]
     pub fn spawn(
         self,
+        node_name: String,
         session: &zenoh::Session,
         counters: &Counters,
+        stalls: &Stalls,
         stop: &Arc<AtomicBool>,
         on_ready: impl FnOnce() + Send + 'static,
         on_put: impl FnMut(ServiceId, &Header) + Send + 'static,
     ) -> std::thread::JoinHandle<Result<(), BridgeError>> {
-        let (session, counters, stop) = (session.clone(), counters.clone(), stop.clone());
+        let (session, counters, stalls, stop) = (
+            session.clone(),
+            counters.clone(),
+            stalls.clone(),
+            stop.clone(),
+        );
         std::thread::spawn(move || {
             self.run(
-                "etp-bridge-out",
-                &session,
-                &counters,
-                &stop,
-                on_ready,
-                on_put,
+                &node_name, &session, &counters, &stalls, &stop, on_ready, on_put,
             )
         })
     }
@@ -101,11 +118,19 @@ impl Outbound {
     /// called once every port exists, `on_put` sees every message put
     /// (service, header). Runs on its own thread: iceoryx2 ports stay on the
     /// thread that made them.
+    ///
+    /// A put blocks while a subscribed peer's queue is full (congestion
+    /// control `Block`: nothing is dropped), and Zenoh closes a peer that
+    /// stays full for [`crate::session::STALLED_PEER_CLOSE`]: the wait is
+    /// bounded, and a put that waited [`STALL`] or more is counted in
+    /// `stalls` for its sensor.
+    #[allow(clippy::too_many_arguments)]
     pub fn run(
         self,
         node_name: &str,
         session: &zenoh::Session,
         counters: &Counters,
+        stalls: &Stalls,
         stop: &AtomicBool,
         on_ready: impl FnOnce(),
         mut on_put: impl FnMut(ServiceId, &Header),
@@ -166,10 +191,15 @@ impl Outbound {
                         );
                         continue;
                     };
+                    let started = std::time::Instant::now();
                     publisher
                         .put(bytes.clone())
                         .wait()
                         .map_err(|e| BridgeError::Zenoh(format!("put {s:?}: {e}")))?;
+                    let took = started.elapsed();
+                    if took >= STALL {
+                        note_stall(stalls, sensor_of(*s, h), took);
+                    }
                     count(counters, *s, h, bytes.len());
                     on_put(*s, h);
                 }
@@ -182,6 +212,19 @@ impl Outbound {
                 Wake::Terminate => stop.store(true, Ordering::Relaxed),
             }
         }
+    }
+}
+
+fn note_stall(stalls: &Stalls, sensor: usize, took: Duration) {
+    tracing::warn!(
+        sensor,
+        ms = took.as_millis() as u64,
+        "a put waited for a peer that stopped reading"
+    );
+    if let Ok(mut m) = stalls.lock() {
+        let e = m.entry(sensor).or_default();
+        e.puts += 1;
+        e.longest_ms = e.longest_ms.max(took.as_millis() as u64);
     }
 }
 
@@ -199,6 +242,10 @@ pub enum Incoming {
     },
     /// A local sensor said hello (it went up the link).
     Hello(usize),
+    /// A sensor host's claim of a remote sensor at join (query
+    /// [`crate::session::join_key`]; its payload is the host's Zenoh id),
+    /// answered by the agent host's loop.
+    Claim(zenoh::query::Query),
 }
 
 /// The inbound direction's local ports: one publisher and one wake-up

@@ -26,8 +26,8 @@
 //!   mirrored by proxies of the coordinator and agent nodes.
 //!
 //! The bridge prints one JSON object per line on stdout for its parent
-//! (`ready`, `joined`, `lost`, `agent-host-gone`, and `refused` and `traffic`
-//! at the end).
+//! (`ready`, `joined`, `lost`, `agent-host-gone`, and `refused`, `stalled`
+//! and `traffic` at the end).
 
 pub mod admit;
 pub mod agent_host;
@@ -84,22 +84,28 @@ pub fn emit_refused(admission: &admit::Admission, names: &[String]) {
     );
 }
 
-/// The final `traffic` line: per sensor name, what this end carried.
-pub fn emit_traffic(counters: &forward::Counters, names: &[String]) {
-    let map: serde_json::Map<String, serde_json::Value> = counters
-        .lock()
-        .map(|c| {
-            c.iter()
-                .map(|(i, t)| {
-                    (
-                        names.get(*i).cloned().unwrap_or_else(|| format!("#{i}")),
-                        serde_json::to_value(t).unwrap_or_default(),
-                    )
-                })
-                .collect()
-        })
-        .unwrap_or_default();
-    emit(&serde_json::json!({"event": "traffic", "sensors": map}));
+/// The last lines: `stalled` (per sensor name, the puts a peer that stopped
+/// reading held up) and `traffic` (per sensor name, what this end carried).
+pub fn emit_traffic(counters: &forward::Counters, stalls: &forward::Stalls, names: &[String]) {
+    fn by_name<T: serde::Serialize>(
+        m: &std::sync::Mutex<std::collections::BTreeMap<usize, T>>,
+        names: &[String],
+    ) -> serde_json::Map<String, serde_json::Value> {
+        m.lock()
+            .map(|c| {
+                c.iter()
+                    .map(|(i, t)| {
+                        (
+                            names.get(*i).cloned().unwrap_or_else(|| format!("#{i}")),
+                            serde_json::to_value(t).unwrap_or_default(),
+                        )
+                    })
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+    emit(&serde_json::json!({"event": "stalled", "sensors": by_name(stalls, names)}));
+    emit(&serde_json::json!({"event": "traffic", "sensors": by_name(counters, names)}));
 }
 
 /// The command line of `etp-bridge`.

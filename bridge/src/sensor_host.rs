@@ -1,5 +1,7 @@
 //! A sensor host's end: connects to the agent host, fetches the run
-//! ([`SessionInfo`]: scenario, seed, which sensors are remote), sets up the
+//! ([`SessionInfo`]: scenario, seed, which sensors are remote), claims its
+//! sensors (the agent host grants each to one host only; a refusal ends
+//! this end with an error before any sensor starts), sets up the
 //! local side of those sensors' services and says `joined` (its parent,
 //! `etp sensor-host`, then starts the sensor processes). Each local sensor's
 //! hello goes up and is followed by its liveliness token; the agent host's
@@ -8,8 +10,10 @@
 //! sensors see their coordinator gone and exit.
 
 use crate::admit::Admission;
-use crate::forward::{Counters, Inbound, Incoming, Outbound, subscribe};
-use crate::session::{SESSION_KEY, SessionInfo, agent_host_alive_key, config, sensor_alive_key};
+use crate::forward::{Counters, Inbound, Incoming, Outbound, Stalls, subscribe};
+use crate::session::{
+    SESSION_KEY, SessionInfo, agent_host_alive_key, config, join_key, sensor_alive_key,
+};
 use crate::{BridgeError, emit};
 use etp_runtime::wire::traffic::Direction;
 use etp_runtime::wire::{self, AGENT_NODE, COORDINATOR_NODE, Ports, RunId, ServiceId};
@@ -77,6 +81,58 @@ fn fetch(
     }
 }
 
+/// Claim each of `served` from the agent host, as this session's Zenoh id,
+/// until it answers or `timeout` passes. A refusal (another host serves the
+/// sensor, or this one may not) is an error: nothing has started yet.
+fn claim(
+    session: &zenoh::Session,
+    info: &SessionInfo,
+    served: &[usize],
+    timeout: Duration,
+) -> Result<(), BridgeError> {
+    let host = session.zid().to_string();
+    let started = Instant::now();
+    for &i in served {
+        let name = info
+            .sensors
+            .get(i)
+            .cloned()
+            .unwrap_or_else(|| format!("#{i}"));
+        let key = join_key(&info.run_id, i);
+        loop {
+            let replies = session
+                .get(&key)
+                .payload(host.clone())
+                .timeout(Duration::from_millis(500))
+                .wait()
+                .map_err(|e| BridgeError::Zenoh(format!("query {key}: {e}")))?;
+            let mut answer = None;
+            while let Ok(r) = replies.recv() {
+                answer = Some(match r.result() {
+                    Ok(_) => Ok(()),
+                    Err(e) => Err(String::from_utf8_lossy(&e.payload().to_bytes()).into_owned()),
+                });
+            }
+            match answer {
+                Some(Ok(())) => break,
+                Some(Err(why)) => {
+                    return Err(BridgeError::Join(format!(
+                        "sensor {name}: the agent host refused this host's claim: {why}"
+                    )));
+                }
+                None if started.elapsed() >= timeout => {
+                    return Err(BridgeError::Join(format!(
+                        "sensor {name}: the agent host did not answer this host's claim within {:.0} s (with --tls: does the key folder's hosts.json let this host's --name serve it?)",
+                        timeout.as_secs_f64()
+                    )));
+                }
+                None => std::thread::sleep(Duration::from_millis(100)),
+            }
+        }
+    }
+    Ok(())
+}
+
 pub fn run(a: &Args) -> Result<(), BridgeError> {
     let identity = a
         .link
@@ -119,6 +175,12 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
             })
             .collect::<Result<_, _>>()?
     };
+    claim(
+        &session,
+        &info,
+        &served,
+        Duration::from_secs_f64(a.join_timeout.max(0.0)),
+    )?;
     std::fs::create_dir_all(&a.dir)
         .map_err(|e| BridgeError::Input(format!("creating {}: {e}", a.dir.display())))?;
     let scenario = a.dir.join("scenario.toml");
@@ -150,13 +212,16 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         tx.clone(),
     )?;
     let counters = Counters::default();
+    let stalls = Stalls::default();
     let mut admission = Admission::towards_sensors(run.tag(), &served);
     let stop = Arc::new(AtomicBool::new(false));
     let (ready_tx, ready_rx) = std::sync::mpsc::channel::<()>();
     let hello_tx = tx.clone();
     let outbound = Outbound::new(&run, sensors, Direction::Up, &served).spawn(
+        "etp-bridge-out".into(),
         &session,
         &counters,
+        &stalls,
         &stop,
         // Its subscribers (`hello` among them) exist: the sensors may start
         // and say hello.
@@ -217,7 +282,8 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                     inbound.deliver(m, &counters)?;
                 }
             }
-            Ok(Incoming::Alive { alive: true, .. }) => {}
+            // Nobody queries a sensor host: it declares no queryable.
+            Ok(Incoming::Alive { alive: true, .. } | Incoming::Claim(_)) => {}
             Ok(Incoming::Alive { alive: false, .. }) => {
                 tracing::warn!("the agent host is gone: the local sensors stop");
                 emit(&serde_json::json!({"event": "agent-host-gone"}));
@@ -235,6 +301,6 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         .join()
         .map_err(|_| BridgeError::Wire("the outbound thread panicked".into()))?;
     crate::emit_refused(&admission, &info.sensors);
-    crate::emit_traffic(&counters, &info.sensors);
+    crate::emit_traffic(&counters, &stalls, &info.sensors);
     result.and(out)
 }

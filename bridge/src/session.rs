@@ -27,6 +27,36 @@ pub fn up_key(run: &str, sensor: usize, s: ServiceId) -> String {
     format!("etp/{run}/up/{sensor}/{}", s.topic())
 }
 
+/// Key of a sensor host's claim, at join, to serve remote sensor `sensor`
+/// (a query answered by the agent host: granted to the first host only).
+pub fn join_key(run: &str, sensor: usize) -> String {
+    format!("etp/{run}/join/{sensor}")
+}
+
+/// Every join key of a run (the agent host's queryable).
+pub fn join_keys(run: &str) -> String {
+    format!("etp/{run}/join/*")
+}
+
+/// The sensor a join key names (canonical digits only).
+pub fn parse_join_key(run: &str, key: &str) -> Option<usize> {
+    let rest = key.strip_prefix(&format!("etp/{run}/join/"))?;
+    canonical_index(rest)
+}
+
+/// A sensor index as a key spells it: digits only, no leading zero, at most
+/// four (`+1` or `01` would name a sensor twice).
+fn canonical_index(s: &str) -> Option<usize> {
+    if s.is_empty()
+        || s.len() > 4
+        || !s.bytes().all(|b| b.is_ascii_digit())
+        || (s.len() > 1 && s.starts_with('0'))
+    {
+        return None;
+    }
+    s.parse().ok()
+}
+
 /// Every data key of one direction.
 pub fn data_keys(run: &str, down: bool) -> String {
     format!("etp/{run}/{}/**", if down { "down" } else { "up" })
@@ -41,15 +71,7 @@ pub fn parse_data_key(key: &str) -> Option<(Option<usize>, &str)> {
         "down" => Some((None, rest)),
         "up" => {
             let (sensor, topic) = rest.split_once('/')?;
-            // Digits only: `+1` or `01` would name a sensor twice.
-            if sensor.is_empty()
-                || sensor.len() > 4
-                || !sensor.bytes().all(|b| b.is_ascii_digit())
-                || (sensor.len() > 1 && sensor.starts_with('0'))
-            {
-                return None;
-            }
-            Some((Some(sensor.parse().ok()?), topic))
+            Some((Some(canonical_index(sensor)?), topic))
         }
         _ => None,
     }
@@ -84,9 +106,10 @@ pub fn access_control_of(
 /// The agent host's access control (Zenoh's `access_control`, by the
 /// certificate's common name): anything not granted is denied. Every sensor
 /// host may ask for the run (`etp/session`) and follow the agent host's
-/// liveliness; host `h` may, for each sensor `i` of `hosts[h]`, put on
-/// `etp/<run>/up/<i>/**`, subscribe to `etp/<run>/down/sensor/<i>/**` and
-/// declare the token `etp/<run>/alive/sensor/<i>` — nothing of another
+/// liveliness; host `h` may, for each sensor `i` of `hosts[h]`, claim it
+/// (query `etp/<run>/join/<i>`), put on `etp/<run>/up/<i>/**`, subscribe to
+/// `etp/<run>/down/sensor/<i>/**` and declare the token
+/// `etp/<run>/alive/sensor/<i>` — nothing of another
 /// sensor, and no wider key expression (a subscription to `etp/**` is
 /// denied). What the agent host itself sends out is allowed (its puts reach
 /// only the subscriptions granted).
@@ -102,7 +125,7 @@ pub fn access_control(run: &str, hosts: &[(String, Vec<usize>)]) -> serde_json::
                "messages": ["declare_liveliness_subscriber", "liveliness_query"],
                "key_exprs": [agent_host_alive_key(run)], "permission": "allow"}),
         json!({"id": "agent-host-out", "flows": ["egress"],
-               "messages": ["put", "declare_subscriber", "liveliness_token",
+               "messages": ["put", "declare_subscriber", "declare_queryable", "liveliness_token",
                             "declare_liveliness_subscriber", "liveliness_query", "reply"],
                "key_exprs": [format!("etp/{run}/**")], "permission": "allow"}),
     ];
@@ -120,6 +143,7 @@ pub fn access_control(run: &str, hosts: &[(String, Vec<usize>)]) -> serde_json::
             let keys =
                 |f: &dyn Fn(usize) -> String| sensors.iter().map(|&i| f(i)).collect::<Vec<_>>();
             for (what, message, key_exprs) in [
+                ("join", "query", keys(&|i| join_key(run, i))),
                 ("up", "put", keys(&|i| format!("etp/{run}/up/{i}/**"))),
                 (
                     "down",
@@ -161,6 +185,12 @@ pub fn agent_host_alive_key(run: &str) -> String {
 /// Link lease: a silent link is declared dead after this long (keep-alives
 /// every third of it), so a cut cable or a dead host is seen within it.
 pub const DEFAULT_LEASE: Duration = Duration::from_millis(300);
+
+/// How long a put waits for a peer whose queue stays full (it stopped
+/// reading: a stalled or hostile subscriber) before Zenoh closes that peer's
+/// transport (`transport/link/tx/queue/congestion_control/block/
+/// wait_before_close`). Zenoh's default, set here so that the bound is ours.
+pub const STALLED_PEER_CLOSE: Duration = Duration::from_secs(5);
 
 /// How a link is protected: mutual TLS with the key folder's certificates
 /// (the default), or nothing (`--insecure`, for isolated test networks).
@@ -287,6 +317,11 @@ pub fn config(
         lease.as_millis().to_string(),
     )?;
     set(&mut c, "transport/link/tx/keep_alive", "3".into())?;
+    set(
+        &mut c,
+        "transport/link/tx/queue/congestion_control/block/wait_before_close",
+        STALLED_PEER_CLOSE.as_micros().to_string(),
+    )?;
     if let Some(acl) = access_control {
         set(&mut c, "access_control", acl.to_string())?;
     }
@@ -305,6 +340,15 @@ mod tests {
         let k = up_key("r1", 12, ServiceId::Measurement);
         assert_eq!(k, "etp/r1/up/12/measurement");
         assert_eq!(parse_data_key(&k), Some((Some(12), "measurement")));
+        assert_eq!(parse_join_key("r1", &join_key("r1", 7)), Some(7));
+        for bad in [
+            "etp/r1/join/07",
+            "etp/r1/join/",
+            "etp/r2/join/1",
+            "etp/r1/join/1/x",
+        ] {
+            assert_eq!(parse_join_key("r1", bad), None, "{bad}");
+        }
         for bad in [
             "nope",
             "etp/r1/up/measurement",
@@ -330,6 +374,7 @@ mod tests {
             "etp/r1/up/3/**",
             "etp/r1/down/sensor/3/**",
             "etp/r1/alive/sensor/1",
+            "etp/r1/join/3",
         ] {
             assert!(text.contains(k), "{k}: {text}");
         }

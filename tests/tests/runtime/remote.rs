@@ -654,8 +654,8 @@ fn a_killed_sensor_host_and_a_cut_link_are_detected_within_500_ms_and_the_run_go
 /// outside Zenoh client. `tls`: (CA, certificate and key) files; the CA
 /// alone is an outsider who knows the public CA but holds no certificate.
 const PY_CONNECT: &str = r#"
-import json, struct, sys, time, zenoh
-def session(ep, ca, cert, key):
+import json, os, struct, sys, time, zenoh
+def session(ep, ca, cert, key, extra=None):
     conf = zenoh.Config()
     conf.insert_json5("mode", '"peer"')
     conf.insert_json5("scouting/multicast/enabled", "false")
@@ -668,6 +668,8 @@ def session(ep, ca, cert, key):
         conf.insert_json5("transport/link/tls/connect_certificate", json.dumps(cert))
         conf.insert_json5("transport/link/tls/connect_private_key", json.dumps(key))
         conf.insert_json5("transport/link/tls/enable_mtls", "true")
+    for k, v in (extra or {}).items():
+        conf.insert_json5(k, v)
     return zenoh.open(conf)
 "#;
 
@@ -760,16 +762,49 @@ s.close()
     assert_eq!(v["samples"], 0, "{v}");
 }
 
+/// A second certified host of s1 asks to serve it while `b` does: the agent
+/// host refuses its claim at join (`duplicate-host`, counted by the caller),
+/// and it ends with an error before starting any sensor.
+fn a_second_host_of_a_served_sensor_is_refused_at_join(h: &Hosts, dir: &std::path::Path) {
+    let keys = format!("{NS_OUT}/keys");
+    let second = h.spawn_out(
+        &h.sensors[1],
+        dir,
+        &[
+            "sensor-host",
+            "--connect",
+            "tls/10.77.2.1:7447",
+            "--tls",
+            &keys,
+            "--name",
+            "rogue",
+            "--join-timeout",
+            "20",
+        ],
+    );
+    let (code, _, err) = second.finish();
+    assert_eq!(code, Some(1), "the second host of s1: {err}");
+    assert!(
+        err.contains("sensor s1: the agent host refused this host's claim: another host serves this sensor in this run (duplicate-host)"),
+        "{err}"
+    );
+}
+
 /// The trust boundary of a TLS run (the default). An outsider without a
 /// certificate learns nothing ([`outsider_learns_nothing`]); a certified
 /// host of another sensor gets no key of this one
-/// ([`a_stranger_gets_no_key_of_another_sensor`]). A second certified host
-/// of s1 — a compromised sensor host — learns the run from the downlink and
-/// puts garbage and forged measurements on s1's up keys, which access
-/// control lets through: admission refuses each by its reason, the run stays
-/// exact, and its exit says so (5, a link fault, without
-/// `--allow-degraded`). Exactly five refusals: nothing of the stranger's got
-/// in.
+/// ([`a_stranger_gets_no_key_of_another_sensor`]); a second host claiming
+/// s1 is refused at join ([`a_second_host_of_a_served_sensor_is_refused_at_join`]).
+/// A second certified host of s1 — a compromised sensor host — learns the
+/// run from the downlink and puts garbage and forged measurements on s1's up
+/// keys, which access control lets through: admission refuses each by its
+/// reason. Then it stops reading s1's downlink (its callback never returns,
+/// its receive buffer is 4 KiB, and the agent host's send buffers are capped
+/// at 16 KiB so that its queue fills at once): the agent host's puts towards
+/// s1 wait until Zenoh closes the stalled peer (5 s), the run goes on, and
+/// the stall is reported for s1 only. The run stays exact, and its exit says
+/// what was refused (5, a link fault, without `--allow-degraded`). Exactly
+/// six refusals: nothing of the stranger's got in.
 #[test]
 fn garbage_and_forged_uplink_messages_are_refused_by_name_and_the_run_stays_exact() {
     let _serial = serial();
@@ -780,6 +815,12 @@ fn garbage_and_forged_uplink_messages_are_refused_by_name_and_the_run_stays_exac
     let keys = dir.join("keys");
     certs_init(&keys, &["b=s1", "rogue=s1", "stranger=s4"]);
     let ns_keys = format!("{NS_OUT}/keys");
+    let wmem = Command::new("ip")
+        .args(["netns", "exec", &h.agent, "sysctl", "-qw"])
+        .arg("net.ipv4.tcp_wmem=4096 16384 16384")
+        .status()
+        .expect("sysctl");
+    assert!(wmem.success(), "capping the agent host's send buffers");
     let (run, run_log) = h.spawn_watched_out(
         &h.agent,
         &dir,
@@ -790,7 +831,7 @@ fn garbage_and_forged_uplink_messages_are_refused_by_name_and_the_run_stays_exac
             "--delta",
             DELTA,
             "--episodes",
-            "300",
+            "600",
             "--seed",
             "6",
             "--listen",
@@ -821,13 +862,17 @@ fn garbage_and_forged_uplink_messages_are_refused_by_name_and_the_run_stays_exac
     );
     outsider_learns_nothing(&h, &keys);
     a_stranger_gets_no_key_of_another_sensor(&h, &keys);
+    a_second_host_of_a_served_sensor_is_refused_at_join(&h, &dir);
     // The rogue sits on the second host's network with a valid certificate.
     let script = format!(
         r#"{PY_CONNECT}
-s = session(sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4])
+import threading
+s = session(sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4],
+            {{"transport/link/tls/so_rcvbuf": "4096", "transport/link/tx/lease": "600000"}})
 seen = {{}}
 def on(sample):
     seen.setdefault("first", (str(sample.key_expr), bytes(sample.payload.to_bytes())))
+    threading.Event().wait(30)   # stops reading: this callback does not return
 run = None
 end = time.time() + 10
 while run is None and time.time() < end:
@@ -853,9 +898,9 @@ s.put(up, measurement(tag, 3, 2))                # for s3, a local sensor, on s1
 s.put(up, measurement(tag, 1, 1))                # s1's seq 1 (its hello) again
 s.put(up, measurement(tag, 1, 0xFFFF0000))       # far ahead of s1
 s.put(up, measurement(tag ^ 1, 1, 2))            # another run's tag
-time.sleep(1.0)
-print(json.dumps({{"run": run}}))
-s.close()
+time.sleep(10.0)                                 # stalled, until Zenoh closes it
+print(json.dumps({{"run": run}}), flush=True)
+os._exit(0)                                      # its callback still waits
 "#
     );
     python_peer(&h, "intruder", &script, &tls_args(&keys, "rogue"));
@@ -863,7 +908,7 @@ s.close()
     let _ = b.finish();
     let err = run_log.lines().join("\n");
     assert_eq!(code, Some(5), "a link fault: {err}");
-    assert!(err.contains("the link refused 5 message(s)"), "{err}");
+    assert!(err.contains("the link refused 6 message(s)"), "{err}");
     let v: Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}: {out}"));
     let refused = &v["link"]["refused"];
     for reason in [
@@ -872,13 +917,22 @@ s.close()
         "duplicate",
         "out-of-window",
         "other-run",
+        "duplicate-host",
     ] {
         assert_eq!(refused[reason].as_u64(), Some(1), "{reason}: {refused}");
     }
     assert_eq!(v["link"]["held"], serde_json::json!({}), "{v}");
+    // The stalled rogue held up s1's downlink until Zenoh closed it, and
+    // nothing else.
+    let stalled = &v["link"]["stalled"];
+    let s1 = &stalled["s1"];
+    assert_eq!(stalled.as_object().map(|m| m.len()), Some(1), "{stalled}");
+    assert!(s1["puts"].as_u64() >= Some(1), "{stalled}");
+    let longest = s1["longest_ms"].as_u64().unwrap_or(0);
+    assert!((4_000..30_000).contains(&longest), "{stalled}");
     // Nothing got in: every episode ran, none degraded, and every ledger
     // equals what the agent received.
-    assert_eq!(num(&v, "episodes"), 300.0);
+    assert_eq!(num(&v, "episodes"), 600.0);
     assert_eq!(num(&v, "degraded"), 0.0);
     assert_ledgers_match(&v, false);
     drop(h);
@@ -972,6 +1026,90 @@ fn all_sensors_on_one_sensor_host_keep_their_order_run_after_run() {
             v["link"]["reordered"],
             num(&v, "steps_per_second")
         );
+    }
+    drop(h);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The agent host's certificate is the only one for serving: a sensor host
+/// checks that the listener's certificate chains to the folder's CA *and*
+/// is for server authentication (`etp certs init` gives sensor hosts client
+/// authentication only). A listener (a real Zenoh peer in Python) that
+/// presents a sensor host's certificate is never connected to: the sensor
+/// host gets no answer and ends with an error. The same listener with the
+/// agent host's certificate is connected to and answered (its answer is not
+/// a run, which the sensor host says): the refusal above is the
+/// certificate's.
+#[test]
+fn a_sensor_host_certificate_cannot_pose_as_the_agent_host() {
+    use std::os::unix::process::CommandExt;
+    let _serial = serial();
+    let Some(h) = hosts("po", 1) else { return };
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("remote-po-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("scratch");
+    let keys = dir.join("keys");
+    certs_init(&keys, &["b", "c"]);
+    let listener = r#"import json, sys, time, zenoh
+conf = zenoh.Config()
+conf.insert_json5("mode", '"peer"')
+conf.insert_json5("scouting/multicast/enabled", "false")
+conf.insert_json5("scouting/gossip/enabled", "false")
+conf.insert_json5("listen/endpoints", json.dumps(["tls/10.77.1.1:7447"]))
+conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(sys.argv[1]))
+conf.insert_json5("transport/link/tls/listen_certificate", json.dumps(sys.argv[2]))
+conf.insert_json5("transport/link/tls/listen_private_key", json.dumps(sys.argv[3]))
+conf.insert_json5("transport/link/tls/enable_mtls", "true")
+s = zenoh.open(conf)
+q = s.declare_queryable("etp/session", lambda query: query.reply("etp/session", "not a run"))
+time.sleep(60)
+"#;
+    for (cert, connects) in [("c", false), ("agent-host", true)] {
+        let mut posing = Guard(Some(
+            Command::new("ip")
+                .args(["netns", "exec", &h.agent])
+                .arg(etp_tests::pyenv::python())
+                .args(["-c", listener])
+                .arg(keys.join("ca.pem"))
+                .arg(keys.join(format!("{cert}.pem")))
+                .arg(keys.join(format!("{cert}.key")))
+                .stdin(Stdio::null())
+                .stdout(Stdio::null())
+                .stderr(Stdio::piped())
+                .process_group(0)
+                .spawn()
+                .expect("python zenoh listener"),
+        ));
+        // The sensor host retries its connection until the join timeout: a
+        // listener that is slow to start is still reached.
+        let b = h.spawn_out(
+            &h.sensors[0],
+            &dir,
+            &[
+                "sensor-host",
+                "--connect",
+                "tls/10.77.1.1:7447",
+                "--tls",
+                &format!("{NS_OUT}/keys"),
+                "--name",
+                "b",
+                "--join-timeout",
+                "8",
+            ],
+        );
+        let (code, _, err) = b.finish();
+        assert_eq!(code, Some(1), "{cert}: {err}");
+        if connects {
+            assert!(err.contains("the run's description"), "{cert}: {err}");
+        } else {
+            assert!(err.contains("no agent host answered"), "{cert}: {err}");
+        }
+        if let Some(c) = posing.0.as_mut() {
+            assert!(
+                c.try_wait().ok().flatten().is_none(),
+                "the Python listener ({cert}) died early"
+            );
+        }
     }
     drop(h);
     let _ = std::fs::remove_dir_all(&dir);

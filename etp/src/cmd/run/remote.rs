@@ -41,9 +41,36 @@ pub struct LinkReport {
     /// Messages that overtook an earlier one of their sensor on the link
     /// and were delivered after it (the order restored; not a fault).
     pub reordered: u64,
+    /// Per remote sensor: puts towards it held up by a peer that stopped
+    /// reading (bounded by the bridge's close of a stalled peer; not a
+    /// fault of the counts: nothing is dropped).
+    pub stalled: BTreeMap<String, Stall>,
+}
+
+/// Puts held up by a stalled peer (the bridge's `stalled` line).
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
+pub struct Stall {
+    pub puts: u64,
+    pub longest_ms: u64,
 }
 
 impl LinkReport {
+    /// The stalls in words (empty: none).
+    pub fn stalls(&self) -> Option<String> {
+        (!self.stalled.is_empty()).then(|| {
+            self.stalled
+                .iter()
+                .map(|(k, s)| {
+                    format!(
+                        "{k}: {} put(s) waited for a peer that stopped reading (longest {} ms)",
+                        s.puts, s.longest_ms
+                    )
+                })
+                .collect::<Vec<_>>()
+                .join("; ")
+        })
+    }
+
     /// The link's faults in words (empty: none).
     pub fn faults(&self) -> Option<String> {
         let list = |m: &BTreeMap<String, u64>| {
@@ -188,6 +215,10 @@ impl Bridge {
                             serde_json::from_value(v["counts"].clone()).unwrap_or_default();
                         report.held = serde_json::from_value(v["held"].clone()).unwrap_or_default();
                         report.reordered = v["reordered"].as_u64().unwrap_or(0);
+                    }
+                    Some("stalled") => {
+                        report.stalled =
+                            serde_json::from_value(v["sensors"].clone()).unwrap_or_default();
                     }
                     Some("traffic") => {
                         report.traffic =
