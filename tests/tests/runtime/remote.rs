@@ -324,6 +324,14 @@ fn certs_init(dir: &std::path::Path, hosts: &[&str]) {
     );
 }
 
+/// A scratch folder of this test process (`remote-<tag>-<pid>`), made.
+fn scratch(tag: &str) -> std::path::PathBuf {
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("remote-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("scratch");
+    dir
+}
+
 fn unix_ns() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
@@ -346,9 +354,7 @@ fn a_lossy_run_across_three_hosts_counts_exactly_and_verifies() {
 fn across_three_hosts(tag: &str, radio: Option<&str>) {
     let _serial = serial();
     let Some(h) = hosts(tag, 2) else { return };
-    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
-        .join(format!("remote-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("scratch");
+    let dir = scratch(tag);
     let rec = dir.join("across.mcap");
     let _ = std::fs::remove_file(&rec);
     let base = etp_shared::scenario::builtin_text("open-2d").expect("built-in");
@@ -809,9 +815,7 @@ fn a_second_host_of_a_served_sensor_is_refused_at_join(h: &Hosts, dir: &std::pat
 fn garbage_and_forged_uplink_messages_are_refused_by_name_and_the_run_stays_exact() {
     let _serial = serial();
     let Some(h) = hosts("in", 2) else { return };
-    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
-        .join(format!("remote-in-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("scratch");
+    let dir = scratch("in");
     let keys = dir.join("keys");
     certs_init(&keys, &["b=s1", "rogue=s1", "stranger=s4"]);
     let ns_keys = format!("{NS_OUT}/keys");
@@ -958,9 +962,7 @@ fn all_sensors_on_one_sensor_host_keep_their_order_run_after_run() {
         .and_then(|v| v.parse().ok())
         .unwrap_or(2);
     let Some(h) = hosts("all", 1) else { return };
-    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
-        .join(format!("remote-all-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("scratch");
+    let dir = scratch("all");
     certs_init(&dir.join("keys"), &["b"]);
     let keys = format!("{NS_OUT}/keys");
     let remote = "s0,s1,s2,s3,s4,s5,s6";
@@ -1045,9 +1047,7 @@ fn a_sensor_host_certificate_cannot_pose_as_the_agent_host() {
     use std::os::unix::process::CommandExt;
     let _serial = serial();
     let Some(h) = hosts("po", 1) else { return };
-    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
-        .join(format!("remote-po-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("scratch");
+    let dir = scratch("po");
     let keys = dir.join("keys");
     certs_init(&keys, &["b", "c"]);
     let listener = r#"import json, sys, time, zenoh
