@@ -802,7 +802,7 @@ fn a_second_host_of_a_served_sensor_is_refused_at_join(h: &Hosts, dir: &std::pat
 /// ([`a_stranger_gets_no_key_of_another_sensor`]); a second host claiming
 /// s1 is refused at join ([`a_second_host_of_a_served_sensor_is_refused_at_join`]).
 /// A second certified host of s1 — a compromised sensor host — learns the
-/// run from the downlink and puts garbage and forged measurements on s1's up
+/// run from the downlink and puts garbage, forged measurements and a forged ledger on s1's up
 /// keys, which access control lets through: admission refuses each by its
 /// reason. Then it stops reading s1's downlink (its callback never returns,
 /// its receive buffer is 4 KiB, and the agent host's send buffers are capped
@@ -899,7 +899,10 @@ def measurement(tag, sender, seq):
 up = f"etp/{{run}}/up/1/measurement"
 s.put(up, bytes(7))                              # garbage
 s.put(up, measurement(tag, 3, 2))                # for s3, a local sensor, on s1's key
-s.put(up, measurement(tag, 1, 1))                # s1's seq 1 (its hello) again
+def ledger(tag, sender, seq):
+    # header, slots, triggers, transmissions, delivered, lost, pad, energy
+    return struct.pack("<QQIIIIIIIIIId", tag, 0, 1, 0, sender, seq, 50, 40, 1000, 1000, 0, 0, 1000.0)
+s.put(f"etp/{{run}}/up/1/ledger", ledger(tag, 1, 1))  # a forged ledger, seq 1 (s1's hello) again
 s.put(up, measurement(tag, 1, 0xFFFF0000))       # far ahead of s1
 s.put(up, measurement(tag ^ 1, 1, 2))            # another run's tag
 time.sleep(10.0)                                 # stalled, until Zenoh closes it
