@@ -138,8 +138,7 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
     }
     // Until the sensors end (the run's STOP) or the bridge does (agent host
     // gone, or a signal).
-    let mut traffic = serde_json::Value::Null;
-    let mut refused = serde_json::json!({});
+    let mut tail = BridgeTail::default();
     let mut sigterm = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
         .context("installing the SIGTERM handler")?;
     let all_sensors = async {
@@ -149,14 +148,7 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
     };
     let bridge_lines = async {
         while let Ok(Some(l)) = lines.next_line().await {
-            let v: serde_json::Value = serde_json::from_str(&l).unwrap_or_default();
-            if v["event"] == "traffic" {
-                traffic = v["sensors"].clone();
-            }
-            if v["event"] == "refused" {
-                refused = v["counts"].clone();
-            }
-            if v["event"] == "agent-host-gone" {
+            if tail.note(&l) == "agent-host-gone" {
                 eprintln!("etp sensor-host: the agent host is gone");
             }
         }
@@ -190,13 +182,7 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
     signal(bridge_pid, "-TERM");
     let rest = async {
         while let Ok(Some(l)) = lines.next_line().await {
-            let v: serde_json::Value = serde_json::from_str(&l).unwrap_or_default();
-            if v["event"] == "traffic" {
-                traffic = v["sensors"].clone();
-            }
-            if v["event"] == "refused" {
-                refused = v["counts"].clone();
-            }
+            tail.note(&l);
         }
     };
     let _ = tokio::time::timeout(GRACE, rest).await;
@@ -218,6 +204,11 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
     }
     // What the agent host's side sent that this host refused (garbage,
     // another run's, a sender that may not send it): a fault of the link.
+    let BridgeTail {
+        traffic,
+        refused,
+        stalled,
+    } = tail;
     let refused_any = refused
         .as_object()
         .is_some_and(|m| m.values().any(|n| n.as_u64() != Some(0)));
@@ -233,7 +224,39 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
             "processes": processes,
             "traffic": traffic,
             "refused": refused,
+            "stalled": stalled,
         }),
         ok,
     ))
+}
+
+/// What the bridge's last lines say (`traffic`, `refused`, `stalled`).
+struct BridgeTail {
+    traffic: serde_json::Value,
+    refused: serde_json::Value,
+    stalled: serde_json::Value,
+}
+
+impl Default for BridgeTail {
+    fn default() -> Self {
+        Self {
+            traffic: serde_json::Value::Null,
+            refused: serde_json::json!({}),
+            stalled: serde_json::json!({}),
+        }
+    }
+}
+
+impl BridgeTail {
+    /// Take one line of the bridge; its event's name (empty if none).
+    fn note(&mut self, line: &str) -> String {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap_or_default();
+        match v["event"].as_str() {
+            Some("traffic") => self.traffic = v["sensors"].clone(),
+            Some("refused") => self.refused = v["counts"].clone(),
+            Some("stalled") => self.stalled = v["sensors"].clone(),
+            _ => {}
+        }
+        v["event"].as_str().unwrap_or_default().to_string()
+    }
 }
