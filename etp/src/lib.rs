@@ -7,6 +7,10 @@
 //! * [`progress`] — indicatif bars that hide themselves when stderr is not a terminal.
 //! * [`vocab`] — the JSON vocabulary shared by simulate, validate, run and replay.
 //!
+//! The work is in libraries: the maths in `etp-shared` and `etp-synthesis`,
+//! the runtime in `etp-runtime`, the recording tools in
+//! `etp-recording-tools`, the figures in `etp-figures`.
+//!
 //! Errors are `anyhow` with context; [`run`] prints them to stderr and exits non-zero.
 
 pub mod cli;
@@ -14,9 +18,7 @@ pub mod cmd;
 pub mod front;
 pub mod input;
 pub mod output;
-pub mod plot;
 pub mod progress;
-pub mod report_plot;
 pub use etp_recording_tools::vocab;
 
 use std::process::ExitCode;

@@ -154,7 +154,7 @@ pub fn run(a: Args) -> Result<()> {
     .summary();
     pb.finish_and_clear();
     let map_stem = dir.join("strategy-map");
-    crate::plot::map_plot(
+    etp_figures::map_plot(
         &built.scenario,
         &sample_trajectories(&built.scenario, &strategy, 40, a.seed),
         &map_stem,

@@ -35,15 +35,7 @@ pub struct Args {
     pub json: bool,
 }
 
-/// One synthesis's curve: least energy per P_tar within the P_coll bound.
-#[derive(Debug, Clone)]
-pub struct Curve {
-    pub dir: PathBuf,
-    /// The channel the synthesis sampled under, in `Radio::describe`'s words.
-    pub radio: String,
-    /// (P_tar, least energy), increasing P_tar.
-    pub points: Vec<(f64, f64)>,
-}
+pub use etp_figures::Curve;
 
 pub fn run(a: Args) -> Result<()> {
     if let Some(c) = a.max_collision
@@ -86,7 +78,7 @@ pub fn run(a: Args) -> Result<()> {
         })
         .collect();
     let name = fronts[0].1.scenario_name.clone();
-    crate::plot::fronts_plot(&name, &curves, a.max_collision, &stem)?;
+    etp_figures::fronts_plot(&name, &curves, a.max_collision, &stem)?;
     if a.json {
         let v = json!({
             "scenario": name,

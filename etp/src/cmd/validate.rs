@@ -84,7 +84,7 @@ pub fn run(a: Args) -> Result<()> {
             crate::output::refuse_existing(&p, a.force)?;
         }
         let tr = sample_trajectories(&scenario, &strategy, a.plot_episodes, a.seed);
-        crate::plot::map_plot(&scenario, &tr, &stem)?;
+        etp_figures::map_plot(&scenario, &tr, &stem)?;
         plot_paths.push(stem.with_extension("png"));
         plot_paths.push(stem.with_extension("svg"));
     }

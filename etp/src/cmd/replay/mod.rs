@@ -575,7 +575,7 @@ fn run_job(a: Job) -> Result<()> {
                 crate::output::refuse_existing(p, a.force)?;
             }
             let names = export::names(&c).0.sensors;
-            crate::report_plot::report_plot(&figure::figure(&c, &names)?, &stem)?;
+            etp_figures::report_plot(&figure::figure(&c, &names)?, &stem)?;
             eprintln!("wrote {} and .svg", png.display());
             Some(png)
         }

@@ -4,7 +4,7 @@
 
 use super::prepare::Plan;
 use super::supervise::Supervised;
-use crate::report_plot::{Bar, RunFigure, mean_ci, proportion};
+use etp_figures::{Bar, RunFigure, mean_ci, proportion};
 
 /// The figure of a finished run.
 pub fn figure(plan: &Plan, s: &Supervised) -> RunFigure {
@@ -49,7 +49,7 @@ pub fn figure(plan: &Plan, s: &Supervised) -> RunFigure {
             "run {} · {} · {} · {} episodes: measured vs predicted",
             r.run_id,
             r.scenario,
-            crate::report_plot::short_label(&r.strategy_label),
+            etp_figures::short_label(&r.strategy_label),
             r.episodes
         ),
         prediction_note: super::record::prediction_source(plan),

@@ -497,7 +497,7 @@ pub fn run(a: Args) -> Result<()> {
             .to_string_lossy()
             .replace("{run}", plan.run_id.as_str());
         let stem = std::path::Path::new(&stem);
-        crate::report_plot::report_plot(&figure::figure(&plan, &outcome), stem)?;
+        etp_figures::report_plot(&figure::figure(&plan, &outcome), stem)?;
         eprintln!("wrote {} and .svg", stem.with_extension("png").display());
     }
     exit_for(&problems(&a, &outcome))

@@ -12,12 +12,12 @@ pub use etp_recording_tools::figure::{Bar, RunFigure, mean_ci, proportion, short
 
 /// Write `stem.png` and `stem.svg`.
 pub fn report_plot(fig: &RunFigure, stem: &Path) -> Result<()> {
-    crate::plot::png_and_svg(&ReportFigure(fig), stem, (1200, 560))
+    crate::png_and_svg(&ReportFigure(fig), stem, (1200, 560))
 }
 
 struct ReportFigure<'a>(&'a RunFigure);
 
-impl crate::plot::Figure for ReportFigure<'_> {
+impl crate::Figure for ReportFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
     where
         DB::ErrorType: 'static,

@@ -1,23 +1,32 @@
-//! Figures (plotters, PNG and SVG): the Pareto front (P_tar vs energy per
-//! bound on P_coll, baselines marked) and the scenario map with sampled
-//! trajectories coloured by the expected rate of the threshold in force (the
-//! paper's Fig. 4). The run report figure is `crate::report_plot`; all three are written by
-//! `png_and_svg`.
+//! `etp-figures`: every figure etpareto draws (plotters, PNG and SVG), as a
+//! library the `etp` commands call with their data.
 //!
-//! The font is embedded (DejaVu Sans, see `assets/`), so plots render the same on
-//! a machine without any installed fonts.
+//! A short tour:
 //!
-//! * `front.rs` — the Pareto front (`etp synthesize`).
-//! * `fronts.rs` — several fronts of one scenario, one per radio channel (`etp fronts`).
-//! * `map.rs` — the scenario map with sampled trajectories (`etp validate --plot`).
+//! * [`front_plot`] (`front.rs`) — the Pareto front, P_tar vs energy per
+//!   bound on P_coll, baselines marked (`etp synthesize`).
+//! * [`fronts_plot`] (`fronts.rs`) — several fronts of one scenario, one
+//!   [`Curve`] per radio channel (`etp fronts`).
+//! * [`map_plot`] (`map.rs`) — the scenario map with sampled trajectories
+//!   coloured by the expected rate of the threshold in force (the paper's
+//!   Fig. 4; `etp validate --plot`, `etp demo`).
+//! * [`report_plot`] (`report.rs`) — a run's measured values against the
+//!   predicted ones (`etp run --plot`, `etp replay plot`), from the data of
+//!   `etp_recording_tools::figure`.
+//!
+//! All are written by `png_and_svg`, the one writer of a figure. The font is
+//! embedded (DejaVu Sans, see `assets/`), so plots render the same on a
+//! machine without any installed fonts.
 
 mod front;
 mod fronts;
 mod map;
+mod report;
 
 pub use front::front_plot;
-pub use fronts::fronts_plot;
+pub use fronts::{Curve, fronts_plot};
 pub use map::map_plot;
+pub use report::{Bar, RunFigure, mean_ci, proportion, report_plot, short_label};
 
 use anyhow::{Context, Result};
 use plotters::coord::Shift;
@@ -25,7 +34,7 @@ use plotters::prelude::*;
 use std::path::Path;
 use std::sync::Once;
 
-static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 static REGISTER: Once = Once::new();
 
 pub(crate) fn register_font() {

@@ -2,11 +2,20 @@
 //! channel each), least expected energy per episode against P_tar at a fixed
 //! bound on P_coll.
 
-use crate::cmd::fronts::Curve;
 use anyhow::{Result, anyhow};
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// One synthesis's curve: least energy per P_tar within the P_coll bound.
+#[derive(Debug, Clone)]
+pub struct Curve {
+    pub dir: PathBuf,
+    /// The channel the synthesis sampled under, in `Radio::describe`'s words.
+    pub radio: String,
+    /// (P_tar, least energy), increasing P_tar.
+    pub points: Vec<(f64, f64)>,
+}
 
 /// Write the figure to `stem.png` and `stem.svg`.
 pub fn fronts_plot(
