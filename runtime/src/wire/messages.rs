@@ -1,4 +1,4 @@
-//! The payloads, one module per direction of the table in DESIGN.md "Runtime".
+//! The payloads, one module per direction (the catalogue, `catalogue.rs`, lists who sends what to whom).
 //!
 //! Every payload is a fixed-size `#[repr(C)]` struct of plain numbers (no heap,
 //! no pointers), sized for n ≤ 6 and m ≤ 6, and starts with a [`Header`]. The

@@ -1,4 +1,4 @@
-//! The runtime's wire vocabulary (DESIGN.md "Runtime: processes and services").
+//! The runtime's wire vocabulary (ARCHITECTURE.md "Runtime processes and services").
 //!
 //! * [`messages`] — the fixed-size `#[repr(C)]` + `ZeroCopySend` payloads, one
 //!   module per direction (`coordinator_to_agent`, `coordinator_to_all`,
