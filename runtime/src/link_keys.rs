@@ -30,6 +30,12 @@ pub enum KeyFolderError {
     KeyReadable(PathBuf, u32),
     #[error("{0}: not a regular file (a link or a folder is refused)")]
     NotAFile(PathBuf),
+    #[error(
+        "{0}: owned by user {1}, not by this user ({2}); key material is used only from the user's own files"
+    )]
+    Foreign(PathBuf, u32, u32),
+    #[error("{0}: writable by other users (mode {1:o}); `chmod go-w` it")]
+    Writable(PathBuf, u32),
     #[error("`{0}` is not a host name: use letters, digits and - (at most 48)")]
     BadName(String),
     #[error("{0}: {1}")]
@@ -75,14 +81,29 @@ pub const HOSTS: &str = "hosts.json";
 /// The sensor hosts of a key folder and the sensors each may serve.
 pub type Hosts = std::collections::BTreeMap<String, Option<Vec<String>>>;
 
-/// Read `hosts.json` of `dir` (a regular file, not followed through a link).
+/// A file of a key folder, checked before it is used: a regular file (not
+/// followed through a link), owned by this user and writable by nobody else
+/// (another user who could replace the CA, a key or `hosts.json` could let
+/// anyone in).
+fn checked_file(path: &Path) -> Result<std::fs::Metadata, KeyFolderError> {
+    let m = std::fs::symlink_metadata(path).map_err(|e| KeyFolderError::Missing(path.into(), e))?;
+    if !m.file_type().is_file() {
+        return Err(KeyFolderError::NotAFile(path.into()));
+    }
+    let me = crate::folders::euid();
+    if m.uid() != me {
+        return Err(KeyFolderError::Foreign(path.into(), m.uid(), me));
+    }
+    if m.mode() & 0o022 != 0 {
+        return Err(KeyFolderError::Writable(path.into(), m.mode() & 0o777));
+    }
+    Ok(m)
+}
+
+/// Read `hosts.json` of `dir` ([`checked_file`]).
 pub fn hosts(dir: &Path) -> Result<Hosts, KeyFolderError> {
     let path = dir.join(HOSTS);
-    let m =
-        std::fs::symlink_metadata(&path).map_err(|e| KeyFolderError::Missing(path.clone(), e))?;
-    if !m.file_type().is_file() {
-        return Err(KeyFolderError::NotAFile(path));
-    }
+    checked_file(&path)?;
     let text =
         std::fs::read_to_string(&path).map_err(|e| KeyFolderError::Missing(path.clone(), e))?;
     let hosts: Hosts = serde_json::from_str(&text)
@@ -125,7 +146,8 @@ pub fn common_name(name: &str) -> String {
 }
 
 /// The files of host `name` in `dir`, checked: each a regular file (not
-/// followed through a link), the private key readable by its owner only.
+/// followed through a link) of this user's that nobody else may write, the
+/// private key readable by its owner only.
 pub fn identity(dir: &Path, name: &str) -> Result<Identity, KeyFolderError> {
     check_name(name)?;
     let (cert, key) = files_of(name);
@@ -134,14 +156,10 @@ pub fn identity(dir: &Path, name: &str) -> Result<Identity, KeyFolderError> {
         certificate: dir.join(cert),
         private_key: dir.join(key),
     };
-    for p in [&id.ca, &id.certificate, &id.private_key] {
-        let m = std::fs::symlink_metadata(p).map_err(|e| KeyFolderError::Missing(p.clone(), e))?;
-        if !m.file_type().is_file() {
-            return Err(KeyFolderError::NotAFile(p.clone()));
-        }
+    for p in [&id.ca, &id.certificate] {
+        checked_file(p)?;
     }
-    let m = std::fs::symlink_metadata(&id.private_key)
-        .map_err(|e| KeyFolderError::Missing(id.private_key.clone(), e))?;
+    let m = checked_file(&id.private_key)?;
     if m.mode() & 0o077 != 0 {
         return Err(KeyFolderError::KeyReadable(
             id.private_key.clone(),
@@ -181,6 +199,26 @@ mod tests {
             Err(KeyFolderError::NotAFile(_))
         ));
         assert!(identity(&dir, "../x").is_err());
+        std::fs::remove_file(&key).expect("rm");
+        std::fs::write(&key, "x").expect("write");
+        std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o600)).expect("chmod");
+        // A CA another user could replace is never trusted.
+        let ca = dir.join("ca.pem");
+        std::fs::set_permissions(&ca, std::fs::Permissions::from_mode(0o666)).expect("chmod");
+        assert!(matches!(
+            identity(&dir, "h1"),
+            Err(KeyFolderError::Writable(..))
+        ));
+        std::fs::set_permissions(&ca, std::fs::Permissions::from_mode(0o644)).expect("chmod");
+        identity(&dir, "h1").expect("usable again");
+        if crate::folders::euid() == 0 {
+            // As root (CI), a CA of user nobody's is refused.
+            std::os::unix::fs::chown(&ca, Some(65534), None).expect("chown");
+            assert!(matches!(
+                identity(&dir, "h1"),
+                Err(KeyFolderError::Foreign(_, 65534, 0))
+            ));
+        }
         // The endpoint and the protection asked for must agree.
         assert!(resolve("tcp/1.2.3.4:7447", None, "h1", false).is_err());
         assert!(resolve("tls/1.2.3.4:7447", None, "h1", false).is_err());
