@@ -250,15 +250,10 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
             return Ok(());
         }
         let delta = self.open_leg(episode, leg)?.delta;
-        let beta = self.scenario.silence_beta(self.index as usize, delta);
         let belief = belief_from_wire::<N>(&h.mean, &h.cov);
-        let open = self.open_leg(episode, leg)?;
-        open.replica = Some(LegReplica::handed_over(
-            leg as usize,
-            beta,
-            belief,
-            h.header.step,
-        ));
+        let replica =
+            LegReplica::handed_over(&self.scenario, leg as usize, delta, belief, h.header.step);
+        self.open_leg(episode, leg)?.replica = Some(replica);
         self.stats.handovers += 1;
         Ok(())
     }
@@ -286,14 +281,15 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
         let Some(replica) = open.replica.as_mut() else {
             return Err(SlotError::NoHandover { episode, leg });
         };
-        if replica.next_step != step {
+        if replica.next_step() != step {
             return Err(SlotError::StepGap {
                 episode,
                 step,
-                expected: replica.next_step,
+                expected: replica.next_step(),
             });
         }
-        let prior = replica.prior(scenario);
+        let slot_open = replica.open(scenario);
+        let prior = *slot_open.prior();
         let mut rng = stream_rng(seed, streams::SENSOR, (episode << 32) | u64::from(step));
         let x: Vector<N> = vec_from_wire(&t.x);
         let y = filter.sensor.measure(&x, &mut rng);
@@ -327,7 +323,7 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
         } else {
             SlotOutcome::Silent
         };
-        replica.close(scenario, &prior, slot);
+        replica.close(scenario, slot_open, slot);
         let l = &mut open.ledger;
         l.slots += 1;
         l.triggers += u32::from(fired);
