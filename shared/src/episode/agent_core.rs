@@ -342,9 +342,9 @@ mod tests {
                 &mut EpisodeChannels::ideal(),
                 &mut seen,
             );
-            // Replay: the same plant noise, the leg loop's own posteriors as
-            // "what the slot brought" are not available, so serve the slot
-            // from the recorded trigger and the true measurement stream.
+            // Drive the core with the same random stream (plant noise, then
+            // measurement noise, as the leg loop draws them) and, as what
+            // the slot brought, the leg loop's trigger decisions.
             let mut rng = stream_rng(3, streams::SIMULATE, episode);
             let mut x = c.initial_state(&mut rng).x;
             assert_eq!(x, start.x);
