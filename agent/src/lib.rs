@@ -6,12 +6,16 @@
 //! * [`Args`] — run id, scenario, seed (what `etp run` passes).
 //! * [`run`] — opens the agent's ports (`etp_runtime::wire`), says hello and
 //!   runs episodes when `control` says start, until stop.
-//! * [`runtime::Agent`] — one episode, step by step through
-//!   `etp_shared::episode::step` (input, plant move from `streams::AGENT`,
-//!   collision check, prior, slot update, leg end — the functions the
-//!   in-process simulation and `replay --verify` use); at each decision point
-//!   it publishes `waypoint`, waits for the coordinator's `threshold` and
-//!   hands its belief over to the leg's sensor (`handover`, once per leg).
+//! * [`core::EpisodeCore`] — the agent's decisions in an episode, pure (no
+//!   ports, unit-tested): the true state (plant noise from `streams::AGENT`),
+//!   each step through `etp_shared::episode::AgentCore` (input, move,
+//!   collision, prior, slot update, leg end — the one step the in-process
+//!   simulation, `replay --verify` and the sensor's replica run), the
+//!   replica's prior digest check, dead slots, the counts and the outcome.
+//! * [`runtime::Agent`] — the adapter: at each decision point it publishes
+//!   `waypoint`, waits for the coordinator's `threshold`, hands its belief
+//!   over to the leg's sensor (`handover`, once per leg) and serves each
+//!   slot the core asks for over IPC.
 //! * [`link`] — the ports of a slot: publish `truth`, wake the serving
 //!   sensor, take its `slot` (and `measurement`); the slot's prior digest
 //!   must equal the agent's prior (the sensor's replica is exact). A sensor that is
@@ -20,6 +24,7 @@
 //!   and marks the episode degraded. A live sensor is waited for, however
 //!   slow or paused.
 
+pub mod core;
 pub mod link;
 pub mod runtime;
 

@@ -15,29 +15,6 @@ use etp_runtime::wire::{
 };
 use etp_shared::etkf::{Belief, Vector};
 
-/// What one slot brought.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum SlotResult {
-    /// The slot closed: `Some(y)` if the sensor transmitted, `None` if silent
-    /// (silence from a live sensor is information: implicit update), with
-    /// the digest of the prior the sensor's replica triggered on.
-    Closed(Option<WireVec>, u64),
-    /// The sensor is dead (or, with `--slot-deadline`, late): no information
-    /// from silence. A measurement that did arrive before the verdict is
-    /// still returned.
-    Dead(Option<WireVec>),
-}
-
-/// A dead link as the agent saw it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Fault {
-    pub sensor: u32,
-    /// From the start of the wait on the slot to the verdict.
-    pub detect_us: u64,
-    pub wait_started_unix_ns: u64,
-    pub detected_unix_ns: u64,
-}
-
 /// The agent's ports towards the sensors.
 pub struct Links {
     truth: Vec<Pub<Truth>>,

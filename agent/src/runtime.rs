@@ -1,7 +1,8 @@
-//! The agent's episodes over IPC: the step of `etp_shared::episode::step`
-//! (the same functions the in-process simulation and `replay --verify` use),
-//! with the slot served by a sensor process and the threshold chosen by the
-//! coordinator.
+//! The agent's episodes over IPC: the thin adapter around
+//! [`crate::core::EpisodeCore`] (whose step is the in-process simulation's,
+//! `replay --verify`'s and the sensor replica's `AgentCore`), with the slot
+//! served by a sensor process and the threshold chosen by the coordinator.
+//! Here are only ports and waits; every decision is the core's.
 //!
 //! The agent waits in exactly one place, [`Agent::wait_until`], on its
 //! wake-up event; what a silence means depends on whom it waits for
@@ -11,7 +12,8 @@
 //! however slow or paused; only a dead one (or, with `--slot-deadline`, a
 //! late one) makes a dead link.
 
-use crate::link::{Fault, Links, SlotResult};
+use crate::core::{AfterSlot, EpisodeCore, EpisodeEnd, Fault, SlotResult, Step};
+use crate::link::Links;
 use crate::{AgentError, AgentStats, Exit, IDLE_CHECK, SLOT_CHECK};
 use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_coordinator::{Outcome, Waypoint};
@@ -21,8 +23,7 @@ use etp_runtime::wire::{
     self, AGENT_NODE, COORDINATOR_NODE, ControlKind, Liveness, Notifier, OutcomeCode, Ports, Pub,
     SENDER_AGENT, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, belief_to_wire,
 };
-use etp_shared::episode::{CompiledScenario, SlotOutcome, belief_digest};
-use etp_shared::rng::{stream_rng, streams};
+use etp_shared::episode::CompiledScenario;
 use etp_shared::scenario::Scenario;
 use iceoryx2::prelude::*;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -63,14 +64,6 @@ pub struct Agent<const N: usize> {
     coordinator_wake: Notifier,
     stats: AgentStats,
     _hello: Option<Pub<Hello>>,
-}
-
-/// Counts of the leg in progress.
-#[derive(Debug, Clone, Copy, Default)]
-struct LegCounts {
-    steps: u32,
-    received: u32,
-    degraded: bool,
 }
 
 fn unix_ns(t: SystemTime) -> u64 {
@@ -272,27 +265,19 @@ impl<const N: usize> Agent<N> {
     /// One episode; `Some(exit)` if the process must stop.
     fn episode(&mut self, episode: u64, seed: u64) -> Result<Option<Exit>, AgentError> {
         tracing::debug!(episode, "episode start");
-        let mut rng = stream_rng(seed, streams::AGENT, episode);
-        let mut state = self.c.initial_state(&mut rng);
-        let mut k: u32 = 0;
-        let mut prev = LegCounts::default();
-        let mut totals = Outcome {
-            dead_sensor: u32::MAX,
-            ..Outcome::default()
-        };
-        let legs = self.c.legs.len();
+        let mut core = EpisodeCore::start(&self.c, episode, seed)?;
         let tag = self.stamp.tag();
-        for leg in 0..legs {
-            let leg32 = leg as u32;
-            let (mean, cov) = belief_to_wire(&state.belief);
-            let header = self.stamp.header(episode, leg32, k);
+        loop {
+            let point = core.decision_point();
+            let (mean, cov) = belief_to_wire(&point.belief);
+            let header = self.stamp.header(episode, point.leg, point.step);
             self.waypoint
                 .send_copy(Waypoint {
                     header,
                     dim: N as u32,
-                    prev_steps: prev.steps,
-                    prev_received: prev.received,
-                    prev_degraded: u32::from(prev.degraded),
+                    prev_steps: point.prev.steps,
+                    prev_received: point.prev.received,
+                    prev_degraded: u32::from(point.prev.degraded),
                     mean,
                     cov,
                 })
@@ -304,7 +289,7 @@ impl<const N: usize> Agent<N> {
                 if a.take_control()?.is_some() {
                     return Ok(Some(None));
                 }
-                Ok(a.links.take_open(tag, episode, leg32)?.map(Some))
+                Ok(a.links.take_open(tag, episode, point.leg)?.map(Some))
             })?;
             let (delta, sensor) = match opened {
                 Waited::Got(Some(v)) => v,
@@ -312,101 +297,36 @@ impl<const N: usize> Agent<N> {
                 Waited::Exit(e) => return Ok(Some(e)),
                 Waited::DeadLink(_) => unreachable!("no slot awaited"),
             };
-            if sensor != self.c.legs[leg].sensor {
-                return Err(AgentError::Protocol(format!(
-                    "coordinator opened leg {leg} at sensor {sensor}, the scenario says {}",
-                    self.c.legs[leg].sensor
-                )));
-            }
-            // β(δ), or the radio's factor on a lossy link (docs/MODEL.md §8).
-            let beta = self.c.silence_beta(sensor, delta);
+            core.open_leg(&self.c, delta, sensor)?;
             if self.links.alive[sensor] {
-                let header = self.stamp.header(episode, leg32, k);
-                self.links.hand_over(sensor, header, &state.belief)?;
+                let header = self.stamp.header(episode, point.leg, point.step);
+                self.links.hand_over(sensor, header, &point.belief)?;
                 self.stats.handovers += 1;
             }
-            let mut counts = LegCounts::default();
             loop {
-                // docs/MODEL.md §3 through episode::step, in this order.
-                let u = self.c.input(leg, &state.belief.mean);
-                let collided = self.c.move_plant(&mut state.x, &u, &mut rng);
-                k += 1;
-                counts.steps += 1;
-                totals.steps += 1;
-                if collided.is_some() {
-                    totals.outcome = OutcomeCode::Collision.code();
-                    return self
-                        .finish(episode, leg32, k, counts, totals)
-                        .map(|()| None);
-                }
-                let prior = self.c.prior(&state.belief, &u);
-                let (result, fault) = match self.slot(episode, leg32, k, sensor, &state.x)? {
+                let request = match core.begin_step(&self.c)? {
+                    Step::Slot(request) => request,
+                    Step::Ended(end) => return self.finish(episode, end).map(|()| None),
+                };
+                let served =
+                    self.slot(episode, request.leg, request.step, request.sensor, core.x())?;
+                let (result, fault) = match served {
                     Ok(r) => r,
                     Err(exit) => return Ok(Some(exit)),
                 };
-                if let Some(f) = fault {
-                    record_fault(&mut totals, &f);
-                }
-                totals.slots += 1;
-                let (slot, y) = match result {
-                    SlotResult::Closed(y, digest) => {
-                        // The sensor triggered on its replica's prior: it
-                        // must be ours, bit for bit (docs/MODEL.md §3.2).
-                        if digest != belief_digest(&prior) {
-                            return Err(AgentError::Protocol(format!(
-                                "sensor {sensor}'s replica diverged at episode {episode} step {k}: \
-                                 prior digest {digest:#018x}, the agent's {:#018x}",
-                                belief_digest(&prior)
-                            )));
-                        }
-                        (true, y)
-                    }
-                    SlotResult::Dead(y) => {
-                        counts.degraded = true;
-                        totals.degraded = 1;
-                        totals.dead_slots += 1;
-                        (false, y)
-                    }
-                };
-                counts.received += u32::from(y.is_some());
-                let outcome = match (&y, slot) {
-                    (Some(y), _) => SlotOutcome::Transmitted(&y[..]),
-                    (None, true) => SlotOutcome::Silent,
-                    (None, false) => SlotOutcome::Dead,
-                };
-                state.belief = self.c.close_slot(leg, &prior, outcome, beta);
-                if self.c.leg_ends(leg, &state.belief, counts.steps) {
-                    break;
+                match core.close_slot(&self.c, request, result, fault)? {
+                    AfterSlot::Continue => {}
+                    AfterSlot::LegEnded => break,
+                    AfterSlot::Ended(end) => return self.finish(episode, end).map(|()| None),
                 }
             }
-            if leg + 1 == legs {
-                totals.outcome = match self.c.classify_end(&state.x) {
-                    etp_shared::episode::Outcome::Target => OutcomeCode::Target,
-                    _ => OutcomeCode::Free,
-                }
-                .code();
-                return self
-                    .finish(episode, leg32, k, counts, totals)
-                    .map(|()| None);
-            }
-            totals.received += counts.received;
-            prev = counts;
         }
-        Err(AgentError::Protocol("scenario without legs".into()))
     }
 
-    fn finish(
-        &mut self,
-        episode: u64,
-        leg: u32,
-        k: u32,
-        last: LegCounts,
-        mut o: Outcome,
-    ) -> Result<(), AgentError> {
-        o.header = self.stamp.header(episode, leg, k);
-        o.last_steps = last.steps;
-        o.last_received = last.received;
-        o.received += last.received;
+    /// Publish the episode's outcome.
+    fn finish(&mut self, episode: u64, end: EpisodeEnd) -> Result<(), AgentError> {
+        let mut o = end.outcome;
+        o.header = self.stamp.header(episode, end.leg, end.step);
         self.stats.episodes += 1;
         self.stats.steps += u64::from(o.steps);
         self.stats.received += u64::from(o.received);
@@ -423,14 +343,5 @@ impl<const N: usize> Agent<N> {
             .send_copy(o)
             .map_err(|e| PortError::send("outcome", e))?;
         self.notify_coordinator()
-    }
-}
-
-fn record_fault(o: &mut Outcome, f: &Fault) {
-    if o.dead_sensor == u32::MAX {
-        o.dead_sensor = f.sensor;
-        o.detect_us = f.detect_us;
-        o.wait_started_unix_ns = f.wait_started_unix_ns;
-        o.detected_unix_ns = f.detected_unix_ns;
     }
 }

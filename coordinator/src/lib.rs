@@ -8,13 +8,18 @@
 //!   for another scenario: `Strategy::check_scenario`), waits for `hello`
 //!   from the agent and every sensor, runs the episodes and returns the
 //!   [`RunReport`].
-//! * [`Coordinator`](session::Coordinator) — per episode: `control` start;
-//!   on each `waypoint` it classifies the agent's covariance into the
-//!   strategy's region and draws δ from ω (`Strategy::draw`, uniform numbers
-//!   from `streams::COORDINATOR`), closes the previous leg at its sensor and
-//!   opens the new one (`threshold`); on `outcome` it records the episode. The
-//!   sensors' `ledger`s are joined to the agent's received counts per leg.
+//! * [`core::CoordinatorCore`] — the decisions, pure (no ports,
+//!   unit-tested): on each `waypoint` it classifies the agent's covariance
+//!   into the strategy's region and draws δ from ω (`Strategy::draw`,
+//!   uniform numbers from `streams::COORDINATOR`), closing the previous leg
+//!   and opening the new one at its sensor; on `outcome` it records the
+//!   episode; the sensors' `ledger`s are joined to the agent's received
+//!   counts per leg in the report.
+//! * [`Coordinator`](session::Coordinator) — the adapter: `control` start
+//!   per episode, the `threshold` messages the core decides, the waits and
+//!   the liveness checks.
 
+pub mod core;
 mod session;
 
 pub use etp_runtime::report::RunReport;

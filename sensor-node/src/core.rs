@@ -97,6 +97,9 @@ pub enum SlotError {
         leg: u32,
         open: Option<(u64, u32)>,
     },
+    /// A message about a leg the scenario does not have.
+    #[error("message for episode {episode} leg {leg}, beyond the scenario's {legs} legs")]
+    NoSuchLeg { episode: u64, leg: u32, legs: usize },
     /// A truth of an open leg whose handover has not been read yet.
     #[error("truth of episode {episode} leg {leg} before the leg's handover")]
     NoHandover { episode: u64, leg: u32 },
@@ -250,15 +253,14 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
             return Ok(());
         }
         let delta = self.open_leg(episode, leg)?.delta;
-        let beta = self.scenario.silence_beta(self.index as usize, delta);
+        let legs = self.scenario.legs.len();
+        if leg as usize >= legs {
+            return Err(SlotError::NoSuchLeg { episode, leg, legs });
+        }
         let belief = belief_from_wire::<N>(&h.mean, &h.cov);
-        let open = self.open_leg(episode, leg)?;
-        open.replica = Some(LegReplica::handed_over(
-            leg as usize,
-            beta,
-            belief,
-            h.header.step,
-        ));
+        let replica =
+            LegReplica::handed_over(&self.scenario, leg as usize, delta, belief, h.header.step);
+        self.open_leg(episode, leg)?.replica = Some(replica);
         self.stats.handovers += 1;
         Ok(())
     }
@@ -286,14 +288,15 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
         let Some(replica) = open.replica.as_mut() else {
             return Err(SlotError::NoHandover { episode, leg });
         };
-        if replica.next_step != step {
+        if replica.next_step() != step {
             return Err(SlotError::StepGap {
                 episode,
                 step,
-                expected: replica.next_step,
+                expected: replica.next_step(),
             });
         }
-        let prior = replica.prior(scenario);
+        let slot_open = replica.open(scenario);
+        let prior = *slot_open.prior();
         let mut rng = stream_rng(seed, streams::SENSOR, (episode << 32) | u64::from(step));
         let x: Vector<N> = vec_from_wire(&t.x);
         let y = filter.sensor.measure(&x, &mut rng);
@@ -327,7 +330,7 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
         } else {
             SlotOutcome::Silent
         };
-        replica.close(scenario, &prior, slot);
+        replica.close(scenario, slot_open, slot);
         let l = &mut open.ledger;
         l.slots += 1;
         l.triggers += u32::from(fired);
@@ -534,6 +537,33 @@ mod tests {
         assert_eq!(c.stats.slots, 0);
         slot(&mut c, 2, 1, 1);
         assert_eq!(c.stats.slots, 1);
+    }
+
+    /// A handover of a leg the scenario lacks is refused, not served.
+    #[test]
+    fn a_handover_beyond_the_scenarios_legs_is_refused() {
+        let mut c = core();
+        let legs = CompiledScenario::<2>::new(&Scenario::builtin("open-2d").expect("built-in"))
+            .legs
+            .len();
+        let leg = legs as u32;
+        c.on_threshold(&th(Threshold::OPEN, 1, leg, 1.0));
+        let (mean, cov) = belief_to_wire(&belief());
+        let h = Handover {
+            header: header(1, leg, 0),
+            dim: 2,
+            mean,
+            cov,
+            ..Handover::default()
+        };
+        assert_eq!(
+            c.on_handover(&h),
+            Err(SlotError::NoSuchLeg {
+                episode: 1,
+                leg,
+                legs
+            })
+        );
     }
 
     /// A leg can close (collision on its first step) before its handover is

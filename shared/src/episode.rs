@@ -21,13 +21,15 @@
 //! from the [`EpisodeChannels`] of the episode, one stream per link, so an
 //! ideal radio draws nothing and leaves every result as it was.
 //!
-//! The pieces of one step (input, move, prior, slot update, leg end) are
-//! defined once in [`step`] and shared with the runtime agent and
-//! `etp replay --verify`.
+//! The step's order is written once, in [`agent_core::AgentCore`] (over the
+//! pieces of [`step`]): the leg loop here drives it, as do the agent
+//! process, `etp replay --verify` and the sensor's replica.
 
+pub mod agent_core;
 pub mod replica;
 pub mod step;
 
+pub use agent_core::{AgentCore, Begun, LegRule, OpenSlot, Plant, Unseen, World, slot_update};
 pub use replica::{LegReplica, belief_digest};
 pub use step::SlotOutcome;
 
@@ -101,10 +103,8 @@ impl<const N: usize> SensorFilter<N> {
     pub fn posterior(&self, prior: &Belief<N>, y: Option<&[f64]>, beta: f64) -> Belief<N> {
         on_filter!(self, f => {
             let inn = f.innovation(prior);
-            match y {
-                Some(y) => f.update_explicit(prior, &inn, &Vector::from_fn(|i, _| y[i])),
-                None => f.update_implicit(prior, &inn, beta),
-            }
+            let y = y.map(|y| Vector::from_fn(|i, _| y[i]));
+            slot_update(f, prior, &inn, y.as_ref(), beta)
         })
     }
 
@@ -409,6 +409,10 @@ impl<const N: usize> CompiledScenario<N> {
         self.run_leg_with(filter, leg, state, mode, rng, channels, observer)
     }
 
+    /// The leg loop: [`AgentCore`]'s step (the one order of the step) with
+    /// the world the simulated plant and the slot served inline by the
+    /// serving sensor's typed filter (`M` known here: one innovation for
+    /// trigger and update; the radio's fate from `channels`).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn run_leg_with<const M: usize, R: Rng + ?Sized, O: EpisodeObserver<N>>(
@@ -421,15 +425,6 @@ impl<const N: usize> CompiledScenario<N> {
         channels: &mut EpisodeChannels,
         observer: &mut O,
     ) -> LegResult {
-        let (initial_threshold, kf) = match *mode {
-            LegMode::EventTriggered(t) => (t, None),
-            LegMode::KfConvergence {
-                threshold,
-                eps_kf,
-                eps_p,
-                p_kf,
-            } => (threshold, Some((eps_kf, eps_p, p_kf))),
-        };
         let sensor = self.legs[leg].sensor;
         // A lossy serving link takes the lossy step; an ideal one the step of
         // §2 exactly (same operations, same bits).
@@ -445,9 +440,24 @@ impl<const N: usize> CompiledScenario<N> {
                 t
             }
         };
-        let full_kf = silence(Threshold::new(0.0));
-        let mut threshold = silence(initial_threshold);
-        let mut in_kf_phase = false;
+        let (threshold, rule) = match *mode {
+            LegMode::EventTriggered(t) => (t, LegRule::Waypoint),
+            LegMode::KfConvergence {
+                threshold,
+                eps_kf,
+                eps_p,
+                p_kf,
+            } => (
+                threshold,
+                LegRule::KfConvergence {
+                    eps_kf,
+                    eps_p,
+                    p_kf,
+                    full_kf: silence(Threshold::new(0.0)),
+                },
+            ),
+        };
+        let mut core = AgentCore::open(leg, silence(threshold), rule, state.belief, 0);
         let mut r = LegResult {
             end: LegEnd::Terminated,
             steps: 0,
@@ -458,71 +468,79 @@ impl<const N: usize> CompiledScenario<N> {
             kf_slots: 0,
             expected_transmissions: 0.0,
         };
-        let mut expected_rate = gaussian::expected_rate(threshold.delta, M);
+        let mut expected_rate = gaussian::expected_rate(core.threshold().delta, M);
         loop {
-            let u = self.input(leg, &state.belief.mean);
-            let collided = self.move_plant(&mut state.x, &u, rng);
+            let begun = core.begin(
+                self,
+                &mut Plant {
+                    x: &mut state.x,
+                    rng: &mut *rng,
+                },
+            );
             channels.start_step();
             r.steps += 1;
-            if let Some(obstacle) = collided {
-                observer.on_step(&StepEvent {
-                    leg,
-                    x: &state.x,
-                    belief: &state.belief,
-                    delta: threshold.delta,
-                    transmitted: false,
+            let slot = match begun {
+                Begun::Slot(slot) => slot,
+                Begun::Collided(obstacle) => {
+                    observer.on_step(&StepEvent {
+                        leg,
+                        x: &state.x,
+                        belief: core.posterior(),
+                        delta: core.threshold().delta,
+                        transmitted: false,
+                        attempts: 0,
+                        delivered: false,
+                        collided: true,
+                    });
+                    state.belief = *core.posterior();
+                    r.end = LegEnd::Collision { obstacle };
+                    return r;
+                }
+            };
+            // The serving sensor's slot (docs/MODEL.md §2, §8): measure,
+            // trigger on the prior's innovation, transmit over the link.
+            let threshold = core.threshold();
+            let y = filter.sensor.measure(&state.x, rng);
+            let inn = filter.innovation(slot.prior());
+            let sent = inn.triggers(&y, threshold.delta);
+            let sending = if !sent {
+                Transmission {
                     attempts: 0,
                     delivered: false,
-                    collided: true,
-                });
-                r.end = LegEnd::Collision { obstacle };
-                return r;
-            }
-            let y = filter.sensor.measure(&state.x, rng);
-            let (post, sent, sending) = if lossy {
-                lossy_step(filter, &state.belief, &u, &y, threshold, || {
-                    channels.transmit(sensor)
-                })
+                }
+            } else if lossy {
+                channels.transmit(sensor)
             } else {
-                let (post, sent) = filter.step(&state.belief, &u, &y, threshold);
-                let t = Transmission {
-                    attempts: u32::from(sent),
-                    delivered: sent,
-                };
-                (post, sent, t)
+                Transmission {
+                    attempts: 1,
+                    delivered: true,
+                }
             };
-            state.belief = post;
+            let delivered = sending.delivered.then_some(&y);
+            let post = slot_update(filter, slot.prior(), &inn, delivered, threshold.beta);
             r.slots += 1;
             r.transmissions += sending.attempts;
             r.triggers += u32::from(sent);
             r.delivered += u32::from(sending.delivered);
-            r.kf_slots += u32::from(in_kf_phase);
+            r.kf_slots += u32::from(core.in_kf_phase());
             r.expected_transmissions += expected_rate;
             observer.on_step(&StepEvent {
                 leg,
                 x: &state.x,
-                belief: &state.belief,
+                belief: &post,
                 delta: threshold.delta,
                 transmitted: sent,
                 attempts: sending.attempts,
                 delivered: sending.delivered,
                 collided: false,
             });
-            let done = match kf {
-                None => self.leg_ends(leg, &state.belief, r.steps),
-                Some((eps_kf, eps_p, p_kf)) => {
-                    let near = self.near_waypoint(leg, &state.belief.mean, self.eps_x);
-                    if !in_kf_phase && self.near_waypoint(leg, &state.belief.mean, eps_kf) {
-                        in_kf_phase = true;
-                        threshold = full_kf;
-                        expected_rate = 1.0;
-                    }
-                    (in_kf_phase && near && (state.belief.cov - p_kf).amax() <= eps_p)
-                        || r.steps >= self.k_max
-                }
-            };
+            let done = core.close_with(self, slot, post);
             if done {
+                state.belief = *core.posterior();
                 return r;
+            }
+            if core.in_kf_phase() {
+                expected_rate = 1.0;
             }
         }
     }
@@ -570,39 +588,6 @@ impl<const N: usize> CompiledScenario<N> {
         }
         total.outcome = self.classify_end(&state.x);
         total
-    }
-}
-
-/// One slot over a lossy link (docs/MODEL.md §8): predict, trigger on the
-/// agent's estimate; on a trigger `transmit` gives the attempts' fate; a
-/// delivered measurement gets the measurement update, anything else the
-/// silence update with `th.beta` (β_q for the aware estimator). Returns the
-/// posterior, whether it triggered, and the attempts.
-#[inline(always)]
-fn lossy_step<const N: usize, const M: usize>(
-    filter: &EtKalmanFilter<N, M>,
-    post: &Belief<N>,
-    u: &Vector<N>,
-    y: &Vector<M>,
-    th: Threshold,
-    transmit: impl FnOnce() -> Transmission,
-) -> (Belief<N>, bool, Transmission) {
-    let prior = filter.predict(post, u);
-    let inn = filter.innovation(&prior);
-    if inn.triggers(y, th.delta) {
-        let t = transmit();
-        let post = if t.delivered {
-            filter.update_explicit(&prior, &inn, y)
-        } else {
-            filter.update_implicit(&prior, &inn, th.beta)
-        };
-        (post, true, t)
-    } else {
-        let silent = Transmission {
-            attempts: 0,
-            delivered: false,
-        };
-        (filter.update_implicit(&prior, &inn, th.beta), false, silent)
     }
 }
 

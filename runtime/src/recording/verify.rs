@@ -5,8 +5,9 @@
 //! threshold δ of each leg (`threshold` OPEN), the transmitted measurements
 //! (`measurement`) and the closed slots (`slot`). From the initial belief
 //! (x̂₀, P₀) the re-run applies docs/MODEL.md §3 through the agent's own step
-//! functions (`episode::step`: input from the posterior, prior, the slot's
-//! update, the leg's end rule) and compares, with `f64::to_bits`, every belief
+//! (`episode::AgentCore`: input from the posterior, prior, the slot's
+//! update, the leg's end rule; the world is the recording, a collision is
+//! where the recorded outcome puts it) and compares, with `f64::to_bits`, every belief
 //! the agent published — the posterior at each decision point (`waypoint`)
 //! and the belief handed over to the serving sensor (`sensor/<i>/handover`) —
 //! and, through `episode::belief_digest`, the prior the sensor's replica
@@ -33,8 +34,8 @@ use crate::wire::coordinator_to_agent::Control;
 use crate::wire::coordinator_to_all::Threshold;
 use crate::wire::sensor_to_agent::{Measurement, Slot};
 use crate::wire::{WireMat, WireVec, belief_to_wire};
-use etp_shared::episode::{CompiledScenario, SlotOutcome, belief_digest};
-use etp_shared::etkf::Belief;
+use etp_shared::episode::{AgentCore, Begun, CompiledScenario, SlotOutcome, World, belief_digest};
+use etp_shared::etkf::{Belief, Vector};
 use etp_shared::radio::LinkChannel;
 use etp_shared::scenario::Scenario;
 use std::collections::BTreeMap;
@@ -246,6 +247,19 @@ fn differs<const N: usize>(b: &Belief<N>, dim: u32, mean: &WireVec, cov: &WireMa
     (!same).then_some(worst)
 }
 
+/// The re-run's world: no true state, only where the recorded outcome puts
+/// a collision (the episode step of a recorded collision).
+struct RecordedWorld {
+    collision_at: Option<u32>,
+}
+
+impl<const N: usize> World<N> for RecordedWorld {
+    type Collision = ();
+    fn moved(&mut self, _: &CompiledScenario<N>, _: &Vector<N>, step: u32) -> Option<()> {
+        (self.collision_at == Some(step)).then_some(())
+    }
+}
+
 enum Ended {
     /// Re-run to the recorded outcome (possibly with a mismatch).
     Done,
@@ -339,7 +353,6 @@ fn rerun<const N: usize>(
             return missing(leg, k, "no threshold opened this leg");
         };
         let sensor = c.legs[leg as usize].sensor;
-        let beta = c.silence_beta(sensor, delta);
         let Some(h) = r.handovers.get(&leg) else {
             return missing(leg, k, "no handover recorded for this leg");
         };
@@ -351,30 +364,36 @@ fn rerun<const N: usize>(
             (None, Some(o)) if o.header.leg == leg => Some(o.header.step),
             _ => None,
         };
-        let mut steps_in_leg = 0u32;
+        let mut core = AgentCore::for_delta(c, leg as usize, delta, belief, k);
+        let mut world = RecordedWorld {
+            collision_at: outcome
+                .filter(|o| o.outcome == Outcome::COLLISION)
+                .map(|o| o.header.step),
+        };
         loop {
-            // MODEL.md §3 in the agent's order: input, plant step, collision
-            // check (ends the episode before the slot), prediction, slot.
-            let u = c.input(leg as usize, &belief.mean);
-            k += 1;
-            steps_in_leg += 1;
+            // MODEL.md §3 in the agent's order (the agent's own step): input,
+            // the move (a recorded collision ends the episode before the
+            // slot), prediction; then the slot as recorded.
+            let begun = core.begin(c, &mut world);
+            k = core.step();
             rep.steps += 1;
-            if let Some(o) = outcome
-                && o.outcome == Outcome::COLLISION
-                && o.header.step == k
-            {
-                return if o.header.leg == leg {
-                    Ok(Ended::Done)
-                } else {
-                    Err(miss(
-                        leg,
-                        k,
-                        format!("collision recorded in leg {}", o.header.leg),
-                        0.0,
-                    ))
-                };
-            }
-            let prior = c.prior(&belief, &u);
+            let open = match begun {
+                Begun::Slot(open) => open,
+                Begun::Collided(()) => {
+                    let at_leg = outcome.map_or(leg, |o| o.header.leg);
+                    return if at_leg == leg {
+                        Ok(Ended::Done)
+                    } else {
+                        Err(miss(
+                            leg,
+                            k,
+                            format!("collision recorded in leg {at_leg}"),
+                            0.0,
+                        ))
+                    };
+                }
+            };
+            let prior = *open.prior();
             sink(episode, k, N as u32, belief_to_wire(&prior));
             let y = r.measurements.get(&k);
             if let Some(m) = y
@@ -455,8 +474,8 @@ fn rerun<const N: usize>(
                 Some(m) => SlotOutcome::Transmitted(&m.y[..]),
                 None => SlotOutcome::Silent,
             };
-            belief = c.close_slot(leg as usize, &prior, slot, beta);
-            let ends = c.leg_ends(leg as usize, &belief, steps_in_leg);
+            let ends = core.close(c, open, slot);
+            belief = *core.posterior();
             match recorded_end {
                 Some(end) if ends && end != k => {
                     return Err(miss(

@@ -1,57 +1,64 @@
 //! The agent's estimator as the serving sensor replays it (docs/MODEL.md
 //! §3.2): handed the agent's belief once at the start of a leg, the sensor
 //! computes every prior of the leg itself, with the agent's own step
-//! functions ([`CompiledScenario::input`], [`CompiledScenario::prior`],
-//! [`CompiledScenario::close_slot`]), from what it knows: its own
-//! transmissions and silent slots. No per-step downlink is needed, and the
-//! replica's priors are the agent's bit for bit (checked by the agent on every
-//! slot through [`belief_digest`], and by `etp replay --verify`).
+//! ([`AgentCore`], without a world: the sensor serves only slots whose move
+//! did not collide), from what it knows: its own transmissions and silent
+//! slots. No per-step downlink is needed, and the replica's priors are the
+//! agent's bit for bit (checked by the agent on every slot through
+//! [`belief_digest`], and by `etp replay --verify`).
 //!
 //! The replica is exact only while every slot of the leg reached the agent as
 //! the sensor closed it; a slot the agent took as dead (a dead link) breaks
 //! it, and the next handover (next leg) restores it.
 
-use super::{CompiledScenario, SlotOutcome};
+use super::{AgentCore, Begun, CompiledScenario, OpenSlot, SlotOutcome, Unseen};
 use crate::etkf::Belief;
 
 /// The agent's estimate within one leg, as the serving sensor tracks it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LegReplica<const N: usize> {
-    /// The leg (decision point) index.
-    pub leg: usize,
-    /// β(δ) of the leg's threshold (the implicit update's factor).
-    pub beta: f64,
-    /// The agent's posterior after the last closed slot (at the handover:
-    /// its belief at the decision point).
-    pub posterior: Belief<N>,
-    /// The step k the next slot will have.
-    pub next_step: u32,
+    core: AgentCore<N>,
 }
 
 impl<const N: usize> LegReplica<N> {
     /// The replica handed over at step `step` (slots so far in the episode)
-    /// of leg `leg` with belief `belief`.
-    pub fn handed_over(leg: usize, beta: f64, belief: Belief<N>, step: u32) -> Self {
+    /// of leg `leg` at threshold `delta` with belief `belief` (β from the
+    /// serving link, as the agent takes it).
+    pub fn handed_over(
+        c: &CompiledScenario<N>,
+        leg: usize,
+        delta: f64,
+        belief: Belief<N>,
+        step: u32,
+    ) -> Self {
         Self {
-            leg,
-            beta,
-            posterior: belief,
-            next_step: step + 1,
+            core: AgentCore::for_delta(c, leg, delta, belief, step),
         }
     }
 
-    /// The prior of the next slot: `u = input(leg, x̂)`, then `prior(posterior, u)`,
-    /// exactly as the agent computes it.
-    pub fn prior(&self, c: &CompiledScenario<N>) -> Belief<N> {
-        let u = c.input(self.leg, &self.posterior.mean);
-        c.prior(&self.posterior, &u)
+    /// The step k the next slot will have.
+    pub fn next_step(&self) -> u32 {
+        self.core.step() + 1
     }
 
-    /// Close the slot: the agent's update of `prior` with what the sensor
+    /// The agent's posterior after the last closed slot (at the handover:
+    /// its belief at the decision point).
+    pub fn posterior(&self) -> &Belief<N> {
+        self.core.posterior()
+    }
+
+    /// Open the next slot: its prior is the agent's (`u = input(leg, x̂)`,
+    /// then the prediction), exactly as the agent computes it.
+    pub fn open(&mut self, c: &CompiledScenario<N>) -> OpenSlot<N> {
+        let Begun::Slot(slot) = self.core.begin(c, &mut Unseen);
+        slot
+    }
+
+    /// Close the slot: the agent's update of its prior with what the sensor
     /// did (transmitted y, or stayed silent).
-    pub fn close(&mut self, c: &CompiledScenario<N>, prior: &Belief<N>, slot: SlotOutcome<'_>) {
-        self.posterior = c.close_slot(self.leg, prior, slot, self.beta);
-        self.next_step += 1;
+    pub fn close(&mut self, c: &CompiledScenario<N>, slot: OpenSlot<N>, outcome: SlotOutcome<'_>) {
+        // The leg's end is the agent's to tell (the coordinator closes it).
+        let _leg_ended = self.core.close(c, slot, outcome);
     }
 }
 
@@ -97,7 +104,7 @@ mod tests {
         let delta = 1.2;
         let beta = Threshold::new(delta).beta;
         let leg = 0;
-        let mut replica = LegReplica::handed_over(leg, beta, state.belief, 0);
+        let mut replica = LegReplica::handed_over(&c, leg, delta, state.belief, 0);
         let mut checked = 0;
         for k in 1..=c.k_max {
             let u = c.input(leg, &state.belief.mean);
@@ -105,9 +112,14 @@ mod tests {
                 break;
             }
             let prior = c.prior(&state.belief, &u);
-            let mine = replica.prior(&c);
-            assert_eq!(belief_digest(&mine), belief_digest(&prior), "step {k}");
-            assert_eq!(mine, prior);
+            assert_eq!(replica.next_step(), k);
+            let mine = replica.open(&c);
+            assert_eq!(
+                belief_digest(mine.prior()),
+                belief_digest(&prior),
+                "step {k}"
+            );
+            assert_eq!(mine.prior(), &prior);
             checked += 1;
             // Alternate transmissions and silences.
             let y = [state.x[0], state.x[1], 0.0, 0.0, 0.0, 0.0];
@@ -117,14 +129,14 @@ mod tests {
                 SlotOutcome::Silent
             };
             state.belief = c.close_slot(leg, &prior, slot, beta);
-            replica.close(&c, &mine, slot);
-            assert_eq!(replica.next_step, k + 1);
+            replica.close(&c, mine, slot);
+            assert_eq!(replica.next_step(), k + 1);
             if c.leg_ends(leg, &state.belief, k) {
                 break;
             }
         }
         assert!(checked >= 5, "{checked}");
-        assert_eq!(replica.posterior, state.belief);
+        assert_eq!(replica.posterior(), &state.belief);
     }
 
     #[test]

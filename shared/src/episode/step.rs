@@ -1,13 +1,12 @@
-//! One step of docs/MODEL.md §3 (general form §7), split where the runtime splits it: the
-//! agent's estimator side (input, prior, slot update, leg end) and the
-//! world's side (the plant's move and the collision test).
+//! The pieces of one step of docs/MODEL.md §3 (general form §7), split
+//! where the runtime splits it: the agent's estimator side (input, prior,
+//! slot update, leg end) and the world's side (the plant's move and the
+//! collision test).
 //!
-//! These functions are the single definition of the step order used by the
-//! in-process simulation ([`CompiledScenario::run_leg`]), by the agent
-//! process (whose slot is served by a sensor process) and by
-//! `etp replay --verify` (which has no true state: it re-runs the estimator
-//! side on the recorded slots). So the bit-for-bit guarantee of `--verify`
-//! rests on this one piece of code:
+//! Only [`super::AgentCore`] puts them in order (the one definition of the
+//! step, driven by the in-process leg loop, the agent process,
+//! `etp replay --verify` and the sensor's replica), so the bit-for-bit
+//! guarantee of `--verify` rests on one piece of code:
 //!
 //! ```text
 //! u      = input(leg, posterior mean)               step 1 (CompiledScenario::input)
