@@ -513,10 +513,11 @@ pub(crate) mod tests {
         ));
         assert!(matches!(Mdp::decode(b"hello"), Err(MdpError::Magic)));
         let mut v = bytes.clone();
-        v[8] = 7;
+        // Another version (6: written before splits were stored) is refused.
+        v[8] = 6;
         assert!(matches!(
             Mdp::decode(&v),
-            Err(MdpError::Version { found: 7, .. })
+            Err(MdpError::Version { found: 6, .. })
         ));
         // The checksum passes, the content does not (a bug, not a flip).
         let mut broken = toy();

@@ -33,8 +33,12 @@ fn a_split_region_becomes_two_states_and_survives_the_files() {
     let s = Scenario::builtin("winding-2d").expect("built-in");
     let first = abstraction::build(&s, &params(), &|_| {}).expect("builds");
     let bins = first.discretization.clone().expect("Method 2");
-    // The most visited state of decision point 1, cut at the median of its
-    // beliefs' leading log eigenvalue (as the aggregation episodes see them).
+    // The most visited state of decision point 1, cut on its beliefs'
+    // leading log eigenvalue (as the aggregation episodes see them) between
+    // the smallest value and the next one: a single integrator's covariance
+    // after a leg takes few values (the filter's recursion is deterministic
+    // given the transmissions), so a median can coincide with the smallest
+    // and leave one side empty.
     let segs = aggregation::sample_segments(&s, &first, 2000, 5, &|_| {}).expect("Method 2");
     let at = |k: u32| {
         segs.iter()
@@ -47,12 +51,17 @@ fn a_split_region_becomes_two_states_and_survives_the_files() {
     let mut v: Vec<f64> = at(state).map(|g| g.features[0]).collect();
     v.sort_by(f64::total_cmp);
     assert!(v.len() >= 100, "{} beliefs", v.len());
+    let next = v
+        .iter()
+        .copied()
+        .find(|&x| x > v[0])
+        .expect("more than one covariance in the region");
     let parent = first.states[state as usize].region.clone();
     let split = RegionSplit {
         decision_point: 1,
         region: parent.clone(),
         feature: 0,
-        threshold: v[v.len() / 2],
+        threshold: 0.5 * (v[0] + next),
     };
     let mdp =
         abstraction::build_split(&s, &params(), &bins, &[split.clone()], &|_| {}).expect("builds");
