@@ -74,7 +74,7 @@ impl DecisionPointBins {
 
 /// The side of a feature value: 0 below the threshold, 1 otherwise (NaN too).
 pub fn split_side(value: f64, threshold: f64) -> u16 {
-    u16::from(!(value < threshold))
+    if value < threshold { 0 } else { 1 }
 }
 
 /// `base` (the region of `cov` at decision point `dp` under `bins`) refined
@@ -212,12 +212,16 @@ mod tests {
         assert!(check_splits(&splits, &d).is_ok());
         let mut bad = splits.clone();
         bad[0].feature = 3;
-        assert!(check_splits(&bad, &d).unwrap_err().contains("feature"));
+        assert!(
+            check_splits(&bad, &d)
+                .expect_err("refused")
+                .contains("feature")
+        );
         bad[0].feature = 0;
         bad[0].decision_point = 2;
         assert!(
             check_splits(&bad, &d)
-                .unwrap_err()
+                .expect_err("refused")
                 .contains("decision_point")
         );
     }

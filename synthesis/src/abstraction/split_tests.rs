@@ -61,7 +61,7 @@ fn a_region_of_two_clusters_is_split_between_them() {
     let s = &splits[0];
     assert_eq!(
         (s.decision_point, &s.region),
-        (1, &the_region(3).unwrap().1)
+        (1, &the_region(3).expect("state 3").1)
     );
     assert!(s.feature < 2, "split on a cluster feature: {s:?}");
     let agree = segs
