@@ -63,8 +63,8 @@ fn a_split_region_becomes_two_states_and_survives_the_files() {
         feature: 0,
         threshold: 0.5 * (v[0] + next),
     };
-    let mdp =
-        abstraction::build_split(&s, &params(), &bins, &[split.clone()], &|_| {}).expect("builds");
+    let mdp = abstraction::build_split(&s, &params(), &bins, std::slice::from_ref(&split), &|_| {})
+        .expect("builds");
     mdp.check().expect("consistent");
     assert_eq!(mdp.splits, vec![split.clone()]);
     let regions_at_1: Vec<_> = mdp
