@@ -21,6 +21,9 @@
 //! The synthesis passes `C F^h` as the map (the workspace marginal h silent
 //! steps ahead, MODEL.md §7.3); classification needs only the stored map.
 
+mod split;
+pub use split::{RegionSplit, SPLIT_MARK, check_splits, refine_region, split_side};
+
 use crate::linalg::deterministic_eigen;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};

@@ -14,7 +14,7 @@
 //! strategy`; [`Strategy::from_json`] (strategies embedded in recordings)
 //! checks the seal when present and accepts old, unsealed ones.
 
-use crate::discretization::{Discretization, Region};
+use crate::discretization::{Discretization, Region, RegionSplit, SPLIT_MARK, check_splits};
 use crate::radio::Radio;
 use crate::scenario::Scenario;
 use nalgebra::DMatrix;
@@ -165,6 +165,11 @@ pub struct Strategy {
     /// strategy is evaluated under its own channel unless told otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radio: Option<Radio>,
+    /// Regions split by `etp synthesize --split-budget` (docs/MODEL.md §7.3):
+    /// the belief's region is refined by them before ω is looked up. Absent
+    /// (none) in older files and without splitting, which classify as before.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub splits: Vec<RegionSplit>,
 }
 
 impl Strategy {
@@ -207,6 +212,7 @@ impl Strategy {
             scenario_toml: None,
             leg_energy: None,
             radio: None,
+            splits: Vec::new(),
         }
     }
 
@@ -303,6 +309,12 @@ impl Strategy {
                 "leg_energy[{i}] must be finite and ≥ 0"
             )));
         }
+        if !self.splits.is_empty() {
+            let d = self.discretization.as_ref().ok_or_else(|| {
+                StrategyError::Invalid("`splits` without a discretization".into())
+            })?;
+            check_splits(&self.splits, d).map_err(StrategyError::Invalid)?;
+        }
         for (i, st) in self.states.iter().enumerate() {
             if st.omega.len() != self.deltas.len() {
                 return Err(StrategyError::Invalid(format!(
@@ -374,10 +386,11 @@ impl Strategy {
         Ok(())
     }
 
-    /// The region of a covariance at decision point `dp` (empty when region-free).
+    /// The region of a covariance at decision point `dp`, refined by the
+    /// strategy's splits (empty when region-free).
     pub fn region(&self, dp: usize, cov: &DMatrix<f64>) -> Region {
         match &self.discretization {
-            Some(d) => d.classify(dp, cov),
+            Some(d) => d.classify_split(dp, cov, &self.splits),
             None => Region(Vec::new()),
         }
     }
@@ -429,14 +442,21 @@ pub enum OmegaChoice<'a> {
     FullKf(usize),
 }
 
+/// L1 distance in bins between two regions of one decision point. Split
+/// entries (`SPLIT_MARK`) count by their side, plus one per entry only one of
+/// them has; regions with different base lengths are far apart.
 fn region_distance(a: &Region, b: &Region) -> u64 {
-    if a.0.len() != b.0.len() {
+    let base = |r: &Region| r.0.iter().take_while(|e| e.0 != SPLIT_MARK).count();
+    let (ka, kb) = (base(a), base(b));
+    if ka != kb {
         return u64::MAX / 2;
     }
-    a.0.iter()
-        .zip(&b.0)
-        .map(|(x, y)| u64::from(x.0.abs_diff(y.0)) + u64::from(x.1.abs_diff(y.1)))
-        .sum()
+    let common: u64 =
+        a.0.iter()
+            .zip(&b.0)
+            .map(|(x, y)| u64::from(x.0.abs_diff(y.0)) + u64::from(x.1.abs_diff(y.1)))
+            .sum();
+    common + a.0.len().abs_diff(b.0.len()) as u64
 }
 
 /// Inverse-CDF draw from a distribution with `u ∈ [0, 1)`.

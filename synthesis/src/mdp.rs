@@ -12,15 +12,16 @@
 //! flipped bit or a cut file is refused before anything is decoded (version 1
 //! had no checksum: 4 of 8 random bit flips decoded into another valid MDP).
 
-use etp_shared::discretization::{Discretization, Region};
+use etp_shared::discretization::{Discretization, Region, RegionSplit};
 use serde::{Deserialize, Serialize};
 
 /// Version of the `mdp.bin` layout (2: a SHA-256 of the content at the end;
 /// 3: decision-point bins carry the optional workspace-marginal descriptor;
 /// 4: per choice the energy's second moment and range (certified bounds) and
 /// the held-out sample set (cross-fitting), docs/MODEL.md §4.1;
-/// 5: the workspace descriptor's lookahead and range rule in the build settings).
-pub const MDP_FORMAT_VERSION: u32 = 6;
+/// 5: the workspace descriptor's lookahead and range rule in the build settings;
+/// 6: the lumping level; 7: the regions split by `--split-budget`).
+pub const MDP_FORMAT_VERSION: u32 = 7;
 const MAGIC: &[u8; 8] = b"ETPMDP\0\n";
 /// Magic and version.
 const HEADER_LEN: usize = 12;
@@ -221,6 +222,10 @@ pub struct Mdp {
     pub seed: u64,
     pub total_segments: u64,
     pub total_steps: u64,
+    /// Regions split by the adaptive splitting of docs/MODEL.md §7.3 (empty:
+    /// the descriptor's regions as binned). A state's region is its base
+    /// region refined by these ([`Discretization::classify_split`]).
+    pub splits: Vec<RegionSplit>,
 }
 
 /// Decoding never allocates more than this, whatever lengths a corrupted file claims.
@@ -353,6 +358,12 @@ impl Mdp {
         if self.states.is_empty() {
             return bad("no states".into());
         }
+        if !self.splits.is_empty() {
+            let Some(d) = &self.discretization else {
+                return bad("splits without a discretization".into());
+            };
+            etp_shared::discretization::check_splits(&self.splits, d).map_err(MdpError::Invalid)?;
+        }
         if self.initial as usize >= self.states.len()
             || self.states[self.initial as usize].decision_point != 0
         {
@@ -483,6 +494,7 @@ pub(crate) mod tests {
             seed: 0,
             total_segments: 600,
             total_steps: 6000,
+            splits: Vec::new(),
         }
     }
 
@@ -501,10 +513,11 @@ pub(crate) mod tests {
         ));
         assert!(matches!(Mdp::decode(b"hello"), Err(MdpError::Magic)));
         let mut v = bytes.clone();
-        v[8] = 7;
+        // Another version (6: written before splits were stored) is refused.
+        v[8] = 6;
         assert!(matches!(
             Mdp::decode(&v),
-            Err(MdpError::Version { found: 7, .. })
+            Err(MdpError::Version { found: 6, .. })
         ));
         // The checksum passes, the content does not (a bug, not a flip).
         let mut broken = toy();

@@ -175,6 +175,7 @@ pub fn layered_mdp(p: &SyntheticParams) -> Mdp {
         seed: p.seed,
         total_segments: 0,
         total_steps: 0,
+        splits: Vec::new(),
     }
 }
 

@@ -13,6 +13,7 @@ pub mod replay;
 pub mod run;
 pub mod scenario;
 pub mod simulate;
+pub mod split;
 pub mod strategy;
 pub mod synthesize;
 pub mod validate;

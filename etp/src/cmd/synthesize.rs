@@ -142,6 +142,9 @@ pub struct Args {
     /// Aggregation check: false discovery rate of the flagged splits.
     #[arg(long, value_name = "ALPHA", default_value_t = 0.05)]
     pub aggregation_alpha: f64,
+    /// Adaptive splitting of the regions the aggregation test flags.
+    #[command(flatten)]
+    pub split: crate::cmd::split::SplitArgs,
 }
 
 /// What [`build_mdp`] did, for the summary.
@@ -157,6 +160,8 @@ pub struct MdpReport {
     pub states_per_decision_point: Vec<usize>,
     /// `--merge`: the level and the states per decision point before lumping.
     pub merge: Option<MergeSummary>,
+    /// `--split-budget`: what adaptive splitting did (before any lumping).
+    pub split: Option<crate::cmd::split::SplitSummary>,
     /// Sampled segments per state over its actions (`samples` × actions
     /// unless sample allocation added some): smallest and largest.
     pub samples_per_state: [u64; 2],
@@ -254,12 +259,15 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
         bail!("--merge: the level α must lie in (0, 1) (got {alpha})");
     }
     let p = params(a, &s)?;
+    crate::cmd::split::check(&a.split, p.method)?;
     let pb = progress::bar(abstraction::progress_total(&s, &p), "synthesize", a.json);
     let started = Instant::now();
     let mdp = abstraction::build(&s, &p, &|k| pb.inc(k)).context("building the abstraction")?;
     pb.finish_and_clear();
     mdp.check()
         .context("the built MDP failed its own consistency check (a bug)")?;
+    let first_seconds = started.elapsed().as_secs_f64();
+    let (mdp, split) = crate::cmd::split::apply(&s, &p, mdp, first_seconds, &a.split, a.json)?;
     let (mdp, merge) = match a.merge {
         None => (mdp, None),
         Some(alpha) => {
@@ -289,6 +297,7 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
         states: mdp.states.len(),
         states_per_decision_point: mdp.states_per_decision_point(),
         merge,
+        split,
         samples_per_state: samples_per_state(&mdp),
         arrivals_per_state: arrivals.0,
         states_under_100_arrivals: arrivals.1,
@@ -345,6 +354,10 @@ pub fn report_text(r: &MdpReport) -> String {
             m.alpha, m.states_before, r.states, m.states_per_decision_point_before
         ),
         None => String::new(),
+    };
+    let merge = match &r.split {
+        Some(s) => format!("{}{merge}", crate::cmd::split::describe(s)),
+        None => merge,
     };
     format!(
         "{} · {} · {} samples per state-action (+{} held out) · seed {}\n\

@@ -187,6 +187,35 @@ fn the_pipeline_commands_json_match_their_strict_described_schemas() {
         s(&syn),
         "--json",
     ]);
+    // Adaptive splitting's report (one round at least, whatever it finds).
+    let split = ok_json(&[
+        "synthesize",
+        "open-2d",
+        "--samples",
+        "200",
+        "--holdout-samples",
+        "0",
+        "--aggregation-episodes",
+        "0",
+        "--split-budget",
+        "2",
+        "--split-rounds",
+        "1",
+        "--split-episodes",
+        "500",
+        "-o",
+        s(&dir.path("syn-split")),
+        "--json",
+    ]);
+    assert_eq!(
+        split["mdp"]["split"]["rounds"].as_array().map(Vec::len),
+        Some(1),
+        "{split}"
+    );
+    assert!(
+        synthesize["mdp"]["split"].is_null(),
+        "splitting is off by default"
+    );
     let strategy = ok_json(&["strategy", s(&syn), "--min-target", "0.5", "--json"]);
     let bench = ok_json(&[
         "bench",
@@ -229,6 +258,7 @@ fn the_pipeline_commands_json_match_their_strict_described_schemas() {
     let docs = [
         ("check", &check),
         ("synthesize", &synthesize),
+        ("synthesize", &split),
         ("strategy", &strategy),
         ("bench", &bench),
         ("demo", &demo),

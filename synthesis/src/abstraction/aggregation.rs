@@ -38,10 +38,10 @@
 
 use super::merge::homogeneity_p;
 use crate::mdp::{Mdp, Method, Next};
-use etp_shared::discretization::DecisionPointBins;
+use etp_shared::discretization::{DecisionPointBins, split_side};
 use etp_shared::episode::{AgentState, CompiledScenario, LegEnd, LegMode};
 use etp_shared::etkf::{Belief, Threshold};
-use etp_shared::linalg::{deterministic_eigen, to_dynamic};
+use etp_shared::linalg::to_dynamic;
 use etp_shared::rng::stream_rng;
 use etp_shared::scenario::Scenario;
 use etp_shared::with_dim;
@@ -79,6 +79,9 @@ pub struct Flag {
     pub action: u16,
     /// The feature the split was made on (index into [`AggregationReport::features`]).
     pub feature: usize,
+    /// The median the segments were split at (side 0: below it).
+    #[serde(skip)]
+    pub threshold: f64,
     pub segments: usize,
     /// Raw and Benjamini–Hochberg adjusted p-values.
     pub p: f64,
@@ -109,28 +112,15 @@ pub struct AggregationReport {
     pub flagged_states: Vec<u32>,
 }
 
-/// The features of a belief at decision point `dp` (see the module doc).
+/// The features of a belief at decision point `dp` (see the module doc):
+/// the covariance features of the bins, then the drift along and across the leg.
 fn features<const N: usize>(
     bins: &DecisionPointBins,
     scenario: &Scenario,
     dp: usize,
     b: &Belief<N>,
 ) -> Vec<f64> {
-    let cov = to_dynamic(&b.cov);
-    let m = match &bins.workspace {
-        Some(w) => w.marginal(&cov),
-        None => cov.clone(),
-    };
-    let (values, v) = deterministic_eigen(&((&m + m.transpose()) * 0.5));
-    let mut f: Vec<f64> = values.iter().map(|x| x.max(1e-300).ln()).collect();
-    let angle = bins.nominal.first().map_or(0.0, |nom| {
-        let c: f64 = v.column(0).iter().zip(nom).map(|(x, y)| x * y).sum();
-        c.abs().min(1.0).acos()
-    });
-    f.push(angle);
-    if let Some(w) = &bins.workspace {
-        f.push(w.rest(&cov).max(1e-300).ln());
-    }
+    let mut f = bins.covariance_features(&to_dynamic(&b.cov));
     // The free drift of the estimate in the workspace, along and across the leg.
     let mean = nalgebra::DVector::from_column_slice(b.mean.as_slice());
     let drift_state = &scenario.plant.f * &mean - &mean;
@@ -147,7 +137,12 @@ fn features<const N: usize>(
     f
 }
 
-fn feature_names(mdp: &Mdp, scenario: &Scenario) -> Vec<String> {
+/// The features after the covariance features (the drift along and across
+/// the leg): a split cannot use them (see [`super::split`]).
+pub const MEAN_FEATURES: usize = 2;
+
+/// The names of the features of [`Segment::features`], in order.
+pub fn feature_names(mdp: &Mdp, scenario: &Scenario) -> Vec<String> {
     let Some(b) = mdp
         .discretization
         .as_ref()
@@ -182,6 +177,19 @@ pub fn sample_segments(
     seed: u64,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Option<Vec<Segment>> {
+    sample_segments_on(scenario, mdp, episodes, seed, AGGREGATION_STREAM, progress)
+}
+
+/// [`sample_segments`] from random stream `stream` (adaptive splitting draws
+/// its own, so the aggregation check after it stays independent of it).
+pub fn sample_segments_on(
+    scenario: &Scenario,
+    mdp: &Mdp,
+    episodes: u64,
+    seed: u64,
+    stream: u64,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Option<Vec<Segment>> {
     if mdp.method != Method::Discretized {
         return None;
     }
@@ -193,7 +201,7 @@ pub fn sample_segments(
         }
     }
     let lookup = |dp: usize, b_cov: &nalgebra::DMatrix<f64>| -> u32 {
-        let r = disc.classify(dp, b_cov);
+        let r = disc.classify_split(dp, b_cov, &mdp.splits);
         state_of.get(&(dp as u32, &r)).copied().unwrap_or(u32::MAX)
     };
     let actions = mdp.deltas.len();
@@ -203,11 +211,11 @@ pub fn sample_segments(
         (0..episodes)
             .into_par_iter()
             .map(|e| {
-                let mut rng = stream_rng(seed, AGGREGATION_STREAM, e);
+                let mut rng = stream_rng(seed, stream, e);
                 let mut st: AgentState<N> = cs.initial_state(&mut rng);
                 let mut out = Vec::with_capacity(legs);
                 // The episode's radio channels (an ideal radio draws nothing).
-                let mut channels = cs.channels(seed, AGGREGATION_STREAM, e);
+                let mut channels = cs.channels(seed, stream, e);
                 let mut current = lookup(0, &to_dynamic(&st.belief.cov));
                 for dp in 0..legs {
                     let a = rng.random_range(0..actions);
@@ -313,8 +321,9 @@ pub fn test_segments(
             let mut vals: Vec<f64> = segs.iter().map(|s| s.features[k]).collect();
             vals.sort_by(f64::total_cmp);
             let median = vals[vals.len() / 2];
-            let (lo, hi): (Vec<&Segment>, Vec<&Segment>) =
-                segs.iter().partition(|s| s.features[k] < median);
+            let (lo, hi): (Vec<&Segment>, Vec<&Segment>) = segs
+                .iter()
+                .partition(|s| split_side(s.features[k], median) == 0);
             if lo.len() < MIN_HALF || hi.len() < MIN_HALF {
                 continue; // a (nearly) constant feature cannot be split
             }
@@ -326,6 +335,7 @@ pub fn test_segments(
                 state,
                 action,
                 feature: k,
+                threshold: median,
                 segments: segs.len(),
                 p,
                 p_adjusted: 1.0,

@@ -6,12 +6,19 @@
 //!   γ = 0 (silent steps) at the largest δ of the scenario, from `P_KF` and from
 //!   `P0`, until it settles or for `k_max` steps (the longest possible leg);
 //!   `λmax(P0)` is included so the initial belief is covered.
+//!
+//! Also the bins of a decision point built from the covariances that arrived
+//! there ([`bins_from`]) and the arrivals' range ([`arrival_range`]).
 
+use super::AbstractionParams;
+use super::tally::ChunkTally;
+use etp_shared::discretization::{DecisionPointBins, WorkspaceMarginal};
 use etp_shared::episode::CompiledScenario;
 use etp_shared::etkf::Matrix;
 use etp_shared::gaussian;
 use etp_shared::linalg::to_dynamic;
 use nalgebra::DMatrix;
+use rayon::prelude::*;
 
 /// `[λ_lo, λ_hi]` of the magnitude bins.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -125,4 +132,70 @@ fn visit_covariances<const N: usize>(
             }
         }
     }
+}
+
+/// Bins of a decision point from the covariances that arrived there (their
+/// mean's eigenvectors are the nominal axes; with the workspace descriptor,
+/// the eigenvectors of the mean's workspace marginal `C P̄ Cᵀ`).
+pub(super) fn bins_from<const N: usize>(
+    params: &AbstractionParams,
+    lambda: (f64, f64),
+    workspace: Option<&WorkspaceMarginal>,
+    covs: impl Iterator<Item = Matrix<N, N>>,
+) -> DecisionPointBins {
+    let mut sum = Matrix::<N, N>::zeros();
+    let mut n = 0u64;
+    for c in covs {
+        sum += c;
+        n += 1;
+    }
+    let mean = (n > 0).then(|| {
+        let m = to_dynamic(&(sum / n as f64));
+        match workspace {
+            Some(w) => w.marginal(&m),
+            None => m,
+        }
+    });
+    let mut b = DecisionPointBins::from_samples(lambda.0, lambda.1, params.bins, mean.iter());
+    b.workspace = workspace.cloned();
+    b
+}
+
+/// The quantile of the arrivals' largest workspace eigenvalue that closes the
+/// magnitude range of [`super::RangeRule::Arrivals`] (the top 0.5 % share the last bin).
+pub const ARRIVAL_QUANTILE: f64 = 0.995;
+
+/// The magnitude range of a decision point's workspace bins under
+/// [`super::RangeRule::Arrivals`]: from the smallest eigenvalue of the arrivals'
+/// marginals (not below the `P_KF` floor) to the [`ARRIVAL_QUANTILE`] of
+/// their largest. `None` (keep the propagation range) without arrivals or
+/// for a degenerate range. Main-sample arrivals only, so the held-out set
+/// stays independent of the states.
+pub(super) fn arrival_range<const N: usize>(
+    results: &[ChunkTally<N>],
+    workspace: &WorkspaceMarginal,
+    floor: f64,
+) -> Option<(f64, f64)> {
+    let mut pairs: Vec<(f64, f64)> = results
+        .par_iter()
+        .flat_map_iter(|r| {
+            r.arrivals.iter().map(|a| {
+                let m = workspace.marginal(&to_dynamic(&a.belief.cov));
+                let e = ((&m + m.transpose()) * 0.5).symmetric_eigenvalues();
+                (e.min(), e.max())
+            })
+        })
+        .collect();
+    if pairs.is_empty() {
+        return None;
+    }
+    let lo = pairs
+        .iter()
+        .map(|p| p.0)
+        .fold(f64::INFINITY, f64::min)
+        .max(floor);
+    pairs.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let k = ((pairs.len() as f64 * ARRIVAL_QUANTILE) as usize).min(pairs.len() - 1);
+    let hi = pairs[k].1;
+    (lo.is_finite() && hi > lo * (1.0 + 1e-6)).then_some((lo, hi))
 }

@@ -12,12 +12,14 @@
 //!     pool_{i+1} = per-region bottom-k reservoir of the arrivals
 //! ```
 
-use super::bounds::{magnitude_range, workspace_ranges};
+use super::bounds::{arrival_range, bins_from, magnitude_range, workspace_ranges};
 use super::pool::{bottom_k, key};
 use super::tally::{Arrival, ChoiceTally, ChunkTally};
 use super::{AbstractionError, AbstractionParams, Descriptor, RangeRule, resolve_descriptor};
 use crate::mdp::{KfConvergenceParams, Mdp, Method, State};
-use etp_shared::discretization::{DecisionPointBins, Discretization, Region, WorkspaceMarginal};
+use etp_shared::discretization::{
+    DecisionPointBins, Discretization, Region, RegionSplit, WorkspaceMarginal, refine_region,
+};
 use etp_shared::episode::{AgentState, CompiledScenario, LegEnd, LegMode};
 use etp_shared::etkf::{Belief, Matrix, Threshold, sample_belief};
 use etp_shared::linalg::to_dynamic;
@@ -147,8 +149,13 @@ fn run_task<const N: usize>(
 
 /// How beliefs are mapped to states at a decision point.
 enum Classifier {
-    /// Method 2: covariance regions.
-    Bins(DecisionPointBins),
+    /// Method 2: covariance regions (at decision point `dp`, refined by the
+    /// splits of that decision point, if any).
+    Bins {
+        bins: DecisionPointBins,
+        dp: usize,
+        splits: Vec<RegionSplit>,
+    },
     /// Method 1: one state per decision point.
     Single,
 }
@@ -156,76 +163,25 @@ enum Classifier {
 impl Classifier {
     fn classify<const N: usize>(&self, cov: &Matrix<N, N>) -> Region {
         match self {
-            Self::Bins(b) => b.classify(&to_dynamic(cov)),
+            Self::Bins { bins, dp, splits } => {
+                let cov = to_dynamic(cov);
+                let base = bins.classify(&cov);
+                if splits.is_empty() {
+                    base
+                } else {
+                    refine_region(splits, *dp, bins, &cov, base)
+                }
+            }
             Self::Single => Region(Vec::new()),
         }
     }
 }
 
-/// Bins of a decision point from the covariances that arrived there (their
-/// mean's eigenvectors are the nominal axes; with the workspace descriptor,
-/// the eigenvectors of the mean's workspace marginal `C P̄ Cᵀ`).
-fn bins_from<const N: usize>(
-    params: &AbstractionParams,
-    lambda: (f64, f64),
-    workspace: Option<&WorkspaceMarginal>,
-    covs: impl Iterator<Item = Matrix<N, N>>,
-) -> DecisionPointBins {
-    let mut sum = Matrix::<N, N>::zeros();
-    let mut n = 0u64;
-    for c in covs {
-        sum += c;
-        n += 1;
-    }
-    let mean = (n > 0).then(|| {
-        let m = to_dynamic(&(sum / n as f64));
-        match workspace {
-            Some(w) => w.marginal(&m),
-            None => m,
-        }
-    });
-    let mut b = DecisionPointBins::from_samples(lambda.0, lambda.1, params.bins, mean.iter());
-    b.workspace = workspace.cloned();
-    b
-}
-
-/// The quantile of the arrivals' largest workspace eigenvalue that closes the
-/// magnitude range of [`RangeRule::Arrivals`] (the top 0.5 % share the last bin).
-pub const ARRIVAL_QUANTILE: f64 = 0.995;
-
-/// The magnitude range of a decision point's workspace bins under
-/// [`RangeRule::Arrivals`]: from the smallest eigenvalue of the arrivals'
-/// marginals (not below the `P_KF` floor) to the [`ARRIVAL_QUANTILE`] of
-/// their largest. `None` (keep the propagation range) without arrivals or
-/// for a degenerate range. Main-sample arrivals only, so the held-out set
-/// stays independent of the states.
-fn arrival_range<const N: usize>(
-    results: &[ChunkTally<N>],
-    workspace: &WorkspaceMarginal,
-    floor: f64,
-) -> Option<(f64, f64)> {
-    let mut pairs: Vec<(f64, f64)> = results
-        .par_iter()
-        .flat_map_iter(|r| {
-            r.arrivals.iter().map(|a| {
-                let m = workspace.marginal(&to_dynamic(&a.belief.cov));
-                let e = ((&m + m.transpose()) * 0.5).symmetric_eigenvalues();
-                (e.min(), e.max())
-            })
-        })
-        .collect();
-    if pairs.is_empty() {
-        return None;
-    }
-    let lo = pairs
-        .iter()
-        .map(|p| p.0)
-        .fold(f64::INFINITY, f64::min)
-        .max(floor);
-    pairs.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let k = ((pairs.len() as f64 * ARRIVAL_QUANTILE) as usize).min(pairs.len() - 1);
-    let hi = pairs[k].1;
-    (lo.is_finite() && hi > lo * (1.0 + 1e-6)).then_some((lo, hi))
+/// Bins and splits fixed in advance (adaptive splitting re-runs the build on
+/// the first build's bins, with its splits), instead of bins from the arrivals.
+pub(super) struct Given<'a> {
+    pub bins: &'a Discretization,
+    pub splits: &'a [RegionSplit],
 }
 
 pub(super) fn build<const N: usize>(
@@ -234,6 +190,7 @@ pub(super) fn build<const N: usize>(
     params: &AbstractionParams,
     kf: Option<KfConvergenceParams>,
     extra: &[Vec<u32>],
+    given: Option<&Given<'_>>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Mdp, AbstractionError> {
     let deltas = &scenario.deltas;
@@ -286,14 +243,32 @@ pub(super) fn build<const N: usize>(
     let lambda = (range.lambda_lo, range.lambda_hi);
     let legs = cs.legs.len();
 
-    let classifier_for =
-        |covs: &mut dyn Iterator<Item = Matrix<N, N>>, lambda: (f64, f64)| match params.method {
-            Method::Discretized => {
-                Classifier::Bins(bins_from(params, lambda, workspace.as_ref(), covs))
-            }
-            Method::KfConvergence => Classifier::Single,
-        };
-    let mut classifier = classifier_for(&mut std::iter::once(cs.initial.cov), lambda);
+    // The classifier of decision point `dp`: given bins (with their splits),
+    // else bins from the covariances that arrived there.
+    let classifier_for = |dp: usize,
+                          covs: &mut dyn Iterator<Item = Matrix<N, N>>,
+                          lambda: (f64, f64)| match params.method {
+        Method::Discretized => match given.and_then(|g| Some((g, g.bins.decision_points.get(dp)?)))
+        {
+            Some((g, b)) => Classifier::Bins {
+                bins: b.clone(),
+                dp,
+                splits: g
+                    .splits
+                    .iter()
+                    .filter(|s| s.decision_point as usize == dp)
+                    .cloned()
+                    .collect(),
+            },
+            None => Classifier::Bins {
+                bins: bins_from(params, lambda, workspace.as_ref(), covs),
+                dp,
+                splits: Vec::new(),
+            },
+        },
+        Method::KfConvergence => Classifier::Single,
+    };
+    let mut classifier = classifier_for(0, &mut std::iter::once(cs.initial.cov), lambda);
     let mut dp_bins: Vec<DecisionPointBins> = Vec::with_capacity(legs);
     let mut layer = vec![LayerState {
         region: classifier.classify(&cs.initial.cov),
@@ -303,13 +278,13 @@ pub(super) fn build<const N: usize>(
     let (mut total_segments, mut total_steps) = (0u64, 0u64);
 
     for dp in 0..legs {
-        if let Classifier::Bins(b) = &classifier {
-            dp_bins.push(b.clone());
+        if let Classifier::Bins { bins, .. } = &classifier {
+            dp_bins.push(bins.clone());
         }
         if layer.is_empty() {
             // Every segment collided before this decision point.
             progress(deltas.len() as u64 * u64::from(samples + holdout));
-            classifier = classifier_for(&mut std::iter::empty(), lambda);
+            classifier = classifier_for(dp + 1, &mut std::iter::empty(), lambda);
             continue;
         }
         let last = dp + 1 == legs;
@@ -403,6 +378,8 @@ pub(super) fn build<const N: usize>(
             None
         } else {
             let range = match (&workspace, params.range) {
+                // Given bins carry their own range.
+                _ if given.is_some() => lambda,
                 (Some(w), RangeRule::Arrivals) => {
                     arrival_range(&results, w, lambda.0).unwrap_or(lambda)
                 }
@@ -411,7 +388,7 @@ pub(super) fn build<const N: usize>(
             let mut covs = results
                 .iter()
                 .flat_map(|r| r.arrivals.iter().map(|a| a.belief.cov));
-            Some(classifier_for(&mut covs, range))
+            Some(classifier_for(dp + 1, &mut covs, range))
         };
         let arrival_regions: Vec<Vec<Region>> = match &next_classifier {
             Some(c) => results
@@ -584,5 +561,6 @@ pub(super) fn build<const N: usize>(
         seed: params.seed,
         total_segments,
         total_steps,
+        splits: given.map(|g| g.splits.to_vec()).unwrap_or_default(),
     })
 }

@@ -27,13 +27,14 @@ mod bounds;
 mod layers;
 mod merge;
 mod pool;
+pub mod split;
 mod tally;
 
 pub use bounds::{MagnitudeRange, magnitude_range, workspace_ranges};
 pub use merge::{MergeError, MergeReport, merge_equivalent};
 
 use crate::mdp::{KfConvergenceParams, Mdp, Method};
-use etp_shared::discretization::BinCounts;
+use etp_shared::discretization::{BinCounts, Discretization, RegionSplit};
 use etp_shared::episode::CompiledScenario;
 use etp_shared::scenario::Scenario;
 use etp_shared::with_dim;
@@ -99,6 +100,8 @@ pub enum AbstractionError {
     KfParams { eps_kf: f64, eps_p: f64 },
     #[error("the abstraction has more than u32::MAX states")]
     TooManyStates,
+    #[error("splitting: the given bins have {bins} decision points, the scenario {legs} legs")]
+    SplitBins { bins: usize, legs: usize },
 }
 
 /// Settings of one abstraction run.
@@ -223,16 +226,8 @@ pub fn params_of(mdp: &Mdp) -> AbstractionParams {
     }
 }
 
-/// [`build`] with `extra[s][a]` more segments for state s and action index a
-/// (sample allocation): the same states, pools and main segments as [`build`]
-/// with the same parameters, plus the extra segments counted into their
-/// choices (an extra arrival in a region without a state is `unmatched`).
-pub fn build_with_extra(
-    scenario: &Scenario,
-    params: &AbstractionParams,
-    extra: &[Vec<u32>],
-    progress: &(dyn Fn(u64) + Sync),
-) -> Result<Mdp, AbstractionError> {
+/// The checks every build makes before any work.
+fn check_params(scenario: &Scenario, params: &AbstractionParams) -> Result<(), AbstractionError> {
     if params.samples == 0 {
         return Err(AbstractionError::NoSamples);
     }
@@ -252,6 +247,20 @@ pub fn build_with_extra(
     if scenario.deltas.len() > usize::from(u16::MAX) {
         return Err(AbstractionError::TooManyActions(scenario.deltas.len()));
     }
+    Ok(())
+}
+
+/// [`build`] with `extra[s][a]` more segments for state s and action index a
+/// (sample allocation): the same states, pools and main segments as [`build`]
+/// with the same parameters, plus the extra segments counted into their
+/// choices (an extra arrival in a region without a state is `unmatched`).
+pub fn build_with_extra(
+    scenario: &Scenario,
+    params: &AbstractionParams,
+    extra: &[Vec<u32>],
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Mdp, AbstractionError> {
+    check_params(scenario, params)?;
     let kf = match params.method {
         Method::Discretized => None,
         Method::KfConvergence => {
@@ -268,6 +277,33 @@ pub fn build_with_extra(
     };
     with_dim!(scenario.dim, N => {
         let cs = CompiledScenario::<N>::new(scenario);
-        layers::build::<N>(scenario, &cs, params, kf, extra, progress)
+        layers::build::<N>(scenario, &cs, params, kf, extra, None, progress)
+    })
+}
+
+/// [`build`] on given bins refined by `splits` (adaptive splitting,
+/// [`split`]): the states are the regions of `bins` refined by the splits,
+/// every one sampled afresh (Method 2 only; a Method 1 build ignores them).
+pub fn build_split(
+    scenario: &Scenario,
+    params: &AbstractionParams,
+    bins: &Discretization,
+    splits: &[RegionSplit],
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Mdp, AbstractionError> {
+    check_params(scenario, params)?;
+    if params.method != Method::Discretized {
+        return build(scenario, params, progress);
+    }
+    if bins.decision_points.len() != scenario.num_legs() {
+        return Err(AbstractionError::SplitBins {
+            bins: bins.decision_points.len(),
+            legs: scenario.num_legs(),
+        });
+    }
+    let given = layers::Given { bins, splits };
+    with_dim!(scenario.dim, N => {
+        let cs = CompiledScenario::<N>::new(scenario);
+        layers::build::<N>(scenario, &cs, params, None, &[], Some(&given), progress)
     })
 }

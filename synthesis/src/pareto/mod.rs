@@ -269,6 +269,7 @@ pub fn to_strategy(
         scenario_toml: None,
         leg_energy: Some(policy::leg_energy(mdp, policy, CostModel::Counted)),
         radio: None,
+        splits: mdp.splits.clone(),
     }
 }
 

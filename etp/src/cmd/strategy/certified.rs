@@ -81,6 +81,12 @@ pub fn run(
                  allocated per state of the unmerged build)"
             );
         }
+        if !mdp.splits.is_empty() {
+            bail!(
+                "--refine-gap needs an MDP built without --split-budget (its extra samples \
+                 are allocated per state of the unsplit build)"
+            );
+        }
         let refined_path = a.dir.join("mdp-refined.bin");
         refuse_existing(&refined_path, a.force)?;
         let text = scenario_text
