@@ -1,6 +1,6 @@
 //! The agent host's end: listens, tells joining sensor hosts the run
 //! (queryable [`SESSION_KEY`]), grants each remote sensor to the first host
-//! that claims it (queryable [`join_key`]; a second claimant is refused and
+//! that claims it (queryable [`crate::session::join_key`]; a second claimant is refused and
 //! counted, `duplicate-host`), waits (bounded) until every remote sensor
 //! has joined, then carries the remote sensors' services both ways.
 //!
