@@ -55,12 +55,8 @@ pub enum AgentError {
 #[derive(Debug, Clone, clap::Parser)]
 #[command(name = "etp-agent", version, about)]
 pub struct Args {
-    /// Run id (services live under `etp/<run-id>/`).
-    #[arg(long)]
-    pub run_id: String,
-    /// Built-in scenario name or TOML path.
-    #[arg(long)]
-    pub scenario: String,
+    #[command(flatten)]
+    pub run: etp_runtime::shell::RunArgs,
     /// Real-time studies: a slot not closed within MS milliseconds is a dead
     /// link even if the sensor process lives (reported as a fault). Default:
     /// a live sensor is waited for, however slow.
@@ -91,8 +87,8 @@ pub struct AgentStats {
 
 /// Run the agent until the coordinator says stop.
 pub fn run(args: &Args) -> Result<(Exit, AgentStats), AgentError> {
-    let run = RunId::new(&args.run_id)?;
-    let scenario = etp_runtime::load_scenario(&args.scenario)?;
+    let run = RunId::new(&args.run.run_id)?;
+    let scenario = etp_runtime::load_scenario(&args.run.scenario)?;
     let deadline = args.slot_deadline.map(Duration::from_millis);
     etp_shared::with_dim!(scenario.dim, N => runtime::Agent::<N>::new(&run, &scenario, deadline)?.serve())
 }

@@ -43,14 +43,8 @@ pub struct Args {
     /// Zenoh endpoint to listen on, e.g. `tcp/10.0.0.1:7447`.
     #[arg(long)]
     pub listen: String,
-    /// Seconds to wait for every remote sensor to join.
-    #[arg(long, default_value_t = 60.0)]
-    pub join_timeout: f64,
-    /// Link lease, ms: a silent link is dead after this long.
-    #[arg(long, default_value_t = crate::session::DEFAULT_LEASE.as_millis() as u64)]
-    pub lease_ms: u64,
     #[command(flatten)]
-    pub link: crate::session::LinkArgs,
+    pub host: crate::session::HostArgs,
 }
 
 pub fn run(a: &Args) -> Result<(), BridgeError> {
@@ -66,17 +60,17 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
             .cloned()
             .unwrap_or_else(|| format!("#{i}"))
     };
-    let identity = a.link.resolve(&a.listen, End::AgentHost)?;
+    let identity = a.host.link.resolve(&a.listen, End::AgentHost)?;
     // With identities, access control by certificate: each sensor host only
     // its sensors' keys.
-    let acl = match (&identity, &a.link.tls) {
+    let acl = match (&identity, &a.host.link.tls) {
         (Some(_), Some(dir)) => Some(crate::session::access_control_of(dir, &info)?),
         _ => None,
     };
     let session = zenoh::open(config(
         Some(&a.listen),
         None,
-        Duration::from_millis(a.lease_ms),
+        a.host.lease(),
         identity.as_ref(),
         acl.as_ref(),
     )?)
@@ -143,7 +137,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let mut said_hello = BTreeSet::new();
     let mut ready = false;
     let started = Instant::now();
-    let timeout = Duration::from_secs_f64(a.join_timeout.max(0.0));
+    let timeout = a.host.join_wait();
     let parent = std::os::unix::process::parent_id();
     let result = loop {
         if wire::termination_requested(&node) || std::os::unix::process::parent_id() != parent {

@@ -35,14 +35,8 @@ pub struct Args {
     /// Folder for the run's scenario (created if missing).
     #[arg(long)]
     pub dir: PathBuf,
-    /// Seconds to wait for the agent host to answer.
-    #[arg(long, default_value_t = 60.0)]
-    pub join_timeout: f64,
-    /// Link lease, ms.
-    #[arg(long, default_value_t = crate::session::DEFAULT_LEASE.as_millis() as u64)]
-    pub lease_ms: u64,
     #[command(flatten)]
-    pub link: crate::session::LinkArgs,
+    pub host: crate::session::HostArgs,
 }
 
 /// How often the local sensors' liveness is checked (a dead one's token is
@@ -135,22 +129,19 @@ fn claim(
 
 pub fn run(a: &Args) -> Result<(), BridgeError> {
     let identity = a
+        .host
         .link
         .resolve(&a.connect, crate::session::End::SensorHost)?;
     let session = zenoh::open(config(
         None,
         Some(&a.connect),
-        Duration::from_millis(a.lease_ms),
+        a.host.lease(),
         identity.as_ref(),
         None,
     )?)
     .wait()
     .map_err(|e| BridgeError::Zenoh(format!("connecting to {}: {e}", a.connect)))?;
-    let info = fetch(
-        &session,
-        a,
-        Duration::from_secs_f64(a.join_timeout.max(0.0)),
-    )?;
+    let info = fetch(&session, a, a.host.join_wait())?;
     let served: Vec<usize> = if a.sensors.is_empty() {
         info.remote.clone()
     } else {
@@ -175,12 +166,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
             })
             .collect::<Result<_, _>>()?
     };
-    claim(
-        &session,
-        &info,
-        &served,
-        Duration::from_secs_f64(a.join_timeout.max(0.0)),
-    )?;
+    claim(&session, &info, &served, a.host.join_wait())?;
     std::fs::create_dir_all(&a.dir)
         .map_err(|e| BridgeError::Input(format!("creating {}: {e}", a.dir.display())))?;
     let scenario = a.dir.join("scenario.toml");

@@ -192,6 +192,33 @@ pub const DEFAULT_LEASE: Duration = Duration::from_millis(300);
 /// wait_before_close`). Zenoh's default, set here so that the bound is ours.
 pub const STALLED_PEER_CLOSE: Duration = Duration::from_secs(5);
 
+/// What both ends of a link take: how long to wait for the other end, the
+/// lease, and the link's protection.
+#[derive(Debug, Clone, clap::Args)]
+pub struct HostArgs {
+    /// Seconds to wait for the other end: every remote sensor to join (agent
+    /// host), the agent host to answer (sensor host).
+    #[arg(long, default_value_t = 60.0)]
+    pub join_timeout: f64,
+    /// Link lease, ms: a silent link is dead after this long.
+    #[arg(long, default_value_t = DEFAULT_LEASE.as_millis() as u64)]
+    pub lease_ms: u64,
+    #[command(flatten)]
+    pub link: LinkArgs,
+}
+
+impl HostArgs {
+    /// `--join-timeout` as a duration (a negative one is no wait).
+    pub fn join_wait(&self) -> Duration {
+        Duration::from_secs_f64(self.join_timeout.max(0.0))
+    }
+
+    /// `--lease-ms` as a duration.
+    pub fn lease(&self) -> Duration {
+        Duration::from_millis(self.lease_ms)
+    }
+}
+
 /// How a link is protected: mutual TLS with the key folder's certificates
 /// (the default), or nothing (`--insecure`, for isolated test networks).
 #[derive(Debug, Clone, clap::Args)]

@@ -52,12 +52,8 @@ pub enum CoordinatorError {
 #[derive(Debug, Clone, clap::Parser)]
 #[command(name = "etp-coordinator", version, about)]
 pub struct Args {
-    /// Run id (services live under `etp/<run-id>/`).
-    #[arg(long)]
-    pub run_id: String,
-    /// Built-in scenario name or TOML path (must match the strategy's hash).
-    #[arg(long)]
-    pub scenario: String,
+    #[command(flatten)]
+    pub run: etp_runtime::shell::RunArgs,
     /// Path of `strategy.json`.
     #[arg(long)]
     pub strategy: String,
@@ -78,8 +74,8 @@ pub struct Args {
 
 /// Run all episodes and return the report.
 pub fn run(args: &Args) -> Result<RunReport, CoordinatorError> {
-    let run = RunId::new(&args.run_id)?;
-    let scenario = etp_runtime::load_scenario(&args.scenario)?;
+    let run = RunId::new(&args.run.run_id)?;
+    let scenario = etp_runtime::load_scenario(&args.run.scenario)?;
     let text = std::fs::read_to_string(&args.strategy)
         .map_err(|e| CoordinatorError::Input(format!("reading strategy {}: {e}", args.strategy)))?;
     let strategy = Strategy::from_sealed_json(&text)

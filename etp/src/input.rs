@@ -37,6 +37,18 @@ pub struct RadioArgs {
     pub estimator: Option<String>,
 }
 
+/// How many episodes an in-process simulation runs, and from which seed
+/// (`etp simulate`, `etp validate`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct EpisodeArgs {
+    /// Number of episodes (at least 1).
+    #[arg(long, default_value_t = 3000, value_parser = clap::value_parser!(u64).range(1..))]
+    pub episodes: u64,
+    /// Seed of the random streams (same seed, same numbers, any thread count).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
 impl RadioArgs {
     /// The settings as an override of the scenario's radio.
     pub fn to_override(&self) -> RadioOverride {

@@ -21,6 +21,19 @@ use std::ffi::OsString;
 use std::io::Write;
 use std::process::ExitCode;
 
+/// The arguments every process that runs the scenario takes (agent,
+/// coordinator, sensor node): flattened into each one's `Args`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RunArgs {
+    /// Run id (services live under `etp/<run-id>/`).
+    #[arg(long)]
+    pub run_id: String,
+    /// Built-in scenario name or TOML path (the coordinator checks it
+    /// against the strategy's hash).
+    #[arg(long)]
+    pub scenario: String,
+}
+
 /// How the body of a process ended well.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Done {

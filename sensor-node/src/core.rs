@@ -131,14 +131,22 @@ struct OpenLeg<const N: usize> {
     replica: Option<LegReplica<N>>,
 }
 
+/// Which sensor of which run this is: its index, the run's seed (its noise
+/// and its link's losses) and the run's tag (messages of other runs are
+/// ignored).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SensorId {
+    pub index: u32,
+    pub seed: u64,
+    pub tag: u64,
+}
+
 /// One sensor's state between messages.
 pub struct SensorCore<const N: usize, const M: usize> {
     scenario: CompiledScenario<N>,
     filter: EtKalmanFilter<N, M>,
     cost: f64,
-    index: u32,
-    seed: u64,
-    tag: u64,
+    id: SensorId,
     open: Option<OpenLeg<N>>,
     /// This sensor's radio channel in the episode it last transmitted in.
     channel: Option<(u64, LinkChannel)>,
@@ -154,24 +162,19 @@ pub struct SensorCore<const N: usize, const M: usize> {
 }
 
 impl<const N: usize, const M: usize> SensorCore<N, M> {
-    /// Sensor `index` of `scenario` (its filter, the agent's controller and
-    /// plant for the replica), cost per transmission `cost`, run seed and
-    /// run tag (messages of other runs are ignored).
+    /// Sensor `id.index` of `scenario` (its filter, the agent's controller
+    /// and plant for the replica), cost per transmission `cost`.
     pub fn new(
         scenario: CompiledScenario<N>,
         filter: EtKalmanFilter<N, M>,
         cost: f64,
-        index: u32,
-        seed: u64,
-        tag: u64,
+        id: SensorId,
     ) -> Self {
         Self {
             scenario,
             filter,
             cost,
-            index,
-            seed,
-            tag,
+            id,
             open: None,
             channel: None,
             unacked: VecDeque::new(),
@@ -183,12 +186,12 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
 
     /// A `threshold` message of this sensor's service.
     pub fn on_threshold(&mut self, t: &Threshold) -> ControlAction {
-        if t.header.run != self.tag {
+        if t.header.run != self.id.tag {
             return ControlAction::None;
         }
         match ThresholdKind::try_from(t.kind) {
             Ok(ThresholdKind::Stop) => ControlAction::Stop,
-            Ok(ThresholdKind::Open) if t.sensor == self.index => {
+            Ok(ThresholdKind::Open) if t.sensor == self.id.index => {
                 self.open = Some(OpenLeg {
                     delta: t.delta,
                     ledger: LegLedger {
@@ -200,7 +203,7 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
                 });
                 ControlAction::None
             }
-            Ok(ThresholdKind::Close) if t.sensor == self.index => {
+            Ok(ThresholdKind::Close) if t.sensor == self.id.index => {
                 let key = (t.header.episode, t.header.leg);
                 self.closed = Some(self.closed.map_or(key, |c| c.max(key)));
                 let ledger = match self.open.take() {
@@ -245,7 +248,7 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
 
     /// The agent's belief at the start of the open leg: start the replica.
     pub fn on_handover(&mut self, h: &Handover) -> Result<(), SlotError> {
-        if h.header.run != self.tag {
+        if h.header.run != self.id.tag {
             return Ok(());
         }
         let (episode, leg) = (h.header.episode, h.header.leg);
@@ -271,7 +274,7 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
     /// (docs/MODEL.md §2); then the replica's update with what was done.
     pub fn on_slot(&mut self, t: &Truth) -> Result<SlotDecision, SlotError> {
         let (episode, leg, step) = (t.header.episode, t.header.leg, t.header.step);
-        let seed = self.seed;
+        let seed = self.id.seed;
         let filter = self.filter;
         let scenario = &self.scenario;
         let open = self
@@ -310,7 +313,7 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
                         &scenario.radio,
                         seed,
                         episode,
-                        self.index as usize,
+                        self.id.index as usize,
                     );
                     &mut slot.insert((episode, c)).1
                 }
@@ -364,7 +367,7 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
     /// acknowledged (the agent ACKs in the order it received, which is the
     /// order this sensor delivered). Another run's ACK is ignored.
     pub fn on_ack(&mut self, a: &Ack) -> Result<(), SlotError> {
-        if a.header.run != self.tag {
+        if a.header.run != self.id.tag {
             return Ok(());
         }
         let got = (a.header.episode, a.header.step, a.sequence);
@@ -398,11 +401,16 @@ mod tests {
     use etp_shared::scenario::Scenario;
 
     const TAG: u64 = 7;
+    const ID: SensorId = SensorId {
+        index: 0,
+        seed: 3,
+        tag: TAG,
+    };
 
     fn core() -> SensorCore<2, 2> {
         let s = Scenario::builtin("open-2d").expect("built-in");
         let f = EtKalmanFilter::<2, 2>::new(&s.plant, &s.sensors[0]);
-        SensorCore::new(CompiledScenario::new(&s), f, 1.5, 0, 3, TAG)
+        SensorCore::new(CompiledScenario::new(&s), f, 1.5, ID)
     }
 
     fn header(episode: u64, leg: u32, step: u32) -> Header {
@@ -668,7 +676,7 @@ mod tests {
             .expect("valid radio");
         let f = EtKalmanFilter::<2, 2>::new(&s.plant, &s.sensors[0]);
         let c = CompiledScenario::new(&s);
-        (SensorCore::new(c.clone(), f, 1.5, 0, 3, TAG), c)
+        (SensorCore::new(c.clone(), f, 1.5, ID), c)
     }
 
     /// docs/MODEL.md §8 at the sensor: each trigger's attempts are drawn

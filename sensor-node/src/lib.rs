@@ -60,12 +60,8 @@ pub enum SensorError {
 #[derive(Debug, Clone, clap::Parser)]
 #[command(name = "etp-sensor-node", version, about)]
 pub struct Args {
-    /// Run id (services live under `etp/<run-id>/`).
-    #[arg(long)]
-    pub run_id: String,
-    /// Built-in scenario name or TOML path.
-    #[arg(long)]
-    pub scenario: String,
+    #[command(flatten)]
+    pub run: etp_runtime::shell::RunArgs,
     /// Name of the sensor this process is.
     #[arg(long)]
     pub sensor: String,
@@ -87,8 +83,8 @@ pub enum Exit {
 
 /// Serve as sensor `args.sensor` until stopped.
 pub fn run(args: &Args) -> Result<(Exit, SensorStats), SensorError> {
-    let run = RunId::new(&args.run_id)?;
-    let scenario = etp_runtime::load_scenario(&args.scenario)?;
+    let run = RunId::new(&args.run.run_id)?;
+    let scenario = etp_runtime::load_scenario(&args.run.scenario)?;
     let index = scenario
         .sensors
         .iter()

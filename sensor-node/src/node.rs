@@ -1,7 +1,7 @@
 //! The sensor's iceoryx2 adapter: one wait point ([`Waiter`]), a closed set
 //! of wake-ups, and [`SensorCore`] deciding what every message means.
 
-use crate::core::{ControlAction, SensorCore, SensorStats, SlotError};
+use crate::core::{ControlAction, SensorCore, SensorId, SensorStats, SlotError};
 use crate::{Exit, IDLE_CHECK, LIST_EVERY, SensorError};
 use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_sensor::{Ack, Handover, Truth};
@@ -86,9 +86,11 @@ pub(crate) fn serve<const N: usize, const M: usize>(
         CompiledScenario::<N>::new(scenario),
         filter,
         scenario.sensors[index].cost,
-        index as u32,
-        seed,
-        run.tag(),
+        SensorId {
+            index: index as u32,
+            seed,
+            tag: run.tag(),
+        },
     );
     // `say_hello` waited for the coordinator's subscriber: it was alive.
     let mut watchdog = Watchdog::new(COORDINATOR_NODE, true, LIST_EVERY);

@@ -574,12 +574,7 @@ impl<const N: usize> CompiledScenario<N> {
         for leg in 0..self.legs.len() {
             let mode = policy(leg, &state.belief, rng);
             let r = self.run_leg(leg, &mut state, &mode, rng, channels, observer);
-            total.steps += r.steps;
-            total.slots += r.slots;
-            total.transmissions += r.transmissions;
-            total.triggers += r.triggers;
-            total.delivered += r.delivered;
-            total.expected_transmissions += r.expected_transmissions;
+            crate::add_fields!(total, r; steps, slots, transmissions, triggers, delivered, expected_transmissions);
             total.energy += f64::from(r.transmissions) * self.filters[self.legs[leg].sensor].cost();
             if let LegEnd::Collision { .. } = r.end {
                 total.outcome = Outcome::Collision;

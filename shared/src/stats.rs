@@ -10,6 +10,24 @@ use serde::{Deserialize, Serialize};
 pub const Z95: f64 = 1.959_963_984_540_054;
 
 /// An estimate and the half-width of its 95 % confidence interval.
+/// `$into.f += $from.f` for each field `f` listed, in order: the field-wise
+/// sum of two records of counts (an episode's legs, merged accumulators),
+/// written once.
+///
+/// ```
+/// #[derive(Default)]
+/// struct Counts { steps: u32, energy: f64 }
+/// let (mut total, leg) = (Counts::default(), Counts { steps: 3, energy: 1.5 });
+/// etp_shared::add_fields!(total, leg; steps, energy);
+/// assert_eq!((total.steps, total.energy), (3, 1.5));
+/// ```
+#[macro_export]
+macro_rules! add_fields {
+    ($into:expr, $from:expr; $($field:ident),+ $(,)?) => {
+        $( $into.$field += $from.$field; )+
+    };
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Estimate {
     pub value: f64,
@@ -121,12 +139,7 @@ impl RatioAccumulator {
     }
 
     pub fn merge(&mut self, o: &Self) {
-        self.n += o.n;
-        self.sum_a += o.sum_a;
-        self.sum_b += o.sum_b;
-        self.sum_aa += o.sum_aa;
-        self.sum_bb += o.sum_bb;
-        self.sum_ab += o.sum_ab;
+        crate::add_fields!(self, o; n, sum_a, sum_b, sum_aa, sum_bb, sum_ab);
     }
 
     pub fn estimate(&self) -> Estimate {

@@ -21,6 +21,9 @@ use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
+mod aggregation;
+pub use aggregation::{AggregationCheck, AggregationError, SimulatedValue};
+
 /// Version of the `strategy.json` layout.
 pub const STRATEGY_FORMAT_VERSION: u32 = 1;
 
@@ -105,13 +108,19 @@ pub struct Prediction {
 /// least `confidence` over the abstraction's sampling, the abstraction's true
 /// P_tar ≥ `p_target_low`, P_coll ≤ `p_collision_high`, energy ≤ `energy_high`.
 /// They cover sampling error in the abstraction, not the aggregation of
-/// beliefs into regions (which `etp validate` measures).
+/// beliefs into regions (which `etp validate` measures), unless
+/// `covers_aggregation`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct CertifiedPrediction {
     pub confidence: f64,
     pub p_target_low: f64,
     pub p_collision_high: f64,
     pub energy_high: f64,
+    /// The bounds were widened by the measured aggregation error
+    /// ([`Strategy::aggregation`], `etp strategy --cover-aggregation`), so
+    /// they cover it too. Absent (false) in older files and by default.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub covers_aggregation: bool,
 }
 
 /// ω for one abstract state.
@@ -170,6 +179,11 @@ pub struct Strategy {
     /// (none) in older files and without splitting, which classify as before.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub splits: Vec<RegionSplit>,
+    /// The aggregation error measured at selection time (`etp strategy
+    /// --aggregation-check N`, on by default): the strategy simulated
+    /// against its prediction. Absent in older files and with N = 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aggregation: Option<AggregationCheck>,
 }
 
 impl Strategy {
@@ -213,6 +227,7 @@ impl Strategy {
             leg_energy: None,
             radio: None,
             splits: Vec::new(),
+            aggregation: None,
         }
     }
 

@@ -19,12 +19,8 @@ pub struct Args {
     /// The constant threshold δ ≥ 0 used on every leg (0 = full Kalman filter).
     #[arg(long)]
     pub delta: f64,
-    /// Number of episodes.
-    #[arg(long, default_value_t = 3000)]
-    pub episodes: u64,
-    /// Seed of the random streams (same seed, same numbers, any thread count).
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    #[command(flatten)]
+    pub sim: crate::input::EpisodeArgs,
     /// Print one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -52,20 +48,17 @@ pub fn run(a: Args) -> Result<()> {
     if !(a.delta.is_finite() && a.delta >= 0.0) {
         bail!("--delta must be a finite number ≥ 0, got {}", a.delta);
     }
-    if a.episodes == 0 {
-        bail!("--episodes must be at least 1");
-    }
     let s = load_scenario_with_radio(&a.scenario, &a.radio)?;
-    let pb = progress::bar(a.episodes, "simulate", a.json);
+    let pb = progress::bar(a.sim.episodes, "simulate", a.json);
     let started = std::time::Instant::now();
-    let sum = simulate_constant(&s, a.delta, a.episodes, a.seed, &|k| pb.inc(k));
+    let sum = simulate_constant(&s, a.delta, a.sim.episodes, a.sim.seed, &|k| pb.inc(k));
     pb.finish_and_clear();
     let secs = started.elapsed().as_secs_f64();
     if a.json {
         let mut v = summary_json(&s, &sum);
         if let Some(m) = v.as_object_mut() {
             m.insert("scenario".into(), json!(s.name));
-            m.insert("seed".into(), json!(a.seed));
+            m.insert("seed".into(), json!(a.sim.seed));
             m.insert(
                 "strategy".into(),
                 json!(format!("constant δ = {}", a.delta)),
@@ -81,7 +74,7 @@ pub fn run(a: Args) -> Result<()> {
             s.name,
             a.delta,
             sum.episodes,
-            a.seed,
+            a.sim.seed,
             secs,
             s.radio.describe(&sensor_names(&s))
         );

@@ -61,7 +61,22 @@ pub struct Args {
     /// Rounds of sample allocation at most (each re-runs the abstraction).
     #[arg(long, default_value_t = 3, requires = "refine_gap")]
     pub refine_rounds: u32,
+    /// Episodes of the selection-time aggregation check: the strategy is
+    /// simulated in-process and its cross-fitted value compared (stored in
+    /// strategy.json, printed, re-measured by `etp validate`); 0 = no check.
+    #[arg(long, value_name = "N", default_value_t = super::honest::AGGREGATION_CHECK_EPISODES)]
+    pub aggregation_check: u64,
+    /// Widen the certified bounds by the measured aggregation error, so that
+    /// they cover it too (each part at (1 + level)/2, union bound). With
+    /// --confidence and --min-target the strategy is chosen on the widened
+    /// bound (the request is raised by what the check takes, and selection
+    /// repeated, at most 4 times).
+    #[arg(long)]
+    pub cover_aggregation: bool,
 }
+
+/// Rounds of re-selection under `--cover-aggregation` with `--confidence`.
+const COVER_ROUNDS: usize = 4;
 
 fn probability(name: &str, v: f64) -> Result<f64> {
     if !(0.0..=1.0).contains(&v) {
@@ -117,6 +132,9 @@ pub fn run(a: Args) -> Result<()> {
         Some(c) => c,
         None => certified::DEFAULT_LEVEL,
     };
+    if a.cover_aggregation && a.aggregation_check == 0 {
+        bail!("--cover-aggregation needs the aggregation check (--aggregation-check N > 0)");
+    }
     if a.confidence.is_some() && a.refine_gap.is_none() && a.min_target.is_some() {
         return certified::run(&a, &mdp, scenario_text, &front, &output, level, None);
     }
@@ -154,8 +172,14 @@ pub fn run(a: Args) -> Result<()> {
     let mut strategy = to_strategy(&mdp, &omega, label.clone(), predicted);
     strategy.scenario_toml = scenario_text;
     strategy.radio = front.radio.clone();
-    let honest = certified::assess(&mdp, &omega, cost, level)?;
+    let bound_level = if a.cover_aggregation {
+        etp_synthesis::certify::widen::split_level(level)
+    } else {
+        level
+    };
+    let honest = certified::assess(&mdp, &omega, cost, bound_level)?;
     super::honest::attach(&mut strategy, honest.crossfit.as_ref(), &honest.certified);
+    certified::check_aggregation(&mut strategy, &a, level)?;
     write_new(&output, strategy.to_json().as_bytes(), a.force)?;
     let p = &predicted;
     let gap = mixture.as_ref().map(|m| match request {

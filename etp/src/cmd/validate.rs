@@ -3,7 +3,7 @@
 
 use crate::cmd::simulate::summary_table;
 use crate::progress;
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use etp_shared::strategy::Strategy;
 use etp_synthesis::simulate::SimulationSummary;
 use etp_synthesis::validate::{sample_trajectories, simulate_strategy};
@@ -24,12 +24,8 @@ error (unreadable or edited strategy file: its `content_sha256` must match, bad 
 pub struct Args {
     /// A strategy.json written by `etp strategy`.
     pub strategy: PathBuf,
-    /// Number of episodes.
-    #[arg(long, default_value_t = 3000)]
-    pub episodes: u64,
-    /// Seed of the random streams.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    #[command(flatten)]
+    pub sim: crate::input::EpisodeArgs,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -60,16 +56,16 @@ pub fn load_strategy(path: &Path) -> Result<(Strategy, etp_shared::scenario::Sce
 }
 
 pub fn run(a: Args) -> Result<()> {
-    if a.episodes == 0 {
-        bail!("--episodes must be at least 1");
-    }
     let (strategy, scenario) = load_strategy(&a.strategy)?;
     // The strategy's own channel unless the options say otherwise (a
     // robustness study); the report names both.
     let synthesized = scenario.radio.clone();
     let scenario = a.radio.apply(scenario)?;
-    let pb = progress::bar(a.episodes, "validate", a.json);
-    let sum = simulate_strategy(&scenario, &strategy, a.episodes, a.seed, &|k| pb.inc(k)).summary();
+    let pb = progress::bar(a.sim.episodes, "validate", a.json);
+    let sum = simulate_strategy(&scenario, &strategy, a.sim.episodes, a.sim.seed, &|k| {
+        pb.inc(k)
+    })
+    .summary();
     pb.finish_and_clear();
     let mut plot_paths = Vec::new();
     if a.plot {
@@ -83,7 +79,7 @@ pub fn run(a: Args) -> Result<()> {
         for p in [stem.with_extension("png"), stem.with_extension("svg")] {
             crate::output::refuse_existing(&p, a.force)?;
         }
-        let tr = sample_trajectories(&scenario, &strategy, a.plot_episodes, a.seed);
+        let tr = sample_trajectories(&scenario, &strategy, a.plot_episodes, a.sim.seed);
         etp_figures::map_plot(&scenario, &tr, &stem)?;
         plot_paths.push(stem.with_extension("png"));
         plot_paths.push(stem.with_extension("svg"));
@@ -96,7 +92,7 @@ pub fn run(a: Args) -> Result<()> {
                 &synthesized,
                 &strategy,
                 &sum,
-                a.seed
+                a.sim.seed
             ))?
         );
     } else {
@@ -105,11 +101,21 @@ pub fn run(a: Args) -> Result<()> {
         println!("\npredictions of the strategy file:");
         print!("{}", super::honest::text_of(&strategy));
         print!("{}", honest_check_text(&strategy, &sum));
+        // The aggregation error this simulation measures (the stored one, if
+        // any, was printed with the predictions above).
+        print!(
+            "{}",
+            super::honest::aggregation_text(
+                &super::honest::check_of(&strategy, &sum, a.sim.seed),
+                super::honest::reference_name(&strategy),
+                "here",
+            )
+        );
         let names: Vec<String> = scenario.sensors.iter().map(|x| x.name.clone()).collect();
         println!(
             "\nsimulation details ({} episodes, seed {}, {}):",
             sum.episodes,
-            a.seed,
+            a.sim.seed,
             channels_text(&synthesized, &scenario.radio, &names)
         );
         print!("{}", summary_table(&sum));
@@ -133,7 +139,7 @@ pub fn run(a: Args) -> Result<()> {
                 failed.len(),
                 failed.join(", "),
                 sum.episodes,
-                a.seed
+                a.sim.seed
             ),
         }
         .into())
@@ -228,6 +234,13 @@ pub fn comparison_json(
             crate::vocab::prediction(&strategy.predicted),
         );
         m.insert("predictions".into(), super::honest::json_of(strategy));
+        m.insert(
+            "aggregation_error".into(),
+            super::honest::aggregation_json(
+                &super::honest::check_of(strategy, sum, seed),
+                super::honest::reference_name(strategy),
+            ),
+        );
         m.insert(
             "checks".into(),
             honest_checks(strategy, sum)

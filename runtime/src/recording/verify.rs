@@ -97,6 +97,18 @@ impl VerifyReport {
             self.mismatches.push(m);
         }
     }
+
+    /// Count one re-run episode by how it ended.
+    fn count(&mut self, ended: Result<Ended, Mismatch>) {
+        match ended {
+            Ok(Ended::Done) => self.episodes_checked += 1,
+            Ok(Ended::Cut) => self.episodes_incomplete += 1,
+            Err(m) => {
+                self.episodes_checked += 1;
+                self.mismatch(m);
+            }
+        }
+    }
 }
 
 /// The recorded inputs and outputs of the agent's estimator in one episode.
@@ -220,8 +232,13 @@ fn verify_with(c: &Contents, sink: &mut PriorSink<'_>) -> Result<VerifyReport, R
     etp_shared::with_dim!(scenario.dim, N => {
         let compiled = CompiledScenario::<N>::new(&scenario);
         for (e, r) in &episodes {
+            if r.outcome.is_some_and(|o| o.degraded != 0) {
+                report.episodes_degraded_skipped += 1;
+                continue;
+            }
             let may_be_cut = cut && *e >= horizon;
-            verify_episode(&compiled, *e, r, may_be_cut, &mut report, sink);
+            let ended = rerun(&compiled, *e, r, may_be_cut, &mut report, sink);
+            report.count(ended);
         }
     });
     Ok(report)
@@ -265,28 +282,6 @@ enum Ended {
     Done,
     /// The file ends inside this episode.
     Cut,
-}
-
-fn verify_episode<const N: usize>(
-    c: &CompiledScenario<N>,
-    episode: u64,
-    r: &EpisodeRecord,
-    may_be_cut: bool,
-    rep: &mut VerifyReport,
-    sink: &mut PriorSink<'_>,
-) {
-    if r.outcome.is_some_and(|o| o.degraded != 0) {
-        rep.episodes_degraded_skipped += 1;
-        return;
-    }
-    match rerun(c, episode, r, may_be_cut, rep, sink) {
-        Ok(Ended::Done) => rep.episodes_checked += 1,
-        Ok(Ended::Cut) => rep.episodes_incomplete += 1,
-        Err(m) => {
-            rep.episodes_checked += 1;
-            rep.mismatch(m);
-        }
-    }
 }
 
 fn rerun<const N: usize>(

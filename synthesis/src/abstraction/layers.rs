@@ -96,10 +96,8 @@ fn run_task<const N: usize>(
     seed: u64,
     t: Task,
 ) -> ChunkTally<N> {
-    let mut c = ChunkTally::<N> {
-        samples: t.hi - t.lo,
-        ..ChunkTally::default()
-    };
+    let mut c = ChunkTally::<N>::default();
+    c.sums.samples = t.hi - t.lo;
     if !last {
         c.arrivals.reserve((t.hi - t.lo) as usize);
     }
@@ -124,11 +122,8 @@ fn run_task<const N: usize>(
         // and energy include the loss; an ideal radio draws nothing.
         let mut channels = cs.channels(seed, stream, id);
         let r = cs.run_leg(dp, &mut st, mode, &mut rng, &mut channels, &mut ());
-        c.steps += u64::from(r.steps);
-        c.transmissions += u64::from(r.transmissions);
-        c.transmissions_sq += u64::from(r.transmissions) * u64::from(r.transmissions);
-        c.expected_transmissions += r.expected_transmissions;
-        c.expected_sq += r.expected_transmissions * r.expected_transmissions;
+        c.sums
+            .add_segment(r.steps, r.transmissions, r.expected_transmissions);
         match r.end {
             LegEnd::Collision { .. } => c.collisions += 1,
             LegEnd::Terminated if last => {
@@ -312,19 +307,23 @@ pub(super) fn build<const N: usize>(
         let n_main = tasks.len();
         tasks.extend(tasks_of(layer.len(), deltas.len(), holdout, true));
         let n_states = layer.len() as u64;
+        // One chunk of segments of (state, action) from the state's pool.
+        let run = |t: Task| {
+            run_task(
+                cs,
+                dp,
+                last,
+                &layer[t.state].particles,
+                &modes[t.action],
+                params.seed,
+                t,
+            )
+        };
         let mut results: Vec<ChunkTally<N>> = tasks
             .par_iter()
             .map(|&t| {
                 let m = u64::from(if t.holdout { holdout } else { samples });
-                let r = run_task(
-                    cs,
-                    dp,
-                    last,
-                    &layer[t.state].particles,
-                    &modes[t.action],
-                    params.seed,
-                    t,
-                );
+                let r = run(t);
                 // Each action of a decision point is worth `samples` units, spread
                 // over its states: position g of S·M maps to unit g / S.
                 let g = t.state as u64 * m;
@@ -355,21 +354,13 @@ pub(super) fn build<const N: usize>(
         let extra_results: Vec<ChunkTally<N>> = extra_tasks
             .par_iter()
             .map(|t| {
-                run_task(
-                    cs,
-                    dp,
-                    last,
-                    &layer[t.state].particles,
-                    &modes[t.action],
-                    params.seed,
-                    Task {
-                        state: t.state,
-                        action: t.action,
-                        lo: t.lo,
-                        hi: t.hi,
-                        holdout: false,
-                    },
-                )
+                run(Task {
+                    state: t.state,
+                    action: t.action,
+                    lo: t.lo,
+                    hi: t.hi,
+                    holdout: false,
+                })
             })
             .collect();
 
@@ -390,18 +381,23 @@ pub(super) fn build<const N: usize>(
                 .flat_map(|r| r.arrivals.iter().map(|a| a.belief.cov));
             Some(classifier_for(dp + 1, &mut covs, range))
         };
-        let arrival_regions: Vec<Vec<Region>> = match &next_classifier {
-            Some(c) => results
-                .par_iter()
-                .map(|r| {
-                    r.arrivals
-                        .iter()
-                        .map(|a| c.classify(&a.belief.cov))
-                        .collect()
-                })
-                .collect(),
-            None => Vec::new(),
+        // Each chunk's arrivals classified into the next decision point's
+        // regions (none after the last leg).
+        let regions_of = |chunks: &[ChunkTally<N>]| -> Vec<Vec<Region>> {
+            match &next_classifier {
+                Some(c) => chunks
+                    .par_iter()
+                    .map(|r| {
+                        r.arrivals
+                            .iter()
+                            .map(|a| c.classify(&a.belief.cov))
+                            .collect()
+                    })
+                    .collect(),
+                None => Vec::new(),
+            }
         };
+        let arrival_regions = regions_of(&results);
         let mut region_index: BTreeMap<&Region, u32> = BTreeMap::new();
         for r in arrival_regions.iter().flatten() {
             region_index.insert(r, 0);
@@ -413,33 +409,19 @@ pub(super) fn build<const N: usize>(
 
         // The held-out arrivals' regions (same bins; a region the main sample
         // did not reach has no state and is counted as unmatched).
-        let held_regions: Vec<Vec<Region>> = match &next_classifier {
-            Some(c) => held
-                .par_iter()
-                .map(|r| {
-                    r.arrivals
-                        .iter()
-                        .map(|a| c.classify(&a.belief.cov))
-                        .collect()
-                })
-                .collect(),
-            None => Vec::new(),
-        };
+        let held_regions = regions_of(&held);
 
-        let extra_regions: Vec<Vec<Region>> = match &next_classifier {
-            Some(c) => extra_results
-                .par_iter()
-                .map(|r| {
-                    r.arrivals
-                        .iter()
-                        .map(|a| c.classify(&a.belief.cov))
-                        .collect()
-                })
-                .collect(),
-            None => Vec::new(),
-        };
+        let extra_regions = regions_of(&extra_results);
 
         // Transitions and costs per (state, action), chunks merged in order.
+        // The state index of arrival `j` of a segment whose arrivals fell in
+        // `regions` (None: a region without a state).
+        let region_of = |regions: Option<&Vec<Region>>, j: usize| {
+            regions
+                .and_then(|rs| rs.get(j))
+                .and_then(|reg| region_index.get(reg))
+                .copied()
+        };
         let per_choice = samples.div_ceil(CHUNK) as usize;
         let per_holdout = holdout.div_ceil(CHUNK) as usize;
         for (s, ls) in layer.iter().enumerate() {
@@ -449,29 +431,17 @@ pub(super) fn build<const N: usize>(
                 let first = (s * deltas.len() + a) * per_choice;
                 for (k, r) in results[first..first + per_choice].iter().enumerate() {
                     let regions = arrival_regions.get(first + k);
-                    tally.add(r, |j| {
-                        Some(
-                            regions
-                                .and_then(|rs| rs.get(j))
-                                .and_then(|reg| region_index.get(reg))
-                                .copied()
-                                .unwrap_or(u32::MAX),
-                        )
-                    });
+                    // Every main-sample arrival's region has a state.
+                    tally.add(r, |j| Some(region_of(regions, j).unwrap_or(u32::MAX)));
                 }
                 for (k, (t, r)) in extra_tasks.iter().zip(&extra_results).enumerate() {
                     if t.state == s && t.action == a {
                         let regions = extra_regions.get(k);
-                        tally.add(r, |j| {
-                            regions
-                                .and_then(|rs| rs.get(j))
-                                .and_then(|reg| region_index.get(reg))
-                                .copied()
-                        });
+                        tally.add(r, |j| region_of(regions, j));
                     }
                 }
-                total_segments += u64::from(tally.samples);
-                total_steps += tally.steps;
+                total_segments += u64::from(tally.sums.samples);
+                total_steps += tally.sums.steps;
                 // `a` < |Δ| ≤ u16::MAX, checked by the caller.
                 let mut choice = tally.into_choice(a as u16, cost, cost_range);
                 if holdout > 0 {
@@ -479,15 +449,10 @@ pub(super) fn build<const N: usize>(
                     let first = (s * deltas.len() + a) * per_holdout;
                     for (k, r) in held[first..first + per_holdout].iter().enumerate() {
                         let regions = held_regions.get(first + k);
-                        h.add(r, |j| {
-                            regions
-                                .and_then(|rs| rs.get(j))
-                                .and_then(|reg| region_index.get(reg))
-                                .copied()
-                        });
+                        h.add(r, |j| region_of(regions, j));
                     }
-                    total_segments += u64::from(h.samples);
-                    total_steps += h.steps;
+                    total_segments += u64::from(h.sums.samples);
+                    total_steps += h.sums.steps;
                     choice.holdout = Some(h.into_holdout(cost));
                 }
                 choices.push(choice);

@@ -13,9 +13,10 @@ pub(super) struct Arrival<const N: usize> {
     pub belief: Belief<N>,
 }
 
-/// Raw sums of a chunk of segments of one (state, action).
-#[derive(Debug, Clone, Default)]
-pub(super) struct ChunkTally<const N: usize> {
+/// Sums over segments of their length and energy (both cost models, with
+/// second moments): what a chunk holds and what merging chunks adds up.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct SegmentSums {
     pub samples: u32,
     pub steps: u64,
     pub transmissions: u64,
@@ -25,6 +26,31 @@ pub(super) struct ChunkTally<const N: usize> {
     pub expected_transmissions: f64,
     /// Σ over segments of (Σ over its slots of γ̄)².
     pub expected_sq: f64,
+}
+
+impl SegmentSums {
+    /// One segment's steps, transmissions and Σ γ̄ (its sample is counted
+    /// by the chunk that holds it).
+    pub fn add_segment(&mut self, steps: u32, transmissions: u32, expected: f64) {
+        self.steps += u64::from(steps);
+        self.transmissions += u64::from(transmissions);
+        self.transmissions_sq += u64::from(transmissions) * u64::from(transmissions);
+        self.expected_transmissions += expected;
+        self.expected_sq += expected * expected;
+    }
+
+    pub fn merge(&mut self, o: &Self) {
+        etp_shared::add_fields!(
+            self, o;
+            samples, steps, transmissions, transmissions_sq, expected_transmissions, expected_sq
+        );
+    }
+}
+
+/// Raw sums of a chunk of segments of one (state, action).
+#[derive(Debug, Clone, Default)]
+pub(super) struct ChunkTally<const N: usize> {
+    pub sums: SegmentSums,
     pub collisions: u32,
     /// Last leg only: segments ending with the true state in the target box.
     pub target: u32,
@@ -37,12 +63,7 @@ pub(super) struct ChunkTally<const N: usize> {
 /// The merged counts of one (state, action).
 #[derive(Debug, Clone, Default)]
 pub(super) struct ChoiceTally {
-    pub samples: u32,
-    pub steps: u64,
-    pub transmissions: u64,
-    pub transmissions_sq: u64,
-    pub expected_transmissions: f64,
-    pub expected_sq: f64,
+    pub sums: SegmentSums,
     pub counts: BTreeMap<Next, u32>,
     /// Arrivals in a region without a state (held-out sets only).
     pub unmatched: u32,
@@ -56,12 +77,7 @@ impl ChoiceTally {
         c: &ChunkTally<N>,
         next_of: impl Fn(usize) -> Option<u32>,
     ) {
-        self.samples += c.samples;
-        self.steps += c.steps;
-        self.transmissions += c.transmissions;
-        self.transmissions_sq += c.transmissions_sq;
-        self.expected_transmissions += c.expected_transmissions;
-        self.expected_sq += c.expected_sq;
+        self.sums.merge(&c.sums);
         let mut bump = |n: Next, k: u32| {
             if k > 0 {
                 *self.counts.entry(n).or_insert(0) += k;
@@ -80,11 +96,12 @@ impl ChoiceTally {
 
     /// The held-out estimate (same cost conventions as [`Self::into_choice`]).
     pub fn into_holdout(self, cost: f64) -> Holdout {
-        let n = f64::from(self.samples.max(1));
+        let s = self.sums;
+        let n = f64::from(s.samples.max(1));
         Holdout {
-            samples: self.samples,
-            cost_counted: self.transmissions as f64 * cost / n,
-            cost_model: self.expected_transmissions * cost / n,
+            samples: s.samples,
+            cost_counted: s.transmissions as f64 * cost / n,
+            cost_model: s.expected_transmissions * cost / n,
             counts: self.counts.into_iter().collect(),
             unmatched: self.unmatched,
         }
@@ -94,17 +111,18 @@ impl ChoiceTally {
     /// (`cost` = energy per transmission c_m of the leg's sensor) with their
     /// second moments, and `cost_range` = `k_max · c_m`.
     pub fn into_choice(self, action: u16, cost: f64, cost_range: f64) -> Choice {
-        let n = f64::from(self.samples.max(1));
-        let transitions = transitions_of(self.counts, self.samples, self.unmatched);
+        let s = self.sums;
+        let n = f64::from(s.samples.max(1));
+        let transitions = transitions_of(self.counts, s.samples, self.unmatched);
         Choice {
             action,
-            samples: self.samples,
-            cost_counted: self.transmissions as f64 * cost / n,
-            cost_model: self.expected_transmissions * cost / n,
-            mean_steps: self.steps as f64 / n,
+            samples: s.samples,
+            cost_counted: s.transmissions as f64 * cost / n,
+            cost_model: s.expected_transmissions * cost / n,
+            mean_steps: s.steps as f64 / n,
             transitions,
-            cost_sq_counted: self.transmissions_sq as f64 * cost * cost / n,
-            cost_sq_model: self.expected_sq * cost * cost / n,
+            cost_sq_counted: s.transmissions_sq as f64 * cost * cost / n,
+            cost_sq_model: s.expected_sq * cost * cost / n,
             cost_range,
             holdout: None,
             unmatched: self.unmatched,

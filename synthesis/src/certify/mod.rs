@@ -13,10 +13,13 @@
 //! * [`front`] — the certified front beside the nominal one.
 //! * [`refine`] — sample allocation: more segments on the strategy's support
 //!   until the certified P_tar gap is below a target.
+//! * [`widen`] — bounds widened by a measured aggregation error, so they
+//!   cover it too.
 //!
 //! What is certified: sampling error in the abstraction's transition and
 //! cost estimates. Not certified: the aggregation of beliefs into regions
-//! (the abstraction itself); `etp validate` measures that.
+//! (the abstraction itself); `etp strategy` and `etp validate` measure that
+//! by simulation, and [`widen`] can add it.
 //!
 //! Pure maths: no I/O, no clock; randomness only from seeded streams.
 
@@ -27,6 +30,7 @@ pub mod intervals;
 pub mod refine;
 pub mod robust;
 pub mod select;
+pub mod widen;
 
 #[cfg(test)]
 mod tests;

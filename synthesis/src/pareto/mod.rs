@@ -270,6 +270,7 @@ pub fn to_strategy(
         leg_energy: Some(policy::leg_energy(mdp, policy, CostModel::Counted)),
         radio: None,
         splits: mdp.splits.clone(),
+        aggregation: None,
     }
 }
 

@@ -2,16 +2,18 @@
 //! [--refine-gap G]`: the least-energy strategy found whose certified bounds
 //! meet the request (docs/MODEL.md §4.1), with optional sample allocation.
 
-use super::Args;
+use super::{Args, COVER_ROUNDS};
 use crate::cmd::honest;
 use crate::output::{refuse_existing, write_new};
 use crate::progress;
 use anyhow::{Context, Result, bail};
+use etp_shared::strategy::Strategy;
 use etp_synthesis::certify::crossfit::{CrossFit, crossfit};
 use etp_synthesis::certify::intervals::interval_mdp;
 use etp_synthesis::certify::refine::{Refined, prepare, refine};
 use etp_synthesis::certify::robust::{Certified, certify};
 use etp_synthesis::certify::select::{METHOD, certified_strategy};
+use etp_synthesis::certify::widen::{split_level, widen};
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::ParetoFront;
 use etp_synthesis::pareto::optimal::{LpRequest, optimal_strategy};
@@ -44,6 +46,23 @@ pub fn assess(
     })
 }
 
+/// The selection-time aggregation check of `strategy` (unless
+/// `--aggregation-check 0`), stored in it; with `--cover-aggregation` its
+/// certified bounds (computed at [`split_level`] of `level`) widened by it.
+pub fn check_aggregation(strategy: &mut Strategy, a: &Args, level: f64) -> Result<()> {
+    if a.aggregation_check == 0 {
+        return Ok(());
+    }
+    let check = honest::aggregation_check(strategy, a.aggregation_check, a.json)?;
+    strategy.aggregation = Some(check);
+    if a.cover_aggregation
+        && let Some(c) = &strategy.certified
+    {
+        strategy.certified = Some(widen(c, &check, level));
+    }
+    Ok(())
+}
+
 pub fn run(
     a: &Args,
     mdp: &Mdp,
@@ -66,10 +85,18 @@ pub fn run(
     }
     refuse_existing(output, a.force)?;
     let cost = front.cost_model;
-    let select = |m: &Mdp| {
-        let im = interval_mdp(m, level, cost)?;
-        certified_strategy(m, &im, cost, min_target, a.max_collision)
+    // Under --cover-aggregation the abstraction's part is certified at
+    // (1 + level)/2 and the measured error's at the same, so both hold at level.
+    let bound_level = if a.cover_aggregation {
+        split_level(level)
+    } else {
+        level
     };
+    let select_for = |m: &Mdp, target: f64, collision: Option<f64>| {
+        let im = interval_mdp(m, bound_level, cost)?;
+        certified_strategy(m, &im, cost, target, collision)
+    };
+    let select = |m: &Mdp| select_for(m, min_target, a.max_collision);
     // Sample allocation first, if asked.
     let started = Instant::now();
     let mut refined: Option<Refined> = None;
@@ -125,7 +152,6 @@ pub fn run(
         refined = Some(r);
     }
     let refine_seconds = started.elapsed().as_secs_f64();
-    let chosen = select(&work).context("selecting a certified strategy")?;
     // The nominal optimum of the same request, for the price of certification.
     let nominal = optimal_strategy(
         &work,
@@ -142,16 +168,59 @@ pub fn run(
         }
         None => format!("least energy with certified P_tar ≥ {min_target} at {level}"),
     };
-    let policy = &chosen.strategy.policy;
-    let mut strategy = to_strategy(&work, policy, label.clone(), chosen.strategy.predicted);
-    strategy.scenario_toml = scenario_text;
-    strategy.radio = front.radio.clone();
-    let xf = crossfit(&work, policy, cost);
-    honest::attach(
-        &mut strategy,
-        xf.as_ref(),
-        &honest::certified_prediction(&chosen.certified, level),
-    );
+    let label = if a.cover_aggregation {
+        format!("{label}, covering the measured aggregation error")
+    } else {
+        label
+    };
+    // Select, check the aggregation error and (covering it) widen; while the
+    // widened bounds miss the request, ask the abstraction for what they lost.
+    let (mut target, mut collision) = (min_target, a.max_collision);
+    let mut cover_rounds = Vec::new();
+    let (chosen, strategy, xf) = loop {
+        let chosen = select_for(&work, target, collision).with_context(|| {
+            format!("selecting a certified strategy (certified P_tar ≥ {target})")
+        })?;
+        let policy = &chosen.strategy.policy;
+        let mut strategy = to_strategy(&work, policy, label.clone(), chosen.strategy.predicted);
+        strategy.scenario_toml = scenario_text.clone();
+        strategy.radio = front.radio.clone();
+        let xf = crossfit(&work, policy, cost);
+        honest::attach(
+            &mut strategy,
+            xf.as_ref(),
+            &honest::certified_prediction(&chosen.certified, bound_level),
+        );
+        check_aggregation(&mut strategy, a, level)?;
+        let Some(c) = strategy.certified.filter(|_| a.cover_aggregation) else {
+            break (chosen, strategy, xf);
+        };
+        let short_target = min_target - c.p_target_low;
+        let over_collision = a.max_collision.map_or(0.0, |m| c.p_collision_high - m);
+        cover_rounds.push(json!({"requested_p_target": target, "requested_p_collision": collision,
+            "widened_p_target_low": c.p_target_low, "widened_p_collision_high": c.p_collision_high}));
+        if short_target <= 0.0 && over_collision <= 0.0 {
+            break (chosen, strategy, xf);
+        }
+        if cover_rounds.len() == COVER_ROUNDS {
+            bail!(
+                "no strategy found whose bounds, widened by the measured aggregation error, meet the request \
+                 after {COVER_ROUNDS} rounds (last: certified P_tar ≥ {:.6}, P_coll ≤ {:.6}); \
+                 ask for less, or synthesize with more samples or --split-budget",
+                c.p_target_low,
+                c.p_collision_high
+            );
+        }
+        target += short_target.max(0.0);
+        collision = collision.map(|m| m - over_collision.max(0.0));
+        if target > 1.0 || collision.is_some_and(|m| m < 0.0) {
+            bail!(
+                "the measured aggregation error ({:+.2} pt on P_tar) leaves no strategy of this MDP \
+                 whose widened bounds meet the request",
+                100.0 * strategy.aggregation.map_or(0.0, |g| g.error().p_target)
+            );
+        }
+    };
     write_new(output, strategy.to_json().as_bytes(), a.force)?;
     let nominal_cert: Option<Certified> = nominal.as_ref().and_then(|n| {
         interval_mdp(&work, level, cost)
@@ -177,6 +246,7 @@ pub fn run(
                 "certified": nominal_cert.map(|c| json!({"p_target_low": c.p_target_low,
                     "p_collision_high": c.p_collision_high, "energy_high": c.energy_high}))})),
             "energy_paid_for_certification": energy_paid,
+            "cover_aggregation_rounds": cover_rounds,
             "refinement": refined.as_ref().map(|r| json!({
                 "converged": r.converged,
                 "added_segments": r.added_segments,
@@ -203,6 +273,15 @@ pub fn run(
         chosen.solves
     );
     print!("{}", honest::text_of(&strategy));
+    if cover_rounds.len() > 1 {
+        println!(
+            "  covering the aggregation error took {} selections: the request to the abstraction was raised to certified P_tar ≥ {target:.6}{}",
+            cover_rounds.len(),
+            collision
+                .map(|c| format!(", P_coll ≤ {c:.6}"))
+                .unwrap_or_default()
+        );
+    }
     if let Some(n) = &nominal {
         println!(
             "  nominal optimum of the same request: P_tar {:.6}  P_coll {:.6}  energy {:.4}{}",

@@ -1,0 +1,66 @@
+//! The aggregation error of a strategy, measured (docs/MODEL.md §7.3).
+//!
+//! Cross-fitting removes the optimiser's bias and the certified bounds cover
+//! the abstraction's sampling error, but neither sees the error of lumping
+//! beliefs with different futures into one region. Only a simulation of
+//! the strategy in the real (continuous-belief) loop measures it: `etp
+//! strategy` runs a short one at selection time and stores it here, `etp
+//! validate` states it again from its own episodes, and `etp strategy
+//! --cover-aggregation` widens the certified bounds by it.
+
+use super::Prediction;
+use serde::{Deserialize, Serialize};
+
+/// A strategy simulated in-process at selection time against the value it
+/// is predicted by.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct AggregationCheck {
+    pub episodes: u64,
+    pub seed: u64,
+    /// The prediction compared: the cross-fitted one where the MDP has a
+    /// held-out sample, else the selection-time one.
+    pub reference: Prediction,
+    pub simulated: SimulatedValue,
+}
+
+/// Simulated P_tar, P_coll and mean energy with the half-widths of their
+/// 95 % intervals (normal approximation, as `etp simulate` reports them).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SimulatedValue {
+    pub p_target: f64,
+    pub p_target_ci95: f64,
+    pub p_collision: f64,
+    pub p_collision_ci95: f64,
+    pub energy_mean: f64,
+    pub energy_mean_ci95: f64,
+}
+
+/// Reference − simulated: positive on P_tar (negative on P_coll and
+/// energy) means the prediction is optimistic.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AggregationError {
+    pub p_target: f64,
+    pub p_collision: f64,
+    pub energy_mean: f64,
+}
+
+impl AggregationCheck {
+    pub fn error(&self) -> AggregationError {
+        AggregationError {
+            p_target: self.reference.p_target - self.simulated.p_target,
+            p_collision: self.reference.p_collision - self.simulated.p_collision,
+            energy_mean: self.reference.energy_mean - self.simulated.energy_mean,
+        }
+    }
+
+    /// Whether each error is larger than the simulation's own 95 % interval
+    /// (P_tar, P_coll, energy): the only errors the check can resolve.
+    pub fn resolved(&self) -> [bool; 3] {
+        let e = self.error();
+        [
+            e.p_target.abs() > self.simulated.p_target_ci95,
+            e.p_collision.abs() > self.simulated.p_collision_ci95,
+            e.energy_mean.abs() > self.simulated.energy_mean_ci95,
+        ]
+    }
+}
