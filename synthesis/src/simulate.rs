@@ -112,14 +112,44 @@ impl<const N: usize> EpisodeObserver<N> for SensorTally<'_> {
 }
 
 /// NEES/n: `(x − x̂)ᵀ P⁻¹ (x − x̂) / n`, ≈ 1 on average for a consistent filter
-/// (0 if rounding ever made P singular).
+/// (0 if rounding ever made P not positive definite).
+///
+/// By P = L D Lᵀ (L unit lower triangular, no square roots): with y = L⁻¹ e,
+/// eᵀ P⁻¹ e = Σ yᵢ² / dᵢ. It runs at every simulated step; nalgebra's
+/// Cholesky and triangular solves cost a third of the whole step of
+/// winding-2d (`etp bench`: 10.1 against 15.0 M steps/s without the NEES).
 #[inline]
 pub fn normalized_error<const N: usize>(x: &etp_shared::etkf::Vector<N>, b: &Belief<N>) -> f64 {
     let e = x - b.mean;
-    match b.cov.cholesky() {
-        Some(ch) => ch.solve(&e).dot(&e) / N as f64,
-        None => 0.0,
+    let p = &b.cov;
+    let mut l = [[0.0_f64; N]; N];
+    let mut d = [0.0_f64; N];
+    let mut y = [0.0_f64; N];
+    let mut q = 0.0;
+    for j in 0..N {
+        let mut dj = p[(j, j)];
+        for k in 0..j {
+            dj -= l[j][k] * l[j][k] * d[k];
+        }
+        if !(dj > 0.0) {
+            return 0.0;
+        }
+        d[j] = dj;
+        for i in j + 1..N {
+            let mut v = p[(i, j)];
+            for k in 0..j {
+                v -= l[i][k] * l[j][k] * d[k];
+            }
+            l[i][j] = v / dj;
+        }
+        let mut yj = e[j];
+        for k in 0..j {
+            yj -= l[j][k] * y[k];
+        }
+        y[j] = yj;
+        q += yj * yj / dj;
     }
+    q / N as f64
 }
 
 /// The estimates of a simulation, each with a 95 % half-width.
@@ -276,6 +306,45 @@ mod tests {
             (587, 615, 1798),
             "winding-2d δ = 2.2365"
         );
+    }
+
+    /// The LDLᵀ quadratic form against nalgebra's Cholesky solve, on random
+    /// positive definite matrices of every dimension the scenarios allow.
+    #[test]
+    fn nees_by_ldl_matches_a_cholesky_solve() {
+        fn check<const N: usize>(rng: &mut SimRng) {
+            use rand::Rng;
+            for _ in 0..200 {
+                let a = nalgebra::SMatrix::<f64, N, N>::from_fn(|_, _| rng.random_range(-1.0..1.0));
+                let cov = a * a.transpose() + nalgebra::SMatrix::<f64, N, N>::identity() * 1e-3;
+                let mean =
+                    etp_shared::etkf::Vector::<N>::from_fn(|_, _| rng.random_range(-1.0..1.0));
+                let x = etp_shared::etkf::Vector::<N>::from_fn(|_, _| rng.random_range(-1.0..1.0));
+                let b = Belief { mean, cov };
+                let e = x - mean;
+                let want = cov.cholesky().expect("SPD").solve(&e).dot(&e) / N as f64;
+                let got = normalized_error(&x, &b);
+                assert!(
+                    (got - want).abs() <= 1e-9 * want.abs().max(1.0),
+                    "N = {N}: {got} vs {want}"
+                );
+            }
+            // Not positive definite: 0, as before.
+            let b = Belief {
+                mean: etp_shared::etkf::Vector::<N>::zeros(),
+                cov: nalgebra::SMatrix::<f64, N, N>::zeros(),
+            };
+            assert_eq!(
+                normalized_error(&etp_shared::etkf::Vector::<N>::zeros(), &b),
+                0.0
+            );
+        }
+        let mut rng = stream_rng(7, 0, 0);
+        check::<1>(&mut rng);
+        check::<2>(&mut rng);
+        check::<3>(&mut rng);
+        check::<4>(&mut rng);
+        check::<6>(&mut rng);
     }
 
     #[test]

@@ -4,6 +4,7 @@
 #[path = "../../../tests/src/pyenv.rs"]
 mod pyenv;
 
+mod aggregation_check;
 mod certified;
 mod exact;
 mod integrity;
