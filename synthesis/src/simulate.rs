@@ -131,7 +131,7 @@ pub fn normalized_error<const N: usize>(x: &etp_shared::etkf::Vector<N>, b: &Bel
         for k in 0..j {
             dj -= l[j][k] * l[j][k] * d[k];
         }
-        if !(dj > 0.0) {
+        if dj.is_nan() || dj <= 0.0 {
             return 0.0;
         }
         d[j] = dj;
@@ -313,7 +313,7 @@ mod tests {
     #[test]
     fn nees_by_ldl_matches_a_cholesky_solve() {
         fn check<const N: usize>(rng: &mut SimRng) {
-            use rand::Rng;
+            use rand::RngExt;
             for _ in 0..200 {
                 let a = nalgebra::SMatrix::<f64, N, N>::from_fn(|_, _| rng.random_range(-1.0..1.0));
                 let cov = a * a.transpose() + nalgebra::SMatrix::<f64, N, N>::identity() * 1e-3;
