@@ -23,22 +23,9 @@ fn read(path: &std::path::Path) -> Value {
 
 #[test]
 fn a_strategy_carries_its_measured_aggregation_error_and_can_be_covered_by_it() {
-    let dir = Scratch::new("aggregation-check");
+    let dir = Scratch::new("strategy-aggregation-error");
     let out = dir.path("open");
-    ok_json(&[
-        "synthesize",
-        "open-2d",
-        "--samples",
-        "1000",
-        "--holdout-samples",
-        "1000",
-        "--seed",
-        "3",
-        "--no-kf-baseline",
-        "-o",
-        s(&out),
-        "--json",
-    ]);
+    super::certified::synthesize_open(&out);
 
     // Default: the check runs (4000 episodes) and is stored and reported.
     let checked = out.join("checked.json");

@@ -5,10 +5,8 @@
 
 use super::{Scratch, fails_with, ok_json, s};
 
-#[test]
-fn certified_strategy_meets_its_bounds_and_reports_all_three_predictions() {
-    let dir = Scratch::new("certified");
-    let out = dir.path("open");
+/// A small synthesis of open-2d with a held-out sample into `out`.
+pub(super) fn synthesize_open(out: &std::path::Path) {
     ok_json(&[
         "synthesize",
         "open-2d",
@@ -20,9 +18,16 @@ fn certified_strategy_meets_its_bounds_and_reports_all_three_predictions() {
         "3",
         "--no-kf-baseline",
         "-o",
-        s(&out),
+        s(out),
         "--json",
     ]);
+}
+
+#[test]
+fn certified_strategy_meets_its_bounds_and_reports_all_three_predictions() {
+    let dir = Scratch::new("certified");
+    let out = dir.path("open");
+    synthesize_open(&out);
     let front: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("front.json")).expect("front"))
             .expect("json");

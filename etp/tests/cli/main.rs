@@ -57,12 +57,16 @@ fn fails_with(args: &[&str], needles: &[&str]) {
     }
 }
 
-/// A fresh scratch directory under the target dir (removed on drop).
+/// A fresh scratch directory under the target dir (removed on drop). Each
+/// gets a number of its own: two tests that chose the same name (they did:
+/// `replay-plot`, `aggregation-check`) must not remove each other's files.
 struct Scratch(PathBuf);
 impl Scratch {
     fn new(name: &str) -> Self {
+        static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
-            .join(format!("{name}-{}", std::process::id()));
+            .join(format!("{name}-{}-{n}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).expect("scratch dir");
         Self(dir)
