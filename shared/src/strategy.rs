@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 mod aggregation;
-pub use aggregation::{AggregationCheck, AggregationError, SimulatedValue};
+pub use aggregation::{AggregationCheck, AggregationError, PredictionCi95, SimulatedValue};
 
 /// Version of the `strategy.json` layout.
 pub const STRATEGY_FORMAT_VERSION: u32 = 1;
@@ -153,6 +153,10 @@ pub struct Strategy {
     /// transitions sampled independently of those that chose it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub crossfit: Option<Prediction>,
+    /// The cross-fitted prediction's own sampling error (95 % half-widths,
+    /// from the finite held-out sample). Absent in older files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crossfit_ci95: Option<PredictionCi95>,
     /// Certified bounds at a confidence level.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub certified: Option<CertifiedPrediction>,
@@ -222,6 +226,7 @@ impl Strategy {
                 .collect(),
             predicted,
             crossfit: None,
+            crossfit_ci95: None,
             certified: None,
             scenario_toml: None,
             leg_energy: None,

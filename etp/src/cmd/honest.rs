@@ -4,8 +4,9 @@
 
 use crate::progress;
 use anyhow::{Context, Result};
+use etp_shared::stats::Z95;
 use etp_shared::strategy::{
-    AggregationCheck, CertifiedPrediction, Prediction, SimulatedValue, Strategy,
+    AggregationCheck, CertifiedPrediction, Prediction, PredictionCi95, SimulatedValue, Strategy,
 };
 use etp_synthesis::certify::crossfit::CrossFit;
 use etp_synthesis::certify::robust::Certified;
@@ -62,6 +63,7 @@ pub fn check_of(strategy: &Strategy, sum: &SimulationSummary, seed: u64) -> Aggr
         episodes: sum.episodes,
         seed,
         reference: strategy.crossfit.unwrap_or(strategy.predicted),
+        reference_ci95: strategy.crossfit.and(strategy.crossfit_ci95),
         simulated: SimulatedValue {
             p_target: sum.p_target.value,
             p_target_ci95: sum.p_target.ci95,
@@ -79,20 +81,28 @@ pub fn aggregation_json(c: &AggregationCheck, reference: &str) -> serde_json::Va
     let e = c.error();
     let s = &c.simulated;
     let [t, k, en] = c.resolved();
+    let w = c.error_ci95();
     json!({
         "episodes": c.episodes, "seed": c.seed, "reference": reference,
         "simulated": {"p_target": s.p_target, "p_target_ci95": s.p_target_ci95,
             "p_collision": s.p_collision, "p_collision_ci95": s.p_collision_ci95,
             "energy_mean": s.energy_mean, "energy_mean_ci95": s.energy_mean_ci95},
+        "reference_ci95": c.reference_ci95.map(|r| ci95_json(&r)),
         "error": {"p_target": e.p_target, "p_collision": e.p_collision, "energy_mean": e.energy_mean},
+        "error_ci95": ci95_json(&w),
         "resolved": {"p_target": t, "p_collision": k, "energy_mean": en},
     })
+}
+
+fn ci95_json(c: &PredictionCi95) -> serde_json::Value {
+    json!({"p_target": c.p_target, "p_collision": c.p_collision, "energy_mean": c.energy_mean})
 }
 
 /// One text line of an aggregation check.
 pub fn aggregation_text(c: &AggregationCheck, reference: &str, when: &str) -> String {
     let e = c.error();
     let s = &c.simulated;
+    let w = c.error_ci95();
     let rel = |x: f64| {
         if s.energy_mean != 0.0 {
             100.0 * x / s.energy_mean
@@ -100,17 +110,22 @@ pub fn aggregation_text(c: &AggregationCheck, reference: &str, when: &str) -> St
             0.0
         }
     };
+    let both = if c.reference_ci95.is_some() {
+        "both sampling errors"
+    } else {
+        "the simulation's sampling error"
+    };
     format!(
         "  aggregation error ({reference} − simulated, {} episodes {when}, seed {}): \
-         P_tar {:+.2} pt (±{:.2})  P_coll {:+.2} pt (±{:.2})  energy {:+.2} % (±{:.2})\n",
+         P_tar {:+.2} pt (±{:.2})  P_coll {:+.2} pt (±{:.2})  energy {:+.2} % (±{:.2})   (± 95 %, {both})\n",
         c.episodes,
         c.seed,
         100.0 * e.p_target,
-        100.0 * s.p_target_ci95,
+        100.0 * w.p_target,
         100.0 * e.p_collision,
-        100.0 * s.p_collision_ci95,
+        100.0 * w.p_collision,
         rel(e.energy_mean),
-        rel(s.energy_mean_ci95),
+        rel(w.energy_mean),
     )
 }
 
@@ -144,6 +159,14 @@ pub fn certified_prediction(c: &Certified, confidence: f64) -> CertifiedPredicti
 /// Cross-fit and certified bounds stored in a strategy file.
 pub fn attach(s: &mut Strategy, crossfit: Option<&CrossFit>, certified: &CertifiedPrediction) {
     s.crossfit = crossfit.map(|c| prediction(&c.objectives));
+    s.crossfit_ci95 = crossfit.map(|c| {
+        let e = &c.standard_error;
+        PredictionCi95 {
+            p_target: Z95 * e.p_target,
+            p_collision: Z95 * e.p_collision,
+            energy_mean: Z95 * e.energy,
+        }
+    });
     s.certified = Some(*certified);
 }
 
@@ -153,7 +176,8 @@ pub fn json_of(s: &Strategy) -> serde_json::Value {
     json!({
         "selection_time": {"p_target": p.p_target, "p_collision": p.p_collision, "energy_mean": p.energy_mean},
         "crossfit": s.crossfit.map(|c| json!({
-            "p_target": c.p_target, "p_collision": c.p_collision, "energy_mean": c.energy_mean})),
+            "p_target": c.p_target, "p_collision": c.p_collision, "energy_mean": c.energy_mean,
+            "ci95": s.crossfit_ci95.map(|r| ci95_json(&r))})),
         "optimizer_bias": s.crossfit.map(|c| json!({
             "p_target": p.p_target - c.p_target,
             "p_collision": p.p_collision - c.p_collision,
@@ -188,6 +212,14 @@ pub fn text_of(s: &Strategy) -> String {
         None => o.push_str(
             "  cross-fitted    n/a (mdp.bin has no held-out sample: synthesize with --holdout-samples > 0)\n",
         ),
+    }
+    if let (Some(c), Some(r)) = (&s.crossfit, &s.crossfit_ci95) {
+        o.push_str(&format!(
+            "  its sampling    P_tar ±{:.2} pt  P_coll ±{:.2} pt  energy ±{:.2} %   (95 %, the held-out sample's own error)\n",
+            100.0 * r.p_target,
+            100.0 * r.p_collision,
+            if c.energy_mean != 0.0 { 100.0 * r.energy_mean / c.energy_mean } else { 0.0 },
+        ));
     }
     if let Some(c) = &s.certified {
         o.push_str(&format!(

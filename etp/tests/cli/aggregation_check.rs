@@ -116,11 +116,19 @@ fn a_strategy_carries_its_measured_aggregation_error_and_can_be_covered_by_it() 
     assert_eq!(c["states"], u["states"], "the same strategy");
     let sim = |q: &str| num(&c, &["aggregation", "simulated", q]);
     let xf = |q: &str| num(&c, &["crossfit", q]);
+    // The error's half-width: the simulation's and the cross-fitted value's
+    // own (stored beside it), in quadrature.
+    let half = |q: &str| {
+        let own = num(&c, &["crossfit_ci95", q]);
+        assert!(own > 0.0 || q == "p_collision", "{q}: the cross-fit has a spread");
+        assert_eq!(num(&c, &["aggregation", "reference_ci95", q]), own);
+        sim(&format!("{q}_ci95")).hypot(own)
+    };
     // Each part of a covered 0.95 bound is at 0.975, and the one-sided z at
-    // 0.975 is the z of the simulation's 95 % half-widths: z σ = ci95.
-    let widen_tar = (xf("p_target") - sim("p_target") + sim("p_target_ci95")).max(0.0);
-    let widen_coll = (sim("p_collision") - xf("p_collision") + sim("p_collision_ci95")).max(0.0);
-    let widen_e = (sim("energy_mean") - xf("energy_mean") + sim("energy_mean_ci95")).max(0.0);
+    // 0.975 is the z of the 95 % half-widths: z σ = ci95.
+    let widen_tar = (xf("p_target") - sim("p_target") + half("p_target")).max(0.0);
+    let widen_coll = (sim("p_collision") - xf("p_collision") + half("p_collision")).max(0.0);
+    let widen_e = (sim("energy_mean") - xf("energy_mean") + half("energy_mean")).max(0.0);
     let low = num(&u, &["certified", "p_target_low"]);
     let high = num(&u, &["certified", "p_collision_high"]);
     let e_high = num(&u, &["certified", "energy_high"]);
@@ -163,6 +171,15 @@ fn a_strategy_carries_its_measured_aggregation_error_and_can_be_covered_by_it() 
             .abs()
             < 1e-12,
         "{v}"
+    );
+    // Its interval joins validate's simulation and the cross-fit's own.
+    let own = num(m, &["reference_ci95", "p_target"]);
+    assert_eq!(own, num(&file, &["crossfit_ci95", "p_target"]));
+    let both = num(&v, &["p_target_ci95"]).hypot(own);
+    assert!((num(m, &["error_ci95", "p_target"]) - both).abs() < 1e-12, "{v}");
+    assert_eq!(
+        m["resolved"]["p_target"].as_bool(),
+        Some(num(m, &["error", "p_target"]).abs() > both)
     );
 }
 

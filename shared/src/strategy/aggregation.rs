@@ -21,6 +21,20 @@ pub struct AggregationCheck {
     /// held-out sample, else the selection-time one.
     pub reference: Prediction,
     pub simulated: SimulatedValue,
+    /// The reference's own sampling error (the cross-fitted value's, from
+    /// its finite held-out sample); absent for a selection-time reference
+    /// and in older files, which compare against the simulation's alone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_ci95: Option<PredictionCi95>,
+}
+
+/// Half-widths of a prediction's 95 % interval from its own sampling error
+/// (the cross-fitted value's: `etp_synthesis::certify::crossfit`).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct PredictionCi95 {
+    pub p_target: f64,
+    pub p_collision: f64,
+    pub energy_mean: f64,
 }
 
 /// Simulated P_tar, P_coll and mean energy with the half-widths of their
@@ -53,14 +67,28 @@ impl AggregationCheck {
         }
     }
 
-    /// Whether each error is larger than the simulation's own 95 % interval
-    /// (P_tar, P_coll, energy): the only errors the check can resolve.
+    /// Half-widths of the error's combined 95 % interval: the simulation's
+    /// and the reference's own sampling errors, independent, in quadrature.
+    pub fn error_ci95(&self) -> PredictionCi95 {
+        let r = self.reference_ci95.unwrap_or_default();
+        let s = &self.simulated;
+        PredictionCi95 {
+            p_target: s.p_target_ci95.hypot(r.p_target),
+            p_collision: s.p_collision_ci95.hypot(r.p_collision),
+            energy_mean: s.energy_mean_ci95.hypot(r.energy_mean),
+        }
+    }
+
+    /// Whether each error (P_tar, P_coll, energy) is larger than its
+    /// combined 95 % interval ([`Self::error_ci95`]): the only errors the
+    /// check can resolve; the others are within both sampling errors.
     pub fn resolved(&self) -> [bool; 3] {
         let e = self.error();
+        let w = self.error_ci95();
         [
-            e.p_target.abs() > self.simulated.p_target_ci95,
-            e.p_collision.abs() > self.simulated.p_collision_ci95,
-            e.energy_mean.abs() > self.simulated.energy_mean_ci95,
+            e.p_target.abs() > w.p_target,
+            e.p_collision.abs() > w.p_collision,
+            e.energy_mean.abs() > w.energy_mean,
         ]
     }
 }

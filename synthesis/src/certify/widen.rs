@@ -10,9 +10,10 @@
 //! P_tar_low' = P_tar_low − max(0, e_tar + z σ_tar), e = reference − simulated,
 //! P_coll_high' = P_coll_high + max(0, −e_coll + z σ_coll), likewise energy,
 //!
-//! σ the simulation's standard error. With the abstraction's bounds and the
-//! simulation's each at level (1 + L)/2 ([`split_level`]), the union bound
-//! gives the widened ones at level L.
+//! σ the error's standard error: the simulation's and the cross-fitted
+//! value's own, in quadrature (`AggregationCheck::error_ci95`). With the
+//! abstraction's bounds and the error's each at level (1 + L)/2
+//! ([`split_level`]), the union bound gives the widened ones at level L.
 
 use etp_shared::stats::Z95;
 use etp_shared::strategy::{AggregationCheck, CertifiedPrediction};
@@ -29,13 +30,13 @@ pub fn split_level(level: f64) -> f64 {
 pub fn widen(c: &CertifiedPrediction, check: &AggregationCheck, level: f64) -> CertifiedPrediction {
     let z = one_sided_z(split_level(level));
     let e = check.error();
-    let s = &check.simulated;
+    let w = check.error_ci95();
     let upper = |optimistic: f64, ci95: f64| (optimistic + z * ci95 / Z95).max(0.0);
     CertifiedPrediction {
         confidence: level,
-        p_target_low: (c.p_target_low - upper(e.p_target, s.p_target_ci95)).max(0.0),
-        p_collision_high: (c.p_collision_high + upper(-e.p_collision, s.p_collision_ci95)).min(1.0),
-        energy_high: c.energy_high + upper(-e.energy_mean, s.energy_mean_ci95),
+        p_target_low: (c.p_target_low - upper(e.p_target, w.p_target)).max(0.0),
+        p_collision_high: (c.p_collision_high + upper(-e.p_collision, w.p_collision)).min(1.0),
+        energy_high: c.energy_high + upper(-e.energy_mean, w.energy_mean),
         covers_aggregation: true,
     }
 }
@@ -69,6 +70,7 @@ mod tests {
                 energy_mean: simulated.2,
                 energy_mean_ci95: 1.0,
             },
+            reference_ci95: None,
         }
     }
 

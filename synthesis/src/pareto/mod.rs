@@ -265,6 +265,7 @@ pub fn to_strategy(
             energy_mean: predicted.energy,
         },
         crossfit: None,
+        crossfit_ci95: None,
         certified: None,
         scenario_toml: None,
         leg_energy: Some(policy::leg_energy(mdp, policy, CostModel::Counted)),
