@@ -145,6 +145,12 @@ pub struct Args {
     /// Adaptive splitting of the regions the aggregation test flags.
     #[command(flatten)]
     pub split: crate::cmd::split::SplitArgs,
+    /// Draw the pools on-policy (docs/MODEL.md §7.3): on this strategy's
+    /// bins, each region's pool sampled from the arrivals weighted by the
+    /// probability that the strategy brings a belief there. A strategy of a
+    /// Method 2 synthesis of the same scenario (`etp strategy … -o FILE`).
+    #[arg(long, value_name = "STRATEGY.json")]
+    pub pool_policy: Option<PathBuf>,
 }
 
 /// What [`build_mdp`] did, for the summary.
@@ -260,9 +266,33 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
     }
     let p = params(a, &s)?;
     crate::cmd::split::check(&a.split, p.method)?;
+    let pool_policy = match &a.pool_policy {
+        None => None,
+        Some(path) => {
+            if a.split.split_budget > 0 {
+                bail!(
+                    "--pool-policy and --split-budget: choose one (the policy's strategy carries its own splits)"
+                );
+            }
+            let (st, _) = crate::cmd::validate::load_strategy(path)
+                .with_context(|| format!("--pool-policy {}", path.display()))?;
+            st.check_scenario(&s).with_context(|| {
+                format!(
+                    "--pool-policy {}: not a strategy of {}",
+                    path.display(),
+                    s.name
+                )
+            })?;
+            Some(st)
+        }
+    };
     let pb = progress::bar(abstraction::progress_total(&s, &p), "synthesize", a.json);
     let started = Instant::now();
-    let mdp = abstraction::build(&s, &p, &|k| pb.inc(k)).context("building the abstraction")?;
+    let mdp = match &pool_policy {
+        None => abstraction::build(&s, &p, &|k| pb.inc(k)),
+        Some(st) => abstraction::build_on_policy(&s, &p, st, &|k| pb.inc(k)),
+    }
+    .context("building the abstraction")?;
     pb.finish_and_clear();
     mdp.check()
         .context("the built MDP failed its own consistency check (a bug)")?;

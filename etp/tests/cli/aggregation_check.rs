@@ -120,7 +120,10 @@ fn a_strategy_carries_its_measured_aggregation_error_and_can_be_covered_by_it() 
     // own (stored beside it), in quadrature.
     let half = |q: &str| {
         let own = num(&c, &["crossfit_ci95", q]);
-        assert!(own > 0.0 || q == "p_collision", "{q}: the cross-fit has a spread");
+        assert!(
+            own > 0.0 || q == "p_collision",
+            "{q}: the cross-fit has a spread"
+        );
         assert_eq!(num(&c, &["aggregation", "reference_ci95", q]), own);
         sim(&format!("{q}_ci95")).hypot(own)
     };
@@ -176,7 +179,10 @@ fn a_strategy_carries_its_measured_aggregation_error_and_can_be_covered_by_it() 
     let own = num(m, &["reference_ci95", "p_target"]);
     assert_eq!(own, num(&file, &["crossfit_ci95", "p_target"]));
     let both = num(&v, &["p_target_ci95"]).hypot(own);
-    assert!((num(m, &["error_ci95", "p_target"]) - both).abs() < 1e-12, "{v}");
+    assert!(
+        (num(m, &["error_ci95", "p_target"]) - both).abs() < 1e-12,
+        "{v}"
+    );
     assert_eq!(
         m["resolved"]["p_target"].as_bool(),
         Some(num(m, &["error", "p_target"]).abs() > both)

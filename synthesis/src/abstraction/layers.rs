@@ -177,6 +177,79 @@ impl Classifier {
 pub(super) struct Given<'a> {
     pub bins: &'a Discretization,
     pub splits: &'a [RegionSplit],
+    /// Pools drawn on-policy (docs/MODEL.md §7.3, `--pool-policy`): ω of a
+    /// belief (decision point, covariance) over the actions, and the pools
+    /// weighted by the probability that this strategy brings a belief there.
+    pub policy: Option<PoolPolicy<'a>>,
+}
+
+/// ω (over the actions) of the strategy the pools are drawn under.
+pub(super) type PoolPolicy<'a> = &'a (dyn Fn(usize, &nalgebra::DMatrix<f64>) -> Vec<f64> + Sync);
+
+/// The pool policy's mass of each (state, action) of the layer, in
+/// (state, action) order: reach(s) · ω(s, a), ω looked up by the state's
+/// first particle (all of a state's particles share its region).
+fn on_policy_weights<const N: usize>(
+    omega: PoolPolicy<'_>,
+    dp: usize,
+    layer: &[LayerState<N>],
+    reach: &[f64],
+    actions: usize,
+) -> Vec<f64> {
+    let mut w = Vec::with_capacity(layer.len() * actions);
+    for (s, ls) in layer.iter().enumerate() {
+        let r = reach.get(s).copied().unwrap_or(0.0);
+        let o = ls
+            .particles
+            .first()
+            .map(|p| omega(dp, &to_dynamic(&p.cov)))
+            .unwrap_or_default();
+        w.extend((0..actions).map(|a| r * o.get(a).copied().unwrap_or(0.0)));
+    }
+    w
+}
+
+/// The next layer's reach under the policy from this layer's `states` and
+/// their (state, action) masses `w`.
+fn next_reach(states: &[State], w: &[f64], next_offset: usize, next_len: usize) -> Vec<f64> {
+    let mut reach = vec![0.0; next_len];
+    let actions = if states.is_empty() {
+        1
+    } else {
+        w.len() / states.len()
+    };
+    for (s, st) in states.iter().enumerate() {
+        for (a, ch) in st.choices.iter().enumerate() {
+            let m = w.get(s * actions + a).copied().unwrap_or(0.0);
+            if m <= 0.0 {
+                continue;
+            }
+            for t in &ch.transitions {
+                if let crate::mdp::Next::State(j) = t.next
+                    && let Some(x) = (j as usize)
+                        .checked_sub(next_offset)
+                        .and_then(|k| reach.get_mut(k))
+                {
+                    *x += m * t.probability;
+                }
+            }
+        }
+    }
+    reach
+}
+
+/// A reservoir key for weighted sampling without replacement (Efraimidis and
+/// Spirakis, exponential race): E / w with E = −ln(1 − u) from the arrival's
+/// own key, smallest first. Weight-0 arrivals sort after every weighted one,
+/// so a region that only the policy's excluded actions reach keeps a pool.
+fn weighted_key(key: u64, w: f64) -> u64 {
+    let u = (key >> 11) as f64 * (1.0 / (1u64 << 53) as f64);
+    if w > 0.0 && w.is_finite() {
+        // A positive float's bits are monotone in its value; the top bit stays clear.
+        ((-(1.0 - u).ln()) / w).to_bits() >> 1
+    } else {
+        (1 << 63) | (key >> 1)
+    }
 }
 
 pub(super) fn build<const N: usize>(
@@ -271,6 +344,10 @@ pub(super) fn build<const N: usize>(
     }];
     let mut states: Vec<State> = Vec::new();
     let (mut total_segments, mut total_steps) = (0u64, 0u64);
+    let policy = given.and_then(|g| g.policy);
+    // With a pool policy: the probability that it brings a belief to each
+    // state of the current layer (under this build's own transitions).
+    let mut reach: Vec<f64> = vec![1.0];
 
     for dp in 0..legs {
         if let Classifier::Bins { bins, .. } = &classifier {
@@ -465,12 +542,26 @@ pub(super) fn build<const N: usize>(
             });
         }
 
-        // The next pool: a bottom-k reservoir per region.
+        // The next pool: a bottom-k reservoir per region; with a pool policy,
+        // weighted by the policy's mass of the arrival's (state, action).
+        let weights = policy.map(|omega| {
+            let w = on_policy_weights(omega, dp, &layer, &reach, deltas.len());
+            reach = next_reach(
+                &states[states.len() - layer.len()..],
+                &w,
+                next_offset,
+                region_index.len(),
+            );
+            w
+        });
         let mut buckets: Vec<Vec<(u64, Belief<N>)>> = vec![Vec::new(); region_index.len()];
-        for (r, regions) in results.iter().zip(&arrival_regions) {
+        for (i, (r, regions)) in results.iter().zip(&arrival_regions).enumerate() {
+            // Chunks are in (state, action, chunk) order.
+            let w = weights.as_ref().map(|w| w[i / per_choice]);
             for (a, reg) in r.arrivals.iter().zip(regions) {
                 if let Some(&j) = region_index.get(reg) {
-                    buckets[j as usize - next_offset].push((a.key, a.belief));
+                    let k = w.map_or(a.key, |w| weighted_key(a.key, w));
+                    buckets[j as usize - next_offset].push((k, a.belief));
                 }
             }
         }
@@ -528,4 +619,39 @@ pub(super) fn build<const N: usize>(
         total_steps,
         splits: given.map(|g| g.splits.to_vec()).unwrap_or_default(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn weighted_keys_sample_in_proportion_to_the_weights() {
+        // Bottom-1 of an item of weight 1 and one of weight 3: the heavy one
+        // is kept with probability 3/4 (exponential race).
+        let trials = 20_000u64;
+        let heavy = (0..trials)
+            .filter(|&i| weighted_key(key(2 * i + 1), 3.0) < weighted_key(key(2 * i), 1.0))
+            .count() as f64
+            / trials as f64;
+        // Binomial 4σ at 20 000 draws: ±0.012.
+        assert!((heavy - 0.75).abs() < 0.012, "{heavy}");
+        // Weight 0 (an action the policy never takes) sorts after any
+        // weighted arrival, however small its weight.
+        for i in 0..1000 {
+            assert!(weighted_key(key(i), 1e-12) < weighted_key(key(i + 7), 0.0));
+        }
+    }
+
+    #[test]
+    fn reach_flows_through_the_policys_mass() {
+        use crate::mdp::tests::toy;
+        let mdp = toy();
+        // The root (one state, two actions): ω = (0.25, 0.75), reach 1.
+        let w = vec![0.25, 0.75];
+        let reach = next_reach(&mdp.states[..1], &w, 1, 2);
+        // Action 0 goes to state 1 w.p. 0.9, action 1 to state 2 w.p. 0.7.
+        assert!((reach[0] - 0.25 * 0.9).abs() < 1e-15);
+        assert!((reach[1] - 0.75 * 0.7).abs() < 1e-15);
+    }
 }

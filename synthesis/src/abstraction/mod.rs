@@ -102,6 +102,10 @@ pub enum AbstractionError {
     TooManyStates,
     #[error("splitting: the given bins have {bins} decision points, the scenario {legs} legs")]
     SplitBins { bins: usize, legs: usize },
+    #[error(
+        "--pool-policy: the strategy must come from a Method 2 (discretized) synthesis of this scenario, with its bins per leg and its thresholds"
+    )]
+    PoolPolicy,
 }
 
 /// Settings of one abstraction run.
@@ -301,7 +305,55 @@ pub fn build_split(
             legs: scenario.num_legs(),
         });
     }
-    let given = layers::Given { bins, splits };
+    let given = layers::Given {
+        bins,
+        splits,
+        policy: None,
+    };
+    with_dim!(scenario.dim, N => {
+        let cs = CompiledScenario::<N>::new(scenario);
+        layers::build::<N>(scenario, &cs, params, None, &[], Some(&given), progress)
+    })
+}
+
+/// [`build`] with pools drawn on-policy (docs/MODEL.md §7.3, `etp synthesize
+/// --pool-policy`): on `strategy`'s bins and splits, the pool of each region
+/// is sampled from the arrivals weighted by the probability that `strategy`
+/// brings a belief there (its ω times its reach of the source state), so the
+/// beliefs lumped in a region are the ones this strategy produces. Every
+/// region reached keeps a pool (unweighted where the strategy never goes).
+pub fn build_on_policy(
+    scenario: &Scenario,
+    params: &AbstractionParams,
+    strategy: &etp_shared::strategy::Strategy,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Mdp, AbstractionError> {
+    check_params(scenario, params)?;
+    let bins = match (&strategy.discretization, params.method) {
+        (Some(b), Method::Discretized) => b,
+        _ => return Err(AbstractionError::PoolPolicy),
+    };
+    if bins.decision_points.len() != scenario.num_legs() || strategy.deltas != scenario.deltas {
+        return Err(AbstractionError::PoolPolicy);
+    }
+    let omega = |dp: usize, cov: &nalgebra::DMatrix<f64>| -> Vec<f64> {
+        match strategy.omega(dp, cov) {
+            etp_shared::strategy::OmegaChoice::Exact(w)
+            | etp_shared::strategy::OmegaChoice::Nearest(w) => w.to_vec(),
+            etp_shared::strategy::OmegaChoice::FullKf(i) => {
+                let mut w = vec![0.0; strategy.deltas.len()];
+                if let Some(x) = w.get_mut(i) {
+                    *x = 1.0;
+                }
+                w
+            }
+        }
+    };
+    let given = layers::Given {
+        bins,
+        splits: &strategy.splits,
+        policy: Some(&omega),
+    };
     with_dim!(scenario.dim, N => {
         let cs = CompiledScenario::<N>::new(scenario);
         layers::build::<N>(scenario, &cs, params, None, &[], Some(&given), progress)
