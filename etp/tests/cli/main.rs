@@ -11,6 +11,7 @@ mod integrity;
 mod logs;
 mod memory;
 mod pipeline;
+mod pool_policy;
 mod radio;
 mod readme;
 mod replay;

@@ -1,0 +1,113 @@
+//! On-policy pools (docs/MODEL.md §7.3) through the real binary: `etp
+//! synthesize --pool-policy STRATEGY.json` rebuilds on the strategy's bins,
+//! deterministically, and a strategy selected on it carries those bins; the
+//! flag is refused, naming it and writing nothing, with splitting or with a
+//! strategy of another scenario.
+
+use super::{Scratch, fails_with, ok_json, s};
+use serde_json::Value;
+
+fn read(path: &std::path::Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).expect("read")).expect("json")
+}
+
+fn on_policy(policy: &std::path::Path, out: &std::path::Path) -> Value {
+    ok_json(&[
+        "synthesize",
+        "open-2d",
+        "--pool-policy",
+        s(policy),
+        "--samples",
+        "1000",
+        "--holdout-samples",
+        "1000",
+        "--seed",
+        "3",
+        "--no-kf-baseline",
+        "--aggregation-episodes",
+        "0",
+        "-o",
+        s(out),
+        "--json",
+    ])
+}
+
+#[test]
+fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_fit() {
+    let dir = Scratch::new("pool-policy");
+    let base = dir.path("open");
+    super::certified::synthesize_open(&base);
+    let policy = base.join("policy.json");
+    ok_json(&[
+        "strategy",
+        s(&base),
+        "--min-target",
+        "0.9",
+        "--aggregation-check",
+        "0",
+        "-o",
+        s(&policy),
+        "--json",
+    ]);
+
+    let (a, b) = (dir.path("op-a"), dir.path("op-b"));
+    let report = on_policy(&policy, &a);
+    assert!(
+        report["mdp"]["states"].as_u64().unwrap_or(0) > 0,
+        "{report}"
+    );
+    on_policy(&policy, &b);
+    // Weighted reservoirs do not depend on threads or order: the same bits.
+    let bytes = |d: &std::path::Path| std::fs::read(d.join("mdp.bin")).expect("mdp.bin");
+    assert_eq!(bytes(&a), bytes(&b), "two on-policy builds differ");
+    // The pools moved: not the unweighted build of the same bins.
+    assert_ne!(bytes(&a), bytes(&base), "the policy changed nothing");
+
+    // A strategy selected on it classifies with the conditioning strategy's bins.
+    let again = a.join("s.json");
+    ok_json(&[
+        "strategy",
+        s(&a),
+        "--min-target",
+        "0.9",
+        "--aggregation-check",
+        "0",
+        "-o",
+        s(&again),
+        "--json",
+    ]);
+    assert_eq!(
+        read(&again)["discretization"],
+        read(&policy)["discretization"]
+    );
+
+    // Refused, naming the flag, nothing written.
+    let split = dir.path("op-split");
+    fails_with(
+        &[
+            "synthesize",
+            "open-2d",
+            "--pool-policy",
+            s(&policy),
+            "--split-budget",
+            "10",
+            "-o",
+            s(&split),
+        ],
+        &["--pool-policy", "--split-budget"],
+    );
+    assert!(!split.join("mdp.bin").exists());
+    let other = dir.path("op-other");
+    fails_with(
+        &[
+            "synthesize",
+            "winding-2d",
+            "--pool-policy",
+            s(&policy),
+            "-o",
+            s(&other),
+        ],
+        &["--pool-policy", "not a strategy of winding-2d"],
+    );
+    assert!(!other.join("mdp.bin").exists());
+}
