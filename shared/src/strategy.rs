@@ -420,10 +420,15 @@ impl Strategy {
     /// distance in bins, first in file order on ties); with no state at `dp`
     /// at all, the full Kalman filter (smallest δ) — the safe choice.
     pub fn omega(&self, dp: usize, cov: &DMatrix<f64>) -> OmegaChoice<'_> {
-        let region = self.region(dp, cov);
+        self.omega_of_region(dp, &self.region(dp, cov))
+    }
+
+    /// ω of a region at decision point `dp` (of this strategy's bins and
+    /// splits), looked up as [`Self::omega`] does.
+    pub fn omega_of_region(&self, dp: usize, region: &Region) -> OmegaChoice<'_> {
         let mut best: Option<(u64, &StrategyState)> = None;
         for st in self.states.iter().filter(|s| s.decision_point == dp) {
-            let d = region_distance(&st.region, &region);
+            let d = region_distance(&st.region, region);
             if d == 0 {
                 return OmegaChoice::Exact(&st.omega);
             }

@@ -20,9 +20,10 @@ use serde_json::json;
 use std::path::PathBuf;
 
 mod certified;
+mod evaluate;
 
 #[derive(Debug, clap::Args)]
-#[command(group(ArgGroup::new("request").required(true).args(["min_target", "max_energy", "vertex"])))]
+#[command(group(ArgGroup::new("request").required(true).args(["min_target", "max_energy", "vertex", "evaluate"])))]
 pub struct Args {
     /// Output directory of `etp synthesize` (holds mdp.bin and front.json).
     pub dir: PathBuf,
@@ -38,6 +39,11 @@ pub struct Args {
     /// Vertex K of the front (0 = least energy; see front.json).
     #[arg(long, value_name = "K")]
     pub vertex: Option<usize>,
+    /// The strategy of this file (same ω, same states) predicted again on
+    /// DIR's MDP, e.g. one built with `etp synthesize --pool-policy FILE`
+    /// (its own beliefs in the pools: no aggregation error, docs/MODEL.md §7.3).
+    #[arg(long, value_name = "STRATEGY.json")]
+    pub evaluate: Option<PathBuf>,
     /// Where to write the strategy (default DIR/strategy.json).
     #[arg(short = 'o', long = "out", alias = "output")]
     pub output: Option<PathBuf>,
@@ -89,7 +95,42 @@ fn objectives_json(o: &Objectives) -> serde_json::Value {
     json!({"p_target": o.p_target, "p_collision": o.p_collision, "energy_mean": o.energy})
 }
 
+/// `--evaluate`: the given strategy predicted on DIR's MDP.
+fn evaluate_elsewhere_chosen(a: &Args, path: &std::path::Path) -> Result<()> {
+    if a.confidence.is_some() && a.refine_gap.is_some() {
+        bail!("--evaluate takes no --refine-gap (the strategy is given)");
+    }
+    let level = match a.confidence {
+        Some(c) if !(c > 0.0 && c < 1.0) => {
+            bail!("--confidence must lie strictly between 0 and 1, got {c}")
+        }
+        Some(c) => c,
+        None => certified::DEFAULT_LEVEL,
+    };
+    if a.cover_aggregation && a.aggregation_check == 0 {
+        bail!("--cover-aggregation needs the aggregation check (--aggregation-check N > 0)");
+    }
+    let (mdp, _) = read_mdp(&a.dir)?;
+    let front = read_front(&a.dir, &mdp)?;
+    let output = a
+        .output
+        .clone()
+        .unwrap_or_else(|| a.dir.join("strategy.json"));
+    evaluate::run(
+        a,
+        path,
+        &mdp,
+        front.cost_model,
+        front.epsilon,
+        &output,
+        level,
+    )
+}
+
 pub fn run(a: Args) -> Result<()> {
+    if let Some(path) = &a.evaluate {
+        return evaluate_elsewhere_chosen(&a, path);
+    }
     let request = match (a.min_target, a.max_energy, a.vertex) {
         (Some(p), None, None) => Request::MinTarget {
             min_target: probability("--min-target", p)?,

@@ -2,7 +2,8 @@
 //! synthesize --pool-policy STRATEGY.json` rebuilds on the strategy's bins,
 //! deterministically, and a strategy selected on it carries those bins; the
 //! flag is refused, naming it and writing nothing, with splitting or with a
-//! strategy of another scenario.
+//! strategy of another scenario. `etp strategy --evaluate` predicts the
+//! conditioning strategy itself on those pools.
 
 use super::{Scratch, fails_with, ok_json, s};
 use serde_json::Value;
@@ -79,6 +80,65 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
     assert_eq!(
         read(&again)["discretization"],
         read(&policy)["discretization"]
+    );
+
+    // --evaluate: the conditioning strategy itself, predicted on its own
+    // pools: the same ω and states (it behaves exactly as before), new
+    // predictions with the cross-fit's own sampling error.
+    let evaluated = a.join("evaluated.json");
+    let v = ok_json(&[
+        "strategy",
+        s(&a),
+        "--evaluate",
+        s(&policy),
+        "--aggregation-check",
+        "0",
+        "-o",
+        s(&evaluated),
+        "--json",
+    ]);
+    super::schemas::validate(&a, "strategy", &v).expect("strategy --json matches its schema");
+    let (e, p) = (read(&evaluated), read(&policy));
+    for field in ["states", "discretization", "deltas", "scenario_hash"] {
+        assert_eq!(e[field], p[field], "{field}");
+    }
+    assert!(
+        e["label"].as_str().unwrap_or("").contains("evaluated on"),
+        "{e}"
+    );
+    assert_ne!(e["crossfit"], p["crossfit"], "predicted on the other MDP");
+    assert!(e["crossfit_ci95"]["p_target"].as_f64().unwrap_or(0.0) > 0.0);
+    let sim = |f: &std::path::Path| {
+        ok_json(&["validate", s(f), "--episodes", "300", "--json"])["p_target"].clone()
+    };
+    assert_eq!(
+        sim(&evaluated),
+        sim(&policy),
+        "the same strategy, the same episodes"
+    );
+    let not_a_strategy = a.join("mdp.bin");
+    fails_with(
+        &[
+            "strategy",
+            s(&a),
+            "--evaluate",
+            s(&not_a_strategy),
+            "-o",
+            s(&a.join("x.json")),
+        ],
+        &["--evaluate"],
+    );
+    assert!(!a.join("x.json").exists());
+    fails_with(
+        &[
+            "strategy",
+            s(&a),
+            "--evaluate",
+            s(&policy),
+            "--min-target",
+            "0.9",
+        ],
+        &["--evaluate", "--min-target"],
     );
 
     // Refused, naming the flag, nothing written.
