@@ -2,7 +2,8 @@
 //! synthesize --pool-policy STRATEGY.json` rebuilds on the strategy's bins,
 //! deterministically, and a strategy selected on it carries those bins; the
 //! flag is refused, naming it and writing nothing, with splitting or with a
-//! strategy of another scenario. `etp strategy --evaluate` predicts the
+//! strategy of another scenario. `--carry-state` builds as deterministically
+//! and is refused without `--pool-policy`. `etp strategy --evaluate` predicts the
 //! conditioning strategy itself on those pools.
 
 use super::{Scratch, fails_with, ok_json, s};
@@ -12,8 +13,8 @@ fn read(path: &std::path::Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).expect("read")).expect("json")
 }
 
-fn on_policy(policy: &std::path::Path, out: &std::path::Path) -> Value {
-    ok_json(&[
+fn on_policy(policy: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> Value {
+    let mut args = vec![
         "synthesize",
         "open-2d",
         "--pool-policy",
@@ -30,7 +31,9 @@ fn on_policy(policy: &std::path::Path, out: &std::path::Path) -> Value {
         "-o",
         s(out),
         "--json",
-    ])
+    ];
+    args.extend_from_slice(extra);
+    ok_json(&args)
 }
 
 #[test]
@@ -52,17 +55,30 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
     ]);
 
     let (a, b) = (dir.path("op-a"), dir.path("op-b"));
-    let report = on_policy(&policy, &a);
+    let report = on_policy(&policy, &a, &[]);
     assert!(
         report["mdp"]["states"].as_u64().unwrap_or(0) > 0,
         "{report}"
     );
-    on_policy(&policy, &b);
+    on_policy(&policy, &b, &[]);
     // Weighted reservoirs do not depend on threads or order: the same bits.
     let bytes = |d: &std::path::Path| std::fs::read(d.join("mdp.bin")).expect("mdp.bin");
     assert_eq!(bytes(&a), bytes(&b), "two on-policy builds differ");
     // The pools moved: not the unweighted build of the same bins.
     assert_ne!(bytes(&a), bytes(&base), "the policy changed nothing");
+    // --carry-state: segments start from the true state their particle
+    // arrived with; as deterministic, and not the same pools' build.
+    let (ca, cb) = (dir.path("carry-a"), dir.path("carry-b"));
+    on_policy(&policy, &ca, &["--carry-state"]);
+    on_policy(&policy, &cb, &["--carry-state"]);
+    assert_eq!(bytes(&ca), bytes(&cb), "two carried-state builds differ");
+    assert_ne!(bytes(&ca), bytes(&a), "the carried state changed nothing");
+    let lone = dir.path("carry-alone");
+    fails_with(
+        &["synthesize", "open-2d", "--carry-state", "-o", s(&lone)],
+        &["--pool-policy"],
+    );
+    assert!(!lone.join("mdp.bin").exists());
 
     // A strategy selected on it classifies with the conditioning strategy's bins.
     let again = a.join("s.json");

@@ -21,7 +21,7 @@ use etp_shared::discretization::{
     DecisionPointBins, Discretization, Region, RegionSplit, WorkspaceMarginal, refine_region,
 };
 use etp_shared::episode::{AgentState, CompiledScenario, LegEnd, LegMode};
-use etp_shared::etkf::{Belief, Matrix, Threshold, sample_belief};
+use etp_shared::etkf::{Belief, Matrix, Threshold, Vector, sample_belief};
 use etp_shared::linalg::to_dynamic;
 use etp_shared::rng::{mix64, stream_rng, streams};
 use etp_shared::scenario::Scenario;
@@ -82,7 +82,16 @@ fn tasks_of(states: usize, actions: usize, samples: u32, holdout: bool) -> Vec<T
 /// A state of the current layer: its region and its pool particles.
 struct LayerState<const N: usize> {
     region: Region,
-    particles: Vec<Belief<N>>,
+    particles: Vec<Particle<N>>,
+}
+
+/// A pool particle: a belief that arrived, and with `--carry-state` the true
+/// state it arrived with (docs/MODEL.md §7.3). Without a carried state a
+/// segment draws its true state from N(x̂, P).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Particle<const N: usize> {
+    belief: Belief<N>,
+    x: Option<Vector<N>>,
 }
 
 /// Simulate the segments of one task.
@@ -91,7 +100,7 @@ fn run_task<const N: usize>(
     cs: &CompiledScenario<N>,
     dp: usize,
     last: bool,
-    particles: &[Belief<N>],
+    particles: &[Particle<N>],
     mode: &LegMode<N>,
     seed: u64,
     t: Task,
@@ -114,9 +123,14 @@ fn run_task<const N: usize>(
         } else {
             particles[rng.random_range(0..particles.len())]
         };
+        // A carried true state replaces the Gaussian draw (and its random
+        // numbers: the segment's stream moves on from there).
         let mut st = AgentState {
-            x: sample_belief(&start, &mut rng),
-            belief: start,
+            x: match start.x {
+                Some(x) => x,
+                None => sample_belief(&start.belief, &mut rng),
+            },
+            belief: start.belief,
         };
         // The segment's own radio channels (docs/MODEL.md §8): transitions
         // and energy include the loss; an ideal radio draws nothing.
@@ -136,6 +150,7 @@ fn run_task<const N: usize>(
             LegEnd::Terminated => c.arrivals.push(Arrival {
                 key: key(id),
                 belief: st.belief,
+                x: st.x,
             }),
         }
     }
@@ -181,6 +196,9 @@ pub(super) struct Given<'a> {
     /// belief (decision point, covariance) over the actions, and the pools
     /// weighted by the probability that this strategy brings a belief there.
     pub policy: Option<PoolPolicy<'a>>,
+    /// `--carry-state`: pool particles keep the true state they arrived with,
+    /// and segments start from it instead of a draw from N(x̂, P).
+    pub carry_state: bool,
 }
 
 /// ω (over the actions) of the strategy the pools are drawn under.
@@ -202,7 +220,7 @@ fn on_policy_weights<const N: usize>(
         let o = ls
             .particles
             .first()
-            .map(|p| omega(dp, &to_dynamic(&p.cov)))
+            .map(|p| omega(dp, &to_dynamic(&p.belief.cov)))
             .unwrap_or_default();
         w.extend((0..actions).map(|a| r * o.get(a).copied().unwrap_or(0.0)));
     }
@@ -340,7 +358,10 @@ pub(super) fn build<const N: usize>(
     let mut dp_bins: Vec<DecisionPointBins> = Vec::with_capacity(legs);
     let mut layer = vec![LayerState {
         region: classifier.classify(&cs.initial.cov),
-        particles: vec![cs.initial],
+        particles: vec![Particle {
+            belief: cs.initial,
+            x: None,
+        }],
     }];
     let mut states: Vec<State> = Vec::new();
     let (mut total_segments, mut total_steps) = (0u64, 0u64);
@@ -554,14 +575,19 @@ pub(super) fn build<const N: usize>(
             );
             w
         });
-        let mut buckets: Vec<Vec<(u64, Belief<N>)>> = vec![Vec::new(); region_index.len()];
+        let carry = given.is_some_and(|g| g.carry_state);
+        let mut buckets: Vec<Vec<(u64, Particle<N>)>> = vec![Vec::new(); region_index.len()];
         for (i, (r, regions)) in results.iter().zip(&arrival_regions).enumerate() {
             // Chunks are in (state, action, chunk) order.
             let w = weights.as_ref().map(|w| w[i / per_choice]);
             for (a, reg) in r.arrivals.iter().zip(regions) {
                 if let Some(&j) = region_index.get(reg) {
                     let k = w.map_or(a.key, |w| weighted_key(a.key, w));
-                    buckets[j as usize - next_offset].push((k, a.belief));
+                    let p = Particle {
+                        belief: a.belief,
+                        x: carry.then_some(a.x),
+                    };
+                    buckets[j as usize - next_offset].push((k, p));
                 }
             }
         }
@@ -624,6 +650,51 @@ pub(super) fn build<const N: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_carried_true_state_is_where_the_segment_starts() {
+        // `--carry-state`: the segment starts from the particle's true state,
+        // not from a draw of N(x̂, P). Carried into the middle of the largest
+        // obstacle, every segment collides; drawn around the initial belief
+        // (clear of the obstacles), few do.
+        let s = etp_shared::scenario::Scenario::builtin("winding-2d").expect("built-in");
+        let cs = CompiledScenario::<2>::new(&s);
+        let volume = |o: &&etp_shared::scenario::Obstacle| {
+            (o.bounds.max[0] - o.bounds.min[0]) * (o.bounds.max[1] - o.bounds.min[1])
+        };
+        let big = s
+            .obstacles
+            .iter()
+            .max_by(|a, b| volume(a).total_cmp(&volume(b)))
+            .expect("winding-2d has obstacles");
+        let centre = Vector::<2>::new(
+            0.5 * (big.bounds.min[0] + big.bounds.max[0]),
+            0.5 * (big.bounds.min[1] + big.bounds.max[1]),
+        );
+        assert!(cs.collision(&centre).is_some());
+        let mode = LegMode::EventTriggered(Threshold::new(s.deltas[0]));
+        let task = Task {
+            state: 0,
+            action: 0,
+            lo: 0,
+            hi: 64,
+            holdout: false,
+        };
+        let run = |x: Option<Vector<2>>| {
+            let p = Particle {
+                belief: cs.initial,
+                x,
+            };
+            run_task(&cs, 0, false, &[p], &mode, 11, task)
+        };
+        assert_eq!(run(Some(centre)).collisions, 64);
+        let drawn = run(None);
+        assert!(drawn.collisions < 8, "{}", drawn.collisions);
+        // Arrivals record the true state they arrived with: clear of every
+        // obstacle (a segment that entered one ended there).
+        assert!(!drawn.arrivals.is_empty());
+        assert!(drawn.arrivals.iter().all(|a| cs.collision(&a.x).is_none()));
+    }
 
     #[test]
     fn weighted_keys_sample_in_proportion_to_the_weights() {

@@ -309,6 +309,7 @@ pub fn build_split(
         bins,
         splits,
         policy: None,
+        carry_state: false,
     };
     with_dim!(scenario.dim, N => {
         let cs = CompiledScenario::<N>::new(scenario);
@@ -322,10 +323,13 @@ pub fn build_split(
 /// brings a belief there (its ω times its reach of the source state), so the
 /// beliefs lumped in a region are the ones this strategy produces. Every
 /// region reached keeps a pool (unweighted where the strategy never goes).
+/// With `carry_state` the particles keep the true state they arrived with
+/// and segments start from it (no N(x̂, P) draw after the first leg).
 pub fn build_on_policy(
     scenario: &Scenario,
     params: &AbstractionParams,
     strategy: &etp_shared::strategy::Strategy,
+    carry_state: bool,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Mdp, AbstractionError> {
     check_params(scenario, params)?;
@@ -353,6 +357,7 @@ pub fn build_on_policy(
         bins,
         splits: &strategy.splits,
         policy: Some(&omega),
+        carry_state,
     };
     with_dim!(scenario.dim, N => {
         let cs = CompiledScenario::<N>::new(scenario);

@@ -7,7 +7,6 @@
 //! and a region keeps the `cap` arrivals with the smallest keys. The result does
 //! not depend on the order in which arrivals are merged, hence not on threads.
 
-use etp_shared::etkf::Belief;
 use etp_shared::rng::mix64;
 
 /// Salt separating reservoir keys from the segment's random stream.
@@ -20,10 +19,7 @@ pub(super) fn key(id: u64) -> u64 {
 }
 
 /// Keep the `cap` items with the smallest keys, in key order.
-pub(super) fn bottom_k<const N: usize>(
-    mut items: Vec<(u64, Belief<N>)>,
-    cap: usize,
-) -> Vec<Belief<N>> {
+pub(super) fn bottom_k<T>(mut items: Vec<(u64, T)>, cap: usize) -> Vec<T> {
     let cap = cap.max(1);
     if items.len() > cap {
         items.select_nth_unstable_by_key(cap - 1, |x| x.0);
@@ -37,6 +33,7 @@ pub(super) fn bottom_k<const N: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use etp_shared::etkf::Belief;
     use etp_shared::etkf::{Matrix, Vector};
 
     fn b(v: f64) -> Belief<1> {

@@ -2,15 +2,17 @@
 //! [`Choice`] with probabilities, Wilson 95 % intervals and both cost models.
 
 use crate::mdp::{Choice, Holdout, Next, Transition};
-use etp_shared::etkf::Belief;
+use etp_shared::etkf::{Belief, Vector};
 use etp_shared::stats::wilson_interval;
 use std::collections::BTreeMap;
 
-/// A belief that reached the next decision point, with its reservoir key.
+/// A belief that reached the next decision point, with its reservoir key and
+/// the true state it arrived with.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Arrival<const N: usize> {
     pub key: u64,
     pub belief: Belief<N>,
+    pub x: Vector<N>,
 }
 
 /// Sums over segments of their length and energy (both cost models, with
