@@ -13,7 +13,7 @@
 //! ```
 
 use super::bounds::{arrival_range, bins_from, magnitude_range, workspace_ranges};
-use super::pool::{bottom_k, key};
+use super::pool::{bottom_k, key, weighted_index, weighted_pool};
 use super::tally::{Arrival, ChoiceTally, ChunkTally};
 use super::{AbstractionError, AbstractionParams, Descriptor, RangeRule, resolve_descriptor};
 use crate::mdp::{KfConvergenceParams, Mdp, Method, State};
@@ -79,10 +79,12 @@ fn tasks_of(states: usize, actions: usize, samples: u32, holdout: bool) -> Vec<T
         .collect()
 }
 
-/// A state of the current layer: its region and its pool particles.
+/// A state of the current layer: its region and its pool particles (drawn
+/// in proportion to `cumulative` where an on-policy pool kept weights).
 struct LayerState<const N: usize> {
     region: Region,
     particles: Vec<Particle<N>>,
+    cumulative: Option<Vec<f64>>,
 }
 
 /// A pool particle: a belief that arrived, and with `--carry-state` the true
@@ -101,6 +103,7 @@ fn run_task<const N: usize>(
     dp: usize,
     last: bool,
     particles: &[Particle<N>],
+    cumulative: Option<&[f64]>,
     mode: &LegMode<N>,
     seed: u64,
     t: Task,
@@ -118,10 +121,10 @@ fn run_task<const N: usize>(
     for m in t.lo..t.hi {
         let id = segment_id(dp, t.state, t.action, m);
         let mut rng = stream_rng(seed, stream, id);
-        let start = if particles.len() == 1 {
-            particles[0]
-        } else {
-            particles[rng.random_range(0..particles.len())]
+        let start = match cumulative {
+            Some(c) => particles[weighted_index(c, rng.random::<f64>())],
+            None if particles.len() == 1 => particles[0],
+            None => particles[rng.random_range(0..particles.len())],
         };
         // A carried true state replaces the Gaussian draw (and its random
         // numbers: the segment's stream moves on from there).
@@ -256,20 +259,6 @@ fn next_reach(states: &[State], w: &[f64], next_offset: usize, next_len: usize) 
     reach
 }
 
-/// A reservoir key for weighted sampling without replacement (Efraimidis and
-/// Spirakis, exponential race): E / w with E = −ln(1 − u) from the arrival's
-/// own key, smallest first. Weight-0 arrivals sort after every weighted one,
-/// so a region that only the policy's excluded actions reach keeps a pool.
-fn weighted_key(key: u64, w: f64) -> u64 {
-    let u = (key >> 11) as f64 * (1.0 / (1u64 << 53) as f64);
-    if w > 0.0 && w.is_finite() {
-        // A positive float's bits are monotone in its value; the top bit stays clear.
-        ((-(1.0 - u).ln()) / w).to_bits() >> 1
-    } else {
-        (1 << 63) | (key >> 1)
-    }
-}
-
 pub(super) fn build<const N: usize>(
     scenario: &Scenario,
     cs: &CompiledScenario<N>,
@@ -362,6 +351,7 @@ pub(super) fn build<const N: usize>(
             belief: cs.initial,
             x: None,
         }],
+        cumulative: None,
     }];
     let mut states: Vec<State> = Vec::new();
     let (mut total_segments, mut total_steps) = (0u64, 0u64);
@@ -412,6 +402,7 @@ pub(super) fn build<const N: usize>(
                 dp,
                 last,
                 &layer[t.state].particles,
+                layer[t.state].cumulative.as_deref(),
                 &modes[t.action],
                 params.seed,
                 t,
@@ -576,29 +567,46 @@ pub(super) fn build<const N: usize>(
             w
         });
         let carry = given.is_some_and(|g| g.carry_state);
-        let mut buckets: Vec<Vec<(u64, Particle<N>)>> = vec![Vec::new(); region_index.len()];
+        // (reservoir key, the policy's mass of its source, particle).
+        type Bucket<const N: usize> = Vec<(u64, f64, Particle<N>)>;
+        let mut buckets: Vec<Bucket<N>> = vec![Vec::new(); region_index.len()];
         for (i, (r, regions)) in results.iter().zip(&arrival_regions).enumerate() {
             // Chunks are in (state, action, chunk) order.
-            let w = weights.as_ref().map(|w| w[i / per_choice]);
+            let w = weights.as_ref().map_or(1.0, |w| w[i / per_choice]);
             for (a, reg) in r.arrivals.iter().zip(regions) {
                 if let Some(&j) = region_index.get(reg) {
-                    let k = w.map_or(a.key, |w| weighted_key(a.key, w));
                     let p = Particle {
                         belief: a.belief,
                         x: carry.then_some(a.x),
                     };
-                    buckets[j as usize - next_offset].push((k, p));
+                    buckets[j as usize - next_offset].push((a.key, w, p));
                 }
             }
         }
         let regions: Vec<Region> = region_index.keys().map(|r| (*r).clone()).collect();
         drop(region_index);
+        let on_policy = weights.is_some();
         layer = regions
             .into_iter()
             .zip(buckets)
-            .map(|(region, items)| LayerState {
-                region,
-                particles: bottom_k(items, cap),
+            .map(|(region, items)| {
+                if on_policy {
+                    let pool = weighted_pool(items, cap);
+                    LayerState {
+                        region,
+                        particles: pool.particles,
+                        cumulative: pool.cumulative,
+                    }
+                } else {
+                    LayerState {
+                        region,
+                        particles: bottom_k(
+                            items.into_iter().map(|(k, _, p)| (k, p)).collect(),
+                            cap,
+                        ),
+                        cumulative: None,
+                    }
+                }
             })
             .collect();
         if let Some(c) = next_classifier {
@@ -685,7 +693,7 @@ mod tests {
                 belief: cs.initial,
                 x,
             };
-            run_task(&cs, 0, false, &[p], &mode, 11, task)
+            run_task(&cs, 0, false, &[p], None, &mode, 11, task)
         };
         assert_eq!(run(Some(centre)).collisions, 64);
         let drawn = run(None);
@@ -694,24 +702,6 @@ mod tests {
         // obstacle (a segment that entered one ended there).
         assert!(!drawn.arrivals.is_empty());
         assert!(drawn.arrivals.iter().all(|a| cs.collision(&a.x).is_none()));
-    }
-
-    #[test]
-    fn weighted_keys_sample_in_proportion_to_the_weights() {
-        // Bottom-1 of an item of weight 1 and one of weight 3: the heavy one
-        // is kept with probability 3/4 (exponential race).
-        let trials = 20_000u64;
-        let heavy = (0..trials)
-            .filter(|&i| weighted_key(key(2 * i + 1), 3.0) < weighted_key(key(2 * i), 1.0))
-            .count() as f64
-            / trials as f64;
-        // Binomial 4σ at 20 000 draws: ±0.012.
-        assert!((heavy - 0.75).abs() < 0.012, "{heavy}");
-        // Weight 0 (an action the policy never takes) sorts after any
-        // weighted arrival, however small its weight.
-        for i in 0..1000 {
-            assert!(weighted_key(key(i), 1e-12) < weighted_key(key(i + 7), 0.0));
-        }
     }
 
     #[test]
