@@ -109,7 +109,7 @@ pub fn run(a: Args) -> Result<()> {
         aggregation_alpha: 0.05,
         split: Default::default(),
         pool_policy: None,
-        carry_state: false,
+        no_carry_state: false,
     };
     let built = synthesize::build_mdp(&sargs)?;
     let front = write_front(&built.dir, &built.mdp, None, &text, None, false)?;

@@ -151,11 +151,11 @@ pub struct Args {
     /// Method 2 synthesis of the same scenario (`etp strategy … -o FILE`).
     #[arg(long, value_name = "STRATEGY.json")]
     pub pool_policy: Option<PathBuf>,
-    /// With --pool-policy: pool particles keep the true state they arrived
-    /// with, and each segment starts from it instead of a draw from N(x̂, P)
-    /// (docs/MODEL.md §7.3).
+    /// With --pool-policy: pool particles are beliefs only, and each segment
+    /// draws its true state from N(x̂, P) (by default they keep the true
+    /// state they arrived with: docs/MODEL.md §7.3). For comparison.
     #[arg(long, requires = "pool_policy")]
-    pub carry_state: bool,
+    pub no_carry_state: bool,
 }
 
 /// What [`build_mdp`] did, for the summary.
@@ -295,7 +295,7 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
     let started = Instant::now();
     let mdp = match &pool_policy {
         None => abstraction::build(&s, &p, &|k| pb.inc(k)),
-        Some(st) => abstraction::build_on_policy(&s, &p, st, a.carry_state, &|k| pb.inc(k)),
+        Some(st) => abstraction::build_on_policy(&s, &p, st, !a.no_carry_state, &|k| pb.inc(k)),
     }
     .context("building the abstraction")?;
     pb.finish_and_clear();

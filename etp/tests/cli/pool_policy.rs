@@ -2,8 +2,8 @@
 //! synthesize --pool-policy STRATEGY.json` rebuilds on the strategy's bins,
 //! deterministically, and a strategy selected on it carries those bins; the
 //! flag is refused, naming it and writing nothing, with splitting or with a
-//! strategy of another scenario. `--carry-state` builds as deterministically
-//! and is refused without `--pool-policy`. `etp strategy --evaluate` predicts the
+//! strategy of another scenario. `--no-carry-state` builds as
+//! deterministically and is refused without `--pool-policy`. `etp strategy --evaluate` predicts the
 //! conditioning strategy itself on those pools.
 
 use super::{Scratch, fails_with, ok_json, s};
@@ -66,16 +66,17 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
     assert_eq!(bytes(&a), bytes(&b), "two on-policy builds differ");
     // The pools moved: not the unweighted build of the same bins.
     assert_ne!(bytes(&a), bytes(&base), "the policy changed nothing");
-    // --carry-state: segments start from the true state their particle
-    // arrived with; as deterministic, and not the same pools' build.
+    // --no-carry-state: segments draw their true state from N(x̂, P) instead
+    // of starting from the one their particle arrived with; as
+    // deterministic, and not the same build.
     let (ca, cb) = (dir.path("carry-a"), dir.path("carry-b"));
-    on_policy(&policy, &ca, &["--carry-state"]);
-    on_policy(&policy, &cb, &["--carry-state"]);
+    on_policy(&policy, &ca, &["--no-carry-state"]);
+    on_policy(&policy, &cb, &["--no-carry-state"]);
     assert_eq!(bytes(&ca), bytes(&cb), "two carried-state builds differ");
     assert_ne!(bytes(&ca), bytes(&a), "the carried state changed nothing");
     let lone = dir.path("carry-alone");
     fails_with(
-        &["synthesize", "open-2d", "--carry-state", "-o", s(&lone)],
+        &["synthesize", "open-2d", "--no-carry-state", "-o", s(&lone)],
         &["--pool-policy"],
     );
     assert!(!lone.join("mdp.bin").exists());

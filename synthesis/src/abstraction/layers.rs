@@ -87,7 +87,7 @@ struct LayerState<const N: usize> {
     cumulative: Option<Vec<f64>>,
 }
 
-/// A pool particle: a belief that arrived, and with `--carry-state` the true
+/// A pool particle: a belief that arrived, and on-policy the true
 /// state it arrived with (docs/MODEL.md §7.3). Without a carried state a
 /// segment draws its true state from N(x̂, P).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -199,7 +199,7 @@ pub(super) struct Given<'a> {
     /// belief (decision point, covariance) over the actions, and the pools
     /// weighted by the probability that this strategy brings a belief there.
     pub policy: Option<PoolPolicy<'a>>,
-    /// `--carry-state`: pool particles keep the true state they arrived with,
+    /// On-policy pools (unless `--no-carry-state`): particles keep the true state they arrived with,
     /// and segments start from it instead of a draw from N(x̂, P).
     pub carry_state: bool,
 }
@@ -661,7 +661,7 @@ mod tests {
 
     #[test]
     fn a_carried_true_state_is_where_the_segment_starts() {
-        // `--carry-state`: the segment starts from the particle's true state,
+        // A carried state (on-policy pools): the segment starts from it,
         // not from a draw of N(x̂, P). Carried into the middle of the largest
         // obstacle, every segment collides; drawn around the initial belief
         // (clear of the obstacles), few do.
