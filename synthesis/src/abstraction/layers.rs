@@ -5,11 +5,13 @@
 //! for each decision point i:
 //!     S_i = regions occupied by pool_i
 //!     for each s in S_i, each δ in Δ:
-//!         draw M start beliefs from the pool_i particles in s; x ~ N(x̂, P)
+//!         draw M start particles from pool_i in s; x ~ N(x̂, P), or the
+//!             particle's carried true state (on-policy pools, MODEL §7.3)
 //!         simulate leg i → collision | arrival belief | (last leg) target / free
 //!     bins_{i+1} from the arrivals (nominal axes of their mean covariance)
 //!     T(s, δ, ·) = frequencies; C(s, δ) = mean transmissions × c_m
-//!     pool_{i+1} = per-region bottom-k reservoir of the arrivals
+//!     pool_{i+1} = per-region bottom-k reservoir of the arrivals (on-policy:
+//!         a sample in proportion to the policy's mass, pool.rs)
 //! ```
 
 use super::bounds::{arrival_range, bins_from, magnitude_range, workspace_ranges};
@@ -199,8 +201,9 @@ pub(super) struct Given<'a> {
     /// belief (decision point, covariance) over the actions, and the pools
     /// weighted by the probability that this strategy brings a belief there.
     pub policy: Option<PoolPolicy<'a>>,
-    /// On-policy pools (unless `--no-carry-state`): particles keep the true state they arrived with,
-    /// and segments start from it instead of a draw from N(x̂, P).
+    /// On-policy pools (unless `--no-carry-state`): particles keep the true
+    /// state they arrived with, and segments start from it instead of a
+    /// draw from N(x̂, P).
     pub carry_state: bool,
 }
 
@@ -656,63 +659,5 @@ pub(super) fn build<const N: usize>(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_carried_true_state_is_where_the_segment_starts() {
-        // A carried state (on-policy pools): the segment starts from it,
-        // not from a draw of N(x̂, P). Carried into the middle of the largest
-        // obstacle, every segment collides; drawn around the initial belief
-        // (clear of the obstacles), few do.
-        let s = etp_shared::scenario::Scenario::builtin("winding-2d").expect("built-in");
-        let cs = CompiledScenario::<2>::new(&s);
-        let volume = |o: &&etp_shared::scenario::Obstacle| {
-            (o.bounds.max[0] - o.bounds.min[0]) * (o.bounds.max[1] - o.bounds.min[1])
-        };
-        let big = s
-            .obstacles
-            .iter()
-            .max_by(|a, b| volume(a).total_cmp(&volume(b)))
-            .expect("winding-2d has obstacles");
-        let centre = Vector::<2>::new(
-            0.5 * (big.bounds.min[0] + big.bounds.max[0]),
-            0.5 * (big.bounds.min[1] + big.bounds.max[1]),
-        );
-        assert!(cs.collision(&centre).is_some());
-        let mode = LegMode::EventTriggered(Threshold::new(s.deltas[0]));
-        let task = Task {
-            state: 0,
-            action: 0,
-            lo: 0,
-            hi: 64,
-            holdout: false,
-        };
-        let run = |x: Option<Vector<2>>| {
-            let p = Particle {
-                belief: cs.initial,
-                x,
-            };
-            run_task(&cs, 0, false, &[p], None, &mode, 11, task)
-        };
-        assert_eq!(run(Some(centre)).collisions, 64);
-        let drawn = run(None);
-        assert!(drawn.collisions < 8, "{}", drawn.collisions);
-        // Arrivals record the true state they arrived with: clear of every
-        // obstacle (a segment that entered one ended there).
-        assert!(!drawn.arrivals.is_empty());
-        assert!(drawn.arrivals.iter().all(|a| cs.collision(&a.x).is_none()));
-    }
-
-    #[test]
-    fn reach_flows_through_the_policys_mass() {
-        use crate::mdp::tests::toy;
-        let mdp = toy();
-        // The root (one state, two actions): ω = (0.25, 0.75), reach 1.
-        let w = vec![0.25, 0.75];
-        let reach = next_reach(&mdp.states[..1], &w, 1, 2);
-        // Action 0 goes to state 1 w.p. 0.9, action 1 to state 2 w.p. 0.7.
-        assert!((reach[0] - 0.25 * 0.9).abs() < 1e-15);
-        assert!((reach[1] - 0.75 * 0.7).abs() < 1e-15);
-    }
-}
+#[path = "layers_tests.rs"]
+mod tests;
