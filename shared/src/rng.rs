@@ -13,6 +13,13 @@ pub const fn mix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// A uniform number on [0, 1) from the top 53 bits of a hash (exact: a
+/// power-of-two scale), for draws that come from a key rather than a stream.
+#[inline]
+pub fn unit_f64(h: u64) -> f64 {
+    (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
 /// The generator for item `index` of stream `stream` under `seed`.
 ///
 /// Streams separate independent uses of one seed (e.g. simulation vs. a

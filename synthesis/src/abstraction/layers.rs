@@ -593,22 +593,17 @@ pub(super) fn build<const N: usize>(
             .into_iter()
             .zip(buckets)
             .map(|(region, items)| {
-                if on_policy {
+                let (particles, cumulative) = if on_policy {
                     let pool = weighted_pool(items, cap);
-                    LayerState {
-                        region,
-                        particles: pool.particles,
-                        cumulative: pool.cumulative,
-                    }
+                    (pool.particles, pool.cumulative)
                 } else {
-                    LayerState {
-                        region,
-                        particles: bottom_k(
-                            items.into_iter().map(|(k, _, p)| (k, p)).collect(),
-                            cap,
-                        ),
-                        cumulative: None,
-                    }
+                    let keyed = items.into_iter().map(|(k, _, p)| (k, p)).collect();
+                    (bottom_k(keyed, cap), None)
+                };
+                LayerState {
+                    region,
+                    particles,
+                    cumulative,
                 }
             })
             .collect();

@@ -9,7 +9,7 @@
 //!
 //! Pools drawn on-policy (`--pool-policy`) are [`weighted_pool`]s instead.
 
-use etp_shared::rng::mix64;
+use etp_shared::rng::{mix64, unit_f64};
 
 /// Salt separating reservoir keys from the segment's random stream.
 const KEY_SALT: u64 = 0x5EED_0FB0_770A_1E00;
@@ -79,7 +79,7 @@ pub(super) fn weighted_pool<T: Clone>(items: Vec<(u64, f64, T)>, cap: usize) -> 
             cumulative: Some(cumulative),
         };
     }
-    let u0 = (mix64(positive[0].0 ^ KEY_SALT) >> 11) as f64 * (1.0 / (1u64 << 53) as f64);
+    let u0 = unit_f64(mix64(positive[0].0 ^ KEY_SALT));
     let step = total / cap as f64;
     let mut particles = Vec::with_capacity(cap);
     let mut i = 0;
@@ -199,7 +199,7 @@ mod tests {
         let draws = 200_000;
         let heavy = (0..draws)
             .filter(|&i| {
-                let u = (mix64(i) >> 11) as f64 * (1.0 / (1u64 << 53) as f64);
+                let u = unit_f64(mix64(i));
                 p.particles[weighted_index(c, u)] == 1
             })
             .count() as f64

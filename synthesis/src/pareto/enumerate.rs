@@ -102,7 +102,7 @@ fn lifted(f: [f64; 3], index: usize) -> [f64; 3] {
     let mut out = f;
     for (k, x) in out.iter_mut().enumerate() {
         let h = etp_shared::rng::mix64((index as u64).wrapping_mul(3).wrapping_add(k as u64));
-        *x += LIFT * (h >> 11) as f64 / (1u64 << 53) as f64;
+        *x += LIFT * etp_shared::rng::unit_f64(h);
     }
     out
 }
