@@ -260,7 +260,6 @@ impl Mdp {
             .sum()
     }
 
-    /// States per decision point.
     /// Per state, the sampled segments that arrived in it (Σ of the
     /// transition counts into it; 0 for the initial state): how many beliefs
     /// its region's statistics and pool rest on.
@@ -280,6 +279,17 @@ impl Mdp {
         v
     }
 
+    /// Whether some state offers fewer than all the thresholds: a build
+    /// on one strategy's own thresholds (`etp synthesize --pool-policy`
+    /// without `--all-actions`). Its front is not the scenario's; what it
+    /// is for is predicting that strategy (`etp strategy --evaluate`).
+    pub fn policy_only(&self) -> bool {
+        self.states
+            .iter()
+            .any(|s| s.choices.len() < self.deltas.len())
+    }
+
+    /// States per decision point.
     pub fn states_per_decision_point(&self) -> Vec<usize> {
         let mut v = vec![0; self.num_decision_points()];
         for s in &self.states {

@@ -110,6 +110,7 @@ pub fn run(a: Args) -> Result<()> {
         split: Default::default(),
         pool_policy: None,
         no_carry_state: false,
+        all_actions: false,
     };
     let built = synthesize::build_mdp(&sargs)?;
     let front = write_front(&built.dir, &built.mdp, None, &text, None, false)?;

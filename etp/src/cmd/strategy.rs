@@ -149,6 +149,15 @@ pub fn run(a: Args) -> Result<()> {
         _ => bail!("give exactly one of --min-target, --max-energy, --vertex"),
     };
     let (mdp, scenario_text) = read_mdp(&a.dir)?;
+    if mdp.policy_only() {
+        bail!(
+            "{}: this MDP offers at its states only the thresholds of the strategy its pools \
+             were drawn on (`etp synthesize --pool-policy` without --all-actions), so its front \
+             is not the scenario's; predict that strategy with --evaluate STRATEGY.json, or \
+             rebuild with --all-actions to select others on these pools",
+            a.dir.display()
+        );
+    }
     let front = read_front(&a.dir, &mdp)?;
     let output = a
         .output

@@ -156,6 +156,12 @@ pub struct Args {
     /// state they arrived with: docs/MODEL.md §7.3). For comparison.
     #[arg(long, requires = "pool_policy")]
     pub no_carry_state: bool,
+    /// With --pool-policy: simulate every threshold at every state (by
+    /// default only those the strategy uses there: all that `etp strategy
+    /// --evaluate` needs, the same segments for them, at a fraction of the
+    /// cost). Needed to select other strategies on these pools.
+    #[arg(long, requires = "pool_policy")]
+    pub all_actions: bool,
 }
 
 /// What [`build_mdp`] did, for the summary.
@@ -295,7 +301,11 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
     let started = Instant::now();
     let mdp = match &pool_policy {
         None => abstraction::build(&s, &p, &|k| pb.inc(k)),
-        Some(st) => abstraction::build_on_policy(&s, &p, st, !a.no_carry_state, &|k| pb.inc(k)),
+        Some(st) => {
+            abstraction::build_on_policy(&s, &p, st, !a.no_carry_state, !a.all_actions, &|k| {
+                pb.inc(k)
+            })
+        }
     }
     .context("building the abstraction")?;
     pb.finish_and_clear();

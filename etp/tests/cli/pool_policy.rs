@@ -4,7 +4,10 @@
 //! flag is refused, naming it and writing nothing, with splitting or with a
 //! strategy of another scenario. `--no-carry-state` builds as
 //! deterministically and is refused without `--pool-policy`. `etp strategy --evaluate` predicts the
-//! conditioning strategy itself on those pools.
+//! conditioning strategy itself on those pools. By default the rebuild
+//! simulates only the strategy's own thresholds: fewer segments, the same
+//! prediction of the strategy to the bit as the rebuild with
+//! `--all-actions`, and selecting another strategy on it is refused.
 
 use super::{Scratch, fails_with, ok_json, s};
 use serde_json::Value;
@@ -81,11 +84,28 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
     );
     assert!(!lone.join("mdp.bin").exists());
 
-    // A strategy selected on it classifies with the conditioning strategy's bins.
+    // Only the strategy's thresholds (the default): its front is not the
+    // scenario's, so selecting on it is refused, naming the way out.
     let again = a.join("s.json");
+    fails_with(
+        &["strategy", s(&a), "--min-target", "0.9", "-o", s(&again)],
+        &["--evaluate", "--all-actions"],
+    );
+    assert!(!again.exists());
+    // With every threshold the same pools serve a new selection, which
+    // classifies with the conditioning strategy's bins.
+    let full = dir.path("op-full");
+    let full_report = on_policy(&policy, &full, &["--all-actions"]);
+    let mdp_n = |r: &Value, k: &str| r["mdp"][k].as_u64().unwrap_or(0);
+    assert!(
+        mdp_n(&report, "segments") * 2 < mdp_n(&full_report, "segments"),
+        "{report} {full_report}"
+    );
+    assert!(mdp_n(&report, "choices") < mdp_n(&full_report, "choices"));
+    let again = full.join("s.json");
     ok_json(&[
         "strategy",
-        s(&a),
+        s(&full),
         "--min-target",
         "0.9",
         "--aggregation-check",
@@ -125,6 +145,23 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
     );
     assert_ne!(e["crossfit"], p["crossfit"], "predicted on the other MDP");
     assert!(e["crossfit_ci95"]["p_target"].as_f64().unwrap_or(0.0) > 0.0);
+    // The same strategy on the rebuild with every threshold: states are
+    // keyed by region, so its own thresholds drew the same segments there,
+    // and the selection-time prediction is the same to the bit (the
+    // others' arrivals only add states the strategy does not reach).
+    let on_full = full.join("evaluated.json");
+    ok_json(&[
+        "strategy",
+        s(&full),
+        "--evaluate",
+        s(&policy),
+        "--aggregation-check",
+        "0",
+        "-o",
+        s(&on_full),
+        "--json",
+    ]);
+    assert_eq!(e["predicted"], read(&on_full)["predicted"]);
     let sim = |f: &std::path::Path| {
         ok_json(&["validate", s(f), "--episodes", "300", "--json"])["p_target"].clone()
     };

@@ -15,71 +15,22 @@
 //! ```
 
 use super::bounds::{arrival_range, bins_from, magnitude_range, workspace_ranges};
-use super::pool::{bottom_k, key, weighted_index, weighted_pool};
-use super::tally::{Arrival, ChoiceTally, ChunkTally};
+use super::on_policy::{PoolPolicy, next_reach, offered_choices, on_policy_weights, state_key};
+use super::pool::{bottom_k, weighted_pool};
+use super::segments::{CHUNK, ExtraTask, Particle, Task, run_task, tasks_of};
+use super::tally::{ChoiceTally, ChunkTally};
 use super::{AbstractionError, AbstractionParams, Descriptor, RangeRule, resolve_descriptor};
 use crate::mdp::{KfConvergenceParams, Mdp, Method, State};
 use etp_shared::discretization::{
     DecisionPointBins, Discretization, Region, RegionSplit, WorkspaceMarginal, refine_region,
 };
-use etp_shared::episode::{AgentState, CompiledScenario, LegEnd, LegMode};
-use etp_shared::etkf::{Belief, Matrix, Threshold, Vector, sample_belief};
+use etp_shared::episode::CompiledScenario;
+use etp_shared::episode::LegMode;
+use etp_shared::etkf::{Matrix, Threshold};
 use etp_shared::linalg::to_dynamic;
-use etp_shared::rng::{mix64, stream_rng, streams};
 use etp_shared::scenario::Scenario;
-use rand::RngExt;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
-
-/// Segments per work unit: small enough to balance 2 cores when a decision
-/// point has a single state, large enough to amortise scheduling.
-const CHUNK: u32 = 128;
-
-/// The random-stream index of segment `m` of (decision point, state, action).
-#[inline]
-fn segment_id(dp: usize, state: usize, action: usize, m: u32) -> u64 {
-    mix64(mix64(mix64(dp as u64 + 1) ^ state as u64) ^ action as u64) ^ u64::from(m)
-}
-
-/// One unit of work: segments `lo..hi` of (state, action) at a decision point.
-#[derive(Debug, Clone, Copy)]
-struct Task {
-    state: usize,
-    action: usize,
-    lo: u32,
-    hi: u32,
-    /// A held-out segment (stream `HOLDOUT`, cross-fitting) instead of a main one.
-    holdout: bool,
-}
-
-/// Extra segments of sample allocation: segment indices from `samples` on
-/// (same stream as the main ones, fresh indices), counted into the choice but
-/// kept out of the pools and the region set, so the state space is unchanged.
-#[derive(Debug, Clone, Copy)]
-struct ExtraTask {
-    state: usize,
-    action: usize,
-    lo: u32,
-    hi: u32,
-}
-
-/// The tasks of every (state, action) of a layer: `samples` segments each,
-/// in chunks, in (state, action, chunk) order.
-fn tasks_of(states: usize, actions: usize, samples: u32, holdout: bool) -> Vec<Task> {
-    (0..states)
-        .flat_map(|state| {
-            (0..actions).flat_map(move |action| {
-                (0..samples.div_ceil(CHUNK)).map(move |c| Task {
-                    state,
-                    action,
-                    lo: c * CHUNK,
-                    hi: ((c + 1) * CHUNK).min(samples),
-                    holdout,
-                })
-            })
-        })
-        .collect()
-}
 
 /// A state of the current layer: its region and its pool particles (drawn
 /// in proportion to `cumulative` where an on-policy pool kept weights).
@@ -87,79 +38,6 @@ struct LayerState<const N: usize> {
     region: Region,
     particles: Vec<Particle<N>>,
     cumulative: Option<Vec<f64>>,
-}
-
-/// A pool particle: a belief that arrived, and on-policy the true
-/// state it arrived with (docs/MODEL.md §7.3). Without a carried state a
-/// segment draws its true state from N(x̂, P).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Particle<const N: usize> {
-    belief: Belief<N>,
-    x: Option<Vector<N>>,
-}
-
-/// Simulate the segments of one task.
-#[allow(clippy::too_many_arguments)]
-fn run_task<const N: usize>(
-    cs: &CompiledScenario<N>,
-    dp: usize,
-    last: bool,
-    particles: &[Particle<N>],
-    cumulative: Option<&[f64]>,
-    mode: &LegMode<N>,
-    seed: u64,
-    t: Task,
-) -> ChunkTally<N> {
-    let mut c = ChunkTally::<N>::default();
-    c.sums.samples = t.hi - t.lo;
-    if !last {
-        c.arrivals.reserve((t.hi - t.lo) as usize);
-    }
-    let stream = if t.holdout {
-        streams::HOLDOUT
-    } else {
-        streams::SYNTHESIS
-    };
-    for m in t.lo..t.hi {
-        let id = segment_id(dp, t.state, t.action, m);
-        let mut rng = stream_rng(seed, stream, id);
-        let start = match cumulative {
-            Some(c) => particles[weighted_index(c, rng.random::<f64>())],
-            None if particles.len() == 1 => particles[0],
-            None => particles[rng.random_range(0..particles.len())],
-        };
-        // A carried true state replaces the Gaussian draw (and its random
-        // numbers: the segment's stream moves on from there).
-        let mut st = AgentState {
-            x: match start.x {
-                Some(x) => x,
-                None => sample_belief(&start.belief, &mut rng),
-            },
-            belief: start.belief,
-        };
-        // The segment's own radio channels (docs/MODEL.md §8): transitions
-        // and energy include the loss; an ideal radio draws nothing.
-        let mut channels = cs.channels(seed, stream, id);
-        let r = cs.run_leg(dp, &mut st, mode, &mut rng, &mut channels, &mut ());
-        c.sums
-            .add_segment(r.steps, r.transmissions, r.expected_transmissions);
-        match r.end {
-            LegEnd::Collision { .. } => c.collisions += 1,
-            LegEnd::Terminated if last => {
-                if cs.in_target(&st.x) {
-                    c.target += 1;
-                } else {
-                    c.free += 1;
-                }
-            }
-            LegEnd::Terminated => c.arrivals.push(Arrival {
-                key: key(id),
-                belief: st.belief,
-                x: st.x,
-            }),
-        }
-    }
-    c
 }
 
 /// How beliefs are mapped to states at a decision point.
@@ -205,61 +83,28 @@ pub(super) struct Given<'a> {
     /// state they arrived with, and segments start from it instead of a
     /// draw from N(x̂, P).
     pub carry_state: bool,
+    /// On-policy: simulate only the actions the policy takes (ω > 0) at
+    /// each state — all that predicting the policy itself needs, at a
+    /// fraction of the cost. Its states offer only those choices.
+    pub policy_only: bool,
 }
 
-/// ω (over the actions) of the strategy the pools are drawn under.
-pub(super) type PoolPolicy<'a> = &'a (dyn Fn(usize, &nalgebra::DMatrix<f64>) -> Vec<f64> + Sync);
-
-/// The pool policy's mass of each (state, action) of the layer, in
-/// (state, action) order: reach(s) · ω(s, a), ω looked up by the state's
-/// first particle (all of a state's particles share its region).
-fn on_policy_weights<const N: usize>(
+/// ω of the pool policy at each state of the layer, looked up by the
+/// state's first particle (all of a state's particles share its region).
+fn layer_omegas<const N: usize>(
     omega: PoolPolicy<'_>,
     dp: usize,
     layer: &[LayerState<N>],
-    reach: &[f64],
-    actions: usize,
-) -> Vec<f64> {
-    let mut w = Vec::with_capacity(layer.len() * actions);
-    for (s, ls) in layer.iter().enumerate() {
-        let r = reach.get(s).copied().unwrap_or(0.0);
-        let o = ls
-            .particles
-            .first()
-            .map(|p| omega(dp, &to_dynamic(&p.belief.cov)))
-            .unwrap_or_default();
-        w.extend((0..actions).map(|a| r * o.get(a).copied().unwrap_or(0.0)));
-    }
-    w
-}
-
-/// The next layer's reach under the policy from this layer's `states` and
-/// their (state, action) masses `w`.
-fn next_reach(states: &[State], w: &[f64], next_offset: usize, next_len: usize) -> Vec<f64> {
-    let mut reach = vec![0.0; next_len];
-    let actions = if states.is_empty() {
-        1
-    } else {
-        w.len() / states.len()
-    };
-    for (s, st) in states.iter().enumerate() {
-        for (a, ch) in st.choices.iter().enumerate() {
-            let m = w.get(s * actions + a).copied().unwrap_or(0.0);
-            if m <= 0.0 {
-                continue;
-            }
-            for t in &ch.transitions {
-                if let crate::mdp::Next::State(j) = t.next
-                    && let Some(x) = (j as usize)
-                        .checked_sub(next_offset)
-                        .and_then(|k| reach.get_mut(k))
-                {
-                    *x += m * t.probability;
-                }
-            }
-        }
-    }
-    reach
+) -> Vec<Vec<f64>> {
+    layer
+        .iter()
+        .map(|ls| {
+            ls.particles
+                .first()
+                .map(|p| omega(dp, &to_dynamic(&p.belief.cov)))
+                .unwrap_or_default()
+        })
+        .collect()
 }
 
 pub(super) fn build<const N: usize>(
@@ -392,12 +237,21 @@ pub(super) fn build<const N: usize>(
                 }
             })
             .collect();
+        // ω of the pool policy at each state, and the (state, action)
+        // pairs simulated: all, or with `policy_only` the policy's own.
+        let omegas = policy.map(|omega| layer_omegas(omega, dp, &layer));
+        let policy_only = given.is_some_and(|g| g.policy_only);
+        let offered = offered_choices(layer.len(), deltas.len(), omegas.as_deref(), policy_only);
+        let keys: Vec<u64> = layer
+            .iter()
+            .enumerate()
+            .map(|(i, ls)| state_key(i, &ls.region, policy.is_some()))
+            .collect();
         // Main and held-out segments in one parallel pass (the held-out ones
         // start from the same pool particles, with their own stream).
-        let mut tasks = tasks_of(layer.len(), deltas.len(), samples, false);
+        let mut tasks = tasks_of(&offered, samples, false);
         let n_main = tasks.len();
-        tasks.extend(tasks_of(layer.len(), deltas.len(), holdout, true));
-        let n_states = layer.len() as u64;
+        tasks.extend(tasks_of(&offered, holdout, true));
         // One chunk of segments of (state, action) from the state's pool.
         let run = |t: Task| {
             run_task(
@@ -408,18 +262,22 @@ pub(super) fn build<const N: usize>(
                 layer[t.state].cumulative.as_deref(),
                 &modes[t.action],
                 params.seed,
+                keys[t.state],
                 t,
             )
         };
+        // A decision point is worth |Δ| · M units (`progress_total`), spread
+        // over the offered choices: segment position g of C · M maps to
+        // unit g · |Δ| / C.
+        let (units, n_choices) = (deltas.len() as u64, offered.len().max(1) as u64);
         let mut results: Vec<ChunkTally<N>> = tasks
             .par_iter()
             .map(|&t| {
                 let m = u64::from(if t.holdout { holdout } else { samples });
                 let r = run(t);
-                // Each action of a decision point is worth `samples` units, spread
-                // over its states: position g of S·M maps to unit g / S.
-                let g = t.state as u64 * m;
-                progress((g + u64::from(t.hi)) / n_states - (g + u64::from(t.lo)) / n_states);
+                let g = t.choice as u64 * m;
+                let unit = |pos: u64| pos * units / n_choices;
+                progress(unit(g + u64::from(t.hi)) - unit(g + u64::from(t.lo)));
                 r
             })
             .collect();
@@ -449,6 +307,7 @@ pub(super) fn build<const N: usize>(
                 run(Task {
                     state: t.state,
                     action: t.action,
+                    choice: 0,
                     lo: t.lo,
                     hi: t.hi,
                     holdout: false,
@@ -516,11 +375,15 @@ pub(super) fn build<const N: usize>(
         };
         let per_choice = samples.div_ceil(CHUNK) as usize;
         let per_holdout = holdout.div_ceil(CHUNK) as usize;
+        // `offered` is in state order: each state takes the next run of it.
+        let mut next_choice = 0;
         for (s, ls) in layer.iter().enumerate() {
             let mut choices = Vec::with_capacity(deltas.len());
-            for a in 0..deltas.len() {
+            while let Some(&(_, a)) = offered.get(next_choice).filter(|(st, _)| *st == s) {
+                let c = next_choice;
+                next_choice += 1;
                 let mut tally = ChoiceTally::default();
-                let first = (s * deltas.len() + a) * per_choice;
+                let first = c * per_choice;
                 for (k, r) in results[first..first + per_choice].iter().enumerate() {
                     let regions = arrival_regions.get(first + k);
                     // Every main-sample arrival's region has a state.
@@ -538,7 +401,7 @@ pub(super) fn build<const N: usize>(
                 let mut choice = tally.into_choice(a as u16, cost, cost_range);
                 if holdout > 0 {
                     let mut h = ChoiceTally::default();
-                    let first = (s * deltas.len() + a) * per_holdout;
+                    let first = c * per_holdout;
                     for (k, r) in held[first..first + per_holdout].iter().enumerate() {
                         let regions = held_regions.get(first + k);
                         h.add(r, |j| region_of(regions, j));
@@ -559,8 +422,8 @@ pub(super) fn build<const N: usize>(
 
         // The next pool: a bottom-k reservoir per region; with a pool policy,
         // weighted by the policy's mass of the arrival's (state, action).
-        let weights = policy.map(|omega| {
-            let w = on_policy_weights(omega, dp, &layer, &reach, deltas.len());
+        let weights = omegas.as_ref().map(|omegas| {
+            let w = on_policy_weights(&offered, omegas, &reach);
             reach = next_reach(
                 &states[states.len() - layer.len()..],
                 &w,
@@ -574,7 +437,7 @@ pub(super) fn build<const N: usize>(
         type Bucket<const N: usize> = Vec<(u64, f64, Particle<N>)>;
         let mut buckets: Vec<Bucket<N>> = vec![Vec::new(); region_index.len()];
         for (i, (r, regions)) in results.iter().zip(&arrival_regions).enumerate() {
-            // Chunks are in (state, action, chunk) order.
+            // Chunks are in (offered choice, chunk) order.
             let w = weights.as_ref().map_or(1.0, |w| w[i / per_choice]);
             for (a, reg) in r.arrivals.iter().zip(regions) {
                 if let Some(&j) = region_index.get(reg) {

@@ -26,7 +26,9 @@ pub mod aggregation;
 mod bounds;
 mod layers;
 mod merge;
+mod on_policy;
 mod pool;
+mod segments;
 pub mod split;
 mod tally;
 
@@ -310,6 +312,7 @@ pub fn build_split(
         splits,
         policy: None,
         carry_state: false,
+        policy_only: false,
     };
     with_dim!(scenario.dim, N => {
         let cs = CompiledScenario::<N>::new(scenario);
@@ -324,12 +327,17 @@ pub fn build_split(
 /// beliefs lumped in a region are the ones this strategy produces. Every
 /// region reached keeps a pool (unweighted where the strategy never goes).
 /// With `carry_state` the particles keep the true state they arrived with
-/// and segments start from it (no N(x̂, P) draw after the first leg).
+/// and segments start from it (no N(x̂, P) draw after the first leg). With
+/// `policy_only` each state simulates only the thresholds `strategy` uses
+/// there: what predicting `strategy` needs, the same segments for them as
+/// with every threshold (states are keyed by region), at a fraction of the
+/// cost; such an MDP's states offer only those ([`Mdp::policy_only`]).
 pub fn build_on_policy(
     scenario: &Scenario,
     params: &AbstractionParams,
     strategy: &etp_shared::strategy::Strategy,
     carry_state: bool,
+    policy_only: bool,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Mdp, AbstractionError> {
     check_params(scenario, params)?;
@@ -358,6 +366,7 @@ pub fn build_on_policy(
         splits: &strategy.splits,
         policy: Some(&omega),
         carry_state,
+        policy_only,
     };
     with_dim!(scenario.dim, N => {
         let cs = CompiledScenario::<N>::new(scenario);
