@@ -9,11 +9,11 @@
 //! (docs/MODEL.md §4.1). `--confidence` with `--min-target` selects on the
 //! certified bounds instead; `--refine-gap` allocates samples first.
 
-use crate::output::{read_front, read_mdp, write_new};
+use crate::output::{read_front, read_mdp, refuse_existing, write_new};
 use anyhow::{Context, Result, bail};
 use clap::ArgGroup;
 use etp_synthesis::pareto::optimal::{LpRequest, UNVISITED, optimal_strategy};
-use etp_synthesis::pareto::policy::{Objectives, as_randomised, evaluate};
+use etp_synthesis::pareto::policy::{Objectives, as_randomised, evaluate, leg_energy};
 use etp_synthesis::pareto::select::{Request, select};
 use etp_synthesis::pareto::to_strategy;
 use serde_json::json;
@@ -21,6 +21,7 @@ use std::path::PathBuf;
 
 mod certified;
 mod evaluate;
+mod on_policy;
 
 #[derive(Debug, clap::Args)]
 #[command(group(ArgGroup::new("request").required(true).args(["min_target", "max_energy", "vertex", "evaluate"])))]
@@ -79,6 +80,13 @@ pub struct Args {
     /// repeated, at most 4 times).
     #[arg(long)]
     pub cover_aggregation: bool,
+    /// Predict the selected strategy again on a rebuild of DIR's abstraction
+    /// (same settings and seed) whose pools are its own beliefs and true
+    /// states, simulating only its thresholds: its aggregation error removed
+    /// (docs/MODEL.md §7.3) for about 1/|Δ| of a synthesis more. The same
+    /// numbers as `etp synthesize --pool-policy` + `etp strategy --evaluate`.
+    #[arg(long, conflicts_with_all = ["evaluate", "refine_gap"])]
+    pub on_policy: bool,
 }
 
 /// Rounds of re-selection under `--cover-aggregation` with `--confidence`.
@@ -186,6 +194,13 @@ pub fn run(a: Args) -> Result<()> {
         bail!("--cover-aggregation needs the aggregation check (--aggregation-check N > 0)");
     }
     if a.confidence.is_some() && a.refine_gap.is_none() && a.min_target.is_some() {
+        if a.on_policy {
+            bail!(
+                "--on-policy with --confidence --min-target: a strategy chosen on its certified \
+                 bounds would be reported with other ones; select it first (-o FILE), then \
+                 `etp synthesize --pool-policy FILE` and `etp strategy --evaluate FILE`"
+            );
+        }
         return certified::run(&a, &mdp, scenario_text, &front, &output, level, None);
     }
     if let Some(g) = a.refine_gap {
@@ -227,7 +242,25 @@ pub fn run(a: Args) -> Result<()> {
     } else {
         level
     };
-    let honest = certified::assess(&mdp, &omega, cost, bound_level)?;
+    // --on-policy: every prediction from here on is the rebuild's.
+    let rebuilt = if a.on_policy {
+        refuse_existing(&output, a.force)?;
+        Some(on_policy::rebuild(&strategy, &mdp, a.json)?)
+    } else {
+        None
+    };
+    let (mdp, omega) = match &rebuilt {
+        Some(r) => {
+            let omega = evaluate::policy_on(&r.mdp, &strategy);
+            let p = evaluate(&r.mdp, &omega, cost);
+            strategy.predicted = super::honest::prediction(&p);
+            strategy.leg_energy = Some(leg_energy(&r.mdp, &omega, cost));
+            strategy.label = format!("{label} — predicted on its own pools");
+            (&r.mdp, omega)
+        }
+        None => (&mdp, omega),
+    };
+    let honest = certified::assess(mdp, &omega, cost, bound_level)?;
     super::honest::attach(&mut strategy, honest.crossfit.as_ref(), &honest.certified);
     certified::check_aggregation(&mut strategy, &a, level)?;
     write_new(&output, strategy.to_json().as_bytes(), a.force)?;
@@ -252,6 +285,7 @@ pub fn run(a: Args) -> Result<()> {
             "front_epsilon": front.epsilon,
             "predictions": super::honest::json_of(&strategy),
             "crossfit_unmatched_mass": honest.crossfit.as_ref().map(|c| c.unmatched_mass),
+            "on_policy": rebuilt.as_ref().map(on_policy::Rebuilt::json),
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
@@ -260,6 +294,14 @@ pub fn run(a: Args) -> Result<()> {
             "  predicted  P_tar {:.6}  P_coll {:.6}  energy {:.6}",
             p.p_target, p.p_collision, p.energy
         );
+        if let Some(r) = &rebuilt {
+            print!("{}", r.describe());
+            let q = &strategy.predicted;
+            println!(
+                "  predicted on its own pools  P_tar {:.6}  P_coll {:.6}  energy {:.6}",
+                q.p_target, q.p_collision, q.energy_mean
+            );
+        }
         print!("{}", super::honest::text_of(&strategy));
         if let Some(o) = &exact {
             println!(

@@ -162,6 +162,55 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
         "--json",
     ]);
     assert_eq!(e["predicted"], read(&on_full)["predicted"]);
+
+    // `strategy --on-policy`: the selection and the rebuild in one command,
+    // with DIR's settings and seed: the numbers of the two-step way (up to
+    // the last bit of ω through the file).
+    let one = base.join("on-policy.json");
+    let v = ok_json(&[
+        "strategy",
+        s(&base),
+        "--min-target",
+        "0.9",
+        "--on-policy",
+        "--aggregation-check",
+        "0",
+        "-o",
+        s(&one),
+        "--json",
+    ]);
+    super::schemas::validate(&base, "strategy", &v).expect("strategy --json matches its schema");
+    assert!(v["on_policy"]["segments"].as_u64().unwrap_or(0) > 0, "{v}");
+    let o = read(&one);
+    for (field, key) in [
+        ("predicted", "p_target"),
+        ("crossfit", "p_target"),
+        ("crossfit", "p_collision"),
+        ("crossfit_ci95", "p_target"),
+        ("certified", "p_target_low"),
+    ] {
+        let (x, y) = (o[field][key].as_f64(), e[field][key].as_f64());
+        assert!(
+            matches!((x, y), (Some(x), Some(y)) if (x - y).abs() < 1e-12),
+            "{field}.{key}: {x:?} vs {y:?}"
+        );
+    }
+    assert!(o["label"].as_str().unwrap_or("").contains("own pools"));
+    fails_with(
+        &[
+            "strategy",
+            s(&base),
+            "--min-target",
+            "0.9",
+            "--confidence",
+            "0.95",
+            "--on-policy",
+            "-o",
+            s(&base.join("c.json")),
+        ],
+        &["--on-policy", "--confidence"],
+    );
+    assert!(!base.join("c.json").exists());
     let sim = |f: &std::path::Path| {
         ok_json(&["validate", s(f), "--episodes", "300", "--json"])["p_target"].clone()
     };

@@ -18,7 +18,7 @@ use std::path::Path;
 
 /// ω of `strategy` on every state of `mdp` (by region; a region the strategy
 /// never saw takes its nearest, as the strategy itself does at run time).
-fn policy_on(mdp: &Mdp, strategy: &Strategy) -> RandomisedPolicy {
+pub fn policy_on(mdp: &Mdp, strategy: &Strategy) -> RandomisedPolicy {
     let smallest = |n: usize| {
         let mut w = vec![0.0; n];
         if let Some(x) = w.first_mut() {
