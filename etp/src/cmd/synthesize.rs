@@ -520,8 +520,17 @@ pub fn run(a: Args) -> Result<()> {
         }
         print!("{}", crate::front::describe(&front.front));
         println!("  computed in {:.3} s", front.seconds);
-        for f in &front.files {
-            println!("  wrote {}", f.display());
+        if built.mdp.policy_only() {
+            let policy = a
+                .pool_policy
+                .as_deref()
+                .map_or_else(|| "STRATEGY.json".into(), |p| p.display().to_string());
+            println!(
+                "  only the thresholds {policy} uses were simulated: this front is not the scenario's; \
+                 predict that strategy with `etp strategy {} --evaluate {policy}` \
+                 (--all-actions to select others on these pools)",
+                built.dir.display()
+            );
         }
     }
     if let Some((dir, names)) = &stale {
