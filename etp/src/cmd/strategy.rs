@@ -87,6 +87,13 @@ pub struct Args {
     /// numbers as `etp synthesize --pool-policy` + `etp strategy --evaluate`.
     #[arg(long, conflicts_with_all = ["evaluate", "refine_gap"])]
     pub on_policy: bool,
+    /// With --on-policy: R rebuilds (seeds DIR's + 0 … R − 1); from 2 on,
+    /// the cross-fitted value is their mean and its ± a Student-t interval
+    /// over their spread, which covers the rebuild's whole Monte Carlo (one
+    /// rebuild's ± counts only its held-out sample: docs/MODEL.md §7.3).
+    #[arg(long, value_name = "R", default_value_t = 1, requires = "on_policy",
+          value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub replicates: u32,
 }
 
 /// Rounds of re-selection under `--cover-aggregation` with `--confidence`.
@@ -245,23 +252,32 @@ pub fn run(a: Args) -> Result<()> {
     // --on-policy: every prediction from here on is the rebuild's.
     let rebuilt = if a.on_policy {
         refuse_existing(&output, a.force)?;
-        Some(on_policy::rebuild(&strategy, &mdp, a.json)?)
+        Some(on_policy::rebuild(
+            &strategy,
+            &mdp,
+            cost,
+            a.replicates,
+            a.json,
+        )?)
     } else {
         None
     };
     let (mdp, omega) = match &rebuilt {
         Some(r) => {
-            let omega = evaluate::policy_on(&r.mdp, &strategy);
-            let p = evaluate(&r.mdp, &omega, cost);
+            let omega = evaluate::policy_on(r.first(), &strategy);
+            let p = evaluate(r.first(), &omega, cost);
             strategy.predicted = super::honest::prediction(&p);
-            strategy.leg_energy = Some(leg_energy(&r.mdp, &omega, cost));
+            strategy.leg_energy = Some(leg_energy(r.first(), &omega, cost));
             strategy.label = format!("{label} — predicted on its own pools");
-            (&r.mdp, omega)
+            (r.first(), omega)
         }
         None => (&mdp, omega),
     };
     let honest = certified::assess(mdp, &omega, cost, bound_level)?;
     super::honest::attach(&mut strategy, honest.crossfit.as_ref(), &honest.certified);
+    if let Some(r) = &rebuilt {
+        on_policy::apply_replicates(&mut strategy, r, cost);
+    }
     certified::check_aggregation(&mut strategy, &a, level)?;
     write_new(&output, strategy.to_json().as_bytes(), a.force)?;
     let p = &predicted;
@@ -294,6 +310,7 @@ pub fn run(a: Args) -> Result<()> {
             "  predicted  P_tar {:.6}  P_coll {:.6}  energy {:.6}",
             p.p_target, p.p_collision, p.energy
         );
+        let mut report = super::honest::text_of(&strategy);
         if let Some(r) = &rebuilt {
             print!("{}", r.describe());
             let q = &strategy.predicted;
@@ -301,8 +318,14 @@ pub fn run(a: Args) -> Result<()> {
                 "  predicted on its own pools  P_tar {:.6}  P_coll {:.6}  energy {:.6}",
                 q.p_target, q.p_collision, q.energy_mean
             );
+            if r.replicated.is_some() {
+                report = report.replace(
+                    "the held-out sample's own error",
+                    &format!("Student's t over the {} rebuilds", r.mdps.len()),
+                );
+            }
         }
-        print!("{}", super::honest::text_of(&strategy));
+        print!("{report}");
         if let Some(o) = &exact {
             println!(
                 "  exact: occupation-measure LP over the whole MDP, realised as ω ({} randomising states; unvisited states: {UNVISITED}){}",

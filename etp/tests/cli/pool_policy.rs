@@ -196,6 +196,64 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
         );
     }
     assert!(o["label"].as_str().unwrap_or("").contains("own pools"));
+
+    // --replicates 3: rebuilds with seeds 3, 4, 5 (DIR's + r); the first is
+    // the rebuild above, the cross-fitted value their mean, its ± Student's
+    // t on 2 degrees of freedom over their spread.
+    let three = base.join("on-policy-3.json");
+    let v = ok_json(&[
+        "strategy",
+        s(&base),
+        "--min-target",
+        "0.9",
+        "--on-policy",
+        "--replicates",
+        "3",
+        "--aggregation-check",
+        "0",
+        "-o",
+        s(&three),
+        "--json",
+    ]);
+    super::schemas::validate(&base, "strategy", &v).expect("strategy --json matches its schema");
+    let reps = v["on_policy"]["replicates"]
+        .as_array()
+        .cloned()
+        .unwrap_or_default();
+    let seeds: Vec<u64> = reps.iter().filter_map(|r| r["seed"].as_u64()).collect();
+    assert_eq!(seeds, [3, 4, 5], "{v}");
+    let tar: Vec<f64> = reps
+        .iter()
+        .filter_map(|r| r["crossfit"]["p_target"].as_f64())
+        .collect();
+    assert_eq!(tar.len(), 3, "{v}");
+    let close = |x: Option<f64>, y: f64| x.is_some_and(|x| (x - y).abs() < 1e-12);
+    assert!(close(o["crossfit"]["p_target"].as_f64(), tar[0]));
+    let mean = tar.iter().sum::<f64>() / 3.0;
+    let sd = (tar.iter().map(|t| (t - mean).powi(2)).sum::<f64>() / 2.0).sqrt();
+    let r3 = read(&three);
+    assert!(close(r3["crossfit"]["p_target"].as_f64(), mean), "{r3}");
+    let half = r3["crossfit_ci95"]["p_target"].as_f64().unwrap_or(-1.0);
+    assert!(
+        (half - 4.302_653 * sd / 3f64.sqrt()).abs() < 1e-6 * sd.max(1e-9),
+        "{half} vs sd {sd}"
+    );
+    // The seeds differ: so do the replicates (a spread to measure).
+    assert!(sd > 0.0, "{tar:?}");
+    fails_with(
+        &[
+            "strategy",
+            s(&base),
+            "--min-target",
+            "0.9",
+            "--replicates",
+            "3",
+            "-o",
+            s(&base.join("r.json")),
+        ],
+        &["--on-policy"],
+    );
+    assert!(!base.join("r.json").exists());
     fails_with(
         &[
             "strategy",

@@ -15,6 +15,8 @@
 //!   until the certified P_tar gap is below a target.
 //! * [`widen`] — bounds widened by a measured aggregation error, so they
 //!   cover it too.
+//! * [`replicates`] — the cross-fitted value of R independent rebuilds and a
+//!   Student-t interval over their spread: the rebuild's whole Monte Carlo.
 //!
 //! What is certified: sampling error in the abstraction's transition and
 //! cost estimates. Not certified: the aggregation of beliefs into regions
@@ -28,6 +30,7 @@ pub mod crossfit;
 pub mod front;
 pub mod intervals;
 pub mod refine;
+pub mod replicates;
 pub mod robust;
 pub mod select;
 pub mod widen;

@@ -1,68 +1,160 @@
-//! `etp strategy DIR … --on-policy`: the strategy just selected, predicted
-//! again on a rebuild of the abstraction whose pools are its own (true
-//! state, belief) pairs and whose states simulate only its own thresholds
-//! (docs/MODEL.md §7.3) — in one command what `etp synthesize --pool-policy`
-//! and `etp strategy --evaluate` do in two, with DIR's own settings and
-//! seed, so both give the same numbers. The rebuilt MDP is not kept.
+//! `etp strategy DIR … --on-policy [--replicates R]`: the strategy just
+//! selected, predicted again on rebuilds of the abstraction whose pools are
+//! its own (true state, belief) pairs and whose states simulate only its
+//! own thresholds (docs/MODEL.md §7.3) — in one command what `etp synthesize
+//! --pool-policy` and `etp strategy --evaluate` do in two, with DIR's own
+//! settings; replicate r uses DIR's seed + r, so replicate 0 gives the
+//! numbers of the two-step way. With R ≥ 2 the cross-fitted value is the
+//! replicates' mean and its ± a Student-t interval over their spread, which
+//! covers the rebuild's whole Monte Carlo (`certify::replicates`). The
+//! rebuilt MDPs are not kept.
 
+use super::evaluate::policy_on;
 use crate::progress;
-use anyhow::{Context, Result};
-use etp_shared::strategy::Strategy;
+use anyhow::{Context, Result, bail};
+use etp_shared::strategy::{PredictionCi95, Strategy};
 use etp_synthesis::abstraction;
-use etp_synthesis::mdp::Mdp;
+use etp_synthesis::certify::crossfit::crossfit;
+use etp_synthesis::certify::replicates::{Replicated, replicated};
+use etp_synthesis::mdp::{CostModel, Mdp};
+use etp_synthesis::pareto::policy::{Objectives, evaluate, leg_energy};
 use serde_json::json;
 use std::time::Instant;
 
-/// The rebuild and what it cost.
+/// The rebuilds (replicate r with DIR's seed + r) and what they cost.
 pub struct Rebuilt {
-    pub mdp: Mdp,
+    pub mdps: Vec<Mdp>,
     pub seconds: f64,
+    /// With two or more: each replicate's cross-fitted value, and their mean.
+    pub replicated: Option<(Vec<Objectives>, Replicated)>,
 }
 
 impl Rebuilt {
-    /// What `--json` reports of the rebuild.
+    /// The first rebuild (the two-step way's).
+    pub fn first(&self) -> &Mdp {
+        &self.mdps[0]
+    }
+
+    /// What `--json` reports of the rebuilds.
     pub fn json(&self) -> serde_json::Value {
+        let m = self.first();
         json!({
-            "states": self.mdp.states.len(),
-            "choices": self.mdp.states.iter().map(|s| s.choices.len()).sum::<usize>(),
-            "segments": self.mdp.total_segments,
+            "states": m.states.len(),
+            "choices": m.states.iter().map(|s| s.choices.len()).sum::<usize>(),
+            "segments": self.mdps.iter().map(|m| m.total_segments).sum::<u64>(),
             "seconds": self.seconds,
+            "replicates": self.mdps.iter().enumerate().map(|(r, m)| json!({
+                "seed": m.seed,
+                "crossfit": self.replicated.as_ref().and_then(|(v, _)| v.get(r)).map(|o| json!({
+                    "p_target": o.p_target, "p_collision": o.p_collision, "energy_mean": o.energy})),
+            })).collect::<Vec<_>>(),
         })
     }
 
-    /// One line for the text report.
+    /// The text report's lines.
     pub fn describe(&self) -> String {
-        format!(
+        let m = self.first();
+        let mut s = format!(
             "  on its own pools: rebuilt with {} states, {} segments in {:.1} s (docs/MODEL.md §7.3); the predictions below are the rebuild's\n",
-            self.mdp.states.len(),
-            self.mdp.total_segments,
+            m.states.len(),
+            self.mdps.iter().map(|m| m.total_segments).sum::<u64>(),
             self.seconds
-        )
+        );
+        if let Some((v, r)) = &self.replicated {
+            let list: Vec<String> = v.iter().map(|o| format!("{:.4}", o.p_target)).collect();
+            s.push_str(&format!(
+                "  {} replicates (seeds {}…{}), cross-fitted P_tar {}: their mean, its ± Student's t over their spread (the rebuilds' whole Monte Carlo); selection-time their mean, certified the first's\n",
+                r.replicates,
+                m.seed,
+                self.mdps.last().map_or(m.seed, |l| l.seed),
+                list.join(", ")
+            ));
+        }
+        s
     }
 }
 
-/// Rebuild `mdp`'s abstraction (same settings, same seed) with the pools
-/// drawn on `strategy`, carrying the true state, on its thresholds only.
-pub fn rebuild(strategy: &Strategy, mdp: &Mdp, quiet: bool) -> Result<Rebuilt> {
+/// Rebuild `mdp`'s abstraction `replicates` times (same settings, seeds
+/// DIR's + r) with the pools drawn on `strategy`, carrying the true state,
+/// on its thresholds only; with two or more, the replicates' cross-fitted
+/// values combined.
+pub fn rebuild(
+    strategy: &Strategy,
+    mdp: &Mdp,
+    cost: CostModel,
+    replicates: u32,
+    quiet: bool,
+) -> Result<Rebuilt> {
     let scenario = strategy
         .scenario()
         .context("--on-policy needs the strategy's scenario")?;
     let params = abstraction::params_of(mdp);
     let pb = progress::bar(
-        abstraction::progress_total(&scenario, &params),
+        abstraction::progress_total(&scenario, &params) * u64::from(replicates.max(1)),
         "on-policy rebuild",
         quiet,
     );
     let started = Instant::now();
-    let rebuilt =
-        abstraction::build_on_policy(&scenario, &params, strategy, true, true, &|k| pb.inc(k))
-            .context("--on-policy: rebuilding on the strategy's own pools")?;
+    let mut mdps = Vec::new();
+    for r in 0..replicates.max(1) {
+        let mut p = params;
+        p.seed = params.seed.wrapping_add(u64::from(r));
+        let m = abstraction::build_on_policy(&scenario, &p, strategy, true, true, &|k| pb.inc(k))
+            .with_context(|| format!("--on-policy: rebuild {r} on the strategy's own pools"))?;
+        m.check()
+            .context("a rebuilt MDP failed its own consistency check (a bug)")?;
+        mdps.push(m);
+    }
     pb.finish_and_clear();
-    rebuilt
-        .check()
-        .context("the rebuilt MDP failed its own consistency check (a bug)")?;
+    let replicated = if mdps.len() >= 2 {
+        let mut values = Vec::with_capacity(mdps.len());
+        for m in &mdps {
+            let Some(c) = crossfit(m, &policy_on(m, strategy), cost) else {
+                bail!("--replicates: DIR's MDP has no held-out sample to cross-fit on");
+            };
+            values.push(c.objectives);
+        }
+        let r = replicated(&values).context("--replicates: combining the rebuilds")?;
+        Some((values, r))
+    } else {
+        None
+    };
     Ok(Rebuilt {
-        mdp: rebuilt,
+        mdps,
         seconds: started.elapsed().as_secs_f64(),
+        replicated,
     })
+}
+
+/// Replace the predictions `strategy` took from the first rebuild by the
+/// replicates' (selection-time and per-leg energy: their mean; cross-fitted:
+/// their mean and Student-t ±); its certified bounds stay the first's.
+pub fn apply_replicates(strategy: &mut Strategy, rebuilt: &Rebuilt, cost: CostModel) {
+    let Some((_, r)) = &rebuilt.replicated else {
+        return;
+    };
+    let n = rebuilt.mdps.len() as f64;
+    let mut selection = Objectives::default();
+    let mut legs: Vec<f64> = Vec::new();
+    for m in &rebuilt.mdps {
+        let omega = policy_on(m, strategy);
+        let p = evaluate(m, &omega, cost);
+        selection.p_target += p.p_target / n;
+        selection.p_collision += p.p_collision / n;
+        selection.energy += p.energy / n;
+        for (i, e) in leg_energy(m, &omega, cost).into_iter().enumerate() {
+            if legs.len() <= i {
+                legs.resize(i + 1, 0.0);
+            }
+            legs[i] += e / n;
+        }
+    }
+    strategy.predicted = crate::cmd::honest::prediction(&selection);
+    strategy.leg_energy = Some(legs);
+    strategy.crossfit = Some(crate::cmd::honest::prediction(&r.mean));
+    strategy.crossfit_ci95 = Some(PredictionCi95 {
+        p_target: r.ci95.p_target,
+        p_collision: r.ci95.p_collision,
+        energy_mean: r.ci95.energy,
+    });
 }
