@@ -83,15 +83,17 @@ pub struct Args {
     /// Predict the selected strategy again on a rebuild of DIR's abstraction
     /// (same settings and seed) whose pools are its own beliefs and true
     /// states, simulating only its thresholds: its aggregation error removed
-    /// (docs/MODEL.md §7.3) for about 1/|Δ| of a synthesis more. The same
-    /// numbers as `etp synthesize --pool-policy` + `etp strategy --evaluate`.
+    /// (docs/MODEL.md §7.3) for about 1/|Δ| of a synthesis per rebuild
+    /// (--replicates). With --replicates 1, the numbers of `etp synthesize
+    /// --pool-policy` + `etp strategy --evaluate`.
     #[arg(long, conflicts_with_all = ["evaluate", "refine_gap"])]
     pub on_policy: bool,
     /// With --on-policy: R rebuilds (seeds DIR's + 0 … R − 1); from 2 on,
     /// the cross-fitted value is their mean and its ± a Student-t interval
     /// over their spread, which covers the rebuild's whole Monte Carlo (one
     /// rebuild's ± counts only its held-out sample: docs/MODEL.md §7.3).
-    #[arg(long, value_name = "R", default_value_t = 1, requires = "on_policy",
+    /// 1: a single rebuild, a quarter of the time, a ± that is too narrow.
+    #[arg(long, value_name = "R", default_value_t = 4, requires = "on_policy",
           value_parser = clap::value_parser!(u32).range(1..=64))]
     pub replicates: u32,
 }

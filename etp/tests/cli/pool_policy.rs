@@ -173,6 +173,8 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
         "--min-target",
         "0.9",
         "--on-policy",
+        "--replicates",
+        "1",
         "--aggregation-check",
         "0",
         "-o",

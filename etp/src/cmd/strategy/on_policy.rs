@@ -3,8 +3,8 @@
 //! its own (true state, belief) pairs and whose states simulate only its
 //! own thresholds (docs/MODEL.md §7.3) — in one command what `etp synthesize
 //! --pool-policy` and `etp strategy --evaluate` do in two, with DIR's own
-//! settings; replicate r uses DIR's seed + r, so replicate 0 gives the
-//! numbers of the two-step way. With R ≥ 2 the cross-fitted value is the
+//! settings; replicate r uses DIR's seed + r, so `--replicates 1` gives the
+//! numbers of the two-step way. With R ≥ 2 (default 4) the cross-fitted value is the
 //! replicates' mean and its ± a Student-t interval over their spread, which
 //! covers the rebuild's whole Monte Carlo (`certify::replicates`). The
 //! rebuilt MDPs are not kept.
