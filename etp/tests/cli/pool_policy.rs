@@ -16,6 +16,38 @@ fn read(path: &std::path::Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).expect("read")).expect("json")
 }
 
+/// `etp strategy DIR ARGS -o DIR/refused.json` fails naming `needles`, and
+/// writes nothing.
+fn refused(dir: &std::path::Path, args: &[&str], needles: &[&str]) {
+    let out = dir.join("refused.json");
+    let mut all = vec!["strategy", s(dir)];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&["-o", s(&out)]);
+    fails_with(&all, needles);
+    assert!(!out.exists(), "{args:?} wrote {}", out.display());
+}
+
+/// `etp strategy DIR --min-target 0.9 --on-policy --replicates R -o OUT
+/// --json`, its output checked against the schema.
+fn on_policy_strategy(dir: &std::path::Path, replicates: &str, out: &std::path::Path) -> Value {
+    let v = ok_json(&[
+        "strategy",
+        s(dir),
+        "--min-target",
+        "0.9",
+        "--on-policy",
+        "--replicates",
+        replicates,
+        "--aggregation-check",
+        "0",
+        "-o",
+        s(out),
+        "--json",
+    ]);
+    super::schemas::validate(dir, "strategy", &v).expect("strategy --json matches its schema");
+    v
+}
+
 fn on_policy(policy: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> Value {
     let mut args = vec![
         "synthesize",
@@ -86,12 +118,11 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
 
     // Only the strategy's thresholds (the default): its front is not the
     // scenario's, so selecting on it is refused, naming the way out.
-    let again = a.join("s.json");
-    fails_with(
-        &["strategy", s(&a), "--min-target", "0.9", "-o", s(&again)],
+    refused(
+        &a,
+        &["--min-target", "0.9"],
         &["--evaluate", "--all-actions"],
     );
-    assert!(!again.exists());
     // With every threshold the same pools serve a new selection, which
     // classifies with the conditioning strategy's bins.
     let full = dir.path("op-full");
@@ -167,21 +198,7 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
     // with DIR's settings and seed: the numbers of the two-step way (up to
     // the last bit of ω through the file).
     let one = base.join("on-policy.json");
-    let v = ok_json(&[
-        "strategy",
-        s(&base),
-        "--min-target",
-        "0.9",
-        "--on-policy",
-        "--replicates",
-        "1",
-        "--aggregation-check",
-        "0",
-        "-o",
-        s(&one),
-        "--json",
-    ]);
-    super::schemas::validate(&base, "strategy", &v).expect("strategy --json matches its schema");
+    let v = on_policy_strategy(&base, "1", &one);
     assert!(v["on_policy"]["segments"].as_u64().unwrap_or(0) > 0, "{v}");
     let o = read(&one);
     for (field, key) in [
@@ -203,21 +220,7 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
     // the rebuild above, the cross-fitted value their mean, its ± Student's
     // t on 2 degrees of freedom over their spread.
     let three = base.join("on-policy-3.json");
-    let v = ok_json(&[
-        "strategy",
-        s(&base),
-        "--min-target",
-        "0.9",
-        "--on-policy",
-        "--replicates",
-        "3",
-        "--aggregation-check",
-        "0",
-        "-o",
-        s(&three),
-        "--json",
-    ]);
-    super::schemas::validate(&base, "strategy", &v).expect("strategy --json matches its schema");
+    let v = on_policy_strategy(&base, "3", &three);
     let reps = v["on_policy"]["replicates"]
         .as_array()
         .cloned()
@@ -242,35 +245,16 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
     );
     // The seeds differ: so do the replicates (a spread to measure).
     assert!(sd > 0.0, "{tar:?}");
-    fails_with(
-        &[
-            "strategy",
-            s(&base),
-            "--min-target",
-            "0.9",
-            "--replicates",
-            "3",
-            "-o",
-            s(&base.join("r.json")),
-        ],
+    refused(
+        &base,
+        &["--min-target", "0.9", "--replicates", "3"],
         &["--on-policy"],
     );
-    assert!(!base.join("r.json").exists());
-    fails_with(
-        &[
-            "strategy",
-            s(&base),
-            "--min-target",
-            "0.9",
-            "--confidence",
-            "0.95",
-            "--on-policy",
-            "-o",
-            s(&base.join("c.json")),
-        ],
+    refused(
+        &base,
+        &["--min-target", "0.9", "--confidence", "0.95", "--on-policy"],
         &["--on-policy", "--confidence"],
     );
-    assert!(!base.join("c.json").exists());
     let sim = |f: &std::path::Path| {
         ok_json(&["validate", s(f), "--episodes", "300", "--json"])["p_target"].clone()
     };
@@ -280,27 +264,10 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
         "the same strategy, the same episodes"
     );
     let not_a_strategy = a.join("mdp.bin");
-    fails_with(
-        &[
-            "strategy",
-            s(&a),
-            "--evaluate",
-            s(&not_a_strategy),
-            "-o",
-            s(&a.join("x.json")),
-        ],
-        &["--evaluate"],
-    );
-    assert!(!a.join("x.json").exists());
-    fails_with(
-        &[
-            "strategy",
-            s(&a),
-            "--evaluate",
-            s(&policy),
-            "--min-target",
-            "0.9",
-        ],
+    refused(&a, &["--evaluate", s(&not_a_strategy)], &["--evaluate"]);
+    refused(
+        &a,
+        &["--evaluate", s(&policy), "--min-target", "0.9"],
         &["--evaluate", "--min-target"],
     );
 
