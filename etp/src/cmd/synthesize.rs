@@ -532,6 +532,9 @@ pub fn run(a: Args) -> Result<()> {
                 built.dir.display()
             );
         }
+        for f in &front.files {
+            println!("  wrote {}", f.display());
+        }
     }
     if let Some((dir, names)) = &stale {
         eprintln!(

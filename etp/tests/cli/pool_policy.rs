@@ -101,6 +101,35 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
     assert_eq!(bytes(&a), bytes(&b), "two on-policy builds differ");
     // The pools moved: not the unweighted build of the same bins.
     assert_ne!(bytes(&a), bytes(&base), "the policy changed nothing");
+    // The text report: the front is not the scenario's, and what was written.
+    let text = dir.path("op-text");
+    let out = super::etp(&[
+        "synthesize",
+        "open-2d",
+        "--pool-policy",
+        s(&policy),
+        "--samples",
+        "1000",
+        "--holdout-samples",
+        "1000",
+        "--seed",
+        "3",
+        "--no-kf-baseline",
+        "--aggregation-episodes",
+        "0",
+        "-o",
+        s(&text),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}");
+    assert!(
+        stdout.contains("this front is not the scenario's"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains(&format!("wrote {}", text.join("front.json").display())),
+        "{stdout}"
+    );
     // --no-carry-state: segments draw their true state from N(x̂, P) instead
     // of starting from the one their particle arrived with; as
     // deterministic, and not the same build.
