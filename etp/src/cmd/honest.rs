@@ -191,8 +191,16 @@ pub fn json_of(s: &Strategy) -> serde_json::Value {
     })
 }
 
+/// What the cross-fitted ± of [`text_of`] is, by default.
+pub const HELD_OUT_CI: &str = "the held-out sample's own error";
+
 /// Text rows: selection-time, cross-fitted with the bias, certified.
 pub fn text_of(s: &Strategy) -> String {
+    text_with_ci(s, HELD_OUT_CI)
+}
+
+/// [`text_of`], saying what its cross-fitted ± is (`ci`).
+pub fn text_with_ci(s: &Strategy, ci: &str) -> String {
     let p = &s.predicted;
     let mut o = format!(
         "  selection-time  P_tar {:.6}  P_coll {:.6}  energy {:.4}\n",
@@ -215,10 +223,14 @@ pub fn text_of(s: &Strategy) -> String {
     }
     if let (Some(c), Some(r)) = (&s.crossfit, &s.crossfit_ci95) {
         o.push_str(&format!(
-            "  its sampling    P_tar ±{:.2} pt  P_coll ±{:.2} pt  energy ±{:.2} %   (95 %, the held-out sample's own error)\n",
+            "  its sampling    P_tar ±{:.2} pt  P_coll ±{:.2} pt  energy ±{:.2} %   (95 %, {ci})\n",
             100.0 * r.p_target,
             100.0 * r.p_collision,
-            if c.energy_mean != 0.0 { 100.0 * r.energy_mean / c.energy_mean } else { 0.0 },
+            if c.energy_mean != 0.0 {
+                100.0 * r.energy_mean / c.energy_mean
+            } else {
+                0.0
+            },
         ));
     }
     if let Some(c) = &s.certified {

@@ -13,7 +13,7 @@ use crate::output::{read_front, read_mdp, refuse_existing, write_new};
 use anyhow::{Context, Result, bail};
 use clap::ArgGroup;
 use etp_synthesis::pareto::optimal::{LpRequest, UNVISITED, optimal_strategy};
-use etp_synthesis::pareto::policy::{Objectives, as_randomised, evaluate, leg_energy};
+use etp_synthesis::pareto::policy::{Objectives, as_randomised, evaluate};
 use etp_synthesis::pareto::select::{Request, select};
 use etp_synthesis::pareto::to_strategy;
 use serde_json::json;
@@ -266,19 +266,18 @@ pub fn run(a: Args) -> Result<()> {
     };
     let (mdp, omega) = match &rebuilt {
         Some(r) => {
-            let omega = evaluate::policy_on(r.first(), &strategy);
-            let p = evaluate(r.first(), &omega, cost);
-            strategy.predicted = super::honest::prediction(&p);
-            strategy.leg_energy = Some(leg_energy(r.first(), &omega, cost));
+            let first = r.first();
+            strategy.predicted = super::honest::prediction(&first.predicted);
+            strategy.leg_energy = Some(first.leg_energy.clone());
             strategy.label = format!("{label} — predicted on its own pools");
-            (r.first(), omega)
+            (&first.mdp, &first.omega)
         }
-        None => (&mdp, omega),
+        None => (&mdp, &omega),
     };
-    let honest = certified::assess(mdp, &omega, cost, bound_level)?;
+    let honest = certified::assess(mdp, omega, cost, bound_level)?;
     super::honest::attach(&mut strategy, honest.crossfit.as_ref(), &honest.certified);
     if let Some(r) = &rebuilt {
-        on_policy::apply_replicates(&mut strategy, r, cost);
+        on_policy::apply_replicates(&mut strategy, r);
     }
     certified::check_aggregation(&mut strategy, &a, level)?;
     write_new(&output, strategy.to_json().as_bytes(), a.force)?;
@@ -312,7 +311,7 @@ pub fn run(a: Args) -> Result<()> {
             "  predicted  P_tar {:.6}  P_coll {:.6}  energy {:.6}",
             p.p_target, p.p_collision, p.energy
         );
-        let mut report = super::honest::text_of(&strategy);
+        let mut ci = super::honest::HELD_OUT_CI.to_string();
         if let Some(r) = &rebuilt {
             print!("{}", r.describe());
             let q = &strategy.predicted;
@@ -321,13 +320,10 @@ pub fn run(a: Args) -> Result<()> {
                 q.p_target, q.p_collision, q.energy_mean
             );
             if r.replicated.is_some() {
-                report = report.replace(
-                    "the held-out sample's own error",
-                    &format!("Student's t over the {} rebuilds", r.mdps.len()),
-                );
+                ci = format!("Student's t over the {} rebuilds", r.replicas.len());
             }
         }
-        print!("{report}");
+        print!("{}", super::honest::text_with_ci(&strategy, &ci));
         if let Some(o) = &exact {
             println!(
                 "  exact: occupation-measure LP over the whole MDP, realised as ω ({} randomising states; unvisited states: {UNVISITED}){}",

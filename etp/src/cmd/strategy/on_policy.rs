@@ -17,13 +17,23 @@ use etp_synthesis::abstraction;
 use etp_synthesis::certify::crossfit::crossfit;
 use etp_synthesis::certify::replicates::{Replicated, replicated};
 use etp_synthesis::mdp::{CostModel, Mdp};
-use etp_synthesis::pareto::policy::{Objectives, evaluate, leg_energy};
+use etp_synthesis::pareto::policy::{Objectives, RandomisedPolicy, evaluate, leg_energy};
 use serde_json::json;
 use std::time::Instant;
 
+/// One rebuild and the strategy evaluated on it, once.
+pub struct Replica {
+    pub mdp: Mdp,
+    /// The strategy's ω on this rebuild's states.
+    pub omega: RandomisedPolicy,
+    /// Selection-time value and per-leg energy on this rebuild.
+    pub predicted: Objectives,
+    pub leg_energy: Vec<f64>,
+}
+
 /// The rebuilds (replicate r with DIR's seed + r) and what they cost.
 pub struct Rebuilt {
-    pub mdps: Vec<Mdp>,
+    pub replicas: Vec<Replica>,
     pub seconds: f64,
     /// With two or more: each replicate's cross-fitted value, and their mean.
     pub replicated: Option<(Vec<Objectives>, Replicated)>,
@@ -31,20 +41,24 @@ pub struct Rebuilt {
 
 impl Rebuilt {
     /// The first rebuild (the two-step way's).
-    pub fn first(&self) -> &Mdp {
-        &self.mdps[0]
+    pub fn first(&self) -> &Replica {
+        &self.replicas[0]
+    }
+
+    fn segments(&self) -> u64 {
+        self.replicas.iter().map(|r| r.mdp.total_segments).sum()
     }
 
     /// What `--json` reports of the rebuilds.
     pub fn json(&self) -> serde_json::Value {
-        let m = self.first();
+        let m = &self.first().mdp;
         json!({
             "states": m.states.len(),
             "choices": m.states.iter().map(|s| s.choices.len()).sum::<usize>(),
-            "segments": self.mdps.iter().map(|m| m.total_segments).sum::<u64>(),
+            "segments": self.segments(),
             "seconds": self.seconds,
-            "replicates": self.mdps.iter().enumerate().map(|(r, m)| json!({
-                "seed": m.seed,
+            "replicates": self.replicas.iter().enumerate().map(|(r, x)| json!({
+                "seed": x.mdp.seed,
                 "crossfit": self.replicated.as_ref().and_then(|(v, _)| v.get(r)).map(|o| json!({
                     "p_target": o.p_target, "p_collision": o.p_collision, "energy_mean": o.energy})),
             })).collect::<Vec<_>>(),
@@ -53,11 +67,11 @@ impl Rebuilt {
 
     /// The text report's lines.
     pub fn describe(&self) -> String {
-        let m = self.first();
+        let m = &self.first().mdp;
         let mut s = format!(
             "  on its own pools: rebuilt with {} states, {} segments in {:.1} s (docs/MODEL.md §7.3); the predictions below are the rebuild's\n",
             m.states.len(),
-            self.mdps.iter().map(|m| m.total_segments).sum::<u64>(),
+            self.segments(),
             self.seconds
         );
         if let Some((v, r)) = &self.replicated {
@@ -66,7 +80,7 @@ impl Rebuilt {
                 "  {} replicates (seeds {}…{}), cross-fitted P_tar {}: their mean, its ± Student's t over their spread (the rebuilds' whole Monte Carlo); selection-time their mean, certified the first's\n",
                 r.replicates,
                 m.seed,
-                self.mdps.last().map_or(m.seed, |l| l.seed),
+                self.replicas.last().map_or(m.seed, |l| l.mdp.seed),
                 list.join(", ")
             ));
         }
@@ -76,8 +90,8 @@ impl Rebuilt {
 
 /// Rebuild `mdp`'s abstraction `replicates` times (same settings, seeds
 /// DIR's + r) with the pools drawn on `strategy`, carrying the true state,
-/// on its thresholds only; with two or more, the replicates' cross-fitted
-/// values combined.
+/// on its thresholds only, and evaluate `strategy` on each; with two or
+/// more, the replicates' cross-fitted values combined.
 pub fn rebuild(
     strategy: &Strategy,
     mdp: &Mdp,
@@ -95,7 +109,7 @@ pub fn rebuild(
         quiet,
     );
     let started = Instant::now();
-    let mut mdps = Vec::new();
+    let mut replicas = Vec::new();
     for r in 0..replicates.max(1) {
         let mut p = params;
         p.seed = params.seed.wrapping_add(u64::from(r));
@@ -103,13 +117,19 @@ pub fn rebuild(
             .with_context(|| format!("--on-policy: rebuild {r} on the strategy's own pools"))?;
         m.check()
             .context("a rebuilt MDP failed its own consistency check (a bug)")?;
-        mdps.push(m);
+        let omega = policy_on(&m, strategy);
+        replicas.push(Replica {
+            predicted: evaluate(&m, &omega, cost),
+            leg_energy: leg_energy(&m, &omega, cost),
+            omega,
+            mdp: m,
+        });
     }
     pb.finish_and_clear();
-    let replicated = if mdps.len() >= 2 {
-        let mut values = Vec::with_capacity(mdps.len());
-        for m in &mdps {
-            let Some(c) = crossfit(m, &policy_on(m, strategy), cost) else {
+    let replicated = if replicas.len() >= 2 {
+        let mut values = Vec::with_capacity(replicas.len());
+        for x in &replicas {
+            let Some(c) = crossfit(&x.mdp, &x.omega, cost) else {
                 bail!("--replicates: DIR's MDP has no held-out sample to cross-fit on");
             };
             values.push(c.objectives);
@@ -120,7 +140,7 @@ pub fn rebuild(
         None
     };
     Ok(Rebuilt {
-        mdps,
+        replicas,
         seconds: started.elapsed().as_secs_f64(),
         replicated,
     })
@@ -129,24 +149,22 @@ pub fn rebuild(
 /// Replace the predictions `strategy` took from the first rebuild by the
 /// replicates' (selection-time and per-leg energy: their mean; cross-fitted:
 /// their mean and Student-t ±); its certified bounds stay the first's.
-pub fn apply_replicates(strategy: &mut Strategy, rebuilt: &Rebuilt, cost: CostModel) {
+pub fn apply_replicates(strategy: &mut Strategy, rebuilt: &Rebuilt) {
     let Some((_, r)) = &rebuilt.replicated else {
         return;
     };
-    let n = rebuilt.mdps.len() as f64;
+    let n = rebuilt.replicas.len() as f64;
     let mut selection = Objectives::default();
     let mut legs: Vec<f64> = Vec::new();
-    for m in &rebuilt.mdps {
-        let omega = policy_on(m, strategy);
-        let p = evaluate(m, &omega, cost);
-        selection.p_target += p.p_target / n;
-        selection.p_collision += p.p_collision / n;
-        selection.energy += p.energy / n;
-        for (i, e) in leg_energy(m, &omega, cost).into_iter().enumerate() {
-            if legs.len() <= i {
-                legs.resize(i + 1, 0.0);
-            }
-            legs[i] += e / n;
+    for x in &rebuilt.replicas {
+        selection.p_target += x.predicted.p_target / n;
+        selection.p_collision += x.predicted.p_collision / n;
+        selection.energy += x.predicted.energy / n;
+        if legs.len() < x.leg_energy.len() {
+            legs.resize(x.leg_energy.len(), 0.0);
+        }
+        for (l, e) in legs.iter_mut().zip(&x.leg_energy) {
+            *l += e / n;
         }
     }
     strategy.predicted = crate::cmd::honest::prediction(&selection);
