@@ -24,8 +24,7 @@ use crate::mdp::{KfConvergenceParams, Mdp, Method, State};
 use etp_shared::discretization::{
     DecisionPointBins, Discretization, Region, RegionSplit, WorkspaceMarginal, refine_region,
 };
-use etp_shared::episode::CompiledScenario;
-use etp_shared::episode::LegMode;
+use etp_shared::episode::{CompiledScenario, LegMode};
 use etp_shared::etkf::{Matrix, Threshold};
 use etp_shared::linalg::to_dynamic;
 use etp_shared::scenario::Scenario;
