@@ -48,7 +48,12 @@ fn on_policy_strategy(dir: &std::path::Path, replicates: &str, out: &std::path::
     v
 }
 
-fn on_policy(policy: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> Value {
+/// `etp synthesize open-2d --pool-policy POLICY … -o OUT EXTRA…` (small, fixed seed).
+fn on_policy_args<'a>(
+    policy: &'a std::path::Path,
+    out: &'a std::path::Path,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
     let mut args = vec![
         "synthesize",
         "open-2d",
@@ -65,9 +70,15 @@ fn on_policy(policy: &std::path::Path, out: &std::path::Path, extra: &[&str]) ->
         "0",
         "-o",
         s(out),
-        "--json",
     ];
     args.extend_from_slice(extra);
+    args
+}
+
+/// [`on_policy_args`] with `--json`: its report.
+fn on_policy(policy: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> Value {
+    let mut args = on_policy_args(policy, out, extra);
+    args.push("--json");
     ok_json(&args)
 }
 
@@ -103,23 +114,7 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
     assert_ne!(bytes(&a), bytes(&base), "the policy changed nothing");
     // The text report: the front is not the scenario's, and what was written.
     let text = dir.path("op-text");
-    let out = super::etp(&[
-        "synthesize",
-        "open-2d",
-        "--pool-policy",
-        s(&policy),
-        "--samples",
-        "1000",
-        "--holdout-samples",
-        "1000",
-        "--seed",
-        "3",
-        "--no-kf-baseline",
-        "--aggregation-episodes",
-        "0",
-        "-o",
-        s(&text),
-    ]);
+    let out = super::etp(&on_policy_args(&policy, &text, &[]));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{stdout}");
     assert!(
