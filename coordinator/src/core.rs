@@ -378,6 +378,7 @@ impl<'a> CoordinatorCore<'a> {
             steps: records.iter().map(|r| u64::from(r.steps)).sum(),
             seconds,
             predicted: self.strategy.predicted,
+            predicted_ci95: self.strategy.predicted_ci95,
             sensors,
             faults: std::mem::take(&mut self.faults),
             episode_results: records,

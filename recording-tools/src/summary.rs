@@ -323,7 +323,18 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
         "seed": num("seed"),
         "strategy": strategy.as_ref().map(|s| s.label.clone()),
         "delta": strategy.as_ref().and_then(crate::vocab::constant_delta),
-        "predicted": strategy.as_ref().map(|s| crate::vocab::prediction(&s.predicted)),
+        "predicted": crate::vocab::prediction(strategy.as_ref().and_then(|s| s.predicted.as_ref())),
+        "predicted_ci95": strategy.as_ref().and_then(|s| s.predicted_ci95).map(|c| json!({
+            "p_target": c.p_target, "p_collision": c.p_collision, "energy_mean": c.energy_mean})),
+        "prediction_check": crate::vocab::prediction_check(
+            strategy.as_ref().and_then(|s| s.predicted.as_ref()),
+            strategy.as_ref().and_then(|s| s.predicted_ci95.as_ref()),
+            [
+                crate::vocab::Measured { value: p_target, ci95: p_target_ci95 },
+                crate::vocab::Measured { value: p_collision, ci95: p_collision_ci95 },
+                crate::vocab::Measured { value: energy_mean, ci95: energy_mean_ci95 },
+            ],
+        ),
         "software_version": c.meta(recording::META_RUN, "software_version"),
         "format_version": num("format_version"),
         "requested_episodes": num("episodes"),
@@ -428,6 +439,11 @@ fn write_table(out: &mut String, file: &Path, c: &Contents, s: &Value) -> std::f
         h("energy"),
         h("predicted_energy")
     )?;
+    if let Some(v) = s.get("prediction_check")
+        && s.get("episodes").and_then(Value::as_u64).unwrap_or(0) > 0
+    {
+        write!(out, "{}", crate::vocab::prediction_check_text(v))?;
+    }
     writeln!(
         out,
         "  {:<10} {:>12} {:>12} {:>10} {:>8} {:>12} {:>12} {:>12}",

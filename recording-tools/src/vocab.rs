@@ -7,7 +7,11 @@
 //!   strategy that varies it), `episodes` (integer);
 //! * measured outcomes: `p_target`, `p_collision`, `p_free`, `energy_mean`,
 //!   each with `<key>_ci95` (95 % half-width) where the command has it;
-//! * `predicted`: `{p_target, p_collision, p_free, energy_mean}` (numbers);
+//! * `predicted`: `{p_target, p_collision, p_free, energy_mean}` (numbers),
+//!   the prediction etp stands by, or null (a `--quick` strategy);
+//!   `predicted_ci95` its 95 % half-widths (null where it has none);
+//!   `prediction_check` each of P_tar, P_coll and energy measured against it
+//!   ([`prediction_check`]);
 //! * `transmissions` (integer): transmissions counted by the sensors;
 //!   `received` what the agent received; `measurements` the `measurement`
 //!   messages of a recording;
@@ -17,11 +21,73 @@
 //!
 //! Numbers are JSON numbers, never strings.
 
-use etp_shared::strategy::{Prediction, Strategy};
+use etp_shared::strategy::{Prediction, PredictionCi95, Strategy};
 use serde_json::{Value, json};
 
+/// A measurement with its 95 % half-width.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Measured {
+    pub value: f64,
+    pub ci95: f64,
+}
+
+/// Measured P_tar, P_coll and energy per episode against the prediction:
+/// each `inside` when |predicted − measured| ≤ the measured half-width and
+/// the prediction's own joined in quadrature. Null without a prediction.
+pub fn prediction_check(
+    p: Option<&Prediction>,
+    ci: Option<&PredictionCi95>,
+    measured: [Measured; 3],
+) -> Value {
+    let Some(p) = p else {
+        return Value::Null;
+    };
+    let own = ci.copied().unwrap_or_default();
+    let row = |pred: f64, own: f64, m: Measured| {
+        let width = m.ci95.hypot(own);
+        json!({"predicted": pred, "measured": m.value, "measured_ci95": m.ci95,
+            "predicted_ci95": own, "inside": (pred - m.value).abs() <= width})
+    };
+    json!({
+        "p_target": row(p.p_target, own.p_target, measured[0]),
+        "p_collision": row(p.p_collision, own.p_collision, measured[1]),
+        "energy_mean": row(p.energy_mean, own.energy_mean, measured[2]),
+    })
+}
+
+/// One text line of a [`prediction_check`]: which quantities fall outside.
+pub fn prediction_check_text(v: &Value) -> String {
+    if v.is_null() {
+        return "  prediction: none to compare (a --quick strategy)\n".into();
+    }
+    let mut out = Vec::new();
+    for (k, name) in [
+        ("p_target", "P_tar"),
+        ("p_collision", "P_coll"),
+        ("energy_mean", "energy"),
+    ] {
+        let r = &v[k];
+        if r["inside"].as_bool() == Some(false) {
+            out.push(format!(
+                "{name} predicted {} outside measured {} ± {}",
+                human(r["predicted"].as_f64().unwrap_or(f64::NAN)),
+                human(r["measured"].as_f64().unwrap_or(f64::NAN)),
+                human(r["measured_ci95"].as_f64().unwrap_or(f64::NAN)),
+            ));
+        }
+    }
+    if out.is_empty() {
+        "  prediction: P_tar, P_coll and energy inside the measured 95 % intervals (joined with the prediction's ±)\n".into()
+    } else {
+        format!("  PREDICTION OUTSIDE the measured interval: {}\n", out.join("; "))
+    }
+}
+
 /// `predicted` of every command.
-pub fn prediction(p: &Prediction) -> Value {
+pub fn prediction(p: Option<&Prediction>) -> Value {
+    let Some(p) = p else {
+        return Value::Null;
+    };
     json!({
         "p_target": p.p_target,
         "p_collision": p.p_collision,

@@ -1,7 +1,7 @@
 //! The coordinator's run report (JSON on its stdout), read by `etp run` and the
 //! end-to-end tests.
 
-use etp_shared::strategy::Prediction;
+use etp_shared::strategy::{Prediction, PredictionCi95};
 use serde::{Deserialize, Serialize};
 
 /// One leg of one episode, as the coordinator saw it.
@@ -105,7 +105,11 @@ pub struct RunReport {
     pub steps: u64,
     /// Wall time from the first episode's start to the last outcome, s.
     pub seconds: f64,
-    pub predicted: Prediction,
+    /// The strategy file's prediction (None for a `--quick` strategy) and
+    /// its 95 % half-widths.
+    pub predicted: Option<Prediction>,
+    #[serde(default)]
+    pub predicted_ci95: Option<PredictionCi95>,
     pub sensors: Vec<SensorTotals>,
     pub faults: Vec<FaultRecord>,
     pub episode_results: Vec<EpisodeRecord>,

@@ -22,17 +22,27 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 mod aggregation;
+mod format;
+mod prediction;
 pub use aggregation::{AggregationCheck, AggregationError, PredictionCi95, SimulatedValue};
+pub use prediction::{
+    CertifiedPrediction, Diagnostics, Prediction, RebuildValue, RequestRound, SelectionValues,
+};
 
-/// Version of the `strategy.json` layout.
-pub const STRATEGY_FORMAT_VERSION: u32 = 1;
+/// Version of the `strategy.json` layout. Version 2: `predicted` is the
+/// prediction etp stands by (with `predicted_ci95` and `prediction_basis`),
+/// every other value under `diagnostics`; version 1 files (whose `predicted`
+/// was the selection-time value) are read and converted ([`format`]).
+pub const STRATEGY_FORMAT_VERSION: u32 = 2;
 
 /// Why a strategy cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum StrategyError {
     #[error("strategy file is not valid JSON for a strategy: {0}")]
     Parse(String),
-    #[error("strategy format version {found} is not supported (this etp reads version {expected})")]
+    #[error(
+        "strategy format version {found} is not supported (this etp reads versions 1 to {expected})"
+    )]
     Version { found: u32, expected: u32 },
     #[error(
         "strategy was made for scenario `{strategy_name}` (hash {strategy_hash:.12}…), not for `{scenario_name}` (hash {scenario_hash:.12}…)"
@@ -95,34 +105,6 @@ fn check_seal(text: &str) -> Result<Option<()>, StrategyError> {
     Ok(Some(()))
 }
 
-/// The values a strategy is predicted to reach (on the abstraction).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Prediction {
-    pub p_target: f64,
-    pub p_collision: f64,
-    pub p_free: f64,
-    pub energy_mean: f64,
-}
-
-/// Certified bounds of a strategy (docs/MODEL.md §4.1): with probability at
-/// least `confidence` over the abstraction's sampling, the abstraction's true
-/// P_tar ≥ `p_target_low`, P_coll ≤ `p_collision_high`, energy ≤ `energy_high`.
-/// They cover sampling error in the abstraction, not the aggregation of
-/// beliefs into regions (which `etp validate` measures), unless
-/// `covers_aggregation`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct CertifiedPrediction {
-    pub confidence: f64,
-    pub p_target_low: f64,
-    pub p_collision_high: f64,
-    pub energy_high: f64,
-    /// The bounds were widened by the measured aggregation error
-    /// ([`Strategy::aggregation`], `etp strategy --cover-aggregation`), so
-    /// they cover it too. Absent (false) in older files and by default.
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub covers_aggregation: bool,
-}
-
 /// ω for one abstract state.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StrategyState {
@@ -146,18 +128,22 @@ pub struct Strategy {
     /// the decision point only, e.g. a constant δ).
     pub discretization: Option<Discretization>,
     pub states: Vec<StrategyState>,
-    /// Selection-time prediction: the strategy's exact value on the MDP whose
-    /// samples chose it (optimistic by the optimizer's bias).
-    pub predicted: Prediction,
-    /// Cross-fitted prediction: the same strategy evaluated on held-out
-    /// transitions sampled independently of those that chose it.
+    /// The prediction etp stands by (docs/MODEL.md §7.4): for a strategy of
+    /// `etp strategy`, the mean cross-fitted value of its on-policy rebuilds
+    /// (its own beliefs in the pools, so no aggregation error), with
+    /// [`Strategy::predicted_ci95`]; for a constant δ of `etp run --scenario
+    /// … --delta`, an in-process simulation. `None` for a `--quick`
+    /// strategy, whose only values are the biased ones of [`Diagnostics`].
+    pub predicted: Option<Prediction>,
+    /// The 95 % half-widths of [`Strategy::predicted`] (Student's t over the
+    /// rebuilds, or the simulation's interval).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub crossfit: Option<Prediction>,
-    /// The cross-fitted prediction's own sampling error (95 % half-widths,
-    /// from the finite held-out sample). Absent in older files.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub crossfit_ci95: Option<PredictionCi95>,
-    /// Certified bounds at a confidence level.
+    pub predicted_ci95: Option<PredictionCi95>,
+    /// How [`Strategy::predicted`] was obtained, in words.
+    #[serde(default)]
+    pub prediction_basis: String,
+    /// Certified bounds at a confidence level (for a strategy of `etp
+    /// strategy`: from the first on-policy rebuild's own transitions).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub certified: Option<CertifiedPrediction>,
     /// The scenario's TOML text, so a strategy file is self-contained
@@ -188,6 +174,11 @@ pub struct Strategy {
     /// against its prediction. Absent in older files and with N = 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub aggregation: Option<AggregationCheck>,
+    /// Every other value, for diagnosis only: the selection-time and
+    /// cross-fitted values on the MDP it was selected on (biased), each
+    /// rebuild's, and the rounds of the request loop.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub diagnostics: Option<Diagnostics>,
 }
 
 impl Strategy {
@@ -207,7 +198,11 @@ impl Strategy {
     }
 
     /// The same δ on every leg (region-free).
-    pub fn constant(scenario: &Scenario, delta_index: usize, predicted: Prediction) -> Self {
+    pub fn constant(
+        scenario: &Scenario,
+        delta_index: usize,
+        predicted: Option<Prediction>,
+    ) -> Self {
         let mut omega = vec![0.0; scenario.deltas.len()];
         omega[delta_index] = 1.0;
         Self {
@@ -225,14 +220,15 @@ impl Strategy {
                 })
                 .collect(),
             predicted,
-            crossfit: None,
-            crossfit_ci95: None,
+            predicted_ci95: None,
+            prediction_basis: String::new(),
             certified: None,
             scenario_toml: None,
             leg_energy: None,
             radio: None,
             splits: Vec::new(),
             aggregation: None,
+            diagnostics: None,
         }
     }
 
@@ -289,15 +285,19 @@ impl Strategy {
         }
         let v: Versioned =
             serde_json::from_str(text).map_err(|e| StrategyError::Parse(e.to_string()))?;
-        if v.format_version != STRATEGY_FORMAT_VERSION {
-            return Err(StrategyError::Version {
-                found: v.format_version,
-                expected: STRATEGY_FORMAT_VERSION,
-            });
-        }
         check_seal(text)?;
-        let s: Self =
-            serde_json::from_str(text).map_err(|e| StrategyError::Parse(e.to_string()))?;
+        let s: Self = match v.format_version {
+            STRATEGY_FORMAT_VERSION => {
+                serde_json::from_str(text).map_err(|e| StrategyError::Parse(e.to_string()))?
+            }
+            1 => format::from_version_1(text)?,
+            found => {
+                return Err(StrategyError::Version {
+                    found,
+                    expected: STRATEGY_FORMAT_VERSION,
+                });
+            }
+        };
         s.check_consistent()?;
         Ok(s)
     }
@@ -517,7 +517,7 @@ mod tests {
     #[test]
     fn constant_strategy_round_trips_and_checks_the_scenario() {
         let s = Scenario::builtin("winding-2d").expect("built-in");
-        let st = Strategy::constant(&s, 2, prediction());
+        let st = Strategy::constant(&s, 2, Some(prediction()));
         let back = Strategy::from_json(&st.to_json()).expect("round trip");
         assert_eq!(back, st);
         back.check_scenario(&s).expect("same scenario");
@@ -562,17 +562,17 @@ mod tests {
     #[test]
     fn corrupted_strategies_are_refused() {
         let s = Scenario::builtin("winding-2d").expect("built-in");
-        let text = Strategy::constant(&s, 0, prediction()).to_json();
+        let text = Strategy::constant(&s, 0, Some(prediction())).to_json();
         assert!(matches!(
             Strategy::from_json(&text[..text.len() / 2]),
             Err(StrategyError::Parse(_))
         ));
-        let bad = text.replacen("\"format_version\": 1", "\"format_version\": 99", 1);
+        let bad = text.replacen("\"format_version\": 2", "\"format_version\": 99", 1);
         assert!(matches!(
             Strategy::from_json(&bad),
             Err(StrategyError::Version { .. })
         ));
-        let mut broken = Strategy::constant(&s, 0, prediction());
+        let mut broken = Strategy::constant(&s, 0, Some(prediction()));
         broken.states[4].omega[0] = 0.5;
         let bad = broken.to_json();
         assert!(matches!(
@@ -584,7 +584,7 @@ mod tests {
     #[test]
     fn the_whole_file_is_covered_by_its_hash() {
         let s = Scenario::builtin("winding-2d").expect("built-in");
-        let mut st = Strategy::constant(&s, 1, prediction());
+        let mut st = Strategy::constant(&s, 1, Some(prediction()));
         st.leg_energy = Some(vec![1.5; s.legs.len()]);
         let text = st.to_json();
         assert!(text.trim_end().ends_with('}'));
@@ -637,6 +637,35 @@ mod tests {
             Strategy::from_sealed_json("{ not json"),
             Err(StrategyError::Parse(_))
         ));
+    }
+
+    #[test]
+    fn a_version_1_file_reads_with_its_values_under_diagnostics() {
+        let s = Scenario::builtin("winding-2d").expect("built-in");
+        let st = Strategy::constant(&s, 1, Some(prediction()));
+        let mut v: serde_json::Value = serde_json::from_str(&st.to_json()).expect("JSON");
+        let m = v.as_object_mut().expect("object");
+        m.remove("content_sha256");
+        m.remove("predicted_ci95");
+        m.remove("prediction_basis");
+        m.insert("format_version".into(), 1.into());
+        let cf = serde_json::json!({"p_target": 0.8, "p_collision": 0.15, "p_free": 0.05, "energy_mean": 11.0});
+        m.insert("crossfit".into(), cf);
+        let old = serde_json::to_string_pretty(&v).expect("JSON");
+        let back = Strategy::from_json(&old).expect("version 1");
+        assert_eq!(back.format_version, STRATEGY_FORMAT_VERSION);
+        assert_eq!(back.predicted, Some(prediction()));
+        assert_eq!(back.prediction_basis, format::VERSION_1_BASIS);
+        let d = back.diagnostics.expect("diagnostics");
+        assert_eq!(d.selection.selection_time, Some(prediction()));
+        assert_eq!(d.selection.crossfit.map(|c| c.p_target), Some(0.8));
+        // Written again, it is a version 2 file that reads as itself.
+        let again = Strategy::from_sealed_json(&back_json(&old)).expect("v2");
+        assert_eq!(again.format_version, 2);
+    }
+
+    fn back_json(old: &str) -> String {
+        Strategy::from_json(old).expect("v1").to_json()
     }
 
     #[test]

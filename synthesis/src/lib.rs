@@ -21,6 +21,7 @@ pub mod abstraction;
 pub mod certify;
 pub mod mdp;
 pub mod pareto;
+pub mod predict;
 pub mod prism;
 pub mod simulate;
 pub mod synthetic;

@@ -14,7 +14,7 @@ fn constant(s: &Scenario, index: usize) -> Strategy {
         p_free: 0.0,
         energy_mean: 0.0,
     };
-    Strategy::constant(s, index, p)
+    Strategy::constant(s, index, Some(p))
 }
 
 fn header(episode: u64, leg: u32, step: u32) -> Header {

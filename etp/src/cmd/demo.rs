@@ -11,8 +11,8 @@ use crate::progress;
 use anyhow::{Context, Result};
 use etp_shared::rng::mix64;
 use etp_shared::scenario::DEFAULT_SCENARIO;
-use etp_synthesis::pareto::select::{Request, realise, select};
 use etp_synthesis::pareto::to_strategy;
+use etp_synthesis::predict::request::{Goal, LoopSettings, Verdict, meet_request};
 use etp_synthesis::validate::{sample_trajectories, simulate_strategy};
 use serde_json::{Value, json};
 use std::path::PathBuf;
@@ -123,19 +123,51 @@ pub fn run(a: Args) -> Result<()> {
             a.min_target
         ),
     );
-    let request = Request::MinTarget {
-        min_target: a.min_target,
-        max_collision: None,
+    // The default path of `etp strategy`: the request loop, the prediction
+    // from the strategy's own rebuilds (docs/MODEL.md §7.4).
+    let params = etp_synthesis::abstraction::params_of(&built.mdp);
+    let units = etp_synthesis::abstraction::progress_total(&built.scenario, &params);
+    let pb = progress::bar(0, "rebuilds", a.json);
+    let label = format!("least energy with P_tar ≥ {}", a.min_target);
+    let make = |omega: &etp_synthesis::pareto::policy::RandomisedPolicy,
+                value: etp_synthesis::pareto::policy::Objectives| {
+        let mut s = to_strategy(&built.mdp, omega, label.clone(), value);
+        s.scenario_toml = Some(text.clone());
+        s
     };
-    let selection = select(&front.front, request).context("selecting the demo's strategy")?;
-    let omega = realise(&built.mdp, &front.front, &selection);
-    let mut strategy = to_strategy(
+    let outcome = meet_request(
         &built.mdp,
-        &omega,
-        format!("least energy with P_tar ≥ {}", a.min_target),
-        selection.predicted,
-    );
-    strategy.scenario_toml = Some(text.clone());
+        front.front.cost_model,
+        &built.scenario,
+        &params,
+        Goal::MinTarget {
+            min_target: a.min_target,
+            max_collision: None,
+        },
+        LoopSettings {
+            replicates: etp_synthesis::predict::rebuild::DEFAULT_REPLICATES,
+            max_rounds: etp_synthesis::predict::request::DEFAULT_ROUNDS,
+            certified: None,
+        },
+        0.95,
+        &make,
+        &|n| pb.inc_length(u64::from(n) * units),
+        &|k| pb.inc(k),
+    )
+    .context("the demo's strategy")?;
+    pb.finish_and_clear();
+    if outcome.verdict != Verdict::Met {
+        anyhow::bail!(
+            "the demo's request P_tar ≥ {} is out of reach on this synthesis ({})",
+            a.min_target,
+            outcome.verdict.name()
+        );
+    }
+    let mut strategy = outcome.strategy.clone();
+    outcome.on_policy.stand_by(&mut strategy, &outcome.certified, 0.95);
+    if let Some(d) = strategy.diagnostics.as_mut() {
+        d.rounds = outcome.rounds.iter().map(|r| r.record()).collect();
+    }
     let strategy_path = dir.join("strategy.json");
     write_new(&strategy_path, strategy.to_json().as_bytes(), false)?;
 
@@ -199,13 +231,18 @@ pub fn run(a: Args) -> Result<()> {
     };
     let (mp, problems) = run_cmd::execute(&rargs)?;
 
-    let p = &strategy.predicted;
+    let p = strategy
+        .predicted
+        .context("the demo's strategy has no prediction (a bug)")?;
+    let h = strategy.predicted_ci95.unwrap_or_default();
     let num = |v: &Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
     let result = json!({
         "scenario": scenario.name,
         "strategy": strategy_path,
         "vertices": front.front.vertices.len(),
-        "predicted": crate::vocab::prediction(p),
+        "predicted": crate::vocab::prediction(Some(&p)),
+        "predicted_ci95": {"p_target": h.p_target, "p_collision": h.p_collision, "energy_mean": h.energy_mean},
+        "prediction_basis": strategy.prediction_basis,
         "in_process": {"episodes": sim.episodes, "p_target": sim.p_target.value, "p_target_ci95": sim.p_target.ci95,
                         "p_collision": sim.p_collision.value, "p_collision_ci95": sim.p_collision.ci95,
                         "energy_mean": sim.energy_mean.value, "energy_mean_ci95": sim.energy_mean.ci95},

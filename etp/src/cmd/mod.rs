@@ -7,7 +7,7 @@ pub mod check;
 pub mod demo;
 pub mod export_prism;
 pub mod fronts;
-pub mod honest;
+pub mod predictions;
 pub mod process;
 pub mod replay;
 pub mod run;

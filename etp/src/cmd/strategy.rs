@@ -1,373 +1,224 @@
-//! `etp strategy DIR (--min-target P [--max-collision C] | --max-energy E | --vertex K)`:
-//! the exact least-energy (or highest-target) strategy meeting the constraints —
-//! the whole-MDP occupation-measure LP realised as a memoryless randomised
-//! strategy (docs/MODEL.md §5) — written as `strategy.json`. The mixture of
-//! front vertices closest to it is printed beside it as an explanation.
-//!
-//! Every strategy is reported with its selection-time value, its cross-fitted
-//! value (held-out transitions) and their gap, and its certified bounds
-//! (docs/MODEL.md §4.1). `--confidence` with `--min-target` selects on the
-//! certified bounds instead; `--refine-gap` allocates samples first.
+//! `etp strategy DIR (--min-target P [--max-collision C] | --max-energy E |
+//! --vertex K)`: select a strategy on DIR's MDP and predict it on its own
+//! beliefs; by default the request loop of docs/MODEL.md §7.4 (select,
+//! rebuild on the strategy's own pools R times, tighten the request to the
+//! MDP by the measured gap while the prediction misses it) — the strategy
+//! you asked for, with the prediction etp stands by. `--confidence L`
+//! selects on certified bounds in the same loop; `--quick` is the fast,
+//! biased exploration path (no prediction stored). `etp strategy evaluate
+//! STRATEGY DIR` predicts a given strategy on DIR's settings.
 
-use crate::output::{read_front, read_mdp, refuse_existing, write_new};
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use clap::ArgGroup;
-use etp_synthesis::pareto::optimal::{LpRequest, UNVISITED, optimal_strategy};
-use etp_synthesis::pareto::policy::{Objectives, as_randomised, evaluate};
-use etp_synthesis::pareto::select::{Request, select};
-use etp_synthesis::pareto::to_strategy;
-use serde_json::json;
 use std::path::PathBuf;
 
 mod certified;
 mod evaluate;
-mod on_policy;
+mod quick;
+mod select;
+
+pub use crate::cmd::predictions::AGGREGATION_CHECK_EPISODES;
+
+/// `etp strategy` exits with this code when the request is out of reach:
+/// the best strategy the loop could stand behind was written and reported
+/// (with its prediction, which misses the request).
+pub const EXIT_OUT_OF_REACH: u8 = 7;
+
+const EXIT_CODES: &str = "Exit codes: 0 the strategy was written and its prediction meets the \
+request (within its 95 % ±); 7 the request is out of reach: no round's prediction met it, the \
+best strategy found was written with its prediction and the report says by how much it misses; \
+1 an error (nothing written); 2 a bad command line.";
 
 #[derive(Debug, clap::Args)]
-#[command(group(ArgGroup::new("request").required(true).args(["min_target", "max_energy", "vertex", "evaluate"])))]
+#[command(
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true,
+    after_help = EXIT_CODES,
+    group(ArgGroup::new("request").required(true).args(["min_target", "max_energy", "vertex"]))
+)]
 pub struct Args {
+    #[command(subcommand)]
+    pub verb: Option<Verb>,
     /// Output directory of `etp synthesize` (holds mdp.bin and front.json).
-    pub dir: PathBuf,
+    #[arg(required = true)]
+    pub dir: Option<PathBuf>,
     /// Least energy with P_tar ≥ P.
-    #[arg(long, value_name = "P")]
+    #[arg(long, value_name = "P", value_parser = probability)]
     pub min_target: Option<f64>,
     /// With --min-target: also P_coll ≤ C.
-    #[arg(long, value_name = "C", requires = "min_target")]
+    #[arg(long, value_name = "C", requires = "min_target", value_parser = probability)]
     pub max_collision: Option<f64>,
     /// Highest P_tar with expected energy ≤ E.
-    #[arg(long, value_name = "E")]
+    #[arg(long, value_name = "E", value_parser = energy)]
     pub max_energy: Option<f64>,
-    /// Vertex K of the front (0 = least energy; see front.json).
+    /// Vertex K of the front (0 = least energy; see front.json), predicted
+    /// on its rebuilds (no loop: a vertex is not a request).
     #[arg(long, value_name = "K")]
     pub vertex: Option<usize>,
-    /// The strategy of this file (same ω, same states) predicted again on
-    /// DIR's MDP, e.g. one built with `etp synthesize --pool-policy FILE`
-    /// (its own beliefs in the pools: no aggregation error, docs/MODEL.md §7.3).
-    #[arg(long, value_name = "STRATEGY.json")]
-    pub evaluate: Option<PathBuf>,
+    /// With --min-target: select on certified bounds at this level (e.g.
+    /// 0.95), in the request loop: a round meets the request when the
+    /// bounds certified on its first on-policy rebuild do. Without
+    /// --min-target only the level of the reported bounds (default 0.95).
+    #[arg(long, value_name = "LEVEL", value_parser = level)]
+    pub confidence: Option<f64>,
+    /// With --confidence and --min-target: first add samples to DIR's MDP on
+    /// the certified strategy's support (doubling them, at most
+    /// --refine-rounds times) until its certified P_tar gap is ≤ G; writes
+    /// DIR/mdp-refined.bin, on which the loop selects.
+    #[arg(long, value_name = "G", requires_all = ["confidence", "min_target"])]
+    pub refine_gap: Option<f64>,
+    /// Rounds of sample allocation at most (each re-runs the abstraction).
+    #[arg(long, default_value_t = 3, requires = "refine_gap")]
+    pub refine_rounds: u32,
+    #[command(flatten)]
+    pub prediction: PredictionArgs,
+    /// Rounds of the request loop at most.
+    #[arg(long, value_name = "N", default_value_t = etp_synthesis::predict::request::DEFAULT_ROUNDS,
+          value_parser = clap::value_parser!(u32).range(1..=20))]
+    pub rounds: u32,
+    /// Fast exploration: select on DIR's MDP and stop. Its values there
+    /// (selection-time, cross-fitted, certified) are biased — the optimiser's
+    /// pick and other strategies' beliefs in the pools — and stored only as
+    /// diagnostics: the file has no `predicted` (`etp strategy evaluate`
+    /// predicts it later).
+    #[arg(long, conflicts_with_all = ["rounds", "replicates", "refine_gap"])]
+    pub quick: bool,
+    #[command(flatten)]
+    pub out: OutArgs,
+}
+
+/// How a strategy is predicted: its on-policy rebuilds.
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct PredictionArgs {
+    /// On-policy rebuilds of a prediction (seeds DIR's + 0 … R − 1): their
+    /// mean cross-fitted value with a Student-t ± over their spread, which
+    /// covers the rebuilds' whole Monte Carlo (docs/MODEL.md §7.3).
+    #[arg(long, value_name = "R", default_value_t = etp_synthesis::predict::rebuild::DEFAULT_REPLICATES,
+          value_parser = clap::value_parser!(u32).range(2..=64))]
+    pub replicates: u32,
+    /// Episodes of the selection-time aggregation check: the strategy
+    /// simulated in-process against its prediction (stored, printed,
+    /// re-measured by `etp validate`); 0 = no check.
+    #[arg(long, value_name = "N", default_value_t = AGGREGATION_CHECK_EPISODES)]
+    pub aggregation_check: u64,
+}
+
+/// Where the strategy goes and how the report is printed.
+#[derive(Debug, Clone, clap::Args)]
+pub struct OutArgs {
     /// Where to write the strategy (default DIR/strategy.json).
     #[arg(short = 'o', long = "out", alias = "output")]
     pub output: Option<PathBuf>,
     /// Overwrite an existing output file.
     #[arg(long)]
     pub force: bool,
-    /// Print the selection as JSON.
+    /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
-    /// With --min-target: choose the least-energy strategy found whose
-    /// *certified* bounds (at this confidence, e.g. 0.95) meet the request.
-    /// Otherwise only the level of the reported certified bounds (default 0.95).
-    #[arg(long, value_name = "LEVEL")]
-    pub confidence: Option<f64>,
-    /// With --confidence and --min-target: add samples on the strategy's
-    /// support (doubling them, at most --refine-rounds times) until the
-    /// certified P_tar gap (selection-time − certified lower bound) is ≤ G;
-    /// writes DIR/mdp-refined.bin.
-    #[arg(long, value_name = "G", requires_all = ["confidence", "min_target"])]
-    pub refine_gap: Option<f64>,
-    /// Rounds of sample allocation at most (each re-runs the abstraction).
-    #[arg(long, default_value_t = 3, requires = "refine_gap")]
-    pub refine_rounds: u32,
-    /// Episodes of the selection-time aggregation check: the strategy is
-    /// simulated in-process and its cross-fitted value compared (stored in
-    /// strategy.json, printed, re-measured by `etp validate`); 0 = no check.
-    #[arg(long, value_name = "N", default_value_t = super::honest::AGGREGATION_CHECK_EPISODES)]
-    pub aggregation_check: u64,
-    /// Widen the certified bounds by the measured aggregation error, so that
-    /// they cover it too (each part at (1 + level)/2, union bound). With
-    /// --confidence and --min-target the strategy is chosen on the widened
-    /// bound (the request is raised by what the check takes, and selection
-    /// repeated, at most 4 times).
-    #[arg(long)]
-    pub cover_aggregation: bool,
-    /// Predict the selected strategy again on a rebuild of DIR's abstraction
-    /// (same settings and seed) whose pools are its own beliefs and true
-    /// states, simulating only its thresholds: its aggregation error removed
-    /// (docs/MODEL.md §7.3) for about 1/|Δ| of a synthesis per rebuild
-    /// (--replicates). With --replicates 1, the numbers of `etp synthesize
-    /// --pool-policy` + `etp strategy --evaluate`.
-    #[arg(long, conflicts_with_all = ["evaluate", "refine_gap"])]
-    pub on_policy: bool,
-    /// With --on-policy: R rebuilds (seeds DIR's + 0 … R − 1); from 2 on,
-    /// the cross-fitted value is their mean and its ± a Student-t interval
-    /// over their spread, which covers the rebuild's whole Monte Carlo (one
-    /// rebuild's ± counts only its held-out sample: docs/MODEL.md §7.3).
-    /// 1: a single rebuild, a quarter of the time, a ± that is too narrow.
-    #[arg(long, value_name = "R", default_value_t = 4, requires = "on_policy",
-          value_parser = clap::value_parser!(u32).range(1..=64))]
-    pub replicates: u32,
 }
 
-/// Rounds of re-selection under `--cover-aggregation` with `--confidence`.
-const COVER_ROUNDS: usize = 4;
+#[derive(Debug, clap::Subcommand)]
+pub enum Verb {
+    /// Predict a given strategy (same ω, states, bins) on its own beliefs:
+    /// DIR's abstraction rebuilt R times on its pools and thresholds, every
+    /// prediction of `etp strategy` from the rebuilds.
+    Evaluate(EvaluateArgs),
+}
 
-fn probability(name: &str, v: f64) -> Result<f64> {
-    if !(0.0..=1.0).contains(&v) {
-        bail!("{name} must be a probability in [0, 1], got {v}");
+#[derive(Debug, clap::Args)]
+pub struct EvaluateArgs {
+    /// A strategy.json (of DIR's scenario and thresholds).
+    pub strategy: PathBuf,
+    /// The synthesis whose settings and seed the rebuilds take.
+    pub dir: PathBuf,
+    /// Level of the certified bounds.
+    #[arg(long, value_name = "LEVEL", default_value_t = certified::DEFAULT_LEVEL, value_parser = level)]
+    pub confidence: f64,
+    #[command(flatten)]
+    pub prediction: PredictionArgs,
+    #[command(flatten)]
+    pub out: OutArgs,
+}
+
+fn probability(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if (0.0..=1.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("must be a probability in [0, 1], got {v}"))
     }
-    Ok(v)
 }
 
-fn objectives_json(o: &Objectives) -> serde_json::Value {
-    json!({"p_target": o.p_target, "p_collision": o.p_collision, "energy_mean": o.energy})
-}
-
-/// `--evaluate`: the given strategy predicted on DIR's MDP.
-fn evaluate_elsewhere_chosen(a: &Args, path: &std::path::Path) -> Result<()> {
-    if a.confidence.is_some() && a.refine_gap.is_some() {
-        bail!("--evaluate takes no --refine-gap (the strategy is given)");
+fn energy(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be a finite number ≥ 0, got {v}"))
     }
-    let level = match a.confidence {
-        Some(c) if !(c > 0.0 && c < 1.0) => {
-            bail!("--confidence must lie strictly between 0 and 1, got {c}")
+}
+
+fn level(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if v > 0.0 && v < 1.0 {
+        Ok(v)
+    } else {
+        Err(format!("must lie strictly between 0 and 1, got {v}"))
+    }
+}
+
+/// The request of the command line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Request {
+    Goal(etp_synthesis::predict::request::Goal),
+    Vertex(usize),
+}
+
+impl Request {
+    pub fn label(&self, certified: Option<f64>) -> String {
+        use etp_synthesis::predict::request::Goal;
+        let cert = |what: &str| match certified {
+            Some(l) => format!("certified {what} at {l}"),
+            None => what.to_string(),
+        };
+        match self {
+            Self::Goal(Goal::MinTarget {
+                min_target,
+                max_collision: Some(c),
+            }) => format!(
+                "least energy with {} and {}",
+                cert(&format!("P_tar ≥ {min_target}")),
+                cert(&format!("P_coll ≤ {c}"))
+            ),
+            Self::Goal(Goal::MinTarget { min_target, .. }) => {
+                format!("least energy with {}", cert(&format!("P_tar ≥ {min_target}")))
+            }
+            Self::Goal(Goal::MaxEnergy { max_energy }) => {
+                format!("highest P_tar with energy ≤ {max_energy}")
+            }
+            Self::Vertex(k) => format!("vertex {k} of the front"),
         }
-        Some(c) => c,
-        None => certified::DEFAULT_LEVEL,
-    };
-    if a.cover_aggregation && a.aggregation_check == 0 {
-        bail!("--cover-aggregation needs the aggregation check (--aggregation-check N > 0)");
     }
-    let (mdp, _) = read_mdp(&a.dir)?;
-    let front = read_front(&a.dir, &mdp)?;
-    let output = a
-        .output
-        .clone()
-        .unwrap_or_else(|| a.dir.join("strategy.json"));
-    evaluate::run(
-        a,
-        path,
-        &mdp,
-        front.cost_model,
-        front.epsilon,
-        &output,
-        level,
-    )
 }
 
 pub fn run(a: Args) -> Result<()> {
-    if let Some(path) = &a.evaluate {
-        return evaluate_elsewhere_chosen(&a, path);
+    if let Some(Verb::Evaluate(e)) = a.verb {
+        return evaluate::run(&e);
     }
+    use etp_synthesis::predict::request::Goal;
     let request = match (a.min_target, a.max_energy, a.vertex) {
-        (Some(p), None, None) => Request::MinTarget {
-            min_target: probability("--min-target", p)?,
-            max_collision: a
-                .max_collision
-                .map(|c| probability("--max-collision", c))
-                .transpose()?,
-        },
-        (None, Some(e), None) => {
-            if !(e.is_finite() && e >= 0.0) {
-                bail!("--max-energy must be a finite number ≥ 0, got {e}");
-            }
-            Request::MaxEnergy { max_energy: e }
-        }
+        (Some(min_target), None, None) => Request::Goal(Goal::MinTarget {
+            min_target,
+            max_collision: a.max_collision,
+        }),
+        (None, Some(max_energy), None) => Request::Goal(Goal::MaxEnergy { max_energy }),
         (None, None, Some(k)) => Request::Vertex(k),
+        // The parser's group admits exactly one.
         _ => bail!("give exactly one of --min-target, --max-energy, --vertex"),
     };
-    let (mdp, scenario_text) = read_mdp(&a.dir)?;
-    if mdp.policy_only() {
-        bail!(
-            "{}: this MDP offers at its states only the thresholds of the strategy its pools \
-             were drawn on (`etp synthesize --pool-policy` without --all-actions), so its front \
-             is not the scenario's; predict that strategy with --evaluate STRATEGY.json, or \
-             rebuild with --all-actions to select others on these pools",
-            a.dir.display()
-        );
-    }
-    let front = read_front(&a.dir, &mdp)?;
-    let output = a
-        .output
-        .clone()
-        .unwrap_or_else(|| a.dir.join("strategy.json"));
-    let cost = front.cost_model;
-    let lp_request = match request {
-        Request::MinTarget {
-            min_target,
-            max_collision,
-        } => Some(LpRequest::MinEnergy {
-            min_target,
-            max_collision,
-        }),
-        Request::MaxEnergy { max_energy } => Some(LpRequest::MaxTarget { max_energy }),
-        Request::Vertex(_) => None,
-    };
-    let level = match a.confidence {
-        Some(c) if !(c > 0.0 && c < 1.0) => {
-            bail!("--confidence must lie strictly between 0 and 1, got {c}")
-        }
-        Some(c) => c,
-        None => certified::DEFAULT_LEVEL,
-    };
-    if a.cover_aggregation && a.aggregation_check == 0 {
-        bail!("--cover-aggregation needs the aggregation check (--aggregation-check N > 0)");
-    }
-    if a.confidence.is_some() && a.refine_gap.is_none() && a.min_target.is_some() {
-        if a.on_policy {
-            bail!(
-                "--on-policy with --confidence --min-target: a strategy chosen on its certified \
-                 bounds would be reported with other ones; select it first (-o FILE), then \
-                 `etp synthesize --pool-policy FILE` and `etp strategy --evaluate FILE`"
-            );
-        }
-        return certified::run(&a, &mdp, scenario_text, &front, &output, level, None);
-    }
-    if let Some(g) = a.refine_gap {
-        return certified::run(&a, &mdp, scenario_text, &front, &output, level, Some(g));
-    }
-    // The exact optimum (a vertex is its own deterministic policy).
-    let (omega, predicted, exact) = match lp_request {
-        Some(r) => {
-            let opt = optimal_strategy(&mdp, cost, r).context("solving the occupation LP")?;
-            (opt.policy.clone(), opt.predicted, Some(opt))
-        }
-        None => {
-            let selection = select(&front, request).context("selecting a vertex")?;
-            let k = selection.weights[0].0;
-            let omega = as_randomised(&mdp, &front.vertices[k].policy);
-            let predicted = evaluate(&mdp, &omega, cost);
-            (omega, predicted, None)
-        }
-    };
-    // The explanation: the least-energy mixture of front vertices. It may be
-    // infeasible by up to the front's ε where the exact request is not.
-    let mixture = select(&front, request).ok();
-    let label = match request {
-        Request::MinTarget {
-            min_target,
-            max_collision,
-        } => match max_collision {
-            Some(c) => format!("least energy with P_tar ≥ {min_target} and P_coll ≤ {c}"),
-            None => format!("least energy with P_tar ≥ {min_target}"),
-        },
-        Request::MaxEnergy { max_energy } => format!("highest P_tar with energy ≤ {max_energy}"),
-        Request::Vertex(k) => format!("vertex {k} of the front"),
-    };
-    let mut strategy = to_strategy(&mdp, &omega, label.clone(), predicted);
-    strategy.scenario_toml = scenario_text;
-    strategy.radio = front.radio.clone();
-    let bound_level = if a.cover_aggregation {
-        etp_synthesis::certify::widen::split_level(level)
+    if a.quick {
+        quick::run(&a, request)
     } else {
-        level
-    };
-    // --on-policy: every prediction from here on is the rebuild's.
-    let rebuilt = if a.on_policy {
-        refuse_existing(&output, a.force)?;
-        Some(on_policy::rebuild(
-            &strategy,
-            &mdp,
-            cost,
-            a.replicates,
-            a.json,
-        )?)
-    } else {
-        None
-    };
-    let (mdp, omega) = match &rebuilt {
-        Some(r) => {
-            let first = r.first();
-            strategy.predicted = super::honest::prediction(&first.predicted);
-            strategy.leg_energy = Some(first.leg_energy.clone());
-            strategy.label = format!("{label} — predicted on its own pools");
-            (&first.mdp, &first.omega)
-        }
-        None => (&mdp, &omega),
-    };
-    let honest = certified::assess(mdp, omega, cost, bound_level)?;
-    super::honest::attach(&mut strategy, honest.crossfit.as_ref(), &honest.certified);
-    if let Some(r) = &rebuilt {
-        on_policy::apply_replicates(&mut strategy, r);
+        select::run(&a, request)
     }
-    certified::check_aggregation(&mut strategy, &a, level)?;
-    write_new(&output, strategy.to_json().as_bytes(), a.force)?;
-    let p = &predicted;
-    let gap = mixture.as_ref().map(|m| match request {
-        Request::MaxEnergy { .. } => p.p_target - m.predicted.p_target,
-        _ => m.predicted.energy - p.energy,
-    });
-    if a.json {
-        let v = json!({
-            "strategy": output, "label": label,
-            "predicted": objectives_json(p),
-            "exact": exact.as_ref().map(|o| json!({
-                "method": "occupation-measure LP over the whole MDP",
-                "lp_objective": o.lp_objective, "margin": o.margin,
-                "randomised_states": o.randomised_states, "unvisited_states": UNVISITED})),
-            "vertex_mixture": mixture.as_ref().map(|m| json!({
-                "predicted": objectives_json(&m.predicted),
-                "vertices": m.weights.iter().map(|(k, w)| json!({"vertex": k, "weight": w})).collect::<Vec<_>>(),
-                "gap": gap})),
-            "occupation_lp_energy": exact.as_ref().filter(|_| matches!(request, Request::MinTarget { .. })).map(|o| o.lp_objective),
-            "front_epsilon": front.epsilon,
-            "predictions": super::honest::json_of(&strategy),
-            "crossfit_unmatched_mass": honest.crossfit.as_ref().map(|c| c.unmatched_mass),
-            "on_policy": rebuilt.as_ref().map(on_policy::Rebuilt::json),
-        });
-        println!("{}", serde_json::to_string_pretty(&v)?);
-    } else {
-        println!("{label}");
-        println!(
-            "  predicted  P_tar {:.6}  P_coll {:.6}  energy {:.6}",
-            p.p_target, p.p_collision, p.energy
-        );
-        let mut ci = super::honest::HELD_OUT_CI.to_string();
-        if let Some(r) = &rebuilt {
-            print!("{}", r.describe());
-            let q = &strategy.predicted;
-            println!(
-                "  predicted on its own pools  P_tar {:.6}  P_coll {:.6}  energy {:.6}",
-                q.p_target, q.p_collision, q.energy_mean
-            );
-            if r.replicated.is_some() {
-                ci = format!("Student's t over the {} rebuilds", r.replicas.len());
-            }
-        }
-        print!("{}", super::honest::text_with_ci(&strategy, &ci));
-        if let Some(o) = &exact {
-            println!(
-                "  exact: occupation-measure LP over the whole MDP, realised as ω ({} randomising states; unvisited states: {UNVISITED}){}",
-                o.randomised_states,
-                if o.margin > 0.0 {
-                    format!(
-                        "; bounds tightened by {:e} so that ω meets them in its own evaluation",
-                        o.margin
-                    )
-                } else {
-                    String::new()
-                }
-            );
-        }
-        if let Some(m) = &mixture {
-            println!(
-                "  explanation: mixture of front vertices  P_tar {:.6}  P_coll {:.6}  energy {:.6}",
-                m.predicted.p_target, m.predicted.p_collision, m.predicted.energy
-            );
-            for (k, w) in &m.weights {
-                let o = &front.vertices[*k].objectives;
-                println!(
-                    "    vertex {k:>4} weight {w:.4}  (P_tar {:.4}, P_coll {:.4}, energy {:.2})",
-                    o.p_target, o.p_collision, o.energy
-                );
-            }
-            if let Some(g) = gap {
-                let what = if matches!(request, Request::MaxEnergy { .. }) {
-                    "P_tar"
-                } else {
-                    "energy"
-                };
-                println!(
-                    "    gap to the exact optimum: {g:.3e} in {what} (the front is certified to ε = {:.2e} scaled, {:.3e} in energy)",
-                    front.epsilon, front.epsilon_energy
-                );
-            }
-        } else if lp_request.is_some() {
-            println!(
-                "  explanation: no mixture of front vertices meets the request (the front is certified to ε = {:.2e}); the exact LP does",
-                front.epsilon
-            );
-        }
-        println!("wrote {}", output.display());
-    }
-    Ok(())
 }

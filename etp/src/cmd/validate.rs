@@ -1,6 +1,7 @@
 //! `etp validate STRATEGY`: simulate a strategy in-process and compare with its
 //! prediction, like the paper's tables.
 
+use crate::cmd::predictions;
 use crate::cmd::simulate::summary_table;
 use crate::progress;
 use anyhow::{Context, Result};
@@ -99,18 +100,16 @@ pub fn run(a: Args) -> Result<()> {
         println!("{} — {}", scenario.name, strategy.label);
         print!("{}", comparison_table(&strategy, &sum));
         println!("\npredictions of the strategy file:");
-        print!("{}", super::honest::text_of(&strategy));
-        print!("{}", honest_check_text(&strategy, &sum));
-        // The aggregation error this simulation measures (the stored one, if
-        // any, was printed with the predictions above).
-        print!(
-            "{}",
-            super::honest::aggregation_text(
-                &super::honest::check_of(&strategy, &sum, a.sim.seed),
-                super::honest::reference_name(&strategy),
-                "here",
-            )
-        );
+        print!("{}", predictions::text_of(&strategy));
+        print!("{}", check_text(&strategy, &sum));
+        // The error this simulation measures (the stored one, if any, was
+        // printed with the predictions above).
+        if let Some(c) = predictions::check_of(&strategy, &sum, a.sim.seed) {
+            print!(
+                "{}",
+                predictions::aggregation_text(&c, predictions::reference_name(&strategy), "here")
+            );
+        }
         let names: Vec<String> = scenario.sensors.iter().map(|x| x.name.clone()).collect();
         println!(
             "\nsimulation details ({} episodes, seed {}, {}):",
@@ -124,7 +123,7 @@ pub fn run(a: Args) -> Result<()> {
             println!("wrote {}", p.display());
         }
     }
-    let failed: Vec<&str> = honest_checks(&strategy, &sum)
+    let failed: Vec<&str> = checks(&strategy, &sum)
         .into_iter()
         .filter(|(_, holds)| !holds)
         .map(|(name, _)| name)
@@ -135,7 +134,7 @@ pub fn run(a: Args) -> Result<()> {
         Err(crate::ExitWith {
             code: EXIT_CHECK_FAILS,
             message: format!(
-                "etp validate: {} check(s) FAIL: {} (each prediction against the simulation's 95 % interval, the cross-fitted one with its own sampling error too; {} episodes, seed {})",
+                "etp validate: {} check(s) FAIL: {} (the strategy's prediction against the simulation's 95 % interval joined with its own ±; its certified bounds against the simulation's interval; {} episodes, seed {})",
                 failed.len(),
                 failed.join(", "),
                 sum.episodes,
@@ -146,33 +145,27 @@ pub fn run(a: Args) -> Result<()> {
     }
 }
 
-/// Each prediction against the simulation's 95 % interval: (name, inside).
-fn honest_checks(strategy: &Strategy, sum: &SimulationSummary) -> Vec<(&'static str, bool)> {
-    let within = |x: f64, e: &etp_shared::stats::Estimate| (x - e.value).abs() <= e.ci95;
-    let mut v = vec![
-        (
-            "selection-time P_tar",
-            within(strategy.predicted.p_target, &sum.p_target),
-        ),
-        (
-            "selection-time P_coll",
-            within(strategy.predicted.p_collision, &sum.p_collision),
-        ),
-    ];
-    if let Some(c) = &strategy.crossfit {
-        // The cross-fitted value is an estimate too: its own sampling error
-        // (held-out sample) joins the simulation's, in quadrature.
-        let own = strategy.crossfit_ci95.unwrap_or_default();
+/// Every prediction the strategy file stands by against the simulation:
+/// (name, holds). `predicted` (P_tar, P_coll, energy) within the
+/// simulation's 95 % interval joined in quadrature with its own ±; the
+/// certified bounds on the right side of the simulation's interval. The
+/// diagnostics are reported, never checked. A `--quick` strategy stands by
+/// nothing: no check.
+fn checks(strategy: &Strategy, sum: &SimulationSummary) -> Vec<(&'static str, bool)> {
+    let mut v = Vec::new();
+    if let Some(p) = &strategy.predicted {
+        let own = strategy.predicted_ci95.unwrap_or_default();
         let near = |x: f64, e: &etp_shared::stats::Estimate, r: f64| {
             (x - e.value).abs() <= e.ci95.hypot(r)
         };
+        v.push(("predicted P_tar", near(p.p_target, &sum.p_target, own.p_target)));
         v.push((
-            "cross-fitted P_tar",
-            near(c.p_target, &sum.p_target, own.p_target),
+            "predicted P_coll",
+            near(p.p_collision, &sum.p_collision, own.p_collision),
         ));
         v.push((
-            "cross-fitted P_coll",
-            near(c.p_collision, &sum.p_collision, own.p_collision),
+            "predicted energy",
+            near(p.energy_mean, &sum.energy_mean, own.energy_mean),
         ));
     }
     if let Some(c) = &strategy.certified {
@@ -193,11 +186,15 @@ fn honest_checks(strategy: &Strategy, sum: &SimulationSummary) -> Vec<(&'static 
     v
 }
 
-fn honest_check_text(strategy: &Strategy, sum: &SimulationSummary) -> String {
+fn check_text(strategy: &Strategy, sum: &SimulationSummary) -> String {
+    let all = checks(strategy, sum);
+    if all.is_empty() {
+        return "  no check: the strategy file stands by no prediction (a --quick strategy; `etp strategy evaluate` predicts it)\n".into();
+    }
     let mut o = String::from(
-        "  against the simulation's 95 % interval (cross-fitted: with its own sampling error too):\n",
+        "  against the simulation's 95 % interval (predicted: joined with its own ±):\n",
     );
-    for (name, ok) in honest_checks(strategy, sum) {
+    for (name, ok) in all {
         o.push_str(&format!(
             "    {name:<38} {}\n",
             if ok { "holds" } else { "FAILS" }
@@ -240,21 +237,20 @@ pub fn comparison_json(
             "delta".into(),
             json!(crate::vocab::constant_delta(strategy)),
         );
+        m.extend(predictions::json_fields(strategy));
         m.insert(
             "predicted".into(),
-            crate::vocab::prediction(&strategy.predicted),
+            crate::vocab::prediction(strategy.predicted.as_ref()),
         );
-        m.insert("predictions".into(), super::honest::json_of(strategy));
         m.insert(
-            "aggregation_error".into(),
-            super::honest::aggregation_json(
-                &super::honest::check_of(strategy, sum, seed),
-                super::honest::reference_name(strategy),
-            ),
+            "error".into(),
+            predictions::check_of(strategy, sum, seed).map_or(serde_json::Value::Null, |c| {
+                predictions::aggregation_json(&c, predictions::reference_name(strategy))
+            }),
         );
         m.insert(
             "checks".into(),
-            honest_checks(strategy, sum)
+            checks(strategy, sum)
                 .into_iter()
                 .map(|(k, ok)| json!({"check": k, "holds": ok}))
                 .collect(),
@@ -265,7 +261,18 @@ pub fn comparison_json(
 
 /// Predicted vs simulated, one row per quantity.
 pub fn comparison_table(strategy: &Strategy, sum: &SimulationSummary) -> String {
-    let p = &strategy.predicted;
+    let Some(p) = strategy.predicted.as_ref().or(strategy
+        .diagnostics
+        .as_ref()
+        .and_then(|d| d.selection.selection_time.as_ref()))
+    else {
+        return String::new();
+    };
+    let heading = if strategy.predicted.is_some() {
+        "predicted"
+    } else {
+        "sel.-time"
+    };
     let rows = [
         ("P_tar", p.p_target, sum.p_target, true),
         ("P_coll", p.p_collision, sum.p_collision, true),
@@ -273,7 +280,7 @@ pub fn comparison_table(strategy: &Strategy, sum: &SimulationSummary) -> String 
     ];
     let mut o = format!(
         "  {:<8} {:>10} {:>24} {:>10}\n",
-        "", "predicted", "simulated (95 %)", "error"
+        "", heading, "simulated (95 %)", "error"
     );
     for (name, pred, sim, is_prob) in rows {
         if is_prob {

@@ -15,7 +15,9 @@ pub mod policy;
 pub mod select;
 
 use crate::mdp::{CostModel, Mdp, Method};
-use etp_shared::strategy::{Prediction, STRATEGY_FORMAT_VERSION, Strategy, StrategyState};
+use etp_shared::strategy::{
+    Diagnostics, STRATEGY_FORMAT_VERSION, SelectionValues, Strategy, StrategyState,
+};
 use policy::{
     DeterministicPolicy, Objectives, RandomisedPolicy, as_randomised, constant_action, evaluate,
 };
@@ -258,20 +260,24 @@ pub fn to_strategy(
         deltas: mdp.deltas.clone(),
         discretization: mdp.discretization.clone(),
         states,
-        predicted: Prediction {
-            p_target: predicted.p_target,
-            p_collision: predicted.p_collision,
-            p_free: (1.0 - predicted.p_target - predicted.p_collision).max(0.0),
-            energy_mean: predicted.energy,
-        },
-        crossfit: None,
-        crossfit_ci95: None,
+        // Its value on this MDP is a diagnostic: the prediction etp stands
+        // by comes from the strategy's own rebuilds (`crate::predict`).
+        predicted: None,
+        predicted_ci95: None,
+        prediction_basis: String::new(),
         certified: None,
         scenario_toml: None,
         leg_energy: Some(policy::leg_energy(mdp, policy, CostModel::Counted)),
         radio: None,
         splits: mdp.splits.clone(),
         aggregation: None,
+        diagnostics: Some(Diagnostics {
+            selection: SelectionValues {
+                selection_time: Some(predicted.prediction()),
+                ..SelectionValues::default()
+            },
+            ..Diagnostics::default()
+        }),
     }
 }
 

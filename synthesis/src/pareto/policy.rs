@@ -16,6 +16,25 @@ pub struct Objectives {
 }
 
 impl Objectives {
+    /// As a strategy file's prediction (P_free what is left).
+    pub fn prediction(&self) -> etp_shared::strategy::Prediction {
+        etp_shared::strategy::Prediction {
+            p_target: self.p_target,
+            p_collision: self.p_collision,
+            p_free: (1.0 - self.p_target - self.p_collision).max(0.0),
+            energy_mean: self.energy,
+        }
+    }
+
+    /// As a strategy file's 95 % half-widths.
+    pub fn ci95(&self) -> etp_shared::strategy::PredictionCi95 {
+        etp_shared::strategy::PredictionCi95 {
+            p_target: self.p_target,
+            p_collision: self.p_collision,
+            energy_mean: self.energy,
+        }
+    }
+
     /// The minimisation vector with energy divided by `scale`.
     pub fn minimisation(&self, scale: f64) -> [f64; 3] {
         [self.energy / scale, self.p_collision, 1.0 - self.p_target]

@@ -562,12 +562,13 @@ mod tests {
             degraded: u64::from(degraded),
             steps: 20,
             seconds: 1.0,
-            predicted: Prediction {
+            predicted: Some(Prediction {
                 p_target: 1.0,
                 p_collision: 0.0,
                 p_free: 0.0,
                 energy_mean: 1.0,
-            },
+            }),
+            predicted_ci95: None,
             sensors: vec![sensor("s0"), sensor("s1")],
             faults: dead
                 .map(|d| FaultRecord {

@@ -169,13 +169,8 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
                         scenario.deltas
                     )
                 })?;
-            let placeholder = Prediction {
-                p_target: 0.0,
-                p_collision: 0.0,
-                p_free: 0.0,
-                energy_mean: 0.0,
-            };
-            Strategy::constant(&scenario, index, placeholder)
+            // Predicted below by an in-process simulation.
+            Strategy::constant(&scenario, index, None)
         }
     };
     // Per-sensor energy: the MDP's expected energy per leg when the strategy
@@ -195,17 +190,26 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
             let sim =
                 simulate_strategy(&scenario, &strategy, predict_episodes, a.seed(), &|_| {}).summary();
             if a.strategy.is_none() || robustness {
-                strategy.predicted = Prediction {
-                    p_target: sim.p_target.value,
-                    p_collision: sim.p_collision.value,
-                    p_free: sim.p_free.value,
-                    energy_mean: sim.energy_mean.value,
-                };
                 let under = if robustness {
                     " under the run's channel"
                 } else {
                     ""
                 };
+                strategy.predicted = Some(Prediction {
+                    p_target: sim.p_target.value,
+                    p_collision: sim.p_collision.value,
+                    p_free: sim.p_free.value,
+                    energy_mean: sim.energy_mean.value,
+                });
+                strategy.predicted_ci95 = Some(etp_shared::strategy::PredictionCi95 {
+                    p_target: sim.p_target.ci95,
+                    p_collision: sim.p_collision.ci95,
+                    energy_mean: sim.energy_mean.ci95,
+                });
+                strategy.prediction_basis = format!(
+                    "in-process simulation{under}, {predict_episodes} episodes (seed {})",
+                    a.seed()
+                );
                 strategy.label = format!(
                     "{} (prediction: in-process simulation{under}, {predict_episodes} episodes)",
                     strategy.label

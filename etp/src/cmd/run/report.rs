@@ -64,6 +64,19 @@ fn downlink(s: &Supervised, traffic: &[LinkTraffic]) -> Value {
            "saved_fraction": if per_step > 0 { 1.0 - handover as f64 / per_step as f64 } else { 0.0 }})
 }
 
+/// The run's measurements against the strategy's prediction.
+fn prediction_check(e: &Estimates, r: &etp_runtime::report::RunReport) -> Value {
+    let m = |x: &etp_shared::stats::Estimate| crate::vocab::Measured {
+        value: x.value,
+        ci95: x.ci95,
+    };
+    crate::vocab::prediction_check(
+        r.predicted.as_ref(),
+        r.predicted_ci95.as_ref(),
+        [m(&e.p_target), m(&e.p_collision), m(&e.energy)],
+    )
+}
+
 /// The `--json` object (keys of issue 5, plus details).
 pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
     let r = &s.report;
@@ -103,7 +116,10 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         "p_collision": e.p_collision.value, "p_collision_ci95": e.p_collision.ci95,
         "p_free": e.p_free.value, "p_free_ci95": e.p_free.ci95,
         "energy_mean": e.energy.value, "energy_mean_ci95": e.energy.ci95,
-        "predicted": crate::vocab::prediction(&r.predicted),
+        "predicted": crate::vocab::prediction(r.predicted.as_ref()),
+        "predicted_ci95": r.predicted_ci95.map(|c| json!({"p_target": c.p_target,
+            "p_collision": c.p_collision, "energy_mean": c.energy_mean})),
+        "prediction_check": prediction_check(&e, r),
         "transmissions": r.sensors.iter().map(|t| t.transmitted).sum::<u64>(),
         "delivered": r.sensors.iter().map(|t| t.delivered).sum::<u64>(),
         "lost": r.sensors.iter().map(|t| t.lost).sum::<u64>(),
@@ -190,7 +206,12 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
         "  {:<12} {:>10} {:<20}   {:>10}",
         "", "measured", "(95 % interval)", "predicted"
     );
-    let p = &r.predicted;
+    let p = r.predicted.unwrap_or(etp_shared::strategy::Prediction {
+        p_target: f64::NAN,
+        p_collision: f64::NAN,
+        p_free: f64::NAN,
+        energy_mean: f64::NAN,
+    });
     // Probabilities with their Wilson interval, which stays in [0, 1]
     // (value ± half-width would not: 0.98 ± 0.085 on 30 episodes).
     for (k, count, pr) in [
@@ -216,6 +237,12 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
         format!("± {:.4}", e.energy.ci95),
         p.energy_mean
     );
+    if r.episodes > 0 {
+        print!(
+            "{}",
+            crate::vocab::prediction_check_text(&prediction_check(&e, r))
+        );
+    }
     println!(
         "  {:<8} {:>12} {:>10} {:>8} {:>10} {:>16}",
         "sensor", "transmitted", "delivered", "lost", "received", "predicted energy"

@@ -1,119 +1,110 @@
-//! `etp strategy DIR --evaluate STRATEGY.json`: a strategy chosen elsewhere,
-//! the same ω, predicted again on DIR's MDP — typically one built with
-//! `etp synthesize --pool-policy STRATEGY.json`, whose pools are that
-//! strategy's own beliefs, so that its prediction there carries no
-//! aggregation error (docs/MODEL.md §7.3). The file written is the given
-//! strategy (states, bins, splits: it behaves exactly as before) with the
-//! predictions of DIR: selection-time, cross-fitted with its own sampling
-//! error, certified, per-leg energy, and the aggregation check.
+//! `etp strategy evaluate STRATEGY DIR`: a given strategy (the same ω,
+//! states, bins and splits: it behaves exactly as before) predicted on its
+//! own beliefs — DIR's abstraction rebuilt R times with the strategy's own
+//! pools and thresholds (docs/MODEL.md §7.3) — with every prediction of
+//! `etp strategy`: `predicted` with its ±, certified bounds on the first
+//! rebuild, the aggregation check.
 
-use super::{Args, certified};
-use crate::output::write_new;
+use super::EvaluateArgs;
+use super::select::Synthesis;
+use crate::cmd::predictions;
+use crate::output::{refuse_existing, write_new};
+use crate::progress;
 use anyhow::{Context, Result, bail};
-use etp_shared::strategy::{OmegaChoice, Strategy};
-use etp_synthesis::mdp::{CostModel, Mdp};
-use etp_synthesis::pareto::policy::{RandomisedPolicy, evaluate, leg_energy};
+use etp_synthesis::abstraction;
+use etp_synthesis::certify::intervals::interval_mdp;
+use etp_synthesis::certify::robust::certify;
+use etp_synthesis::predict::rebuild::predict;
 use serde_json::json;
-use std::path::Path;
+use std::time::Instant;
 
-/// ω of `strategy` on every state of `mdp` (by region; a region the strategy
-/// never saw takes its nearest, as the strategy itself does at run time).
-pub fn policy_on(mdp: &Mdp, strategy: &Strategy) -> RandomisedPolicy {
-    let smallest = |n: usize| {
-        let mut w = vec![0.0; n];
-        if let Some(x) = w.first_mut() {
-            *x = 1.0;
-        }
-        w
-    };
-    mdp.states
-        .iter()
-        .map(|s| {
-            let omega = match strategy.omega_of_region(s.decision_point as usize, &s.region) {
-                OmegaChoice::Exact(w) | OmegaChoice::Nearest(w) => w.to_vec(),
-                OmegaChoice::FullKf(i) => {
-                    let mut w = vec![0.0; strategy.deltas.len()];
-                    if let Some(x) = w.get_mut(i) {
-                        *x = 1.0;
-                    }
-                    w
-                }
-            };
-            let mut row: Vec<f64> = s
-                .choices
-                .iter()
-                .map(|c| omega.get(c.action as usize).copied().unwrap_or(0.0))
-                .collect();
-            let sum: f64 = row.iter().sum();
-            if sum > 0.0 {
-                row.iter_mut().for_each(|p| *p /= sum);
-                row
-            } else {
-                // None of ω's thresholds is offered here: the first choice
-                // (the smallest δ, as for a region without a state).
-                smallest(row.len())
-            }
-        })
-        .collect()
-}
-
-pub fn run(
-    a: &Args,
-    path: &Path,
-    mdp: &Mdp,
-    cost: CostModel,
-    front_epsilon: f64,
-    output: &Path,
-    level: f64,
-) -> Result<()> {
-    let (mut strategy, _) = crate::cmd::validate::load_strategy(path)
-        .with_context(|| format!("--evaluate {}", path.display()))?;
-    if strategy.scenario_hash != mdp.scenario_hash || strategy.deltas != mdp.deltas {
+pub fn run(a: &EvaluateArgs) -> Result<()> {
+    let syn = Synthesis::load(&a.dir, Some(a.out.output.as_deref().unwrap_or(&a.strategy)))?;
+    let (mut strategy, _) = crate::cmd::validate::load_strategy(&a.strategy)
+        .with_context(|| format!("etp strategy evaluate {}", a.strategy.display()))?;
+    if strategy.scenario_hash != syn.mdp.scenario_hash || strategy.deltas != syn.mdp.deltas {
         bail!(
-            "--evaluate {}: a strategy of {} (hash {:.12}…), not of this MDP's {} (hash {:.12}…) with its thresholds",
-            path.display(),
+            "{}: a strategy of {} (hash {:.12}…), not of {}'s {} (hash {:.12}…) with its thresholds",
+            a.strategy.display(),
             strategy.scenario_name,
             strategy.scenario_hash,
-            mdp.scenario_name,
-            mdp.scenario_hash
+            a.dir.display(),
+            syn.mdp.scenario_name,
+            syn.mdp.scenario_hash
         );
     }
-    let omega = policy_on(mdp, &strategy);
-    let predicted = evaluate(mdp, &omega, cost);
-    let label = format!("{} — evaluated on {}", strategy.label, a.dir.display());
-    strategy.label.clone_from(&label);
-    strategy.predicted = crate::cmd::honest::prediction(&predicted);
-    strategy.leg_energy = Some(leg_energy(mdp, &omega, cost));
-    strategy.aggregation = None;
-    let bound_level = if a.cover_aggregation {
-        etp_synthesis::certify::widen::split_level(level)
-    } else {
-        level
-    };
-    let honest = certified::assess(mdp, &omega, cost, bound_level)?;
-    crate::cmd::honest::attach(&mut strategy, honest.crossfit.as_ref(), &honest.certified);
-    certified::check_aggregation(&mut strategy, a, level)?;
-    write_new(output, strategy.to_json().as_bytes(), a.force)?;
-    if a.json {
-        let v = json!({
-            "strategy": output, "label": label,
-            "predicted": super::objectives_json(&predicted),
-            "exact": false,
-            "vertex_mixture": null,
-            "occupation_lp_energy": null,
-            "front_epsilon": front_epsilon,
-            "predictions": crate::cmd::honest::json_of(&strategy),
-            "crossfit_unmatched_mass": honest.crossfit.as_ref().map(|c| c.unmatched_mass),
-        });
-        println!("{}", serde_json::to_string_pretty(&v)?);
-    } else {
-        println!("{label}");
-        println!(
-            "  predicted  P_tar {:.6}  P_coll {:.6}  energy {:.6}",
-            predicted.p_target, predicted.p_collision, predicted.energy
+    if a.out.output.is_none() && !a.out.force {
+        bail!(
+            "etp strategy evaluate writes the strategy with its prediction: give -o FILE, or \
+             --force to replace {} itself",
+            a.strategy.display()
         );
-        print!("{}", crate::cmd::honest::text_of(&strategy));
-        println!("wrote {}", output.display());
+    }
+    refuse_existing(&syn.output, a.out.force)?;
+    let cost = syn.cost();
+    let params = abstraction::params_of(&syn.mdp);
+    let units = abstraction::progress_total(&syn.scenario, &params);
+    let pb = progress::bar(
+        units * u64::from(a.prediction.replicates),
+        "rebuilds",
+        a.out.json,
+    );
+    let started = Instant::now();
+    // The rebuilds simulate the strategy under DIR's channel.
+    strategy.radio.clone_from(&syn.front.radio);
+    let on_policy = predict(
+        &syn.scenario,
+        &params,
+        &strategy,
+        a.prediction.replicates,
+        cost,
+        Vec::new(),
+        &|k| pb.inc(k),
+    )?;
+    pb.finish_and_clear();
+    let first = on_policy.first();
+    let certified = certify(
+        &first.mdp,
+        &interval_mdp(&first.mdp, a.confidence, cost)?,
+        &first.omega,
+    );
+    on_policy.stand_by(&mut strategy, &certified, a.confidence);
+    if let Some(d) = strategy.diagnostics.as_mut() {
+        d.rounds.clear();
+    }
+    strategy.label = format!("{} — predicted on {}", strategy.label, a.dir.display());
+    strategy.aggregation = None;
+    if a.prediction.aggregation_check > 0 {
+        strategy.aggregation =
+            predictions::aggregation_check(&strategy, a.prediction.aggregation_check, a.out.json)?;
+    }
+    write_new(&syn.output, strategy.to_json().as_bytes(), a.out.force)?;
+    let seconds = started.elapsed().as_secs_f64();
+    if a.out.json {
+        let mut m = serde_json::Map::new();
+        m.insert("strategy".into(), json!(syn.output));
+        m.insert("label".into(), json!(strategy.label));
+        m.insert("verdict".into(), json!("evaluated"));
+        m.extend(predictions::json_fields(&strategy));
+        if let Some(serde_json::Value::Object(d)) = m.get_mut("diagnostics") {
+            d.insert(
+                "rebuild".into(),
+                json!({"states": first.mdp.states.len(),
+                    "choices": first.mdp.states.iter().map(|s| s.choices.len()).sum::<usize>(),
+                    "segments": on_policy.segments(), "seconds": seconds}),
+            );
+        }
+        println!("{}", serde_json::to_string_pretty(&serde_json::Value::Object(m))?);
+    } else {
+        println!("{}", strategy.label);
+        print!("{}", predictions::text_of(&strategy));
+        println!(
+            "  rebuilds: {} × {} states, {} segments, {seconds:.1} s",
+            on_policy.replicas.len(),
+            first.mdp.states.len(),
+            on_policy.segments()
+        );
+        println!("wrote {}", syn.output.display());
     }
     Ok(())
 }

@@ -1,0 +1,397 @@
+//! The default path of `etp strategy`: the request loop (docs/MODEL.md
+//! §7.4) — or, for `--vertex`, one selection — and the prediction of the
+//! strategy kept from its own on-policy rebuilds.
+
+use super::{Args, EXIT_OUT_OF_REACH, Request, certified};
+use crate::cmd::predictions;
+use crate::output::{read_front, read_mdp, refuse_existing, write_new};
+use crate::progress;
+use anyhow::{Context, Result, bail};
+use etp_shared::scenario::Scenario;
+use etp_shared::strategy::Strategy;
+use etp_synthesis::abstraction;
+use etp_synthesis::certify::intervals::interval_mdp;
+use etp_synthesis::certify::robust::certify;
+use etp_synthesis::mdp::{CostModel, Mdp};
+use etp_synthesis::pareto::ParetoFront;
+use etp_synthesis::pareto::policy::{Objectives, RandomisedPolicy, as_randomised, evaluate};
+use etp_synthesis::pareto::select::{Request as FrontRequest, select};
+use etp_synthesis::pareto::to_strategy;
+use etp_synthesis::predict::rebuild::predict;
+use etp_synthesis::predict::request::{Goal, LoopSettings, Outcome, Verdict, meet_request};
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// A synthesis directory, loaded for selection.
+pub struct Synthesis {
+    pub dir: PathBuf,
+    pub mdp: Mdp,
+    pub scenario_text: Option<String>,
+    pub front: ParetoFront,
+    /// The scenario under the synthesis's channel (what the rebuilds simulate).
+    pub scenario: Scenario,
+    pub output: PathBuf,
+}
+
+impl Synthesis {
+    pub fn load(dir: &Path, output: Option<&Path>) -> Result<Self> {
+        let (mdp, scenario_text) = read_mdp(dir)?;
+        if mdp.policy_only() {
+            bail!(
+                "{}: this MDP offers at its states only the thresholds of the strategy its pools \
+                 were drawn on (`etp synthesize --pool-policy` without --all-actions), so its front \
+                 is not the scenario's; predict that strategy with `etp strategy evaluate \
+                 STRATEGY.json DIR` on the synthesis it came from",
+                dir.display()
+            );
+        }
+        let front = read_front(dir, &mdp)?;
+        let mut scenario = match &scenario_text {
+            Some(t) => Scenario::from_toml(t).context("parsing DIR/scenario.toml")?,
+            None => Scenario::builtin(&mdp.scenario_name).with_context(|| {
+                format!(
+                    "{} has no scenario.toml and `{}` is not a built-in scenario",
+                    dir.display(),
+                    mdp.scenario_name
+                )
+            })?,
+        };
+        if scenario.content_hash != mdp.scenario_hash {
+            bail!(
+                "the scenario of {} is not its MDP's (hash {:.12}… vs {:.12}…)",
+                dir.display(),
+                scenario.content_hash,
+                mdp.scenario_hash
+            );
+        }
+        if let Some(r) = &front.radio {
+            scenario.radio = r.clone();
+        }
+        let output = output
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| dir.join("strategy.json"));
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            mdp,
+            scenario_text,
+            front,
+            scenario,
+            output,
+        })
+    }
+
+    pub fn cost(&self) -> CostModel {
+        self.front.cost_model
+    }
+
+    /// A policy on `mdp` (this synthesis's or a refinement of it) as a
+    /// strategy file: its exact value there under diagnostics, the
+    /// scenario text and channel.
+    pub fn strategy_of(
+        &self,
+        mdp: &Mdp,
+        omega: &RandomisedPolicy,
+        value: Objectives,
+        label: &str,
+    ) -> Strategy {
+        let mut s = to_strategy(mdp, omega, label.to_string(), value);
+        s.scenario_toml.clone_from(&self.scenario_text);
+        s.radio.clone_from(&self.front.radio);
+        s
+    }
+}
+
+/// The values of `omega` on the selection MDP, stored as diagnostics.
+pub fn selection_diagnostics(
+    strategy: &mut Strategy,
+    mdp: &Mdp,
+    omega: &RandomisedPolicy,
+    cost: CostModel,
+    level: f64,
+) -> Result<Option<f64>> {
+    let a = certified::assess(mdp, omega, cost, level)?;
+    let d = strategy.diagnostics.get_or_insert_with(Default::default);
+    d.selection.crossfit = a.crossfit.as_ref().map(|c| c.objectives.prediction());
+    d.selection.crossfit_ci95 = a.crossfit.as_ref().map(|c| {
+        let e = &c.standard_error;
+        etp_shared::strategy::PredictionCi95 {
+            p_target: etp_shared::stats::Z95 * e.p_target,
+            p_collision: etp_shared::stats::Z95 * e.p_collision,
+            energy_mean: etp_shared::stats::Z95 * e.energy,
+        }
+    });
+    d.selection.certified = Some(a.certified);
+    Ok(a.crossfit.map(|c| c.unmatched_mass))
+}
+
+pub fn run(a: &Args, request: Request) -> Result<()> {
+    let dir = a.dir.as_deref().context("DIR is required")?;
+    let syn = Synthesis::load(dir, a.out.output.as_deref())?;
+    refuse_existing(&syn.output, a.out.force)?;
+    let cost = syn.cost();
+    let level = a.confidence.unwrap_or(certified::DEFAULT_LEVEL);
+    let certified_selection = match request {
+        Request::Goal(Goal::MinTarget { .. }) => a.confidence,
+        _ => None,
+    };
+    let label = request.label(certified_selection);
+    let started = Instant::now();
+    // Sample allocation first (certified selection only).
+    let refined = match a.refine_gap {
+        Some(g) => Some(certified::refine_selection(a, &syn, g, level)?),
+        None => None,
+    };
+    let mdp = refined.as_ref().map_or(&syn.mdp, |r| &r.mdp);
+    let params = abstraction::params_of(&syn.mdp);
+    let units = abstraction::progress_total(&syn.scenario, &params);
+    let pb = progress::bar(0, "rebuilds", a.out.json);
+    let make = |omega: &RandomisedPolicy, value: Objectives| syn.strategy_of(mdp, omega, value, &label);
+    let outcome = match request {
+        Request::Goal(goal) => meet_request(
+            mdp,
+            cost,
+            &syn.scenario,
+            &params,
+            goal,
+            LoopSettings {
+                replicates: a.prediction.replicates,
+                max_rounds: a.rounds,
+                certified: certified_selection,
+            },
+            level,
+            &make,
+            &|n| pb.inc_length(u64::from(n) * units),
+            &|k| pb.inc(k),
+        )?,
+        Request::Vertex(k) => {
+            let selection = select(&syn.front, FrontRequest::Vertex(k)).context("selecting a vertex")?;
+            let v = selection.weights[0].0;
+            let omega = as_randomised(mdp, &syn.front.vertices[v].policy);
+            let value = evaluate(mdp, &omega, cost);
+            let strategy = make(&omega, value);
+            pb.inc_length(u64::from(a.prediction.replicates) * units);
+            let on_policy = predict(
+                &syn.scenario,
+                &params,
+                &strategy,
+                a.prediction.replicates,
+                cost,
+                Vec::new(),
+                &|k| pb.inc(k),
+            )?;
+            let first = on_policy.first();
+            let certified = certify(
+                &first.mdp,
+                &interval_mdp(&first.mdp, level, cost)?,
+                &first.omega,
+            );
+            Outcome {
+                omega,
+                selection_time: value,
+                strategy,
+                on_policy,
+                certified,
+                rounds: Vec::new(),
+                kept: 0,
+                verdict: Verdict::Met,
+            }
+        }
+    };
+    pb.finish_and_clear();
+    let seconds = started.elapsed().as_secs_f64();
+    let mut strategy = outcome.strategy.clone();
+    outcome.on_policy.stand_by(&mut strategy, &outcome.certified, level);
+    let unmatched = selection_diagnostics(&mut strategy, mdp, &outcome.omega, cost, level)?;
+    if let Some(d) = strategy.diagnostics.as_mut() {
+        d.rounds = outcome.rounds.iter().map(|r| r.record()).collect();
+    }
+    if outcome.verdict != Verdict::Met {
+        strategy.label = format!("{label} — OUT OF REACH: the closest strategy found");
+    }
+    if a.prediction.aggregation_check > 0 {
+        strategy.aggregation =
+            predictions::aggregation_check(&strategy, a.prediction.aggregation_check, a.out.json)?;
+    }
+    write_new(&syn.output, strategy.to_json().as_bytes(), a.out.force)?;
+    let explanation = explanation(&syn, mdp, request, &outcome);
+    let report = Report {
+        syn: &syn,
+        strategy: &strategy,
+        outcome: &outcome,
+        request,
+        seconds,
+        unmatched,
+        explanation,
+        refined: refined.as_ref(),
+    };
+    if a.out.json {
+        println!("{}", serde_json::to_string_pretty(&report.json())?);
+    } else {
+        print!("{}", report.text());
+    }
+    match outcome.verdict {
+        Verdict::Met => Ok(()),
+        v => Err(crate::ExitWith {
+            code: EXIT_OUT_OF_REACH,
+            message: format!(
+                "etp strategy: the request is out of reach ({}): {}; wrote the closest strategy found to {} with its prediction",
+                v.name(),
+                miss_text(request, &strategy),
+                syn.output.display()
+            ),
+        }
+        .into()),
+    }
+}
+
+/// By how much the kept strategy's prediction misses the request.
+fn miss_text(request: Request, s: &Strategy) -> String {
+    let (Some(p), Some(h)) = (s.predicted, s.predicted_ci95) else {
+        return "no prediction".into();
+    };
+    match request {
+        Request::Goal(Goal::MinTarget {
+            min_target,
+            max_collision,
+        }) => {
+            let mut t = format!(
+                "predicted P_tar {:.4} ± {:.4} against P_tar ≥ {min_target}",
+                p.p_target, h.p_target
+            );
+            if let Some(c) = max_collision {
+                t.push_str(&format!(
+                    ", P_coll {:.4} ± {:.4} against P_coll ≤ {c}",
+                    p.p_collision, h.p_collision
+                ));
+            }
+            if let Some(c) = &s.certified.filter(|c| c.covers_aggregation) {
+                t.push_str(&format!(
+                    " (certified P_tar ≥ {:.4}, P_coll ≤ {:.4})",
+                    c.p_target_low, c.p_collision_high
+                ));
+            }
+            t
+        }
+        Request::Goal(Goal::MaxEnergy { max_energy }) => format!(
+            "predicted energy {:.3} ± {:.3} against energy ≤ {max_energy}",
+            p.energy_mean, h.energy_mean
+        ),
+        Request::Vertex(_) => String::new(),
+    }
+}
+
+/// The front's answer to the user's request, as an explanation.
+struct Explanation {
+    mixture: Option<etp_synthesis::pareto::select::Selection>,
+}
+
+fn explanation(syn: &Synthesis, _mdp: &Mdp, request: Request, _o: &Outcome) -> Explanation {
+    let r = match request {
+        Request::Goal(Goal::MinTarget {
+            min_target,
+            max_collision,
+        }) => FrontRequest::MinTarget {
+            min_target,
+            max_collision,
+        },
+        Request::Goal(Goal::MaxEnergy { max_energy }) => FrontRequest::MaxEnergy { max_energy },
+        Request::Vertex(k) => FrontRequest::Vertex(k),
+    };
+    Explanation {
+        mixture: select(&syn.front, r).ok(),
+    }
+}
+
+struct Report<'a> {
+    syn: &'a Synthesis,
+    strategy: &'a Strategy,
+    outcome: &'a Outcome,
+    request: Request,
+    seconds: f64,
+    unmatched: Option<f64>,
+    explanation: Explanation,
+    refined: Option<&'a certified::Refinement>,
+}
+
+impl Report<'_> {
+    fn json(&self) -> Value {
+        let o = self.outcome;
+        let mut m = serde_json::Map::new();
+        m.insert("strategy".into(), json!(self.syn.output));
+        m.insert("label".into(), json!(self.strategy.label));
+        m.insert("verdict".into(), json!(match self.request {
+            Request::Vertex(_) => "vertex",
+            _ => o.verdict.name(),
+        }));
+        m.extend(predictions::json_fields(self.strategy));
+        if let Some(Value::Object(d)) = m.get_mut("diagnostics") {
+            let first = o.on_policy.first();
+            d.insert("rebuild".into(), json!({
+                "states": first.mdp.states.len(),
+                "choices": first.mdp.states.iter().map(|s| s.choices.len()).sum::<usize>(),
+                "segments": o.on_policy.segments(),
+                "seconds": self.seconds,
+            }));
+            d.insert("kept_round".into(), json!(o.kept));
+            d.insert("front_epsilon".into(), json!(self.syn.front.epsilon));
+            d.insert("crossfit_unmatched_mass".into(), json!(self.unmatched));
+            d.insert("vertex_mixture".into(), self.explanation.mixture.as_ref().map_or(Value::Null, |m| json!({
+                "predicted": {"p_target": m.predicted.p_target, "p_collision": m.predicted.p_collision, "energy_mean": m.predicted.energy},
+                "vertices": m.weights.iter().map(|(k, w)| json!({"vertex": k, "weight": w})).collect::<Vec<_>>(),
+            })));
+            d.insert("refinement".into(), self.refined.map_or(Value::Null, certified::Refinement::json));
+        }
+        Value::Object(m)
+    }
+
+    fn text(&self) -> String {
+        let o = self.outcome;
+        let s = self.strategy;
+        let mut t = format!("{}\n", s.label);
+        t.push_str(&predictions::text_of(s));
+        match (self.request, o.verdict) {
+            (Request::Vertex(_), _) => {}
+            (_, Verdict::Met) => t.push_str(&format!(
+                "  meets the request: round {} kept, after {} round{} of the request loop (docs/MODEL.md §7.4), {:.1} s\n",
+                o.kept,
+                o.rounds.len(),
+                if o.rounds.len() == 1 { "" } else { "s" },
+                self.seconds
+            )),
+            (_, v) => t.push_str(&format!(
+                "  OUT OF REACH ({}): {} — the closest of {} rounds (round {}), {:.1} s\n",
+                v.name(),
+                miss_text(self.request, s),
+                o.rounds.len(),
+                o.kept,
+                self.seconds
+            )),
+        }
+        let first = o.on_policy.first();
+        t.push_str(&format!(
+            "  rebuilds: {} × {} states, {} segments in all\n",
+            o.on_policy.replicas.len(),
+            first.mdp.states.len(),
+            o.on_policy.segments()
+        ));
+        if let Some(m) = &self.explanation.mixture {
+            t.push_str(&format!(
+                "  explanation: the front's mixture for the request on the selection MDP  P_tar {:.6}  P_coll {:.6}  energy {:.6}\n",
+                m.predicted.p_target, m.predicted.p_collision, m.predicted.energy
+            ));
+            for (k, w) in &m.weights {
+                let v = &self.syn.front.vertices[*k].objectives;
+                t.push_str(&format!(
+                    "    vertex {k:>4} weight {w:.4}  (P_tar {:.4}, P_coll {:.4}, energy {:.2})\n",
+                    v.p_target, v.p_collision, v.energy
+                ));
+            }
+        }
+        if let Some(r) = self.refined {
+            t.push_str(&r.text());
+        }
+        t.push_str(&format!("wrote {}\n", self.syn.output.display()));
+        t
+    }
+}

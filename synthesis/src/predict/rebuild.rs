@@ -1,0 +1,245 @@
+//! A strategy predicted on its own beliefs: R on-policy rebuilds of the
+//! abstraction (docs/MODEL.md §7.3). Replicate r uses the selection MDP's
+//! settings with seed + r, pools drawn from the strategy's own (true state,
+//! belief) arrivals and only the thresholds it takes; the strategy is then
+//! evaluated on each. Their cross-fitted values are independent draws of the
+//! rebuild's whole Monte Carlo, so their mean with a Student-t ± over their
+//! spread ([`crate::certify::replicates`]) is the prediction etp stands by.
+
+use super::PredictError;
+use crate::abstraction::{self, AbstractionParams};
+use crate::certify::crossfit::{CrossFit, crossfit};
+use crate::certify::replicates::{Replicated, replicated};
+use crate::mdp::{CostModel, Mdp};
+use crate::pareto::policy::{Objectives, RandomisedPolicy, evaluate, leg_energy};
+use etp_shared::scenario::Scenario;
+use etp_shared::strategy::{OmegaChoice, Strategy};
+
+/// The fewest rebuilds a prediction is made of (the Student-t interval needs
+/// a spread).
+pub const MIN_REPLICATES: u32 = 2;
+
+/// Rebuilds of a prediction by default: a half-width of about 2 standard
+/// errors of one rebuild (docs/MODEL.md §7.3).
+pub const DEFAULT_REPLICATES: u32 = 4;
+
+/// One rebuild and the strategy evaluated on it, once.
+pub struct Replica {
+    pub mdp: Mdp,
+    /// The strategy's ω on this rebuild's states.
+    pub omega: RandomisedPolicy,
+    /// Its exact value on the rebuild.
+    pub value: Objectives,
+    pub leg_energy: Vec<f64>,
+    /// Its value on the rebuild's held-out transitions (none when the
+    /// selection MDP was built without a held-out sample).
+    pub crossfit: Option<CrossFit>,
+}
+
+impl Replica {
+    /// What this rebuild predicts: the cross-fitted value, or the exact one
+    /// without a held-out sample (no optimiser's bias either way: the
+    /// strategy was not chosen on this rebuild).
+    pub fn prediction(&self) -> Objectives {
+        self.crossfit.as_ref().map_or(self.value, |c| c.objectives)
+    }
+}
+
+/// The rebuilds of one strategy and the prediction they make.
+pub struct OnPolicy {
+    pub replicas: Vec<Replica>,
+    /// The replicates' cross-fitted mean and its 95 % Student-t half-width.
+    pub combined: Replicated,
+    /// The replicates' mean exact value and per-leg energy.
+    pub value: Objectives,
+    pub leg_energy: Vec<f64>,
+}
+
+impl OnPolicy {
+    /// The first rebuild (seed DIR's + 0), whose certified bounds are reported.
+    pub fn first(&self) -> &Replica {
+        &self.replicas[0]
+    }
+
+    pub fn segments(&self) -> u64 {
+        self.replicas.iter().map(|r| r.mdp.total_segments).sum()
+    }
+}
+
+/// ω of `strategy` on every state of `mdp` (by region; a region the strategy
+/// never saw takes its nearest, as the strategy itself does at run time).
+pub fn policy_on(mdp: &Mdp, strategy: &Strategy) -> RandomisedPolicy {
+    mdp.states
+        .iter()
+        .map(|s| {
+            let omega = match strategy.omega_of_region(s.decision_point as usize, &s.region) {
+                OmegaChoice::Exact(w) | OmegaChoice::Nearest(w) => w.to_vec(),
+                OmegaChoice::FullKf(i) => {
+                    let mut w = vec![0.0; strategy.deltas.len()];
+                    if let Some(x) = w.get_mut(i) {
+                        *x = 1.0;
+                    }
+                    w
+                }
+            };
+            let mut row: Vec<f64> = s
+                .choices
+                .iter()
+                .map(|c| omega.get(c.action as usize).copied().unwrap_or(0.0))
+                .collect();
+            let sum: f64 = row.iter().sum();
+            if sum > 0.0 {
+                row.iter_mut().for_each(|p| *p /= sum);
+            } else if let Some(x) = row.first_mut() {
+                // None of ω's thresholds is offered here: the first choice
+                // (the smallest δ, as for a region without a state).
+                *x = 1.0;
+            }
+            row
+        })
+        .collect()
+}
+
+/// Rebuild `replicate` (seed `params.seed + replicate`) on `strategy`'s own
+/// pools and thresholds, and evaluate it there.
+pub fn rebuild_one(
+    scenario: &Scenario,
+    params: &AbstractionParams,
+    strategy: &Strategy,
+    replicate: u32,
+    cost: CostModel,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Replica, PredictError> {
+    let mut p = *params;
+    p.seed = params.seed.wrapping_add(u64::from(replicate));
+    // A rebuild always draws a held-out sample (the selection MDP may have
+    // none): its prediction is then cross-fitted, like every other's.
+    if p.holdout_samples == 0 {
+        p.holdout_samples = p.samples;
+    }
+    let mdp = abstraction::build_on_policy(scenario, &p, strategy, true, true, progress)
+        .map_err(|source| PredictError::Rebuild { replicate, source })?;
+    mdp.check()
+        .map_err(|e| PredictError::Inconsistent(e.to_string()))?;
+    let omega = policy_on(&mdp, strategy);
+    let crossfit = crossfit(&mdp, &omega, cost);
+    Ok(Replica {
+        value: evaluate(&mdp, &omega, cost),
+        leg_energy: leg_energy(&mdp, &omega, cost),
+        crossfit,
+        omega,
+        mdp,
+    })
+}
+
+/// Combine rebuilds (at least [`MIN_REPLICATES`]) into one prediction.
+pub fn combine(replicas: Vec<Replica>) -> Result<OnPolicy, PredictError> {
+    let values: Vec<Objectives> = replicas.iter().map(Replica::prediction).collect();
+    let combined = replicated(&values).ok_or_else(|| {
+        PredictError::Inconsistent(format!(
+            "{} rebuilds; a prediction needs at least {MIN_REPLICATES}",
+            replicas.len()
+        ))
+    })?;
+    let n = replicas.len() as f64;
+    let mut value = Objectives::default();
+    let mut legs: Vec<f64> = Vec::new();
+    for x in &replicas {
+        value.p_target += x.value.p_target / n;
+        value.p_collision += x.value.p_collision / n;
+        value.energy += x.value.energy / n;
+        if legs.len() < x.leg_energy.len() {
+            legs.resize(x.leg_energy.len(), 0.0);
+        }
+        for (l, e) in legs.iter_mut().zip(&x.leg_energy) {
+            *l += e / n;
+        }
+    }
+    Ok(OnPolicy {
+        replicas,
+        combined,
+        value,
+        leg_energy: legs,
+    })
+}
+
+/// `strategy` predicted on `replicates` rebuilds (seeds `params.seed + r`),
+/// reusing `done` (the first rebuilds, already made).
+pub fn predict(
+    scenario: &Scenario,
+    params: &AbstractionParams,
+    strategy: &Strategy,
+    replicates: u32,
+    cost: CostModel,
+    mut done: Vec<Replica>,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<OnPolicy, PredictError> {
+    for r in done.len() as u32..replicates.max(MIN_REPLICATES) {
+        done.push(rebuild_one(scenario, params, strategy, r, cost, progress)?);
+    }
+    combine(done)
+}
+
+/// The scenario a rebuild of `mdp` simulates: `strategy`'s own (hash
+/// checked, under its own channel).
+pub fn scenario_of(strategy: &Strategy) -> Result<Scenario, PredictError> {
+    strategy
+        .scenario()
+        .map_err(|e| PredictError::Scenario(e.to_string()))
+}
+
+/// What [`OnPolicy::stand_by`] says a prediction is.
+pub fn basis(replicas: &[Replica]) -> String {
+    let first = replicas.first().map_or(0, |r| r.mdp.seed);
+    let last = replicas.last().map_or(first, |r| r.mdp.seed);
+    let held_out = replicas.iter().all(|r| r.crossfit.is_some());
+    format!(
+        "the mean {} value of {} on-policy rebuilds (seeds {first}…{last}: the strategy's own \
+         beliefs and true states in the pools, only its thresholds), ± Student's t at 95 % over \
+         their spread",
+        if held_out { "cross-fitted" } else { "exact" },
+        replicas.len()
+    )
+}
+
+impl OnPolicy {
+    /// Make this the prediction `strategy` stands by: `predicted` with its
+    /// ±, the per-leg energy, the certified bounds of the first rebuild
+    /// (`certified`, at `level`) and every rebuild under `diagnostics`.
+    pub fn stand_by(
+        &self,
+        strategy: &mut Strategy,
+        certified: &crate::certify::robust::Certified,
+        level: f64,
+    ) {
+        strategy.predicted = Some(self.combined.mean.prediction());
+        strategy.predicted_ci95 = Some(self.combined.ci95.ci95());
+        strategy.prediction_basis = basis(&self.replicas);
+        strategy.leg_energy = Some(self.leg_energy.clone());
+        strategy.certified = Some(etp_shared::strategy::CertifiedPrediction {
+            confidence: level,
+            p_target_low: certified.p_target_low,
+            p_collision_high: certified.p_collision_high,
+            energy_high: certified.energy_high,
+            covers_aggregation: true,
+        });
+        let d = strategy.diagnostics.get_or_insert_with(Default::default);
+        d.rebuilds = self
+            .replicas
+            .iter()
+            .map(|r| etp_shared::strategy::RebuildValue {
+                seed: r.mdp.seed,
+                selection_time: r.value.prediction(),
+                crossfit: r.crossfit.as_ref().map(|c| c.objectives.prediction()),
+                crossfit_ci95: r.crossfit.as_ref().map(|c| {
+                    let e = &c.standard_error;
+                    etp_shared::strategy::PredictionCi95 {
+                        p_target: etp_shared::stats::Z95 * e.p_target,
+                        p_collision: etp_shared::stats::Z95 * e.p_collision,
+                        energy_mean: etp_shared::stats::Z95 * e.energy,
+                    }
+                }),
+            })
+            .collect();
+    }
+}

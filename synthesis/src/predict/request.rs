@@ -1,0 +1,495 @@
+//! The request loop (docs/MODEL.md §7.4): a strategy whose prediction —
+//! the one of its own on-policy rebuilds ([`super::rebuild`]) — meets what
+//! the user asked, not only its value on the MDP it was selected on.
+//!
+//! Round k asks the selection MDP for `asked_k` (round 0: the user's
+//! request) and predicts the strategy it gives on its rebuilds. Where that
+//! prediction misses the user's request beyond its own 95 % half-width, each
+//! missed bound of the request to the MDP moves by the measured gap
+//! (`asked_{k+1} = asked_k + (request − predicted_k)`) and the MDP is asked
+//! again. A round's first rebuild decides alone when it misses clearly (by
+//! more than three of its own held-out half-widths, or by its certified
+//! bound, which is the first rebuild's): the other rebuilds are made only
+//! for a strategy that may be kept. When the moved request is infeasible on
+//! the MDP, the loop asks for the most it offers in that direction; when
+//! that is what it just asked, the request is out of reach. Every outcome
+//! carries the best strategy the loop could stand behind, with its full
+//! prediction.
+
+use super::PredictError;
+use super::rebuild::{OnPolicy, Replica, predict, rebuild_one};
+use crate::abstraction::AbstractionParams;
+use crate::certify::intervals::interval_mdp;
+use crate::certify::robust::{Certified, certify};
+use crate::certify::select::certified_strategy;
+use crate::mdp::{CostModel, Mdp};
+use crate::pareto::optimal::{LpRequest, optimal_strategy};
+use crate::pareto::policy::{Objectives, RandomisedPolicy};
+use crate::pareto::select::SelectError;
+use etp_shared::scenario::Scenario;
+use etp_shared::stats::Z95;
+use etp_shared::strategy::Strategy;
+
+/// Rounds of the loop by default.
+pub const DEFAULT_ROUNDS: u32 = 5;
+
+/// A first rebuild misses clearly when it is this many of its own held-out
+/// 95 % half-widths beyond the request (its ± misses about a third of the
+/// rebuild's variance, docs/MODEL.md §7.3: 3 is well beyond that).
+const CLEAR_MISS: f64 = 3.0;
+
+/// Bisection steps towards the edge of what the MDP offers.
+const EDGE_STEPS: usize = 30;
+
+/// What the user asks for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Goal {
+    /// Least energy with P_tar ≥ `min_target` (and P_coll ≤ `max_collision`).
+    MinTarget {
+        min_target: f64,
+        max_collision: Option<f64>,
+    },
+    /// Highest P_tar with expected energy ≤ `max_energy`.
+    MaxEnergy { max_energy: f64 },
+}
+
+/// A request put to the selection MDP (the user's goal, moved).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Asked {
+    MinTarget {
+        min_target: f64,
+        max_collision: Option<f64>,
+    },
+    MaxEnergy {
+        max_energy: f64,
+    },
+}
+
+impl Asked {
+    fn of(goal: Goal) -> Self {
+        match goal {
+            Goal::MinTarget {
+                min_target,
+                max_collision,
+            } => Self::MinTarget {
+                min_target,
+                max_collision,
+            },
+            Goal::MaxEnergy { max_energy } => Self::MaxEnergy { max_energy },
+        }
+    }
+
+    /// `self` moved a fraction `lambda` of the way to `to`.
+    fn towards(self, to: Self, lambda: f64) -> Self {
+        let mix = |a: f64, b: f64| a + lambda * (b - a);
+        match (self, to) {
+            (
+                Self::MinTarget {
+                    min_target: a,
+                    max_collision: c,
+                },
+                Self::MinTarget {
+                    min_target: b,
+                    max_collision: d,
+                },
+            ) => Self::MinTarget {
+                min_target: mix(a, b),
+                max_collision: c.zip(d).map(|(c, d)| mix(c, d)),
+            },
+            (Self::MaxEnergy { max_energy: a }, Self::MaxEnergy { max_energy: b }) => {
+                Self::MaxEnergy {
+                    max_energy: mix(a, b),
+                }
+            }
+            _ => to,
+        }
+    }
+
+    /// The largest move of any bound from `self` to `other`.
+    fn distance(self, other: Self) -> f64 {
+        match (self, other) {
+            (
+                Self::MinTarget {
+                    min_target: a,
+                    max_collision: c,
+                },
+                Self::MinTarget {
+                    min_target: b,
+                    max_collision: d,
+                },
+            ) => (a - b)
+                .abs()
+                .max(c.zip(d).map_or(0.0, |(c, d)| (c - d).abs())),
+            (Self::MaxEnergy { max_energy: a }, Self::MaxEnergy { max_energy: b }) => {
+                (a - b).abs() / a.abs().max(b.abs()).max(1e-12)
+            }
+            _ => f64::INFINITY,
+        }
+    }
+}
+
+/// How the loop selects.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopSettings {
+    /// Rebuilds of a prediction (≥ 2).
+    pub replicates: u32,
+    /// Rounds at most (≥ 1).
+    pub max_rounds: u32,
+    /// Select on certified bounds at this level (a [`Goal::MinTarget`]
+    /// only): a round meets the request when the bounds certified on its
+    /// first rebuild do.
+    pub certified: Option<f64>,
+}
+
+/// One round.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Round {
+    pub asked: Asked,
+    /// The selected strategy's exact value on the selection MDP.
+    pub selection_time: Objectives,
+    /// Its prediction from this round's rebuilds and its 95 % half-width
+    /// (one rebuild: the held-out ± widened by √1.5, docs/MODEL.md §7.3).
+    pub predicted: Objectives,
+    pub ci95: Objectives,
+    pub rebuilds: u32,
+    /// Bounds certified on the first rebuild (certified selection only).
+    pub certified: Option<Certified>,
+    pub meets: bool,
+}
+
+/// How the loop ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// The returned strategy's prediction meets the request.
+    Met,
+    /// The MDP offers nothing further in the direction the request needs:
+    /// the returned strategy is the round that came closest.
+    OutOfReach,
+    /// The rounds ran out before a prediction met the request: the returned
+    /// strategy is the round that came closest.
+    RoundsSpent,
+}
+
+/// The loop's result: the strategy kept, its prediction and the rounds.
+pub struct Outcome {
+    /// The kept strategy's ω on the selection MDP's states and its exact
+    /// value there.
+    pub omega: RandomisedPolicy,
+    pub selection_time: Objectives,
+    pub strategy: Strategy,
+    pub on_policy: OnPolicy,
+    /// Certified bounds of the kept strategy on its first rebuild (at the
+    /// level asked, or at `report_level` without certified selection).
+    pub certified: Certified,
+    pub rounds: Vec<Round>,
+    /// Index of the kept round in `rounds`.
+    pub kept: usize,
+    pub verdict: Verdict,
+}
+
+/// A strategy selected on the MDP, before its rebuilds.
+struct Candidate {
+    omega: RandomisedPolicy,
+    selection_time: Objectives,
+}
+
+fn select(
+    mdp: &Mdp,
+    cost: CostModel,
+    asked: Asked,
+    certified: Option<&crate::certify::intervals::IntervalMdp>,
+) -> Result<Result<Candidate, PredictError>, PredictError> {
+    match (asked, certified) {
+        (
+            Asked::MinTarget {
+                min_target,
+                max_collision,
+            },
+            Some(im),
+        ) => match certified_strategy(mdp, im, cost, min_target.min(1.0), max_collision) {
+            Ok(c) => Ok(Ok(Candidate {
+                omega: c.strategy.policy,
+                selection_time: c.strategy.predicted,
+            })),
+            Err(e @ crate::certify::CertifyError::Infeasible { .. }) => Ok(Err(e.into())),
+            Err(e) => Err(e.into()),
+        },
+        (asked, _) => {
+            let request = match asked {
+                Asked::MinTarget {
+                    min_target,
+                    max_collision,
+                } => LpRequest::MinEnergy {
+                    min_target: min_target.min(1.0),
+                    max_collision: max_collision.map(|c| c.max(0.0)),
+                },
+                Asked::MaxEnergy { max_energy } => LpRequest::MaxTarget {
+                    max_energy: max_energy.max(0.0),
+                },
+            };
+            match optimal_strategy(mdp, cost, request) {
+                Ok(o) => Ok(Ok(Candidate {
+                    omega: o.policy,
+                    selection_time: o.predicted,
+                })),
+                Err(e @ SelectError::Infeasible { .. }) => Ok(Err(e.into())),
+                Err(e) => Err(e.into()),
+            }
+        }
+    }
+}
+
+/// How far a prediction is from missing the request: ≥ 0 meets it within
+/// its ±; the least of its bounds' slacks (energy relative to the request).
+fn slack(goal: Goal, q: &Objectives, h: &Objectives, cert: Option<&Certified>) -> f64 {
+    match (goal, cert) {
+        (
+            Goal::MinTarget {
+                min_target,
+                max_collision,
+            },
+            Some(c),
+        ) => (c.p_target_low - min_target)
+            .min(max_collision.map_or(f64::INFINITY, |m| m - c.p_collision_high)),
+        (
+            Goal::MinTarget {
+                min_target,
+                max_collision,
+            },
+            None,
+        ) => (q.p_target + h.p_target - min_target).min(
+            max_collision.map_or(f64::INFINITY, |m| m - (q.p_collision - h.p_collision)),
+        ),
+        (Goal::MaxEnergy { max_energy }, _) => {
+            (max_energy - (q.energy - h.energy)) / max_energy.abs().max(1e-12)
+        }
+    }
+}
+
+/// The request to the MDP moved by the gaps between `goal` and what the
+/// round measured (point values, or the certified bounds).
+fn moved(goal: Goal, asked: Asked, q: &Objectives, cert: Option<&Certified>) -> Asked {
+    match (goal, asked) {
+        (
+            Goal::MinTarget {
+                min_target,
+                max_collision,
+            },
+            Asked::MinTarget {
+                min_target: t,
+                max_collision: c,
+            },
+        ) => {
+            let (got_t, got_c) = match cert {
+                Some(x) => (x.p_target_low, x.p_collision_high),
+                None => (q.p_target, q.p_collision),
+            };
+            Asked::MinTarget {
+                min_target: (t + (min_target - got_t).max(0.0)).min(1.0),
+                max_collision: c
+                    .zip(max_collision)
+                    .map(|(c, m)| (c - (got_c - m).max(0.0)).max(0.0)),
+            }
+        }
+        (Goal::MaxEnergy { max_energy }, Asked::MaxEnergy { max_energy: e }) => Asked::MaxEnergy {
+            max_energy: (e - (q.energy - max_energy).max(0.0)).max(0.0),
+        },
+        (_, a) => a,
+    }
+}
+
+/// Run the loop on the selection MDP `mdp` (its settings and seed are the
+/// rebuilds'). `make` packages a policy on `mdp` with its exact value as a
+/// strategy file (scenario text and channel included); `progress` counts
+/// rebuild units, `plan` announces units about to be spent.
+#[allow(clippy::too_many_arguments)]
+pub fn meet_request(
+    mdp: &Mdp,
+    cost: CostModel,
+    scenario: &Scenario,
+    params: &AbstractionParams,
+    goal: Goal,
+    settings: LoopSettings,
+    report_level: f64,
+    make: &dyn Fn(&RandomisedPolicy, Objectives) -> Strategy,
+    plan: &dyn Fn(u32),
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Outcome, PredictError> {
+    let level = settings.certified.unwrap_or(report_level);
+    let selection_im = match settings.certified {
+        Some(l) => Some(interval_mdp(mdp, l, cost)?),
+        None => None,
+    };
+    let mut asked = Asked::of(goal);
+    let mut rounds: Vec<Round> = Vec::new();
+    // The closest round so far: its index, candidate, first rebuild(s).
+    let mut best: Option<(usize, f64, Candidate, Strategy, Vec<Replica>, Certified)> = None;
+    let mut verdict = Verdict::RoundsSpent;
+    for _ in 0..settings.max_rounds.max(1) {
+        let candidate = match select(mdp, cost, asked, selection_im.as_ref())? {
+            Ok(c) => c,
+            Err(infeasible) => {
+                // The moved request is infeasible: ask for the most the MDP
+                // offers between the last feasible request and it.
+                let Some(last) = rounds.last().map(|r| r.asked) else {
+                    // The user's own request is infeasible on the MDP.
+                    return Err(infeasible);
+                };
+                let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+                let mut found = None;
+                for _ in 0..EDGE_STEPS {
+                    let mid = 0.5 * (lo + hi);
+                    match select(mdp, cost, last.towards(asked, mid), selection_im.as_ref())? {
+                        Ok(c) => {
+                            lo = mid;
+                            found = Some(c);
+                        }
+                        Err(_) => hi = mid,
+                    }
+                }
+                let edge = last.towards(asked, lo);
+                match found {
+                    Some(c) if edge.distance(last) > 1e-6 => {
+                        asked = edge;
+                        c
+                    }
+                    _ => {
+                        verdict = Verdict::OutOfReach;
+                        break;
+                    }
+                }
+            }
+        };
+        let strategy = make(&candidate.omega, candidate.selection_time);
+        plan(1);
+        let first = rebuild_one(scenario, params, &strategy, 0, cost, progress)?;
+        let cert = certify(
+            &first.mdp,
+            &interval_mdp(&first.mdp, level, cost)?,
+            &first.omega,
+        );
+        let cert_for_goal = settings.certified.map(|_| cert);
+        // One rebuild's ±: the held-out half-width widened by √1.5 (the
+        // variance it misses, docs/MODEL.md §7.3).
+        let one = first.prediction();
+        let one_ci = first
+            .crossfit
+            .as_ref()
+            .map_or(Objectives::default(), |c| {
+                let w = Z95 * 1.5_f64.sqrt();
+                Objectives {
+                    p_target: w * c.standard_error.p_target,
+                    p_collision: w * c.standard_error.p_collision,
+                    energy: w * c.standard_error.energy,
+                }
+            });
+        let clear_ci = Objectives {
+            p_target: CLEAR_MISS * one_ci.p_target,
+            p_collision: CLEAR_MISS * one_ci.p_collision,
+            energy: CLEAR_MISS * one_ci.energy,
+        };
+        let clear_miss = slack(goal, &one, &clear_ci, cert_for_goal.as_ref()) < 0.0;
+        let (q, h, replicas, rebuilds) = if clear_miss {
+            (one, one_ci, vec![first], 1)
+        } else {
+            plan(settings.replicates.saturating_sub(1));
+            let all = predict(
+                scenario,
+                params,
+                &strategy,
+                settings.replicates,
+                cost,
+                vec![first],
+                progress,
+            )?;
+            let (q, h) = (all.combined.mean, all.combined.ci95);
+            (q, h, all.replicas, settings.replicates)
+        };
+        let s = slack(goal, &q, &h, cert_for_goal.as_ref());
+        let meets = s >= 0.0;
+        rounds.push(Round {
+            asked,
+            selection_time: candidate.selection_time,
+            predicted: q,
+            ci95: h,
+            rebuilds,
+            certified: cert_for_goal,
+            meets,
+        });
+        let next = moved(goal, asked, &q, cert_for_goal.as_ref());
+        if best.as_ref().is_none_or(|b| s > b.1 || meets) {
+            best = Some((rounds.len() - 1, s, candidate, strategy, replicas, cert));
+        }
+        if meets {
+            verdict = Verdict::Met;
+            break;
+        }
+        if next.distance(asked) <= 1e-9 {
+            // Nothing left to move (a bound already at its limit).
+            verdict = Verdict::OutOfReach;
+            break;
+        }
+        asked = next;
+    }
+    let Some((kept, _, candidate, mut strategy, replicas, certified)) = best else {
+        return Err(PredictError::Inconsistent(
+            "the request loop ended without a round (a bug)".into(),
+        ));
+    };
+    let missing = settings.replicates.saturating_sub(replicas.len() as u32);
+    plan(missing);
+    let on_policy = predict(
+        scenario,
+        params,
+        &strategy,
+        settings.replicates,
+        cost,
+        replicas,
+        progress,
+    )?;
+    strategy.leg_energy = Some(on_policy.leg_energy.clone());
+    Ok(Outcome {
+        omega: candidate.omega,
+        selection_time: candidate.selection_time,
+        strategy,
+        on_policy,
+        certified,
+        rounds,
+        kept,
+        verdict,
+    })
+}
+
+impl Round {
+    /// As a strategy file records it.
+    pub fn record(&self) -> etp_shared::strategy::RequestRound {
+        let (t, c, e) = match self.asked {
+            Asked::MinTarget {
+                min_target,
+                max_collision,
+            } => (Some(min_target), max_collision, None),
+            Asked::MaxEnergy { max_energy } => (None, None, Some(max_energy)),
+        };
+        etp_shared::strategy::RequestRound {
+            asked_p_target: t,
+            asked_p_collision: c,
+            asked_energy: e,
+            selection_time: self.selection_time.prediction(),
+            predicted: self.predicted.prediction(),
+            predicted_ci95: self.ci95.ci95(),
+            rebuilds: self.rebuilds,
+            meets: self.meets,
+        }
+    }
+}
+
+impl Verdict {
+    /// The verdict's name in `--json`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Met => "met",
+            Self::OutOfReach => "out-of-reach",
+            Self::RoundsSpent => "rounds-spent",
+        }
+    }
+}
