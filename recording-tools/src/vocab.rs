@@ -79,7 +79,10 @@ pub fn prediction_check_text(v: &Value) -> String {
     if out.is_empty() {
         "  prediction: P_tar, P_coll and energy inside the measured 95 % intervals (joined with the prediction's ±)\n".into()
     } else {
-        format!("  PREDICTION OUTSIDE the measured interval: {}\n", out.join("; "))
+        format!(
+            "  PREDICTION OUTSIDE the measured interval: {}\n",
+            out.join("; ")
+        )
     }
 }
 

@@ -109,7 +109,6 @@ pub fn run(a: Args) -> Result<()> {
         aggregation_alpha: 0.05,
         split: Default::default(),
         pool_policy: None,
-        no_carry_state: false,
         all_actions: false,
     };
     let built = synthesize::build_mdp(&sargs)?;
@@ -164,7 +163,9 @@ pub fn run(a: Args) -> Result<()> {
         );
     }
     let mut strategy = outcome.strategy.clone();
-    outcome.on_policy.stand_by(&mut strategy, &outcome.certified, 0.95);
+    outcome
+        .on_policy
+        .stand_by(&mut strategy, &outcome.certified, 0.95);
     if let Some(d) = strategy.diagnostics.as_mut() {
         d.rounds = outcome.rounds.iter().map(|r| r.record()).collect();
     }

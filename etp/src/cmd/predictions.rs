@@ -42,7 +42,11 @@ pub fn reference(s: &Strategy) -> Option<(Prediction, Option<PredictionCi95>, &'
     }
     let sel = s.diagnostics.as_ref()?.selection;
     match (sel.crossfit, sel.selection_time) {
-        (Some(c), _) => Some((c, sel.crossfit_ci95, "cross-fitted on the selection MDP (biased)")),
+        (Some(c), _) => Some((
+            c,
+            sel.crossfit_ci95,
+            "cross-fitted on the selection MDP (biased)",
+        )),
         (None, Some(t)) => Some((t, None, "selection-time (biased)")),
         (None, None) => None,
     }
@@ -171,7 +175,10 @@ fn certified_json(c: &CertifiedPrediction) -> Value {
 /// `certified`, `aggregation` and `diagnostics`.
 pub fn json_fields(s: &Strategy) -> serde_json::Map<String, Value> {
     let mut m = serde_json::Map::new();
-    m.insert("predicted".into(), s.predicted.as_ref().map_or(Value::Null, prediction_json));
+    m.insert(
+        "predicted".into(),
+        s.predicted.as_ref().map_or(Value::Null, prediction_json),
+    );
     m.insert(
         "predicted_ci95".into(),
         s.predicted_ci95.as_ref().map_or(Value::Null, ci95_json),
@@ -291,7 +298,9 @@ pub fn diagnostics_text(s: &Strategy) -> String {
     let Some(d) = &s.diagnostics else {
         return String::new();
     };
-    let mut o = String::from("  diagnostics (explain the prediction; biased where said, never to be used as it):\n");
+    let mut o = String::from(
+        "  diagnostics (explain the prediction; biased where said, never to be used as it):\n",
+    );
     let sel = &d.selection;
     if let Some(p) = &sel.selection_time {
         o.push_str(&format!(

@@ -191,7 +191,10 @@ impl Request {
                 cert(&format!("P_coll ≤ {c}"))
             ),
             Self::Goal(Goal::MinTarget { min_target, .. }) => {
-                format!("least energy with {}", cert(&format!("P_tar ≥ {min_target}")))
+                format!(
+                    "least energy with {}",
+                    cert(&format!("P_tar ≥ {min_target}"))
+                )
             }
             Self::Goal(Goal::MaxEnergy { max_energy }) => {
                 format!("highest P_tar with energy ≤ {max_energy}")

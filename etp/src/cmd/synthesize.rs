@@ -151,14 +151,9 @@ pub struct Args {
     /// Method 2 synthesis of the same scenario (`etp strategy … -o FILE`).
     #[arg(long, value_name = "STRATEGY.json")]
     pub pool_policy: Option<PathBuf>,
-    /// With --pool-policy: pool particles are beliefs only, and each segment
-    /// draws its true state from N(x̂, P) (by default they keep the true
-    /// state they arrived with: docs/MODEL.md §7.3). For comparison.
-    #[arg(long, requires = "pool_policy")]
-    pub no_carry_state: bool,
     /// With --pool-policy: simulate every threshold at every state (by
     /// default only those the strategy uses there: all that `etp strategy
-    /// --evaluate` needs, the same segments for them, at a fraction of the
+    /// evaluate` needs, the same segments for them, at a fraction of the
     /// cost). Needed to select other strategies on these pools.
     #[arg(long, requires = "pool_policy")]
     pub all_actions: bool,
@@ -301,11 +296,7 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
     let started = Instant::now();
     let mdp = match &pool_policy {
         None => abstraction::build(&s, &p, &|k| pb.inc(k)),
-        Some(st) => {
-            abstraction::build_on_policy(&s, &p, st, !a.no_carry_state, !a.all_actions, &|k| {
-                pb.inc(k)
-            })
-        }
+        Some(st) => abstraction::build_on_policy(&s, &p, st, true, !a.all_actions, &|k| pb.inc(k)),
     }
     .context("building the abstraction")?;
     pb.finish_and_clear();
@@ -527,9 +518,9 @@ pub fn run(a: Args) -> Result<()> {
                 .map_or_else(|| "STRATEGY.json".into(), |p| p.display().to_string());
             println!(
                 "  only the thresholds {policy} uses were simulated: this front is not the scenario's; \
-                 predict that strategy with `etp strategy {} --evaluate {policy}` \
-                 (--all-actions to select others on these pools)",
-                built.dir.display()
+                 `etp strategy evaluate {policy} DIR` (DIR the synthesis it was selected on) \
+                 predicts that strategy from {} such rebuilds (--all-actions to select others on these pools)",
+                etp_synthesis::predict::rebuild::DEFAULT_REPLICATES
             );
         }
         for f in &front.files {

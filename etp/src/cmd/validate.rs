@@ -158,7 +158,10 @@ fn checks(strategy: &Strategy, sum: &SimulationSummary) -> Vec<(&'static str, bo
         let near = |x: f64, e: &etp_shared::stats::Estimate, r: f64| {
             (x - e.value).abs() <= e.ci95.hypot(r)
         };
-        v.push(("predicted P_tar", near(p.p_target, &sum.p_target, own.p_target)));
+        v.push((
+            "predicted P_tar",
+            near(p.p_target, &sum.p_target, own.p_target),
+        ));
         v.push((
             "predicted P_coll",
             near(p.p_collision, &sum.p_collision, own.p_collision),

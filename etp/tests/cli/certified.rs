@@ -1,7 +1,8 @@
-//! Predictions that hold (docs/MODEL.md §4.1) through the real binary:
+//! Predictions that hold (docs/MODEL.md §4.1, §7.4) through the real binary:
 //! front.json carries the certified front; `strategy --confidence` returns a
-//! strategy whose certified bounds meet the request; strategy.json and
-//! `validate` carry selection-time, cross-fitted and certified values.
+//! strategy whose bounds, certified on its own on-policy rebuild, meet the
+//! request; strategy.json and `validate` carry the prediction etp stands by
+//! and, under `diagnostics`, the selection MDP's values.
 
 use super::{Scratch, fails_with, ok_json, s};
 
@@ -64,32 +65,46 @@ fn certified_strategy_meets_its_bounds_and_reports_all_three_predictions() {
         s(&strategy),
         "--json",
     ]);
-    let cert = &sel["predictions"]["certified"];
+    super::schemas::validate(&out, "strategy", &sel).expect("strategy --json matches its schema");
+    assert_eq!(sel["verdict"], "met", "{sel}");
+    // The bounds are the rebuild's, and they meet the request.
+    let cert = &sel["certified"];
+    assert_eq!(cert["covers_aggregation"], true, "{sel}");
     assert!(
         cert["p_target_low"].as_f64().unwrap_or(0.0) >= request,
         "{sel}"
     );
+    assert!(sel["predicted"]["p_target"].as_f64().is_some());
+    assert!(sel["predicted_ci95"]["p_target"].as_f64().unwrap_or(0.0) > 0.0);
     assert!(
-        sel["predictions"]["crossfit"]["p_target"]
+        sel["diagnostics"]["crossfit"]["p_target"]
             .as_f64()
             .is_some()
     );
-    assert!(
-        sel["method"]
-            .as_str()
-            .unwrap_or("")
-            .contains("conservative")
-    );
     let file: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&strategy).expect("strategy")).expect("json");
+    assert_eq!(file["format_version"], 2);
     assert_eq!(file["certified"]["confidence"].as_f64(), Some(0.95));
-    assert!(file["crossfit"]["p_target"].as_f64().is_some());
+    assert!(
+        file.get("crossfit").is_none(),
+        "one home: under diagnostics"
+    );
+    assert!(
+        file["diagnostics"]["selection"]["crossfit"]["p_target"]
+            .as_f64()
+            .is_some()
+    );
 
     let v = ok_json(&["validate", s(&strategy), "--episodes", "500", "--json"]);
     let checks = v["checks"].as_array().expect("checks");
-    assert!(checks.len() >= 7, "{v}");
+    // predicted P_tar, P_coll, energy; certified P_tar, P_coll, energy.
+    assert_eq!(checks.len(), 6, "{v}");
     assert!(
-        v["predictions"]["optimizer_bias"]["p_target"]
+        checks.iter().any(|c| c["check"] == "predicted energy"),
+        "{v}"
+    );
+    assert!(
+        v["diagnostics"]["optimizer_bias"]["p_target"]
             .as_f64()
             .is_some()
     );
@@ -119,4 +134,44 @@ fn certified_strategy_meets_its_bounds_and_reports_all_three_predictions() {
         ],
         &["--confidence"],
     );
+    // --quick: no prediction stored, its biased values under diagnostics.
+    let quick = out.join("quick.json");
+    let q = ok_json(&[
+        "strategy",
+        s(&out),
+        "--min-target",
+        "0.9",
+        "--quick",
+        "-o",
+        s(&quick),
+        "--json",
+    ]);
+    super::schemas::validate(&out, "strategy", &q).expect("quick --json matches its schema");
+    assert!(q["predicted"].is_null(), "{q}");
+    assert_eq!(q["verdict"], "quick");
+    assert!(
+        q["diagnostics"]["selection_time"]["p_target"]
+            .as_f64()
+            .is_some()
+    );
+    let file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&quick).expect("quick")).expect("json");
+    assert!(file["predicted"].is_null());
+    // Combinations one parser refuses, writing nothing.
+    for bad in [
+        vec!["--quick", "--replicates", "3"],
+        vec!["--max-collision", "0.1"],
+        vec!["--replicates", "1"],
+    ] {
+        let refused = out.join("refused.json");
+        let mut args = vec!["strategy", s(&out), "--min-target", "0.9"];
+        if bad[0] == "--max-collision" {
+            args.truncate(2);
+        }
+        args.extend_from_slice(&bad);
+        args.extend_from_slice(&["-o", s(&refused)]);
+        let o = super::etp(&args);
+        assert_eq!(o.status.code(), Some(2), "{bad:?} is a command-line error");
+        assert!(!refused.exists());
+    }
 }

@@ -2,15 +2,32 @@
 //! synthesize --pool-policy STRATEGY.json` rebuilds on the strategy's bins,
 //! deterministically, and a strategy selected on it carries those bins; the
 //! flag is refused, naming it and writing nothing, with splitting or with a
-//! strategy of another scenario. `--no-carry-state` builds as
-//! deterministically and is refused without `--pool-policy`. `etp strategy --evaluate` predicts the
-//! conditioning strategy itself on those pools. By default the rebuild
-//! simulates only the strategy's own thresholds: fewer segments, the same
-//! prediction of the strategy to the bit as the rebuild with
-//! `--all-actions`, and selecting another strategy on it is refused.
+//! strategy of another scenario. By default the rebuild simulates only the
+//! strategy's own thresholds (fewer segments) and selecting another strategy
+//! on it is refused. `etp strategy evaluate` predicts a strategy from such
+//! rebuilds, the same bits as the default `etp strategy`'s prediction of it.
 
 use super::{Scratch, fails_with, ok_json, s};
 use serde_json::Value;
+
+/// The same JSON, numbers equal within 1e-12 (relative above 1).
+fn close_json(a: &Value, b: &Value) -> bool {
+    match (a, b) {
+        (Value::Number(x), Value::Number(y)) => match (x.as_f64(), y.as_f64()) {
+            (Some(x), Some(y)) => (x - y).abs() <= 1e-12 * x.abs().max(1.0),
+            _ => x == y,
+        },
+        (Value::Array(x), Value::Array(y)) => {
+            x.len() == y.len() && x.iter().zip(y).all(|(x, y)| close_json(x, y))
+        }
+        (Value::Object(x), Value::Object(y)) => {
+            x.len() == y.len()
+                && x.iter()
+                    .all(|(k, v)| y.get(k).is_some_and(|w| close_json(v, w)))
+        }
+        _ => a == b,
+    }
+}
 
 fn read(path: &std::path::Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).expect("read")).expect("json")
@@ -27,15 +44,19 @@ fn refused(dir: &std::path::Path, args: &[&str], needles: &[&str]) {
     assert!(!out.exists(), "{args:?} wrote {}", out.display());
 }
 
-/// `etp strategy DIR --min-target 0.9 --on-policy --replicates R -o OUT
-/// --json`, its output checked against the schema.
-fn on_policy_strategy(dir: &std::path::Path, replicates: &str, out: &std::path::Path) -> Value {
+/// `etp strategy evaluate POLICY DIR --replicates R -o OUT --json`, its
+/// output checked against the schema.
+fn evaluate(
+    policy: &std::path::Path,
+    dir: &std::path::Path,
+    replicates: &str,
+    out: &std::path::Path,
+) -> Value {
     let v = ok_json(&[
         "strategy",
+        "evaluate",
+        s(policy),
         s(dir),
-        "--min-target",
-        "0.9",
-        "--on-policy",
         "--replicates",
         replicates,
         "--aggregation-check",
@@ -44,7 +65,8 @@ fn on_policy_strategy(dir: &std::path::Path, replicates: &str, out: &std::path::
         s(out),
         "--json",
     ]);
-    super::schemas::validate(dir, "strategy", &v).expect("strategy --json matches its schema");
+    super::schemas::validate(dir, "strategy", &v)
+        .expect("strategy evaluate --json matches its schema");
     v
 }
 
@@ -125,27 +147,12 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
         stdout.contains(&format!("wrote {}", text.join("front.json").display())),
         "{stdout}"
     );
-    // --no-carry-state: segments draw their true state from N(x̂, P) instead
-    // of starting from the one their particle arrived with; as
-    // deterministic, and not the same build.
-    let (ca, cb) = (dir.path("carry-a"), dir.path("carry-b"));
-    on_policy(&policy, &ca, &["--no-carry-state"]);
-    on_policy(&policy, &cb, &["--no-carry-state"]);
-    assert_eq!(bytes(&ca), bytes(&cb), "two carried-state builds differ");
-    assert_ne!(bytes(&ca), bytes(&a), "the carried state changed nothing");
-    let lone = dir.path("carry-alone");
-    fails_with(
-        &["synthesize", "open-2d", "--no-carry-state", "-o", s(&lone)],
-        &["--pool-policy"],
-    );
-    assert!(!lone.join("mdp.bin").exists());
-
     // Only the strategy's thresholds (the default): its front is not the
     // scenario's, so selecting on it is refused, naming the way out.
     refused(
         &a,
         &["--min-target", "0.9"],
-        &["--evaluate", "--all-actions"],
+        &["strategy evaluate", "--all-actions"],
     );
     // With every threshold the same pools serve a new selection, which
     // classifies with the conditioning strategy's bins.
@@ -163,6 +170,7 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
         s(&full),
         "--min-target",
         "0.9",
+        "--quick",
         "--aggregation-check",
         "0",
         "-o",
@@ -174,111 +182,83 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
         read(&policy)["discretization"]
     );
 
-    // --evaluate: the conditioning strategy itself, predicted on its own
-    // pools: the same ω and states (it behaves exactly as before), new
-    // predictions with the cross-fit's own sampling error.
-    let evaluated = a.join("evaluated.json");
-    let v = ok_json(&[
-        "strategy",
-        s(&a),
-        "--evaluate",
-        s(&policy),
-        "--aggregation-check",
-        "0",
-        "-o",
-        s(&evaluated),
-        "--json",
-    ]);
-    super::schemas::validate(&a, "strategy", &v).expect("strategy --json matches its schema");
+    // `etp strategy evaluate`: the strategy itself (same ω, states, bins)
+    // predicted on DIR's settings and seeds; the default `etp strategy`
+    // made the same rebuilds of it, so the prediction is the same to the bit.
+    let evaluated = base.join("evaluated.json");
+    let v = evaluate(&policy, &base, "4", &evaluated);
+    assert_eq!(v["verdict"], "evaluated", "{v}");
     let (e, p) = (read(&evaluated), read(&policy));
     for field in ["states", "discretization", "deltas", "scenario_hash"] {
         assert_eq!(e[field], p[field], "{field}");
     }
     assert!(
-        e["label"].as_str().unwrap_or("").contains("evaluated on"),
+        e["label"].as_str().unwrap_or("").contains("predicted on"),
         "{e}"
     );
-    assert_ne!(e["crossfit"], p["crossfit"], "predicted on the other MDP");
-    assert!(e["crossfit_ci95"]["p_target"].as_f64().unwrap_or(0.0) > 0.0);
-    // The same strategy on the rebuild with every threshold: states are
-    // keyed by region, so its own thresholds drew the same segments there,
-    // and the selection-time prediction is the same to the bit (the
-    // others' arrivals only add states the strategy does not reach).
-    let on_full = full.join("evaluated.json");
-    ok_json(&[
-        "strategy",
-        s(&full),
-        "--evaluate",
-        s(&policy),
-        "--aggregation-check",
-        "0",
-        "-o",
-        s(&on_full),
-        "--json",
-    ]);
-    assert_eq!(e["predicted"], read(&on_full)["predicted"]);
-
-    // `strategy --on-policy`: the selection and the rebuild in one command,
-    // with DIR's settings and seed: the numbers of the two-step way (up to
-    // the last bit of ω through the file).
-    let one = base.join("on-policy.json");
-    let v = on_policy_strategy(&base, "1", &one);
-    assert!(v["on_policy"]["segments"].as_u64().unwrap_or(0) > 0, "{v}");
-    let o = read(&one);
-    for (field, key) in [
-        ("predicted", "p_target"),
-        ("crossfit", "p_target"),
-        ("crossfit", "p_collision"),
-        ("crossfit_ci95", "p_target"),
-        ("certified", "p_target_low"),
-    ] {
-        let (x, y) = (o[field][key].as_f64(), e[field][key].as_f64());
+    // ω goes through the file's decimal text, so equal up to rounding.
+    for field in ["predicted", "predicted_ci95", "certified"] {
         assert!(
-            matches!((x, y), (Some(x), Some(y)) if (x - y).abs() < 1e-12),
-            "{field}.{key}: {x:?} vs {y:?}"
+            close_json(&e[field], &p[field]),
+            "{field}: {} vs {}",
+            e[field],
+            p[field]
         );
     }
-    assert!(o["label"].as_str().unwrap_or("").contains("own pools"));
+    assert!(close_json(
+        &e["diagnostics"]["rebuilds"],
+        &p["diagnostics"]["rebuilds"]
+    ));
 
-    // --replicates 3: rebuilds with seeds 3, 4, 5 (DIR's + r); the first is
-    // the rebuild above, the cross-fitted value their mean, its ± Student's
-    // t on 2 degrees of freedom over their spread.
-    let three = base.join("on-policy-3.json");
-    let v = on_policy_strategy(&base, "3", &three);
-    let reps = v["on_policy"]["replicates"]
+    // --replicates 3: rebuilds with seeds 3, 4, 5 (DIR's + r); the
+    // prediction is their mean cross-fitted value, its ± Student's t on 2
+    // degrees of freedom over their spread.
+    let three = base.join("evaluated-3.json");
+    evaluate(&policy, &base, "3", &three);
+    let r3 = read(&three);
+    let reps = r3["diagnostics"]["rebuilds"]
         .as_array()
         .cloned()
         .unwrap_or_default();
     let seeds: Vec<u64> = reps.iter().filter_map(|r| r["seed"].as_u64()).collect();
-    assert_eq!(seeds, [3, 4, 5], "{v}");
+    assert_eq!(seeds, [3, 4, 5], "{r3}");
     let tar: Vec<f64> = reps
         .iter()
         .filter_map(|r| r["crossfit"]["p_target"].as_f64())
         .collect();
-    assert_eq!(tar.len(), 3, "{v}");
+    assert_eq!(tar.len(), 3, "{r3}");
+    // The first rebuild is `synthesize --pool-policy`'s build (same settings
+    // and seed): as many states; and replicate r does not depend on R.
+    assert_eq!(
+        v["diagnostics"]["rebuild"]["states"], report["mdp"]["states"],
+        "{v}"
+    );
+    assert_eq!(reps[0], e["diagnostics"]["rebuilds"][0]);
     let close = |x: Option<f64>, y: f64| x.is_some_and(|x| (x - y).abs() < 1e-12);
-    assert!(close(o["crossfit"]["p_target"].as_f64(), tar[0]));
     let mean = tar.iter().sum::<f64>() / 3.0;
     let sd = (tar.iter().map(|t| (t - mean).powi(2)).sum::<f64>() / 2.0).sqrt();
-    let r3 = read(&three);
-    assert!(close(r3["crossfit"]["p_target"].as_f64(), mean), "{r3}");
-    let half = r3["crossfit_ci95"]["p_target"].as_f64().unwrap_or(-1.0);
+    assert!(close(r3["predicted"]["p_target"].as_f64(), mean), "{r3}");
+    let half = r3["predicted_ci95"]["p_target"].as_f64().unwrap_or(-1.0);
     assert!(
         (half - 4.302_653 * sd / 3f64.sqrt()).abs() < 1e-6 * sd.max(1e-9),
         "{half} vs sd {sd}"
     );
     // The seeds differ: so do the replicates (a spread to measure).
     assert!(sd > 0.0, "{tar:?}");
-    refused(
-        &base,
-        &["--min-target", "0.9", "--replicates", "3"],
-        &["--on-policy"],
-    );
-    refused(
-        &base,
-        &["--min-target", "0.9", "--confidence", "0.95", "--on-policy"],
-        &["--on-policy", "--confidence"],
-    );
+    // One rebuild is no prediction: refused by the parser, nothing written.
+    let one = base.join("one.json");
+    let o = super::etp(&[
+        "strategy",
+        "evaluate",
+        s(&policy),
+        s(&base),
+        "--replicates",
+        "1",
+        "-o",
+        s(&one),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!one.exists());
     let sim = |f: &std::path::Path| {
         ok_json(&["validate", s(f), "--episodes", "300", "--json"])["p_target"].clone()
     };
@@ -288,12 +268,19 @@ fn pools_drawn_on_policy_rebuild_on_the_strategys_bins_and_refuse_what_does_not_
         "the same strategy, the same episodes"
     );
     let not_a_strategy = a.join("mdp.bin");
-    refused(&a, &["--evaluate", s(&not_a_strategy)], &["--evaluate"]);
-    refused(
-        &a,
-        &["--evaluate", s(&policy), "--min-target", "0.9"],
-        &["--evaluate", "--min-target"],
+    let x = base.join("x.json");
+    fails_with(
+        &[
+            "strategy",
+            "evaluate",
+            s(&not_a_strategy),
+            s(&base),
+            "-o",
+            s(&x),
+        ],
+        &["etp strategy evaluate", "mdp.bin"],
     );
+    assert!(!x.exists());
 
     // Refused, naming the flag, nothing written.
     let split = dir.path("op-split");

@@ -257,9 +257,8 @@ fn slack(goal: Goal, q: &Objectives, h: &Objectives, cert: Option<&Certified>) -
                 max_collision,
             },
             None,
-        ) => (q.p_target + h.p_target - min_target).min(
-            max_collision.map_or(f64::INFINITY, |m| m - (q.p_collision - h.p_collision)),
-        ),
+        ) => (q.p_target + h.p_target - min_target)
+            .min(max_collision.map_or(f64::INFINITY, |m| m - (q.p_collision - h.p_collision))),
         (Goal::MaxEnergy { max_energy }, _) => {
             (max_energy - (q.energy - h.energy)) / max_energy.abs().max(1e-12)
         }
@@ -372,17 +371,14 @@ pub fn meet_request(
         // One rebuild's ±: the held-out half-width widened by √1.5 (the
         // variance it misses, docs/MODEL.md §7.3).
         let one = first.prediction();
-        let one_ci = first
-            .crossfit
-            .as_ref()
-            .map_or(Objectives::default(), |c| {
-                let w = Z95 * 1.5_f64.sqrt();
-                Objectives {
-                    p_target: w * c.standard_error.p_target,
-                    p_collision: w * c.standard_error.p_collision,
-                    energy: w * c.standard_error.energy,
-                }
-            });
+        let one_ci = first.crossfit.as_ref().map_or(Objectives::default(), |c| {
+            let w = Z95 * 1.5_f64.sqrt();
+            Objectives {
+                p_target: w * c.standard_error.p_target,
+                p_collision: w * c.standard_error.p_collision,
+                energy: w * c.standard_error.energy,
+            }
+        });
         let clear_ci = Objectives {
             p_target: CLEAR_MISS * one_ci.p_target,
             p_collision: CLEAR_MISS * one_ci.p_collision,

@@ -55,8 +55,16 @@ pub fn figure(plan: &Plan, s: &Supervised) -> RunFigure {
         prediction_note: super::record::prediction_source(plan),
         sensors,
         outcomes: vec![
-            outcome("P_tar", r.target, r.predicted.map_or(f64::NAN, |p| p.p_target)),
-            outcome("P_coll", r.collision, r.predicted.map_or(f64::NAN, |p| p.p_collision)),
+            outcome(
+                "P_tar",
+                r.target,
+                r.predicted.map_or(f64::NAN, |p| p.p_target),
+            ),
+            outcome(
+                "P_coll",
+                r.collision,
+                r.predicted.map_or(f64::NAN, |p| p.p_collision),
+            ),
             outcome("P_free", r.free, r.predicted.map_or(f64::NAN, |p| p.p_free)),
         ],
     }

@@ -80,7 +80,11 @@ impl Refinement {
             r.added_segments,
             self.seconds,
             100.0 * self.gap,
-            if r.converged { "reached" } else { "NOT reached" }
+            if r.converged {
+                "reached"
+            } else {
+                "NOT reached"
+            }
         );
         for (k, x) in r.rounds.iter().enumerate() {
             t.push_str(&format!(

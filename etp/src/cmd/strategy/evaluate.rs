@@ -94,7 +94,10 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
                     "segments": on_policy.segments(), "seconds": seconds}),
             );
         }
-        println!("{}", serde_json::to_string_pretty(&serde_json::Value::Object(m))?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::Value::Object(m))?
+        );
     } else {
         println!("{}", strategy.label);
         print!("{}", predictions::text_of(&strategy));

@@ -62,7 +62,10 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
     };
     let label = format!(
         "{} — quick: selected on the MDP, not predicted",
-        request.label(a.confidence.filter(|_| matches!(request, Request::Goal(Goal::MinTarget { .. }))))
+        request.label(
+            a.confidence
+                .filter(|_| matches!(request, Request::Goal(Goal::MinTarget { .. })))
+        )
     );
     let mut strategy = syn.strategy_of(mdp, &omega, value, &label);
     let unmatched = selection_diagnostics(&mut strategy, mdp, &omega, cost, level)?;
@@ -81,7 +84,10 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
             d.insert("front_epsilon".into(), json!(syn.front.epsilon));
             d.insert("crossfit_unmatched_mass".into(), json!(unmatched));
         }
-        println!("{}", serde_json::to_string_pretty(&serde_json::Value::Object(m))?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::Value::Object(m))?
+        );
     } else {
         println!("{}", strategy.label);
         println!(

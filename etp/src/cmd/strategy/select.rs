@@ -146,7 +146,8 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
     let params = abstraction::params_of(&syn.mdp);
     let units = abstraction::progress_total(&syn.scenario, &params);
     let pb = progress::bar(0, "rebuilds", a.out.json);
-    let make = |omega: &RandomisedPolicy, value: Objectives| syn.strategy_of(mdp, omega, value, &label);
+    let make =
+        |omega: &RandomisedPolicy, value: Objectives| syn.strategy_of(mdp, omega, value, &label);
     let outcome = match request {
         Request::Goal(goal) => meet_request(
             mdp,
@@ -165,7 +166,8 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
             &|k| pb.inc(k),
         )?,
         Request::Vertex(k) => {
-            let selection = select(&syn.front, FrontRequest::Vertex(k)).context("selecting a vertex")?;
+            let selection =
+                select(&syn.front, FrontRequest::Vertex(k)).context("selecting a vertex")?;
             let v = selection.weights[0].0;
             let omega = as_randomised(mdp, &syn.front.vertices[v].policy);
             let value = evaluate(mdp, &omega, cost);
@@ -201,7 +203,9 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
     pb.finish_and_clear();
     let seconds = started.elapsed().as_secs_f64();
     let mut strategy = outcome.strategy.clone();
-    outcome.on_policy.stand_by(&mut strategy, &outcome.certified, level);
+    outcome
+        .on_policy
+        .stand_by(&mut strategy, &outcome.certified, level);
     let unmatched = selection_diagnostics(&mut strategy, mdp, &outcome.omega, cost, level)?;
     if let Some(d) = strategy.diagnostics.as_mut() {
         d.rounds = outcome.rounds.iter().map(|r| r.record()).collect();
@@ -320,19 +324,25 @@ impl Report<'_> {
         let mut m = serde_json::Map::new();
         m.insert("strategy".into(), json!(self.syn.output));
         m.insert("label".into(), json!(self.strategy.label));
-        m.insert("verdict".into(), json!(match self.request {
-            Request::Vertex(_) => "vertex",
-            _ => o.verdict.name(),
-        }));
+        m.insert(
+            "verdict".into(),
+            json!(match self.request {
+                Request::Vertex(_) => "vertex",
+                _ => o.verdict.name(),
+            }),
+        );
         m.extend(predictions::json_fields(self.strategy));
         if let Some(Value::Object(d)) = m.get_mut("diagnostics") {
             let first = o.on_policy.first();
-            d.insert("rebuild".into(), json!({
-                "states": first.mdp.states.len(),
-                "choices": first.mdp.states.iter().map(|s| s.choices.len()).sum::<usize>(),
-                "segments": o.on_policy.segments(),
-                "seconds": self.seconds,
-            }));
+            d.insert(
+                "rebuild".into(),
+                json!({
+                    "states": first.mdp.states.len(),
+                    "choices": first.mdp.states.iter().map(|s| s.choices.len()).sum::<usize>(),
+                    "segments": o.on_policy.segments(),
+                    "seconds": self.seconds,
+                }),
+            );
             d.insert("kept_round".into(), json!(o.kept));
             d.insert("front_epsilon".into(), json!(self.syn.front.epsilon));
             d.insert("crossfit_unmatched_mass".into(), json!(self.unmatched));
@@ -340,7 +350,11 @@ impl Report<'_> {
                 "predicted": {"p_target": m.predicted.p_target, "p_collision": m.predicted.p_collision, "energy_mean": m.predicted.energy},
                 "vertices": m.weights.iter().map(|(k, w)| json!({"vertex": k, "weight": w})).collect::<Vec<_>>(),
             })));
-            d.insert("refinement".into(), self.refined.map_or(Value::Null, certified::Refinement::json));
+            d.insert(
+                "refinement".into(),
+                self.refined
+                    .map_or(Value::Null, certified::Refinement::json),
+            );
         }
         Value::Object(m)
     }
