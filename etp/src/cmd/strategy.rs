@@ -25,7 +25,7 @@ pub use crate::cmd::predictions::AGGREGATION_CHECK_EPISODES;
 pub const EXIT_OUT_OF_REACH: u8 = 7;
 
 const EXIT_CODES: &str = "Exit codes: 0 the strategy was written and its prediction meets the \
-request (within its 95 % ±); 7 the request is out of reach: no round's prediction met it, the \
+request (short of it by at most a quarter of its 95 % ±); 7 the request is out of reach: no round's prediction met it, the \
 best strategy found was written with its prediction and the report says by how much it misses; \
 1 an error (nothing written); 2 a bad command line.";
 

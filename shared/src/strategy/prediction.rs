@@ -90,6 +90,7 @@ pub struct RequestRound {
     pub predicted: Prediction,
     pub predicted_ci95: PredictionCi95,
     pub rebuilds: u32,
-    /// The prediction meets the user's request within its ±.
+    /// The prediction meets the user's request (short of a bound by at
+    /// most a quarter of its 95 % half-width).
     pub meets: bool,
 }

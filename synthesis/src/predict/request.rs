@@ -4,10 +4,10 @@
 //!
 //! Round k asks the selection MDP for `asked_k` (round 0: the user's
 //! request) and predicts the strategy it gives on its rebuilds. Where that
-//! prediction misses the user's request beyond its own 95 % half-width, each
-//! missed bound of the request to the MDP moves by the measured gap
-//! (`asked_{k+1} = asked_k + (request − predicted_k)`) and the MDP is asked
-//! again. A round's first rebuild decides alone when it misses clearly (by
+//! prediction misses the user's request (by more than [`TOLERANCE`] of its
+//! own 95 % half-width h), each missed bound of the request to the MDP moves
+//! by the measured gap and that much more (`asked_{k+1} = asked_k +
+//! (request − predicted_k + TOLERANCE·h)`) and the MDP is asked again. A round's first rebuild decides alone when it misses clearly (by
 //! more than three of its own held-out half-widths, or by its certified
 //! bound, which is the first rebuild's): the other rebuilds are made only
 //! for a strategy that may be kept. When the moved request is infeasible on
@@ -37,6 +37,15 @@ pub const DEFAULT_ROUNDS: u32 = 5;
 /// 95 % half-widths beyond the request (its ± misses about a third of the
 /// rebuild's variance, docs/MODEL.md §7.3: 3 is well beyond that).
 const CLEAR_MISS: f64 = 3.0;
+
+/// A prediction meets a bound when it is on the right side of it, or short
+/// of it by at most this fraction of its own 95 % half-width; a round that
+/// misses moves the request by its gap plus as much again, so that the next
+/// round's prediction lands inside. Not "within its ±": a prediction whose
+/// interval merely straddles the request (e.g. 0.9078 ± 0.0062 against
+/// 0.912) leaves about half the risk of missing it in the loop that runs
+/// (docs/MODEL.md §7.4).
+pub const TOLERANCE: f64 = 0.25;
 
 /// Bisection steps towards the edge of what the MDP offers.
 const EDGE_STEPS: usize = 30;
@@ -239,9 +248,15 @@ fn select(
     }
 }
 
-/// How far a prediction is from missing the request: ≥ 0 meets it within
-/// its ±; the least of its bounds' slacks (energy relative to the request).
+/// How far a prediction is from missing the request: ≥ 0 meets it (each
+/// bound within `TOLERANCE` of the half-width `h`); the least of its bounds'
+/// slacks (energy relative to the request).
 fn slack(goal: Goal, q: &Objectives, h: &Objectives, cert: Option<&Certified>) -> f64 {
+    let h = Objectives {
+        p_target: TOLERANCE * h.p_target,
+        p_collision: TOLERANCE * h.p_collision,
+        energy: TOLERANCE * h.energy,
+    };
     match (goal, cert) {
         (
             Goal::MinTarget {
@@ -266,8 +281,15 @@ fn slack(goal: Goal, q: &Objectives, h: &Objectives, cert: Option<&Certified>) -
 }
 
 /// The request to the MDP moved by the gaps between `goal` and what the
-/// round measured (point values, or the certified bounds).
-fn moved(goal: Goal, asked: Asked, q: &Objectives, cert: Option<&Certified>) -> Asked {
+/// round measured (point values plus `TOLERANCE` of their half-widths `h`,
+/// or the certified bounds).
+fn moved(
+    goal: Goal,
+    asked: Asked,
+    q: &Objectives,
+    h: &Objectives,
+    cert: Option<&Certified>,
+) -> Asked {
     match (goal, asked) {
         (
             Goal::MinTarget {
@@ -281,7 +303,10 @@ fn moved(goal: Goal, asked: Asked, q: &Objectives, cert: Option<&Certified>) -> 
         ) => {
             let (got_t, got_c) = match cert {
                 Some(x) => (x.p_target_low, x.p_collision_high),
-                None => (q.p_target, q.p_collision),
+                None => (
+                    q.p_target - TOLERANCE * h.p_target,
+                    q.p_collision + TOLERANCE * h.p_collision,
+                ),
             };
             Asked::MinTarget {
                 min_target: (t + (min_target - got_t).max(0.0)).min(1.0),
@@ -291,7 +316,7 @@ fn moved(goal: Goal, asked: Asked, q: &Objectives, cert: Option<&Certified>) -> 
             }
         }
         (Goal::MaxEnergy { max_energy }, Asked::MaxEnergy { max_energy: e }) => Asked::MaxEnergy {
-            max_energy: (e - (q.energy - max_energy).max(0.0)).max(0.0),
+            max_energy: (e - (q.energy + TOLERANCE * h.energy - max_energy).max(0.0)).max(0.0),
         },
         (_, a) => a,
     }
@@ -412,7 +437,7 @@ pub fn meet_request(
             certified: cert_for_goal,
             meets,
         });
-        let next = moved(goal, asked, &q, cert_for_goal.as_ref());
+        let next = moved(goal, asked, &q, &h, cert_for_goal.as_ref());
         if best.as_ref().is_none_or(|b| s > b.1 || meets) {
             best = Some((rounds.len() - 1, s, candidate, strategy, replicas, cert));
         }
