@@ -96,11 +96,31 @@ fn init(a: InitArgs) -> Result<()> {
     if a.days == 0 || a.days > 3650 {
         bail!("--days must be between 1 and 3650, got {}", a.days);
     }
-    if std::fs::symlink_metadata(&a.dir).is_ok() && !a.force {
-        bail!(
-            "{} already exists (use --force to replace it)",
-            a.dir.display()
-        );
+    let me = etp_runtime::folders::euid();
+    etp_runtime::folders::check_ancestors(&a.dir, me)?;
+    if let Ok(m) = std::fs::symlink_metadata(&a.dir) {
+        if !a.force {
+            bail!(
+                "{} already exists (use --force to replace it)",
+                a.dir.display()
+            );
+        }
+        // Even with --force: a planted link or another user's folder is
+        // never moved or removed (output folders' rule).
+        use std::os::unix::fs::MetadataExt;
+        if m.file_type().is_symlink() || !m.is_dir() || m.uid() != me {
+            bail!(
+                "refusing to replace {}: it is {}, not a folder of user {me}; remove it yourself",
+                a.dir.display(),
+                if m.file_type().is_symlink() {
+                    "a symbolic link".to_string()
+                } else if !m.is_dir() {
+                    "not a folder".to_string()
+                } else {
+                    format!("owned by user {}", m.uid())
+                }
+            );
+        }
     }
     let mut files = material(&hosts, a.days).context("making the certificates")?;
     files.push((
@@ -141,14 +161,9 @@ fn init(a: InitArgs) -> Result<()> {
         return Err(e).with_context(|| format!("renaming into {}", a.dir.display()));
     }
     if had_old {
-        // A link planted as DIR was moved aside, not followed.
-        let m = std::fs::symlink_metadata(&old)?;
-        if m.file_type().is_dir() {
-            std::fs::remove_dir_all(&old)
-        } else {
-            std::fs::remove_file(&old)
-        }
-        .with_context(|| format!("removing the old folder {}", old.display()))?;
+        // Checked above: a folder of ours (no link is ever followed).
+        std::fs::remove_dir_all(&old)
+            .with_context(|| format!("removing the old folder {}", old.display()))?;
     }
     let names: Vec<&str> = files.iter().map(|(n, _, _)| n.as_str()).collect();
     if a.json {
