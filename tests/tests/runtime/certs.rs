@@ -261,3 +261,109 @@ fn a_sensor_host_refuses_a_folder_with_another_hosts_private_key() {
     assert!(!err.contains("private key of another host"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A flood of junk connections to the agent host's TLS port (10 threads,
+/// a bogus 12-byte TLS record each, then closed; no certificate) does not keep the real sensor host out
+/// (issue 41, item 1): upstream slept 100 ms after every failed handshake
+/// in one accept loop, so the sensor host never joined within 60 s. On
+/// loopback, the flood going on for the whole run, the sensor host (started
+/// once the flood is under way) joins, the run is exact, and the refused
+/// connections reach the report (`link.handshakes_refused`).
+#[test]
+fn a_flood_of_junk_connections_does_not_keep_the_sensor_host_out() {
+    use std::io::Write;
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+    let _serial = serial();
+    let dir = scratch("flood");
+    let keys = dir.join("keys");
+    certs_init(&keys, &["b"]);
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("a free port")
+        .port();
+    let endpoint = format!("tls/127.0.0.1:{port}");
+    let etp = bin_dir().join("etp");
+    let mut run = Command::new(&etp)
+        .args([
+            "run",
+            "--scenario",
+            "open-2d",
+            "--delta",
+            "1.0518",
+            "--episodes",
+            "20",
+        ])
+        .args(["--seed", "2", "--listen", &endpoint, "--tls"])
+        .arg(&keys)
+        .args(["--remote", "s1", "--join-timeout", "30", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("etp run");
+    let stop = Arc::new(AtomicBool::new(false));
+    let sent = Arc::new(AtomicU64::new(0));
+    let flood: Vec<_> = (0..10)
+        .map(|_| {
+            let (stop, sent) = (stop.clone(), sent.clone());
+            std::thread::spawn(move || {
+                while !stop.load(Ordering::Relaxed) {
+                    let to = std::net::SocketAddr::from(([127, 0, 0, 1], port));
+                    match std::net::TcpStream::connect_timeout(
+                        &to,
+                        std::time::Duration::from_secs(1),
+                    ) {
+                        Ok(mut s) => {
+                            let _ = s.write_all(b"\x16\x03\x01\xff\xffgarbage");
+                            sent.fetch_add(1, Ordering::Relaxed);
+                        }
+                        Err(_) => std::thread::sleep(std::time::Duration::from_millis(10)),
+                    }
+                }
+            })
+        })
+        .collect();
+    // The sensor host starts once the flood is under way.
+    while sent.load(Ordering::Relaxed) < 200 {
+        assert!(
+            run.try_wait().ok().flatten().is_none(),
+            "etp run ended before the flood got going"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    let sensor = Command::new(&etp)
+        .args(["sensor-host", "--connect", &endpoint, "--tls"])
+        .arg(keys.join("b"))
+        .args(["--name", "b", "--join-timeout", "30"])
+        .output()
+        .expect("etp sensor-host");
+    let out = run.wait_with_output().expect("etp run");
+    stop.store(true, Ordering::Relaxed);
+    for t in flood {
+        let _ = t.join();
+    }
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        sensor.status.success(),
+        "sensor host: {}",
+        String::from_utf8_lossy(&sensor.stderr)
+    );
+    assert!(out.status.success(), "etp run: {err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("report");
+    assert_eq!(v["episodes"], 20, "{v}");
+    assert_eq!(v["degraded"], 0, "{v}");
+    assert_eq!(v["link"]["refused"], serde_json::json!({}), "{v}");
+    let refused: u64 = v["link"]["handshakes_refused"]
+        .as_object()
+        .map(|m| m.values().filter_map(serde_json::Value::as_u64).sum())
+        .unwrap_or(0);
+    assert!(
+        refused >= 1,
+        "the junk connections are not in the report: {v}"
+    );
+    eprintln!(
+        "flood: {} junk connections; {refused} refused at the handshake",
+        sent.load(Ordering::Relaxed)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
