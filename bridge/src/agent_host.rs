@@ -67,6 +67,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         (Some(_), Some(dir)) => Some(crate::session::access_control_of(dir, &info)?),
         _ => None,
     };
+    crate::tls_check::watch_refusals();
     let session = zenoh::open(config(
         Some(&a.listen),
         None,
@@ -157,8 +158,14 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                 tracing::info!(remote = ?info.remote, "every remote sensor joined");
             } else if started.elapsed() >= timeout {
                 let missing: Vec<String> = remote.difference(&joined).map(|&i| name(i)).collect();
+                let tls = crate::tls_check::refusals();
+                let seen = if tls.named.is_empty() {
+                    String::new()
+                } else {
+                    format!("; refused TLS connections: {}", tls.named.join("; "))
+                };
                 break Err(BridgeError::Join(format!(
-                    "sensor(s) {} did not join within {:.0} s (is `etp sensor-host --connect …` running on their host?)",
+                    "sensor(s) {} did not join within {:.0} s (is `etp sensor-host --connect …` running on their host?){seen}",
                     missing.join(", "),
                     timeout.as_secs_f64()
                 )));
@@ -244,6 +251,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         out = out.and(r);
     }
     crate::emit_refused(&admission, &info.sensors);
+    crate::emit_handshakes();
     crate::emit_traffic(&counters, &stalls, &info.sensors);
     drop(proxies);
     result.and(out)

@@ -34,6 +34,7 @@ pub mod agent_host;
 pub mod forward;
 pub mod sensor_host;
 pub mod session;
+pub mod tls_check;
 
 use std::io::Write;
 
@@ -82,6 +83,14 @@ pub fn emit_refused(admission: &admit::Admission, names: &[String]) {
         &serde_json::json!({"event": "refused", "counts": counts, "held": held,
         "reordered": admission.reordered()}),
     );
+}
+
+/// The `handshakes` line: connections the TLS accept loop refused before
+/// they became links, by reason (`tls_check::Cause`), and the first named.
+/// Not a fault of the run's counts (nothing of the run came through them).
+pub fn emit_handshakes() {
+    let r = tls_check::refusals();
+    emit(&serde_json::json!({"event": "handshakes", "refused": r.counts, "named": r.named}));
 }
 
 /// The last lines: `stalled` (per sensor name, the puts a peer that stopped

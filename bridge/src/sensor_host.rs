@@ -132,6 +132,9 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         .host
         .link
         .resolve(&a.connect, crate::session::End::SensorHost)?;
+    if let Some(id) = &identity {
+        crate::tls_check::check_agent_host(&a.connect, id, a.host.join_wait())?;
+    }
     let session = zenoh::open(config(
         None,
         Some(&a.connect),

@@ -5,7 +5,7 @@ use etp_synthesis::mdp::Mdp;
 use etp_synthesis::pareto::{ParetoFront, compute_front};
 use std::path::Path;
 
-pub use etp_recording_tools::files::{refuse_existing, write_new, write_via_temp};
+pub use etp_recording_tools::files::{output_folder, refuse_existing, write_new, write_via_temp};
 
 /// `DIR/mdp.bin` and, if present, the scenario text `DIR/scenario.toml`.
 pub fn read_mdp(dir: &Path) -> Result<(Mdp, Option<String>)> {

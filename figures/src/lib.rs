@@ -52,22 +52,27 @@ pub(crate) trait Figure {
         DB::ErrorType: 'static;
 }
 
-/// THE way every figure is written: `stem.png` and `stem.svg`, `size` pixels.
+/// THE way every figure is written: `stem.png` and `stem.svg`, `size` pixels,
+/// each drawn into a temporary sibling and renamed into place
+/// (`etp_recording_tools::files::write_via_temp`: its folder checked, no
+/// planted link followed).
 pub(crate) fn png_and_svg(fig: &impl Figure, stem: &Path, size: (u32, u32)) -> Result<()> {
+    use etp_recording_tools::files::write_via_temp;
     register_font();
     let png = stem.with_extension("png");
-    {
-        let root = BitMapBackend::new(&png, size).into_drawing_area();
+    write_via_temp(&png, |tmp| {
+        let root = BitMapBackend::new(tmp, size).into_drawing_area();
         fig.draw(&root)?;
         root.present()
-            .with_context(|| format!("writing {}", png.display()))?;
-    }
+            .with_context(|| format!("writing {}", png.display()))
+    })?;
     let svg = stem.with_extension("svg");
-    let root = SVGBackend::new(&svg, size).into_drawing_area();
-    fig.draw(&root)?;
-    root.present()
-        .with_context(|| format!("writing {}", svg.display()))?;
-    Ok(())
+    write_via_temp(&svg, |tmp| {
+        let root = SVGBackend::new(tmp, size).into_drawing_area();
+        fig.draw(&root)?;
+        root.present()
+            .with_context(|| format!("writing {}", svg.display()))
+    })
 }
 
 /// Blue (low) → red (high) colour map on [0, 1].

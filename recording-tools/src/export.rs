@@ -194,16 +194,15 @@ fn export_with(
         .map(|t| (t.as_str(), dir.join(table_file(t, format))))
         .collect();
     let manifest = dir.join("tables.json");
+    crate::files::output_folder(dir)?;
     for p in files.values().chain([&manifest]) {
         crate::files::refuse_existing(p, force)?;
     }
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut writers: BTreeMap<&str, (std::io::BufWriter<std::fs::File>, PathBuf, u64)> =
         BTreeMap::new();
     for (topic, path) in &files {
-        let tmp = path.with_extension("tmp-etp");
-        let f =
-            std::fs::File::create(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
+        let tmp = crate::files::temp_sibling(path);
+        let f = crate::files::create_exclusive(&tmp)?;
         let mut w = std::io::BufWriter::new(f);
         if let Some(h) = header_line(&tables[*topic].columns, format) {
             writeln!(w, "{h}").with_context(|| format!("writing {}", tmp.display()))?;

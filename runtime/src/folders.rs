@@ -111,6 +111,159 @@ pub fn check(path: &Path, uid: u32) -> Result<(), FolderError> {
     Ok(())
 }
 
+/// Why a command may not write where it was told (an output folder, or the
+/// folder of an output file).
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    #[error(
+        "refusing to write into `{path}`: {why}; outputs never follow a link or go into a \
+         folder of another user — choose another path"
+    )]
+    Refused { path: PathBuf, why: String },
+    #[error("creating `{path}`: {source}")]
+    Create {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}
+
+/// The existing ancestors of `path` may be followed and nothing on the way
+/// can be swapped by another user: no ancestor is a symbolic link of another
+/// user than `uid` or root, and neither an ancestor nor `path` lies in a
+/// folder every user may write without the sticky bit (there anybody could
+/// rename it and plant a link in its place after this check). Missing
+/// ancestors are not checked: this process creates them.
+pub fn check_ancestors(path: &Path, uid: u32) -> Result<(), OutputError> {
+    let abs = if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        std::env::current_dir()
+            .map_err(|source| OutputError::Create {
+                path: path.to_path_buf(),
+                source,
+            })?
+            .join(path)
+    };
+    let refuse = |p: &Path, why: String| OutputError::Refused {
+        path: p.to_path_buf(),
+        why,
+    };
+    let mut prefix = PathBuf::new();
+    let parts: Vec<_> = abs.components().collect();
+    for (i, c) in parts.iter().enumerate() {
+        let container = prefix.clone();
+        prefix.push(c);
+        if !container.as_os_str().is_empty() {
+            let Ok(cm) = std::fs::metadata(&container) else {
+                return Ok(()); // missing from here on: this process creates it
+            };
+            let mode = cm.permissions().mode();
+            if mode & 0o002 != 0 && mode & 0o1000 == 0 {
+                return Err(refuse(
+                    &prefix,
+                    format!(
+                        "it lies in `{}`, which every user may write (mode {:o}, no sticky \
+                         bit): another user could replace it after this check",
+                        container.display(),
+                        mode & 0o7777
+                    ),
+                ));
+            }
+        }
+        if i + 1 == parts.len() {
+            break; // `path` itself: its caller's rule
+        }
+        let Ok(m) = std::fs::symlink_metadata(&prefix) else {
+            return Ok(());
+        };
+        if m.file_type().is_symlink() && m.uid() != uid && m.uid() != 0 {
+            return Err(refuse(
+                &prefix,
+                format!("it is a symbolic link of user {}", m.uid()),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Is `path` (not followed) a folder of user `uid` that not every user may
+/// write? What an output folder must be.
+fn check_output(path: &Path, uid: u32) -> Result<(), OutputError> {
+    let refuse = |why: String| OutputError::Refused {
+        path: path.to_path_buf(),
+        why,
+    };
+    let m = std::fs::symlink_metadata(path).map_err(|e| refuse(e.to_string()))?;
+    if m.file_type().is_symlink() {
+        let to = std::fs::read_link(path).map_or_else(|_| "?".into(), |t| t.display().to_string());
+        return Err(refuse(format!(
+            "it is a symbolic link (to `{to}`, owned by user {})",
+            m.uid()
+        )));
+    }
+    if !m.is_dir() {
+        return Err(refuse("it is not a folder".into()));
+    }
+    if m.uid() != uid {
+        return Err(refuse(format!(
+            "it is owned by user {}, not by user {uid}",
+            m.uid()
+        )));
+    }
+    let mode = m.permissions().mode() & 0o7777;
+    if mode & 0o002 != 0 {
+        return Err(refuse(format!(
+            "its mode is {mode:o}: every user may write in it"
+        )));
+    }
+    Ok(())
+}
+
+/// THE rule of every folder a command writes its outputs into (`etp replay
+/// export DIR`, `synthesize -o DIR`, `fronts -o DIR`, …): its ancestors pass
+/// [`check_ancestors`]; a missing folder is created (its missing parents
+/// too; the last step with `mkdir`, which never follows a link); then it
+/// must be, not followed, a real folder owned by user `uid` that not every
+/// user may write. A planted link or another user's folder is refused by
+/// name, never written into.
+pub fn output_folder(path: &Path, uid: u32) -> Result<(), OutputError> {
+    check_ancestors(path, uid)?;
+    if std::fs::symlink_metadata(path).is_err() {
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).map_err(|source| OutputError::Create {
+                path: parent.to_path_buf(),
+                source,
+            })?;
+        }
+        match std::fs::DirBuilder::new().create(path) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+            Err(source) => {
+                return Err(OutputError::Create {
+                    path: path.to_path_buf(),
+                    source,
+                });
+            }
+        }
+    }
+    check_output(path, uid)
+}
+
+/// The folder of an output file `path`: [`check_ancestors`] of the file
+/// (so its folder is not another user's link and cannot be swapped), the
+/// folder created if missing. The file itself is written beside and renamed
+/// (a rename replaces a link, never follows it).
+pub fn output_file_folder(path: &Path, uid: u32) -> Result<(), OutputError> {
+    check_ancestors(path, uid)?;
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|source| OutputError::Create {
+            path: parent.to_path_buf(),
+            source,
+        })?;
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

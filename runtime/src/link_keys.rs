@@ -2,12 +2,18 @@
 //! `--tls DIR` on `etp run` and `etp sensor-host`): where each file is, and
 //! the checks made before a process hands it to Zenoh's TLS.
 //!
-//! One folder serves every host (copy it whole): the run's CA certificate,
-//! the agent host's key pair and one key pair per sensor host. The CA's own
+//! `etp certs init DIR` writes one bundle per host: `DIR/agent-host/` (the
+//! run's CA certificate, the agent host's key pair and `hosts.json`) and
+//! `DIR/NAME/` per sensor host (the CA certificate and its own key pair);
+//! each bundle goes to its host only. `--tls` takes a bundle, or `DIR`
+//! itself (the host's bundle `DIR/NAME/` is then used). The CA's own
 //! private key is never written: nobody can mint a certificate for this
 //! folder later (run `etp certs init` again to replace every key at once).
 //! The agent host's certificate is for TLS servers only and a sensor host's
-//! for TLS clients only, so a sensor host cannot pose as the agent host.
+//! for TLS clients only, so a sensor host cannot pose as the agent host; a
+//! sensor host refuses to start while its folder holds another host's
+//! private key ([`KeyFolderError::OtherHostsKey`]), so that one stolen
+//! sensor host holds no key but its own.
 
 use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
@@ -36,6 +42,12 @@ pub enum KeyFolderError {
     Foreign(PathBuf, u32, u32),
     #[error("{0}: writable by other users (mode {1:o}); `chmod go-w` it")]
     Writable(PathBuf, u32),
+    #[error(
+        "{0}: the private key of another host, in the key folder of sensor host `{1}`: a sensor \
+         host gets only its own bundle (`etp certs init` wrote `DIR/{1}/`); remove this file \
+         from this host"
+    )]
+    OtherHostsKey(PathBuf, String),
     #[error("`{0}` is not a host name: use letters, digits and - (at most 48)")]
     BadName(String),
     #[error("{0}: {1}")]
@@ -100,9 +112,10 @@ fn checked_file(path: &Path) -> Result<std::fs::Metadata, KeyFolderError> {
     Ok(m)
 }
 
-/// Read `hosts.json` of `dir` ([`checked_file`]).
+/// Read `hosts.json` of the agent host's bundle in `dir` ([`bundle`],
+/// [`checked_file`]).
 pub fn hosts(dir: &Path) -> Result<Hosts, KeyFolderError> {
-    let path = dir.join(HOSTS);
+    let path = bundle(dir, AGENT_HOST).join(HOSTS);
     checked_file(&path)?;
     let text =
         std::fs::read_to_string(&path).map_err(|e| KeyFolderError::Missing(path.clone(), e))?;
@@ -135,6 +148,47 @@ pub fn check_name(name: &str) -> Result<(), KeyFolderError> {
     }
 }
 
+/// Host `name`'s bundle: `dir/name/` when that is a folder (`dir` is what
+/// `etp certs init` made), else `dir` itself (the bundle was given).
+pub fn bundle(dir: &Path, name: &str) -> PathBuf {
+    let sub = dir.join(name);
+    match std::fs::symlink_metadata(&sub) {
+        Ok(m) if m.is_dir() => sub,
+        _ => dir.to_path_buf(),
+    }
+}
+
+/// A sensor host's key folder holds no private key but `name.key`: none
+/// in `dir` nor in a folder in it (links are not followed).
+fn only_own_key(dir: &Path, name: &str) -> Result<(), KeyFolderError> {
+    let own = files_of(name).1;
+    let keys_in = |d: &Path| -> Vec<PathBuf> {
+        std::fs::read_dir(d)
+            .map(|it| {
+                it.filter_map(Result::ok)
+                    .map(|e| e.path())
+                    .filter(|p| p.extension().is_some_and(|x| x == "key"))
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    let mut found = keys_in(dir);
+    if let Ok(it) = std::fs::read_dir(dir) {
+        for e in it.filter_map(Result::ok) {
+            if e.file_type().is_ok_and(|t| t.is_dir()) {
+                found.extend(keys_in(&e.path()));
+            }
+        }
+    }
+    match found
+        .into_iter()
+        .find(|p| p.file_name().is_none_or(|f| f.to_string_lossy() != own))
+    {
+        Some(p) => Err(KeyFolderError::OtherHostsKey(p, name.to_string())),
+        None => Ok(()),
+    }
+}
+
 /// The certificate and key file names of host `name`.
 pub fn files_of(name: &str) -> (String, String) {
     (format!("{name}.pem"), format!("{name}.key"))
@@ -150,6 +204,10 @@ pub fn common_name(name: &str) -> String {
 /// private key readable by its owner only.
 pub fn identity(dir: &Path, name: &str) -> Result<Identity, KeyFolderError> {
     check_name(name)?;
+    if name != AGENT_HOST {
+        only_own_key(dir, name)?;
+    }
+    let dir = &bundle(dir, name);
     let (cert, key) = files_of(name);
     let id = Identity {
         ca: dir.join(CA_CERTIFICATE),
@@ -228,6 +286,47 @@ mod tests {
             resolve("tcp/1.2.3.4:7447", None, "h1", true).expect("insecure"),
             None
         );
+        std::fs::remove_dir_all(&dir).expect("cleanup");
+    }
+
+    /// A sensor host whose folder (or a bundle in it) holds another host's
+    /// private key is refused by name; the agent host's bundle is found in
+    /// the folder `etp certs init` made.
+    #[test]
+    fn a_sensor_host_holding_another_hosts_key_is_refused() {
+        let dir = std::env::temp_dir().join(format!("etp-link-bundles-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        for (host, files) in [
+            ("agent-host", ["agent-host.pem", "agent-host.key"]),
+            ("b", ["b.pem", "b.key"]),
+        ] {
+            let d = dir.join(host);
+            std::fs::create_dir_all(&d).expect("dir");
+            for f in files.into_iter().chain(["ca.pem"]) {
+                std::fs::write(d.join(f), "x").expect("write");
+                let mode = if f.ends_with(".key") { 0o600 } else { 0o644 };
+                std::fs::set_permissions(d.join(f), std::fs::Permissions::from_mode(mode))
+                    .expect("chmod");
+            }
+        }
+        // The whole folder on a sensor host: refused, naming the agent host's key.
+        let e = identity(&dir, "b").expect_err("another host's key");
+        assert!(
+            matches!(&e, KeyFolderError::OtherHostsKey(p, n) if p.ends_with("agent-host/agent-host.key") && n == "b"),
+            "{e}"
+        );
+        // Its own bundle: used.
+        let id = identity(&dir.join("b"), "b").expect("own bundle");
+        assert_eq!(id.private_key, dir.join("b/b.key"));
+        // The agent host finds its bundle in the folder.
+        let id = identity(&dir, AGENT_HOST).expect("agent bundle");
+        assert_eq!(id.ca, dir.join("agent-host/ca.pem"));
+        // A stray key dropped into the sensor host's bundle: refused.
+        std::fs::write(dir.join("b/c.key"), "x").expect("write");
+        assert!(matches!(
+            identity(&dir.join("b"), "b"),
+            Err(KeyFolderError::OtherHostsKey(..))
+        ));
         std::fs::remove_dir_all(&dir).expect("cleanup");
     }
 }

@@ -29,6 +29,10 @@ mod faults;
 #[path = "runtime/remote.rs"]
 mod remote;
 
+// Certificate failures named, one bundle per host (issue 41).
+#[path = "runtime/certs.rs"]
+mod certs;
+
 #[path = "runtime/lossy.rs"]
 mod lossy;
 

@@ -6,9 +6,12 @@
 //! A fresh CA signs one certificate for the agent host (TLS server only) and
 //! one per sensor host (TLS client only); the CA's private key is dropped
 //! once they are signed, so nobody can add a certificate to this folder
-//! later. The folder is made beside its final name and renamed into place: an
-//! existing folder is replaced only with `--force`, and only once the new
-//! one is complete.
+//! later. DIR holds one bundle per host, each to be copied to its host
+//! only: `DIR/agent-host/` (CA certificate, the agent host's key pair,
+//! `hosts.json`) and `DIR/NAME/` per sensor host (CA certificate, its own
+//! key pair). The folder is made beside its final name and renamed into
+//! place: an existing folder is replaced only with `--force`, and only once
+//! the new one is complete.
 
 use anyhow::{Context, Result, bail};
 use etp_runtime::link_keys::{
@@ -30,8 +33,9 @@ pub struct Args {
 
 #[derive(Debug, clap::Subcommand)]
 pub enum Sub {
-    /// Make DIR: a CA, the agent host's key pair and one per sensor host.
-    /// Copy DIR to every host of the run.
+    /// Make DIR: a CA, the agent host's key pair and one per sensor host,
+    /// one bundle per host (DIR/agent-host/, DIR/NAME/): copy each bundle to
+    /// its host only.
     Init(InitArgs),
 }
 
@@ -96,15 +100,35 @@ fn init(a: InitArgs) -> Result<()> {
     if a.days == 0 || a.days > 3650 {
         bail!("--days must be between 1 and 3650, got {}", a.days);
     }
-    if std::fs::symlink_metadata(&a.dir).is_ok() && !a.force {
-        bail!(
-            "{} already exists (use --force to replace it)",
-            a.dir.display()
-        );
+    let me = etp_runtime::folders::euid();
+    etp_runtime::folders::check_ancestors(&a.dir, me)?;
+    if let Ok(m) = std::fs::symlink_metadata(&a.dir) {
+        if !a.force {
+            bail!(
+                "{} already exists (use --force to replace it)",
+                a.dir.display()
+            );
+        }
+        // Even with --force: a planted link or another user's folder is
+        // never moved or removed (output folders' rule).
+        use std::os::unix::fs::MetadataExt;
+        if m.file_type().is_symlink() || !m.is_dir() || m.uid() != me {
+            bail!(
+                "refusing to replace {}: it is {}, not a folder of user {me}; remove it yourself",
+                a.dir.display(),
+                if m.file_type().is_symlink() {
+                    "a symbolic link".to_string()
+                } else if !m.is_dir() {
+                    "not a folder".to_string()
+                } else {
+                    format!("owned by user {}", m.uid())
+                }
+            );
+        }
     }
     let mut files = material(&hosts, a.days).context("making the certificates")?;
     files.push((
-        link_keys::HOSTS.to_string(),
+        format!("{AGENT_HOST}/{}", link_keys::HOSTS),
         serde_json::to_string_pretty(&map)?,
         false,
     ));
@@ -141,16 +165,15 @@ fn init(a: InitArgs) -> Result<()> {
         return Err(e).with_context(|| format!("renaming into {}", a.dir.display()));
     }
     if had_old {
-        // A link planted as DIR was moved aside, not followed.
-        let m = std::fs::symlink_metadata(&old)?;
-        if m.file_type().is_dir() {
-            std::fs::remove_dir_all(&old)
-        } else {
-            std::fs::remove_file(&old)
-        }
-        .with_context(|| format!("removing the old folder {}", old.display()))?;
+        // Checked above: a folder of ours (no link is ever followed).
+        std::fs::remove_dir_all(&old)
+            .with_context(|| format!("removing the old folder {}", old.display()))?;
     }
     let names: Vec<&str> = files.iter().map(|(n, _, _)| n.as_str()).collect();
+    let bundles: Vec<(String, String)> = std::iter::once(AGENT_HOST.to_string())
+        .chain(hosts.iter().cloned())
+        .map(|h| (h.clone(), a.dir.join(&h).display().to_string()))
+        .collect();
     if a.json {
         println!(
             "{}",
@@ -158,16 +181,25 @@ fn init(a: InitArgs) -> Result<()> {
                 "dir": a.dir.display().to_string(),
                 "agent_host": AGENT_HOST,
                 "sensor_hosts": map,
+                "bundles": bundles.iter().cloned().collect::<std::collections::BTreeMap<_, _>>(),
                 "files": names,
                 "days": a.days,
             }))?
         );
     } else {
         println!(
-            "wrote {} ({}): the agent host uses {AGENT_HOST}.*, a sensor host NAME.* (`etp sensor-host --tls DIR --name NAME`); copy the folder to every host",
-            a.dir.display(),
-            names.join(", ")
+            "wrote {}: one bundle per host, copy each to its host only:",
+            a.dir.display()
         );
+        for (h, path) in &bundles {
+            if h == AGENT_HOST {
+                println!("  {path}/ → the agent host (`etp run … --tls {path}`)");
+            } else {
+                println!(
+                    "  {path}/ → sensor host {h} (`etp sensor-host … --tls {path} --name {h}`)"
+                );
+            }
+        }
     }
     Ok(())
 }
@@ -191,7 +223,7 @@ fn material(hosts: &[String], days: u32) -> Result<Files> {
     validity(&mut ca);
     let ca_cert = ca.self_signed(&ca_key)?;
     let issuer = Issuer::new(ca, ca_key);
-    let mut out: Files = vec![(CA_CERTIFICATE.to_string(), ca_cert.pem(), false)];
+    let mut out: Files = Vec::new();
     let mut leaf = |name: &str, server: bool| -> Result<()> {
         let key = KeyPair::generate()?;
         // The agent host is reached by address (name checks are off on the
@@ -210,8 +242,9 @@ fn material(hosts: &[String], days: u32) -> Result<Files> {
         validity(&mut p);
         let cert = p.signed_by(&key, &issuer)?;
         let (c, k) = files_of(name);
-        out.push((c, cert.pem(), false));
-        out.push((k, key.serialize_pem(), true));
+        out.push((format!("{name}/{CA_CERTIFICATE}"), ca_cert.pem(), false));
+        out.push((format!("{name}/{c}"), cert.pem(), false));
+        out.push((format!("{name}/{k}"), key.serialize_pem(), true));
         Ok(())
     };
     leaf(AGENT_HOST, true)?;
@@ -226,6 +259,11 @@ fn write_folder(dir: &Path, files: &Files) -> Result<()> {
     std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o700))?;
     for (name, text, private) in files {
         let path = dir.join(name);
+        if let Some(bundle) = path.parent().filter(|b| !b.exists()) {
+            std::fs::create_dir(bundle)
+                .with_context(|| format!("creating {}", bundle.display()))?;
+            std::fs::set_permissions(bundle, std::fs::Permissions::from_mode(0o700))?;
+        }
         let mut f = std::fs::OpenOptions::new()
             .write(true)
             .create_new(true)

@@ -67,6 +67,7 @@ pub fn run(a: Args) -> Result<()> {
             mix64(stamp) & 0xffff_ffff
         ))
     });
+    crate::output::output_folder(&dir)?;
     if dir.join("mdp.bin").exists() {
         anyhow::bail!(
             "{} already holds a synthesis; choose another --out",

@@ -84,6 +84,7 @@ pub fn run(a: Args) -> Result<()> {
         .iter()
         .map(|(name, text)| (a.outdir.join(name), *text))
         .collect();
+    crate::output::output_folder(&a.outdir)?;
     // All refused before any is written: no half-updated set of files.
     for (p, _) in &targets {
         crate::output::refuse_existing(p, a.force)?;

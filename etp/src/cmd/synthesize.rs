@@ -264,6 +264,7 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
         .clone()
         .unwrap_or_else(|| Path::new("out").join(&s.name));
     let path = dir.join(MDP_FILE);
+    crate::output::output_folder(&dir)?;
     crate::output::refuse_existing(&path, a.force)?;
     if let Some(alpha) = a.merge
         && !(alpha > 0.0 && alpha < 1.0)
@@ -435,6 +436,7 @@ pub fn run(a: Args) -> Result<()> {
         .clone()
         .unwrap_or_else(|| Path::new("out").join(&s.name));
     let front_path = dir.join("front.json");
+    crate::output::output_folder(&dir)?;
     crate::output::refuse_existing(&front_path, a.force)?;
     if !(a.aggregation_alpha > 0.0 && a.aggregation_alpha < 1.0) {
         bail!(

@@ -10,6 +10,7 @@ mod exact;
 mod integrity;
 mod logs;
 mod memory;
+mod outputs;
 mod pipeline;
 mod pool_policy;
 mod radio;

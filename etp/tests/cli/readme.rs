@@ -14,11 +14,11 @@ use std::process::Command;
 const ELSEWHERE: &[(&str, &str)] = &[
     ("cargo test --release --workspace", "the test suite itself"),
     (
-        "target/release/etp run --scenario winding-2d --delta 1.4986 --episodes 300 --listen tls/10.0.0.1:7447 --tls out/keys --remote s0,s3 --record-default",
+        "target/release/etp run --scenario winding-2d --delta 1.4986 --episodes 300 --listen tls/10.0.0.1:7447 --tls out/keys/agent-host --remote s0,s3 --record-default",
         "two hosts: tests/tests/runtime/remote.rs runs it between network namespaces",
     ),
     (
-        "target/release/etp sensor-host --connect tls/10.0.0.1:7447 --tls out/keys",
+        "target/release/etp sensor-host --connect tls/10.0.0.1:7447 --tls out/keys/b --name b",
         "two hosts: tests/tests/runtime/remote.rs",
     ),
     (

@@ -31,7 +31,50 @@ pub fn create_node(run: &RunId, name: &str) -> Result<Node<ipc::Service>, WireEr
     // Installs iceoryx2's SIGINT/SIGTERM handler now (it is lazy): until a
     // process's first wait, a SIGTERM would otherwise kill it outright.
     super::termination_requested(&node);
+    restrict_global_mgmt(run)?;
     Ok(node)
+}
+
+/// Where POSIX shared memory lives (iceoryx2's `ipc` service's files).
+const SHM_DIR: &str = "/dev/shm";
+
+/// iceoryx2 0.10 creates the node counter segment `<prefix>…global_mgmt`
+/// with `enable_global_access(true)` (mode 666, hard-wired in
+/// `GlobalManagementSegment::open_or_create`, not configurable): meant to be
+/// shared by every user of a domain. A run's prefix is its own and all its
+/// processes are this user's, so it is made 0600 like every other file of
+/// the run (issue 41). Only a regular file of this user with the run's
+/// prefix is touched, through the file opened (its identity checked against
+/// the name's, so a link planted in /dev/shm is never followed).
+fn restrict_global_mgmt(run: &RunId) -> Result<(), WireError> {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    let prefix = run.shm_prefix();
+    let Ok(entries) = std::fs::read_dir(SHM_DIR) else {
+        return Ok(());
+    };
+    let me = crate::folders::euid();
+    for e in entries.filter_map(Result::ok) {
+        let name = e.file_name();
+        let name = name.to_string_lossy();
+        if !(name.starts_with(&prefix) && name.ends_with(".global_mgmt")) {
+            continue;
+        }
+        let path = e.path();
+        let Ok(m) = std::fs::symlink_metadata(&path) else {
+            continue;
+        };
+        if !m.file_type().is_file() || m.uid() != me || m.mode() & 0o077 == 0 {
+            continue;
+        }
+        let fail = |e: std::io::Error| WireError::Config(format!("{}: {e}", path.display()));
+        let f = std::fs::File::open(&path).map_err(fail)?;
+        let fm = f.metadata().map_err(fail)?;
+        if (fm.dev(), fm.ino()) == (m.dev(), m.ino()) {
+            f.set_permissions(std::fs::Permissions::from_mode(0o600))
+                .map_err(fail)?;
+        }
+    }
+    Ok(())
 }
 
 /// What the node list says about a named node.

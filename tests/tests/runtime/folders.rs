@@ -225,3 +225,112 @@ fn another_users_plants_are_never_followed_and_two_users_run_side_by_side() {
     let _ = std::fs::remove_dir_all(&victim);
     let _ = std::fs::remove_dir_all(&foreign);
 }
+
+/// Every file a run creates is its user's alone (issue 41, item 6): while
+/// a run is going (all its processes up: the recorder, coordinator, agent
+/// and sensors have created their nodes and services), each of its
+/// shared-memory files in /dev/shm and each file in its iceoryx2 root
+/// folder has no access for group or others (iceoryx2's folders there are
+/// 0750, inside the user's private folder, 0700). iceoryx2 0.10 creates the
+/// node counter segment (`…global_mgmt`) with mode 666; the run makes it
+/// 0600.
+#[test]
+fn no_file_of_a_run_is_open_to_other_users() {
+    let _serial = serial();
+    let run_id = unique_run_id("modes");
+    let run = etp_runtime::wire::RunId::new(&run_id).expect("run id");
+    let prefix = run.shm_prefix();
+    // Long enough to be seen running; its end is waited for below.
+    let mut child = Command::new(bin_dir().join("etp"))
+        .args([
+            "run",
+            "--scenario",
+            "open-2d",
+            "--delta",
+            "1.0518",
+            "--episodes",
+            "400",
+        ])
+        .args(["--seed", "2", "--run-id", &run_id, "--json"])
+        .current_dir("/tmp")
+        .stdout(Stdio::null())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("etp run");
+    let shm_files = || -> Vec<(String, u32)> {
+        std::fs::read_dir("/dev/shm")
+            .map(|it| {
+                it.filter_map(Result::ok)
+                    .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
+                    .filter_map(|e| {
+                        let m = std::fs::symlink_metadata(e.path()).ok()?;
+                        Some((
+                            e.file_name().to_string_lossy().into_owned(),
+                            m.mode() & 0o777,
+                        ))
+                    })
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    // Up: the agent's and every sensor's services exist (the run's
+    // processes create theirs before the coordinator's roll call ends).
+    let start = std::time::Instant::now();
+    let mut seen = Vec::new();
+    while start.elapsed() < std::time::Duration::from_secs(120) {
+        seen = shm_files();
+        if seen.iter().any(|(n, _)| n.ends_with(".global_mgmt")) && seen.len() >= 100 {
+            break;
+        }
+        if child.try_wait().ok().flatten().is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let mut root_files = Vec::new();
+    let base = etp_runtime::folders::base();
+    etp_runtime::folders::check(&base, etp_runtime::folders::euid()).expect("private base");
+    let mut stack = vec![run.root_dir()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d)
+            .into_iter()
+            .flatten()
+            .filter_map(Result::ok)
+        {
+            let Ok(m) = std::fs::symlink_metadata(e.path()) else {
+                continue;
+            };
+            if m.is_dir() {
+                // iceoryx2 makes its folders 0750; no other user may enter
+                // the user's private folder (0700, checked) that holds them.
+                stack.push(e.path());
+                assert_eq!(
+                    m.mode() & 0o007,
+                    0,
+                    "{} is open to other users",
+                    e.path().display()
+                );
+                continue;
+            }
+            root_files.push((e.path().display().to_string(), m.mode() & 0o777));
+        }
+    }
+    let status = child.wait().expect("wait");
+    assert!(status.success(), "the run failed (its stderr is above)");
+    assert!(
+        seen.iter().any(|(n, _)| n.ends_with(".global_mgmt")) && seen.len() >= 100,
+        "the run's files were not seen while it ran ({} files)",
+        seen.len()
+    );
+    let open: Vec<String> = seen
+        .iter()
+        .cloned()
+        .chain(root_files)
+        .filter(|(_, mode)| mode & 0o077 != 0)
+        .map(|(n, mode)| format!("{n} {mode:o}"))
+        .collect();
+    assert!(
+        open.is_empty(),
+        "files of the run open to other users: {open:?}"
+    );
+}

@@ -33,14 +33,14 @@ fn ip(args: &[&str]) -> Result<(), String> {
 }
 
 /// Where a namespace's process sees the test's output folder.
-const NS_OUT: &str = "/dev/shm/.etp-out";
+pub(super) const NS_OUT: &str = "/dev/shm/.etp-out";
 
 /// Network namespaces `<tag>a` (agent host) and one per sensor host, each
 /// joined to the agent host by a veth pair 10.77.<k>.1 ↔ 10.77.<k>.2;
 /// everything in them is killed and they are deleted on drop.
-struct Hosts {
-    agent: String,
-    sensors: Vec<String>,
+pub(super) struct Hosts {
+    pub(super) agent: String,
+    pub(super) sensors: Vec<String>,
 }
 
 impl Hosts {
@@ -115,7 +115,7 @@ impl Hosts {
     }
 
     /// [`Hosts::spawn_in`] with `out` visible inside as [`NS_OUT`].
-    fn spawn_out(&self, ns: &str, out: &std::path::Path, args: &[&str]) -> Guard {
+    pub(super) fn spawn_out(&self, ns: &str, out: &std::path::Path, args: &[&str]) -> Guard {
         self.spawn_in(ns, Some(out), args)
     }
 
@@ -189,10 +189,10 @@ impl Drop for Hosts {
 }
 
 /// A child in its own process group, killed with its group on drop.
-struct Guard(Option<Child>);
+pub(super) struct Guard(pub(super) Option<Child>);
 
 impl Guard {
-    fn finish(mut self) -> (Option<i32>, String, String) {
+    pub(super) fn finish(mut self) -> (Option<i32>, String, String) {
         let c = self.0.take().expect("child");
         let out = c.wait_with_output().expect("waiting");
         (
@@ -292,7 +292,7 @@ fn field(line: &str, key: &str) -> Option<u64> {
 }
 
 /// Namespaces, or `None` to skip (not root, not in CI).
-fn hosts(tag: &str, n: usize) -> Option<Hosts> {
+pub(super) fn hosts(tag: &str, n: usize) -> Option<Hosts> {
     assert!(
         bin_dir().join("etp-bridge").is_file(),
         "etp-bridge missing: cargo test --workspace builds it"
@@ -310,7 +310,7 @@ fn hosts(tag: &str, n: usize) -> Option<Hosts> {
 }
 
 /// `etp certs init DIR --sensor-host …` (DIR replaced if it exists).
-fn certs_init(dir: &std::path::Path, hosts: &[&str]) {
+pub(super) fn certs_init(dir: &std::path::Path, hosts: &[&str]) {
     let mut c = Command::new(bin_dir().join("etp"));
     c.args(["certs", "init", "--force"]).arg(dir);
     for h in hosts {
@@ -325,7 +325,7 @@ fn certs_init(dir: &std::path::Path, hosts: &[&str]) {
 }
 
 /// A scratch folder of this test process (`remote-<tag>-<pid>`), made.
-fn scratch(tag: &str) -> std::path::PathBuf {
+pub(super) fn scratch(tag: &str) -> std::path::PathBuf {
     let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
         .join(format!("remote-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("scratch");
@@ -405,7 +405,7 @@ fn across_three_hosts(tag: &str, radio: Option<&str>) {
             "--connect",
             "tls/10.77.1.1:7447",
             "--tls",
-            &keys,
+            &format!("{keys}/b"),
             "--name",
             "b",
             "--sensor",
@@ -423,7 +423,7 @@ fn across_three_hosts(tag: &str, radio: Option<&str>) {
             "--connect",
             "tls/10.77.2.1:7447",
             "--tls",
-            &keys,
+            &format!("{keys}/c"),
             "--name",
             "c",
             "--sensor",
@@ -684,9 +684,9 @@ def session(ep, ca, cert, key, extra=None):
 fn tls_args(keys: &std::path::Path, name: &str) -> Vec<std::path::PathBuf> {
     vec![
         "tls/10.77.2.1:7447".into(),
-        keys.join("ca.pem"),
-        keys.join(format!("{name}.pem")),
-        keys.join(format!("{name}.key")),
+        keys.join(name).join("ca.pem"),
+        keys.join(name).join(format!("{name}.pem")),
+        keys.join(name).join(format!("{name}.key")),
     ]
 }
 
@@ -730,7 +730,7 @@ for ep, ca in [("tcp/10.77.2.1:7447", ""), ("tls/10.77.2.1:7447", sys.argv[1])]:
 print(json.dumps({{"answers": answers, "samples": len(seen)}}))
 "#
     );
-    let v = python_peer(h, "outsider", &script, &[keys.join("ca.pem")]);
+    let v = python_peer(h, "outsider", &script, &[keys.join("b").join("ca.pem")]);
     assert_eq!(v["answers"], serde_json::json!([]), "{v}");
     assert_eq!(v["samples"], 0, "{v}");
 }
@@ -781,7 +781,7 @@ fn a_second_host_of_a_served_sensor_is_refused_at_join(h: &Hosts, dir: &std::pat
             "--connect",
             "tls/10.77.2.1:7447",
             "--tls",
-            &keys,
+            &format!("{keys}/rogue"),
             "--name",
             "rogue",
             "--join-timeout",
@@ -858,7 +858,7 @@ fn garbage_and_forged_uplink_messages_are_refused_by_name_and_the_run_stays_exac
             "--connect",
             "tls/10.77.1.1:7447",
             "--tls",
-            &ns_keys,
+            &format!("{ns_keys}/b"),
             "--name",
             "b",
             "--json",
@@ -1004,7 +1004,7 @@ fn all_sensors_on_one_sensor_host_keep_their_order_run_after_run() {
                 "--connect",
                 "tls/10.77.1.1:7461",
                 "--tls",
-                &keys,
+                &format!("{keys}/b"),
                 "--name",
                 "b",
                 "--json",
@@ -1073,9 +1073,9 @@ time.sleep(60)
                 .args(["netns", "exec", &h.agent])
                 .arg(etp_tests::pyenv::python())
                 .args(["-c", listener])
-                .arg(keys.join("ca.pem"))
-                .arg(keys.join(format!("{cert}.pem")))
-                .arg(keys.join(format!("{cert}.key")))
+                .arg(keys.join(cert).join("ca.pem"))
+                .arg(keys.join(cert).join(format!("{cert}.pem")))
+                .arg(keys.join(cert).join(format!("{cert}.key")))
                 .stdin(Stdio::null())
                 .stdout(Stdio::null())
                 .stderr(Stdio::piped())
@@ -1093,7 +1093,7 @@ time.sleep(60)
                 "--connect",
                 "tls/10.77.1.1:7447",
                 "--tls",
-                &format!("{NS_OUT}/keys"),
+                &format!("{NS_OUT}/keys/b"),
                 "--name",
                 "b",
                 "--join-timeout",
@@ -1105,7 +1105,12 @@ time.sleep(60)
         if connects {
             assert!(err.contains("the run's description"), "{cert}: {err}");
         } else {
-            assert!(err.contains("no agent host answered"), "{cert}: {err}");
+            // Named by the sensor host (issue 41 item 5): the wrong role.
+            assert!(
+                err.contains("refused the agent host at 10.77.1.1:7447")
+                    && err.contains("wrong role"),
+                "{cert}: {err}"
+            );
         }
         if let Some(c) = posing.0.as_mut() {
             assert!(

@@ -28,8 +28,11 @@ use zenoh_protocol::{
 };
 use zenoh_result::ZResult;
 
+mod refusals;
 mod unicast;
 mod utils;
+// etp patch (third_party/README.md): the accept loop reports each refusal.
+pub use refusals::{on_refused, RefusalHook, Refused};
 pub use unicast::*;
 pub use utils::TlsConfigurator;
 

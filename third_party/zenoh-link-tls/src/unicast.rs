@@ -581,6 +581,20 @@ async fn accept_task(
                             tracing::error!("{}-{}: {}", file!(), line!(), e)
                         }
                     }
+                    // etp patch: a refused handshake is reported and the loop
+                    // goes on at once (tls-listener runs handshakes
+                    // concurrently, each with its deadline); only an error of
+                    // the listener itself throttles the loop. Upstream slept
+                    // after every failed handshake, so junk connections
+                    // queued up and kept real peers out (zenoh issue #2685).
+                    Err(tls_listener::Error::TlsAcceptError { error, peer_addr, .. }) => {
+                        tracing::debug!("Refused TLS connection from {}: {}", peer_addr, error);
+                        crate::refusals::refused(peer_addr, crate::Refused::Handshake(&error));
+                    }
+                    Err(tls_listener::Error::HandshakeTimeout { peer_addr, .. }) => {
+                        tracing::debug!("TLS handshake with {} timed out", peer_addr);
+                        crate::refusals::refused(peer_addr, crate::Refused::Timeout);
+                    }
                     Err(e) => {
                         tracing::warn!("{}. Hint: increase the system open file limit.", e);
                         // Throttle the accept loop upon an error

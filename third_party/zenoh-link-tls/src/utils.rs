@@ -346,16 +346,11 @@ impl<'a> TlsClientConfig<'a> {
             None => TLS_CLOSE_LINK_ON_EXPIRATION_DEFAULT,
         };
 
-        // Allows mixed user-generated CA and webPKI CA
-        tracing::debug!("Loading default Web PKI certificates.");
-        let mut root_cert_store = RootCertStore {
-            roots: webpki_roots::TLS_SERVER_ROOTS.to_vec(),
+        // etp patch: only the configured CA is trusted, never the public
+        // Web PKI roots (upstream added them to every client).
+        let Some(root_cert_store) = load_trust_anchors(config)? else {
+            bail!("No root CA certificate configured: this TLS client trusts no public CA.");
         };
-
-        if let Some(custom_root_cert) = load_trust_anchors(config)? {
-            tracing::debug!("Loading user-generated certificates.");
-            root_cert_store.extend(custom_root_cert.roots);
-        }
 
         // Install ring based rustls CryptoProvider.
         rustls::crypto::ring::default_provider()

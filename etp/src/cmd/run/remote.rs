@@ -45,6 +45,13 @@ pub struct LinkReport {
     /// reading (bounded by the bridge's close of a stalled peer; not a
     /// fault of the counts: nothing is dropped).
     pub stalled: BTreeMap<String, Stall>,
+    /// Connections the agent host's TLS accept loop refused before they
+    /// became links, by cause (`unknown-ca`, `expired`, `wrong-role`,
+    /// `not-tls`, `timeout`, …; the bridge's `handshakes` line): nothing of
+    /// the run came through them, so not a fault of the counts.
+    pub handshakes_refused: BTreeMap<String, u64>,
+    /// The first refusals in words, with their peer.
+    pub handshakes_named: Vec<String>,
 }
 
 /// Puts held up by a stalled peer (the bridge's `stalled` line).
@@ -68,6 +75,26 @@ impl LinkReport {
                 })
                 .collect::<Vec<_>>()
                 .join("; ")
+        })
+    }
+
+    /// The refused handshakes in words (empty: none).
+    pub fn handshakes(&self) -> Option<String> {
+        let n: u64 = self.handshakes_refused.values().sum();
+        (n > 0).then(|| {
+            let by: Vec<String> = self
+                .handshakes_refused
+                .iter()
+                .map(|(k, n)| format!("{n} {k}"))
+                .collect();
+            let mut s = format!(
+                "{n} connection(s) refused at the TLS handshake ({})",
+                by.join(", ")
+            );
+            if let Some(first) = self.handshakes_named.first() {
+                s.push_str(&format!("; first named: {first}"));
+            }
+            s
         })
     }
 
@@ -215,6 +242,12 @@ impl Bridge {
                             serde_json::from_value(v["counts"].clone()).unwrap_or_default();
                         report.held = serde_json::from_value(v["held"].clone()).unwrap_or_default();
                         report.reordered = v["reordered"].as_u64().unwrap_or(0);
+                    }
+                    Some("handshakes") => {
+                        report.handshakes_refused =
+                            serde_json::from_value(v["refused"].clone()).unwrap_or_default();
+                        report.handshakes_named =
+                            serde_json::from_value(v["named"].clone()).unwrap_or_default();
                     }
                     Some("stalled") => {
                         report.stalled =

@@ -318,6 +318,9 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
     if let Some(why) = s.link.as_ref().and_then(|l| l.stalls()) {
         println!("  link stalled: {why}");
     }
+    if let Some(why) = s.link.as_ref().and_then(|l| l.handshakes()) {
+        println!("  link admission: {why}");
+    }
     if let Some(why) = &r.aborted {
         println!("  ABORTED: {why}");
     }
