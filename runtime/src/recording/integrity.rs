@@ -120,7 +120,7 @@ mod tests {
             p_free: 0.0,
             energy_mean: 1.0,
         };
-        let st = Strategy::constant(&s, 0, prediction).to_json();
+        let st = Strategy::constant(&s, 0, Some(prediction)).to_json();
         let ok = contents(text, Some(&s.content_hash), Some(st.clone()));
         assert_eq!(
             check_metadata(&ok)

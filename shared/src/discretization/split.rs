@@ -246,7 +246,7 @@ mod tests {
             p_free: 0.0,
             energy_mean: 1.0,
         };
-        let mut st = Strategy::constant(&s, 0, p);
+        let mut st = Strategy::constant(&s, 0, Some(p));
         let d = Discretization {
             decision_points: vec![bins(); s.num_legs()],
         };
