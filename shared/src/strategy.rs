@@ -285,6 +285,12 @@ impl Strategy {
         }
         let v: Versioned =
             serde_json::from_str(text).map_err(|e| StrategyError::Parse(e.to_string()))?;
+        if !(1..=STRATEGY_FORMAT_VERSION).contains(&v.format_version) {
+            return Err(StrategyError::Version {
+                found: v.format_version,
+                expected: STRATEGY_FORMAT_VERSION,
+            });
+        }
         check_seal(text)?;
         let s: Self = match v.format_version {
             STRATEGY_FORMAT_VERSION => {

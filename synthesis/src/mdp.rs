@@ -282,7 +282,7 @@ impl Mdp {
     /// Whether some state offers fewer than all the thresholds: a build
     /// on one strategy's own thresholds (`etp synthesize --pool-policy`
     /// without `--all-actions`). Its front is not the scenario's; what it
-    /// is for is predicting that strategy (`etp strategy --evaluate`).
+    /// is for is predicting that strategy (`etp strategy evaluate`).
     pub fn policy_only(&self) -> bool {
         self.states
             .iter()

@@ -53,7 +53,7 @@ pub fn reference(s: &Strategy) -> Option<(Prediction, Option<PredictionCi95>, &'
 }
 
 /// The selection-time aggregation check: `strategy` simulated in-process
-/// under its own channel, against [`reference`].
+/// under its own channel, against [`reference()`].
 pub fn aggregation_check(
     strategy: &Strategy,
     episodes: u64,
@@ -157,7 +157,7 @@ pub fn aggregation_text(c: &AggregationCheck, reference: &str, when: &str) -> St
     )
 }
 
-/// The name of [`reference`] for `s`.
+/// The name of [`reference()`] for `s`.
 pub fn reference_name(s: &Strategy) -> &'static str {
     reference(s).map_or("none", |r| r.2)
 }
@@ -245,7 +245,7 @@ pub fn diagnostics_json(s: &Strategy) -> Value {
     })
 }
 
-fn pct(x: f64) -> String {
+fn prob(x: f64) -> String {
     format!("{:.4}", x)
 }
 
@@ -256,17 +256,17 @@ pub fn text_of(s: &Strategy) -> String {
     match (&s.predicted, &s.predicted_ci95) {
         (Some(p), Some(h)) => o.push_str(&format!(
             "  predicted       P_tar {} ± {}  P_coll {} ± {}  energy {:.3} ± {:.3}   (95 %)\n",
-            pct(p.p_target),
-            pct(h.p_target),
-            pct(p.p_collision),
-            pct(h.p_collision),
+            prob(p.p_target),
+            prob(h.p_target),
+            prob(p.p_collision),
+            prob(h.p_collision),
             p.energy_mean,
             h.energy_mean
         )),
         (Some(p), None) => o.push_str(&format!(
             "  predicted       P_tar {}  P_coll {}  energy {:.3}\n",
-            pct(p.p_target),
-            pct(p.p_collision),
+            prob(p.p_target),
+            prob(p.p_collision),
             p.energy_mean
         )),
         (None, _) => {}
@@ -305,8 +305,8 @@ pub fn diagnostics_text(s: &Strategy) -> String {
     if let Some(p) = &sel.selection_time {
         o.push_str(&format!(
             "    selection-time on the selection MDP   P_tar {}  P_coll {}  energy {:.3}   (biased: the optimiser's pick, other strategies' beliefs in the pools)\n",
-            pct(p.p_target),
-            pct(p.p_collision),
+            prob(p.p_target),
+            prob(p.p_collision),
             p.energy_mean
         ));
     }
@@ -314,10 +314,10 @@ pub fn diagnostics_text(s: &Strategy) -> String {
         let h = sel.crossfit_ci95.unwrap_or_default();
         o.push_str(&format!(
             "    cross-fitted on the selection MDP     P_tar {} ± {}  P_coll {} ± {}  energy {:.3}   (held-out transitions; biased by aggregation)\n",
-            pct(c.p_target),
-            pct(h.p_target),
-            pct(c.p_collision),
-            pct(h.p_collision),
+            prob(c.p_target),
+            prob(h.p_target),
+            prob(c.p_collision),
+            prob(h.p_collision),
             c.energy_mean
         ));
     }
@@ -334,7 +334,7 @@ pub fn diagnostics_text(s: &Strategy) -> String {
         let each: Vec<String> = d
             .rebuilds
             .iter()
-            .map(|r| pct(r.crossfit.unwrap_or(r.selection_time).p_target))
+            .map(|r| prob(r.crossfit.unwrap_or(r.selection_time).p_target))
             .collect();
         o.push_str(&format!(
             "    each rebuild's P_tar (seeds {}…{})   {}\n",
@@ -352,10 +352,10 @@ pub fn diagnostics_text(s: &Strategy) -> String {
         };
         o.push_str(&format!(
             "    round {k}: asked the MDP {asked} → selection-time P_tar {} → predicted {} ± {} P_coll {} energy {:.3} ({} rebuild{}) {}\n",
-            pct(r.selection_time.p_target),
-            pct(r.predicted.p_target),
-            pct(r.predicted_ci95.p_target),
-            pct(r.predicted.p_collision),
+            prob(r.selection_time.p_target),
+            prob(r.predicted.p_target),
+            prob(r.predicted_ci95.p_target),
+            prob(r.predicted.p_collision),
             r.predicted.energy_mean,
             r.rebuilds,
             if r.rebuilds == 1 { "" } else { "s" },

@@ -27,7 +27,7 @@ pub enum ScenarioCommand {
 
 #[derive(Debug, clap::Args)]
 pub struct RadioTextArgs {
-    /// A built-in scenario name or a TOML file without a [radio] of its own.
+    /// A built-in scenario name or a TOML file without a `[radio]` of its own.
     pub scenario: String,
     #[command(flatten)]
     pub radio: crate::input::RadioArgs,

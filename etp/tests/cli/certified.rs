@@ -109,20 +109,38 @@ fn certified_strategy_meets_its_bounds_and_reports_all_three_predictions() {
             .is_some()
     );
 
-    // Beyond the best certified P_tar: refused, naming the best bound.
-    fails_with(
-        &[
-            "strategy",
-            s(&out),
-            "--min-target",
-            "0.999",
-            "--confidence",
-            "0.95",
-            "-o",
-            s(&out.join("x.json")),
-        ],
-        &["certified P_tar lower bound"],
-    );
+    // Beyond what any strategy reaches: out of reach (exit 7), the closest
+    // strategy written with its prediction, stderr saying by how much.
+    for extra in [&[][..], &["--confidence", "0.95"][..]] {
+        let far = out.join("far.json");
+        let mut args = vec!["strategy", s(&out), "--min-target", "0.999"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["-o", s(&far), "--force", "--json"]);
+        let o = super::etp(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(7), "{extra:?}: {err}");
+        assert!(
+            err.contains("out of reach") && err.contains("against P_tar ≥ 0.999"),
+            "{err}"
+        );
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("the report first");
+        assert!(
+            matches!(v["verdict"].as_str(), Some("out-of-reach" | "rounds-spent")),
+            "{v}"
+        );
+        let file: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&far).expect("written")).expect("json");
+        assert!(
+            file["label"]
+                .as_str()
+                .unwrap_or("")
+                .contains("OUT OF REACH")
+        );
+        assert!(file["predicted"]["p_target"].as_f64().unwrap_or(1.0) < 0.999);
+        if !extra.is_empty() {
+            assert!(err.contains("certified P_tar ≥"), "{err}");
+        }
+    }
     fails_with(
         &[
             "strategy",

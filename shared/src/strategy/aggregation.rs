@@ -1,12 +1,12 @@
 //! The aggregation error of a strategy, measured (docs/MODEL.md §7.3).
 //!
-//! Cross-fitting removes the optimiser's bias and the certified bounds cover
-//! the abstraction's sampling error, but neither sees the error of lumping
-//! beliefs with different futures into one region. Only a simulation of
-//! the strategy in the real (continuous-belief) loop measures it: `etp
-//! strategy` runs a short one at selection time and stores it here, `etp
-//! validate` states it again from its own episodes, and `etp strategy
-//! --cover-aggregation` widens the certified bounds by it.
+//! Lumping beliefs with different futures into one region biases a
+//! strategy's value on an abstraction; `etp strategy` predicts on the
+//! strategy's own rebuilds, whose pools remove that for it (docs/MODEL.md
+//! §7.4). Only a simulation of the strategy in the real (continuous-belief)
+//! loop measures what is left: `etp strategy` runs a short one at selection
+//! time and stores it here, `etp validate` states it again from its own
+//! episodes.
 
 use super::Prediction;
 use serde::{Deserialize, Serialize};
@@ -17,13 +17,14 @@ use serde::{Deserialize, Serialize};
 pub struct AggregationCheck {
     pub episodes: u64,
     pub seed: u64,
-    /// The prediction compared: the cross-fitted one where the MDP has a
-    /// held-out sample, else the selection-time one.
+    /// The prediction compared: the strategy file's `predicted`, or for a
+    /// `--quick` strategy its cross-fitted (else selection-time) value on
+    /// the selection MDP.
     pub reference: Prediction,
     pub simulated: SimulatedValue,
-    /// The reference's own sampling error (the cross-fitted value's, from
-    /// its finite held-out sample); absent for a selection-time reference
-    /// and in older files, which compare against the simulation's alone.
+    /// The reference's own 95 % half-widths (`predicted_ci95`, or the
+    /// held-out sample's); absent for a selection-time reference and in
+    /// older files, which compare against the simulation's alone.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reference_ci95: Option<PredictionCi95>,
 }

@@ -52,6 +52,20 @@ fn terminal(n: Next) -> Objectives {
     }
 }
 
+impl CrossFit {
+    /// The 95 % half-widths of `objectives` from the held-out sample's own
+    /// error (normal approximation), as a strategy file stores them.
+    pub fn ci95(&self) -> etp_shared::strategy::PredictionCi95 {
+        let e = &self.standard_error;
+        let z = etp_shared::stats::Z95;
+        etp_shared::strategy::PredictionCi95 {
+            p_target: z * e.p_target,
+            p_collision: z * e.p_collision,
+            energy_mean: z * e.energy,
+        }
+    }
+}
+
 fn add(v: &mut Objectives, o: &Objectives, p: f64) {
     v.energy += p * o.energy;
     v.p_collision += p * o.p_collision;

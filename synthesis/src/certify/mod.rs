@@ -13,15 +13,13 @@
 //! * [`front`] — the certified front beside the nominal one.
 //! * [`refine`] — sample allocation: more segments on the strategy's support
 //!   until the certified P_tar gap is below a target.
-//! * [`widen`] — bounds widened by a measured aggregation error, so they
-//!   cover it too.
 //! * [`replicates`] — the cross-fitted value of R independent rebuilds and a
 //!   Student-t interval over their spread: the rebuild's whole Monte Carlo.
 //!
 //! What is certified: sampling error in the abstraction's transition and
-//! cost estimates. Not certified: the aggregation of beliefs into regions
-//! (the abstraction itself); `etp strategy` and `etp validate` measure that
-//! by simulation, and [`widen`] can add it.
+//! cost estimates. The aggregation of beliefs into regions is covered only
+//! for the strategy whose own beliefs fill the pools: bounds certified on
+//! its on-policy rebuild (`crate::predict`, docs/MODEL.md §7.4).
 //!
 //! Pure maths: no I/O, no clock; randomness only from seeded streams.
 
@@ -33,7 +31,6 @@ pub mod refine;
 pub mod replicates;
 pub mod robust;
 pub mod select;
-pub mod widen;
 
 #[cfg(test)]
 mod tests;

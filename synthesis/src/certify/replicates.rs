@@ -1,5 +1,5 @@
 //! The cross-fitted prediction of one strategy from R independent rebuilds
-//! (`etp strategy --on-policy --replicates R`): the held-out sample's own
+//! (`etp strategy --replicates R`): the held-out sample's own
 //! error (the delta method of [`super::crossfit`]) leaves out the rest of a
 //! rebuild's Monte Carlo — the pools the held-out segments start from are a
 //! finite sample of the strategy's law, drawn by the main sample upstream

@@ -9,7 +9,9 @@
 use super::PredictError;
 use crate::abstraction::{self, AbstractionParams};
 use crate::certify::crossfit::{CrossFit, crossfit};
+use crate::certify::intervals::interval_mdp;
 use crate::certify::replicates::{Replicated, replicated};
+use crate::certify::robust::{Certified, certify};
 use crate::mdp::{CostModel, Mdp};
 use crate::pareto::policy::{Objectives, RandomisedPolicy, evaluate, leg_energy};
 use etp_shared::scenario::Scenario;
@@ -50,8 +52,12 @@ pub struct OnPolicy {
     pub replicas: Vec<Replica>,
     /// The replicates' cross-fitted mean and its 95 % Student-t half-width.
     pub combined: Replicated,
-    /// The replicates' mean exact value and per-leg energy.
+    /// The replicates' mean exact value.
     pub value: Objectives,
+    /// Per-leg energy: the shares of the replicates' mean exact per-leg
+    /// energy, scaled to add up to the predicted energy (`combined`), so
+    /// the per-sensor predictions of `etp run`/`validate` sum to the one
+    /// prediction etp stands by.
     pub leg_energy: Vec<f64>,
 }
 
@@ -63,6 +69,20 @@ impl OnPolicy {
 
     pub fn segments(&self) -> u64 {
         self.replicas.iter().map(|r| r.mdp.total_segments).sum()
+    }
+
+    /// The strategy's bounds certified at `level` on its first rebuild's own
+    /// transitions (they cover its aggregation error: docs/MODEL.md §7.4).
+    pub fn certify_first(&self, level: f64, cost: CostModel) -> Result<Certified, PredictError> {
+        self.first().certify(level, cost)
+    }
+}
+
+impl Replica {
+    /// The strategy's bounds certified at `level` on this rebuild.
+    pub fn certify(&self, level: f64, cost: CostModel) -> Result<Certified, PredictError> {
+        let im = interval_mdp(&self.mdp, level, cost)?;
+        Ok(certify(&self.mdp, &im, &self.omega))
     }
 }
 
@@ -155,6 +175,11 @@ pub fn combine(replicas: Vec<Replica>) -> Result<OnPolicy, PredictError> {
             *l += e / n;
         }
     }
+    let total: f64 = legs.iter().sum();
+    if total > 0.0 {
+        let scale = combined.mean.energy / total;
+        legs.iter_mut().for_each(|l| *l *= scale);
+    }
     Ok(OnPolicy {
         replicas,
         combined,
@@ -206,12 +231,7 @@ impl OnPolicy {
     /// Make this the prediction `strategy` stands by: `predicted` with its
     /// ±, the per-leg energy, the certified bounds of the first rebuild
     /// (`certified`, at `level`) and every rebuild under `diagnostics`.
-    pub fn stand_by(
-        &self,
-        strategy: &mut Strategy,
-        certified: &crate::certify::robust::Certified,
-        level: f64,
-    ) {
+    pub fn stand_by(&self, strategy: &mut Strategy, certified: &Certified, level: f64) {
         strategy.predicted = Some(self.combined.mean.prediction());
         strategy.predicted_ci95 = Some(self.combined.ci95.ci95());
         strategy.prediction_basis = basis(&self.replicas);
@@ -231,14 +251,7 @@ impl OnPolicy {
                 seed: r.mdp.seed,
                 selection_time: r.value.prediction(),
                 crossfit: r.crossfit.as_ref().map(|c| c.objectives.prediction()),
-                crossfit_ci95: r.crossfit.as_ref().map(|c| {
-                    let e = &c.standard_error;
-                    etp_shared::strategy::PredictionCi95 {
-                        p_target: etp_shared::stats::Z95 * e.p_target,
-                        p_collision: etp_shared::stats::Z95 * e.p_collision,
-                        energy_mean: etp_shared::stats::Z95 * e.energy,
-                    }
-                }),
+                crossfit_ci95: r.crossfit.as_ref().map(CrossFit::ci95),
             })
             .collect();
     }

@@ -20,7 +20,7 @@ use super::PredictError;
 use super::rebuild::{OnPolicy, Replica, predict, rebuild_one};
 use crate::abstraction::AbstractionParams;
 use crate::certify::intervals::interval_mdp;
-use crate::certify::robust::{Certified, certify};
+use crate::certify::robust::Certified;
 use crate::certify::select::certified_strategy;
 use crate::mdp::{CostModel, Mdp};
 use crate::pareto::optimal::{LpRequest, optimal_strategy};
@@ -248,6 +248,27 @@ fn select(
     }
 }
 
+/// A feasible request of the kind of `asked` to bisect from: no P_tar bound
+/// (its P_coll bound kept), or the MDP's least energy (a hair above).
+fn loosest(mdp: &Mdp, cost: CostModel, asked: Asked) -> Asked {
+    match asked {
+        Asked::MinTarget { max_collision, .. } => Asked::MinTarget {
+            min_target: 0.0,
+            max_collision,
+        },
+        Asked::MaxEnergy { max_energy } => {
+            let least = LpRequest::MinEnergy {
+                min_target: 0.0,
+                max_collision: None,
+            };
+            let e = optimal_strategy(mdp, cost, least).map_or(max_energy, |o| o.predicted.energy);
+            Asked::MaxEnergy {
+                max_energy: e * (1.0 + 1e-9) + 1e-12,
+            }
+        }
+    }
+}
+
 /// How far a prediction is from missing the request: ≥ 0 meets it (each
 /// bound within `TOLERANCE` of the half-width `h`); the least of its bounds'
 /// slacks (energy relative to the request).
@@ -346,19 +367,26 @@ pub fn meet_request(
     };
     let mut asked = Asked::of(goal);
     let mut rounds: Vec<Round> = Vec::new();
-    // The closest round so far: its index, candidate, first rebuild(s).
-    let mut best: Option<(usize, f64, Candidate, Strategy, Vec<Replica>, Certified)> = None;
+    // The closest round so far: its index, slack, candidate, rebuild(s).
+    let mut best: Option<(usize, f64, Candidate, Strategy, Vec<Replica>)> = None;
     let mut verdict = Verdict::RoundsSpent;
     for _ in 0..settings.max_rounds.max(1) {
         let candidate = match select(mdp, cost, asked, selection_im.as_ref())? {
             Ok(c) => c,
             Err(infeasible) => {
-                // The moved request is infeasible: ask for the most the MDP
-                // offers between the last feasible request and it.
-                let Some(last) = rounds.last().map(|r| r.asked) else {
-                    // The user's own request is infeasible on the MDP.
-                    return Err(infeasible);
+                // The request is infeasible on the MDP: ask for the most it
+                // offers between the last feasible request and it — or, for
+                // the user's own request, from the loosest one. (The MDP may
+                // be pessimistic for the strategy at its edge: its rebuild
+                // judges.)
+                let first_round = rounds.is_empty();
+                let last = match rounds.last() {
+                    Some(r) => r.asked,
+                    None => loosest(mdp, cost, asked),
                 };
+                if first_round && select(mdp, cost, last, selection_im.as_ref())?.is_err() {
+                    return Err(infeasible);
+                }
                 let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
                 let mut found = None;
                 for _ in 0..EDGE_STEPS {
@@ -373,7 +401,7 @@ pub fn meet_request(
                 }
                 let edge = last.towards(asked, lo);
                 match found {
-                    Some(c) if edge.distance(last) > 1e-6 => {
+                    Some(c) if first_round || edge.distance(last) > 1e-6 => {
                         asked = edge;
                         c
                     }
@@ -387,12 +415,12 @@ pub fn meet_request(
         let strategy = make(&candidate.omega, candidate.selection_time);
         plan(1);
         let first = rebuild_one(scenario, params, &strategy, 0, cost, progress)?;
-        let cert = certify(
-            &first.mdp,
-            &interval_mdp(&first.mdp, level, cost)?,
-            &first.omega,
-        );
-        let cert_for_goal = settings.certified.map(|_| cert);
+        // Certified selection judges a round by the bounds of its first
+        // rebuild; otherwise only the kept strategy is certified, at the end.
+        let cert_for_goal = match settings.certified {
+            Some(l) => Some(first.certify(l, cost)?),
+            None => None,
+        };
         // One rebuild's ±: the held-out half-width widened by √1.5 (the
         // variance it misses, docs/MODEL.md §7.3).
         let one = first.prediction();
@@ -439,7 +467,7 @@ pub fn meet_request(
         });
         let next = moved(goal, asked, &q, &h, cert_for_goal.as_ref());
         if best.as_ref().is_none_or(|b| s > b.1 || meets) {
-            best = Some((rounds.len() - 1, s, candidate, strategy, replicas, cert));
+            best = Some((rounds.len() - 1, s, candidate, strategy, replicas));
         }
         if meets {
             verdict = Verdict::Met;
@@ -452,7 +480,7 @@ pub fn meet_request(
         }
         asked = next;
     }
-    let Some((kept, _, candidate, mut strategy, replicas, certified)) = best else {
+    let Some((kept, _, candidate, strategy, replicas)) = best else {
         return Err(PredictError::Inconsistent(
             "the request loop ended without a round (a bug)".into(),
         ));
@@ -468,7 +496,7 @@ pub fn meet_request(
         replicas,
         progress,
     )?;
-    strategy.leg_energy = Some(on_policy.leg_energy.clone());
+    let certified = on_policy.certify_first(level, cost)?;
     Ok(Outcome {
         omega: candidate.omega,
         selection_time: candidate.selection_time,

@@ -184,7 +184,7 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
     let (sensor_energy_per_episode, prediction_from) = match strategy.sensor_energy(&scenario) {
         Some(e) if a.strategy.is_some() && !robustness => (
             e,
-            "the MDP: the strategy's expected energy per leg (strategy.json `leg_energy`, occupation measure × segment energy), summed over each sensor's legs".to_string(),
+            "the MDP: the strategy's expected energy per leg (strategy.json `leg_energy`: occupation measure × segment energy on its rebuilds, scaled to sum to `predicted`), summed over each sensor's legs".to_string(),
         ),
         _ => {
             let sim =

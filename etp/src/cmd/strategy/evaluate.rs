@@ -12,8 +12,6 @@ use crate::output::{refuse_existing, write_new};
 use crate::progress;
 use anyhow::{Context, Result, bail};
 use etp_synthesis::abstraction;
-use etp_synthesis::certify::intervals::interval_mdp;
-use etp_synthesis::certify::robust::certify;
 use etp_synthesis::predict::rebuild::predict;
 use serde_json::json;
 use std::time::Instant;
@@ -62,12 +60,8 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
         &|k| pb.inc(k),
     )?;
     pb.finish_and_clear();
+    let certified = on_policy.certify_first(a.confidence, cost)?;
     let first = on_policy.first();
-    let certified = certify(
-        &first.mdp,
-        &interval_mdp(&first.mdp, a.confidence, cost)?,
-        &first.omega,
-    );
     on_policy.stand_by(&mut strategy, &certified, a.confidence);
     if let Some(d) = strategy.diagnostics.as_mut() {
         d.rounds.clear();

@@ -26,6 +26,9 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
     let cost = syn.cost();
     let mdp = &syn.mdp;
     let level = a.confidence.unwrap_or(certified::DEFAULT_LEVEL);
+    // The whole-MDP LP's objective, where the request is one (a cross-check
+    // of the realised ω's exact value).
+    let mut lp_objective = None;
     let (omega, value) = match (request, a.confidence) {
         (
             Request::Goal(Goal::MinTarget {
@@ -51,6 +54,7 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
                 Goal::MaxEnergy { max_energy } => LpRequest::MaxTarget { max_energy },
             };
             let o = optimal_strategy(mdp, cost, r).context("solving the occupation LP")?;
+            lp_objective = Some(o.lp_objective);
             (o.policy, o.predicted)
         }
         (Request::Vertex(k), _) => {
@@ -83,6 +87,7 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
         if let Some(serde_json::Value::Object(d)) = m.get_mut("diagnostics") {
             d.insert("front_epsilon".into(), json!(syn.front.epsilon));
             d.insert("crossfit_unmatched_mass".into(), json!(unmatched));
+            d.insert("lp_objective".into(), json!(lp_objective));
         }
         println!(
             "{}",

@@ -10,8 +10,6 @@ use anyhow::{Context, Result, bail};
 use etp_shared::scenario::Scenario;
 use etp_shared::strategy::Strategy;
 use etp_synthesis::abstraction;
-use etp_synthesis::certify::intervals::interval_mdp;
-use etp_synthesis::certify::robust::certify;
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::ParetoFront;
 use etp_synthesis::pareto::policy::{Objectives, RandomisedPolicy, as_randomised, evaluate};
@@ -113,14 +111,7 @@ pub fn selection_diagnostics(
     let a = certified::assess(mdp, omega, cost, level)?;
     let d = strategy.diagnostics.get_or_insert_with(Default::default);
     d.selection.crossfit = a.crossfit.as_ref().map(|c| c.objectives.prediction());
-    d.selection.crossfit_ci95 = a.crossfit.as_ref().map(|c| {
-        let e = &c.standard_error;
-        etp_shared::strategy::PredictionCi95 {
-            p_target: etp_shared::stats::Z95 * e.p_target,
-            p_collision: etp_shared::stats::Z95 * e.p_collision,
-            energy_mean: etp_shared::stats::Z95 * e.energy,
-        }
-    });
+    d.selection.crossfit_ci95 = a.crossfit.as_ref().map(|c| c.ci95());
     d.selection.certified = Some(a.certified);
     Ok(a.crossfit.map(|c| c.unmatched_mass))
 }
@@ -182,12 +173,7 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
                 Vec::new(),
                 &|k| pb.inc(k),
             )?;
-            let first = on_policy.first();
-            let certified = certify(
-                &first.mdp,
-                &interval_mdp(&first.mdp, level, cost)?,
-                &first.omega,
-            );
+            let certified = on_policy.certify_first(level, cost)?;
             Outcome {
                 omega,
                 selection_time: value,
@@ -218,7 +204,7 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
             predictions::aggregation_check(&strategy, a.prediction.aggregation_check, a.out.json)?;
     }
     write_new(&syn.output, strategy.to_json().as_bytes(), a.out.force)?;
-    let explanation = explanation(&syn, mdp, request, &outcome);
+    let explanation = explanation(&syn, request);
     let report = Report {
         syn: &syn,
         strategy: &strategy,
@@ -290,7 +276,7 @@ struct Explanation {
     mixture: Option<etp_synthesis::pareto::select::Selection>,
 }
 
-fn explanation(syn: &Synthesis, _mdp: &Mdp, request: Request, _o: &Outcome) -> Explanation {
+fn explanation(syn: &Synthesis, request: Request) -> Explanation {
     let r = match request {
         Request::Goal(Goal::MinTarget {
             min_target,
