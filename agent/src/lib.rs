@@ -10,7 +10,7 @@
 //!   ports, unit-tested): the true state (plant noise from `streams::AGENT`),
 //!   each step through `etp_shared::episode::AgentCore` (input, move,
 //!   collision, prior, slot update, leg end — the one step the in-process
-//!   simulation, `replay --verify` and the sensor's replica run), the
+//!   simulation, `replay verify` and the sensor's replica run), the
 //!   replica's prior digest check, dead slots, the counts and the outcome.
 //! * [`runtime::Agent`] — the adapter: at each decision point it publishes
 //!   `waypoint`, waits for the coordinator's `threshold`, hands its belief

@@ -1,6 +1,6 @@
 //! The agent's episodes over IPC: the thin adapter around
 //! [`crate::core::EpisodeCore`] (whose step is the in-process simulation's,
-//! `replay --verify`'s and the sensor replica's `AgentCore`), with the slot
+//! `replay verify`'s and the sensor replica's `AgentCore`), with the slot
 //! served by a sensor process and the threshold chosen by the coordinator.
 //! Here are only ports and waits; every decision is the core's.
 //!

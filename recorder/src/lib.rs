@@ -242,10 +242,10 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
     }))
 }
 
-/// The metadata that `etp replay --publish` left for this run (if any): a
+/// The metadata that `etp replay publish` left for this run (if any): a
 /// recorder started by hand without `--meta` on a replay's run id makes a
 /// copy that carries the original's scenario, strategy and run record, so it
-/// passes `etp replay --verify`.
+/// passes `etp replay verify`.
 fn write_handed_over_metadata<W: std::io::Write + std::io::Seek>(
     w: &mut mcap::Writer<W>,
     run: &RunId,

@@ -1,4 +1,4 @@
-//! `etp replay FILE --plot`: the recording's measured per-sensor energy per
+//! `etp replay plot FILE`: the recording's measured per-sensor energy per
 //! episode (from the sensors' ledgers) and outcomes, with 95 % intervals,
 //! beside the recorded prediction (`etp.prediction`, `etp.strategy`).
 

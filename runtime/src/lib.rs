@@ -28,7 +28,7 @@
 //!   file names and the checks made before Zenoh reads it.
 //! * [`recording`] — the versioned MCAP recording: a sans-io reader
 //!   ([`recording::read_lenient`]), integrity checks (CRCs, scenario hash) and the
-//!   bit-for-bit re-simulation behind `replay --verify` ([`recording::verify`]),
+//!   bit-for-bit re-simulation behind `replay verify` ([`recording::verify`]),
 //!   which runs the same episode stepper as simulation and the agent.
 
 pub mod cleanup;

@@ -23,7 +23,7 @@
 //!
 //! The step's order is written once, in [`agent_core::AgentCore`] (over the
 //! pieces of [`step`]): the leg loop here drives it, as do the agent
-//! process, `etp replay --verify` and the sensor's replica.
+//! process, `etp replay verify` and the sensor's replica.
 
 pub mod agent_core;
 pub mod replica;
@@ -99,7 +99,7 @@ impl<const N: usize> SensorFilter<N> {
     /// The posterior after a slot of this sensor: the explicit update with the
     /// transmitted `y` (its first m entries; `y.len() >= m`), else the
     /// implicit update with factor β. The one slot update shared by the
-    /// agent process and `etp replay --verify`, so both compute the same bits.
+    /// agent process and `etp replay verify`, so both compute the same bits.
     pub fn posterior(&self, prior: &Belief<N>, y: Option<&[f64]>, beta: f64) -> Belief<N> {
         on_filter!(self, f => {
             let inn = f.innovation(prior);

@@ -12,7 +12,7 @@ fn fixture() -> PathBuf {
 #[test]
 fn the_fixture_summarises_and_verifies() {
     let f = fixture();
-    let v = ok_json(&["replay", s(&f), "--json", "--verify"]);
+    let v = ok_json(&["replay", "verify", s(&f), "--json"]);
     assert_eq!(v["finished"].as_bool(), Some(true));
     assert_eq!(v["episodes"].as_u64(), Some(4));
     assert_eq!(v["scenario"].as_str(), Some("open-2d"));
@@ -46,9 +46,9 @@ fn a_truncated_recording_is_summarised_with_exit_code_3() {
         "{err}"
     );
 
-    // --repair writes a finished copy holding every complete record.
+    // `repair` writes a finished copy holding every complete record.
     let fixed = dir.path("fixed.mcap");
-    let r = ok_json(&["replay", s(&cut), "--repair", s(&fixed), "--json"]);
+    let r = ok_json(&["replay", "repair", s(&cut), s(&fixed), "--json"]);
     let again = ok_json(&["replay", s(&fixed), "--json"]);
     assert_eq!(again["finished"].as_bool(), Some(true));
     assert_eq!(again["counts"], r["counts"]);
@@ -186,8 +186,8 @@ fn every_cut_of_a_recording_is_unfinished_and_repairs_to_a_verifying_copy() {
         ),
     ] {
         let fixed = dir.path(&format!("fixed-{name}.mcap"));
-        let r = ok_json(&["replay", s(&src), "--repair", s(&fixed), "--json"]);
-        let v = ok_json(&["replay", s(&fixed), "--json", "--verify"]);
+        let r = ok_json(&["replay", "repair", s(&src), s(&fixed), "--json"]);
+        let v = ok_json(&["replay", "verify", s(&fixed), "--json"]);
         assert_eq!(v["finished"].as_bool(), Some(true), "{name}");
         assert_eq!(v["counts"], r["counts"], "{name}");
         assert_eq!(
@@ -278,9 +278,9 @@ fn edited_metadata_is_refused() {
             err.contains("damaged") && err.contains(needle),
             "{name}: {err}"
         );
-        // --repair still copies the records (with a warning).
+        // `repair` still copies the records (with a warning).
         let fixed = dir.path(&format!("{name}-fixed.mcap"));
-        let out = etp(&["replay", s(&cut), "--repair", s(&fixed), "--json"]);
+        let out = etp(&["replay", "repair", s(&cut), s(&fixed), "--json"]);
         assert!(out.status.success(), "{out:?}");
         assert!(String::from_utf8_lossy(&out.stderr).contains(needle));
     }
@@ -303,7 +303,7 @@ fn a_corrupted_recording_is_refused_unless_salvaged() {
         std::fs::write(&f, &bad).expect("write");
         fails_with(&["replay", s(&f)], &["is damaged", "replay repair"]);
         let salvaged = dir.path(&format!("salvaged-{at}.mcap"));
-        ok_json(&["replay", s(&f), "--repair", s(&salvaged), "--json"]);
+        ok_json(&["replay", "repair", s(&f), s(&salvaged), "--json"]);
         let v = ok_json(&["replay", s(&salvaged), "--json"]);
         assert_eq!(v["finished"].as_bool(), Some(true));
     }
@@ -323,7 +323,7 @@ fn replay_never_overwrites_without_force() {
     let taken = dir.path("taken.mcap");
     std::fs::write(&taken, b"precious").expect("write");
     fails_with(
-        &["replay", s(&f), "--repair", s(&taken)],
+        &["replay", "repair", s(&f), s(&taken)],
         &["already exists", "--force"],
     );
     assert_eq!(std::fs::read(&taken).expect("read"), b"precious");
@@ -345,14 +345,14 @@ fn replay_never_overwrites_without_force() {
     let copy = dir.path("copy.mcap");
     std::fs::copy(&f, &copy).expect("copy");
     fails_with(
-        &["replay", s(&copy), "--repair", s(&copy), "--force"],
+        &["replay", "repair", s(&copy), s(&copy), "--force"],
         &["being read"],
     );
     assert_eq!(
         std::fs::read(&copy).expect("read"),
         std::fs::read(&f).expect("read")
     );
-    ok_json(&["replay", s(&f), "--repair", s(&taken), "--force", "--json"]);
+    ok_json(&["replay", "repair", s(&f), s(&taken), "--force", "--json"]);
     assert_ne!(std::fs::read(&taken).expect("read"), b"precious");
 }
 
@@ -360,16 +360,16 @@ fn replay_never_overwrites_without_force() {
 fn publish_options_are_checked() {
     let f = fixture();
     fails_with(
-        &["replay", s(&f), "--publish", "--rate", "0"],
+        &["replay", "publish", s(&f), "--rate", "0"],
         &["rate must be > 0"],
     );
     fails_with(
-        &["replay", s(&f), "--publish", "--rate", "fast"],
+        &["replay", "publish", s(&f), "--rate", "fast"],
         &["not a number"],
     );
-    fails_with(&["replay", s(&f), "--rate", "2"], &["--publish"]);
+    fails_with(&["replay", s(&f), "--rate", "2"], &["--rate"]);
     fails_with(
-        &["replay", s(&f), "--publish", "--run-id", "Bad_Id"],
+        &["replay", "publish", s(&f), "--run-id", "Bad_Id"],
         &["Bad_Id"],
     );
 }
@@ -423,7 +423,7 @@ fn etp_alone_runs_the_processes_itself() {
     for sensor in v["sensors"].as_array().expect("sensors") {
         assert_eq!(sensor["transmissions"], sensor["received"], "{sensor}");
     }
-    let r = ok_json(&["replay", s(&rec), "--json", "--verify"]);
+    let r = ok_json(&["replay", "verify", s(&rec), "--json"]);
     assert_eq!(
         r["verify"]["passed"].as_bool(),
         Some(true),

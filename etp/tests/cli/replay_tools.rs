@@ -20,7 +20,7 @@ fn counts(v: &Value) -> BTreeMap<String, u64> {
 #[test]
 fn info_describes_the_fixture() {
     let f = fixture();
-    let v = ok_json(&["replay", s(&f), "--info", "--json"]);
+    let v = ok_json(&["replay", "info", s(&f), "--json"]);
     let all = ok_json(&["replay", s(&f), "--json"]);
     assert_eq!(v["finished"].as_bool(), Some(true));
     assert_eq!(v["messages"], all["messages"]);
@@ -51,7 +51,7 @@ fn info_describes_the_fixture() {
     assert_eq!(Some(per_channel), all["messages"].as_u64());
     assert!(v["schemas"]["etp::Measurement"].is_string(), "{v}");
     assert!(v["metadata"]["etp.scenario"].is_array(), "{v}");
-    let out = etp(&["replay", s(&f), "--info"]);
+    let out = etp(&["replay", "info", s(&f)]);
     let text = String::from_utf8_lossy(&out.stdout);
     for needle in [
         "duration:",
@@ -89,7 +89,7 @@ fn topics_episodes_and_time_select_messages() {
     let two = ok_json(&["replay", s(&f), "--episodes", "1..3", "--json"]);
     assert_eq!(two["episodes"].as_u64(), Some(2));
     assert!(two["messages"].as_u64() < all["messages"].as_u64());
-    let cat = etp(&["replay", s(&f), "--episodes", "1..=2", "--cat"]);
+    let cat = etp(&["replay", "cat", s(&f), "--episodes", "1..=2"]);
     assert!(cat.status.success());
     for line in String::from_utf8_lossy(&cat.stdout).lines() {
         let v: Value = serde_json::from_str(line).expect("JSON line");
@@ -97,7 +97,7 @@ fn topics_episodes_and_time_select_messages() {
         assert!((1..=2).contains(&e), "{line}");
     }
     // Time: the whole span selects everything, its second half less.
-    let info = ok_json(&["replay", s(&f), "--info", "--json"]);
+    let info = ok_json(&["replay", "info", s(&f), "--json"]);
     let d = info["duration_s"].as_f64().expect("duration");
     let whole = ok_json(&[
         "replay",
@@ -111,10 +111,10 @@ fn topics_episodes_and_time_select_messages() {
     assert_eq!(whole["messages"], all["messages"]);
     let half = ok_json(&[
         "replay",
+        "info",
         s(&f),
         "--start",
         &format!("{}", d / 2.0),
-        "--info",
         "--json",
     ]);
     let n = half["messages"].as_u64().expect("messages");
@@ -128,9 +128,10 @@ fn topics_episodes_and_time_select_messages() {
         &["`outcomes`", "matches no channel"],
     );
     fails_with(&["replay", s(&f), "--episodes", "3..1"], &["empty"]);
+    // `verify` re-runs whole recordings: it takes no selection.
     fails_with(
-        &["replay", s(&f), "--episodes", "1..2", "--verify"],
-        &["--verify"],
+        &["replay", "verify", s(&f), "--episodes", "1..2"],
+        &["--episodes"],
     );
 }
 
@@ -138,7 +139,7 @@ fn topics_episodes_and_time_select_messages() {
 fn cat_prints_every_message_decoded_with_names() {
     let f = fixture();
     let all = ok_json(&["replay", s(&f), "--json"]);
-    let out = etp(&["replay", s(&f), "--cat"]);
+    let out = etp(&["replay", "cat", s(&f)]);
     assert!(
         out.status.success(),
         "{}",
@@ -268,9 +269,10 @@ fn export_tables_read_by_python_match_the_run_report() {
         "--json",
     ]);
     let out = dir.path("csv");
-    let v = ok_json(&["replay", s(&rec), "--export", s(&out), "--json"]);
+    let v = ok_json(&["replay", s(&rec), "--json"]);
+    let e = ok_json(&["replay", "export", s(&rec), s(&out), "--json"]);
     assert_eq!(
-        v["exported"]["tables"].as_u64(),
+        e["exported"]["tables"].as_u64(),
         Some(counts(&v).len() as u64)
     );
     assert!(out.join("outcome.csv").is_file() && out.join("sensor-0-truth.csv").is_file());
@@ -281,15 +283,15 @@ fn export_tables_read_by_python_match_the_run_report() {
     );
     // Nothing is overwritten without --force.
     fails_with(
-        &["replay", s(&rec), "--export", s(&out)],
+        &["replay", "export", s(&rec), s(&out)],
         &["already exists", "--force"],
     );
-    ok_json(&["replay", s(&rec), "--export", s(&out), "--force", "--json"]);
+    ok_json(&["replay", "export", s(&rec), s(&out), "--force", "--json"]);
     let jl = dir.path("jsonl");
     ok_json(&[
         "replay",
+        "export",
         s(&rec),
-        "--export",
         s(&jl),
         "--format",
         "jsonl",
@@ -328,10 +330,10 @@ fn publish_loop_repeats_the_traffic() {
     let run_id = format!("t{}-loop", std::process::id());
     let v = ok_json(&[
         "replay",
+        "publish",
         s(&f),
         "--topics",
         "outcome,ledger",
-        "--publish",
         "--rate",
         "inf",
         "--loop",
@@ -344,7 +346,9 @@ fn publish_loop_repeats_the_traffic() {
     assert!(n > 0);
     assert_eq!(v["published"]["messages"].as_u64(), Some(3 * n), "{v}");
     assert_eq!(v["published"]["loops"].as_u64(), Some(3));
-    fails_with(&["replay", s(&f), "--loop", "2"], &["--publish"]);
+    // The old flags are gone: one tool per subcommand.
+    fails_with(&["replay", s(&f), "--loop", "2"], &["--loop"]);
+    fails_with(&["replay", s(&f), "--publish"], &["--publish"]);
 }
 
 #[test]
@@ -352,7 +356,7 @@ fn replay_plot_draws_measured_against_predicted() {
     let dir = Scratch::new("replay-plot");
     let f = dir.path("run.mcap");
     std::fs::copy(fixture(), &f).expect("copy fixture");
-    let v = ok_json(&["replay", s(&f), "--plot", "--json"]);
+    let v = ok_json(&["replay", "plot", s(&f), "--json"]);
     let png = dir.path("run-replay.png");
     assert_eq!(v["plot"].as_str(), Some(s(&png)));
     assert!(std::fs::metadata(&png).expect("png").len() > 10_000);
@@ -369,7 +373,7 @@ fn replay_plot_draws_measured_against_predicted() {
     }
     let before = std::fs::read(&png).expect("png");
     fails_with(
-        &["replay", s(&f), "--plot"],
+        &["replay", "plot", s(&f)],
         &["run-replay", "already exists", "--force"],
     );
     assert_eq!(std::fs::read(&png).expect("png"), before);
@@ -408,7 +412,7 @@ print(json.dumps({"sizes": sizes, "first": first}))
     // Every kind of the catalogue has a schema in the fixture (the lossy
     // radio's `ack` included).
     assert_eq!(py["sizes"].as_object().map(|m| m.len()), Some(11), "{py}");
-    let cat = etp(&["replay", s(&f), "--topics", "measurement", "--cat"]);
+    let cat = etp(&["replay", "cat", s(&f), "--topics", "measurement"]);
     let line: Value = serde_json::from_str(
         String::from_utf8_lossy(&cat.stdout)
             .lines()

@@ -28,11 +28,11 @@ fn a_run_file_runs_flags_win_and_the_recording_keeps_it() {
     let tables = dir.path("t");
     ok_json(&[
         "replay",
+        "export",
         s(&rec),
+        s(&tables),
         "--topics",
         "outcome",
-        "--export",
-        s(&tables),
         "--json",
     ]);
     let manifest: serde_json::Value =

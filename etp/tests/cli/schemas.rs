@@ -63,7 +63,7 @@ fn every_command_json_matches_its_schema_and_the_vocabulary() {
         "--json",
     ]);
     let replay = ok_json(&["replay", s(&rec), "--json"]);
-    let info = ok_json(&["replay", s(&rec), "--info", "--json"]);
+    let info = ok_json(&["replay", "info", s(&rec), "--json"]);
     let sim = ok_json(&[
         "simulate",
         "open-2d",
@@ -79,11 +79,11 @@ fn every_command_json_matches_its_schema_and_the_vocabulary() {
     let tables = dir.path("tables");
     ok_json(&[
         "replay",
+        "export",
         s(&rec),
+        s(&tables),
         "--topics",
         "outcome",
-        "--export",
-        s(&tables),
         "--json",
     ]);
     let manifest: Value = serde_json::from_str(

@@ -58,7 +58,7 @@ pub const META_PREDICTION: &str = "etp.prediction";
 /// flags of the run written as one).
 pub const META_CONFIG: &str = "etp.config";
 
-/// Where `etp replay --publish` leaves the metadata of the recording it
+/// Where `etp replay publish` leaves the metadata of the recording it
 /// publishes, for a recorder of that run started without `--meta` (it
 /// writes them when it finishes): a file in the run's iceoryx2 folder, which
 /// lives as long as one of the run's processes does.

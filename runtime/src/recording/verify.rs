@@ -1,4 +1,4 @@
-//! `etp replay --verify`: re-run the agent's estimator on a recording and
+//! `etp replay verify`: re-run the agent's estimator on a recording and
 //! check that it reproduces every recorded belief bit for bit.
 //!
 //! The estimator's inputs are all in the file: the scenario (metadata), the

@@ -167,7 +167,7 @@ pub struct Row {
     /// The recorder subscribes to it.
     pub recorded: bool,
     pub forward: Forward,
-    /// Fields whose numbers stand for names (`replay --export`, `cat`).
+    /// Fields whose numbers stand for names (`replay export`, `cat`).
     pub named: &'static [(&'static str, Named)],
     /// What the numeric codes of its fields mean (schema text).
     pub codes: &'static str,

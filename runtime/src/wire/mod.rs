@@ -87,7 +87,7 @@ pub fn belief_to_wire<const N: usize>(b: &Belief<N>) -> (WireVec, WireMat) {
 /// `seed` (docs/MODEL.md §8.5): the link's own stream of the episode,
 /// `link_rng(seed, streams::AGENT, episode, sensor)` — the channel the
 /// in-process simulation gives an episode of stream `AGENT`. The sensor
-/// draws its attempts from it; `replay --verify` draws them again.
+/// draws its attempts from it; `replay verify` draws them again.
 pub fn link_channel(
     radio: &etp_shared::radio::Radio,
     seed: u64,

@@ -31,7 +31,7 @@ impl ServiceId {
     }
 
     /// The wake-up event its reader is notified on after a publication
-    /// (itself for an event). `replay --publish` notifies the same events as
+    /// (itself for an event). `replay publish` notifies the same events as
     /// the live processes did, so observers (the recorder) wake alike.
     pub fn reader_wake(self) -> Self {
         let Some(kind) = self.kind() else {

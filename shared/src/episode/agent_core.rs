@@ -22,7 +22,7 @@
 //!   ([`slot_update`], then [`AgentCore::close_with`]);
 //! * the agent process (`agent`): the world is the simulated plant; the
 //!   slot is served by a sensor process over IPC;
-//! * `etp replay --verify`: no true state; the world is the recording (a
+//! * `etp replay verify`: no true state; the world is the recording (a
 //!   collision is where the recorded outcome says), the slot's outcome is
 //!   the recorded one;
 //! * the sensor's replica ([`super::LegReplica`]): no world at all (a slot
@@ -161,7 +161,7 @@ impl<const N: usize> AgentCore<N> {
 
     /// Leg `leg` at threshold δ = `delta` with the waypoint rule, β from the
     /// serving link ([`CompiledScenario::silence_beta`]): the leg as the
-    /// coordinator opens it for the agent process, `replay --verify` and the
+    /// coordinator opens it for the agent process, `replay verify` and the
     /// sensor's replica.
     pub fn for_delta(
         c: &CompiledScenario<N>,

@@ -5,7 +5,7 @@
 //! did not collide), from what it knows: its own transmissions and silent
 //! slots. No per-step downlink is needed, and the replica's priors are the
 //! agent's bit for bit (checked by the agent on every slot through
-//! [`belief_digest`], and by `etp replay --verify`).
+//! [`belief_digest`], and by `etp replay verify`).
 //!
 //! The replica is exact only while every slot of the leg reached the agent as
 //! the sensor closed it; a slot the agent took as dead (a dead link) breaks

@@ -5,7 +5,7 @@
 //!
 //! Only [`super::AgentCore`] puts them in order (the one definition of the
 //! step, driven by the in-process leg loop, the agent process,
-//! `etp replay --verify` and the sensor's replica), so the bit-for-bit
+//! `etp replay verify` and the sensor's replica), so the bit-for-bit
 //! guarantee of `--verify` rests on one piece of code:
 //!
 //! ```text
@@ -74,7 +74,7 @@ impl<const N: usize> CompiledScenario<N> {
     /// at sensor `sensor` with threshold δ: β(δ) on an ideal link (§2), the
     /// radio's on a lossy one (§8: β_q(δ) for the aware estimator, β(δ) for
     /// the naive one). The agent process, the sensor's replica and
-    /// `replay --verify` all take it from here, as the in-process leg loop
+    /// `replay verify` all take it from here, as the in-process leg loop
     /// does (same operations, same bits).
     pub fn silence_beta(&self, sensor: usize, delta: f64) -> f64 {
         if self.radio.link(sensor).is_ideal() {

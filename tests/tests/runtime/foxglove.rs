@@ -1,4 +1,4 @@
-//! `etp replay FILE --foxglove OUT`: the copy read back by the independent
+//! `etp replay foxglove FILE OUT`: the copy read back by the independent
 //! Python `mcap` reader (JSON messages, Foxglove schemas, counts that match
 //! the source recording; Python `jsonschema` on a sample when installed),
 //! and no silent overwrite.
@@ -76,8 +76,8 @@ fn the_foxglove_copy_is_json_with_foxglove_schemas_and_matches_the_recording() {
         serde_json::from_value(v["recording"]["counts"].clone()).expect("recording.counts");
     assert_eq!(counts["outcome"], 20);
     let r = replay(&[
+        "foxglove",
         &file.display().to_string(),
-        "--foxglove",
         &fox.display().to_string(),
     ]);
     let st = &r["foxglove"];
@@ -147,7 +147,7 @@ fn the_foxglove_copy_is_json_with_foxglove_schemas_and_matches_the_recording() {
     let before = b"not yours to overwrite".to_vec();
     std::fs::write(&fox, &before).expect("write");
     let refused = Command::new(bin_dir().join("etp"))
-        .args(["replay", &file.display().to_string(), "--foxglove"])
+        .args(["replay", "foxglove", &file.display().to_string()])
         .arg(&fox)
         .output()
         .expect("etp replay");
@@ -157,8 +157,8 @@ fn the_foxglove_copy_is_json_with_foxglove_schemas_and_matches_the_recording() {
     assert_eq!(std::fs::read(&fox).expect("still there"), before);
     // With --force it is replaced by the copy.
     let forced = replay(&[
+        "foxglove",
         &file.display().to_string(),
-        "--foxglove",
         &fox.display().to_string(),
         "--force",
     ]);

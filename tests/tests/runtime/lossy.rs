@@ -1,7 +1,7 @@
 //! The lossy, acknowledged radio (docs/MODEL.md §8) in the multi-process
 //! runtime: a scenario with a `[radio]`, run by the real processes and
 //! recorded; every count identity per leg and per sensor, the recording's
-//! attempts against the ledgers, and `replay --verify` re-drawing every loss.
+//! attempts against the ledgers, and `replay verify` re-drawing every loss.
 
 use super::recording::{out_file, python_json, replay};
 use super::{DELTA, assert_ledgers_match, serial};
@@ -104,7 +104,7 @@ fn a_lossy_run_counts_attempts_delivered_and_lost_and_replay_redraws_every_loss(
         .sum();
     assert_eq!(acks, delivered, "ACKs recorded");
     // The file alone: four counts per sensor and both identities.
-    let r = replay(&[&file.display().to_string(), "--verify"]);
+    let r = replay(&["verify", &file.display().to_string()]);
     assert_eq!(r["identities_hold"].as_bool(), Some(true), "{r}");
     assert_eq!(r["transmissions"].as_u64(), Some(attempts));
     assert_eq!(r["delivered"].as_u64(), Some(delivered));

@@ -1,4 +1,4 @@
-//! `etp replay --publish`: the traffic back on iceoryx2, re-recorded by a
+//! `etp replay publish`: the traffic back on iceoryx2, re-recorded by a
 //! recorder of the replay's run id (same payloads; the metadata handed over
 //! when the recorder has no `--meta`).
 
@@ -20,7 +20,7 @@ fn channel_payloads(file: &Path) -> BTreeMap<String, Vec<Vec<u8>>> {
     out
 }
 
-/// `etp replay --publish` puts the traffic back on iceoryx2: a recorder on the
+/// `etp replay publish` puts the traffic back on iceoryx2: a recorder on the
 /// replay's run id writes the same payloads, channel by channel, in the same
 /// order (replay(A) == A), and `--rate` slows it to the recorded timing.
 #[test]
@@ -65,8 +65,8 @@ fn publish_replays_every_message_and_a_recorder_gets_the_same_file() {
 
     let rate = 8.0;
     let p = replay(&[
+        "publish",
         &fa.display().to_string(),
-        "--publish",
         "--rate",
         &rate.to_string(),
         "--run-id",
@@ -105,7 +105,7 @@ fn publish_replays_every_message_and_a_recorder_gets_the_same_file() {
         );
     }
     // The re-recorded file is a run of its own: it verifies too.
-    let v = replay(&[&fb.display().to_string(), "--verify"]);
+    let v = replay(&["verify", &fb.display().to_string()]);
     assert_eq!(
         v["verify"]["passed"].as_bool(),
         Some(true),
@@ -118,7 +118,7 @@ fn publish_replays_every_message_and_a_recorder_gets_the_same_file() {
 }
 
 /// A recorder started by hand without `--meta` on the run id of a
-/// `etp replay --publish` gets the recording's metadata from the replay
+/// `etp replay publish` gets the recording's metadata from the replay
 /// (`recording::handover_path`): its copy names the run and scenario and
 /// passes `--verify`, like the original.
 #[test]
@@ -152,8 +152,8 @@ fn a_copy_recorded_from_publish_without_meta_verifies() {
         .expect("recorder output");
     assert_eq!(ready.trim(), "ready");
     let p = replay(&[
+        "publish",
         &fixture.display().to_string(),
-        "--publish",
         "--rate",
         "inf",
         "--run-id",
@@ -164,7 +164,7 @@ fn a_copy_recorded_from_publish_without_meta_verifies() {
     let (ok, _, err) = rec.finish();
     assert!(ok, "recorder: {err}");
     let original = replay(&[&fixture.display().to_string()]);
-    let copy = replay(&[&fb.display().to_string(), "--verify"]);
+    let copy = replay(&["verify", &fb.display().to_string()]);
     assert_eq!(
         copy["verify"]["passed"].as_bool(),
         Some(true),

@@ -215,15 +215,15 @@ fn a_killed_recorder_leaves_a_readable_file_and_repair_finishes_it() {
     );
 
     let r = replay(&[
+        "repair",
         &file.display().to_string(),
-        "--repair",
         &repaired.display().to_string(),
     ]);
     assert_eq!(r["finished"].as_bool(), Some(false));
     let messages = r["messages"].as_u64().expect("messages");
     assert!(messages > 1000, "{r}");
     assert!(r["episodes"].as_u64().expect("episodes") >= 1, "{r}");
-    let rr = replay(&[&repaired.display().to_string(), "--verify"]);
+    let rr = replay(&["verify", &repaired.display().to_string()]);
     assert_eq!(rr["finished"].as_bool(), Some(true));
     // Every complete episode of the cut file still re-runs bit for bit.
     assert_eq!(
@@ -298,7 +298,7 @@ fn two_runs_recording_to_one_path_do_not_both_write() {
     // The loser's recording is whole too, at its partial name.
     let k = read_finished(&kept);
     assert_eq!(k.meta(recording::META_RUN, "run_id"), Some(loser.as_str()));
-    let r = replay(&[&path, "--verify"]);
+    let r = replay(&["verify", &path]);
     assert_eq!(
         r["verify"]["passed"].as_bool(),
         Some(true),
@@ -582,7 +582,7 @@ fn the_same_seed_records_identical_payloads() {
         );
     }
     for f in [&fa, &fb] {
-        let v = replay(&[&f.display().to_string(), "--verify"]);
+        let v = replay(&["verify", &f.display().to_string()]);
         assert_eq!(
             v["verify"]["passed"].as_bool(),
             Some(true),

@@ -493,7 +493,7 @@ fn across_three_hosts(tag: &str, radio: Option<&str>) {
     }
     // The agent host's recording verifies bit for bit (replicas included).
     let out = Command::new(bin_dir().join("etp"))
-        .args(["replay", &rec.display().to_string(), "--verify", "--json"])
+        .args(["replay", "verify", &rec.display().to_string(), "--json"])
         .output()
         .expect("replay");
     assert!(out.status.success(), "{out:?}");

@@ -3,9 +3,8 @@
 //!
 //! `etp replay summary FILE` (also plain `etp replay FILE`), `info`, `cat`,
 //! `export FILE DIR`, `filter FILE OUT`, `verify`, `repair FILE OUT`,
-//! `publish`, `foxglove FILE OUT`, `plot`. The flags of the previous release
-//! (`etp replay FILE --info`, `--cat`, `--export DIR`, …) still work, with a
-//! deprecation note on stderr; they go in the next release.
+//! `publish`, `foxglove FILE OUT`, `plot`: one tool per subcommand, each
+//! parsed into the one [`Job`] that runs it.
 //!
 //! Exit codes (README "Exit codes"): 0 a complete file whose identities
 //! hold; 1 an error, a damaged file (only `repair` reads it) or a failed
@@ -24,19 +23,36 @@ use etp_runtime::wire::RunId;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
+mod job;
+mod output;
+pub use job::Job;
+use output::{emit, is_broken_pipe, render_verify};
+
 #[derive(Debug, clap::Args)]
 #[command(
     args_conflicts_with_subcommands = true,
     subcommand_negates_reqs = true,
-    after_help = "Without a subcommand, `etp replay FILE` prints the summary. The flags \
-                  `--info`, `--cat`, `--export`, `--verify`, `--repair`, `--publish`, \
-                  `--foxglove` and `--plot` of the previous release still work (deprecated)."
+    after_help = "Without a subcommand, `etp replay FILE` prints the summary (as `etp replay \
+                  summary FILE`)."
 )]
 pub struct Args {
     #[command(subcommand)]
     pub action: Option<Action>,
     #[command(flatten)]
-    pub job: Job,
+    pub plain: Plain,
+}
+
+/// `etp replay FILE [--json] [selection]`: the summary.
+#[derive(Debug, clap::Args)]
+pub struct Plain {
+    /// An MCAP recording (`etp run --record`).
+    #[arg(required = true)]
+    pub file: Option<PathBuf>,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub select: SelectArgs,
 }
 
 /// `--topics`, `--episodes`, `--start`, `--end`.
@@ -95,6 +111,9 @@ pub enum Action {
         format: export::Format,
         #[arg(long)]
         force: bool,
+        /// Print what was written (`{"exported": …}`) as one JSON object.
+        #[arg(long)]
+        json: bool,
         #[command(flatten)]
         select: SelectArgs,
     },
@@ -173,248 +192,6 @@ pub enum Action {
     },
 }
 
-impl Action {
-    /// The job of this tool, in the terms of the previous release's flags.
-    fn job(self) -> Job {
-        let sel = |j: Job, s: SelectArgs| Job { select: s, ..j };
-        let on = |file: PathBuf| Job {
-            file: Some(file),
-            ..Job::default()
-        };
-        match self {
-            Action::Summary { file, json, select } => sel(Job { json, ..on(file) }, select),
-            Action::Info { file, json, select } => sel(
-                Job {
-                    json,
-                    info: true,
-                    ..on(file)
-                },
-                select,
-            ),
-            Action::Cat { file, select } => sel(
-                Job {
-                    cat: true,
-                    ..on(file)
-                },
-                select,
-            ),
-            Action::Export {
-                file,
-                dir,
-                format,
-                force,
-                select,
-            } => sel(
-                Job {
-                    export: Some(dir),
-                    format,
-                    force,
-                    only: true,
-                    ..on(file)
-                },
-                select,
-            ),
-            Action::Filter {
-                file,
-                out,
-                force,
-                json,
-                select,
-            } => sel(
-                Job {
-                    filter: Some(out),
-                    force,
-                    json,
-                    only: true,
-                    ..on(file)
-                },
-                select,
-            ),
-            Action::Verify { file, json } => Job {
-                verify: true,
-                json,
-                ..on(file)
-            },
-            Action::Repair {
-                file,
-                out,
-                force,
-                json,
-            } => Job {
-                repair: Some(out),
-                force,
-                json,
-                only: true,
-                ..on(file)
-            },
-            Action::Publish {
-                file,
-                rate,
-                run_id,
-                repeat,
-                json,
-                select,
-            } => sel(
-                Job {
-                    publish: true,
-                    rate,
-                    run_id,
-                    repeat,
-                    json,
-                    ..on(file)
-                },
-                select,
-            ),
-            Action::Foxglove {
-                file,
-                out,
-                clock,
-                episodes,
-                force,
-                json,
-            } => Job {
-                foxglove: Some(out),
-                foxglove_clock: clock,
-                force,
-                json,
-                only: true,
-                select: SelectArgs {
-                    episodes,
-                    ..SelectArgs::default()
-                },
-                ..on(file)
-            },
-            Action::Plot { file, force, json } => Job {
-                plot: true,
-                force,
-                json,
-                only: true,
-                ..on(file)
-            },
-        }
-    }
-}
-
-/// What `etp replay` does to a file: the summary, plus the jobs asked for
-/// (the flags of the previous release, deprecated).
-#[derive(Debug, Default, clap::Args)]
-pub struct Job {
-    /// An MCAP recording (`etp run --record`).
-    #[arg(required = true)]
-    pub file: Option<PathBuf>,
-    /// Print one JSON object.
-    #[arg(long)]
-    pub json: bool,
-    /// Deprecated: `etp replay repair FILE OUT`.
-    #[arg(long, value_name = "OUT", hide = true)]
-    pub repair: Option<PathBuf>,
-    /// Deprecated: `etp replay verify FILE`.
-    #[arg(long, hide = true)]
-    pub verify: bool,
-    /// Deprecated: `etp replay publish FILE`.
-    #[arg(long, hide = true)]
-    pub publish: bool,
-    /// Deprecated: `etp replay publish FILE --rate X`.
-    #[arg(long, default_value = "1", value_parser = publish::parse_rate, requires = "publish", hide = true)]
-    pub rate: f64,
-    /// Deprecated: `etp replay publish FILE --run-id ID`.
-    #[arg(long, requires = "publish", hide = true)]
-    pub run_id: Option<String>,
-    /// Deprecated: `etp replay foxglove FILE OUT`.
-    #[arg(long, value_name = "OUT", hide = true)]
-    pub foxglove: Option<PathBuf>,
-    /// Deprecated: `etp replay foxglove FILE OUT --clock C`.
-    #[arg(
-        long,
-        value_enum,
-        default_value = "step",
-        requires = "foxglove",
-        hide = true
-    )]
-    pub foxglove_clock: foxglove::Clock,
-    /// Deprecated: `etp replay publish FILE --loop [N]`.
-    #[arg(long = "loop", value_name = "N", num_args = 0..=1, default_missing_value = "0", requires = "publish", hide = true)]
-    pub repeat: Option<u64>,
-    /// Deprecated: `etp replay export FILE DIR`.
-    #[arg(long, value_name = "DIR", hide = true)]
-    pub export: Option<PathBuf>,
-    /// Deprecated: `etp replay export FILE DIR --format F`.
-    #[arg(
-        long,
-        value_enum,
-        default_value = "csv",
-        requires = "export",
-        hide = true
-    )]
-    pub format: export::Format,
-    /// Deprecated: `etp replay cat FILE`.
-    #[arg(long, conflicts_with_all = ["json", "info"], hide = true)]
-    pub cat: bool,
-    /// Deprecated: `etp replay info FILE`.
-    #[arg(long, hide = true)]
-    pub info: bool,
-    #[command(flatten)]
-    pub select: SelectArgs,
-    /// Deprecated: `etp replay plot FILE`.
-    #[arg(long, hide = true)]
-    pub plot: bool,
-    /// Overwrite output files that exist.
-    #[arg(long)]
-    pub force: bool,
-    /// `filter OUT` (subcommand only).
-    #[arg(skip)]
-    pub filter: Option<PathBuf>,
-    /// The job alone, without the summary on stdout (a subcommand's).
-    #[arg(skip)]
-    pub only: bool,
-}
-
-impl Job {
-    /// Nothing but the summary is asked for.
-    fn summary_alone(&self) -> bool {
-        !(self.only || self.verify || self.publish || self.cat || self.info || self.plot)
-            && self.repair.is_none()
-            && self.foxglove.is_none()
-            && self.export.is_none()
-            && self.filter.is_none()
-    }
-
-    fn selection(&self) -> select::Selection {
-        select::Selection {
-            topics: self.select.topics.clone(),
-            episodes: self.select.episodes,
-            start: self.select.start,
-            end: self.select.end,
-        }
-    }
-
-    /// The previous release's flags in use, for the deprecation note.
-    fn old_flags(&self) -> Vec<&'static str> {
-        [
-            (
-                self.repair.is_some(),
-                "--repair OUT → `etp replay repair FILE OUT`",
-            ),
-            (self.verify, "--verify → `etp replay verify FILE`"),
-            (self.publish, "--publish → `etp replay publish FILE`"),
-            (
-                self.foxglove.is_some(),
-                "--foxglove OUT → `etp replay foxglove FILE OUT`",
-            ),
-            (
-                self.export.is_some(),
-                "--export DIR → `etp replay export FILE DIR`",
-            ),
-            (self.cat, "--cat → `etp replay cat FILE`"),
-            (self.info, "--info → `etp replay info FILE`"),
-            (self.plot, "--plot → `etp replay plot FILE`"),
-        ]
-        .into_iter()
-        .filter_map(|(on, s)| on.then_some(s))
-        .collect()
-    }
-}
-
 /// Exit code of `etp replay` on an unfinished recording (summary printed).
 pub const EXIT_UNFINISHED: u8 = 3;
 /// Exit code of `etp replay` when a count identity fails on the complete
@@ -424,16 +201,12 @@ pub const EXIT_IDENTITY: u8 = 4;
 pub fn run(a: Args) -> Result<()> {
     let job = match a.action {
         Some(action) => action.job(),
-        None => {
-            let old = a.job.old_flags();
-            if !old.is_empty() {
-                eprintln!(
-                    "note: deprecated flags (they go in the next release): {}",
-                    old.join("; ")
-                );
-            }
-            a.job
+        None => Action::Summary {
+            file: a.plain.file.context("no recording given")?,
+            json: a.plain.json,
+            select: a.plain.select,
         }
+        .job(),
     };
     run_job(job)
 }
@@ -443,30 +216,9 @@ fn run_job(a: Job) -> Result<()> {
     for out in [&a.repair, &a.foxglove, &a.filter].into_iter().flatten() {
         check_output(&file, out, a.force)?;
     }
-    if a.repair.is_some() && a.repair == a.foxglove {
-        bail!("--repair and --foxglove both write the same file");
-    }
+    // `verify`, `repair` and `foxglove` take no selection but episodes
+    // (their parsers have none): they read whole recordings.
     let selection = a.selection();
-    let whole = select::Selection {
-        episodes: None,
-        ..selection.clone()
-    };
-    for (on, flag, sel) in [
-        (a.verify, "verify", &selection),
-        (a.repair.is_some(), "repair", &selection),
-        (a.foxglove.is_some(), "foxglove", &whole),
-    ] {
-        if on && !sel.is_all() {
-            bail!(
-                "{flag} reads the whole recording{}: write a subset with `etp replay filter` first",
-                if flag == "foxglove" {
-                    " (or whole episodes: --episodes)"
-                } else {
-                    ""
-                }
-            );
-        }
-    }
     // `export` alone on a finished file streams it: memory stays flat
     // however long the recording.
     if let Some(dir) = a.export.as_ref().filter(|_| a.only)
@@ -703,70 +455,6 @@ fn unfinished_exit(a: &Job, file: &Path, c: &Contents) -> Result<()> {
             ),
         }
         .into());
-    }
-    Ok(())
-}
-
-fn is_broken_pipe(e: &anyhow::Error) -> bool {
-    e.chain().any(|c| {
-        c.downcast_ref::<std::io::Error>()
-            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
-    })
-}
-
-/// Write `text` to stdout. A closed pipe (`etp replay F | head -1`) ends the
-/// output quietly; another write error is reported, never a panic.
-fn emit(text: &str) -> Result<()> {
-    use std::io::Write;
-    let mut out = std::io::stdout().lock();
-    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
-        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(e).context("writing to stdout"),
-        _ => Ok(()),
-    }
-}
-
-fn render_verify(v: &recording::VerifyReport) -> String {
-    let mut t = String::new();
-    // Writing into a String cannot fail.
-    let _ = write_verify(&mut t, v);
-    t
-}
-
-fn write_verify(out: &mut String, v: &recording::VerifyReport) -> std::fmt::Result {
-    use std::fmt::Write;
-    writeln!(
-        out,
-        "verify: {} · {} decision-point beliefs and {} handovers reproduced bit for bit; \
-         the sensors' replicas triggered on the agent's prior in all {} slots checked",
-        if v.passed() { "PASSED" } else { "FAILED" },
-        v.waypoints_checked,
-        v.handovers_checked,
-        v.priors_checked
-    )?;
-    writeln!(
-        out,
-        "  {} episodes re-run ({} steps: {} measurements, {} silent slots); {} incomplete (end of file), {} degraded skipped",
-        v.episodes_checked,
-        v.steps,
-        v.explicit_updates,
-        v.implicit_updates,
-        v.episodes_incomplete,
-        v.episodes_degraded_skipped
-    )?;
-    writeln!(
-        out,
-        "  radio: {} transmission attempts re-drawn from the links' streams as recorded ({} lost)",
-        v.attempts_redrawn, v.lost_redrawn
-    )?;
-    for m in &v.mismatches {
-        writeln!(
-            out,
-            "  MISMATCH episode {} leg {} step {}: {} (max |diff| {:e})",
-            m.episode, m.leg, m.step, m.what, m.max_abs_diff
-        )?;
-    }
-    if v.mismatch_count > v.mismatches.len() as u64 {
-        writeln!(out, "  … {} mismatches in all", v.mismatch_count)?;
     }
     Ok(())
 }

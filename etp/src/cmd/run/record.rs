@@ -17,7 +17,7 @@
 //!   recording to the same path, typically) is left alone; this run's
 //!   recording stays at its partial name, and the run says so and exits 4;
 //! * an unfinished recording (the recorder died) never replaces an existing
-//!   target (it stays at its partial name, for `etp replay --repair`); with
+//!   target (it stays at its partial name, for `etp replay repair`); with
 //!   no target it is moved into place as before;
 //! * the partial file itself must still be the file the recorder created: a
 //!   partial file removed or replaced during the run is reported (exit 4).
@@ -50,7 +50,7 @@ pub struct Recording {
     /// Messages recorded per channel (empty when the recorder did not finish).
     pub counts: BTreeMap<String, u64>,
     pub bytes: u64,
-    /// False when the recorder died (the file is unfinished: see `etp replay --repair`).
+    /// False when the recorder died (the file is unfinished: see `etp replay repair`).
     pub finished: bool,
     /// The file the recorder created (identity taken once it was ready).
     #[serde(skip)]
@@ -109,7 +109,7 @@ impl Target {
         if partial.symlink_metadata().is_ok() {
             bail!(
                 "{} exists: the recording of an earlier run with id {run_id} that never \
-                 finished (see etp replay --repair); move it away or use another run id",
+                 finished (see etp replay repair); move it away or use another run id",
                 partial.display()
             );
         }
@@ -162,7 +162,7 @@ impl Target {
         if !rec.finished && self.before.is_some() {
             return Err(format!(
                 "the recording did not finish: the existing {target} was kept; the unfinished \
-                 recording is {partial} (see etp replay --repair)"
+                 recording is {partial} (see etp replay repair)"
             ));
         }
         let kept = format!("this run's recording is kept at {partial}");

@@ -333,7 +333,7 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
             if rec.finished {
                 "finished"
             } else {
-                "UNFINISHED: see etp replay --repair"
+                "UNFINISHED: see etp replay repair"
             }
         );
         for (topic, n) in &rec.counts {
