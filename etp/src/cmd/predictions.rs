@@ -345,13 +345,16 @@ pub fn diagnostics_text(s: &Strategy) -> String {
     }
     for (k, r) in d.rounds.iter().enumerate() {
         let asked = match (r.asked_p_target, r.asked_p_collision, r.asked_energy) {
-            (Some(t), Some(c), _) => format!("P_tar ≥ {t:.6}, P_coll ≤ {c:.6}"),
-            (Some(t), None, _) => format!("P_tar ≥ {t:.6}"),
-            (None, _, Some(e)) => format!("energy ≤ {e:.4}"),
+            _ if r.most_transmitting => {
+                "nothing: the policy that transmits most (smallest δ everywhere)".into()
+            }
+            (Some(t), Some(c), _) => format!("the MDP P_tar ≥ {t:.6}, P_coll ≤ {c:.6}"),
+            (Some(t), None, _) => format!("the MDP P_tar ≥ {t:.6}"),
+            (None, _, Some(e)) => format!("the MDP energy ≤ {e:.4}"),
             _ => "—".into(),
         };
         o.push_str(&format!(
-            "    round {k}: asked the MDP {asked} → selection-time P_tar {} → predicted {} ± {} P_coll {} energy {:.3} ({} rebuild{}) {}\n",
+            "    round {k}: asked {asked} → selection-time P_tar {} → predicted {} ± {} P_coll {} energy {:.3} ({} rebuild{}) {}\n",
             prob(r.selection_time.p_target),
             prob(r.predicted.p_target),
             prob(r.predicted_ci95.p_target),

@@ -93,4 +93,9 @@ pub struct RequestRound {
     /// The prediction meets the user's request (short of a bound by at
     /// most a quarter of its 95 % half-width).
     pub meets: bool,
+    /// This round's strategy was not selected for the asked request but is
+    /// the policy that transmits most (the smallest δ at every state), tried
+    /// when the MDP's edge missed a P_tar request (docs/MODEL.md §7.4).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub most_transmitting: bool,
 }

@@ -24,7 +24,7 @@ use crate::certify::robust::Certified;
 use crate::certify::select::certified_strategy;
 use crate::mdp::{CostModel, Mdp};
 use crate::pareto::optimal::{LpRequest, optimal_strategy};
-use crate::pareto::policy::{Objectives, RandomisedPolicy};
+use crate::pareto::policy::{Objectives, RandomisedPolicy, evaluate};
 use crate::pareto::select::SelectError;
 use etp_shared::scenario::Scenario;
 use etp_shared::stats::Z95;
@@ -164,6 +164,9 @@ pub struct Round {
     /// Bounds certified on the first rebuild (certified selection only).
     pub certified: Option<Certified>,
     pub meets: bool,
+    /// Not selected for `asked` but the most transmitting policy, tried
+    /// after the MDP's edge missed a P_tar request ([`most_transmitting`]).
+    pub most_transmitting: bool,
 }
 
 /// How the loop ended.
@@ -246,6 +249,25 @@ fn select(
             }
         }
     }
+}
+
+/// The policy that transmits most: at every state the choice with the
+/// smallest threshold δ.
+fn most_transmitting(mdp: &Mdp) -> RandomisedPolicy {
+    mdp.states
+        .iter()
+        .map(|st| {
+            let delta = |a: u16| mdp.deltas.get(a as usize).copied().unwrap_or(f64::INFINITY);
+            let least = (0..st.choices.len())
+                .min_by(|&i, &j| {
+                    delta(st.choices[i].action).total_cmp(&delta(st.choices[j].action))
+                })
+                .unwrap_or(0);
+            (0..st.choices.len())
+                .map(|i| if i == least { 1.0 } else { 0.0 })
+                .collect()
+        })
+        .collect()
 }
 
 /// A feasible request of the kind of `asked` to bisect from: no P_tar bound
@@ -464,6 +486,7 @@ pub fn meet_request(
             rebuilds,
             certified: cert_for_goal,
             meets,
+            most_transmitting: false,
         });
         let next = moved(goal, asked, &q, &h, cert_for_goal.as_ref());
         if best.as_ref().is_none_or(|b| s > b.1 || meets) {
@@ -479,6 +502,56 @@ pub fn meet_request(
             break;
         }
         asked = next;
+    }
+    // The MDP is pessimistic at its P_tar edge (its pools hold other
+    // strategies' beliefs, docs/MODEL.md §7.4): when the loop could not meet
+    // a P_tar request, the policy that transmits most (the smallest δ at
+    // every state, the full KF where δ = 0 is an action) is predicted on its
+    // own rebuilds too, and kept if it meets the request or comes closer.
+    if verdict != Verdict::Met
+        && matches!(goal, Goal::MinTarget { .. })
+        && let omega = most_transmitting(mdp)
+        && best.as_ref().is_none_or(|b| b.2.omega != omega)
+    {
+        let selection_time = evaluate(mdp, &omega, cost);
+        let strategy = make(&omega, selection_time);
+        plan(settings.replicates);
+        let all = predict(
+            scenario,
+            params,
+            &strategy,
+            settings.replicates,
+            cost,
+            Vec::new(),
+            progress,
+        )?;
+        let cert_for_goal = match (settings.certified, all.replicas.first()) {
+            (Some(l), Some(first)) => Some(first.certify(l, cost)?),
+            _ => None,
+        };
+        let (q, h) = (all.combined.mean, all.combined.ci95);
+        let s = slack(goal, &q, &h, cert_for_goal.as_ref());
+        let meets = s >= 0.0;
+        rounds.push(Round {
+            asked,
+            selection_time,
+            predicted: q,
+            ci95: h,
+            rebuilds: settings.replicates,
+            certified: cert_for_goal,
+            meets,
+            most_transmitting: true,
+        });
+        if best.as_ref().is_none_or(|b| s > b.1 || meets) {
+            let candidate = Candidate {
+                omega,
+                selection_time,
+            };
+            best = Some((rounds.len() - 1, s, candidate, strategy, all.replicas));
+        }
+        if meets {
+            verdict = Verdict::Met;
+        }
     }
     let Some((kept, _, candidate, strategy, replicas)) = best else {
         return Err(PredictError::Inconsistent(
@@ -528,6 +601,7 @@ impl Round {
             predicted_ci95: self.ci95.ci95(),
             rebuilds: self.rebuilds,
             meets: self.meets,
+            most_transmitting: self.most_transmitting,
         }
     }
 }
