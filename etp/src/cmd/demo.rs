@@ -126,7 +126,7 @@ pub fn run(a: Args) -> Result<()> {
     // The default path of `etp strategy`: the request loop, the prediction
     // from the strategy's own rebuilds (docs/MODEL.md §7.4).
     let params = etp_synthesis::abstraction::params_of(&built.mdp);
-    let units = etp_synthesis::abstraction::progress_total(&built.scenario, &params);
+    let units = etp_synthesis::predict::rebuild::progress_units(&built.scenario, &params);
     let pb = progress::bar(0, "rebuilds", a.json);
     let label = format!("least energy with P_tar ≥ {}", a.min_target);
     let make = |omega: &etp_synthesis::pareto::policy::RandomisedPolicy,

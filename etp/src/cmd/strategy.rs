@@ -77,7 +77,8 @@ pub struct Args {
           value_parser = clap::value_parser!(u32).range(1..=20))]
     pub rounds: u32,
     /// Fast exploration: select on DIR's MDP and stop. Its values there
-    /// (selection-time, cross-fitted, certified) are biased — the optimiser's
+    /// (selection-time, certified, and cross-fitted when DIR was synthesized
+    /// with --holdout-samples) are biased — the optimiser's
     /// pick and other strategies' beliefs in the pools — and stored only as
     /// diagnostics: the file has no `predicted` (`etp strategy evaluate`
     /// predicts it later).

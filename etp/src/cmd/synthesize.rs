@@ -73,9 +73,13 @@ pub struct Args {
     /// Simulated segments per (state, action).
     #[arg(long, default_value_t = DEFAULT_SAMPLES)]
     pub samples: u32,
-    /// Held-out segments per (state, action) for cross-fitted predictions
-    /// (stream `HOLDOUT`, independent of the main samples; default: as many as
-    /// --samples; 0 skips them and halves the simulation time).
+    /// Held-out segments per (state, action) on the selection MDP (stream
+    /// `HOLDOUT`, independent of the main samples; default 0). They only add
+    /// cross-fitted diagnostics (`etp strategy --quick`, front.json): the
+    /// prediction `etp strategy` stands by comes from rebuilds, which always
+    /// draw their own (as many as --samples). Each one doubles the
+    /// simulation time; the MDP's states and main transitions are the same
+    /// bits with or without them.
     #[arg(long)]
     pub holdout_samples: Option<u32>,
     /// Seed of the random streams (same seed, same mdp.bin bytes, any thread count).
@@ -237,7 +241,7 @@ pub fn params(a: &Args, s: &Scenario) -> Result<AbstractionParams> {
     Ok(AbstractionParams {
         method: a.method.into(),
         samples: a.samples,
-        holdout_samples: a.holdout_samples.unwrap_or(a.samples),
+        holdout_samples: a.holdout_samples.unwrap_or(0),
         seed: a.seed,
         bins: BinCounts {
             magnitude: a.magnitude_bins,

@@ -18,6 +18,7 @@ mod readme;
 mod replay;
 mod replay_subcommands;
 mod replay_tools;
+mod request_loop;
 mod run_config;
 mod scenario_random;
 mod schemas;

@@ -120,6 +120,24 @@ pub fn policy_on(mdp: &Mdp, strategy: &Strategy) -> RandomisedPolicy {
         .collect()
 }
 
+/// The settings of rebuild `replicate`: the selection MDP's, seed + r, and
+/// always a held-out sample (the selection MDP may have none, and by default
+/// has none): a rebuild's prediction is cross-fitted.
+pub fn rebuild_params(params: &AbstractionParams, replicate: u32) -> AbstractionParams {
+    let mut p = *params;
+    p.seed = params.seed.wrapping_add(u64::from(replicate));
+    if p.holdout_samples == 0 {
+        p.holdout_samples = p.samples;
+    }
+    p
+}
+
+/// Progress units of one rebuild at most (every threshold simulated; a
+/// rebuild simulates only the strategy's own, so it may end short of it).
+pub fn progress_units(scenario: &Scenario, params: &AbstractionParams) -> u64 {
+    abstraction::progress_total(scenario, &rebuild_params(params, 0))
+}
+
 /// Rebuild `replicate` (seed `params.seed + replicate`) on `strategy`'s own
 /// pools and thresholds, and evaluate it there.
 pub fn rebuild_one(
@@ -130,13 +148,7 @@ pub fn rebuild_one(
     cost: CostModel,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Replica, PredictError> {
-    let mut p = *params;
-    p.seed = params.seed.wrapping_add(u64::from(replicate));
-    // A rebuild always draws a held-out sample (the selection MDP may have
-    // none): its prediction is then cross-fitted, like every other's.
-    if p.holdout_samples == 0 {
-        p.holdout_samples = p.samples;
-    }
+    let p = rebuild_params(params, replicate);
     let mdp = abstraction::build_on_policy(scenario, &p, strategy, true, true, progress)
         .map_err(|source| PredictError::Rebuild { replicate, source })?;
     mdp.check()

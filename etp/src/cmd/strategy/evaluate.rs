@@ -41,7 +41,7 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
     refuse_existing(&syn.output, a.out.force)?;
     let cost = syn.cost();
     let params = abstraction::params_of(&syn.mdp);
-    let units = abstraction::progress_total(&syn.scenario, &params);
+    let units = etp_synthesis::predict::rebuild::progress_units(&syn.scenario, &params);
     let pb = progress::bar(
         units * u64::from(a.prediction.replicates),
         "rebuilds",

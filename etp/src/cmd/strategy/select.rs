@@ -135,7 +135,7 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
     };
     let mdp = refined.as_ref().map_or(&syn.mdp, |r| &r.mdp);
     let params = abstraction::params_of(&syn.mdp);
-    let units = abstraction::progress_total(&syn.scenario, &params);
+    let units = etp_synthesis::predict::rebuild::progress_units(&syn.scenario, &params);
     let pb = progress::bar(0, "rebuilds", a.out.json);
     let make =
         |omega: &RandomisedPolicy, value: Objectives| syn.strategy_of(mdp, omega, value, &label);
