@@ -4,10 +4,15 @@
 //! counted, `duplicate-host`), waits (bounded) until every remote sensor
 //! has joined, then carries the remote sensors' services both ways.
 //!
-//! Down, each remote sensor has an outbound thread of its own: a put waits
-//! while a subscribed peer's queue is full, so a peer that stops reading
-//! holds up only the sensor whose keys it subscribed to (and only until
-//! Zenoh closes it, [`crate::session::STALLED_PEER_CLOSE`]).
+//! Down, each remote sensor's messages go only to the host granted it at
+//! join, on keys that name that host ([`crate::session::down_key`]; with
+//! TLS, access control lets no other peer subscribe to them), so a peer
+//! that stops reading holds up nothing it was not granted. Each remote
+//! sensor has an outbound thread of its own: a put waits while the granted
+//! host's queue is full, so a host that stops reading holds up only its own
+//! sensors, and only until Zenoh closes it
+//! ([`crate::session::STALLED_PEER_CLOSE`]); with TLS that host is then
+//! refused for the rest of the run (its sensors are dead links).
 //!
 //! A remote sensor is alive on this host as long as its host's liveliness
 //! token is: the bridge keeps an iceoryx2 *proxy node* named like the sensor
@@ -16,7 +21,7 @@
 //! killed host or a cut link like a dead local sensor, within the link lease.
 
 use crate::admit::{Admission, Admitted};
-use crate::forward::{Counters, Inbound, Incoming, Outbound, Stalls, subscribe};
+use crate::forward::{Counters, Grant, Grants, Inbound, Incoming, Outbound, Stalls, subscribe};
 use crate::session::{
     End, SESSION_KEY, SessionInfo, agent_host_alive_key, config, data_keys, join_keys,
     parse_join_key,
@@ -108,19 +113,22 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let counters = Counters::default();
     let stalls = Stalls::default();
     let stop = Arc::new(AtomicBool::new(false));
+    let grants = Grants::default();
     let outbound: Vec<_> = info
         .remote
         .iter()
         .map(|&i| {
-            Outbound::new(&run, sensors, Direction::Down, &[i]).spawn(
-                format!("etp-bridge-out-{i}"),
-                &session,
-                &counters,
-                &stalls,
-                &stop,
-                || {},
-                |_, _| {},
-            )
+            Outbound::new(&run, sensors, Direction::Down, &[i])
+                .to_grants(&grants, acl.is_some())
+                .spawn(
+                    format!("etp-bridge-out-{i}"),
+                    &session,
+                    &counters,
+                    &stalls,
+                    &stop,
+                    || {},
+                    |_, _| {},
+                )
         })
         .collect();
     let node = wire::create_node(&run, "etp-bridge-in")?;
@@ -180,6 +188,15 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                 inbound.deliver(m, &counters)?;
             }
         }
+        // A host refused for not reading (an outbound thread's verdict): its
+        // sensors are dead links from now on, whether or not its token went.
+        for i in refused_sensors(&grants) {
+            if proxies.remove(&i).is_some() {
+                tracing::warn!(sensor = %name(i), "remote sensor lost: its host was closed for not reading");
+                emit(&serde_json::json!({"event": "lost", "sensor": name(i),
+                    "unix_ns": wire_now_ns()}));
+            }
+        }
         let wait = if hellos.is_empty() { 100 } else { 5 };
         match rx.recv_timeout(Duration::from_millis(wait)) {
             Ok(Incoming::Data { key, bytes }) => {
@@ -199,6 +216,16 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                 if !remote.contains(&i) {
                     continue;
                 }
+                if let Some(Grant::Refused(host)) = grant_of(&grants, i) {
+                    if proxies.remove(&i).is_some() {
+                        tracing::warn!(sensor = %name(i), host, "remote sensor lost: its host was closed for not reading");
+                        emit(&serde_json::json!({"event": "lost", "sensor": name(i),
+                            "unix_ns": wire_now_ns()}));
+                    } else if alive {
+                        tracing::warn!(sensor = %name(i), host, "a host refused for not reading is back: ignored");
+                    }
+                    continue;
+                }
                 if alive && !proxies.contains_key(&i) {
                     proxies.insert(i, wire::create_node(&run, &sensor_node_name(i))?);
                     tracing::info!(sensor = %name(i), "remote sensor alive");
@@ -209,22 +236,41 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                 }
             }
             Ok(Incoming::Claim(q)) => {
-                let host = q
+                let zid = q
                     .payload()
                     .map(|p| String::from_utf8_lossy(&p.to_bytes()).into_owned())
                     .unwrap_or_default();
                 let verdict = match parse_join_key(run.as_str(), q.key_expr().as_str()) {
-                    Some(i) => admission.claim(i, &host).map(|()| i),
-                    None => Err(admission.refuse(crate::admit::Refusal::UnknownKey)),
+                    Some((i, host)) => match grant_of(&grants, i) {
+                        Some(Grant::Refused(_)) => Err(None),
+                        Some(Grant::Host(h)) if h != host => {
+                            Err(Some(admission.refuse(crate::admit::Refusal::DuplicateHost)))
+                        }
+                        _ => admission
+                            .claim(i, &zid)
+                            .map(|()| (i, host.to_string()))
+                            .map_err(Some),
+                    },
+                    None => Err(Some(admission.refuse(crate::admit::Refusal::UnknownKey))),
                 };
                 let key = q.key_expr().clone();
                 let _ = match verdict {
-                    Ok(i) => {
-                        tracing::info!(sensor = %name(i), host, "sensor granted");
+                    Ok((i, host)) => {
+                        tracing::info!(sensor = %name(i), host, zid, "sensor granted");
+                        if let Ok(mut g) = grants.lock() {
+                            g.entry(i).or_insert(Grant::Host(host));
+                        }
                         q.reply(key, "granted").wait()
                     }
-                    Err(r) => {
-                        tracing::warn!(key = %key, host, reason = r.name(), "refused a claim");
+                    Err(None) => {
+                        tracing::warn!(key = %key, zid, "refused a claim: its host was closed for not reading");
+                        q.reply_err(
+                            "this host stopped reading and was closed: it is refused for the rest of the run (stalled)",
+                        )
+                        .wait()
+                    }
+                    Err(Some(r)) => {
+                        tracing::warn!(key = %key, zid, reason = r.name(), "refused a claim");
                         q.reply_err(format!(
                             "{} ({})",
                             match r {
@@ -255,6 +301,22 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     crate::emit_traffic(&counters, &stalls, &info.sensors);
     drop(proxies);
     result.and(out)
+}
+
+fn refused_sensors(grants: &Grants) -> Vec<usize> {
+    grants
+        .lock()
+        .map(|g| {
+            g.iter()
+                .filter(|(_, g)| matches!(g, Grant::Refused(_)))
+                .map(|(&i, _)| i)
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+fn grant_of(grants: &Grants, sensor: usize) -> Option<Grant> {
+    grants.lock().ok()?.get(&sensor).cloned()
 }
 
 fn wire_now_ns() -> u64 {

@@ -43,15 +43,45 @@ fn count(counters: &Counters, s: ServiceId, h: &Header, bytes: usize) {
 /// reading (its Zenoh queue full): counted per sensor as a stall.
 pub const STALL: Duration = Duration::from_millis(250);
 
-/// Puts held up by a stalled peer, per sensor: how many, and the longest.
-#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
+/// A put that took this long waited out Zenoh's wait for a full queue
+/// ([`crate::session::STALLED_PEER_CLOSE`]): Zenoh closed the peer that
+/// stopped reading.
+pub const CLOSED: Duration = crate::session::STALLED_PEER_CLOSE;
+
+/// Puts held up by a stalled peer, per sensor: how many, the longest, the
+/// host the sensor's downlink goes to (on the agent host), and whether that
+/// host was closed for not reading and refused for the rest of the run
+/// (then how many of the sensor's messages were not sent).
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Stall {
     pub puts: u64,
     pub longest_ms: u64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub host: Option<String>,
+    #[serde(default)]
+    pub refused: bool,
+    #[serde(default)]
+    pub dropped: u64,
 }
 
 /// Per-sensor stalls, shared by the outbound threads.
 pub type Stalls = Arc<Mutex<BTreeMap<usize, Stall>>>;
+
+/// Who a remote sensor's downlink goes to (agent host).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Grant {
+    /// The host the sensor was granted to at join (its name: with TLS, its
+    /// certificate's).
+    Host(String),
+    /// That host kept a put waiting until Zenoh closed it: it is refused for
+    /// the rest of the run (the sensor's downlink goes nowhere, its token
+    /// and claims are ignored), so it cannot hold the run up again.
+    Refused(String),
+}
+
+/// Per remote sensor, its [`Grant`] (none until a host claimed it), shared by
+/// the agent host's loop and its outbound threads.
+pub type Grants = Arc<Mutex<BTreeMap<usize, Grant>>>;
 
 /// Refusals logged per reason (all are counted).
 const LOGGED_REFUSALS: u64 = 10;
@@ -71,6 +101,12 @@ pub struct Outbound {
     pub down: bool,
     /// The remote sensors this link carries (up keys name their sender).
     pub remote: Vec<usize>,
+    /// Down: who each sensor's downlink goes to ([`Outbound::to_grants`]).
+    pub grants: Grants,
+    /// Down: the host a stalled put waited for is known (TLS: only the
+    /// granted host may subscribe to its keys), so it is refused after Zenoh
+    /// closed it.
+    pub attributed: bool,
 }
 
 impl Outbound {
@@ -86,6 +122,29 @@ impl Outbound {
             services,
             down: direction == Direction::Down,
             remote: remote.to_vec(),
+            grants: Grants::default(),
+            attributed: false,
+        }
+    }
+
+    /// Down: put each sensor's messages on the keys of the host `grants`
+    /// names for it ([`crate::session::down_key`]); none yet or refused: the
+    /// message goes nowhere. `attributed`: only that host can subscribe to
+    /// its keys (TLS access control), so a put that outlasted Zenoh's wait
+    /// ([`CLOSED`]) was held up by it, and it is refused from then on.
+    pub fn to_grants(mut self, grants: &Grants, attributed: bool) -> Self {
+        self.grants = grants.clone();
+        self.attributed = attributed;
+        self
+    }
+
+    fn grant(&self, sensor: usize) -> Option<Grant> {
+        self.grants.lock().ok()?.get(&sensor).cloned()
+    }
+
+    fn refuse(&self, sensor: usize, host: String) {
+        if let Ok(mut g) = self.grants.lock() {
+            g.insert(sensor, Grant::Refused(host));
         }
     }
 
@@ -142,9 +201,10 @@ impl Outbound {
             sensors: self.sensors,
         };
         let run = self.run.as_str().to_string();
-        // Per service its subscriber and its Zenoh publishers: one down
-        // (the topic names the sensor), one per remote sensor up (the key
-        // names the sender).
+        // Per service its subscriber and its Zenoh publishers: down, one
+        // towards the host granted the service's sensor (declared once it is
+        // granted; the key names the host and the sensor); up, one per
+        // remote sensor (the key names the sender).
         type Publishers = BTreeMap<Option<usize>, zenoh::pubsub::Publisher<'static>>;
         let mut links: Vec<(ServiceId, Box<dyn EncodedSubscriber>, Publishers)> = Vec::new();
         let declare = |key: String| {
@@ -158,15 +218,15 @@ impl Outbound {
         for &s in &self.services {
             let sub = encoded_subscriber(&ports, s, false)?;
             let mut publishers = Publishers::new();
-            if self.down {
-                publishers.insert(None, declare(down_key(&run, s))?);
-            } else {
+            if !self.down {
                 for &i in &self.remote {
                     publishers.insert(Some(i), declare(up_key(&run, i, s))?);
                 }
             }
             links.push((s, sub, publishers));
         }
+        // Down: the host each publisher of a service puts towards.
+        let mut towards: BTreeMap<ServiceId, String> = BTreeMap::new();
         let waiter = Waiter::over(
             self.events
                 .iter()
@@ -176,11 +236,34 @@ impl Outbound {
         on_ready();
         let mut batch = Vec::new();
         loop {
-            for (s, sub, publishers) in &links {
+            for (s, sub, publishers) in &mut links {
+                let s: ServiceId = *s;
                 batch.clear();
                 sub.drain(&mut batch)?;
                 for (h, bytes) in &batch {
-                    let target = (!self.down).then(|| sensor_of(*s, h));
+                    let sensor = sensor_of(s, h);
+                    let target = if self.down {
+                        match self.grant(sensor) {
+                            Some(Grant::Host(host)) => {
+                                if towards.get(&s) != Some(&host) {
+                                    publishers.insert(None, declare(down_key(&run, &host, s))?);
+                                    towards.insert(s, host);
+                                }
+                                None
+                            }
+                            Some(Grant::Refused(_)) => {
+                                publishers.clear();
+                                towards.remove(&s);
+                                note_dropped(stalls, sensor);
+                                continue;
+                            }
+                            // Not granted yet: nobody may read it (as a put
+                            // with no subscriber).
+                            None => continue,
+                        }
+                    } else {
+                        Some(sensor)
+                    };
                     let Some(publisher) = publishers.get(&target) else {
                         // Only the served sensors publish in a sensor
                         // host's own iceoryx2 domain.
@@ -198,10 +281,15 @@ impl Outbound {
                         .map_err(|e| BridgeError::Zenoh(format!("put {s:?}: {e}")))?;
                     let took = started.elapsed();
                     if took >= STALL {
-                        note_stall(stalls, sensor_of(*s, h), took);
+                        let host = towards.get(&s).cloned();
+                        let refuse = self.down && self.attributed && took >= CLOSED;
+                        note_stall(stalls, sensor, took, host.clone(), refuse);
+                        if refuse && let Some(host) = host {
+                            self.refuse(sensor, host);
+                        }
                     }
-                    count(counters, *s, h, bytes.len());
-                    on_put(*s, h);
+                    count(counters, s, h, bytes.len());
+                    on_put(s, h);
                 }
             }
             if stop.load(Ordering::Relaxed) {
@@ -215,16 +303,35 @@ impl Outbound {
     }
 }
 
-fn note_stall(stalls: &Stalls, sensor: usize, took: Duration) {
+fn note_stall(stalls: &Stalls, sensor: usize, took: Duration, host: Option<String>, refused: bool) {
     tracing::warn!(
         sensor,
+        host = host.as_deref().unwrap_or("?"),
         ms = took.as_millis() as u64,
         "a put waited for a peer that stopped reading"
     );
+    if refused {
+        tracing::warn!(
+            sensor,
+            host = host.as_deref().unwrap_or("?"),
+            "closed for not reading: the host is refused for the rest of the run"
+        );
+    }
     if let Ok(mut m) = stalls.lock() {
         let e = m.entry(sensor).or_default();
         e.puts += 1;
         e.longest_ms = e.longest_ms.max(took.as_millis() as u64);
+        e.refused |= refused;
+        if host.is_some() {
+            e.host = host;
+        }
+    }
+}
+
+/// A message of a sensor whose host was refused: not sent, counted.
+fn note_dropped(stalls: &Stalls, sensor: usize) {
+    if let Ok(mut m) = stalls.lock() {
+        m.entry(sensor).or_default().dropped += 1;
     }
 }
 

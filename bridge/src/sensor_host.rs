@@ -12,7 +12,7 @@
 use crate::admit::Admission;
 use crate::forward::{Counters, Inbound, Incoming, Outbound, Stalls, subscribe};
 use crate::session::{
-    SESSION_KEY, SessionInfo, agent_host_alive_key, config, join_key, sensor_alive_key,
+    SESSION_KEY, SessionInfo, agent_host_alive_key, config, down_keys, join_key, sensor_alive_key,
 };
 use crate::{BridgeError, emit};
 use etp_runtime::wire::traffic::Direction;
@@ -75,16 +75,18 @@ fn fetch(
     }
 }
 
-/// Claim each of `served` from the agent host, as this session's Zenoh id,
-/// until it answers or `timeout` passes. A refusal (another host serves the
+/// Claim each of `served` from the agent host, in this host's name `host`
+/// (the key's; with TLS, access control checks it is the certificate's) and
+/// with this session's Zenoh id, until it answers or `timeout` passes. A refusal (another host serves the
 /// sensor, or this one may not) is an error: nothing has started yet.
 fn claim(
     session: &zenoh::Session,
     info: &SessionInfo,
     served: &[usize],
+    host: &str,
     timeout: Duration,
 ) -> Result<(), BridgeError> {
-    let host = session.zid().to_string();
+    let zid = session.zid().to_string();
     let started = Instant::now();
     for &i in served {
         let name = info
@@ -92,11 +94,11 @@ fn claim(
             .get(i)
             .cloned()
             .unwrap_or_else(|| format!("#{i}"));
-        let key = join_key(&info.run_id, i);
+        let key = join_key(&info.run_id, i, host);
         loop {
             let replies = session
                 .get(&key)
-                .payload(host.clone())
+                .payload(zid.clone())
                 .timeout(Duration::from_millis(500))
                 .wait()
                 .map_err(|e| BridgeError::Zenoh(format!("query {key}: {e}")))?;
@@ -169,7 +171,13 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
             })
             .collect::<Result<_, _>>()?
     };
-    claim(&session, &info, &served, a.host.join_wait())?;
+    let host = a
+        .host
+        .link
+        .name
+        .as_deref()
+        .unwrap_or(etp_runtime::link_keys::DEFAULT_SENSOR_HOST);
+    claim(&session, &info, &served, host, a.host.join_wait())?;
     std::fs::create_dir_all(&a.dir)
         .map_err(|e| BridgeError::Input(format!("creating {}: {e}", a.dir.display())))?;
     let scenario = a.dir.join("scenario.toml");
@@ -195,7 +203,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         &session,
         &served
             .iter()
-            .map(|i| format!("etp/{run}/down/sensor/{i}/**"))
+            .map(|&i| down_keys(run.as_str(), host, i))
             .collect::<Vec<_>>(),
         &agent_host_alive_key(run.as_str()),
         tx.clone(),

@@ -12,11 +12,20 @@ use std::time::Duration;
 /// does not know the run id yet).
 pub const SESSION_KEY: &str = "etp/session";
 
-/// Key of a message going down (agent host → sensor host):
-/// `etp/<run>/down/<topic>` (every service going down is per sensor, so its
-/// topic names the sensor).
-pub fn down_key(run: &str, s: ServiceId) -> String {
-    format!("etp/{run}/down/{}", s.topic())
+/// Key of a message going down (agent host → the sensor host `host` that
+/// was granted the message's sensor at join): `etp/<run>/down/<host>/<topic>`
+/// (every service going down is per sensor, so its topic names the sensor).
+/// The host is in the key so that access control lets only that host
+/// subscribe to it: a peer that may not read a sensor's downlink never gets
+/// its traffic, so it cannot hold that traffic up by not reading.
+pub fn down_key(run: &str, host: &str, s: ServiceId) -> String {
+    format!("etp/{run}/down/{host}/{}", s.topic())
+}
+
+/// Every downlink key of sensor `sensor` towards host `host` (what that host
+/// subscribes to, and all that access control lets it subscribe to).
+pub fn down_keys(run: &str, host: &str, sensor: usize) -> String {
+    format!("etp/{run}/down/{host}/sensor/{sensor}/**")
 }
 
 /// Key of a message going up from `sensor`: `etp/<run>/up/<sensor>/<topic>`.
@@ -27,21 +36,27 @@ pub fn up_key(run: &str, sensor: usize, s: ServiceId) -> String {
     format!("etp/{run}/up/{sensor}/{}", s.topic())
 }
 
-/// Key of a sensor host's claim, at join, to serve remote sensor `sensor`
-/// (a query answered by the agent host: granted to the first host only).
-pub fn join_key(run: &str, sensor: usize) -> String {
-    format!("etp/{run}/join/{sensor}")
+/// Key of host `host`'s claim, at join, to serve remote sensor `sensor` (a
+/// query answered by the agent host: granted to the first host only):
+/// `etp/<run>/join/<sensor>/<host>`. With TLS, access control lets a host
+/// query only the join keys with its own name, so the name is the
+/// certificate's.
+pub fn join_key(run: &str, sensor: usize, host: &str) -> String {
+    format!("etp/{run}/join/{sensor}/{host}")
 }
 
 /// Every join key of a run (the agent host's queryable).
 pub fn join_keys(run: &str) -> String {
-    format!("etp/{run}/join/*")
+    format!("etp/{run}/join/*/*")
 }
 
-/// The sensor a join key names (canonical digits only).
-pub fn parse_join_key(run: &str, key: &str) -> Option<usize> {
+/// The sensor and host a join key names (canonical digits, a host name of
+/// `etp certs init`'s alphabet).
+pub fn parse_join_key<'a>(run: &str, key: &'a str) -> Option<(usize, &'a str)> {
     let rest = key.strip_prefix(&format!("etp/{run}/join/"))?;
-    canonical_index(rest)
+    let (sensor, host) = rest.split_once('/')?;
+    link_keys::check_name(host).ok()?;
+    Some((canonical_index(sensor)?, host))
 }
 
 /// A sensor index as a key spells it: digits only, no leading zero, at most
@@ -68,7 +83,11 @@ pub fn parse_data_key(key: &str) -> Option<(Option<usize>, &str)> {
     let (_, rest) = rest.split_once('/')?;
     let (dir, rest) = rest.split_once('/')?;
     match dir {
-        "down" => Some((None, rest)),
+        "down" => {
+            let (host, topic) = rest.split_once('/')?;
+            link_keys::check_name(host).ok()?;
+            Some((None, topic))
+        }
         "up" => {
             let (sensor, topic) = rest.split_once('/')?;
             Some((Some(canonical_index(sensor)?), topic))
@@ -97,22 +116,24 @@ pub fn access_control_of(
                     .filter(|&i| info.sensors.get(i).is_some_and(|n| list.contains(n)))
                     .collect(),
             };
-            (link_keys::common_name(name), served)
+            (name.clone(), served)
         })
         .collect();
     Ok(access_control(&info.run_id, &grants))
 }
 
 /// The agent host's access control (Zenoh's `access_control`, by the
-/// certificate's common name): anything not granted is denied. Every sensor
-/// host may ask for the run (`etp/session`) and follow the agent host's
-/// liveliness; host `h` may, for each sensor `i` of `hosts[h]`, claim it
-/// (query `etp/<run>/join/<i>`), put on `etp/<run>/up/<i>/**`, subscribe to
-/// `etp/<run>/down/sensor/<i>/**` and declare the token
-/// `etp/<run>/alive/sensor/<i>` — nothing of another
-/// sensor, and no wider key expression (a subscription to `etp/**` is
-/// denied). What the agent host itself sends out is allowed (its puts reach
-/// only the subscriptions granted).
+/// certificate's common name `etp <h>` of host `h`): anything not granted is
+/// denied. Every sensor host may ask for the run (`etp/session`) and follow
+/// the agent host's liveliness; host `h` may, for each sensor `i` of
+/// `hosts[h]`, claim it in its own name (query `etp/<run>/join/<i>/<h>`),
+/// put on `etp/<run>/up/<i>/**`, subscribe to `etp/<run>/down/<h>/sensor/<i>/**`
+/// and declare the token `etp/<run>/alive/sensor/<i>` — nothing of another
+/// sensor, no downlink key of another host (the agent host puts a sensor's
+/// downlink only on the keys of the host it granted the sensor to), and no
+/// wider key expression (a subscription to `etp/**` is denied). What the
+/// agent host itself sends out is allowed (its puts reach only the
+/// subscriptions granted).
 pub fn access_control(run: &str, hosts: &[(String, Vec<usize>)]) -> serde_json::Value {
     use serde_json::json;
     let mut rules = vec![
@@ -131,7 +152,8 @@ pub fn access_control(run: &str, hosts: &[(String, Vec<usize>)]) -> serde_json::
     ];
     let mut subjects = Vec::new();
     let mut policies = Vec::new();
-    for (cn, sensors) in hosts {
+    for (name, sensors) in hosts {
+        let cn = link_keys::common_name(name);
         let id = format!("host {cn}");
         let mut host_rules = vec![
             "session".to_string(),
@@ -143,12 +165,12 @@ pub fn access_control(run: &str, hosts: &[(String, Vec<usize>)]) -> serde_json::
             let keys =
                 |f: &dyn Fn(usize) -> String| sensors.iter().map(|&i| f(i)).collect::<Vec<_>>();
             for (what, message, key_exprs) in [
-                ("join", "query", keys(&|i| join_key(run, i))),
+                ("join", "query", keys(&|i| join_key(run, i, name))),
                 ("up", "put", keys(&|i| format!("etp/{run}/up/{i}/**"))),
                 (
                     "down",
                     "declare_subscriber",
-                    keys(&|i| format!("etp/{run}/down/sensor/{i}/**")),
+                    keys(&|i| down_keys(run, name, i)),
                 ),
                 (
                     "alive",
@@ -361,18 +383,29 @@ mod tests {
 
     #[test]
     fn keys_name_the_run_direction_sender_and_topic() {
-        let k = down_key("r1", ServiceId::Truth(3));
-        assert_eq!(k, "etp/r1/down/sensor/3/truth");
+        let k = down_key("r1", "b", ServiceId::Truth(3));
+        assert_eq!(k, "etp/r1/down/b/sensor/3/truth");
         assert_eq!(parse_data_key(&k), Some((None, "sensor/3/truth")));
+        // A down key without a host names no topic of a service.
+        assert_ne!(
+            parse_data_key("etp/r1/down/sensor/3/truth"),
+            Some((None, "sensor/3/truth"))
+        );
         let k = up_key("r1", 12, ServiceId::Measurement);
         assert_eq!(k, "etp/r1/up/12/measurement");
         assert_eq!(parse_data_key(&k), Some((Some(12), "measurement")));
-        assert_eq!(parse_join_key("r1", &join_key("r1", 7)), Some(7));
+        assert_eq!(
+            parse_join_key("r1", &join_key("r1", 7, "sensor-host")),
+            Some((7, "sensor-host"))
+        );
         for bad in [
-            "etp/r1/join/07",
+            "etp/r1/join/07/b",
+            "etp/r1/join/7",
             "etp/r1/join/",
-            "etp/r2/join/1",
-            "etp/r1/join/1/x",
+            "etp/r2/join/1/b",
+            "etp/r1/join/1/x/y",
+            "etp/r1/join/1/-x",
+            "etp/r1/join/1/",
         ] {
             assert_eq!(parse_join_key("r1", bad), None, "{bad}");
         }
@@ -390,22 +423,22 @@ mod tests {
 
     #[test]
     fn access_control_grants_each_host_only_its_sensors_keys() {
-        let acl = access_control(
-            "r1",
-            &[("etp b".into(), vec![1, 3]), ("etp c".into(), vec![])],
-        );
+        let acl = access_control("r1", &[("b".into(), vec![1, 3]), ("c".into(), vec![])]);
         assert_eq!(acl["default_permission"], "deny");
         let text = acl.to_string();
         for k in [
             "etp/r1/up/1/**",
             "etp/r1/up/3/**",
-            "etp/r1/down/sensor/3/**",
+            "etp/r1/down/b/sensor/3/**",
             "etp/r1/alive/sensor/1",
-            "etp/r1/join/3",
+            "etp/r1/join/3/b",
+            "etp b",
         ] {
             assert!(text.contains(k), "{k}: {text}");
         }
-        assert!(!text.contains("etp/r1/up/**"), "{text}");
+        for k in ["etp/r1/up/**", "etp/r1/down/sensor/", "etp/r1/down/c/"] {
+            assert!(!text.contains(k), "{k}: {text}");
+        }
         // A host with no sensor of this run gets the session only.
         let c = &acl["policies"][1]["rules"];
         assert_eq!(c.as_array().map(Vec::len), Some(4), "{c}");

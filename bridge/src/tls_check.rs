@@ -141,11 +141,20 @@ pub fn record(peer: SocketAddr, why: zenoh_link_tls::Refused<'_>) {
             reason: "timeout",
             text: "its TLS handshake did not finish in time".into(),
         },
+        zenoh_link_tls::Refused::TooManyFromSource => Cause {
+            reason: "too-many-from-source",
+            text: format!(
+                "its address had {} TLS handshakes under way",
+                zenoh_link_tls::PER_SOURCE_HANDSHAKES
+            ),
+        },
     };
     if let Ok(mut r) = REFUSALS.lock() {
         let r = r.get_or_insert_with(Refusals::default);
         *r.counts.entry(cause.reason).or_default() += 1;
-        if r.named.len() < NAMED && cause.reason != "not-tls" && cause.reason != "broken" {
+        if r.named.len() < NAMED
+            && !matches!(cause.reason, "not-tls" | "broken" | "too-many-from-source")
+        {
             tracing::warn!("refused a TLS connection from {peer}: {}", cause.text);
             r.named.push(format!("from {peer}: {}", cause.text));
         }

@@ -33,6 +33,11 @@ mod remote;
 #[path = "runtime/certs.rs"]
 mod certs;
 
+// A stalled peer's cost bounded, the flood inside namespaces (issue 41
+// round two, items 3 and 1).
+#[path = "runtime/stalls.rs"]
+mod stalls;
+
 #[path = "runtime/lossy.rs"]
 mod lossy;
 

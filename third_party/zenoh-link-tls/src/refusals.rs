@@ -13,6 +13,9 @@ pub enum Refused<'a> {
     Handshake(&'a std::io::Error),
     /// The TLS handshake did not finish within the handshake timeout.
     Timeout,
+    /// Its source address had `PER_SOURCE_HANDSHAKES` handshakes under way:
+    /// closed before any byte was read.
+    TooManyFromSource,
 }
 
 /// Called by the accept loop for each refused connection, with its peer.

@@ -502,9 +502,16 @@ async fn accept_task(
         e
     })?;
 
+    // etp patch: at most PER_SOURCE_HANDSHAKES handshakes at a time from one
+    // source address (see `PerSource`); each is released below, whatever its
+    // outcome.
+    let pending = PendingBySource::default();
     let mut listener = tls_listener::builder(acceptor)
         .handshake_timeout(tls_handshake_timeout)
-        .listen(socket);
+        .listen(PerSource {
+            inner: socket,
+            pending: pending.clone(),
+        });
 
     tracing::trace!("Ready to accept TLS connections on: {:?}", src_addr);
     loop {
@@ -512,6 +519,14 @@ async fn accept_task(
             _ = token.cancelled() => break,
 
             res = listener.accept() => {
+                match &res {
+                    Ok((_, peer)) => pending.release(peer),
+                    Err(tls_listener::Error::TlsAcceptError { peer_addr, .. })
+                    | Err(tls_listener::Error::HandshakeTimeout { peer_addr, .. }) => {
+                        pending.release(peer_addr)
+                    }
+                    Err(_) => {}
+                }
                 match res {
                     Ok((tls_stream, dst_addr)) => {
                         let (tcp_stream, tls_conn) = tls_stream.get_ref();
@@ -611,6 +626,84 @@ async fn accept_task(
     }
 
     Ok(())
+}
+
+/// etp patch (third_party/README.md): how many TLS handshakes one source
+/// address may have under way at once. Handshakes run concurrently, each
+/// with the handshake deadline, and tls-listener 0.11 caps neither their
+/// number nor any peer's share: without this, one host opening connections
+/// that send nothing would hold a file descriptor and a task per connection
+/// for the whole deadline, as many as it likes. A connection beyond the
+/// limit is closed at once and reported (`Refused::TooManyFromSource`); the
+/// host's handshakes already under way go on.
+pub const PER_SOURCE_HANDSHAKES: usize = 4;
+
+/// Handshakes under way per source address.
+#[derive(Clone, Default)]
+struct PendingBySource(Arc<std::sync::Mutex<std::collections::HashMap<std::net::IpAddr, usize>>>);
+
+impl PendingBySource {
+    /// Count a new handshake from `peer`, unless its address has
+    /// [`PER_SOURCE_HANDSHAKES`] under way already.
+    fn admit(&self, peer: &SocketAddr) -> bool {
+        let Ok(mut m) = self.0.lock() else {
+            return true;
+        };
+        let n = m.entry(peer.ip()).or_default();
+        if *n >= PER_SOURCE_HANDSHAKES {
+            return false;
+        }
+        *n += 1;
+        true
+    }
+
+    /// A handshake from `peer` ended (a link, a refusal or its deadline).
+    fn release(&self, peer: &SocketAddr) {
+        if let Ok(mut m) = self.0.lock() {
+            if let Some(n) = m.get_mut(&peer.ip()) {
+                *n = n.saturating_sub(1);
+                if *n == 0 {
+                    m.remove(&peer.ip());
+                }
+            }
+        }
+    }
+}
+
+/// The TCP listener, less the connections of a source address that has
+/// [`PER_SOURCE_HANDSHAKES`] handshakes under way (closed at once, reported).
+struct PerSource {
+    inner: TcpListener,
+    pending: PendingBySource,
+}
+
+impl tls_listener::AsyncAccept for PerSource {
+    type Connection = TcpStream;
+    type Address = SocketAddr;
+    type Error = std::io::Error;
+
+    fn poll_accept(
+        self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<Result<(TcpStream, SocketAddr), std::io::Error>> {
+        loop {
+            match self.inner.poll_accept(cx) {
+                std::task::Poll::Ready(Ok((stream, peer))) => {
+                    if self.pending.admit(&peer) {
+                        return std::task::Poll::Ready(Ok((stream, peer)));
+                    }
+                    drop(stream);
+                    tracing::debug!(
+                        "Refused a TLS connection from {}: {} handshakes of its address under way",
+                        peer,
+                        PER_SOURCE_HANDSHAKES
+                    );
+                    crate::refusals::refused(peer, crate::Refused::TooManyFromSource);
+                }
+                other => return other,
+            }
+        }
+    }
 }
 
 fn get_client_cert_common_name(tls_conn: &rustls::CommonState) -> ZResult<TlsAuthId> {

@@ -41,9 +41,11 @@ pub struct LinkReport {
     /// Messages that overtook an earlier one of their sensor on the link
     /// and were delivered after it (the order restored; not a fault).
     pub reordered: u64,
-    /// Per remote sensor: puts towards it held up by a peer that stopped
-    /// reading (bounded by the bridge's close of a stalled peer; not a
-    /// fault of the counts: nothing is dropped).
+    /// Per remote sensor: puts towards it held up by the host it was granted
+    /// to, which stopped reading (bounded by Zenoh's close of a stalled
+    /// peer), the host's name, and whether it was closed and refused for the
+    /// rest of the run (its sensor then a dead link: the episodes are
+    /// degraded, the fault is theirs).
     pub stalled: BTreeMap<String, Stall>,
     /// Connections the agent host's TLS accept loop refused before they
     /// became links, by cause (`unknown-ca`, `expired`, `wrong-role`,
@@ -55,10 +57,19 @@ pub struct LinkReport {
 }
 
 /// Puts held up by a stalled peer (the bridge's `stalled` line).
-#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Stall {
     pub puts: u64,
     pub longest_ms: u64,
+    /// The host the sensor's downlink went to (agent host).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub host: Option<String>,
+    /// The host was closed for not reading and refused for the rest of the run.
+    #[serde(default)]
+    pub refused: bool,
+    /// The sensor's messages not sent since (its host refused).
+    #[serde(default)]
+    pub dropped: u64,
 }
 
 impl LinkReport {
@@ -68,10 +79,21 @@ impl LinkReport {
             self.stalled
                 .iter()
                 .map(|(k, s)| {
-                    format!(
-                        "{k}: {} put(s) waited for a peer that stopped reading (longest {} ms)",
+                    let who = s
+                        .host
+                        .as_ref()
+                        .map_or_else(|| "a peer".to_string(), |h| format!("host {h}"));
+                    let mut t = format!(
+                        "{k}: {} put(s) waited for {who}, which stopped reading (longest {} ms)",
                         s.puts, s.longest_ms
-                    )
+                    );
+                    if s.refused {
+                        t.push_str(&format!(
+                            "; closed and refused for the rest of the run ({} message(s) of {k} not sent)",
+                            s.dropped
+                        ));
+                    }
+                    t
                 })
                 .collect::<Vec<_>>()
                 .join("; ")

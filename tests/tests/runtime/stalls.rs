@@ -1,0 +1,419 @@
+//! The trust boundary, round two (issue 41 items 3 and 1), inside network
+//! namespaces: a certified peer that stops reading costs the run nothing,
+//! and a flood of connections from another host does not keep the real
+//! sensor host out.
+
+use super::remote::{Guard, Hosts, NS_OUT, PY_CONNECT, certs_init, hosts, scratch, tls_args};
+use super::{assert_ledgers_match, num, serial};
+use serde_json::Value;
+use std::io::{BufRead, BufReader, Write};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+const DELTA: &str = "1.0518";
+
+/// A Python `eclipse-zenoh` peer in the second sensor host's namespace,
+/// `script` run with `args`; stdin and stdout piped, killed with its process
+/// group on drop.
+fn python_child(h: &Hosts, script: &str, args: &[std::path::PathBuf]) -> Guard {
+    use std::os::unix::process::CommandExt;
+    let c = Command::new("ip")
+        .args(["netns", "exec", &h.sensors[1]])
+        .arg(etp_tests::pyenv::python())
+        .args(["-c", script])
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .process_group(0)
+        .spawn()
+        .expect("python zenoh");
+    Guard(Some(c))
+}
+
+/// The stalled peer: a certified host that may serve s1 (`rogue=s1`), like
+/// the real one, on the second host's network. It asks for the run, then
+/// subscribes to every downlink key it can name — s1's, the real host's,
+/// its own, wildcards — with a callback that never returns, a 4 KiB receive
+/// buffer and a 600 s lease (so it is never closed for silence, only for
+/// not reading). Says `subscribed`, then waits for a line on stdin and
+/// prints how many samples reached it.
+fn rogue_script() -> String {
+    format!(
+        r#"{PY_CONNECT}
+import threading
+s = session(sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4],
+            {{"transport/link/tls/so_rcvbuf": "4096", "transport/link/tx/lease": "600000"}})
+seen = []
+def on(sample):
+    seen.append(str(sample.key_expr))
+    threading.Event().wait(600)   # stops reading: this callback does not return
+run = None
+end = time.time() + 20
+while run is None and time.time() < end:
+    for r in s.get("etp/session", timeout=0.5):
+        if r.ok is not None:
+            run = json.loads(bytes(r.ok.payload.to_bytes()))["run_id"]
+if run is None:
+    sys.exit("the session query was not answered: not connected?")
+subs = [s.declare_subscriber(k, on) for k in [
+    "etp/**", f"etp/{{run}}/down/**", f"etp/{{run}}/down/sensor/1/**",
+    f"etp/{{run}}/down/*/sensor/1/**", f"etp/{{run}}/down/b/sensor/1/**",
+    f"etp/{{run}}/down/rogue/sensor/1/**"]]
+print("subscribed", flush=True)
+sys.stdin.readline()
+print(json.dumps({{"run": run, "samples": len(seen)}}), flush=True)
+os._exit(0)                      # its callback may still wait
+"#
+    )
+}
+
+/// One run of 600 episodes with s1 on sensor host `b`; with `rogue`, the
+/// stalled peer is connected and subscribed before `b` starts. Returns the
+/// seconds from `b`'s start to the run's end, the report and what the
+/// rogue saw.
+fn timed_run(
+    h: &Hosts,
+    dir: &std::path::Path,
+    keys: &std::path::Path,
+    run_id: &str,
+    rogue: bool,
+) -> (f64, Value, Option<Value>) {
+    let ns_keys = format!("{NS_OUT}/keys");
+    let run = h.spawn_out(
+        &h.agent,
+        dir,
+        &[
+            "run",
+            "--scenario",
+            "open-2d",
+            "--delta",
+            DELTA,
+            "--episodes",
+            "600",
+            "--seed",
+            "6",
+            "--run-id",
+            run_id,
+            "--listen",
+            "tls/0.0.0.0:7447",
+            "--tls",
+            &ns_keys,
+            "--remote",
+            "s1",
+            "--episode-details",
+            "--json",
+            "--join-timeout",
+            "60",
+        ],
+    );
+    let mut peer = rogue.then(|| {
+        let mut g = python_child(h, &rogue_script(), &tls_args(keys, "rogue"));
+        let out = g.0.as_mut().and_then(|c| c.stdout.take()).expect("stdout");
+        let mut lines = BufReader::new(out).lines();
+        match lines.next() {
+            Some(Ok(l)) if l.trim() == "subscribed" => {}
+            other => {
+                let err =
+                    g.0.as_mut()
+                        .and_then(|c| c.stderr.take())
+                        .map(|mut e| {
+                            let mut s = String::new();
+                            let _ = std::io::Read::read_to_string(&mut e, &mut s);
+                            s
+                        })
+                        .unwrap_or_default();
+                panic!("the rogue did not subscribe: {other:?}: {err}")
+            }
+        }
+        (g, lines)
+    });
+    let started = Instant::now();
+    let b = h.spawn_out(
+        &h.sensors[0],
+        dir,
+        &[
+            "sensor-host",
+            "--connect",
+            "tls/10.77.1.1:7447",
+            "--tls",
+            &format!("{ns_keys}/b"),
+            "--name",
+            "b",
+            "--join-timeout",
+            "60",
+        ],
+    );
+    let (code, out, err) = run.finish();
+    let secs = started.elapsed().as_secs_f64();
+    let _ = b.finish();
+    let seen = peer.as_mut().map(|(g, lines)| {
+        if let Some(stdin) = g.0.as_mut().and_then(|c| c.stdin.as_mut()) {
+            let _ = stdin.write_all(b"end\n");
+            let _ = stdin.flush();
+        }
+        let last = lines.map_while(Result::ok).last().unwrap_or_default();
+        serde_json::from_str::<Value>(&last).unwrap_or_else(|e| panic!("rogue: {e}: {last}"))
+    });
+    drop(peer);
+    assert_eq!(code, Some(0), "etp run {run_id}: {err}");
+    let v: Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}: {out}"));
+    (secs, v, seen)
+}
+
+/// Issue 41 item 3: a certified host that may serve s1, like the real one
+/// (`b`), subscribes to every downlink key it can name and stops reading
+/// (its callback never returns). Before, the agent host's puts towards s1
+/// waited for its full queue until Zenoh closed it (5 s), then it
+/// reconnected and stalled again: 29.5 s against 10.0 s. Now each remote
+/// sensor's downlink goes only to the host granted it at join, under keys
+/// access control grants that host alone: the rogue gets no sample, holds
+/// nothing up, and the run takes as long as without it (measured: wall
+/// time from the sensor host's start to the run's end, with and without).
+#[test]
+fn a_stalled_certified_peer_of_a_served_sensor_costs_the_run_nothing() {
+    let _serial = serial();
+    let Some(h) = hosts("st", 2) else { return };
+    let dir = scratch("st");
+    let keys = dir.join("keys");
+    certs_init(&keys, &["b=s1", "rogue=s1"]);
+    // The agent host's send buffers capped at 16 KiB: a peer that stops
+    // reading fills its queue at once.
+    let wmem = Command::new("ip")
+        .args(["netns", "exec", &h.agent, "sysctl", "-qw"])
+        .arg("net.ipv4.tcp_wmem=4096 16384 16384")
+        .status()
+        .expect("sysctl");
+    assert!(wmem.success(), "capping the agent host's send buffers");
+    let p = std::process::id();
+    let (base, vb, _) = timed_run(&h, &dir, &keys, &format!("t{p}-stbase"), false);
+    let (with, vr, seen) = timed_run(&h, &dir, &keys, &format!("t{p}-strogue"), true);
+    eprintln!(
+        "stalled certified peer of s1: run {with:.1} s with it, {base:.1} s without (+{:.1} s); \
+         stalled without: {}, with: {}",
+        with - base,
+        vb["link"]["stalled"],
+        vr["link"]["stalled"]
+    );
+    for v in [&vb, &vr] {
+        assert_eq!(num(v, "episodes"), 600.0);
+        assert_eq!(num(v, "degraded"), 0.0);
+        assert_eq!(v["link"]["refused"], serde_json::json!({}), "{v}");
+        // No put waited until Zenoh closed a peer (a put towards b may wait
+        // a moment on a loaded machine).
+        for (k, st) in v["link"]["stalled"].as_object().into_iter().flatten() {
+            assert_eq!(st["refused"], false, "{k}: {}", v["link"]);
+            assert!(
+                st["longest_ms"].as_u64() < Some(4_000),
+                "{k}: {}",
+                v["link"]
+            );
+        }
+        assert_ledgers_match(v, false);
+    }
+    let seen = seen.expect("the rogue's count");
+    assert_eq!(seen["samples"], 0, "the rogue got downlink samples: {seen}");
+    // Zenoh closes a peer that stays full for 5 s: one stall would show.
+    assert!(
+        with <= base + 2.5,
+        "the stalled peer cost {:.1} s ({with:.1} s against {base:.1} s)",
+        with - base
+    );
+    drop(h);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The flooder, on the second sensor host's network (one source address):
+/// 64 threads each keep a connection to the agent host's TLS port open that
+/// sends nothing (held 12 s, beyond the 10 s handshake deadline, then
+/// opened again), and 4 threads send junk (a bogus 12-byte TLS record, then
+/// close). Bounded: it stops at a line on stdin, or after 120 s, and prints
+/// its counts (connections opened, and how many the agent host closed at
+/// once).
+const FLOODER: &str = r#"
+import json, select, socket, sys, threading, time
+host, port = sys.argv[1], int(sys.argv[2])
+stop = threading.Event()
+stats = {"idle": 0, "closed_at_once": 0, "held": 0, "junk": 0}
+lock = threading.Lock()
+def add(k):
+    with lock:
+        stats[k] += 1
+def idle():
+    while not stop.is_set():
+        try:
+            s = socket.create_connection((host, port), timeout=1)
+        except OSError:
+            time.sleep(0.05)
+            continue
+        add("idle")
+        s.settimeout(0.3)
+        try:
+            closed = s.recv(1) == b""
+        except socket.timeout:
+            closed = False
+        except OSError:
+            closed = True
+        if closed:
+            add("closed_at_once")
+            s.close()
+            time.sleep(0.2)
+            continue
+        add("held")
+        end = time.time() + 12
+        while time.time() < end and not stop.is_set():
+            time.sleep(0.1)
+        s.close()
+def junk():
+    while not stop.is_set():
+        try:
+            s = socket.create_connection((host, port), timeout=1)
+            s.sendall(b"\x16\x03\x01\xff\xffgarbage")
+            s.close()
+            add("junk")
+        except OSError:
+            pass
+        time.sleep(0.01)
+threads = [threading.Thread(target=idle) for _ in range(64)] + [threading.Thread(target=junk) for _ in range(4)]
+for t in threads:
+    t.start()
+time.sleep(1.0)
+print("flooding", flush=True)
+select.select([sys.stdin], [], [], 120)
+stop.set()
+for t in threads:
+    t.join()
+print(json.dumps(stats), flush=True)
+"#;
+
+/// Issue 41 item 1, inside namespaces: a host floods the agent host's TLS
+/// port from one address with connections that send nothing (64 at a time,
+/// each held beyond the handshake deadline) and with junk. At most
+/// `PER_SOURCE_HANDSHAKES` (4) of its handshakes are under way at once; the
+/// others are closed at once and counted (`too-many-from-source`). The real
+/// sensor host, on another network, started once the flood is under way,
+/// joins within seconds; the run is exact, and the refusals reach
+/// `link.handshakes_refused`.
+#[test]
+fn a_flood_from_one_address_holds_at_most_four_handshakes_and_the_sensor_host_joins() {
+    let _serial = serial();
+    let Some(h) = hosts("fl", 2) else { return };
+    let dir = scratch("fl");
+    let keys = dir.join("keys");
+    certs_init(&keys, &["b=s1"]);
+    let ns_keys = format!("{NS_OUT}/keys");
+    let run_id = format!("t{}-flood", std::process::id());
+    let run = h.spawn_out(
+        &h.agent,
+        &dir,
+        &[
+            "run",
+            "--scenario",
+            "open-2d",
+            "--delta",
+            DELTA,
+            "--episodes",
+            "100",
+            "--seed",
+            "2",
+            "--run-id",
+            &run_id,
+            "--listen",
+            "tls/0.0.0.0:7447",
+            "--tls",
+            &ns_keys,
+            "--remote",
+            "s1",
+            "--episode-details",
+            "--json",
+            "--join-timeout",
+            "60",
+        ],
+    );
+    // The agent host listens once its bridge is up: give it a moment, then
+    // flood (the flooder retries refused connects).
+    std::thread::sleep(Duration::from_millis(500));
+    let mut flooder = {
+        use std::os::unix::process::CommandExt;
+        Guard(Some(
+            Command::new("ip")
+                .args(["netns", "exec", &h.sensors[1]])
+                .arg(etp_tests::pyenv::python())
+                .args(["-c", FLOODER, "10.77.2.1", "7447"])
+                .stdin(Stdio::piped())
+                .stdout(Stdio::piped())
+                .stderr(Stdio::null())
+                .process_group(0)
+                .spawn()
+                .expect("flooder"),
+        ))
+    };
+    let mut lines = BufReader::new(
+        flooder
+            .0
+            .as_mut()
+            .and_then(|c| c.stdout.take())
+            .expect("stdout"),
+    )
+    .lines();
+    assert!(
+        matches!(lines.next(), Some(Ok(l)) if l.trim() == "flooding"),
+        "the flooder did not start"
+    );
+    let started = Instant::now();
+    let b = h.spawn_out(
+        &h.sensors[0],
+        &dir,
+        &[
+            "sensor-host",
+            "--connect",
+            "tls/10.77.1.1:7447",
+            "--tls",
+            &format!("{ns_keys}/b"),
+            "--name",
+            "b",
+            "--join-timeout",
+            "60",
+        ],
+    );
+    let (code, out, err) = run.finish();
+    let secs = started.elapsed().as_secs_f64();
+    let (bcode, _, berr) = b.finish();
+    if let Some(stdin) = flooder.0.as_mut().and_then(|c| c.stdin.as_mut()) {
+        let _ = stdin.write_all(b"end\n");
+        let _ = stdin.flush();
+    }
+    let last = lines.map_while(Result::ok).last().unwrap_or_default();
+    drop(flooder);
+    let flood: Value =
+        serde_json::from_str(&last).unwrap_or_else(|e| panic!("flooder: {e}: {last}"));
+    assert_eq!(bcode, Some(0), "sensor host: {berr}");
+    assert_eq!(code, Some(0), "etp run: {err}");
+    let v: Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}: {out}"));
+    let refused = &v["link"]["handshakes_refused"];
+    eprintln!(
+        "flood from one address: {flood}; agent host refused {refused}; \
+         sensor host started → run over in {secs:.1} s"
+    );
+    assert_eq!(num(&v, "episodes"), 100.0);
+    assert_eq!(num(&v, "degraded"), 0.0);
+    assert_eq!(v["link"]["refused"], serde_json::json!({}), "{v}");
+    assert_ledgers_match(&v, false);
+    assert!(
+        refused["too-many-from-source"].as_u64() >= Some(1),
+        "no connection refused for its source's handshakes: {refused}"
+    );
+    // Of the 64 idle connections at a time, at most 4 are held.
+    let held = flood["held"].as_u64().unwrap_or(u64::MAX);
+    let idle = flood["idle"].as_u64().unwrap_or(0);
+    assert!(idle >= 64, "{flood}");
+    assert!(
+        flood["closed_at_once"].as_u64() >= Some(idle / 2),
+        "the flooder's idle connections were not closed at once: {flood}"
+    );
+    assert!(held < idle, "{flood}");
+    // The sensor host joined within seconds: 100 episodes take about 2 s.
+    assert!(secs < 30.0, "sensor host start → run end took {secs:.1} s");
+    drop(h);
+    let _ = std::fs::remove_dir_all(&dir);
+}
