@@ -12,7 +12,11 @@
 //! host's queue is full, so a host that stops reading holds up only its own
 //! sensors, and only until Zenoh closes it
 //! ([`crate::session::STALLED_PEER_CLOSE`]); with TLS that host is then
-//! refused for the rest of the run (its sensors are dead links).
+//! refused for the rest of the run (its sensors are dead links). The run
+//! itself sends a host little while the agent waits for its sensor (one
+//! step's messages), so a host that owes an answer is probed
+//! ([`crate::session::probe_key`]): a host that stopped reading fills its
+//! queue with the probes and is closed all the same.
 //!
 //! A remote sensor is alive on this host as long as its host's liveliness
 //! token is: the bridge keeps an iceoryx2 *proxy node* named like the sensor
@@ -21,7 +25,9 @@
 //! killed host or a cut link like a dead local sensor, within the link lease.
 
 use crate::admit::{Admission, Admitted};
-use crate::forward::{Counters, Grant, Grants, Inbound, Incoming, Outbound, Stalls, subscribe};
+use crate::forward::{
+    Counters, Grant, Grants, Heard, Inbound, Incoming, Outbound, Stalls, subscribe,
+};
 use crate::session::{
     End, SESSION_KEY, SessionInfo, agent_host_alive_key, config, data_keys, join_keys,
     parse_join_key,
@@ -96,6 +102,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         .wait()
         .map_err(|e| BridgeError::Zenoh(format!("queryable: {e}")))?;
     let (tx, rx) = std::sync::mpsc::channel();
+    let (answers, replier) = replier();
     let claims = tx.clone();
     let _claims = session
         .declare_queryable(join_keys(run.as_str()))
@@ -114,12 +121,14 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let stalls = Stalls::default();
     let stop = Arc::new(AtomicBool::new(false));
     let grants = Grants::default();
+    let heard = Heard::default();
     let outbound: Vec<_> = info
         .remote
         .iter()
         .map(|&i| {
             Outbound::new(&run, sensors, Direction::Down, &[i])
                 .to_grants(&grants, acl.is_some())
+                .probing(&heard)
                 .spawn(
                     format!("etp-bridge-out-{i}"),
                     &session,
@@ -200,7 +209,15 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         let wait = if hellos.is_empty() { 100 } else { 5 };
         match rx.recv_timeout(Duration::from_millis(wait)) {
             Ok(Incoming::Data { key, bytes }) => {
-                for m in inbound.receive(&mut admission, &key, &bytes) {
+                let admitted = inbound.receive(&mut admission, &key, &bytes);
+                if !admitted.is_empty()
+                    && let Ok(mut h) = heard.lock()
+                {
+                    for m in &admitted {
+                        h.insert(m.message.header().sender as usize, Instant::now());
+                    }
+                }
+                for m in admitted {
                     if m.service == ServiceId::Hello {
                         said_hello.insert(m.message.header().sender as usize);
                         hellos.push(m);
@@ -254,24 +271,21 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                     None => Err(Some(admission.refuse(crate::admit::Refusal::UnknownKey))),
                 };
                 let key = q.key_expr().clone();
-                let _ = match verdict {
+                let answer = match verdict {
                     Ok((i, host)) => {
                         tracing::info!(sensor = %name(i), host, zid, "sensor granted");
                         if let Ok(mut g) = grants.lock() {
                             g.entry(i).or_insert(Grant::Host(host));
                         }
-                        q.reply(key, "granted").wait()
+                        Ok(())
                     }
                     Err(None) => {
                         tracing::warn!(key = %key, zid, "refused a claim: its host was closed for not reading");
-                        q.reply_err(
-                            "this host stopped reading and was closed: it is refused for the rest of the run (stalled)",
-                        )
-                        .wait()
+                        Err("this host stopped reading and was closed: it is refused for the rest of the run (stalled)".to_string())
                     }
                     Err(Some(r)) => {
                         tracing::warn!(key = %key, zid, reason = r.name(), "refused a claim");
-                        q.reply_err(format!(
+                        Err(format!(
                             "{} ({})",
                             match r {
                                 crate::admit::Refusal::DuplicateHost =>
@@ -280,15 +294,21 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                             },
                             r.name()
                         ))
-                        .wait()
                     }
                 };
+                // Answered by the replier thread: a reply waits while the
+                // querier's queue is full (a reply takes the query's
+                // congestion control, the querier's choice), and this loop
+                // carries every remote sensor's uplink.
+                let _ = answers.send((q, answer));
             }
             Ok(Incoming::Hello(_)) | Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break Ok(()),
         }
     };
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    drop(answers);
+    let _ = replier.join();
     let mut out = Ok(());
     for t in outbound {
         let r = t
@@ -301,6 +321,31 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     crate::emit_traffic(&counters, &stalls, &info.sensors);
     drop(proxies);
     result.and(out)
+}
+
+/// A claim's answer: granted, or refused with why.
+type Answer = (zenoh::query::Query, Result<(), String>);
+
+/// The thread that answers claims, off the agent host's loop: a reply (and
+/// the final response a dropped query sends) waits while the querier's
+/// queue is full, at most until Zenoh closes it
+/// ([`crate::session::STALLED_PEER_CLOSE`]), so a claim of a host that
+/// stopped reading holds up only other claims, never the run's uplink.
+fn replier() -> (std::sync::mpsc::Sender<Answer>, std::thread::JoinHandle<()>) {
+    let (tx, rx) = std::sync::mpsc::channel::<Answer>();
+    let t = std::thread::spawn(move || {
+        for (q, answer) in rx {
+            let key = q.key_expr().clone();
+            let r = match answer {
+                Ok(()) => q.reply(key, "granted").wait(),
+                Err(why) => q.reply_err(why).wait(),
+            };
+            if let Err(e) = r {
+                tracing::debug!("a claim's answer was not sent: {e}");
+            }
+        }
+    });
+    (tx, t)
 }
 
 fn refused_sensors(grants: &Grants) -> Vec<usize> {

@@ -9,7 +9,7 @@
 
 use crate::BridgeError;
 use crate::admit::{Admission, Admitted, Refusal};
-use crate::session::{down_key, parse_data_key, up_key};
+use crate::session::{PROBE_AFTER, PROBE_BYTES, down_key, parse_data_key, probe_key, up_key};
 use etp_runtime::recording::{
     self,
     ports::{DecodedPublisher, EncodedSubscriber, decoded_publisher, encoded_subscriber},
@@ -19,7 +19,7 @@ use etp_runtime::wire::{self, Header, Notifier, Ports, RunId, ServiceId, Waiter,
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 use zenoh::Wait;
 
 /// Per-sensor link traffic, shared by both directions.
@@ -83,6 +83,11 @@ pub enum Grant {
 /// the agent host's loop and its outbound threads.
 pub type Grants = Arc<Mutex<BTreeMap<usize, Grant>>>;
 
+/// Per remote sensor, when the agent host last admitted a message from it
+/// (agent host: its loop writes, the outbound threads read it to know
+/// whether the sensor's host owes an answer).
+pub type Heard = Arc<Mutex<BTreeMap<usize, Instant>>>;
+
 /// Refusals logged per reason (all are counted).
 const LOGGED_REFUSALS: u64 = 10;
 
@@ -107,6 +112,8 @@ pub struct Outbound {
     /// granted host may subscribe to its keys), so it is refused after Zenoh
     /// closed it.
     pub attributed: bool,
+    /// Down: when each sensor was last heard from ([`Outbound::probing`]).
+    pub heard: Option<Heard>,
 }
 
 impl Outbound {
@@ -124,6 +131,7 @@ impl Outbound {
             remote: remote.to_vec(),
             grants: Grants::default(),
             attributed: false,
+            heard: None,
         }
     }
 
@@ -136,6 +144,31 @@ impl Outbound {
         self.grants = grants.clone();
         self.attributed = attributed;
         self
+    }
+
+    /// Down: probe a granted host that owes an answer
+    /// ([`crate::session::probe_key`]): when a sensor's last downlink
+    /// message is [`PROBE_AFTER`] old and nothing came from the sensor
+    /// since it was put, the host is sent a probe every wake-up (at most
+    /// every 100 ms) until the sensor answers. A host that stopped reading
+    /// then fills its queue even though the run sends it nothing more, so
+    /// Zenoh closes it and (attributed) it is refused, instead of the agent
+    /// waiting for its sensor for as long as its token lives.
+    pub fn probing(mut self, heard: &Heard) -> Self {
+        self.heard = Some(heard.clone());
+        self
+    }
+
+    /// Whether `sensor`'s host owes an answer to the message put at `put`.
+    fn owes(&self, sensor: usize, put: Instant) -> bool {
+        let Some(heard) = &self.heard else {
+            return false;
+        };
+        put.elapsed() >= PROBE_AFTER
+            && heard
+                .lock()
+                .map(|h| h.get(&sensor).is_none_or(|&t| t < put))
+                .unwrap_or(false)
     }
 
     fn grant(&self, sensor: usize) -> Option<Grant> {
@@ -227,6 +260,12 @@ impl Outbound {
         }
         // Down: the host each publisher of a service puts towards.
         let mut towards: BTreeMap<ServiceId, String> = BTreeMap::new();
+        // Down: per sensor, when its last message was put, and the probe
+        // publisher towards its host ([`Outbound::probing`]).
+        let mut last_put: BTreeMap<usize, Instant> = BTreeMap::new();
+        let mut probes: BTreeMap<usize, (String, zenoh::pubsub::Publisher<'static>)> =
+            BTreeMap::new();
+        let probe = zenoh::bytes::ZBytes::from(vec![0u8; PROBE_BYTES]);
         let waiter = Waiter::over(
             self.events
                 .iter()
@@ -274,22 +313,49 @@ impl Outbound {
                         );
                         continue;
                     };
-                    let started = std::time::Instant::now();
+                    let started = Instant::now();
                     publisher
                         .put(bytes.clone())
                         .wait()
                         .map_err(|e| BridgeError::Zenoh(format!("put {s:?}: {e}")))?;
-                    let took = started.elapsed();
-                    if took >= STALL {
-                        let host = towards.get(&s).cloned();
-                        let refuse = self.down && self.attributed && took >= CLOSED;
-                        note_stall(stalls, sensor, took, host.clone(), refuse);
-                        if refuse && let Some(host) = host {
-                            self.refuse(sensor, host);
-                        }
+                    if self.down {
+                        last_put.insert(sensor, started);
                     }
+                    self.waited(stalls, sensor, started, towards.get(&s).cloned());
                     count(counters, s, h, bytes.len());
                     on_put(s, h);
+                }
+            }
+            // Down: probe the hosts that owe an answer.
+            for (&sensor, &put) in &last_put {
+                if !self.owes(sensor, put) {
+                    continue;
+                }
+                let Some(Grant::Host(host)) = self.grant(sensor) else {
+                    continue;
+                };
+                if probes.get(&sensor).is_none_or(|(h, _)| *h != host) {
+                    let p = declare(probe_key(&run, &host, sensor))?;
+                    probes.insert(sensor, (host.clone(), p));
+                }
+                let Some((_, p)) = probes.get(&sensor) else {
+                    continue;
+                };
+                let started = Instant::now();
+                p.put(probe.clone())
+                    .wait()
+                    .map_err(|e| BridgeError::Zenoh(format!("probe of sensor {sensor}: {e}")))?;
+                self.waited(stalls, sensor, started, Some(host));
+            }
+            if let Some(refused) = self.grants.lock().ok().map(|g| {
+                g.iter()
+                    .filter(|(_, g)| matches!(g, Grant::Refused(_)))
+                    .map(|(&i, _)| i)
+                    .collect::<Vec<_>>()
+            }) {
+                for i in refused {
+                    last_put.remove(&i);
+                    probes.remove(&i);
                 }
             }
             if stop.load(Ordering::Relaxed) {
@@ -298,6 +364,23 @@ impl Outbound {
             match waiter.wait(&node, TICK)? {
                 Wake::Notified { .. } | Wake::Silence => {}
                 Wake::Terminate => stop.store(true, Ordering::Relaxed),
+            }
+        }
+    }
+}
+
+impl Outbound {
+    /// A put (or probe) for `sensor` towards `host` that started at
+    /// `started` is over: if it waited [`STALL`] or more, a stall is noted;
+    /// if it waited out Zenoh's close and the wait is attributed, the host
+    /// is refused.
+    fn waited(&self, stalls: &Stalls, sensor: usize, started: Instant, host: Option<String>) {
+        let took = started.elapsed();
+        if took >= STALL {
+            let refuse = self.down && self.attributed && took >= CLOSED;
+            note_stall(stalls, sensor, took, host.clone(), refuse);
+            if refuse && let Some(host) = host {
+                self.refuse(sensor, host);
             }
         }
     }

@@ -274,6 +274,9 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                     })?;
                 tokens.insert(i, t);
             }
+            // The agent host's probe ([`crate::session::probe_key`]): read
+            // (that is its point), not a service.
+            Ok(Incoming::Data { key, .. }) if crate::session::is_probe_key(&key) => {}
             Ok(Incoming::Data { key, bytes }) => {
                 for m in inbound.receive(&mut admission, &key, &bytes) {
                     inbound.deliver(m, &counters)?;

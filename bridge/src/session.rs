@@ -28,6 +28,40 @@ pub fn down_keys(run: &str, host: &str, sensor: usize) -> String {
     format!("etp/{run}/down/{host}/sensor/{sensor}/**")
 }
 
+/// The topic of the agent host's probe of a granted host that owes an
+/// answer ([`probe_key`]); not a service: a sensor host drops it unread.
+pub const PROBE_TOPIC: &str = "probe-reading";
+
+/// Key of the probe towards host `host` about sensor `sensor`:
+/// `etp/<run>/down/<host>/sensor/<sensor>/probe-reading`, among the keys
+/// that host subscribes to ([`down_keys`]) and alone may. While the host
+/// owes an answer (the sensor's last downlink message got none for
+/// [`PROBE_AFTER`]), the agent host puts [`PROBE_BYTES`] on it every
+/// 100 ms: a host that reads drops them; one that stopped reading fills
+/// its queue, so the put waits and Zenoh closes it after
+/// [`STALLED_PEER_CLOSE`] even when the run itself sends it nothing more
+/// (the agent waits for the sensor's slot).
+pub fn probe_key(run: &str, host: &str, sensor: usize) -> String {
+    format!("etp/{run}/down/{host}/sensor/{sensor}/{PROBE_TOPIC}")
+}
+
+/// Whether a downlink key is a probe ([`probe_key`]).
+pub fn is_probe_key(key: &str) -> bool {
+    key.starts_with("etp/") && key.contains("/down/") && key.ends_with(&format!("/{PROBE_TOPIC}"))
+}
+
+/// How long a sensor's downlink message may go unanswered before the agent
+/// host probes its host ([`probe_key`]). A sensor answers each downlink
+/// message it acts on within a step (a slot, a ledger), so a reading host
+/// is probed only while the agent waits for it.
+pub const PROBE_AFTER: Duration = Duration::from_secs(1);
+
+/// Bytes of one probe: 40 KiB/s while probing, so a host that stopped
+/// reading fills Zenoh's queue and the kernel's buffers (some 150 KiB with
+/// Linux's defaults: its socket's receive buffer does not grow while it
+/// does not read) in seconds.
+pub const PROBE_BYTES: usize = 4096;
+
 /// Key of a message going up from `sensor`: `etp/<run>/up/<sensor>/<topic>`.
 /// The sending sensor is in the key so that access control can grant a
 /// sensor host exactly its sensors' keys (and admission checks the key

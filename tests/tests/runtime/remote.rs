@@ -956,6 +956,16 @@ os._exit(0)                                      # a callback may still wait
     a_stranger_gets_no_key_of_another_sensor(&h, &keys);
     let (code, out, _) = run.finish();
     let _ = b.finish();
+    // The log's reader thread may still be at the run's last lines.
+    let said = |w: &LogWatch| {
+        w.lines()
+            .iter()
+            .any(|l| l.contains("the link refused 6 message(s)"))
+    };
+    let read = Instant::now();
+    while !said(&run_log) && read.elapsed() < Duration::from_secs(5) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
     let err = run_log.lines().join("\n");
     assert_eq!(seen["samples"], 0, "the rogue got s1's downlink: {seen}");
     assert_eq!(code, Some(5), "a link fault: {err}");

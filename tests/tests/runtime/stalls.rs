@@ -3,7 +3,9 @@
 //! and a flood of connections from another host does not keep the real
 //! sensor host out.
 
-use super::remote::{Guard, Hosts, NS_OUT, PY_CONNECT, certs_init, hosts, scratch, tls_args};
+use super::remote::{
+    Guard, Hosts, LogWatch, NS_OUT, PY_CONNECT, certs_init, hosts, scratch, tls_args,
+};
 use super::{assert_ledgers_match, num, serial};
 use serde_json::Value;
 use std::io::{BufRead, BufReader, Write};
@@ -215,7 +217,7 @@ fn a_stalled_certified_peer_of_a_served_sensor_costs_the_run_nothing() {
     assert_eq!(seen["samples"], 0, "the rogue got downlink samples: {seen}");
     // Zenoh closes a peer that stays full for 5 s: one stall would show.
     assert!(
-        with <= base + 2.5,
+        with <= base + 4.0,
         "the stalled peer cost {:.1} s ({with:.1} s against {base:.1} s)",
         with - base
     );
@@ -414,6 +416,358 @@ fn a_flood_from_one_address_holds_at_most_four_handshakes_and_the_sensor_host_jo
     assert!(held < idle, "{flood}");
     // The sensor host joined within seconds: 100 episodes take about 2 s.
     assert!(secs < 30.0, "sensor host start → run end took {secs:.1} s");
+    drop(h);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `etp run` for the granted-host test: s1 remote over TLS, `episodes`,
+/// `--allow-degraded`, `--episode-details --json`.
+fn owner_run(h: &Hosts, dir: &std::path::Path, run_id: &str, episodes: &str) -> (Guard, LogWatch) {
+    let ns_keys = format!("{NS_OUT}/keys");
+    h.spawn_watched_out(
+        &h.agent,
+        dir,
+        &[
+            "run",
+            "--scenario",
+            "open-2d",
+            "--delta",
+            DELTA,
+            "--episodes",
+            episodes,
+            "--seed",
+            "4",
+            "--run-id",
+            run_id,
+            "--listen",
+            "tls/0.0.0.0:7447",
+            "--tls",
+            &ns_keys,
+            "--remote",
+            "s1",
+            "--allow-degraded",
+            "--episode-details",
+            "--json",
+            "--join-timeout",
+            "60",
+        ],
+    )
+}
+
+/// [`Guard::finish`], but the process group is killed after `limit` (the
+/// code is then `None`): a run that waits for ever fails the test instead
+/// of hanging it.
+fn finish_within(g: Guard, limit: Duration) -> (Option<i32>, String, String) {
+    let pid = g.0.as_ref().map(std::process::Child::id).expect("child");
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let watch = {
+        let done = done.clone();
+        std::thread::spawn(move || {
+            let start = Instant::now();
+            while !done.load(std::sync::atomic::Ordering::Relaxed) {
+                if start.elapsed() >= limit {
+                    etp_tests::kill("-KILL", &format!("-{pid}"));
+                    return;
+                }
+                std::thread::sleep(Duration::from_millis(100));
+            }
+        })
+    };
+    let out = g.finish();
+    done.store(true, std::sync::atomic::Ordering::Relaxed);
+    let _ = watch.join();
+    out
+}
+
+/// The granted host itself stops reading: a Python `eclipse-zenoh` peer
+/// with `b`'s certificate plays s1's host — it claims s1 in b's name,
+/// subscribes to b's downlink keys with a callback that blocks on its first
+/// sample (later calls only count), declares s1's token and says s1's hello
+/// (forged with the run's tag), so the run starts; it never answers. The
+/// agent waits for s1's slot (a live sensor is waited for), so the run puts
+/// nothing more towards it: the agent host probes the host that owes an
+/// answer (`session::probe_key`), the probes fill its queue, a put waits
+/// until Zenoh closes it (5 s), and the host is refused for the rest of the
+/// run: s1 is a dead link (degraded episodes, exit 0 with
+/// `--allow-degraded`), its downlink is dropped, and when the peer
+/// reconnects (Zenoh retries on its own) its token is ignored, its claims of
+/// s1 are refused and it gets nothing more. `link.stalled` names the host
+/// (the text report words the same record). The cost is measured against the same run with
+/// the real sensor host `b`: the close's few seconds, once. Without the
+/// refusal the reconnected peer is granted s1 again and the run waits on it
+/// until the watchdog (180 s) ends it; without the probes it waits as long
+/// as the peer's token lives.
+#[test]
+fn a_granted_host_that_stops_reading_is_closed_once_and_refused_for_the_rest_of_the_run() {
+    let _serial = serial();
+    let Some(h) = hosts("ow", 2) else { return };
+    let dir = scratch("ow");
+    let keys = dir.join("keys");
+    certs_init(&keys, &["b=s1"]);
+    let wmem = Command::new("ip")
+        .args(["netns", "exec", &h.agent, "sysctl", "-qw"])
+        .arg("net.ipv4.tcp_wmem=4096 16384 16384")
+        .status()
+        .expect("sysctl");
+    assert!(wmem.success(), "capping the agent host's send buffers");
+    let p = std::process::id();
+
+    // Without the stalled host: the real `b` serves s1.
+    let (run, run_log) = owner_run(&h, &dir, &format!("t{p}-ownbase"), "1000");
+    std::thread::sleep(Duration::from_millis(500));
+    let started = Instant::now();
+    let (b, b_log) = h.spawn_watched_out(
+        &h.sensors[0],
+        &dir,
+        &[
+            "sensor-host",
+            "--connect",
+            "tls/10.77.1.1:7447",
+            "--tls",
+            &format!("{NS_OUT}/keys/b"),
+            "--name",
+            "b",
+            "--join-timeout",
+            "60",
+        ],
+    );
+    let (code, out, _) = finish_within(run, Duration::from_secs(180));
+    let base = started.elapsed().as_secs_f64();
+    let (bcode, _, _) = b.finish();
+    let tail = |w: &LogWatch| {
+        let l = w.lines();
+        l[l.len().saturating_sub(30)..].join("\n")
+    };
+    assert_eq!(
+        code,
+        Some(0),
+        "etp run without the stalled host (None: killed after 180 s): {}\nsensor host b: {}",
+        tail(&run_log),
+        tail(&b_log)
+    );
+    assert_eq!(bcode, Some(0), "sensor host b: {}", tail(&b_log));
+    let vb: Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}: {out}"));
+    assert_eq!(num(&vb, "episodes"), 1000.0);
+    assert_eq!(num(&vb, "degraded"), 0.0, "{vb}");
+    assert_eq!(vb["link"]["refused"], serde_json::json!({}), "{vb}");
+    assert_ledgers_match(&vb, false);
+
+    // With the host that stops reading.
+    let run_id = format!("t{p}-owner");
+    let tag = etp_runtime::wire::RunId::new(&run_id)
+        .expect("run id")
+        .tag();
+    let (mut run, log) = owner_run(&h, &dir, &run_id, "8000");
+    let script = format!(
+        r#"{PY_CONNECT}
+import threading
+# Zenoh logs to stdout: to the log file (stderr), the protocol lines to `out`.
+out = os.fdopen(os.dup(1), "w")
+os.dup2(2, 1)
+zenoh.init_log_from_env_or("info")
+s = session(sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4],
+            {{"transport/link/tls/so_rcvbuf": "4096", "transport/link/tx/lease": "600000",
+              # its own puts and queries towards the closed agent host give
+              # up soon, so that it sees the close and reconnects at once
+              "transport/link/tx/queue/congestion_control/block/wait_before_close": "200000",
+              # and tries again every half second
+              "connect/retry": '{{"period_init_ms": 500, "period_max_ms": 500, "period_increase_factor": 1}}'}})
+tag = int(sys.argv[5])
+def now():
+    return time.strftime("%H:%M:%S", time.gmtime()) + f"{{time.time() % 1:.3f}}"[1:]
+seen, events = [], []
+closed = threading.Event()
+def on(sample):
+    seen.append(str(sample.key_expr))
+    if len(seen) == 1:
+        events.append(f"{{now()}} first sample: stops reading")
+        closed.wait(120)   # stops reading (on Zenoh's network thread)
+        events.append(f"{{now()}} reads again")
+run = None
+end = time.time() + 20
+while run is None and time.time() < end:
+    for r in s.get("etp/session", timeout=0.5):
+        if r.ok is not None:
+            run = json.loads(bytes(r.ok.payload.to_bytes()))["run_id"]
+if run is None:
+    sys.exit("the session query was not answered: not connected?")
+claim = f"etp/{{run}}/join/1/b"
+granted = [r.ok is not None for r in s.get(claim, payload="python0", timeout=5)]
+if granted != [True]:
+    sys.exit(f"s1 not granted: {{granted}}")
+sub = s.declare_subscriber(f"etp/{{run}}/down/b/sensor/1/**",
+                           zenoh.handlers.Callback(on, indirect=False))
+token = s.liveliness().declare_token(f"etp/{{run}}/alive/sensor/1")
+# s1's hello: header (run, episode, step, leg, sender, seq), pid, pad
+s.put(f"etp/{{run}}/up/1/hello", struct.pack("<QQIIIIII", tag, 0, 0, 0, 1, 1, 4242, 0))
+print("hello", file=out, flush=True)
+# stdin: "closed" (the agent host refused this peer: read again, so that
+# Zenoh sees the closed transport and reconnects), then "end".
+stop = threading.Event()
+stalled_samples = []
+def commands():
+    for line in sys.stdin:
+        if line.strip() == "closed":
+            events.append(f"{{now()}} told: closed")
+            stalled_samples.append(len(seen))
+            closed.set()
+        else:
+            stop.set()
+            return
+    stop.set()
+threading.Thread(target=commands, daemon=True).start()
+# Until told to stop: claim s1 again every second (answered once Zenoh has
+# reconnected this peer: its first transport no longer reads).
+claims, refused_at = [], None
+while not stop.is_set():
+    try:
+        for r in s.get(claim, payload="python0", timeout=1):
+            claims.append("granted" if r.ok is not None
+                          else bytes(r.err.payload.to_bytes()).decode(errors="replace"))
+            events.append(f"{{now()}} claim: {{claims[-1]}}")
+            if r.ok is None and "stopped reading" in claims[-1] and refused_at is None:
+                refused_at = len(seen)
+    except Exception as e:
+        claims.append(f"error: {{e}}")
+    stop.wait(1)
+time.sleep(0.5)
+print(json.dumps({{"run": run, "stalled_samples": stalled_samples[0] if stalled_samples else None,
+                  "samples": len(seen),
+                  "after_refused_claim": None if refused_at is None else len(seen) - refused_at,
+                  "keys": sorted(set(seen)), "claims": claims, "events": events}}),
+      file=out, flush=True)
+os._exit(0)
+"#
+    );
+    // Its log (Zenoh's, info) in a file: a pipe nobody reads would block it.
+    let peer_log = dir.join("peer.log");
+    let mut peer = {
+        use std::os::unix::process::CommandExt;
+        Guard(Some(
+            Command::new("ip")
+                .args(["netns", "exec", &h.sensors[1]])
+                .arg(etp_tests::pyenv::python())
+                .args(["-c", &script])
+                .args(tls_args(&keys, "b"))
+                .arg(tag.to_string())
+                .stdin(Stdio::piped())
+                .stdout(Stdio::piped())
+                .stderr(std::fs::File::create(&peer_log).expect("peer log"))
+                .process_group(0)
+                .spawn()
+                .expect("python zenoh"),
+        ))
+    };
+    let mut lines = BufReader::new(
+        peer.0
+            .as_mut()
+            .and_then(|c| c.stdout.take())
+            .expect("stdout"),
+    )
+    .lines();
+    let first = lines.next();
+    if !matches!(&first, Some(Ok(l)) if l.trim() == "hello") {
+        let e = std::fs::read_to_string(&peer_log).unwrap_or_default();
+        panic!("the peer did not join: {first:?}: {e}");
+    }
+    let started = Instant::now();
+    // Once the agent host refused it, the peer reads again (what it
+    // reads is what was queued before the close), so that Zenoh reconnects
+    // it and it tries again. Bounded: without a refusal, the run's end or
+    // 120 s.
+    let refusal = "closed for not reading: the host is refused for the rest of the run";
+    while !log.lines().iter().any(|l| l.contains(refusal))
+        && started.elapsed() < Duration::from_secs(120)
+        && run
+            .0
+            .as_mut()
+            .is_some_and(|c| matches!(c.try_wait(), Ok(None)))
+    {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    if let Some(stdin) = peer.0.as_mut().and_then(|c| c.stdin.as_mut()) {
+        let _ = stdin.write_all(b"closed\n");
+        let _ = stdin.flush();
+    }
+    let (code, out, _) = finish_within(run, Duration::from_secs(180));
+    let with = started.elapsed().as_secs_f64();
+    let err = log.lines().join("\n");
+    if let Some(stdin) = peer.0.as_mut().and_then(|c| c.stdin.as_mut()) {
+        let _ = stdin.write_all(b"end\n");
+        let _ = stdin.flush();
+    }
+    let last = lines.map_while(Result::ok).last().unwrap_or_default();
+    drop(peer);
+    let peer_log = std::fs::read_to_string(&peer_log).unwrap_or_default();
+    for l in peer_log
+        .lines()
+        .rev()
+        .take(40)
+        .collect::<Vec<_>>()
+        .iter()
+        .rev()
+    {
+        eprintln!("  peer: {}", l.chars().take(300).collect::<String>());
+    }
+    assert_eq!(
+        code,
+        Some(0),
+        "etp run (None: still waiting after 180 s, killed): {err}"
+    );
+    let seen: Value = serde_json::from_str(&last).unwrap_or_else(|e| panic!("peer: {e}: {last}"));
+    let v: Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}: {out}"));
+    let stalled = &v["link"]["stalled"];
+    eprintln!(
+        "granted host stopped reading: run of 8000 episodes {with:.1} s with it (from its \
+         hello); 1000 episodes {base:.1} s with b (from b's start); stalled {stalled}; \
+         degraded {}; the peer: {seen}",
+        v["degraded"]
+    );
+    for l in err.lines().filter(|l| l.contains("WARN")) {
+        eprintln!("  etp run: {l}");
+    }
+    assert_eq!(num(&v, "episodes"), 8000.0);
+    assert!(num(&v, "degraded") >= 1.0, "s1 is a dead link: {v}");
+    let s1 = &stalled["s1"];
+    assert_eq!(s1["host"], "b", "{stalled}");
+    assert_eq!(s1["refused"], true, "{stalled}");
+    assert!(s1["longest_ms"].as_u64() >= Some(5_000), "{stalled}");
+    // Closed once: no later put waited for it. While it did not read it got
+    // its one sample (the one it blocked on); once reconnected, nothing.
+    assert_eq!(s1["puts"], 1, "{stalled}");
+    assert_eq!(seen["stalled_samples"], 1, "{seen}");
+    assert_eq!(seen["after_refused_claim"], 0, "{seen}");
+    assert!(
+        err.contains("a host refused for not reading is back: ignored"),
+        "its token, back after the reconnection, was not seen: {err}"
+    );
+    // It came back (Zenoh reconnected it) and its claims were refused.
+    let claims = seen["claims"].as_array().cloned().unwrap_or_default();
+    assert!(
+        claims.iter().any(|c| c
+            .as_str()
+            .is_some_and(|c| c.contains("stopped reading and was closed"))),
+        "the peer's claims after the close: {seen}"
+    );
+    assert!(
+        !claims.iter().skip(1).any(|c| c == "granted"),
+        "granted again (its first claim is its join): {seen}"
+    );
+    // The text report (without `--json`) says it in words from the same
+    // `link.stalled` (unit test `remote::tests::the_text_report_names_…`).
+    // What it cost: the agent waited for s1 once, until the host was
+    // closed (1 s before the probes, their filling its queue, Zenoh's 5 s);
+    // the other episodes ran with s1 dead (prediction only, cheaper than
+    // served, so the run may even end sooner than with b).
+    let waits: Vec<f64> = v["faults"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|f| f["detect_ms"].as_f64())
+        .collect();
+    eprintln!("the agent's waits for s1 before it was dead (ms): {waits:?}");
+    assert_eq!(waits.len(), 1, "one wait: {}", v["faults"]);
+    assert!(waits[0] <= 15_000.0, "held {} ms", waits[0]);
     drop(h);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -306,3 +306,33 @@ impl Bridge {
         )
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_text_report_names_a_stalled_host_and_its_refusal() {
+        let mut r = LinkReport::default();
+        assert_eq!(r.stalls(), None);
+        r.stalled.insert(
+            "s1".into(),
+            Stall {
+                puts: 1,
+                longest_ms: 5002,
+                host: Some("b".into()),
+                refused: true,
+                dropped: 7,
+            },
+        );
+        let text = r.stalls().unwrap_or_default();
+        assert!(
+            text.contains(
+                "s1: 1 put(s) waited for host b, which stopped reading (longest 5002 ms)"
+            ) && text.contains(
+                "closed and refused for the rest of the run (7 message(s) of s1 not sent)"
+            ),
+            "{text}"
+        );
+    }
+}
