@@ -11,7 +11,7 @@
 //!
 //! The radio (docs/MODEL.md §8) is simulated here, at its sender: when the
 //! trigger fires, the fate of each attempt is drawn from the link's own
-//! stream (`link_rng(seed, streams::AGENT, episode, sensor)`, the channel of
+//! stream (`LinkChannel::of_episode` with stream `AGENT`, the channel of
 //! the in-process simulation's episodes), retries follow a lost attempt
 //! within the step, and only a delivered attempt is published to the agent.
 //! The link is acknowledged: the agent ACKs each measurement it received,
@@ -309,9 +309,10 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
             let channel = match &mut self.channel {
                 Some((e, c)) if *e == episode => c,
                 slot => {
-                    let c = etp_runtime::wire::link_channel(
+                    let c = LinkChannel::of_episode(
                         &scenario.radio,
                         seed,
+                        streams::AGENT,
                         episode,
                         self.id.index as usize,
                     );
