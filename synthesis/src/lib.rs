@@ -7,7 +7,8 @@
 //!
 //! * [`abstraction`] — the belief-space MDP by layered Monte Carlo (docs/MODEL.md §4,
 //!   Method 2 discretized regions and Method 1 KF convergence).
-//! * [`mdp`] — the [`mdp::Mdp`] type and its versioned file `mdp.bin`.
+//! * [`mdp`] — the [`mdp::Mdp`] type and its versioned file `mdp.bin`
+//!   ([`mdp::MDP_FILE`]).
 //! * [`pareto`] — every vertex and facet of the Pareto front, strategies for a
 //!   requested trade-off (vertex LP, occupation measures), `front.json`.
 //! * [`validate`] — simulating a strategy (belief → region → δ ~ ω), trajectories.

@@ -1,6 +1,11 @@
-//! One module per subcommand.
+//! One module per subcommand (`replay`'s and `run`'s subcommands, and
+//! `synthesize`'s aggregation check and splitting, in folders of their own;
+//! `honest` the prediction report `strategy` writes). Each is a leaf: no
+//! command module imports another (the test
+//! `etp_command_modules_import_no_other_command`); what two share lives in
+//! a library crate or beside `cmd` (`report`, `input`, `output`,
+//! `processes`, `simulation`).
 
-pub mod aggregation;
 pub mod bench;
 pub mod certs;
 pub mod check;
@@ -13,7 +18,6 @@ pub mod replay;
 pub mod run;
 pub mod scenario;
 pub mod simulate;
-pub mod split;
 pub mod strategy;
 pub mod synthesize;
 pub mod validate;
