@@ -1,7 +1,8 @@
 //! The constant-threshold simulation `etp simulate` prints and `etp bench`
-//! times, written once (in this crate: moved into `etp-synthesis`, the bench
-//! of winding-2d ran at 0.55–0.65 of its speed, interleaved medians, and
-//! which of two moves cost it was not isolated).
+//! times, written once. It stays in this crate: a build with it in
+//! `etp-synthesis` (and the leg loop through `episode::serve_slot`) ran the
+//! bench of winding-2d at 0.55–0.65 of its speed (interleaved medians);
+//! which of the two cost it was not isolated.
 
 use etp_shared::episode::{CompiledScenario, LegMode};
 use etp_shared::etkf::Threshold;

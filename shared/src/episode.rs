@@ -499,9 +499,11 @@ impl<const N: usize> CompiledScenario<N> {
             };
             // The serving sensor's slot (docs/MODEL.md §2, §8): measure,
             // trigger on the prior's innovation, transmit over the link —
-            // `step::serve_slot` written inline: through it (a closure for
-            // the link) winding-2d ran at 0.55–0.65 of this speed (`etp
-            // bench`, interleaved medians).
+            // `step::serve_slot` written inline: a build with this loop
+            // through it (a closure for the link), and `simulate_constant`
+            // moved into etp-synthesis, ran winding-2d at 0.55–0.65 of this
+            // speed (`etp bench`, interleaved medians; which of the two cost
+            // it was not isolated).
             let threshold = core.threshold();
             let y = filter.sensor.measure(&state.x, rng);
             let inn = filter.innovation(slot.prior());

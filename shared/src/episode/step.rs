@@ -44,8 +44,7 @@ impl<const N: usize, const M: usize> ServedSlot<N, M> {
 }
 
 /// The serving sensor's slot as the sensor process runs it (the in-process
-/// leg loop writes the same lines inline: through this function, its link a
-/// closure, winding-2d ran at 0.55–0.65 of its speed): measure `y = H x + v` (noise from `rng`), trigger
+/// leg loop writes the same lines inline, for its speed: see there): measure `y = H x + v` (noise from `rng`), trigger
 /// on the prior's innovation, and on a trigger make the link's attempts
 /// (`link` is called only then; an ideal link delivers the first). The
 /// agent's update of what was delivered is [`super::slot_update`] (or, at
