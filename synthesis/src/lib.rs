@@ -11,6 +11,11 @@
 //!   ([`mdp::MDP_FILE`]).
 //! * [`pareto`] — every vertex and facet of the Pareto front, strategies for a
 //!   requested trade-off (vertex LP, occupation measures), `front.json`.
+//! * [`certify`] — predictions that hold (docs/MODEL.md §4.1): the cross-fitted
+//!   value on held-out samples, the interval MDP and its robust backward
+//!   induction ([`certify::robust::Certified`]), certified strategy selection,
+//!   the certified front, replicates and bounds widened by a measured
+//!   aggregation error.
 //! * [`validate`] — simulating a strategy (belief → region → δ ~ ω), trajectories.
 //! * [`prism`] — PRISM explicit export.
 //! * [`synthetic`] — seeded synthetic layered MDPs for benchmarks at scale.

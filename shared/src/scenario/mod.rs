@@ -7,15 +7,16 @@
 //! symmetric positive definite, numbers are finite.
 
 mod builtin;
-mod higher;
+mod fields;
 pub mod random;
 mod raw;
 mod text;
 mod validate;
+mod workspace_gain;
 
 pub use builtin::{BUILTIN_NAMES, DEFAULT_SCENARIO, builtin_text};
-pub use higher::pseudo_inverse;
 pub use text::ScenarioText;
+pub use workspace_gain::pseudo_inverse;
 
 use crate::geometry::Aabb;
 use crate::radio::{Radio, RadioOverride};
