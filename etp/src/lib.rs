@@ -5,6 +5,8 @@
 //! * [`cmd`] — one module per subcommand, none importing another; each exposes
 //!   `run(args) -> anyhow::Result<()>`.
 //! * [`input`] — resolving a `SCENARIO` argument (built-in name or path).
+//! * [`predictions`] — a strategy file's predictions as `strategy` and
+//!   `validate` report them (text, JSON, the aggregation check).
 //! * [`progress`] — indicatif bars that hide themselves when stderr is not a terminal.
 //! * [`report`] — a simulation summary's JSON and tables, the channel line.
 //! * [`simulation`] — the constant-threshold simulation of `simulate` and `bench`.
@@ -22,6 +24,7 @@ pub mod cmd;
 pub mod front;
 pub mod input;
 pub mod output;
+pub mod predictions;
 pub mod processes;
 pub mod progress;
 pub mod report;

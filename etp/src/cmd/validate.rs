@@ -1,7 +1,7 @@
 //! `etp validate STRATEGY`: simulate a strategy in-process and compare with its
 //! prediction, like the paper's tables.
 
-use crate::cmd::predictions;
+use crate::predictions;
 use crate::progress;
 use crate::report::{channels_text, radio_table, summary_json, summary_table};
 use anyhow::Result;

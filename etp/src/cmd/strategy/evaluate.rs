@@ -7,8 +7,8 @@
 
 use super::EvaluateArgs;
 use super::select::Synthesis;
-use crate::cmd::predictions;
 use crate::output::{refuse_existing, write_new};
+use crate::predictions;
 use crate::progress;
 use anyhow::{Context, Result, bail};
 use etp_synthesis::abstraction;

@@ -3,8 +3,8 @@
 //! strategy kept from its own on-policy rebuilds.
 
 use super::{Args, EXIT_OUT_OF_REACH, Request, certified};
-use crate::cmd::predictions;
 use crate::output::{read_front, read_mdp, refuse_existing, write_new};
+use crate::predictions;
 use crate::progress;
 use anyhow::{Context, Result, bail};
 use etp_shared::scenario::Scenario;
