@@ -14,8 +14,11 @@
 //! * [`certify`] — predictions that hold (docs/MODEL.md §4.1): the cross-fitted
 //!   value on held-out samples, the interval MDP and its robust backward
 //!   induction ([`certify::robust::Certified`]), certified strategy selection,
-//!   the certified front, replicates and bounds widened by a measured
-//!   aggregation error.
+//!   the certified front, and replicates (R rebuilds' cross-fitted values).
+//! * [`predict`] — the prediction etp stands by (docs/MODEL.md §7.4): a
+//!   strategy predicted on on-policy rebuilds ([`predict::rebuild`]) and the
+//!   request loop that selects, rebuilds and moves the request by the
+//!   measured gap ([`predict::request::meet_request`]).
 //! * [`validate`] — simulating a strategy (belief → region → δ ~ ω), trajectories.
 //! * [`prism`] — PRISM explicit export.
 //! * [`synthetic`] — seeded synthetic layered MDPs for benchmarks at scale.
