@@ -2,9 +2,15 @@
 //!
 //! * [`cli`] — the clap definition of every subcommand (one place to read the
 //!   whole interface).
-//! * [`cmd`] — one module per subcommand; each exposes `run(args) -> anyhow::Result<()>`.
+//! * [`cmd`] — one module per subcommand, none importing another; each exposes
+//!   `run(args) -> anyhow::Result<()>`.
 //! * [`input`] — resolving a `SCENARIO` argument (built-in name or path).
+//! * [`predictions`] — a strategy file's predictions as `strategy` and
+//!   `validate` report them (text, JSON, the aggregation check).
 //! * [`progress`] — indicatif bars that hide themselves when stderr is not a terminal.
+//! * [`report`] — a simulation summary's JSON and tables, the channel line.
+//! * [`simulation`] — the constant-threshold simulation of `simulate` and `bench`.
+//! * [`processes`] — the run's processes `etp process NAME` plays.
 //! * [`vocab`] — the JSON vocabulary shared by simulate, validate, run and replay.
 //!
 //! The work is in libraries: the maths in `etp-shared` and `etp-synthesis`,
@@ -18,7 +24,11 @@ pub mod cmd;
 pub mod front;
 pub mod input;
 pub mod output;
+pub mod predictions;
+pub mod processes;
 pub mod progress;
+pub mod report;
+pub mod simulation;
 pub use etp_recording_tools::vocab;
 
 use std::process::ExitCode;

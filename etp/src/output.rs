@@ -1,7 +1,7 @@
 //! Files on disk: refusing to overwrite, reading the synthesis directory.
 
 use anyhow::{Context, Result, bail};
-use etp_synthesis::mdp::Mdp;
+use etp_synthesis::mdp::{MDP_FILE, Mdp};
 use etp_synthesis::pareto::{ParetoFront, compute_front};
 use std::path::Path;
 
@@ -9,7 +9,7 @@ pub use etp_recording_tools::files::{output_folder, refuse_existing, write_new, 
 
 /// `DIR/mdp.bin` and, if present, the scenario text `DIR/scenario.toml`.
 pub fn read_mdp(dir: &Path) -> Result<(Mdp, Option<String>)> {
-    let path = dir.join("mdp.bin");
+    let path = dir.join(MDP_FILE);
     let bytes = std::fs::read(&path)
         .with_context(|| format!("reading {} (run `etp synthesize` first?)", path.display()))?;
     let mdp = Mdp::decode(&bytes).with_context(|| format!("loading {}", path.display()))?;

@@ -2,7 +2,7 @@
 //! frontier of the front's vertices within the bound, with the constant-δ
 //! baselines, the certified front and the Method 1 front.
 
-use anyhow::{Result, anyhow};
+use crate::{Result, plot_error};
 use etp_synthesis::pareto::ParetoFront;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -28,7 +28,7 @@ fn draw_front<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, front: &ParetoF
 where
     DB::ErrorType: 'static,
 {
-    let e = |x: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {x:?}");
+    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
     root.fill(&WHITE).map_err(e)?;
     let all: Vec<(f64, f64, f64)> = front
         .vertices

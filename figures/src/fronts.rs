@@ -2,7 +2,7 @@
 //! channel each), least expected energy per episode against P_tar at a fixed
 //! bound on P_coll.
 
-use anyhow::{Result, anyhow};
+use crate::{Result, plot_error};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
@@ -57,7 +57,7 @@ impl super::Figure for FrontsFigure<'_> {
     where
         DB::ErrorType: 'static,
     {
-        let e = |x: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {x:?}");
+        let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
         root.fill(&WHITE).map_err(e)?;
         let all = self.curves.iter().flat_map(|c| c.points.iter());
         let (mut t_lo, mut t_hi, mut e_hi) = (1.0f64, 0.0f64, 1.0f64);

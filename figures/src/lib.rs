@@ -28,11 +28,34 @@ pub use fronts::{Curve, fronts_plot};
 pub use map::map_plot;
 pub use report::{Bar, RunFigure, mean_ci, proportion, report_plot, short_label};
 
-use anyhow::{Context, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Once;
+
+/// Why a figure could not be drawn or written.
+#[derive(Debug, thiserror::Error)]
+pub enum FigureError {
+    /// plotters refused to draw (its error rendered: its type depends on the
+    /// backend).
+    #[error("plot: {0}")]
+    Plot(String),
+    /// The finished figure could not be written.
+    #[error("writing {}", path.display())]
+    Write {
+        path: PathBuf,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+}
+
+/// A figure's result.
+pub type Result<T> = std::result::Result<T, FigureError>;
+
+/// A drawing error of plotters as a [`FigureError::Plot`].
+pub(crate) fn plot_error<E: std::fmt::Debug>(e: E) -> FigureError {
+    FigureError::Plot(format!("{e:?}"))
+}
 
 static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 static REGISTER: Once = Once::new();
@@ -57,21 +80,40 @@ pub(crate) trait Figure {
 /// (`etp_recording_tools::files::write_via_temp`: its folder checked, no
 /// planted link followed).
 pub(crate) fn png_and_svg(fig: &impl Figure, stem: &Path, size: (u32, u32)) -> Result<()> {
-    use etp_recording_tools::files::write_via_temp;
     register_font();
     let png = stem.with_extension("png");
-    write_via_temp(&png, |tmp| {
+    write_figure(&png, |tmp| {
         let root = BitMapBackend::new(tmp, size).into_drawing_area();
         fig.draw(&root)?;
-        root.present()
-            .with_context(|| format!("writing {}", png.display()))
+        root.present().map_err(|e| FigureError::Write {
+            path: png.clone(),
+            source: Box::new(e),
+        })
     })?;
     let svg = stem.with_extension("svg");
-    write_via_temp(&svg, |tmp| {
+    write_figure(&svg, |tmp| {
         let root = SVGBackend::new(tmp, size).into_drawing_area();
         fig.draw(&root)?;
-        root.present()
-            .with_context(|| format!("writing {}", svg.display()))
+        root.present().map_err(|e| FigureError::Write {
+            path: svg.clone(),
+            source: Box::new(e),
+        })
+    })
+}
+
+/// One file of a figure through the workspace's one file writer, whose
+/// errors are `anyhow`'s: the drawing's own [`FigureError`] comes back as it
+/// was, a refusal of the file rule (its folder, a planted link, the rename)
+/// as [`FigureError::Write`].
+fn write_figure(path: &Path, draw: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    etp_recording_tools::files::write_via_temp(path, |tmp| Ok(draw(tmp)?)).map_err(|e| {
+        match e.downcast::<FigureError>() {
+            Ok(f) => f,
+            Err(e) => FigureError::Write {
+                path: path.to_path_buf(),
+                source: e.into(),
+            },
+        }
     })
 }
 

@@ -3,7 +3,7 @@
 //! two projections.
 
 use super::heat;
-use anyhow::{Result, anyhow};
+use crate::{Result, plot_error};
 use etp_shared::episode::Outcome;
 use etp_shared::scenario::Scenario;
 use etp_synthesis::validate::Trajectory;
@@ -43,7 +43,7 @@ fn draw_maps<DB: DrawingBackend>(
 where
     DB::ErrorType: 'static,
 {
-    let e = |x: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {x:?}");
+    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
     root.fill(&WHITE).map_err(e)?;
     let title = format!(
         "{} — {} sampled episodes coloured by the expected transmission rate γ̄(δ) of the threshold in force",
@@ -93,7 +93,7 @@ fn draw_map<DB: DrawingBackend>(
 where
     DB::ErrorType: 'static,
 {
-    let e = |x: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {x:?}");
+    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
     let (a, b) = axes;
     let at = |v: &[f64], i: usize| v.get(i).copied().unwrap_or(0.0);
     let pt = |v: &[f64]| (at(v, a), at(v, b));
@@ -268,7 +268,7 @@ fn colour_bar<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, what: &str) -> 
 where
     DB::ErrorType: 'static,
 {
-    let e = |x: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {x:?}");
+    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
     let (w, h) = area.dim_in_pixel();
     let (top, bottom) = (80i32, h as i32 - 80);
     let (left, right) = (20i32, 45i32.min(w as i32));

@@ -2,7 +2,7 @@
 //! predicted, per sensor (energy per episode) and per outcome (P_tar,
 //! P_coll, P_free), measured values with their 95 % intervals (PNG + SVG).
 
-use anyhow::{Result, anyhow};
+use crate::{Result, plot_error};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -30,7 +30,7 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, fig: &RunFigure) -> R
 where
     DB::ErrorType: 'static,
 {
-    let e = |x: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {x:?}");
+    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
     root.fill(&WHITE).map_err(e)?;
     let area = root.titled(&fig.title, ("sans-serif", 20)).map_err(e)?;
     let (left, right) = area.split_horizontally(740);
@@ -82,7 +82,7 @@ fn panel<DB: DrawingBackend>(
 where
     DB::ErrorType: 'static,
 {
-    let e = |x: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {x:?}");
+    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
     let n = bars.len().max(1);
     let names: Vec<String> = bars.iter().map(|b| b.name.clone()).collect();
     let mut chart = ChartBuilder::on(area)

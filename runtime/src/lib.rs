@@ -19,7 +19,8 @@
 //!   [`wire::Watchdog`] and the header [`wire::Stamper`].
 //! * [`shell`] — the one process shell: argument parsing, logging, exit
 //!   codes ([`shell::main_with`]).
-//! * [`scenario_arg`] — a `SCENARIO` argument (built-in name or TOML path).
+//! * [`scenario_arg`] — a `SCENARIO` argument (built-in name or TOML path);
+//!   [`strategy_arg`] — a `STRATEGY` argument (sealed file and its scenario).
 //! * [`report`] — the coordinator's run report and a run's session info;
 //!   [`cleanup`] — removing what a run left in /dev/shm and its folder;
 //!   [`folders`] — the user's private folders (iceoryx2 roots, run folders),
@@ -38,6 +39,7 @@ pub mod recording;
 pub mod report;
 pub mod scenario_arg;
 pub mod shell;
+pub mod strategy_arg;
 pub mod wire;
 
 pub use scenario_arg::load_scenario;

@@ -2,8 +2,10 @@
 //! sensor node, recorder, bridge) does around its own work, written once.
 //!
 //! Each process is a [`Process`] (its name, arguments and body); [`main_with`]
-//! — the one entry point of every process, `main` of its binary and `etp
-//! process <name>` alike — parses the arguments (help and usage errors exit 0 / 2, as clap
+//! — the one entry point of every process: `main` of its binary, and for
+//! the agent, coordinator, sensor node and recorder also `etp process
+//! <name>` (the bridge has only its binary: `etp` does not link Zenoh) —
+//! parses the arguments (help and usage errors exit 0 / 2, as clap
 //! does), sets up logging ([`init_logging`]: `tracing` on stderr, `RUST_LOG`,
 //! default `warn`), runs the process's body, and turns the result into the
 //! exit code: a [`Done`] is 0 (its stdout line for the parent printed first),
@@ -63,7 +65,7 @@ pub trait Process {
 }
 
 /// THE entry point of every process (`main` of its binary, and `etp process
-/// <name>`): parse `args` (the first is the program name) as `P::Args`, set
+/// <name>` for all but the bridge): parse `args` (the first is the program name) as `P::Args`, set
 /// up logging, run `P::body`, and map its result to the exit code.
 pub fn main_with<P, I, T>(args: I) -> ExitCode
 where

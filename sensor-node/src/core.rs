@@ -11,7 +11,7 @@
 //!
 //! The radio (docs/MODEL.md §8) is simulated here, at its sender: when the
 //! trigger fires, the fate of each attempt is drawn from the link's own
-//! stream (`link_rng(seed, streams::AGENT, episode, sensor)`, the channel of
+//! stream (`LinkChannel::of_episode` with stream `AGENT`, the channel of
 //! the in-process simulation's episodes), retries follow a lost attempt
 //! within the step, and only a delivered attempt is published to the agent.
 //! The link is acknowledged: the agent ACKs each measurement it received,
@@ -24,9 +24,9 @@
 use etp_runtime::wire::agent_to_sensor::{Ack, Handover, Truth};
 use etp_runtime::wire::coordinator_to_all::Threshold;
 use etp_runtime::wire::{ThresholdKind, WireVec, belief_from_wire, to_wire_vec, vec_from_wire};
-use etp_shared::episode::{CompiledScenario, LegReplica, SlotOutcome, belief_digest};
+use etp_shared::episode::{CompiledScenario, LegReplica, SlotOutcome, belief_digest, serve_slot};
 use etp_shared::etkf::{EtKalmanFilter, Vector};
-use etp_shared::radio::{LinkChannel, Transmission};
+use etp_shared::radio::LinkChannel;
 use etp_shared::rng::{stream_rng, streams};
 use std::collections::VecDeque;
 
@@ -302,16 +302,17 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
         let prior = *slot_open.prior();
         let mut rng = stream_rng(seed, streams::SENSOR, (episode << 32) | u64::from(step));
         let x: Vector<N> = vec_from_wire(&t.x);
-        let y = filter.sensor.measure(&x, &mut rng);
-        let fired = filter.innovation(&prior).triggers(&y, open.delta);
-        // The attempts' fate on this link (the ideal link draws nothing).
-        let sent = if fired {
-            let channel = match &mut self.channel {
+        // The slot (measure, trigger, the attempts' fate on this link: the
+        // ideal link draws nothing), as the in-process leg loop serves it.
+        let channel = &mut self.channel;
+        let served = serve_slot(&filter, &prior, &x, open.delta, &mut rng, || {
+            let channel = match channel {
                 Some((e, c)) if *e == episode => c,
                 slot => {
-                    let c = etp_runtime::wire::link_channel(
+                    let c = LinkChannel::of_episode(
                         &scenario.radio,
                         seed,
+                        streams::AGENT,
                         episode,
                         self.id.index as usize,
                     );
@@ -320,12 +321,8 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
             };
             channel.advance_to(u64::from(step));
             channel.transmit()
-        } else {
-            Transmission {
-                attempts: 0,
-                delivered: false,
-            }
-        };
+        });
+        let (y, fired, sent) = (served.y, served.fired, served.sending);
         // What the agent will receive: the wire copy of y (same bits).
         let y_wire = to_wire_vec(y.as_slice());
         let slot = if sent.delivered {

@@ -31,7 +31,7 @@ pub mod step;
 
 pub use agent_core::{AgentCore, Begun, LegRule, OpenSlot, Plant, Unseen, World, slot_update};
 pub use replica::{LegReplica, belief_digest};
-pub use step::SlotOutcome;
+pub use step::{ServedSlot, SlotOutcome, serve_slot};
 
 use crate::controller::{FeedbackController, reached};
 use crate::etkf::{Belief, EtKalmanFilter, LinearPlant, Matrix, Threshold, Vector, sample_belief};
@@ -498,7 +498,12 @@ impl<const N: usize> CompiledScenario<N> {
                 }
             };
             // The serving sensor's slot (docs/MODEL.md §2, §8): measure,
-            // trigger on the prior's innovation, transmit over the link.
+            // trigger on the prior's innovation, transmit over the link —
+            // `step::serve_slot` written inline: a build with this loop
+            // through it (a closure for the link), and `simulate_constant`
+            // moved into etp-synthesis, ran winding-2d at 0.55–0.65 of this
+            // speed (`etp bench`, interleaved medians; which of the two cost
+            // it was not isolated).
             let threshold = core.threshold();
             let y = filter.sensor.measure(&state.x, rng);
             let inn = filter.innovation(slot.prior());

@@ -363,25 +363,6 @@ impl<const N: usize, const M: usize> EtKalmanFilter<N, M> {
         self.plant.predict(post, u)
     }
 
-    /// One full ET-KF step for a measurement `y` the sensor took: predict,
-    /// trigger, update. Returns the posterior and whether `y` was transmitted.
-    #[inline(always)]
-    pub fn step(
-        &self,
-        post: &Belief<N>,
-        u: &Vector<N>,
-        y: &Vector<M>,
-        th: Threshold,
-    ) -> (Belief<N>, bool) {
-        let prior = self.predict(post, u);
-        let inn = self.innovation(&prior);
-        if inn.triggers(y, th.delta) {
-            (self.update_explicit(&prior, &inn, y), true)
-        } else {
-            (self.update_implicit(&prior, &inn, th.beta), false)
-        }
-    }
-
     /// Steady-state posterior covariance `P_KF` of the ordinary Kalman filter
     /// (δ = 0), by iterating the Riccati recursion to a fixed point.
     pub fn steady_state_posterior(&self) -> Matrix<N, N> {

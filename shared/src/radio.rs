@@ -266,6 +266,45 @@ impl Radio {
         }
     }
 
+    /// THE channel of a use of a scenario (docs/MODEL.md §8.6), the one
+    /// override rule of every command: `self` is the scenario text's own
+    /// channel (`[radio]`, a sensor's own link fields winning); the channel
+    /// a front or strategy file records (`recorded`: the one it was
+    /// synthesized for, present only when radio options changed the text's
+    /// own) replaces it whole; then each radio option given replaces that
+    /// setting on every link ([`Self::overridden`]). A recorded channel
+    /// without links is the ideal one; one with another number of links
+    /// than `self` is refused.
+    pub fn for_use(
+        &self,
+        recorded: Option<&Radio>,
+        options: &RadioOverride,
+    ) -> Result<Self, RadioError> {
+        let base = match recorded {
+            None => self.clone(),
+            Some(r) if r.links.is_empty() => Self {
+                estimator: r.estimator,
+                links: vec![Link::IDEAL; self.links.len()],
+            },
+            Some(r) if r.links.len() != self.links.len() => {
+                return Err(refuse(
+                    "radio",
+                    format!(
+                        "the recorded channel has {} links for the scenario's {} sensors",
+                        r.links.len(),
+                        self.links.len()
+                    ),
+                ));
+            }
+            Some(r) => r.clone(),
+        };
+        if options.is_empty() {
+            Ok(base)
+        } else {
+            base.overridden(options)
+        }
+    }
+
     /// Apply command-line settings to every link (each given value replaces
     /// the scenario's, including per-sensor ones); checked like the scenario,
     /// errors naming the option.
@@ -373,6 +412,19 @@ impl LinkChannel {
         }
     }
 
+    /// Sensor `sensor`'s channel in episode `episode` of stream `stream`
+    /// under `seed`: its link of `radio`, drawing from its own stream
+    /// `link_rng(seed, stream, episode, sensor)` (docs/MODEL.md §8.2). THE
+    /// seeding rule of a link: the in-process episodes
+    /// ([`EpisodeChannels::new`]), the sensor process and `replay verify`
+    /// (both with stream `AGENT`) all take their channel from here.
+    pub fn of_episode(radio: &Radio, seed: u64, stream: u64, episode: u64, sensor: usize) -> Self {
+        Self::new(
+            radio.link(sensor),
+            link_rng(seed, stream, episode, sensor as u64),
+        )
+    }
+
     /// Advance the Gilbert–Elliott state through step `step` (no-op for
     /// independent losses, or if already there).
     #[inline]
@@ -444,14 +496,11 @@ pub struct EpisodeChannels {
 
 impl EpisodeChannels {
     /// The channels of episode `index` of stream `stream` under `seed`: link s
-    /// draws from `link_rng(seed, stream, index, s)` only.
+    /// is [`LinkChannel::of_episode`].
     pub fn new(radio: &Radio, seed: u64, stream: u64, index: u64) -> Self {
         Self {
-            links: radio
-                .links
-                .iter()
-                .enumerate()
-                .map(|(s, &l)| LinkChannel::new(l, link_rng(seed, stream, index, s as u64)))
+            links: (0..radio.links.len())
+                .map(|s| LinkChannel::of_episode(radio, seed, stream, index, s))
                 .collect(),
             step: 0,
             ideal: radio.is_ideal(),

@@ -15,7 +15,7 @@
 //! checks the seal when present and accepts old, unsealed ones.
 
 use crate::discretization::{Discretization, Region, RegionSplit, SPLIT_MARK, check_splits};
-use crate::radio::Radio;
+use crate::radio::{Radio, RadioOverride};
 use crate::scenario::Scenario;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
@@ -247,20 +247,17 @@ impl Strategy {
     }
 
     /// `scenario` (this strategy's, hash checked) under the radio the
-    /// strategy was synthesized for: [`Strategy::radio`] when present (one
-    /// link per sensor), else the scenario's own.
+    /// strategy was synthesized for: steps 1–2 of the one override rule
+    /// ([`Radio::for_use`], docs/MODEL.md §8.6) — [`Strategy::radio`] when
+    /// present (one link per sensor, or none for every link ideal), else the
+    /// scenario's own.
     pub fn with_own_radio(&self, mut scenario: Scenario) -> Result<Scenario, StrategyError> {
-        if let Some(r) = &self.radio {
-            if !r.links.is_empty() && r.links.len() != scenario.sensors.len() {
-                return Err(StrategyError::Invalid(format!(
-                    "its `radio` has {} links for the {} sensors of scenario `{}`",
-                    r.links.len(),
-                    scenario.sensors.len(),
-                    scenario.name
-                )));
-            }
-            scenario.radio = r.clone();
-        }
+        scenario.radio = scenario
+            .radio
+            .for_use(self.radio.as_ref(), &RadioOverride::default())
+            .map_err(|e| {
+                StrategyError::Invalid(format!("its `radio` for scenario `{}`: {e}", scenario.name))
+            })?;
         Ok(scenario)
     }
 

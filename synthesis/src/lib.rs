@@ -7,9 +7,18 @@
 //!
 //! * [`abstraction`] — the belief-space MDP by layered Monte Carlo (docs/MODEL.md §4,
 //!   Method 2 discretized regions and Method 1 KF convergence).
-//! * [`mdp`] — the [`mdp::Mdp`] type and its versioned file `mdp.bin`.
+//! * [`mdp`] — the [`mdp::Mdp`] type and its versioned file `mdp.bin`
+//!   ([`mdp::MDP_FILE`]).
 //! * [`pareto`] — every vertex and facet of the Pareto front, strategies for a
 //!   requested trade-off (vertex LP, occupation measures), `front.json`.
+//! * [`certify`] — predictions that hold (docs/MODEL.md §4.1): the cross-fitted
+//!   value on held-out samples, the interval MDP and its robust backward
+//!   induction ([`certify::robust::Certified`]), certified strategy selection,
+//!   the certified front, and replicates (R rebuilds' cross-fitted values).
+//! * [`predict`] — the prediction etp stands by (docs/MODEL.md §7.4): a
+//!   strategy predicted on on-policy rebuilds ([`predict::rebuild`]) and the
+//!   request loop that selects, rebuilds and moves the request by the
+//!   measured gap ([`predict::request::meet_request`]).
 //! * [`validate`] — simulating a strategy (belief → region → δ ~ ω), trajectories.
 //! * [`prism`] — PRISM explicit export.
 //! * [`synthetic`] — seeded synthetic layered MDPs for benchmarks at scale.

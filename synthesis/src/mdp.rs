@@ -22,6 +22,10 @@ use serde::{Deserialize, Serialize};
 /// 5: the workspace descriptor's lookahead and range rule in the build settings;
 /// 6: the lumping level; 7: the regions split by `--split-budget`).
 pub const MDP_FORMAT_VERSION: u32 = 7;
+
+/// The file name of a synthesis's MDP inside its output folder (`etp
+/// synthesize` writes it there; `strategy`, `export-prism` and `demo` read it).
+pub const MDP_FILE: &str = "mdp.bin";
 const MAGIC: &[u8; 8] = b"ETPMDP\0\n";
 /// Magic and version.
 const HEADER_LEN: usize = 12;

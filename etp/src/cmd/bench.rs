@@ -3,8 +3,8 @@
 //! with `--front`: the Pareto front, the strategy LP and the PRISM export of
 //! synthesized MDPs and of a synthetic layered MDP of thousands of states.
 
-use crate::cmd::simulate::simulate_constant;
 use crate::input::{RadioArgs, load_scenario_with_radio};
+use crate::simulation::simulate_constant;
 use anyhow::Result;
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::optimal::{LpRequest, optimal_strategy};

@@ -11,6 +11,7 @@ use crate::progress;
 use anyhow::{Context, Result};
 use etp_shared::rng::mix64;
 use etp_shared::scenario::DEFAULT_SCENARIO;
+use etp_synthesis::mdp::MDP_FILE;
 use etp_synthesis::pareto::to_strategy;
 use etp_synthesis::predict::request::{Goal, LoopSettings, Verdict, meet_request};
 use etp_synthesis::validate::{sample_trajectories, simulate_strategy};
@@ -68,7 +69,7 @@ pub fn run(a: Args) -> Result<()> {
         ))
     });
     crate::output::output_folder(&dir)?;
-    if dir.join("mdp.bin").exists() {
+    if dir.join(MDP_FILE).exists() {
         anyhow::bail!(
             "{} already holds a synthesis; choose another --out",
             dir.display()

@@ -4,9 +4,9 @@
 //! thresholds come from the front (`DIR/front.json`, refused if it belongs to
 //! another MDP; computed when absent).
 
-use crate::cmd::synthesize::MDP_FILE;
 use crate::output::{read_front, read_mdp};
 use anyhow::{Context, Result};
+use etp_synthesis::mdp::MDP_FILE;
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::compute_front;
 use etp_synthesis::prism;
@@ -38,7 +38,7 @@ pub struct Args {
 /// Load an MDP from a directory (its `mdp.bin`) or a file path.
 pub fn load_mdp(path: &Path) -> Result<Mdp> {
     let file = if path.is_dir() {
-        path.join("mdp.bin")
+        path.join(MDP_FILE)
     } else {
         path.to_path_buf()
     };

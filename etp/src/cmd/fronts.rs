@@ -7,7 +7,7 @@
 use crate::output::read_front;
 use crate::output::read_mdp;
 use anyhow::{Context, Result, bail};
-use etp_shared::radio::Radio;
+use etp_shared::radio::RadioOverride;
 use etp_synthesis::pareto::ParetoFront;
 use etp_synthesis::pareto::select::{Request, select};
 use serde_json::json;
@@ -119,7 +119,8 @@ pub fn run(a: Args) -> Result<()> {
     Ok(())
 }
 
-/// The channel a front was synthesized under: its recorded radio, else its
+/// The channel a front was synthesized under (the override rule of
+/// docs/MODEL.md §8.6 without options): its recorded radio, else its
 /// scenario text's own.
 fn channel_of(front: &ParetoFront, scenario_text: Option<&str>) -> Result<String> {
     let own = match scenario_text {
@@ -127,7 +128,9 @@ fn channel_of(front: &ParetoFront, scenario_text: Option<&str>) -> Result<String
         None => etp_shared::scenario::Scenario::builtin(&front.scenario_name)?,
     };
     let names: Vec<String> = own.sensors.iter().map(|s| s.name.clone()).collect();
-    let radio: &Radio = front.radio.as_ref().unwrap_or(&own.radio);
+    let radio = own
+        .radio
+        .for_use(front.radio.as_ref(), &RadioOverride::default())?;
     Ok(radio.describe(&names))
 }
 

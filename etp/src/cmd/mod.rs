@@ -1,19 +1,21 @@
-//! One module per subcommand.
+//! One module per subcommand (`replay`'s, `run`'s and `strategy`'s
+//! subcommands, and `synthesize`'s aggregation check and splitting, in
+//! folders of their own). Each is a leaf: no command module imports another
+//! (the test `etp_command_modules_import_no_other_command`); what two share
+//! lives in a library crate or beside `cmd` (`predictions`, `report`,
+//! `input`, `output`, `processes`, `simulation`).
 
-pub mod aggregation;
 pub mod bench;
 pub mod certs;
 pub mod check;
 pub mod demo;
 pub mod export_prism;
 pub mod fronts;
-pub mod predictions;
 pub mod process;
 pub mod replay;
 pub mod run;
 pub mod scenario;
 pub mod simulate;
-pub mod split;
 pub mod strategy;
 pub mod synthesize;
 pub mod validate;

@@ -17,7 +17,7 @@ mod evaluate;
 mod quick;
 mod select;
 
-pub use crate::cmd::predictions::AGGREGATION_CHECK_EPISODES;
+pub use crate::predictions::AGGREGATION_CHECK_EPISODES;
 
 /// `etp strategy` exits with this code when the request is out of reach:
 /// the best strategy the loop could stand behind was written and reported

@@ -5,6 +5,9 @@
 //! progress bar, write the file, measure); [`run`] prints its report. The Pareto
 //! step appends to [`run`] after [`build_mdp`].
 
+pub mod aggregation;
+pub mod split;
+
 use crate::input::{RadioArgs, load_scenario_with_radio};
 use crate::output::write_new;
 use crate::progress;
@@ -15,13 +18,10 @@ use etp_synthesis::abstraction::{
     self, AbstractionParams, DEFAULT_LOOKAHEAD, DEFAULT_POOL_PER_REGION, DEFAULT_REST_BINS,
     DEFAULT_SAMPLES, Descriptor, default_kf_params,
 };
-use etp_synthesis::mdp::{KfConvergenceParams, Mdp, Method};
+use etp_synthesis::mdp::{KfConvergenceParams, MDP_FILE, Mdp, Method};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-/// Name of the MDP file inside the output directory.
-pub const MDP_FILE: &str = "mdp.bin";
 
 /// Method 2's belief descriptor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -148,7 +148,7 @@ pub struct Args {
     pub aggregation_alpha: f64,
     /// Adaptive splitting of the regions the aggregation test flags.
     #[command(flatten)]
-    pub split: crate::cmd::split::SplitArgs,
+    pub split: split::SplitArgs,
     /// Draw the pools on-policy (docs/MODEL.md §7.3): on this strategy's
     /// bins, each region's pool sampled from the arrivals weighted by the
     /// probability that the strategy brings a belief there. A strategy of a
@@ -177,7 +177,7 @@ pub struct MdpReport {
     /// `--merge`: the level and the states per decision point before lumping.
     pub merge: Option<MergeSummary>,
     /// `--split-budget`: what adaptive splitting did (before any lumping).
-    pub split: Option<crate::cmd::split::SplitSummary>,
+    pub split: Option<split::SplitSummary>,
     /// Sampled segments per state over its actions (`samples` × actions
     /// unless sample allocation added some): smallest and largest.
     pub samples_per_state: [u64; 2],
@@ -276,7 +276,7 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
         bail!("--merge: the level α must lie in (0, 1) (got {alpha})");
     }
     let p = params(a, &s)?;
-    crate::cmd::split::check(&a.split, p.method)?;
+    split::check(&a.split, p.method)?;
     let pool_policy = match &a.pool_policy {
         None => None,
         Some(path) => {
@@ -285,7 +285,7 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
                     "--pool-policy and --split-budget: choose one (the policy's strategy carries its own splits)"
                 );
             }
-            let (st, _) = crate::cmd::validate::load_strategy(path)
+            let (st, _) = etp_runtime::strategy_arg::load_strategy(path)
                 .with_context(|| format!("--pool-policy {}", path.display()))?;
             st.check_scenario(&s).with_context(|| {
                 format!(
@@ -308,7 +308,7 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
     mdp.check()
         .context("the built MDP failed its own consistency check (a bug)")?;
     let first_seconds = started.elapsed().as_secs_f64();
-    let (mdp, split) = crate::cmd::split::apply(&s, &p, mdp, first_seconds, &a.split, a.json)?;
+    let (mdp, split) = split::apply(&s, &p, mdp, first_seconds, &a.split, a.json)?;
     let (mdp, merge) = match a.merge {
         None => (mdp, None),
         Some(alpha) => {
@@ -397,7 +397,7 @@ pub fn report_text(r: &MdpReport) -> String {
         None => String::new(),
     };
     let merge = match &r.split {
-        Some(s) => format!("{}{merge}", crate::cmd::split::describe(s)),
+        Some(s) => format!("{}{merge}", split::describe(s)),
         None => merge,
     };
     format!(
@@ -486,7 +486,7 @@ pub fn run(a: Args) -> Result<()> {
     } else {
         None
     };
-    let aggregation = crate::cmd::aggregation::measure(
+    let aggregation = aggregation::measure(
         &built.scenario,
         &built.mdp,
         a.aggregation_episodes,
@@ -510,10 +510,7 @@ pub fn run(a: Args) -> Result<()> {
     } else {
         print!("{}", report_text(&built.report));
         if let Some((r, secs)) = &aggregation {
-            print!(
-                "{}",
-                crate::cmd::aggregation::describe(r, &built.mdp, *secs)
-            );
+            print!("{}", aggregation::describe(r, &built.mdp, *secs));
         }
         print!("{}", crate::front::describe(&front.front));
         println!("  computed in {:.3} s", front.seconds);

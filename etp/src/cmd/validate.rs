@@ -1,15 +1,15 @@
 //! `etp validate STRATEGY`: simulate a strategy in-process and compare with its
 //! prediction, like the paper's tables.
 
-use crate::cmd::predictions;
-use crate::cmd::simulate::summary_table;
+use crate::predictions;
 use crate::progress;
-use anyhow::{Context, Result};
+use crate::report::{channels_text, radio_table, summary_json, summary_table};
+use anyhow::Result;
 use etp_shared::strategy::Strategy;
 use etp_synthesis::simulate::SimulationSummary;
 use etp_synthesis::validate::{sample_trajectories, simulate_strategy};
 use serde_json::json;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Exit code: the report was printed and at least one of the strategy's
 /// predictions lies outside the simulation's 95 % interval (a check FAILS).
@@ -44,17 +44,7 @@ pub struct Args {
     pub radio: crate::input::RadioArgs,
 }
 
-/// Load and check a strategy file (scenario embedded or built-in, hash checked).
-pub fn load_strategy(path: &Path) -> Result<(Strategy, etp_shared::scenario::Scenario)> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let strategy = Strategy::from_sealed_json(&text)
-        .with_context(|| format!("loading strategy {}", path.display()))?;
-    let scenario = strategy
-        .scenario()
-        .with_context(|| format!("strategy {}", path.display()))?;
-    Ok((strategy, scenario))
-}
+use etp_runtime::strategy_arg::load_strategy;
 
 pub fn run(a: Args) -> Result<()> {
     let (strategy, scenario) = load_strategy(&a.strategy)?;
@@ -118,7 +108,7 @@ pub fn run(a: Args) -> Result<()> {
             channels_text(&synthesized, &scenario.radio, &names)
         );
         print!("{}", summary_table(&sum));
-        print!("{}", crate::cmd::simulate::radio_table(&scenario, &sum));
+        print!("{}", radio_table(&scenario, &sum));
         for p in &plot_paths {
             println!("wrote {}", p.display());
         }
@@ -216,7 +206,7 @@ pub fn comparison_json(
     sum: &SimulationSummary,
     seed: u64,
 ) -> serde_json::Value {
-    let mut v = crate::cmd::simulate::summary_json(scenario, sum);
+    let mut v = summary_json(scenario, sum);
     // The per-sensor prediction of the strategy file (the MDP's), if it has one.
     if let (Some(per_ep), Some(sensors)) = (
         strategy.sensor_energy(scenario),
@@ -313,22 +303,4 @@ pub fn comparison_table(strategy: &Strategy, sum: &SimulationSummary) -> String 
         }
     }
     o
-}
-
-/// The radio of a validation: the strategy's own channel, or both when the
-/// options evaluate it under another one (a robustness study).
-pub(crate) fn channels_text(
-    synthesized: &etp_shared::radio::Radio,
-    evaluated: &etp_shared::radio::Radio,
-    names: &[String],
-) -> String {
-    if synthesized == evaluated {
-        format!("radio: {}, the strategy's own", evaluated.describe(names))
-    } else {
-        format!(
-            "radio: {} — the strategy was synthesized for {}",
-            evaluated.describe(names),
-            synthesized.describe(names)
-        )
-    }
 }

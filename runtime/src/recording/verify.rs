@@ -17,7 +17,7 @@
 //!
 //! The radio (docs/MODEL.md §8) is re-drawn too: every slot that recorded
 //! attempts gets its fate drawn again from the sensor link's own stream
-//! (`link_rng(seed, streams::AGENT, episode, sensor)`, the seed from the
+//! (`LinkChannel::of_episode` with stream `AGENT`, the seed from the
 //! episode's `control`), which must give the recorded attempts and delivery;
 //! a silence after lost attempts is re-run with the radio's silence factor
 //! ([`CompiledScenario::silence_beta`]), bit for bit.
@@ -37,6 +37,7 @@ use crate::wire::{WireMat, WireVec, belief_to_wire};
 use etp_shared::episode::{AgentCore, Begun, CompiledScenario, SlotOutcome, World, belief_digest};
 use etp_shared::etkf::{Belief, Vector};
 use etp_shared::radio::LinkChannel;
+use etp_shared::rng::streams;
 use etp_shared::scenario::Scenario;
 use std::collections::BTreeMap;
 
@@ -442,7 +443,7 @@ fn rerun<const N: usize>(
                     );
                 };
                 let channel = channels.entry(sensor).or_insert_with(|| {
-                    crate::wire::link_channel(&c.radio, ctrl.seed, episode, sensor)
+                    LinkChannel::of_episode(&c.radio, ctrl.seed, streams::AGENT, episode, sensor)
                 });
                 channel.advance_to(u64::from(k));
                 let t = channel.transmit();

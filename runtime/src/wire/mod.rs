@@ -83,26 +83,6 @@ pub fn belief_to_wire<const N: usize>(b: &Belief<N>) -> (WireVec, WireMat) {
     )
 }
 
-/// Sensor `sensor`'s radio channel in episode `episode` of a run with seed
-/// `seed` (docs/MODEL.md §8.5): the link's own stream of the episode,
-/// `link_rng(seed, streams::AGENT, episode, sensor)` — the channel the
-/// in-process simulation gives an episode of stream `AGENT`. The sensor
-/// draws its attempts from it; `replay verify` draws them again.
-pub fn link_channel(
-    radio: &etp_shared::radio::Radio,
-    seed: u64,
-    episode: u64,
-    sensor: usize,
-) -> etp_shared::radio::LinkChannel {
-    let rng = etp_shared::rng::link_rng(
-        seed,
-        etp_shared::rng::streams::AGENT,
-        episode,
-        sensor as u64,
-    );
-    etp_shared::radio::LinkChannel::new(radio.link(sensor), rng)
-}
-
 /// A belief from wire arrays.
 pub fn belief_from_wire<const N: usize>(mean: &WireVec, cov: &WireMat) -> Belief<N> {
     Belief {

@@ -130,7 +130,7 @@ impl ServiceId {
 
 #[cfg(test)]
 mod tests {
-    use super::super::catalogue::{Class, Forward, LimitsClass, Link};
+    use super::super::catalogue::{Class, Forward, KindVisitor, LimitsClass, Link, Message};
     use super::super::limits::limits;
     use super::super::traffic::link_class;
     use super::*;
@@ -177,7 +177,28 @@ mod tests {
             if let Some(d) = r.forward.direction() {
                 assert!(ranks.insert((d.0 == Direction::Down, d.1)), "{k:?}");
             }
-            assert!(k.schema_name().ends_with(&format!("{k:?}")));
+        }
+    }
+
+    /// Each payload's iceoryx2 type name (its `#[type_name(..)]`, which
+    /// iceoryx2 checks when a port opens and a recording names its schema
+    /// by) is its kind's schema name: a struct renamed in one place only
+    /// fails here, not between two processes.
+    #[test]
+    fn each_payloads_type_name_is_its_kinds_schema_name() {
+        struct TypeNameOf;
+        impl KindVisitor for TypeNameOf {
+            type Out = &'static str;
+            #[allow(unsafe_code)]
+            fn visit<T: Message>(self) -> &'static str {
+                // SAFETY: reading the name has no precondition; the trait's
+                // contract (the same layout in every process) binds its
+                // implementors, here the derive on each payload.
+                unsafe { <T as iceoryx2::prelude::ZeroCopySend>::type_name() }
+            }
+        }
+        for &k in Kind::ALL {
+            assert_eq!(k.visit(TypeNameOf), k.schema_name(), "{k:?}");
         }
     }
 

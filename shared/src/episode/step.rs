@@ -17,8 +17,65 @@
 //! ```
 
 use super::{CompiledScenario, Outcome, SensorFilter};
-use crate::etkf::{Belief, Threshold, Vector};
+use crate::etkf::{Belief, EtKalmanFilter, Innovation, Threshold, Vector};
+use crate::radio::Transmission;
 use rand::Rng;
+
+/// The serving sensor's side of step 4 (docs/MODEL.md §2, §8): what it
+/// measured, the innovation it triggered on, and what its link did.
+#[derive(Debug, Clone, Copy)]
+pub struct ServedSlot<const N: usize, const M: usize> {
+    /// `y = H x + v`.
+    pub y: Vector<M>,
+    /// The prior's innovation (its whitening also serves the update).
+    pub innovation: Innovation<N, M>,
+    /// The trigger fired: ‖ε‖∞ > δ.
+    pub fired: bool,
+    /// The link's attempts (none without a trigger).
+    pub sending: Transmission,
+}
+
+impl<const N: usize, const M: usize> ServedSlot<N, M> {
+    /// The measurement the agent receives, if an attempt was delivered.
+    #[inline(always)]
+    pub fn delivered(&self) -> Option<&Vector<M>> {
+        self.sending.delivered.then_some(&self.y)
+    }
+}
+
+/// The serving sensor's slot as the sensor process runs it (the in-process
+/// leg loop writes the same lines inline, for its speed: see there): measure `y = H x + v` (noise from `rng`), trigger
+/// on the prior's innovation, and on a trigger make the link's attempts
+/// (`link` is called only then; an ideal link delivers the first). The
+/// agent's update of what was delivered is [`super::slot_update`] (or, at
+/// the sensor, its replica's close).
+#[inline(always)]
+pub fn serve_slot<const N: usize, const M: usize, R: Rng + ?Sized>(
+    filter: &EtKalmanFilter<N, M>,
+    prior: &Belief<N>,
+    x: &Vector<N>,
+    delta: f64,
+    rng: &mut R,
+    link: impl FnOnce() -> Transmission,
+) -> ServedSlot<N, M> {
+    let y = filter.sensor.measure(x, rng);
+    let innovation = filter.innovation(prior);
+    let fired = innovation.triggers(&y, delta);
+    let sending = if fired {
+        link()
+    } else {
+        Transmission {
+            attempts: 0,
+            delivered: false,
+        }
+    };
+    ServedSlot {
+        y,
+        innovation,
+        fired,
+        sending,
+    }
+}
 
 /// What the serving sensor's slot brought the agent.
 #[derive(Debug, Clone, Copy, PartialEq)]

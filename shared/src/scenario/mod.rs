@@ -7,13 +7,16 @@
 //! symmetric positive definite, numbers are finite.
 
 mod builtin;
-mod higher;
+mod fields;
 pub mod random;
 mod raw;
+mod text;
 mod validate;
+mod workspace_gain;
 
 pub use builtin::{BUILTIN_NAMES, DEFAULT_SCENARIO, builtin_text};
-pub use higher::pseudo_inverse;
+pub use text::ScenarioText;
+pub use workspace_gain::pseudo_inverse;
 
 use crate::geometry::Aabb;
 use crate::radio::{Radio, RadioOverride};
@@ -163,12 +166,10 @@ impl Scenario {
     /// The content hash stays the file's: the channel is a condition of use
     /// (a strategy may be evaluated under another radio, docs/MODEL.md §8).
     pub fn with_radio_override(mut self, o: &RadioOverride) -> Result<Self, ScenarioError> {
-        if !o.is_empty() {
-            self.radio = self
-                .radio
-                .overridden(o)
-                .map_err(|e| ScenarioError::invalid(e.field, e.reason))?;
-        }
+        self.radio = self
+            .radio
+            .for_use(None, o)
+            .map_err(|e| ScenarioError::invalid(e.field, e.reason))?;
         Ok(self)
     }
 

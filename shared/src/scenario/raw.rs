@@ -4,6 +4,21 @@ use serde::{Deserialize, Serialize};
 
 pub(crate) type RawMatrix = Vec<Vec<f64>>;
 
+/// The channel's keys as this shape reads them: the `[radio]` table
+/// ([`RawRadio`]), the `[[sensor]]` array and the link fields a sensor may
+/// set for itself ([`RawSensor`]). The writer of [`super::text`] uses them;
+/// a test checks them against the serde names of the structs below.
+pub(crate) mod keys {
+    pub const RADIO: &str = "radio";
+    pub const SENSOR: &str = "sensor";
+    pub const LOSS: &str = "loss";
+    pub const RETRIES: &str = "retries";
+    pub const BURST: &str = "burst";
+    pub const ESTIMATOR: &str = "estimator";
+    /// A link's settings: in `[radio]` for every link, in a `[[sensor]]` for its own.
+    pub const LINK: [&str; 3] = [LOSS, RETRIES, BURST];
+}
+
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct RawScenario {

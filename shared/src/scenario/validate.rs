@@ -3,8 +3,9 @@
 //! Every check names the field (`sensor[1] "s1".R`, `leg[3].sensor`, ...) and the
 //! reason, so a user can fix the file without reading code.
 
-use super::higher;
-use super::raw::{RawBox, RawMatrix, RawRadio, RawScenario, RawSensor};
+use super::fields::{matrix, positive, spd, vector};
+use super::raw::{RawBox, RawRadio, RawScenario, RawSensor};
+use super::workspace_gain;
 use super::{ControllerParams, Leg, MAX_DIM, Obstacle, Plant, Scenario, ScenarioError, Sensor};
 use crate::geometry::Aabb;
 use crate::radio::{Estimator, Link, LinkFields, Radio};
@@ -45,11 +46,11 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
         p0: spd("model.P0", &m.p0, n)?,
     };
     let workspace = match &m.c {
-        Some(c) => Some(higher::workspace_map(c, n)?),
+        Some(c) => Some(workspace_gain::workspace_map(c, n)?),
         None => None,
     };
     let d = workspace.as_ref().map_or(n, DMatrix::nrows);
-    let gain = higher::feedback_gain(&raw.controller, &plant)?;
+    let gain = workspace_gain::feedback_gain(&raw.controller, &plant)?;
     // Workspace points (legs, sensor positions, boxes) have d entries.
     let point = |field: &str, raw: &[f64]| -> Result<DVector<f64>> {
         if workspace.is_some() && raw.len() != d {
@@ -222,7 +223,7 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
 
     let mut warnings = Vec::new();
     if let Some(c) = &workspace {
-        warnings.extend(higher::rest_point_warnings(c, &plant.f, &legs));
+        warnings.extend(workspace_gain::rest_point_warnings(c, &plant.f, &legs));
     }
 
     Ok(Scenario {
@@ -330,104 +331,6 @@ fn content_hash(raw: &RawScenario) -> String {
     let canonical = serde_json::to_vec(raw).unwrap_or_default();
     let digest = Sha256::digest(&canonical);
     digest.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-pub(super) fn finite(field: &str, v: f64) -> Result<f64> {
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(ScenarioError::invalid(
-            field,
-            format!("must be a finite number, got {v}"),
-        ))
-    }
-}
-
-pub(super) fn positive(field: &str, v: f64) -> Result<f64> {
-    finite(field, v)?;
-    if v > 0.0 {
-        Ok(v)
-    } else {
-        Err(ScenarioError::invalid(
-            field,
-            format!("must be > 0, got {v}"),
-        ))
-    }
-}
-
-pub(super) fn vector(field: &str, raw: &[f64], n: usize) -> Result<DVector<f64>> {
-    if raw.len() != n {
-        return Err(ScenarioError::invalid(
-            field,
-            format!("must have dim = {n} entries, got {}", raw.len()),
-        ));
-    }
-    for (i, &v) in raw.iter().enumerate() {
-        finite(&format!("{field}[{i}]"), v)?;
-    }
-    Ok(DVector::from_column_slice(raw))
-}
-
-/// A `rows × cols` matrix (rows `None`: any non-zero count).
-pub(super) fn matrix(
-    field: &str,
-    raw: &RawMatrix,
-    rows: Option<usize>,
-    cols: usize,
-) -> Result<DMatrix<f64>> {
-    let r = raw.len();
-    if let Some(want) = rows
-        && r != want
-    {
-        return Err(ScenarioError::invalid(
-            field,
-            format!("wrong shape: must be {want}x{cols}, got {r} rows"),
-        ));
-    }
-    for (i, row) in raw.iter().enumerate() {
-        if row.len() != cols {
-            return Err(ScenarioError::invalid(
-                field,
-                format!(
-                    "wrong shape: must be {r}x{cols}, row {i} has {} entries",
-                    row.len()
-                ),
-            ));
-        }
-        for (j, &v) in row.iter().enumerate() {
-            finite(&format!("{field}[{i}][{j}]"), v)?;
-        }
-    }
-    Ok(DMatrix::from_fn(r, cols, |i, j| raw[i][j]))
-}
-
-/// A symmetric positive definite `n × n` matrix.
-pub(super) fn spd(field: &str, raw: &RawMatrix, n: usize) -> Result<DMatrix<f64>> {
-    let a = matrix(field, raw, Some(n), n)?;
-    let scale = a.amax().max(f64::MIN_POSITIVE);
-    for i in 0..n {
-        for j in 0..i {
-            if (a[(i, j)] - a[(j, i)]).abs() > 1e-9 * scale {
-                return Err(ScenarioError::invalid(
-                    field,
-                    format!(
-                        "not symmetric: [{i}][{j}] = {} but [{j}][{i}] = {}",
-                        a[(i, j)],
-                        a[(j, i)]
-                    ),
-                ));
-            }
-        }
-    }
-    let sym = (&a + a.transpose()) * 0.5;
-    let smallest = sym.clone().symmetric_eigenvalues().min();
-    if smallest <= 0.0 || nalgebra::Cholesky::new(sym.clone()).is_none() {
-        return Err(ScenarioError::invalid(
-            field,
-            format!("not positive definite: smallest eigenvalue is {smallest:e}"),
-        ));
-    }
-    Ok(sym)
 }
 
 fn aabb(field: &str, raw: &RawBox, point: &WorkspacePoint<'_>) -> Result<Aabb> {

@@ -11,36 +11,13 @@ use super::intervals::interval_mdp;
 use super::robust::certify;
 use crate::mdp::{CostModel, Mdp};
 use crate::pareto::ParetoFront;
-use crate::pareto::policy::{Objectives, as_randomised};
-use serde::{Deserialize, Serialize};
+use crate::pareto::policy::as_randomised;
+// The types live beside `ParetoFront`, which holds them, so that `pareto`
+// needs nothing of `certify` (no module cycle).
+pub use crate::pareto::{CertifiedFront, CertifiedPoint};
 
 /// Default confidence of the certified front.
 pub const FRONT_CONFIDENCE: f64 = 0.95;
-
-/// One vertex of the nominal front, certified.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct CertifiedPoint {
-    /// Index into `ParetoFront::vertices`.
-    pub vertex: usize,
-    pub p_target_low: f64,
-    pub p_collision_high: f64,
-    pub energy_high: f64,
-    /// Cross-fitted values (held-out transitions), when the MDP has them.
-    pub crossfit: Option<Objectives>,
-    /// Another certified point is at least as good in all three bounds and
-    /// better in one.
-    pub dominated: bool,
-}
-
-/// The certified front of `front.json`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct CertifiedFront {
-    pub confidence: f64,
-    /// Intervals the union bound runs over, and each one's error level.
-    pub union_events: u64,
-    pub per_event_level: f64,
-    pub points: Vec<CertifiedPoint>,
-}
 
 /// Certify every vertex of `front` (built on `mdp`) at `confidence`.
 pub fn certified_front(

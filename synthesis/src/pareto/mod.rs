@@ -8,11 +8,17 @@
 //! * [`optimal`] — the exact strategy of a request: the whole-MDP occupation
 //!   LP realised as ω.
 //! * [`select`] — the vertex-mixture LP (the human-readable explanation).
+//! * [`CertifiedFront`] — the certified front's data in `front.json`
+//!   (computed by `certify::front`; kept here so `pareto` imports nothing of
+//!   `certify`).
 
+mod certified;
 pub mod enumerate;
 pub mod optimal;
 pub mod policy;
 pub mod select;
+
+pub use certified::{CertifiedFront, CertifiedPoint};
 
 use crate::mdp::{CostModel, Mdp, Method};
 use etp_shared::strategy::{
@@ -82,7 +88,7 @@ pub struct ParetoFront {
     pub kf_convergence: Option<Box<ParetoFront>>,
     /// The nominal vertices with their certified bounds and cross-fitted
     /// values (docs/MODEL.md §4.1); `None` for the Method 1 baseline.
-    pub certified: Option<crate::certify::front::CertifiedFront>,
+    pub certified: Option<CertifiedFront>,
     /// Weighted optimisations and hull rounds of the enumeration.
     pub optimisations: usize,
     pub rounds: usize,

@@ -26,61 +26,73 @@ pub const DEFAULT_DEADLINE: f64 = 3600.0;
 pub const DEFAULT_PREDICT_EPISODES: u64 = 2000;
 pub const DEFAULT_JOIN_TIMEOUT: f64 = 60.0;
 
-/// The keys of a run file (every one optional; unknown keys are refused).
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RunConfig {
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub strategy: Option<PathBuf>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub scenario: Option<String>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub delta: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub episodes: Option<u64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub seed: Option<u64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub deadline: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub run_id: Option<String>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub predict_episodes: Option<u64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub clone_sensors: Option<usize>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub record: Option<PathBuf>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub record_default: Option<bool>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub allow_degraded: Option<bool>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub slot_deadline: Option<u64>,
+/// The keys of a run file, each written once: its type and, for a plain
+/// key, the place of its flag in [`Args`] (`=> place`). A plain key is
+/// copied to and from [`Args`] by [`of_args`] and [`resolve`] (the command
+/// line wins); the others (what to run, the recording, the remote sensors
+/// and the two switches) have their own rules there.
+macro_rules! run_file_keys {
+    ($( $(#[doc = $doc:literal])* $key:ident : $ty:ty $(=> $($place:ident).+)? ,)*) => {
+        /// The keys of a run file (every one optional; unknown keys are refused).
+        #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+        #[serde(deny_unknown_fields)]
+        pub struct RunConfig {
+            $(
+                $(#[doc = $doc])*
+                #[serde(skip_serializing_if = "Option::is_none")]
+                pub $key: Option<$ty>,
+            )*
+        }
+
+        /// The plain keys of `a` (the others are left `None`).
+        fn plain_of_args(a: &Args) -> RunConfig {
+            let mut c = RunConfig::default();
+            $($( c.$key = copied(&a.$($place).+); )?)*
+            c
+        }
+
+        /// Each plain key the command line left open, from `c`.
+        fn merge_plain(a: &mut Args, c: &mut RunConfig) {
+            $($( a.$($place).+ = a.$($place).+.take().or(c.$key.take()); )?)*
+        }
+    };
+}
+
+/// `x.clone()` for any option (a copy for the numbers).
+fn copied<T: Clone>(x: &Option<T>) -> Option<T> {
+    x.clone()
+}
+
+run_file_keys! {
+    strategy: PathBuf,
+    scenario: String,
+    delta: f64,
+    episodes: u64 => episodes,
+    seed: u64 => seed,
+    deadline: f64 => deadline,
+    run_id: String => run_id,
+    predict_episodes: u64 => predict_episodes,
+    clone_sensors: usize => clone_sensors,
+    record: PathBuf,
+    record_default: bool,
+    allow_degraded: bool,
+    slot_deadline: u64 => slot_deadline,
     /// Across hosts: the Zenoh endpoint to listen on, the sensors served
     /// from other hosts, how long to wait for them (`--listen`, `--remote`,
     /// `--join-timeout`).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub listen: Option<String>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub remote: Option<Vec<String>>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub join_timeout: Option<f64>,
+    listen: String => listen,
+    remote: Vec<String>,
+    join_timeout: f64 => join_timeout,
     /// The link's protection: the key folder (`--tls`) or plain TCP
     /// (`--insecure`).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub tls: Option<PathBuf>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub insecure: Option<bool>,
+    tls: PathBuf => link.tls,
+    insecure: bool,
     /// The radio options (`--loss`, `--retries`, `--burst`, `--estimator`,
     /// docs/MODEL.md §8), written into the run's scenario text.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub loss: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub retries: Option<i64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub burst: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub estimator: Option<String>,
+    loss: f64 => radio.loss,
+    retries: i64 => radio.retries,
+    burst: f64 => radio.burst,
+    estimator: String => radio.estimator,
 }
 
 /// Read a run file (errors name the file and the key).
@@ -110,38 +122,25 @@ pub fn read(path: &Path) -> Result<RunConfig> {
 /// Fill what the command line left open from `--config`, then the defaults.
 pub fn resolve(mut a: Args) -> Result<Args> {
     if let Some(path) = a.config.clone() {
-        let c = read(&path)?;
+        let mut c = read(&path)?;
         if a.strategy.is_some() || a.scenario.is_some() {
             // The command line names what to run: the file's choice is ignored whole.
             if c.strategy.is_some() || c.scenario.is_some() || c.delta.is_some() {
                 tracing::info!("the command line's strategy/scenario overrides the run file's");
             }
         } else {
-            a.strategy = c.strategy;
-            a.scenario = c.scenario;
+            a.strategy = c.strategy.take();
+            a.scenario = c.scenario.take();
             if a.delta.is_none() {
                 a.delta = c.delta;
             }
         }
-        a.episodes = a.episodes.or(c.episodes);
-        a.seed = a.seed.or(c.seed);
-        a.deadline = a.deadline.or(c.deadline);
-        a.run_id = a.run_id.or(c.run_id);
-        a.predict_episodes = a.predict_episodes.or(c.predict_episodes);
-        a.clone_sensors = a.clone_sensors.or(c.clone_sensors);
-        a.slot_deadline = a.slot_deadline.or(c.slot_deadline);
+        merge_plain(&mut a, &mut c);
         a.allow_degraded |= c.allow_degraded.unwrap_or(false);
-        a.listen = a.listen.or(c.listen);
         if a.remote.is_empty() {
             a.remote = c.remote.unwrap_or_default();
         }
-        a.join_timeout = a.join_timeout.or(c.join_timeout);
-        a.link.tls = a.link.tls.or(c.tls);
         a.link.insecure |= c.insecure.unwrap_or(false);
-        a.radio.loss = a.radio.loss.or(c.loss);
-        a.radio.retries = a.radio.retries.or(c.retries);
-        a.radio.burst = a.radio.burst.or(c.burst);
-        a.radio.estimator = a.radio.estimator.or(c.estimator);
         if a.listen.is_some() == a.remote.is_empty() {
             bail!(
                 "run file {}: `listen` and `remote` go together (sensors served from other hosts)",
@@ -204,25 +203,12 @@ pub fn of_args(a: &Args, record: Option<&Path>) -> RunConfig {
         strategy: a.strategy.clone(),
         scenario: a.scenario.clone(),
         delta: a.delta,
-        episodes: a.episodes,
-        seed: a.seed,
-        deadline: a.deadline,
-        run_id: a.run_id.clone(),
-        predict_episodes: a.predict_episodes,
-        clone_sensors: a.clone_sensors,
         record: record.map(Path::to_path_buf),
         record_default: None,
         allow_degraded: Some(a.allow_degraded),
-        slot_deadline: a.slot_deadline,
-        listen: a.listen.clone(),
         remote: (!a.remote.is_empty()).then(|| a.remote.clone()),
-        join_timeout: a.join_timeout,
-        tls: a.link.tls.clone(),
         insecure: a.link.insecure.then_some(true),
-        loss: a.radio.loss,
-        retries: a.radio.retries,
-        burst: a.radio.burst,
-        estimator: a.radio.estimator.clone(),
+        ..plain_of_args(a)
     }
 }
 

@@ -3,8 +3,8 @@
 use super::Args;
 use anyhow::{Context, Result, bail};
 use etp_runtime::wire::RunId;
-use etp_shared::radio::Radio;
-use etp_shared::scenario::{Scenario, builtin_text};
+use etp_shared::radio::{Radio, RadioOverride};
+use etp_shared::scenario::{Scenario, ScenarioText, builtin_text};
 use etp_shared::strategy::{Prediction, Strategy};
 use etp_synthesis::validate::simulate_strategy;
 use std::path::PathBuf;
@@ -122,25 +122,30 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         }
         text = clone_sensors(&text, k)?;
     }
-    // The run's channel (docs/MODEL.md §8): the strategy's own (its
-    // scenario's `[radio]`, or the channel it was synthesized for), under the
-    // radio options when given (a robustness study). Every process and the
-    // recording read the channel from the run's copy of the scenario text, so
-    // it is written there; the strategy is checked against its own text
+    // The run's channel, by the one override rule (docs/MODEL.md §8.6): the
+    // text's own, replaced by the channel the strategy was synthesized for,
+    // then by the radio options (a robustness study). Every process and the
+    // recording read the channel from the run's copy of the scenario text,
+    // so it is written there; the strategy is checked against its own text
     // first and then re-stamped with the run text's hash.
-    let own_text = Scenario::from_toml(&text).context("scenario")?;
-    let own = match &strategy_in {
-        Some(st) => {
-            st.check_scenario(&own_text)
-                .context("strategy and scenario")?;
-            st.with_own_radio(own_text).context("strategy")?
-        }
-        None => own_text,
-    };
-    let own_radio = own.radio.clone();
-    let run_radio = a.radio.apply(own)?.radio;
-    text = crate::input::text_with_channel(&text, &run_radio).context("the run's channel")?;
-    let scenario = Scenario::from_toml(&text).context("scenario")?;
+    let own = ScenarioText::parse(text).context("scenario")?;
+    if let Some(st) = &strategy_in {
+        st.check_scenario(&own.scenario)
+            .context("strategy and scenario")?;
+    }
+    let recorded = strategy_in.as_ref().and_then(|st| st.radio.as_ref());
+    let own_radio = own
+        .scenario
+        .radio
+        .for_use(recorded, &RadioOverride::default())
+        .context("strategy")?;
+    let run_radio = own
+        .scenario
+        .radio
+        .for_use(recorded, &a.radio.to_override())
+        .context("radio options")?;
+    let ScenarioText { text, scenario } =
+        own.with_channel(&run_radio).context("the run's channel")?;
     let radio_synthesized = strategy_in.as_ref().map(|_| own_radio.clone());
     let robustness = strategy_in.is_some() && run_radio != own_radio;
     if scenario.sensors.len() > MAX_SENSORS {

@@ -56,7 +56,7 @@ pub fn sibling_binary(name: &str) -> Result<Launcher> {
             });
         }
     }
-    if crate::cmd::process::known(name) && exe.file_stem().is_some_and(|s| s == "etp") {
+    if crate::processes::known(name) && exe.file_stem().is_some_and(|s| s == "etp") {
         return Ok(Launcher {
             program: exe,
             prefix: vec!["process".into(), name.into()],

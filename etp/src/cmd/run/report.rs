@@ -198,7 +198,7 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
     println!(
         "  {}",
         match &plan.radio_synthesized {
-            Some(own) => crate::cmd::validate::channels_text(own, &plan.scenario.radio, &names),
+            Some(own) => crate::report::channels_text(own, &plan.scenario.radio, &names),
             None => format!("radio: {}", plan.scenario.radio.describe(&names)),
         }
     );

@@ -7,8 +7,8 @@
 
 use super::EvaluateArgs;
 use super::select::Synthesis;
-use crate::cmd::predictions;
 use crate::output::{refuse_existing, write_new};
+use crate::predictions;
 use crate::progress;
 use anyhow::{Context, Result, bail};
 use etp_synthesis::abstraction;
@@ -18,7 +18,7 @@ use std::time::Instant;
 
 pub fn run(a: &EvaluateArgs) -> Result<()> {
     let syn = Synthesis::load(&a.dir, Some(a.out.output.as_deref().unwrap_or(&a.strategy)))?;
-    let (mut strategy, _) = crate::cmd::validate::load_strategy(&a.strategy)
+    let (mut strategy, _) = etp_runtime::strategy_arg::load_strategy(&a.strategy)
         .with_context(|| format!("etp strategy evaluate {}", a.strategy.display()))?;
     if strategy.scenario_hash != syn.mdp.scenario_hash || strategy.deltas != syn.mdp.deltas {
         bail!(

@@ -8,8 +8,8 @@
 
 use super::select::{Synthesis, selection_diagnostics};
 use super::{Args, Request, certified};
-use crate::cmd::predictions;
 use crate::output::{refuse_existing, write_new};
+use crate::predictions;
 use anyhow::{Context, Result};
 use etp_synthesis::certify::intervals::interval_mdp;
 use etp_synthesis::certify::select::certified_strategy;

@@ -3,10 +3,11 @@
 //! strategy kept from its own on-policy rebuilds.
 
 use super::{Args, EXIT_OUT_OF_REACH, Request, certified};
-use crate::cmd::predictions;
 use crate::output::{read_front, read_mdp, refuse_existing, write_new};
+use crate::predictions;
 use crate::progress;
 use anyhow::{Context, Result, bail};
+use etp_shared::radio::RadioOverride;
 use etp_shared::scenario::Scenario;
 use etp_shared::strategy::Strategy;
 use etp_synthesis::abstraction;
@@ -63,9 +64,12 @@ impl Synthesis {
                 mdp.scenario_hash
             );
         }
-        if let Some(r) = &front.radio {
-            scenario.radio = r.clone();
-        }
+        // The channel the synthesis ran under: steps 1–2 of the one override
+        // rule (docs/MODEL.md §8.6), as `Strategy::scenario` applies them.
+        scenario.radio = scenario
+            .radio
+            .for_use(front.radio.as_ref(), &RadioOverride::default())
+            .with_context(|| format!("the channel recorded in {}", dir.display()))?;
         let output = output
             .map(Path::to_path_buf)
             .unwrap_or_else(|| dir.join("strategy.json"));

@@ -2,8 +2,8 @@
 //! the workspace map `[model] C`, the feedback gain `[controller] K` or its LQR
 //! weights `[controller.lqr]`, and the rest-point warning for `C⁺ w`.
 
+use super::fields::{matrix, spd};
 use super::raw::{RawController, RawMatrix};
-use super::validate::{matrix, spd};
 use super::{Leg, Plant, ScenarioError};
 use crate::lqr::{LqrError, lqr_gain};
 use nalgebra::{DMatrix, DVector};
