@@ -113,6 +113,11 @@ impl<const N: usize, const M: usize> SensorModel<N, M> {
         self.observe(x) + mul(&self.r_chol, &standard_normal::<M, R>(rng))
     }
 
+    /// The lower Cholesky factor `L_R` of R (`R = L_R L_Rᵀ`).
+    pub fn r_chol(&self) -> &Matrix<M, M> {
+        &self.r_chol
+    }
+
     /// `H x`.
     #[inline(always)]
     pub fn observe(&self, x: &Vector<N>) -> Vector<M> {
@@ -320,6 +325,34 @@ impl<const N: usize, const M: usize> EtKalmanFilter<N, M> {
         let cov = prior.cov - mul(&inn.gain, &self.sensor.h_times(&prior.cov)) * beta;
         Belief {
             mean: prior.mean,
+            cov: symmetrize(&cov),
+        }
+    }
+
+    /// Update with a pseudo-measurement `y` whose noise covariance is
+    /// `scale · R` (Joseph form): the send-on-delta family's silence, where
+    /// `y` is the last delivered measurement (docs/MODEL.md §9). `scale = 1`
+    /// is [`Self::update_explicit`]'s update.
+    pub fn update_pseudo_measurement(
+        &self,
+        prior: &Belief<N>,
+        inn: &Innovation<N, M>,
+        y: &Vector<M>,
+        scale: f64,
+    ) -> Belief<N> {
+        let (_, pht) = self.sensor.innovation_cov(&prior.cov);
+        let r = self.sensor.r * scale;
+        let z = inn.cov - self.sensor.r + r;
+        // Z' ⪰ scale·R is SPD for scale > 0; no information if rounding
+        // ever makes it singular.
+        let Some(z_inv) = z.try_inverse() else {
+            return *prior;
+        };
+        let k = mul(&pht, &z_inv);
+        let ikh = Matrix::<N, N>::identity() - self.sensor.gain_times_h(&k);
+        let cov = mul_transpose(&mul(&ikh, &prior.cov), &ikh) + mul_transpose(&mul(&k, &r), &k);
+        Belief {
+            mean: prior.mean + mul(&k, &(y - inn.predicted)),
             cov: symmetrize(&cov),
         }
     }

@@ -8,6 +8,9 @@
 //!   for fixed dimensions `N ≤ 6`, `M ≤ 6`: prediction, whitened innovation,
 //!   ∞-norm trigger, explicit (Joseph) and implicit (β(δ)) updates.
 //! * [`gaussian`] — φ, Φ, β(δ), the expected rate γ̄(δ) and its inverse.
+//! * [`trigger::TriggerFamily`] — the trigger families of docs/MODEL.md §9
+//!   (box, stochastic, send-on-delta, variance, periodic): each one's
+//!   decision, silence update, expected rate and lossy-radio moments.
 //! * [`episode::CompiledScenario`] — the scenario in fixed-size form with the
 //!   episode rules of docs/MODEL.md §3 (controller, collision, leg termination,
 //!   target/free classification): [`episode::CompiledScenario::run_leg`] and
@@ -40,3 +43,4 @@ pub mod scenario;
 pub mod stats;
 pub mod strategy;
 pub mod structured;
+pub mod trigger;

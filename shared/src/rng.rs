@@ -40,6 +40,18 @@ pub fn link_rng(seed: u64, stream: u64, index: u64, link: u64) -> SimRng {
     )
 }
 
+/// The generator of the trigger draws of sensor `sensor` in episode `index`
+/// of stream `stream` under `seed` (the stochastic family, docs/MODEL.md §9):
+/// disjoint from the episode's own [`stream_rng`] and from every
+/// [`link_rng`], so a family that draws shifts no other random number.
+pub fn trigger_rng(seed: u64, stream: u64, index: u64, sensor: u64) -> SimRng {
+    stream_rng(
+        seed,
+        streams::TRIGGER,
+        mix64(mix64(mix64(stream) ^ index) ^ sensor),
+    )
+}
+
 /// Named streams used across the project.
 pub mod streams {
     /// `etp simulate` episodes.
@@ -61,4 +73,7 @@ pub mod streams {
     /// Radio packet fates, one generator per (stream, episode, link): see
     /// [`super::link_rng`].
     pub const RADIO: u64 = 8;
+    /// Trigger draws of the stochastic family, one generator per (stream,
+    /// episode, sensor): see [`super::trigger_rng`].
+    pub const TRIGGER: u64 = 9;
 }
