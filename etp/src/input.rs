@@ -3,6 +3,7 @@
 use anyhow::{Context, Result, bail};
 use etp_shared::radio::{Estimator, RadioOverride};
 use etp_shared::scenario::{Scenario, ScenarioText, builtin_text};
+use etp_shared::trigger::TriggerFamily;
 
 /// A `SCENARIO` argument: a built-in name (`winding-2d`, …) or a TOML path
 /// (resolved by `etp_runtime`, as in every process of a run).
@@ -35,6 +36,41 @@ pub struct RadioArgs {
     /// The agent's silence update: `aware` (β_q, knows packets get lost) or `naive` (β).
     #[arg(long, value_parser = ["aware", "naive"])]
     pub estimator: Option<String>,
+}
+
+/// `--trigger FAMILY`: the trigger family every sensor uses, over the
+/// scenario's `[triggering] family` (docs/MODEL.md §9).
+#[derive(Debug, Clone, clap::Args)]
+pub struct TriggerArgs {
+    /// Trigger family over the scenario's own: box (the paper's ∞-norm trigger), stochastic,
+    /// send-on-delta, variance or periodic (docs/MODEL.md §9).
+    #[arg(long, value_name = "FAMILY", value_parser = parse_family)]
+    pub trigger: Option<TriggerFamily>,
+}
+
+fn parse_family(s: &str) -> std::result::Result<TriggerFamily, String> {
+    TriggerFamily::parse(s).map_err(|e| e.to_string())
+}
+
+impl TriggerArgs {
+    /// The scenario `text` with the family written into it (the text itself
+    /// without the option or when it already says so).
+    pub fn apply_to_text(&self, text: String) -> Result<String> {
+        let Some(family) = self.trigger else {
+            return Ok(text);
+        };
+        let own = ScenarioText::parse(text).context("scenario")?;
+        Ok(own.with_trigger(family).context("--trigger")?.text)
+    }
+
+    /// The scenario with the family applied (for runs that write no file
+    /// carrying the scenario).
+    pub fn apply(&self, mut s: Scenario) -> Scenario {
+        if let Some(family) = self.trigger {
+            s.trigger = family;
+        }
+        s
+    }
 }
 
 /// How many episodes an in-process simulation runs, and from which seed

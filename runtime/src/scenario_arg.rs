@@ -3,6 +3,7 @@
 //! of a run (the supervisor passes them the same argument) read it here.
 
 use etp_shared::scenario::{BUILTIN_NAMES, Scenario, ScenarioError, builtin_text};
+use etp_shared::trigger::TriggerFamily;
 use std::path::{Path, PathBuf};
 
 /// Why a scenario argument could not be resolved (the cause is the
@@ -29,6 +30,21 @@ pub enum ScenarioArgError {
         #[source]
         source: ScenarioError,
     },
+    #[error(
+        "triggering.family = \"{family}\": the processes of a run decide with the paper's trigger \
+         (box) only; the other families run in-process (docs/MODEL.md §9)"
+    )]
+    ProcessesRunBoxOnly { family: TriggerFamily },
+}
+
+/// The scenario of a run's process ([`load_scenario`]), refused unless its
+/// trigger family is `box`, the only one the processes implement.
+pub fn load_process_scenario(arg: &str) -> Result<Scenario, ScenarioArgError> {
+    let s = load_scenario(arg)?;
+    if s.trigger != TriggerFamily::Box {
+        return Err(ScenarioArgError::ProcessesRunBoxOnly { family: s.trigger });
+    }
+    Ok(s)
 }
 
 /// The scenario of a `SCENARIO` argument: a built-in name or a TOML path.

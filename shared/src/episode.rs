@@ -34,12 +34,15 @@ pub use replica::{LegReplica, belief_digest};
 pub use step::{ServedSlot, SlotOutcome, serve_slot};
 
 use crate::controller::{FeedbackController, reached};
-use crate::etkf::{Belief, EtKalmanFilter, LinearPlant, Matrix, Threshold, Vector, sample_belief};
+use crate::etkf::{
+    Belief, EtKalmanFilter, Innovation, LinearPlant, Matrix, Threshold, Vector, sample_belief,
+};
 use crate::gaussian;
 use crate::geometry::{StaticBox, WorkspaceMap, first_containing, pad_point};
 use crate::linalg::to_static_vec;
-use crate::radio::{EpisodeChannels, Radio, Transmission};
+use crate::radio::{EpisodeChannels, Estimator, Radio, Transmission};
 use crate::scenario::Scenario;
+use crate::trigger::{self, TriggerFamily};
 use rand::Rng;
 
 /// The ET-KF of one sensor, whatever its measurement dimension.
@@ -251,6 +254,8 @@ pub struct CompiledScenario<const N: usize> {
     pub workspace: WorkspaceMap<N>,
     /// The radio: one link per sensor, the agent's estimator (docs/MODEL.md §8).
     pub radio: Radio,
+    /// How the sensors decide to transmit (docs/MODEL.md §9).
+    pub trigger: TriggerFamily,
 }
 
 impl<const N: usize> CompiledScenario<N> {
@@ -289,6 +294,71 @@ impl<const N: usize> CompiledScenario<N> {
             controller: FeedbackController::new(scenario),
             workspace: WorkspaceMap::new(scenario.workspace.as_ref()),
             radio: scenario.radio.clone(),
+            trigger: scenario.trigger,
+        }
+    }
+
+    /// The factor of the silence update of sensor `sensor`'s slot at δ for a
+    /// family other than `box` (docs/MODEL.md §9): the family's own on an
+    /// ideal link or for the naive estimator, the aware mixture of §8.3 with
+    /// the family's moments on a lossy link (0 where silence is read as
+    /// uninformative). Send-on-delta's ideal silence is its pseudo-measurement,
+    /// applied by the leg loop; the factor here is its lossy fallback, 0.
+    pub fn silence_factor(&self, sensor: usize, delta: f64, m: usize) -> f64 {
+        let link = self.radio.link(sensor);
+        let q = if link.is_ideal() || self.radio.estimator == Estimator::Naive {
+            0.0
+        } else {
+            link.residual_loss()
+        };
+        self.trigger.lossy_silence_factor(delta, m, q)
+    }
+
+    /// The family's expected rate at δ for measurement dimension m, where
+    /// it has a closed form ([`TriggerFamily::expected_rate`]); 0 otherwise
+    /// (the leg loop then counts the decisions instead).
+    fn expected_rate(&self, delta: f64, m: usize) -> f64 {
+        self.trigger.expected_rate(delta, m).unwrap_or(0.0)
+    }
+
+    /// The decision of a family other than `box` (docs/MODEL.md §9) at the
+    /// leg's slot number `slot` (from 0).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn family_sends<const M: usize>(
+        &self,
+        filter: &EtKalmanFilter<N, M>,
+        inn: &Innovation<N, M>,
+        y: &Vector<M>,
+        delta: f64,
+        slot: u32,
+        last_delivered: Option<&Vector<M>>,
+        channels: &mut EpisodeChannels,
+        sensor: usize,
+    ) -> bool {
+        match self.trigger {
+            TriggerFamily::Box => inn.triggers(y, delta),
+            TriggerFamily::Stochastic => {
+                // Every episode's channels carry the draws of a drawing
+                // family (`Self::channels`); sending is the safe side.
+                let Some(u) = channels.trigger_uniform(sensor) else {
+                    return true;
+                };
+                let z = y - inn.predicted;
+                let norm2 = inn
+                    .cov_inv
+                    .map_or(f64::INFINITY, |z_inv| z.dot(&(z_inv * z)));
+                trigger::stochastic_sends(norm2, delta, u)
+            }
+            TriggerFamily::SendOnDelta => {
+                trigger::send_on_delta_sends(y, last_delivered, filter.sensor.r_chol(), delta)
+            }
+            TriggerFamily::Variance => {
+                trigger::variance_sends(&(inn.cov - filter.sensor.r), filter.sensor.r_chol(), delta)
+            }
+            TriggerFamily::Periodic => {
+                trigger::periodic_sends(u64::from(slot), gaussian::expected_rate(delta, M))
+            }
         }
     }
 
@@ -296,10 +366,15 @@ impl<const N: usize> CompiledScenario<N> {
     /// under `seed`: every run of a leg or episode takes them, so a lossy
     /// radio is never simulated as an ideal one by accident.
     pub fn channels(&self, seed: u64, stream: u64, index: u64) -> EpisodeChannels {
-        if self.radio.is_ideal() {
+        let channels = if self.radio.is_ideal() {
             EpisodeChannels::ideal()
         } else {
             EpisodeChannels::new(&self.radio, seed, stream, index)
+        };
+        if self.trigger.draws() {
+            channels.with_trigger_draws(seed, stream, index, self.filters.len())
+        } else {
+            channels
         }
     }
 
@@ -429,9 +504,16 @@ impl<const N: usize> CompiledScenario<N> {
         // A lossy serving link takes the lossy step; an ideal one the step of
         // §2 exactly (same operations, same bits).
         let lossy = !self.radio.link(sensor).is_ideal();
-        // The silence update's factor: β_q(δ) for the aware estimator.
+        let family = self.trigger;
+        // The silence update's factor: β_q(δ) for the aware estimator; the
+        // family's own for the others (docs/MODEL.md §9).
         let silence = |t: Threshold| {
-            if lossy {
+            if family != TriggerFamily::Box {
+                Threshold {
+                    delta: t.delta,
+                    beta: self.silence_factor(sensor, t.delta, M),
+                }
+            } else if lossy {
                 Threshold {
                     delta: t.delta,
                     beta: self.radio.silence_beta(sensor, t.delta, M),
@@ -440,6 +522,10 @@ impl<const N: usize> CompiledScenario<N> {
                 t
             }
         };
+        // Send-on-delta's reference: the last measurement the agent received
+        // on this leg (none yet: the next slot sends).
+        let mut last_delivered: Option<Vector<M>> = None;
+        let counted_rate = !family.has_model_rate();
         let (threshold, rule) = match *mode {
             LegMode::EventTriggered(t) => (t, LegRule::Waypoint),
             LegMode::KfConvergence {
@@ -468,7 +554,7 @@ impl<const N: usize> CompiledScenario<N> {
             kf_slots: 0,
             expected_transmissions: 0.0,
         };
-        let mut expected_rate = gaussian::expected_rate(core.threshold().delta, M);
+        let mut expected_rate = self.expected_rate(core.threshold().delta, M);
         loop {
             let begun = core.begin(
                 self,
@@ -507,7 +593,19 @@ impl<const N: usize> CompiledScenario<N> {
             let threshold = core.threshold();
             let y = filter.sensor.measure(&state.x, rng);
             let inn = filter.innovation(slot.prior());
-            let sent = inn.triggers(&y, threshold.delta);
+            let sent = match family {
+                TriggerFamily::Box => inn.triggers(&y, threshold.delta),
+                _ => self.family_sends(
+                    filter,
+                    &inn,
+                    &y,
+                    threshold.delta,
+                    r.slots,
+                    last_delivered.as_ref(),
+                    channels,
+                    sensor,
+                ),
+            };
             let sending = if !sent {
                 Transmission {
                     attempts: 0,
@@ -522,13 +620,35 @@ impl<const N: usize> CompiledScenario<N> {
                 }
             };
             let delivered = sending.delivered.then_some(&y);
-            let post = slot_update(filter, slot.prior(), &inn, delivered, threshold.beta);
+            let post = match (family, delivered, last_delivered.as_ref()) {
+                // Send-on-delta's silence on a link that loses nothing: the
+                // last delivered measurement as a pseudo-measurement.
+                (TriggerFamily::SendOnDelta, None, Some(reference)) if !lossy => filter
+                    .update_pseudo_measurement(
+                        slot.prior(),
+                        &inn,
+                        reference,
+                        trigger::send_on_delta_noise_scale(threshold.delta),
+                    ),
+                _ => slot_update(filter, slot.prior(), &inn, delivered, threshold.beta),
+            };
+            if family == TriggerFamily::SendOnDelta && sending.delivered {
+                last_delivered = Some(y);
+            }
             r.slots += 1;
             r.transmissions += sending.attempts;
             r.triggers += u32::from(sent);
             r.delivered += u32::from(sending.delivered);
             r.kf_slots += u32::from(core.in_kf_phase());
-            r.expected_transmissions += expected_rate;
+            r.expected_transmissions += if counted_rate {
+                // Variance and periodic decide deterministically (given P⁻,
+                // given the slot number), so a slot's expectation is its
+                // decision; send-on-delta has no model rate (docs/MODEL.md
+                // §9): the count stands in.
+                f64::from(u8::from(sent))
+            } else {
+                expected_rate
+            };
             observer.on_step(&StepEvent {
                 leg,
                 x: &state.x,

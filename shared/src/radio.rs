@@ -16,7 +16,7 @@
 //! was.
 
 use crate::gaussian;
-use crate::rng::{SimRng, link_rng};
+use crate::rng::{SimRng, link_rng, trigger_rng};
 use rand::RngExt;
 use serde::{Deserialize, Serialize};
 
@@ -492,6 +492,9 @@ pub struct EpisodeChannels {
     links: Vec<LinkChannel>,
     step: u64,
     ideal: bool,
+    /// The stochastic trigger's draws, one generator per sensor
+    /// ([`crate::rng::trigger_rng`]); empty for the families that draw nothing.
+    trigger: Vec<SimRng>,
 }
 
 impl EpisodeChannels {
@@ -504,6 +507,7 @@ impl EpisodeChannels {
                 .collect(),
             step: 0,
             ideal: radio.is_ideal(),
+            trigger: Vec::new(),
         }
     }
 
@@ -513,7 +517,30 @@ impl EpisodeChannels {
             links: Vec::new(),
             step: 0,
             ideal: true,
+            trigger: Vec::new(),
         }
+    }
+
+    /// These channels with the trigger draws of episode `index` of stream
+    /// `stream` under `seed` for `sensors` sensors (docs/MODEL.md §9).
+    pub fn with_trigger_draws(
+        mut self,
+        seed: u64,
+        stream: u64,
+        index: u64,
+        sensors: usize,
+    ) -> Self {
+        self.trigger = (0..sensors as u64)
+            .map(|s| trigger_rng(seed, stream, index, s))
+            .collect();
+        self
+    }
+
+    /// Sensor `sensor`'s next trigger draw, uniform on [0, 1); `None` when
+    /// these channels carry no draws.
+    #[inline]
+    pub fn trigger_uniform(&mut self, sensor: usize) -> Option<f64> {
+        self.trigger.get_mut(sensor).map(|r| r.random::<f64>())
     }
 
     /// Every link ideal.

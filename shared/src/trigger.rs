@@ -108,7 +108,7 @@ impl TriggerFamily {
             Self::Box => Silence::Shrink(gaussian::beta(delta)),
             Self::Stochastic => Silence::Shrink(stochastic_silence_factor(delta)),
             Self::SendOnDelta => Silence::PseudoMeasurement {
-                scale: 1.0 + delta * delta / 3.0,
+                scale: send_on_delta_noise_scale(delta),
             },
             Self::Variance | Self::Periodic => Silence::Shrink(0.0),
         }
@@ -124,6 +124,16 @@ impl TriggerFamily {
             Self::Stochastic => Some(1.0 - stochastic_silence_probability(delta, m)),
             Self::SendOnDelta | Self::Variance => None,
         }
+    }
+
+    /// Whether a slot's expected transmission is a model rate (box and
+    /// stochastic: random decisions with a closed-form probability) rather
+    /// than the decision itself (variance and periodic decide
+    /// deterministically; send-on-delta has no closed form). Periodic's
+    /// [`Self::expected_rate`] γ is its long-run rate: a leg of K slots sends
+    /// exactly ⌊Kγ⌋ times.
+    pub fn has_model_rate(self) -> bool {
+        matches!(self, Self::Box | Self::Stochastic)
     }
 
     /// For the aware estimator on a lossy radio (§8.3 generalised, §9):
@@ -189,6 +199,13 @@ impl std::fmt::Display for TriggerFamily {
 /// the sensor always sends, so the value (1) is never used there.
 pub fn stochastic_silence_factor(delta: f64) -> f64 {
     1.0 / (1.0 + delta * delta)
+}
+
+/// `1 + δ²/3`: send-on-delta's silence reads the last delivered measurement
+/// with noise `(1 + δ²/3) R` (its own noise plus a uniform error on the
+/// δ-box in noise units, variance δ²/3 per axis).
+pub fn send_on_delta_noise_scale(delta: f64) -> f64 {
+    1.0 + delta * delta / 3.0
 }
 
 /// `E[exp(−‖ε‖²/(2δ²))] = (1 + δ⁻²)^(−m/2) = (δ²/(1 + δ²))^(m/2)`, the

@@ -1,10 +1,11 @@
 //! `etp simulate SCENARIO --delta D`: in-process episodes with a constant threshold.
 
-use crate::input::{RadioArgs, load_scenario_with_radio};
+use crate::input::{RadioArgs, TriggerArgs, load_scenario_with_radio};
 use crate::progress;
 use crate::report::{radio_table, sensor_names, summary_json, summary_table};
 use crate::simulation::simulate_constant;
 use anyhow::{Result, bail};
+use etp_shared::trigger::TriggerFamily;
 use serde_json::{Value, json};
 
 #[derive(Debug, clap::Args)]
@@ -21,13 +22,17 @@ pub struct Args {
     pub json: bool,
     #[command(flatten)]
     pub radio: RadioArgs,
+    #[command(flatten)]
+    pub trigger: TriggerArgs,
 }
 
 pub fn run(a: Args) -> Result<()> {
     if !(a.delta.is_finite() && a.delta >= 0.0) {
         bail!("--delta must be a finite number ≥ 0, got {}", a.delta);
     }
-    let s = load_scenario_with_radio(&a.scenario, &a.radio)?;
+    let s = a
+        .trigger
+        .apply(load_scenario_with_radio(&a.scenario, &a.radio)?);
     let pb = progress::bar(a.sim.episodes, "simulate", a.json);
     let started = std::time::Instant::now();
     let sum = simulate_constant(&s, a.delta, a.sim.episodes, a.sim.seed, &|k| pb.inc(k));
@@ -43,14 +48,21 @@ pub fn run(a: Args) -> Result<()> {
                 json!(format!("constant δ = {}", a.delta)),
             );
             m.insert("delta".into(), json!(a.delta));
+            if s.trigger != TriggerFamily::Box {
+                m.insert("trigger".into(), json!(s.trigger.name()));
+            }
             // No model prediction for a plain simulation.
             m.insert("predicted".into(), Value::Null);
         }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!(
-            "{} · δ = {} · {} episodes · seed {} · {:.2} s · radio: {}",
+            "{} · {}δ = {} · {} episodes · seed {} · {:.2} s · radio: {}",
             s.name,
+            match s.trigger {
+                TriggerFamily::Box => String::new(),
+                family => format!("trigger {family} · "),
+            },
             a.delta,
             sum.episodes,
             a.sim.seed,

@@ -23,6 +23,7 @@ mod run_config;
 mod scenario_random;
 mod schemas;
 mod synthesize;
+mod trigger;
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};

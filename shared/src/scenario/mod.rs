@@ -20,6 +20,7 @@ pub use workspace_gain::pseudo_inverse;
 
 use crate::geometry::Aabb;
 use crate::radio::{Radio, RadioOverride};
+use crate::trigger::TriggerFamily;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
@@ -143,6 +144,10 @@ pub struct Scenario {
     /// §8); ideal unless the file has `[radio]` or per-sensor `loss`.
     #[serde(default)]
     pub radio: Radio,
+    /// How every sensor decides to transmit (`[triggering] family`,
+    /// docs/MODEL.md §9); `box`, the paper's trigger, unless the file says.
+    #[serde(default)]
+    pub trigger: TriggerFamily,
 }
 
 impl Scenario {

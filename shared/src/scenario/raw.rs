@@ -15,6 +15,8 @@ pub(crate) mod keys {
     pub const RETRIES: &str = "retries";
     pub const BURST: &str = "burst";
     pub const ESTIMATOR: &str = "estimator";
+    pub const TRIGGERING: &str = "triggering";
+    pub const FAMILY: &str = "family";
     /// A link's settings: in `[radio]` for every link, in a `[[sensor]]` for its own.
     pub const LINK: [&str; 3] = [LOSS, RETRIES, BURST];
 }
@@ -148,4 +150,9 @@ pub(crate) struct RawObstacle {
 #[serde(deny_unknown_fields)]
 pub(crate) struct RawTriggering {
     pub deltas: Vec<f64>,
+    /// The trigger family (docs/MODEL.md §9); absent = `box`. Skipped when
+    /// absent (and `box` is read as absent) so a scenario's content hash is
+    /// what it was before the families.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub family: Option<String>,
 }

@@ -430,3 +430,33 @@ fn a_reference_that_is_not_a_rest_point_is_warned_about() {
     assert_eq!(s.warnings.len(), 2, "{:?}", s.warnings);
     assert!(s.warnings[0].contains("leg[0].to") && s.warnings[0].contains("rest point"));
 }
+
+#[test]
+fn a_trigger_family_is_read_box_said_aloud_keeps_the_hash_and_text_can_carry_one() {
+    use crate::scenario::ScenarioText;
+    use crate::trigger::TriggerFamily;
+    let plain = Scenario::builtin("winding-2d").expect("valid");
+    assert_eq!(plain.trigger, TriggerFamily::Box);
+    let with = |family: &str| {
+        replace_once(
+            &winding(),
+            "[triggering]",
+            &format!("[triggering]\nfamily = \"{family}\""),
+        )
+    };
+    let boxed = Scenario::from_toml(&with("box")).expect("valid");
+    assert_eq!(boxed.content_hash, plain.content_hash);
+    let stochastic = Scenario::from_toml(&with("stochastic")).expect("valid");
+    assert_eq!(stochastic.trigger, TriggerFamily::Stochastic);
+    assert_ne!(stochastic.content_hash, plain.content_hash);
+    let e = Scenario::from_toml(&with("often")).expect_err("unknown family");
+    assert!(e.to_string().contains("triggering.family"), "{e}");
+    // `--trigger`: the text rewritten to carry the family, and back.
+    let own = ScenarioText::parse(winding()).expect("valid");
+    let sod = own
+        .with_trigger(TriggerFamily::SendOnDelta)
+        .expect("written");
+    assert_eq!(sod.scenario.trigger, TriggerFamily::SendOnDelta);
+    let back = sod.with_trigger(TriggerFamily::Box).expect("written");
+    assert_eq!(back.scenario.content_hash, plain.content_hash);
+}

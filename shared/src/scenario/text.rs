@@ -10,6 +10,7 @@
 use super::raw::keys;
 use super::{Scenario, ScenarioError};
 use crate::radio::{Estimator, Link, Radio};
+use crate::trigger::TriggerFamily;
 
 type Result<T> = std::result::Result<T, ScenarioError>;
 
@@ -84,6 +85,50 @@ impl ScenarioText {
                 keys::RADIO,
                 format!(
                     "the channel could not be written into scenario `{}`'s text exactly",
+                    self.scenario.name
+                ),
+            ));
+        }
+        Ok(written)
+    }
+}
+
+impl ScenarioText {
+    /// This text with trigger family `family` (`--trigger`): the text itself
+    /// when it already says so, else rewritten through TOML with
+    /// `[triggering] family` set (removed for `box`, the default, so a box
+    /// scenario keeps its text's hash). Parsed again and checked.
+    pub fn with_trigger(self, family: TriggerFamily) -> Result<Self> {
+        if self.scenario.trigger == family {
+            return Ok(self);
+        }
+        let mut v = table(&self.text)?;
+        let Some(triggering) = v
+            .get_mut(keys::TRIGGERING)
+            .and_then(toml::Value::as_table_mut)
+        else {
+            return Err(ScenarioError::invalid(
+                keys::TRIGGERING,
+                "the scenario text has no [triggering] table",
+            ));
+        };
+        if family == TriggerFamily::Box {
+            triggering.remove(keys::FAMILY);
+        } else {
+            triggering.insert(
+                keys::FAMILY.into(),
+                toml::Value::String(family.name().into()),
+            );
+        }
+        let text = toml::to_string(&v).map_err(|e| {
+            ScenarioError::invalid(keys::TRIGGERING, format!("writing the family: {e}"))
+        })?;
+        let written = Self::parse(text)?;
+        if written.scenario.trigger != family {
+            return Err(ScenarioError::invalid(
+                "triggering.family",
+                format!(
+                    "the family could not be written into scenario `{}`'s text",
                     self.scenario.name
                 ),
             ));

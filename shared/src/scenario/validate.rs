@@ -9,6 +9,7 @@ use super::workspace_gain;
 use super::{ControllerParams, Leg, MAX_DIM, Obstacle, Plant, Scenario, ScenarioError, Sensor};
 use crate::geometry::Aabb;
 use crate::radio::{Estimator, Link, LinkFields, Radio};
+use crate::trigger::TriggerFamily;
 use nalgebra::{DMatrix, DVector};
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
@@ -18,7 +19,16 @@ type Result<T> = std::result::Result<T, ScenarioError>;
 /// Parses a workspace point (d entries) of a named field.
 type WorkspacePoint<'a> = dyn Fn(&str, &[f64]) -> Result<DVector<f64>> + 'a;
 
-pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
+pub(crate) fn validate(mut raw: RawScenario) -> Result<Scenario> {
+    let trigger = match raw.triggering.family.as_deref() {
+        None => TriggerFamily::Box,
+        Some(name) => TriggerFamily::parse(name)
+            .map_err(|e| ScenarioError::invalid("triggering.family", e.to_string()))?,
+    };
+    if trigger == TriggerFamily::Box {
+        // `family = "box"` is the default said aloud: the same scenario.
+        raw.triggering.family = None;
+    }
     let content_hash = content_hash(&raw);
     let n = raw.dim;
     if n == 0 || n > MAX_DIM {
@@ -243,6 +253,7 @@ pub(crate) fn validate(raw: RawScenario) -> Result<Scenario> {
         route_start,
         warnings,
         radio,
+        trigger,
     })
 }
 

@@ -17,6 +17,7 @@ use etp_shared::episode::CompiledScenario;
 use etp_shared::etkf::Matrix;
 use etp_shared::gaussian;
 use etp_shared::linalg::to_dynamic;
+use etp_shared::trigger::TriggerFamily;
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 
@@ -111,7 +112,14 @@ fn visit_covariances<const N: usize>(
     mut visit: impl FnMut(&Matrix<N, N>, bool),
 ) {
     let delta_max = deltas.iter().copied().fold(0.0_f64, f64::max);
-    let beta = gaussian::beta(delta_max);
+    // The family's silence factor at the largest δ (docs/MODEL.md §9; at
+    // q = 0 it does not depend on m). Send-on-delta's pseudo-measurement
+    // and the silence of variance and periodic count as no information:
+    // the widest range.
+    let beta = match cs.trigger {
+        TriggerFamily::Box => gaussian::beta(delta_max),
+        family => family.lossy_silence_factor(delta_max, 1, 0.0),
+    };
     let mut used: Vec<usize> = cs.legs.iter().map(|l| l.sensor).collect();
     used.sort_unstable();
     used.dedup();

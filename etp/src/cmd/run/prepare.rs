@@ -129,6 +129,14 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
     // so it is written there; the strategy is checked against its own text
     // first and then re-stamped with the run text's hash.
     let own = ScenarioText::parse(text).context("scenario")?;
+    if own.scenario.trigger != etp_shared::trigger::TriggerFamily::Box {
+        bail!(
+            "triggering.family = \"{}\": the processes of `etp run` decide with the paper's \
+             trigger (box) only; the other families run in-process (etp simulate, synthesize, \
+             strategy, validate; docs/MODEL.md §9)",
+            own.scenario.trigger
+        );
+    }
     if let Some(st) = &strategy_in {
         st.check_scenario(&own.scenario)
             .context("strategy and scenario")?;
