@@ -40,7 +40,7 @@ pub struct RadioArgs {
 
 /// `--trigger FAMILY`: the trigger family every sensor uses, over the
 /// scenario's `[triggering] family` (docs/MODEL.md §9).
-#[derive(Debug, Clone, clap::Args)]
+#[derive(Debug, Clone, Default, clap::Args)]
 pub struct TriggerArgs {
     /// Trigger family over the scenario's own: box (the paper's ∞-norm trigger), stochastic,
     /// send-on-delta, variance or periodic (docs/MODEL.md §9).

@@ -31,20 +31,29 @@ pub enum ScenarioArgError {
         source: ScenarioError,
     },
     #[error(
-        "triggering.family = \"{family}\": the processes of a run decide with the paper's trigger \
-         (box) only; the other families run in-process (docs/MODEL.md §9)"
+        "triggering.family = \"{family}\": the processes of a run do not implement this family \
+         (its silence update needs the last delivered measurement at the agent); it runs \
+         in-process (etp simulate, synthesize, strategy, validate; docs/MODEL.md §9)"
     )]
-    ProcessesRunBoxOnly { family: TriggerFamily },
+    ProcessesRefuseFamily { family: TriggerFamily },
 }
 
-/// The scenario of a run's process ([`load_scenario`]), refused unless its
-/// trigger family is `box`, the only one the processes implement.
+/// The scenario of a run's process ([`load_scenario`]), refused when the
+/// processes do not implement its trigger family ([`runs_as_processes`]).
 pub fn load_process_scenario(arg: &str) -> Result<Scenario, ScenarioArgError> {
     let s = load_scenario(arg)?;
-    if s.trigger != TriggerFamily::Box {
-        return Err(ScenarioArgError::ProcessesRunBoxOnly { family: s.trigger });
+    if !runs_as_processes(s.trigger) {
+        return Err(ScenarioArgError::ProcessesRefuseFamily { family: s.trigger });
     }
     Ok(s)
+}
+
+/// Whether the processes of a run implement `family`: every family whose
+/// silence update is a shrink of the prior (box, stochastic, variance,
+/// periodic); not send-on-delta, whose silence is a pseudo-measurement of
+/// the last delivered y (docs/MODEL.md §9).
+pub fn runs_as_processes(family: TriggerFamily) -> bool {
+    family != TriggerFamily::SendOnDelta
 }
 
 /// The scenario of a `SCENARIO` argument: a built-in name or a TOML path.

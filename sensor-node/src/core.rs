@@ -24,10 +24,10 @@
 use etp_runtime::wire::agent_to_sensor::{Ack, Handover, Truth};
 use etp_runtime::wire::coordinator_to_all::Threshold;
 use etp_runtime::wire::{ThresholdKind, WireVec, belief_from_wire, to_wire_vec, vec_from_wire};
-use etp_shared::episode::{CompiledScenario, LegReplica, SlotOutcome, belief_digest, serve_slot};
+use etp_shared::episode::{CompiledScenario, LegReplica, SlotKey, SlotOutcome, belief_digest};
 use etp_shared::etkf::{EtKalmanFilter, Vector};
 use etp_shared::radio::LinkChannel;
-use etp_shared::rng::{stream_rng, streams};
+use etp_shared::rng::streams;
 use std::collections::VecDeque;
 
 /// What the sensor spent on one leg.
@@ -270,8 +270,9 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
 
     /// One slot, opened by the truth of step k: the replica's prior,
     /// y = H x + v (noise keyed by episode and step, so independent of
-    /// timing), the whitened innovation and the trigger ‖ε‖∞ > δ
-    /// (docs/MODEL.md §2); then the replica's update with what was done.
+    /// timing), the whitened innovation and the family's decision (box:
+    /// ‖ε‖∞ > δ, docs/MODEL.md §2, §9); then the replica's update with what
+    /// was done.
     pub fn on_slot(&mut self, t: &Truth) -> Result<SlotDecision, SlotError> {
         let (episode, leg, step) = (t.header.episode, t.header.leg, t.header.step);
         let seed = self.id.seed;
@@ -300,28 +301,37 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
         }
         let slot_open = replica.open(scenario);
         let prior = *slot_open.prior();
-        let mut rng = stream_rng(seed, streams::SENSOR, (episode << 32) | u64::from(step));
         let x: Vector<N> = vec_from_wire(&t.x);
-        // The slot (measure, trigger, the attempts' fate on this link: the
-        // ideal link draws nothing), as the in-process leg loop serves it.
+        // The slot (measure, decide with the scenario's trigger family, the
+        // attempts' fate on this link: the ideal link draws nothing), as the
+        // in-process leg loop serves it; noise and trigger draw keyed by
+        // (seed, episode, step), so `replay verify` draws them again.
         let channel = &mut self.channel;
-        let served = serve_slot(&filter, &prior, &x, open.delta, &mut rng, || {
-            let channel = match channel {
-                Some((e, c)) if *e == episode => c,
-                slot => {
-                    let c = LinkChannel::of_episode(
-                        &scenario.radio,
-                        seed,
-                        streams::AGENT,
-                        episode,
-                        self.id.index as usize,
-                    );
-                    &mut slot.insert((episode, c)).1
-                }
-            };
-            channel.advance_to(u64::from(step));
-            channel.transmit()
-        });
+        let key = SlotKey {
+            seed,
+            episode,
+            step,
+            sensor: self.id.index,
+        };
+        let slot_in_leg = open.ledger.slots;
+        let served =
+            scenario.serve_run_slot(&filter, &prior, &x, open.delta, slot_in_leg, key, || {
+                let channel = match channel {
+                    Some((e, c)) if *e == episode => c,
+                    slot => {
+                        let c = LinkChannel::of_episode(
+                            &scenario.radio,
+                            seed,
+                            streams::AGENT,
+                            episode,
+                            self.id.index as usize,
+                        );
+                        &mut slot.insert((episode, c)).1
+                    }
+                };
+                channel.advance_to(u64::from(step));
+                channel.transmit()
+            });
         let (y, fired, sent) = (served.y, served.fired, served.sending);
         // What the agent will receive: the wire copy of y (same bits).
         let y_wire = to_wire_vec(y.as_slice());

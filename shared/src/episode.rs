@@ -25,13 +25,28 @@
 //! pieces of [`step`]): the leg loop here drives it, as do the agent
 //! process, `etp replay verify` and the sensor's replica.
 
+// Declared before the submodules, which use it too.
+/// Apply `$body` to the inner `EtKalmanFilter<N, M>` of a [`SensorFilter`].
+macro_rules! on_filter {
+    ($sf:expr, $f:ident => $body:expr) => {
+        match $sf {
+            SensorFilter::M1($f) => $body,
+            SensorFilter::M2($f) => $body,
+            SensorFilter::M3($f) => $body,
+            SensorFilter::M4($f) => $body,
+            SensorFilter::M5($f) => $body,
+            SensorFilter::M6($f) => $body,
+        }
+    };
+}
+
 pub mod agent_core;
 pub mod replica;
 pub mod step;
 
 pub use agent_core::{AgentCore, Begun, LegRule, OpenSlot, Plant, Unseen, World, slot_update};
 pub use replica::{LegReplica, belief_digest};
-pub use step::{ServedSlot, SlotOutcome, serve_slot};
+pub use step::{ServedSlot, SlotKey, SlotOutcome, serve_slot};
 
 use crate::controller::{FeedbackController, reached};
 use crate::etkf::{
@@ -54,20 +69,6 @@ pub enum SensorFilter<const N: usize> {
     M4(EtKalmanFilter<N, 4>),
     M5(EtKalmanFilter<N, 5>),
     M6(EtKalmanFilter<N, 6>),
-}
-
-/// Apply `$body` to the inner `EtKalmanFilter<N, M>` of a [`SensorFilter`].
-macro_rules! on_filter {
-    ($sf:expr, $f:ident => $body:expr) => {
-        match $sf {
-            SensorFilter::M1($f) => $body,
-            SensorFilter::M2($f) => $body,
-            SensorFilter::M3($f) => $body,
-            SensorFilter::M4($f) => $body,
-            SensorFilter::M5($f) => $body,
-            SensorFilter::M6($f) => $body,
-        }
-    };
 }
 
 impl<const N: usize> SensorFilter<N> {
@@ -321,11 +322,16 @@ impl<const N: usize> CompiledScenario<N> {
         self.trigger.expected_rate(delta, m).unwrap_or(0.0)
     }
 
-    /// The decision of a family other than `box` (docs/MODEL.md §9) at the
-    /// leg's slot number `slot` (from 0).
+    /// The serving sensor's decision with the scenario's family
+    /// (docs/MODEL.md §9) at the leg's slot number `slot` (from 0): `inn` the
+    /// prior's innovation, `y` the measurement, `last_delivered` the last
+    /// measurement the agent received on this leg (send-on-delta), `draw`
+    /// the stochastic family's uniform (called only by it; `None`: send, the
+    /// safe side). The one definition of the decision: the in-process leg
+    /// loop, the sensor process and `etp replay verify` call it.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn family_sends<const M: usize>(
+    pub fn decides<const M: usize>(
         &self,
         filter: &EtKalmanFilter<N, M>,
         inn: &Innovation<N, M>,
@@ -333,15 +339,12 @@ impl<const N: usize> CompiledScenario<N> {
         delta: f64,
         slot: u32,
         last_delivered: Option<&Vector<M>>,
-        channels: &mut EpisodeChannels,
-        sensor: usize,
+        draw: impl FnOnce() -> Option<f64>,
     ) -> bool {
         match self.trigger {
             TriggerFamily::Box => inn.triggers(y, delta),
             TriggerFamily::Stochastic => {
-                // Every episode's channels carry the draws of a drawing
-                // family (`Self::channels`); sending is the safe side.
-                let Some(u) = channels.trigger_uniform(sensor) else {
+                let Some(u) = draw() else {
                     return true;
                 };
                 let z = y - inn.predicted;
@@ -595,15 +598,16 @@ impl<const N: usize> CompiledScenario<N> {
             let inn = filter.innovation(slot.prior());
             let sent = match family {
                 TriggerFamily::Box => inn.triggers(&y, threshold.delta),
-                _ => self.family_sends(
+                // Every episode's channels carry the draws of a drawing
+                // family (`Self::channels`).
+                _ => self.decides(
                     filter,
                     &inn,
                     &y,
                     threshold.delta,
                     r.slots,
                     last_delivered.as_ref(),
-                    channels,
-                    sensor,
+                    || channels.trigger_uniform(sensor),
                 ),
             };
             let sending = if !sent {

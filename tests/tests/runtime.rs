@@ -44,6 +44,10 @@ mod lossy;
 #[path = "runtime/folders.rs"]
 mod folders;
 
+// Trigger families as processes (issue 40 item 2).
+#[path = "runtime/families.rs"]
+mod families;
+
 const DELTA: &str = "1.4986";
 
 /// Multi-process runs take both cores; run them one at a time so the timing

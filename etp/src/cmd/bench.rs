@@ -3,7 +3,7 @@
 //! with `--front`: the Pareto front, the strategy LP and the PRISM export of
 //! synthesized MDPs and of a synthetic layered MDP of thousands of states.
 
-use crate::input::{RadioArgs, load_scenario_with_radio};
+use crate::input::{RadioArgs, TriggerArgs, load_scenario_with_radio};
 use crate::simulation::simulate_constant;
 use anyhow::Result;
 use etp_synthesis::mdp::{CostModel, Mdp};
@@ -49,6 +49,9 @@ pub struct Args {
     /// Measure the simulator under this radio (docs/MODEL.md §8).
     #[command(flatten)]
     pub radio: RadioArgs,
+    /// Measure the simulator with this trigger family (docs/MODEL.md §9).
+    #[command(flatten)]
+    pub trigger: TriggerArgs,
 }
 
 /// Default stopping tolerance of the synthetic row: its front at 1e-6 has
@@ -152,7 +155,9 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(dirs) = &a.front {
         return bench_front(dirs, &a);
     }
-    let s = load_scenario_with_radio(&a.scenario, &a.radio)?;
+    let s = a
+        .trigger
+        .apply(load_scenario_with_radio(&a.scenario, &a.radio)?);
     let max_delta = s.deltas.iter().copied().fold(0.0, f64::max);
     let threads = rayon::current_num_threads();
     let mut rows = Vec::new();
@@ -175,7 +180,7 @@ pub fn run(a: Args) -> Result<()> {
             let rate = steps as f64 / median;
             let (fastest, slowest) = (steps as f64 / secs[0], steps as f64 / secs[secs.len() - 1]);
             rows.push(
-                json!({"scenario": s.name, "delta": delta, "threads": t, "episodes": a.episodes,
+                json!({"scenario": s.name, "trigger": s.trigger.name(), "delta": delta, "threads": t, "episodes": a.episodes,
                              "steps": steps, "repeats": secs.len(), "seconds": median,
                              "steps_per_second": rate,
                              "steps_per_second_per_thread": rate / t as f64,
@@ -183,8 +188,9 @@ pub fn run(a: Args) -> Result<()> {
             );
             if !a.json {
                 println!(
-                    "{:<12} δ = {:<7.4} threads {}  {:>10} steps in {:>6.3} s  → {:>6.2} M steps/s ({:.2} M/s per thread; median of {}, range {:.2}–{:.2} M/s)",
+                    "{:<12} {} δ = {:<7.4} threads {}  {:>10} steps in {:>6.3} s  → {:>6.2} M steps/s ({:.2} M/s per thread; median of {}, range {:.2}–{:.2} M/s)",
                     s.name,
+                    s.trigger,
                     delta,
                     t,
                     steps,

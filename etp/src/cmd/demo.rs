@@ -231,6 +231,7 @@ pub fn run(a: Args) -> Result<()> {
         join_timeout: None,
         link: Default::default(),
         radio: Default::default(),
+        trigger: Default::default(),
     };
     let (mp, problems) = run_cmd::execute(&rargs)?;
 

@@ -87,7 +87,8 @@ fn box_said_aloud_is_the_default_and_its_output_names_no_family() {
 }
 
 #[test]
-fn a_family_is_read_from_the_scenario_named_when_unknown_and_refused_by_the_processes() {
+fn a_family_is_read_from_the_scenario_named_when_unknown_and_send_on_delta_refused_by_the_processes()
+ {
     let tmp = Scratch::new("trigger-family");
     let text = etp_shared::scenario::builtin_text("open-2d").expect("built-in");
     let with = |family: &str| {
@@ -128,17 +129,32 @@ fn a_family_is_read_from_the_scenario_named_when_unknown_and_refused_by_the_proc
         ],
         &["sometimes", "stochastic"],
     );
+    let send_on_delta = with("send-on-delta");
     fails_with(
         &[
             "run",
             "--scenario",
-            s(&stochastic),
+            s(&send_on_delta),
             "--delta",
             "1.0",
             "--episodes",
             "2",
         ],
-        &["triggering.family", "stochastic", "box"],
+        &["triggering.family", "send-on-delta", "do not implement"],
+    );
+    fails_with(
+        &[
+            "run",
+            "--scenario",
+            "open-2d",
+            "--delta",
+            "1.0",
+            "--trigger",
+            "send-on-delta",
+            "--episodes",
+            "2",
+        ],
+        &["triggering.family", "send-on-delta", "in-process"],
     );
     let out = etp(&["check", s(&stochastic)]);
     assert!(

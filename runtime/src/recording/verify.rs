@@ -22,6 +22,14 @@
 //! a silence after lost attempts is re-run with the radio's silence factor
 //! ([`CompiledScenario::silence_beta`]), bit for bit.
 //!
+//! So is the sensor's decision: from the recorded true state of each slot
+//! (`sensor/<i>/truth`) and the run's seed, the re-run measures again and
+//! decides again with the scenario's trigger family
+//! ([`CompiledScenario::redecide_slot`]: the same noise, and for the
+//! stochastic family the same draw, as the sensor process took); the
+//! decision must be the slot's (sent iff it made attempts) and a delivered
+//! measurement must have the recorded bits.
+//!
 //! Degraded episodes (a dead link) are skipped and counted: whether a late
 //! slot was taken as closed or dead depended on wall-clock timing the file
 //! does not hold. An episode cut by the end of an unfinished file is checked
@@ -29,12 +37,14 @@
 
 use super::{META_RUN, META_SCENARIO, Recorded, RecordingError, decode, read::Contents};
 use crate::wire::agent_to_coordinator::{Outcome, Waypoint};
-use crate::wire::agent_to_sensor::Handover;
+use crate::wire::agent_to_sensor::{Handover, Truth};
 use crate::wire::coordinator_to_agent::Control;
 use crate::wire::coordinator_to_all::Threshold;
 use crate::wire::sensor_to_agent::{Measurement, Slot};
-use crate::wire::{WireMat, WireVec, belief_to_wire};
-use etp_shared::episode::{AgentCore, Begun, CompiledScenario, SlotOutcome, World, belief_digest};
+use crate::wire::{WireMat, WireVec, belief_to_wire, vec_from_wire};
+use etp_shared::episode::{
+    AgentCore, Begun, CompiledScenario, SlotKey, SlotOutcome, World, belief_digest,
+};
 use etp_shared::etkf::{Belief, Vector};
 use etp_shared::radio::LinkChannel;
 use etp_shared::rng::streams;
@@ -81,6 +91,9 @@ pub struct VerifyReport {
     /// recorded (`slot.attempts`), and of those the lost ones.
     pub attempts_redrawn: u64,
     pub lost_redrawn: u64,
+    /// Slots whose sensor decision (and delivered measurement) was re-drawn
+    /// from the recorded true state and found as recorded.
+    pub decisions_checked: u64,
     pub mismatch_count: u64,
     /// The first mismatches (at most 50), in episode order.
     pub mismatches: Vec<Mismatch>,
@@ -124,6 +137,8 @@ struct EpisodeRecord {
     handovers: BTreeMap<u32, Handover>,
     measurements: BTreeMap<u32, Measurement>,
     slots: BTreeMap<u32, Slot>,
+    /// Step → the true state the agent sent the serving sensor.
+    truths: BTreeMap<u32, Truth>,
     outcome: Option<Outcome>,
     /// Two messages of one kind for one step or leg.
     duplicate: Option<String>,
@@ -153,6 +168,7 @@ fn group(c: &Contents) -> Result<(BTreeMap<u64, EpisodeRecord>, u64), RecordingE
             Recorded::Handover(x) => Some(x.header),
             Recorded::Measurement(x) => Some(x.header),
             Recorded::Slot(x) => Some(x.header),
+            Recorded::Truth(x) => Some(x.header),
             Recorded::Waypoint(x) => Some(x.header),
             Recorded::Outcome(x) => Some(x.header),
             _ => None,
@@ -167,6 +183,7 @@ fn group(c: &Contents) -> Result<(BTreeMap<u64, EpisodeRecord>, u64), RecordingE
             Recorded::Handover(x) => eps.entry(x.header.episode),
             Recorded::Measurement(x) => eps.entry(x.header.episode),
             Recorded::Slot(x) => eps.entry(x.header.episode),
+            Recorded::Truth(x) => eps.entry(x.header.episode),
             Recorded::Waypoint(x) => eps.entry(x.header.episode),
             Recorded::Outcome(x) => eps.entry(x.header.episode),
             _ => continue,
@@ -181,6 +198,7 @@ fn group(c: &Contents) -> Result<(BTreeMap<u64, EpisodeRecord>, u64), RecordingE
                 insert(&mut r.measurements, x.header.step, x, dup, "measurement");
             }
             Recorded::Slot(x) => insert(&mut r.slots, x.header.step, x, dup, "slot"),
+            Recorded::Truth(x) => insert(&mut r.truths, x.header.step, x, dup, "truth"),
             Recorded::Waypoint(x) => insert(&mut r.waypoints, x.header.leg, x, dup, "waypoint"),
             Recorded::Outcome(x) => r.outcome = Some(x),
             _ => {}
@@ -361,6 +379,8 @@ fn rerun<const N: usize>(
             _ => None,
         };
         let mut core = AgentCore::for_delta(c, leg as usize, delta, belief, k);
+        // The leg's slot number (the periodic family decides on it).
+        let mut slot_in_leg: u32 = 0;
         let mut world = RecordedWorld {
             collision_at: outcome
                 .filter(|o| o.outcome == Outcome::COLLISION)
@@ -460,6 +480,49 @@ fn rerun<const N: usize>(
                     0.0,
                 ));
             }
+            // The sensor's decision, again from the recorded true state.
+            if let (Some(t), Some(ctrl)) = (r.truths.get(&k), &r.control) {
+                let x: Vector<N> = vec_from_wire(&t.x);
+                let key = SlotKey {
+                    seed: ctrl.seed,
+                    episode,
+                    step: k,
+                    sensor: sensor as u32,
+                };
+                let (sent, y_again) =
+                    c.redecide_slot(leg as usize, &prior, &x, delta, slot_in_leg, key);
+                if sent != (slot.attempts > 0) {
+                    return Err(miss(
+                        leg,
+                        k,
+                        format!(
+                            "the sensor's decision re-drawn ({} trigger) {}; the slot records {} attempt(s)",
+                            c.trigger,
+                            if sent { "sends" } else { "stays silent" },
+                            slot.attempts
+                        ),
+                        0.0,
+                    ));
+                }
+                if let Some(m) = y {
+                    let worst = y_again
+                        .iter()
+                        .zip(m.y.iter())
+                        .filter(|(a, b)| a.to_bits() != b.to_bits())
+                        .map(|(a, b)| (a - b).abs())
+                        .reduce(f64::max);
+                    if let Some(d) = worst {
+                        return Err(miss(
+                            leg,
+                            k,
+                            "the measurement re-drawn from the recorded true state".into(),
+                            d,
+                        ));
+                    }
+                }
+                rep.decisions_checked += 1;
+            }
+            slot_in_leg += 1;
             rep.attempts_redrawn += u64::from(slot.attempts);
             rep.lost_redrawn += u64::from(slot.attempts - u32::from(redrawn.1));
             match y {

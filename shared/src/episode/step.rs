@@ -17,9 +17,12 @@
 //! ```
 
 use super::{CompiledScenario, Outcome, SensorFilter};
+
 use crate::etkf::{Belief, EtKalmanFilter, Innovation, Threshold, Vector};
 use crate::radio::Transmission;
-use rand::Rng;
+use crate::rng::{SimRng, stream_rng, streams, trigger_rng};
+use crate::trigger::TriggerFamily;
+use rand::{Rng, RngExt};
 
 /// The serving sensor's side of step 4 (docs/MODEL.md §2, §8): what it
 /// measured, the innovation it triggered on, and what its link did.
@@ -29,7 +32,7 @@ pub struct ServedSlot<const N: usize, const M: usize> {
     pub y: Vector<M>,
     /// The prior's innovation (its whitening also serves the update).
     pub innovation: Innovation<N, M>,
-    /// The trigger fired: ‖ε‖∞ > δ.
+    /// The family's decision sent (box: ‖ε‖∞ > δ).
     pub fired: bool,
     /// The link's attempts (none without a trigger).
     pub sending: Transmission,
@@ -44,23 +47,24 @@ impl<const N: usize, const M: usize> ServedSlot<N, M> {
 }
 
 /// The serving sensor's slot as the sensor process runs it (the in-process
-/// leg loop writes the same lines inline, for its speed: see there): measure `y = H x + v` (noise from `rng`), trigger
-/// on the prior's innovation, and on a trigger make the link's attempts
-/// (`link` is called only then; an ideal link delivers the first). The
-/// agent's update of what was delivered is [`super::slot_update`] (or, at
-/// the sensor, its replica's close).
+/// leg loop writes the same lines inline, for its speed: see there): measure
+/// `y = H x + v` (noise from `rng`), decide on the prior's innovation with
+/// `decides` (the family's decision, [`CompiledScenario::decides`]), and on
+/// a send make the link's attempts (`link` is called only then; an ideal
+/// link delivers the first). The agent's update of what was delivered is
+/// [`super::slot_update`] (or, at the sensor, its replica's close).
 #[inline(always)]
 pub fn serve_slot<const N: usize, const M: usize, R: Rng + ?Sized>(
     filter: &EtKalmanFilter<N, M>,
     prior: &Belief<N>,
     x: &Vector<N>,
-    delta: f64,
     rng: &mut R,
+    decides: impl FnOnce(&Innovation<N, M>, &Vector<M>) -> bool,
     link: impl FnOnce() -> Transmission,
 ) -> ServedSlot<N, M> {
     let y = filter.sensor.measure(x, rng);
     let innovation = filter.innovation(prior);
-    let fired = innovation.triggers(&y, delta);
+    let fired = decides(&innovation, &y);
     let sending = if fired {
         link()
     } else {
@@ -74,6 +78,105 @@ pub fn serve_slot<const N: usize, const M: usize, R: Rng + ?Sized>(
         innovation,
         fired,
         sending,
+    }
+}
+
+/// Where a run's sensor process takes the random numbers of a slot: keyed
+/// by (seed, episode, step), so that they do not depend on timing and
+/// `etp replay verify` draws them again from what the recording holds (the
+/// run's seed, the true state of the step).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SlotKey {
+    /// The run's seed.
+    pub seed: u64,
+    pub episode: u64,
+    /// The episode's step (from 1).
+    pub step: u32,
+    /// The serving sensor's index.
+    pub sensor: u32,
+}
+
+impl SlotKey {
+    fn index(&self) -> u64 {
+        (self.episode << 32) | u64::from(self.step)
+    }
+
+    /// The measurement noise's generator (stream `SENSOR`).
+    pub fn noise_rng(&self) -> SimRng {
+        stream_rng(self.seed, streams::SENSOR, self.index())
+    }
+
+    /// The stochastic family's uniform draw (docs/MODEL.md §9): a stream of
+    /// its own ([`crate::rng::trigger_rng`] under stream `SENSOR`), so that
+    /// the noise and the radio of every family keep their bits.
+    pub fn trigger_uniform(&self) -> f64 {
+        trigger_rng(
+            self.seed,
+            streams::SENSOR,
+            self.index(),
+            u64::from(self.sensor),
+        )
+        .random::<f64>()
+    }
+}
+
+impl<const N: usize> CompiledScenario<N> {
+    /// A run's slot at the serving sensor: [`serve_slot`] with the noise and
+    /// the trigger draw of `key`, deciding with the scenario's family at the
+    /// leg's slot number `slot_in_leg` (from 0). The sensor process and
+    /// `etp replay verify` ([`Self::redecide_slot`]) both serve it here.
+    #[inline]
+    pub fn serve_run_slot<const M: usize>(
+        &self,
+        filter: &EtKalmanFilter<N, M>,
+        prior: &Belief<N>,
+        x: &Vector<N>,
+        delta: f64,
+        slot_in_leg: u32,
+        key: SlotKey,
+        link: impl FnOnce() -> Transmission,
+    ) -> ServedSlot<N, M> {
+        let mut rng = key.noise_rng();
+        serve_slot(
+            filter,
+            prior,
+            x,
+            &mut rng,
+            |inn, y| {
+                self.decides(filter, inn, y, delta, slot_in_leg, None, || {
+                    Some(key.trigger_uniform())
+                })
+            },
+            link,
+        )
+    }
+
+    /// The decision a run's sensor made in a slot of leg `leg`, again from
+    /// the recorded true state: whether it sent, and the measurement `y`
+    /// (its first m entries; the rest 0).
+    pub fn redecide_slot(
+        &self,
+        leg: usize,
+        prior: &Belief<N>,
+        x: &Vector<N>,
+        delta: f64,
+        slot_in_leg: u32,
+        key: SlotKey,
+    ) -> (bool, [f64; 6]) {
+        let delivered = || Transmission {
+            attempts: 1,
+            delivered: true,
+        };
+        let mut y = [0.0; 6];
+        let sensor = self.legs[leg].sensor;
+        let fired = on_filter!(&self.filters[sensor], f => {
+            let served = self.serve_run_slot(f, prior, x, delta, slot_in_leg, key, delivered);
+            for (o, v) in y.iter_mut().zip(served.y.iter()) {
+                *o = *v;
+            }
+            served.fired
+        });
+        (fired, y)
     }
 }
 
@@ -130,21 +233,20 @@ impl<const N: usize> CompiledScenario<N> {
     /// The factor β of the silence update (`Silent` in [`Self::close_slot`])
     /// at sensor `sensor` with threshold δ: β(δ) on an ideal link (§2), the
     /// radio's on a lossy one (§8: β_q(δ) for the aware estimator, β(δ) for
-    /// the naive one). The agent process, the sensor's replica and
+    /// the naive one); for a family other than box, the family's own
+    /// (docs/MODEL.md §9). The agent process, the sensor's replica and
     /// `replay verify` all take it from here, as the in-process leg loop
     /// does (same operations, same bits).
     pub fn silence_beta(&self, sensor: usize, delta: f64) -> f64 {
+        if self.trigger != TriggerFamily::Box {
+            // The family's own factor (docs/MODEL.md §9), as the leg loop
+            // takes it.
+            return self.silence_factor(sensor, delta, self.filters[sensor].dim());
+        }
         if self.radio.link(sensor).is_ideal() {
             Threshold::new(delta).beta
         } else {
-            let m = match &self.filters[sensor] {
-                SensorFilter::M1(_) => 1,
-                SensorFilter::M2(_) => 2,
-                SensorFilter::M3(_) => 3,
-                SensorFilter::M4(_) => 4,
-                SensorFilter::M5(_) => 5,
-                SensorFilter::M6(_) => 6,
-            };
+            let m = self.filters[sensor].dim();
             self.radio.silence_beta(sensor, delta, m)
         }
     }

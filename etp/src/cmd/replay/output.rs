@@ -55,6 +55,11 @@ fn write_verify(out: &mut String, v: &recording::VerifyReport) -> std::fmt::Resu
         "  radio: {} transmission attempts re-drawn from the links' streams as recorded ({} lost)",
         v.attempts_redrawn, v.lost_redrawn
     )?;
+    writeln!(
+        out,
+        "  sensor decisions: {} re-drawn from the recorded true states as recorded",
+        v.decisions_checked
+    )?;
     for m in &v.mismatches {
         writeln!(
             out,

@@ -93,6 +93,8 @@ run_file_keys! {
     retries: i64 => radio.retries,
     burst: f64 => radio.burst,
     estimator: String => radio.estimator,
+    /// The trigger family (`--trigger`, docs/MODEL.md §9).
+    trigger: etp_shared::trigger::TriggerFamily => trigger.trigger,
 }
 
 /// Read a run file (errors name the file and the key).

@@ -91,6 +91,10 @@ pub struct Args {
     /// recording read that text).
     #[command(flatten)]
     pub radio: crate::input::RadioArgs,
+    /// The trigger family (docs/MODEL.md §9), written into the run's
+    /// scenario text; with a strategy it must be the strategy's own.
+    #[command(flatten)]
+    pub trigger: crate::input::TriggerArgs,
     /// Kill everything and fail after this many seconds [default: 3600].
     #[arg(long)]
     pub deadline: Option<f64>,

@@ -114,6 +114,20 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         }
         _ => bail!("give a strategy.json, or --scenario NAME --delta D for a constant threshold"),
     };
+    if let Some(family) = a.trigger.trigger
+        && strategy_in.is_some()
+    {
+        let own = ScenarioText::parse(text.clone()).context("scenario")?;
+        if own.scenario.trigger != family {
+            bail!(
+                "--trigger {family}: the strategy was made for trigger family `{}` (a strategy \
+                 is tied to its scenario's hash); give --scenario with --delta to run another \
+                 family",
+                own.scenario.trigger
+            );
+        }
+    }
+    text = a.trigger.apply_to_text(text)?;
     if let Some(k) = a.clone_sensors {
         if strategy_in.is_some() {
             bail!(
@@ -129,11 +143,11 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
     // so it is written there; the strategy is checked against its own text
     // first and then re-stamped with the run text's hash.
     let own = ScenarioText::parse(text).context("scenario")?;
-    if own.scenario.trigger != etp_shared::trigger::TriggerFamily::Box {
+    if !etp_runtime::scenario_arg::runs_as_processes(own.scenario.trigger) {
         bail!(
-            "triggering.family = \"{}\": the processes of `etp run` decide with the paper's \
-             trigger (box) only; the other families run in-process (etp simulate, synthesize, \
-             strategy, validate; docs/MODEL.md §9)",
+            "triggering.family = \"{}\": the processes of `etp run` do not implement this \
+             family (its silence update needs the last delivered measurement at the agent); it \
+             runs in-process (etp simulate, synthesize, strategy, validate; docs/MODEL.md §9)",
             own.scenario.trigger
         );
     }
