@@ -88,7 +88,7 @@ pub struct AgentStats {
 /// Run the agent until the coordinator says stop.
 pub fn run(args: &Args) -> Result<(Exit, AgentStats), AgentError> {
     let run = RunId::new(&args.run.run_id)?;
-    let scenario = etp_runtime::scenario_arg::load_process_scenario(&args.run.scenario)?;
+    let scenario = etp_runtime::load_scenario(&args.run.scenario)?;
     let deadline = args.slot_deadline.map(Duration::from_millis);
     etp_shared::with_dim!(scenario.dim, N => runtime::Agent::<N>::new(&run, &scenario, deadline)?.serve())
 }

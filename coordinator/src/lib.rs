@@ -75,7 +75,7 @@ pub struct Args {
 /// Run all episodes and return the report.
 pub fn run(args: &Args) -> Result<RunReport, CoordinatorError> {
     let run = RunId::new(&args.run.run_id)?;
-    let scenario = etp_runtime::scenario_arg::load_process_scenario(&args.run.scenario)?;
+    let scenario = etp_runtime::load_scenario(&args.run.scenario)?;
     let text = std::fs::read_to_string(&args.strategy)
         .map_err(|e| CoordinatorError::Input(format!("reading strategy {}: {e}", args.strategy)))?;
     let strategy = Strategy::from_sealed_json(&text)

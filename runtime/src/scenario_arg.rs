@@ -3,7 +3,6 @@
 //! of a run (the supervisor passes them the same argument) read it here.
 
 use etp_shared::scenario::{BUILTIN_NAMES, Scenario, ScenarioError, builtin_text};
-use etp_shared::trigger::TriggerFamily;
 use std::path::{Path, PathBuf};
 
 /// Why a scenario argument could not be resolved (the cause is the
@@ -30,30 +29,6 @@ pub enum ScenarioArgError {
         #[source]
         source: ScenarioError,
     },
-    #[error(
-        "triggering.family = \"{family}\": the processes of a run do not implement this family \
-         (its silence update needs the last delivered measurement at the agent); it runs \
-         in-process (etp simulate, synthesize, strategy, validate; docs/MODEL.md §9)"
-    )]
-    ProcessesRefuseFamily { family: TriggerFamily },
-}
-
-/// The scenario of a run's process ([`load_scenario`]), refused when the
-/// processes do not implement its trigger family ([`runs_as_processes`]).
-pub fn load_process_scenario(arg: &str) -> Result<Scenario, ScenarioArgError> {
-    let s = load_scenario(arg)?;
-    if !runs_as_processes(s.trigger) {
-        return Err(ScenarioArgError::ProcessesRefuseFamily { family: s.trigger });
-    }
-    Ok(s)
-}
-
-/// Whether the processes of a run implement `family`: every family whose
-/// silence update is a shrink of the prior (box, stochastic, variance,
-/// periodic); not send-on-delta, whose silence is a pseudo-measurement of
-/// the last delivered y (docs/MODEL.md §9).
-pub fn runs_as_processes(family: TriggerFamily) -> bool {
-    family != TriggerFamily::SendOnDelta
 }
 
 /// The scenario of a `SCENARIO` argument: a built-in name or a TOML path.

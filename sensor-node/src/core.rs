@@ -314,8 +314,17 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
             sensor: self.id.index,
         };
         let slot_in_leg = open.ledger.slots;
-        let served =
-            scenario.serve_run_slot(&filter, &prior, &x, open.delta, slot_in_leg, key, || {
+        let reference = replica.reference();
+        let reference = reference.as_ref().map(|r| &r[..]);
+        let served = scenario.serve_run_slot(
+            &filter,
+            &prior,
+            &x,
+            open.delta,
+            slot_in_leg,
+            reference,
+            key,
+            || {
                 let channel = match channel {
                     Some((e, c)) if *e == episode => c,
                     slot => {
@@ -331,7 +340,8 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
                 };
                 channel.advance_to(u64::from(step));
                 channel.transmit()
-            });
+            },
+        );
         let (y, fired, sent) = (served.y, served.fired, served.sending);
         // What the agent will receive: the wire copy of y (same bits).
         let y_wire = to_wire_vec(y.as_slice());

@@ -84,7 +84,7 @@ pub enum Exit {
 /// Serve as sensor `args.sensor` until stopped.
 pub fn run(args: &Args) -> Result<(Exit, SensorStats), SensorError> {
     let run = RunId::new(&args.run.run_id)?;
-    let scenario = etp_runtime::scenario_arg::load_process_scenario(&args.run.scenario)?;
+    let scenario = etp_runtime::load_scenario(&args.run.scenario)?;
     let index = scenario
         .sensors
         .iter()

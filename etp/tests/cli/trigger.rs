@@ -87,8 +87,7 @@ fn box_said_aloud_is_the_default_and_its_output_names_no_family() {
 }
 
 #[test]
-fn a_family_is_read_from_the_scenario_named_when_unknown_and_send_on_delta_refused_by_the_processes()
- {
+fn a_family_is_read_from_the_scenario_named_when_unknown_and_a_strategys_family_kept_by_run() {
     let tmp = Scratch::new("trigger-family");
     let text = etp_shared::scenario::builtin_text("open-2d").expect("built-in");
     let with = |family: &str| {
@@ -129,32 +128,42 @@ fn a_family_is_read_from_the_scenario_named_when_unknown_and_send_on_delta_refus
         ],
         &["sometimes", "stochastic"],
     );
-    let send_on_delta = with("send-on-delta");
-    fails_with(
-        &[
-            "run",
-            "--scenario",
-            s(&send_on_delta),
-            "--delta",
-            "1.0",
-            "--episodes",
-            "2",
-        ],
-        &["triggering.family", "send-on-delta", "do not implement"],
+    // A strategy is tied to its scenario's family: --trigger cannot change it.
+    let dir = tmp.path("open");
+    let out = etp(&["synthesize", "open-2d", "--samples", "40", "-o", s(&dir)]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let strategy = dir.join("strategy.json");
+    let out = etp(&[
+        "strategy",
+        s(&dir),
+        "--vertex",
+        "0",
+        "--quick",
+        "-o",
+        s(&strategy),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
     );
     fails_with(
         &[
             "run",
-            "--scenario",
-            "open-2d",
-            "--delta",
-            "1.0",
+            s(&strategy),
             "--trigger",
-            "send-on-delta",
+            "stochastic",
             "--episodes",
             "2",
         ],
-        &["triggering.family", "send-on-delta", "in-process"],
+        &[
+            "--trigger stochastic",
+            "the strategy was made for trigger family `box`",
+        ],
     );
     let out = etp(&["check", s(&stochastic)]);
     assert!(

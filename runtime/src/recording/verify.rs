@@ -489,8 +489,16 @@ fn rerun<const N: usize>(
                     step: k,
                     sensor: sensor as u32,
                 };
-                let (sent, y_again) =
-                    c.redecide_slot(leg as usize, &prior, &x, delta, slot_in_leg, key);
+                let reference = core.reference();
+                let (sent, y_again) = c.redecide_slot(
+                    leg as usize,
+                    &prior,
+                    &x,
+                    delta,
+                    slot_in_leg,
+                    reference.as_ref().map(|r| &r[..]),
+                    key,
+                );
                 if sent != (slot.attempts > 0) {
                     return Err(miss(
                         leg,

@@ -34,6 +34,7 @@
 
 use super::{CompiledScenario, SlotOutcome};
 use crate::etkf::{Belief, EtKalmanFilter, Innovation, Matrix, Threshold, Vector};
+use crate::trigger::TriggerFamily;
 use rand::Rng;
 use std::convert::Infallible;
 
@@ -110,6 +111,10 @@ pub struct AgentCore<const N: usize> {
     steps: u32,
     /// Episode step k of the step last begun.
     step: u32,
+    /// The last measurement delivered in this leg (its first m entries):
+    /// the send-on-delta family's reference (docs/MODEL.md §9), kept by
+    /// [`Self::close`] for that family only (the leg loop keeps its own).
+    reference: Option<[f64; 6]>,
 }
 
 /// A slot opened by [`AgentCore::begin`]: its prior, to be served and then
@@ -156,6 +161,7 @@ impl<const N: usize> AgentCore<N> {
             posterior,
             steps: 0,
             step,
+            reference: None,
         }
     }
 
@@ -232,9 +238,18 @@ impl<const N: usize> AgentCore<N> {
         })
     }
 
+    /// The last measurement delivered in this leg, for the send-on-delta
+    /// family (its decision's and its silence's reference); `None` for the
+    /// other families and before the leg's first delivery.
+    pub fn reference(&self) -> Option<[f64; 6]> {
+        self.reference
+    }
+
     /// Steps 4–5: the posterior from what the slot brought (with the
-    /// threshold's β for a silence), then the leg-end rule. `true` if the
-    /// leg ended.
+    /// threshold's β for a silence; for send-on-delta on an ideal link the
+    /// pseudo-measurement of the leg's last delivered y,
+    /// [`CompiledScenario::close_silent_on_delta`]), then the leg-end rule.
+    /// `true` if the leg ended.
     #[inline(always)]
     pub fn close(
         &mut self,
@@ -242,7 +257,26 @@ impl<const N: usize> AgentCore<N> {
         slot: OpenSlot<N>,
         outcome: SlotOutcome<'_>,
     ) -> bool {
-        let posterior = c.close_slot(self.leg, &slot.prior, outcome, self.threshold.beta);
+        let posterior = match (outcome, self.reference.as_ref()) {
+            (SlotOutcome::Silent, Some(reference)) if c.trigger == TriggerFamily::SendOnDelta => c
+                .close_silent_on_delta(
+                    self.leg,
+                    &slot.prior,
+                    reference,
+                    self.threshold.delta,
+                    self.threshold.beta,
+                ),
+            _ => c.close_slot(self.leg, &slot.prior, outcome, self.threshold.beta),
+        };
+        if let SlotOutcome::Transmitted(y) = outcome
+            && c.trigger == TriggerFamily::SendOnDelta
+        {
+            let mut r = [0.0; 6];
+            for (o, v) in r.iter_mut().zip(y) {
+                *o = *v;
+            }
+            self.reference = Some(r);
+        }
         self.settle(c, posterior)
     }
 

@@ -47,6 +47,12 @@ impl<const N: usize> LegReplica<N> {
         self.core.posterior()
     }
 
+    /// The leg's last delivered measurement, for the send-on-delta family
+    /// ([`AgentCore::reference`]).
+    pub fn reference(&self) -> Option<[f64; 6]> {
+        self.core.reference()
+    }
+
     /// Open the next slot: its prior is the agent's (`u = input(leg, x̂)`,
     /// then the prediction), exactly as the agent computes it.
     pub fn open(&mut self, c: &CompiledScenario<N>) -> OpenSlot<N> {

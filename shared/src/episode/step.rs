@@ -21,7 +21,7 @@ use super::{CompiledScenario, Outcome, SensorFilter};
 use crate::etkf::{Belief, EtKalmanFilter, Innovation, Threshold, Vector};
 use crate::radio::Transmission;
 use crate::rng::{SimRng, stream_rng, streams, trigger_rng};
-use crate::trigger::TriggerFamily;
+use crate::trigger::{TriggerFamily, send_on_delta_noise_scale};
 use rand::{Rng, RngExt};
 
 /// The serving sensor's side of step 4 (docs/MODEL.md §2, §8): what it
@@ -123,7 +123,9 @@ impl SlotKey {
 impl<const N: usize> CompiledScenario<N> {
     /// A run's slot at the serving sensor: [`serve_slot`] with the noise and
     /// the trigger draw of `key`, deciding with the scenario's family at the
-    /// leg's slot number `slot_in_leg` (from 0). The sensor process and
+    /// leg's slot number `slot_in_leg` (from 0) and, for send-on-delta, the
+    /// leg's last delivered measurement `reference`
+    /// ([`super::AgentCore::reference`]). The sensor process and
     /// `etp replay verify` ([`Self::redecide_slot`]) both serve it here.
     #[inline]
     pub fn serve_run_slot<const M: usize>(
@@ -133,19 +135,27 @@ impl<const N: usize> CompiledScenario<N> {
         x: &Vector<N>,
         delta: f64,
         slot_in_leg: u32,
+        reference: Option<&[f64]>,
         key: SlotKey,
         link: impl FnOnce() -> Transmission,
     ) -> ServedSlot<N, M> {
         let mut rng = key.noise_rng();
+        let reference = reference.map(|r| Vector::<M>::from_fn(|i, _| r[i]));
         serve_slot(
             filter,
             prior,
             x,
             &mut rng,
             |inn, y| {
-                self.decides(filter, inn, y, delta, slot_in_leg, None, || {
-                    Some(key.trigger_uniform())
-                })
+                self.decides(
+                    filter,
+                    inn,
+                    y,
+                    delta,
+                    slot_in_leg,
+                    reference.as_ref(),
+                    || Some(key.trigger_uniform()),
+                )
             },
             link,
         )
@@ -161,6 +171,7 @@ impl<const N: usize> CompiledScenario<N> {
         x: &Vector<N>,
         delta: f64,
         slot_in_leg: u32,
+        reference: Option<&[f64]>,
         key: SlotKey,
     ) -> (bool, [f64; 6]) {
         let delivered = || Transmission {
@@ -170,7 +181,8 @@ impl<const N: usize> CompiledScenario<N> {
         let mut y = [0.0; 6];
         let sensor = self.legs[leg].sensor;
         let fired = on_filter!(&self.filters[sensor], f => {
-            let served = self.serve_run_slot(f, prior, x, delta, slot_in_leg, key, delivered);
+            let served =
+                self.serve_run_slot(f, prior, x, delta, slot_in_leg, reference, key, delivered);
             for (o, v) in y.iter_mut().zip(served.y.iter()) {
                 *o = *v;
             }
@@ -228,6 +240,34 @@ impl<const N: usize> CompiledScenario<N> {
             SlotOutcome::Silent => filter.posterior(prior, None, beta),
             SlotOutcome::Dead => *prior,
         }
+    }
+
+    /// Step 4's silence of the send-on-delta family (docs/MODEL.md §9): on
+    /// an ideal link, the leg's last delivered measurement `reference` as a
+    /// pseudo-measurement with noise `(1 + δ²/3) R`, as the leg loop updates;
+    /// on a lossy one the silence update with `beta` (the family's lossy
+    /// factor, 0: silence is no information).
+    pub fn close_silent_on_delta(
+        &self,
+        leg: usize,
+        prior: &Belief<N>,
+        reference: &[f64],
+        delta: f64,
+        beta: f64,
+    ) -> Belief<N> {
+        let sensor = self.legs[leg].sensor;
+        if !self.radio.link(sensor).is_ideal() {
+            return self.close_slot(leg, prior, SlotOutcome::Silent, beta);
+        }
+        on_filter!(&self.filters[sensor], f => {
+            let inn = f.innovation(prior);
+            f.update_pseudo_measurement(
+                prior,
+                &inn,
+                &Vector::from_fn(|i, _| reference[i]),
+                send_on_delta_noise_scale(delta),
+            )
+        })
     }
 
     /// The factor β of the silence update (`Silent` in [`Self::close_slot`])

@@ -143,14 +143,6 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
     // so it is written there; the strategy is checked against its own text
     // first and then re-stamped with the run text's hash.
     let own = ScenarioText::parse(text).context("scenario")?;
-    if !etp_runtime::scenario_arg::runs_as_processes(own.scenario.trigger) {
-        bail!(
-            "triggering.family = \"{}\": the processes of `etp run` do not implement this \
-             family (its silence update needs the last delivered measurement at the agent); it \
-             runs in-process (etp simulate, synthesize, strategy, validate; docs/MODEL.md §9)",
-            own.scenario.trigger
-        );
-    }
     if let Some(st) = &strategy_in {
         st.check_scenario(&own.scenario)
             .context("strategy and scenario")?;
