@@ -128,6 +128,7 @@ impl<const N: usize> CompiledScenario<N> {
     /// ([`super::AgentCore::reference`]). The sensor process and
     /// `etp replay verify` ([`Self::redecide_slot`]) both serve it here.
     #[inline]
+    #[allow(clippy::too_many_arguments)]
     pub fn serve_run_slot<const M: usize>(
         &self,
         filter: &EtKalmanFilter<N, M>,
@@ -164,6 +165,7 @@ impl<const N: usize> CompiledScenario<N> {
     /// The decision a run's sensor made in a slot of leg `leg`, again from
     /// the recorded true state: whether it sent, and the measurement `y`
     /// (its first m entries; the rest 0).
+    #[allow(clippy::too_many_arguments)]
     pub fn redecide_slot(
         &self,
         leg: usize,
