@@ -143,7 +143,11 @@ impl super::Figure for FrontsFigure<'_> {
                 chart
                     .draw_series(LineSeries::new(c.points.clone(), colour.stroke_width(2)))
                     .map_err(e)?
-                    .label(c.label.clone())
+                    .label(if c.certified.is_empty() {
+                        format!("{} (none certified in this bound)", c.label)
+                    } else {
+                        c.label.clone()
+                    })
                     .legend(move |(x, y)| {
                         PathElement::new(vec![(x - 12, y), (x + 12, y)], colour.stroke_width(3))
                     });
