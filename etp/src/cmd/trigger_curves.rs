@@ -58,12 +58,17 @@ pub fn run(a: Args) -> Result<()> {
     for p in [stem.with_extension("png"), stem.with_extension("svg")] {
         crate::output::refuse_existing(&p, a.force)?;
     }
-    let mut families = if a.families.is_empty() {
+    let mut families: Vec<TriggerFamily> = Vec::new();
+    let given = if a.families.is_empty() {
         TriggerFamily::ALL.to_vec()
     } else {
         a.families.clone()
     };
-    families.dedup();
+    for f in given {
+        if !families.contains(&f) {
+            families.push(f);
+        }
+    }
     let base = load_scenario_with_radio(&a.scenario, &a.radio)?;
     if base.deltas.is_empty() {
         bail!("scenario `{}`: triggering.deltas is empty", base.name);
