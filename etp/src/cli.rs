@@ -29,9 +29,17 @@ pub enum Command {
     Synthesize(crate::cmd::synthesize::Args),
     /// Export an MDP as PRISM explicit files (model.tra/.sta/.lab/.trew).
     ExportPrism(crate::cmd::export_prism::Args),
-    /// What the radio costs: the fronts of several syntheses of one scenario
-    /// (e.g. under different `--loss`) on one figure, least energy per P_tar.
+    /// What the radio or the trigger family costs: the fronts of several
+    /// syntheses of one scenario (e.g. under different `--loss` or
+    /// `--trigger`) on one figure, least energy per P_tar, certified dashed.
     Fronts(crate::cmd::fronts::Args),
+    /// Compare trigger families (or radios): for each request, the least
+    /// energy each synthesis of one scenario needs, predicted as `etp
+    /// strategy` does, and its ratio to the paper's trigger (box).
+    Compare(crate::cmd::compare::Args),
+    /// The literature's plot of trigger families: estimation error (RMSE,
+    /// NEES/n) against communication rate over the scenario's thresholds.
+    TriggerCurves(crate::cmd::trigger_curves::Args),
     /// Measure simulator throughput (episode-steps per second).
     Bench(crate::cmd::bench::Args),
     /// Run a strategy as processes (coordinator, agent, one per sensor) over iceoryx2.

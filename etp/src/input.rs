@@ -38,8 +38,9 @@ pub struct RadioArgs {
     pub estimator: Option<String>,
 }
 
-/// `--trigger FAMILY`: the trigger family every sensor uses, over the
-/// scenario's `[triggering] family` (docs/MODEL.md §9).
+/// `--trigger FAMILY` of `simulate`, `synthesize`, `run` and `bench`: the
+/// trigger family every sensor uses, over the scenario's `[triggering]
+/// family` (docs/MODEL.md §9).
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct TriggerArgs {
     /// Trigger family over the scenario's own: box (the paper's ∞-norm trigger), stochastic,
@@ -48,7 +49,8 @@ pub struct TriggerArgs {
     pub trigger: Option<TriggerFamily>,
 }
 
-fn parse_family(s: &str) -> std::result::Result<TriggerFamily, String> {
+/// A family name on the command line (`--trigger`, `--families`): the error names it.
+pub fn parse_family(s: &str) -> std::result::Result<TriggerFamily, String> {
     TriggerFamily::parse(s).map_err(|e| e.to_string())
 }
 

@@ -10,6 +10,7 @@
 //! * [`progress`] — indicatif bars that hide themselves when stderr is not a terminal.
 //! * [`report`] — a simulation summary's JSON and tables, the channel line.
 //! * [`simulation`] — the constant-threshold simulation of `simulate` and `bench`.
+//! * [`synthesis_dir`] — a synthesis directory loaded for selection (`strategy`, `compare`).
 //! * [`processes`] — the run's processes `etp process NAME` plays.
 //! * [`vocab`] — the JSON vocabulary shared by simulate, validate, run and replay.
 //!
@@ -29,6 +30,7 @@ pub mod processes;
 pub mod progress;
 pub mod report;
 pub mod simulation;
+pub mod synthesis_dir;
 pub use etp_recording_tools::vocab;
 
 use std::process::ExitCode;

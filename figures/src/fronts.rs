@@ -1,48 +1,60 @@
-//! The radio-cost figure of `etp fronts`: one curve per synthesis (one
-//! channel each), least expected energy per episode against P_tar at a fixed
-//! bound on P_coll.
+//! The comparison figure of `etp fronts`: one curve per synthesis of one
+//! scenario (one radio channel or trigger family each), least expected
+//! energy per episode against P_tar, with each synthesis's certified curve
+//! dashed in the same colour; one panel per bound on P_coll.
 
 use crate::{Result, plot_error};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 
-/// One synthesis's curve: least energy per P_tar within the P_coll bound.
+/// One synthesis's curves at one bound on P_coll.
 #[derive(Debug, Clone)]
 pub struct Curve {
     pub dir: PathBuf,
-    /// The channel the synthesis sampled under, in `Radio::describe`'s words.
-    pub radio: String,
-    /// (P_tar, least energy), increasing P_tar.
+    /// The legend: the channel in `Radio::describe`'s words, the trigger
+    /// family, or both.
+    pub label: String,
+    /// (P_tar, least energy), increasing P_tar: mixtures of the nominal
+    /// front's vertices.
     pub points: Vec<(f64, f64)>,
+    /// (certified P_tar, certified energy) corners of the certified front
+    /// (front.json `certified`, at its confidence), drawn dashed; empty
+    /// when the front has none within the bound.
+    pub certified: Vec<(f64, f64)>,
 }
 
-/// Write the figure to `stem.png` and `stem.svg`.
-pub fn fronts_plot(
-    scenario: &str,
-    curves: &[Curve],
-    max_collision: Option<f64>,
-    stem: &Path,
-) -> Result<()> {
+/// One panel: the curves of every synthesis at one bound on P_coll.
+#[derive(Debug, Clone)]
+pub struct Panel {
+    pub max_collision: Option<f64>,
+    pub curves: Vec<Curve>,
+}
+
+/// Write the figure to `stem.png` and `stem.svg`: one panel per bound,
+/// side by side. `what` names the comparison in the title ("the radio",
+/// "trigger families").
+pub fn fronts_plot(scenario: &str, what: &str, panels: &[Panel], stem: &Path) -> Result<()> {
+    let n = panels.len().max(1) as u32;
     super::png_and_svg(
         &FrontsFigure {
             scenario,
-            curves,
-            max_collision,
+            what,
+            panels,
         },
         stem,
-        (1000, 700),
+        (if n == 1 { 1000 } else { 820 * n }, 720),
     )
 }
 
 struct FrontsFigure<'a> {
     scenario: &'a str,
-    curves: &'a [Curve],
-    max_collision: Option<f64>,
+    what: &'a str,
+    panels: &'a [Panel],
 }
 
 /// Distinct colours (Okabe–Ito, readable by colour-blind readers).
-const PALETTE: [RGBColor; 7] = [
+pub(crate) const PALETTE: [RGBColor; 7] = [
     RGBColor(0, 114, 178),
     RGBColor(213, 94, 0),
     RGBColor(0, 158, 115),
@@ -52,6 +64,22 @@ const PALETTE: [RGBColor; 7] = [
     RGBColor(0, 0, 0),
 ];
 
+/// A polyline as dashes of about `dash` pixels' worth in data units: every
+/// other piece of each segment cut into `pieces`.
+pub(crate) fn dashes(points: &[(f64, f64)], pieces: usize) -> Vec<Vec<(f64, f64)>> {
+    let mut out = Vec::new();
+    for w in points.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        for k in (0..pieces).step_by(2) {
+            let t0 = k as f64 / pieces as f64;
+            let t1 = (k + 1) as f64 / pieces as f64;
+            let at = |t: f64| (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
+            out.push(vec![at(t0), at(t1)]);
+        }
+    }
+    out
+}
+
 impl super::Figure for FrontsFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
     where
@@ -59,7 +87,24 @@ impl super::Figure for FrontsFigure<'_> {
     {
         let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
         root.fill(&WHITE).map_err(e)?;
-        let all = self.curves.iter().flat_map(|c| c.points.iter());
+        let area = root
+            .titled(
+                &format!(
+                    "What {} cost{} ({}): least expected energy per P_tar",
+                    self.what,
+                    if self.what.ends_with('s') { "" } else { "s" },
+                    self.scenario
+                ),
+                ("sans-serif", 20),
+            )
+            .map_err(e)?;
+        let cells = area.split_evenly((1, self.panels.len().max(1)));
+        // One scale for every panel, so that they compare.
+        let all = self
+            .panels
+            .iter()
+            .flat_map(|p| p.curves.iter())
+            .flat_map(|c| c.points.iter().chain(c.certified.iter()));
         let (mut t_lo, mut t_hi, mut e_hi) = (1.0f64, 0.0f64, 1.0f64);
         for &(t, en) in all {
             t_lo = t_lo.min(t);
@@ -70,55 +115,66 @@ impl super::Figure for FrontsFigure<'_> {
             t_lo = (t_hi - 0.05).max(0.0);
         }
         let pad = 0.03 * (t_hi - t_lo);
-        let bound = match self.max_collision {
-            Some(c) => format!("P_coll ≤ {c}"),
-            None => "any P_coll".to_string(),
-        };
-        let area = root
-            .titled(
-                &format!(
-                    "What the radio costs ({}): least expected energy per P_tar, {bound}",
-                    self.scenario
-                ),
-                ("sans-serif", 20),
-            )
-            .map_err(e)?;
-        let mut chart = ChartBuilder::on(&area)
-            .caption(
-                "one curve per synthesis (`etp synthesize --loss … --estimator …`); mixtures of each front's vertices",
-                ("sans-serif", 13),
-            )
-            .margin(20)
-            .x_label_area_size(50)
-            .y_label_area_size(70)
-            .build_cartesian_2d((t_lo - pad)..(t_hi + pad).min(1.0 + pad), 0.0..e_hi * 1.08)
-            .map_err(e)?;
-        chart
-            .configure_mesh()
-            .x_desc("P_tar (probability of reaching the target)")
-            .y_desc("least expected energy per episode (attempts × cost)")
-            .label_style(("sans-serif", 15))
-            .axis_desc_style(("sans-serif", 16))
-            .draw()
-            .map_err(e)?;
-        for (i, c) in self.curves.iter().enumerate() {
-            let colour = PALETTE[i % PALETTE.len()];
+        for (panel, cell) in self.panels.iter().zip(&cells) {
+            let bound = match panel.max_collision {
+                Some(c) => format!("P_coll ≤ {c}"),
+                None => "any P_coll".to_string(),
+            };
+            let mut chart = ChartBuilder::on(cell)
+                .caption(
+                    format!("{bound}; solid: the front (mixtures of its vertices), dashed: certified at 95 %"),
+                    ("sans-serif", 13),
+                )
+                .margin(20)
+                .x_label_area_size(50)
+                .y_label_area_size(70)
+                .build_cartesian_2d((t_lo - pad)..(t_hi + pad).min(1.0 + pad), 0.0..e_hi * 1.08)
+                .map_err(e)?;
             chart
-                .draw_series(LineSeries::new(c.points.clone(), colour.stroke_width(2)))
-                .map_err(e)?
-                .label(c.radio.clone())
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x - 12, y), (x + 12, y)], colour.stroke_width(3))
-                });
+                .configure_mesh()
+                .x_desc("P_tar (probability of reaching the target)")
+                .y_desc("least expected energy per episode (attempts × cost)")
+                .label_style(("sans-serif", 15))
+                .axis_desc_style(("sans-serif", 16))
+                .draw()
+                .map_err(e)?;
+            for (i, c) in panel.curves.iter().enumerate() {
+                let colour = PALETTE[i % PALETTE.len()];
+                chart
+                    .draw_series(LineSeries::new(c.points.clone(), colour.stroke_width(2)))
+                    .map_err(e)?
+                    .label(if c.certified.is_empty() {
+                        format!("{} (none certified in this bound)", c.label)
+                    } else {
+                        c.label.clone()
+                    })
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x - 12, y), (x + 12, y)], colour.stroke_width(3))
+                    });
+                chart
+                    .draw_series(
+                        c.certified
+                            .iter()
+                            .map(|&p| Circle::new(p, 3, colour.filled())),
+                    )
+                    .map_err(e)?;
+                chart
+                    .draw_series(
+                        dashes(&c.certified, 16)
+                            .into_iter()
+                            .map(|d| PathElement::new(d, colour.stroke_width(2))),
+                    )
+                    .map_err(e)?;
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 14))
+                .position(SeriesLabelPosition::UpperLeft)
+                .draw()
+                .map_err(e)?;
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 14))
-            .position(SeriesLabelPosition::UpperLeft)
-            .draw()
-            .map_err(e)?;
         Ok(())
     }
 }

@@ -6,7 +6,11 @@
 //! * [`front_plot`] (`front.rs`) — the Pareto front, P_tar vs energy per
 //!   bound on P_coll, baselines marked (`etp synthesize`).
 //! * [`fronts_plot`] (`fronts.rs`) — several fronts of one scenario, one
-//!   [`Curve`] per radio channel (`etp fronts`).
+//!   [`Curve`] per synthesis (radio channel or trigger family) with its
+//!   certified curve dashed, one [`Panel`] per bound on P_coll (`etp fronts`).
+//! * [`trigger_curves_plot`] (`trigger_curves.rs`) — estimation error (RMSE,
+//!   NEES/n) against the communication rate per trigger family, and the rate
+//!   against δ with the closed forms (`etp trigger-curves`).
 //! * [`map_plot`] (`map.rs`) — the scenario map with sampled trajectories
 //!   coloured by the expected rate of the threshold in force (the paper's
 //!   Fig. 4; `etp validate --plot`, `etp demo`).
@@ -22,11 +26,13 @@ mod front;
 mod fronts;
 mod map;
 mod report;
+mod trigger_curves;
 
 pub use front::front_plot;
-pub use fronts::{Curve, fronts_plot};
+pub use fronts::{Curve, Panel, fronts_plot};
 pub use map::map_plot;
 pub use report::{Bar, RunFigure, mean_ci, proportion, report_plot, short_label};
+pub use trigger_curves::{FamilySeries, RatePoint, trigger_curves_plot};
 
 use plotters::coord::Shift;
 use plotters::prelude::*;

@@ -162,8 +162,46 @@ impl RatioAccumulator {
     }
 }
 
+/// The ratio `a / b` of two independent estimates with its 95 % half-width
+/// by the delta method: `|a/b| · √((h_a/a)² + (h_b/b)²)`. `None` when `b`
+/// is not positive (no ratio) — a ratio of energies, e.g. a family's least
+/// energy to the paper's trigger's (`etp compare`).
+pub fn ratio(a: Estimate, b: Estimate) -> Option<Estimate> {
+    if b.value.is_nan() || b.value <= 0.0 || !a.value.is_finite() {
+        return None;
+    }
+    let r = a.value / b.value;
+    let rel_a = if a.value != 0.0 {
+        a.ci95 / a.value
+    } else {
+        0.0
+    };
+    let rel_b = b.ci95 / b.value;
+    let rel = (rel_a * rel_a + rel_b * rel_b).sqrt();
+    // A zero numerator: its own ± over b.
+    let ci95 = if a.value != 0.0 {
+        r.abs() * rel
+    } else {
+        a.ci95 / b.value
+    };
+    Some(Estimate { value: r, ci95 })
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_ratio_by_the_delta_method() {
+        let e = |value, ci95| super::Estimate { value, ci95 };
+        let r = super::ratio(e(200.0, 6.0), e(100.0, 4.0)).expect("ratio");
+        assert!((r.value - 2.0).abs() < 1e-12);
+        assert!((r.ci95 - 2.0 * (0.03f64.powi(2) + 0.04f64.powi(2)).sqrt()).abs() < 1e-12);
+        assert_eq!(
+            super::ratio(e(1.0, 0.1), e(1.0, 0.0)).map(|r| r.ci95),
+            Some(0.1)
+        );
+        assert!(super::ratio(e(1.0, 0.1), e(0.0, 0.1)).is_none());
+    }
+
     use super::*;
 
     #[test]

@@ -52,6 +52,8 @@ pub struct SimulationTotals {
     pub rate: RatioAccumulator,
     /// (Σ NEES/n of the agent's estimate, slots) per episode.
     pub nees: RatioAccumulator,
+    /// (Σ ‖x − x̂‖² of the agent's estimate, slots) per episode.
+    pub squared_error: RatioAccumulator,
     /// (expected transmissions Σγ̄, slots) per episode.
     pub expected_rate: RatioAccumulator,
     pub sensors: Vec<SensorCounts>,
@@ -74,6 +76,7 @@ impl SimulationTotals {
         self.steps.merge(&o.steps);
         self.rate.merge(&o.rate);
         self.nees.merge(&o.nees);
+        self.squared_error.merge(&o.squared_error);
         self.expected_rate.merge(&o.expected_rate);
         for (a, b) in self.sensors.iter_mut().zip(&o.sensors) {
             a.slots += b.slots;
@@ -90,6 +93,8 @@ struct SensorTally<'a> {
     sensors: &'a mut [SensorCounts],
     /// Σ over slots of (x − x̂)ᵀ P⁻¹ (x − x̂) / n.
     nees: f64,
+    /// Σ over slots of ‖x − x̂‖².
+    squared_error: f64,
 }
 
 impl<const N: usize> EpisodeObserver<N> for SensorTally<'_> {
@@ -97,6 +102,7 @@ impl<const N: usize> EpisodeObserver<N> for SensorTally<'_> {
     fn on_step(&mut self, e: &StepEvent<'_, N>) {
         if !e.collided {
             self.nees += normalized_error(e.x, e.belief);
+            self.squared_error += (e.x - e.belief.mean).norm_squared();
         }
     }
 
@@ -170,6 +176,10 @@ pub struct SimulationSummary {
     pub total_steps: u64,
     /// Mean NEES/n of the agent's estimate over the slots (≈ 1: consistent).
     pub nees: Estimate,
+    /// Root mean squared estimation error `√(mean over the slots of
+    /// ‖x − x̂‖²)` (full state, the scenario's units), its ± by the delta
+    /// method from the mean's.
+    pub rmse: Estimate,
 }
 
 impl SimulationTotals {
@@ -187,7 +197,21 @@ impl SimulationTotals {
             sensors: self.sensors.clone(),
             total_steps: self.steps.sum as u64,
             nees: self.nees.estimate(),
+            rmse: root(self.squared_error.estimate()),
         }
+    }
+}
+
+/// `√m` of a mean `m` with its ± by the delta method (`h / (2√m)`).
+fn root(m: Estimate) -> Estimate {
+    let value = m.value.max(0.0).sqrt();
+    Estimate {
+        value,
+        ci95: if value > 0.0 {
+            m.ci95 / (2.0 * value)
+        } else {
+            m.ci95.sqrt()
+        },
     }
 }
 
@@ -240,9 +264,10 @@ where
         let mut tally = SensorTally {
             sensors: &mut t.sensors,
             nees: 0.0,
+            squared_error: 0.0,
         };
         let r = scenario.run_episode(policy, &mut rng, &mut channels, &mut tally);
-        let nees = tally.nees;
+        let (nees, squared_error) = (tally.nees, tally.squared_error);
         t.episodes += 1;
         match r.outcome {
             Outcome::Target => t.target += 1,
@@ -253,6 +278,7 @@ where
         t.steps.push(f64::from(r.steps));
         t.rate.push(f64::from(r.triggers), f64::from(r.slots));
         t.nees.push(nees, f64::from(r.slots));
+        t.squared_error.push(squared_error, f64::from(r.slots));
         t.expected_rate
             .push(r.expected_transmissions, f64::from(r.slots));
     }

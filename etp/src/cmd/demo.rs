@@ -107,6 +107,7 @@ pub fn run(a: Args) -> Result<()> {
         no_kf_baseline: true,
         merge: None,
         radio: Default::default(),
+        trigger: Default::default(),
         aggregation_episodes: 0,
         aggregation_alpha: 0.05,
         split: Default::default(),

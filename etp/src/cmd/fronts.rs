@@ -1,26 +1,31 @@
-//! `etp fronts DIR…`: what the radio costs. The fronts of several syntheses
-//! of one scenario (e.g. `etp synthesize --loss 0`, `--loss 0.1`, `--loss 0.3`,
-//! and `--loss 0.3 --estimator naive`) on one figure: for each, the least
-//! expected energy per episode that reaches each P_tar with P_coll at most
-//! the bound (docs/MODEL.md §5 and §8), mixtures of its vertices included.
+//! `etp fronts DIR…`: what the radio or the trigger family costs. The
+//! fronts of several syntheses of one scenario (e.g. `etp synthesize --loss
+//! 0`, `--loss 0.3`, or `--trigger box`, `--trigger stochastic`) on one
+//! figure: for each, the least expected energy per episode that reaches each
+//! P_tar with P_coll at most the bound (docs/MODEL.md §5, §8 and §9),
+//! mixtures of its vertices included, and dashed its certified curve (the
+//! certified front of front.json); one panel per `--max-collision` bound.
+//! "One scenario" is the scenario without its trigger family: the family
+//! changes the content hash, nothing else does here.
 
-use crate::output::read_front;
-use crate::output::read_mdp;
-use anyhow::{Context, Result, bail};
-use etp_shared::radio::RadioOverride;
+use crate::output::{read_front, read_mdp};
+use crate::synthesis_dir::{Identity, check_one_scenario, identity, labels};
+use anyhow::{Result, bail};
 use etp_synthesis::pareto::ParetoFront;
 use etp_synthesis::pareto::select::{Request, select};
-use serde_json::json;
+use serde_json::{Value, json};
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Synthesis directories (each written by `etp synthesize`) of one scenario.
+    /// Synthesis directories (each written by `etp synthesize`) of one
+    /// scenario, under any radio options and trigger families.
     #[arg(required = true, num_args = 1..)]
     pub dirs: Vec<PathBuf>,
-    /// The bound on P_coll every curve respects (default: none).
-    #[arg(long, value_name = "P")]
-    pub max_collision: Option<f64>,
+    /// Bounds on P_coll, one panel each (repeat the option or separate by
+    /// commas; default: one panel without a bound).
+    #[arg(long, value_name = "P", value_delimiter = ',')]
+    pub max_collision: Vec<f64>,
     /// Points per curve (P_tar targets, evenly spaced).
     #[arg(long, default_value_t = 60)]
     pub points: usize,
@@ -35,13 +40,20 @@ pub struct Args {
     pub json: bool,
 }
 
-pub use etp_figures::Curve;
+pub use etp_figures::{Curve, Panel};
+
+/// One synthesis directory as the figure needs it.
+struct Source {
+    dir: PathBuf,
+    front: ParetoFront,
+    id: Identity,
+}
 
 pub fn run(a: Args) -> Result<()> {
-    if let Some(c) = a.max_collision
-        && !(0.0..=1.0).contains(&c)
-    {
-        bail!("--max-collision must lie in [0, 1], got {c}");
+    for &c in &a.max_collision {
+        if !(0.0..=1.0).contains(&c) {
+            bail!("--max-collision must lie in [0, 1], got {c}");
+        }
     }
     if a.points < 2 {
         bail!("--points must be at least 2, got {}", a.points);
@@ -50,88 +62,123 @@ pub fn run(a: Args) -> Result<()> {
     for p in [stem.with_extension("png"), stem.with_extension("svg")] {
         crate::output::refuse_existing(&p, a.force)?;
     }
-    let mut fronts: Vec<(PathBuf, ParetoFront, String)> = Vec::new();
+    let mut sources: Vec<Source> = Vec::new();
     for dir in &a.dirs {
         let (mdp, text) = read_mdp(dir)?;
         let front = read_front(dir, &mdp)?;
-        let radio = channel_of(&front, text.as_deref())
-            .with_context(|| format!("the radio of {}", dir.display()))?;
-        if let Some((d0, f0, _)) = fronts.first()
-            && f0.scenario_hash != front.scenario_hash
-        {
-            bail!(
-                "{} is a front of scenario `{}`, {} of `{}`: compare fronts of one scenario",
-                dir.display(),
-                front.scenario_name,
-                d0.display(),
-                f0.scenario_name
-            );
-        }
-        fronts.push((dir.clone(), front, radio));
-    }
-    let curves: Vec<Curve> = fronts
-        .iter()
-        .map(|(dir, f, radio)| Curve {
+        let id = identity(dir, &front, text.as_deref())?;
+        sources.push(Source {
             dir: dir.clone(),
-            radio: radio.clone(),
-            points: least_energy_curve(f, a.max_collision, a.points),
+            front,
+            id,
+        });
+    }
+    check_one_scenario(
+        &sources
+            .iter()
+            .map(|s| (s.dir.as_path(), s.front.scenario_name.as_str(), &s.id))
+            .collect::<Vec<_>>(),
+    )?;
+    let labels = labels(
+        &sources
+            .iter()
+            .map(|s| (s.dir.as_path(), &s.id))
+            .collect::<Vec<_>>(),
+    );
+    let bounds: Vec<Option<f64>> = if a.max_collision.is_empty() {
+        vec![None]
+    } else {
+        a.max_collision.iter().copied().map(Some).collect()
+    };
+    let panels: Vec<Panel> = bounds
+        .iter()
+        .map(|&bound| Panel {
+            max_collision: bound,
+            curves: sources
+                .iter()
+                .zip(&labels)
+                .map(|(s, label)| Curve {
+                    dir: s.dir.clone(),
+                    label: label.clone(),
+                    points: least_energy_curve(&s.front, bound, a.points),
+                    certified: s
+                        .front
+                        .certified
+                        .as_ref()
+                        .map(|c| c.least_energy(bound))
+                        .unwrap_or_default(),
+                })
+                .collect(),
         })
         .collect();
-    let name = fronts[0].1.scenario_name.clone();
-    etp_figures::fronts_plot(&name, &curves, a.max_collision, &stem)?;
+    let name = sources[0].front.scenario_name.clone();
+    let families_differ = sources
+        .iter()
+        .any(|s| s.id.trigger != sources[0].id.trigger);
+    let what = if families_differ {
+        "trigger families"
+    } else {
+        "the radio"
+    };
+    etp_figures::fronts_plot(&name, what, &panels, &stem)?;
+    let files = [stem.with_extension("png"), stem.with_extension("svg")];
     if a.json {
+        let pairs = |p: &[(f64, f64)]| -> Vec<Value> {
+            p.iter()
+                .map(|(t, e)| json!({"p_target": t, "energy": e}))
+                .collect()
+        };
         let v = json!({
             "scenario": name,
-            "max_collision": a.max_collision,
-            "fronts": curves.iter().map(|c| json!({
-                "dir": c.dir,
-                "radio": c.radio,
-                "points": c.points.iter().map(|(t, e)| json!({"p_target": t, "energy": e})).collect::<Vec<_>>(),
+            "panels": panels.iter().map(|p| json!({
+                "max_collision": p.max_collision,
+                "fronts": p.curves.iter().zip(&sources).map(|(c, s)| json!({
+                    "dir": c.dir,
+                    "label": c.label,
+                    "radio": s.id.radio,
+                    "trigger": s.id.trigger.name(),
+                    "epsilon_energy": s.front.epsilon_energy,
+                    "certified_confidence": s.front.certified.as_ref().map(|c| c.confidence),
+                    "points": pairs(&c.points),
+                    "certified": pairs(&c.certified),
+                })).collect::<Vec<_>>(),
             })).collect::<Vec<_>>(),
-            "files": [stem.with_extension("png"), stem.with_extension("svg")],
+            "files": files,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
-        for c in &curves {
-            match (c.points.first(), c.points.last()) {
-                (Some(lo), Some(hi)) => println!(
-                    "{:<40} P_tar {:.4} at energy {:.1} … {:.4} at {:.1}  ({})",
-                    c.radio,
-                    lo.0,
-                    lo.1,
-                    hi.0,
-                    hi.1,
-                    c.dir.display()
-                ),
-                _ => println!(
-                    "{:<40} no strategy within the P_coll bound  ({})",
-                    c.radio,
-                    c.dir.display()
-                ),
+        for p in &panels {
+            if bounds.len() > 1 || p.max_collision.is_some() {
+                match p.max_collision {
+                    Some(c) => println!("P_coll ≤ {c}:"),
+                    None => println!("any P_coll:"),
+                }
+            }
+            for c in &p.curves {
+                match (c.points.first(), c.points.last()) {
+                    (Some(lo), Some(hi)) => println!(
+                        "{:<40} P_tar {:.4} at energy {:.1} … {:.4} at {:.1}; certified up to P_tar {}  ({})",
+                        c.label,
+                        lo.0,
+                        lo.1,
+                        hi.0,
+                        hi.1,
+                        c.certified
+                            .last()
+                            .map_or("n/a".into(), |x| format!("{:.4} at {:.1}", x.0, x.1)),
+                        c.dir.display()
+                    ),
+                    _ => println!(
+                        "{:<40} no strategy within the P_coll bound  ({})",
+                        c.label,
+                        c.dir.display()
+                    ),
+                }
             }
         }
-        println!(
-            "wrote {} and {}",
-            stem.with_extension("png").display(),
-            stem.with_extension("svg").display()
-        );
+        println!("wrote {} and {}", files[0].display(), files[1].display());
     }
     Ok(())
-}
-
-/// The channel a front was synthesized under (the override rule of
-/// docs/MODEL.md §8.6 without options): its recorded radio, else its
-/// scenario text's own.
-fn channel_of(front: &ParetoFront, scenario_text: Option<&str>) -> Result<String> {
-    let own = match scenario_text {
-        Some(t) => etp_shared::scenario::Scenario::from_toml(t)?,
-        None => etp_shared::scenario::Scenario::builtin(&front.scenario_name)?,
-    };
-    let names: Vec<String> = own.sensors.iter().map(|s| s.name.clone()).collect();
-    let radio = own
-        .radio
-        .for_use(front.radio.as_ref(), &RadioOverride::default())?;
-    Ok(radio.describe(&names))
 }
 
 /// Least energy for `points` P_tar targets, from the lowest P_tar of a

@@ -8,6 +8,7 @@
 pub mod bench;
 pub mod certs;
 pub mod check;
+pub mod compare;
 pub mod demo;
 pub mod export_prism;
 pub mod fronts;
@@ -18,6 +19,7 @@ pub mod scenario;
 pub mod simulate;
 pub mod strategy;
 pub mod synthesize;
+pub mod trigger_curves;
 pub mod validate;
 
 use crate::cli::Command;
@@ -37,6 +39,8 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Synthesize(a) => synthesize::run(a),
         Command::ExportPrism(a) => export_prism::run(a),
         Command::Fronts(a) => fronts::run(a),
+        Command::Compare(a) => compare::run(a),
+        Command::TriggerCurves(a) => trigger_curves::run(a),
         Command::Strategy(a) => strategy::run(a),
         Command::Validate(a) => validate::run(a),
         Command::Process(_) => anyhow::bail!("`etp process` is dispatched by etp::run"),

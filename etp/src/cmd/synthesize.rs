@@ -8,7 +8,7 @@
 pub mod aggregation;
 pub mod split;
 
-use crate::input::{RadioArgs, load_scenario_with_radio};
+use crate::input::{RadioArgs, TriggerArgs, load_scenario_with_radio};
 use crate::output::write_new;
 use crate::progress;
 use anyhow::{Context, Result, bail};
@@ -138,6 +138,10 @@ pub struct Args {
     /// The radio the segments are sampled with (docs/MODEL.md §8).
     #[command(flatten)]
     pub radio: RadioArgs,
+    /// The trigger family the segments are sampled with (docs/MODEL.md §9),
+    /// written into DIR/scenario.toml (`box` said aloud: the scenario itself).
+    #[command(flatten)]
+    pub trigger: TriggerArgs,
     /// Aggregation check: episodes with random thresholds whose legs test, per
     /// region and action, whether the outcomes differ between the halves of
     /// the region split at the median of a finer belief feature (0: off).
@@ -262,7 +266,7 @@ pub fn params(a: &Args, s: &Scenario) -> Result<AbstractionParams> {
 /// Build the MDP of `a.scenario` and write `DIR/mdp.bin`; refuses (before any
 /// work, touching nothing) when the file exists and `--force` is not given.
 pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
-    let s = load_scenario_with_radio(&a.scenario, &a.radio)?;
+    let s = load(a)?;
     let dir = a
         .out
         .clone()
@@ -432,9 +436,22 @@ pub fn report_text(r: &MdpReport) -> String {
     )
 }
 
+/// The scenario of the command line: its text under `--trigger` (so that
+/// the content hash is the family's), then the radio options.
+fn load(a: &Args) -> Result<Scenario> {
+    if a.trigger.trigger.is_none() {
+        return load_scenario_with_radio(&a.scenario, &a.radio);
+    }
+    let text = a
+        .trigger
+        .apply_to_text(crate::input::scenario_text(&a.scenario)?)?;
+    let s = Scenario::from_toml(&text).with_context(|| format!("scenario {}", a.scenario))?;
+    a.radio.apply(s)
+}
+
 pub fn run(a: Args) -> Result<()> {
     // Refuse before any work if the Pareto step would have to overwrite.
-    let s = load_scenario_with_radio(&a.scenario, &a.radio)?;
+    let s = load(&a)?;
     let dir = a
         .out
         .clone()
@@ -448,7 +465,9 @@ pub fn run(a: Args) -> Result<()> {
             a.aggregation_alpha
         );
     }
-    let text = crate::input::scenario_text(&a.scenario)?;
+    let text = a
+        .trigger
+        .apply_to_text(crate::input::scenario_text(&a.scenario)?)?;
     let built = build_mdp(&a)?;
     // Method 1 as a baseline beside Method 2 (cheap: one state per decision point).
     let method1 = if a.method == MethodArg::Discretized && !a.no_kf_baseline {

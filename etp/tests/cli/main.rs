@@ -7,6 +7,7 @@ mod pyenv;
 mod aggregation_check;
 mod certified;
 mod exact;
+mod families;
 mod integrity;
 mod logs;
 mod memory;

@@ -146,9 +146,15 @@ fn a_lossy_synthesis_is_recorded_validated_under_its_channel_and_drawn() {
     // The figure: one curve per synthesis; least energy never decreases in P_tar.
     let stem = tmp.path("fronts");
     let v = ok_json(&["fronts", s(&ideal), s(&lossy), "-o", s(&stem), "--json"]);
-    let fronts = v["fronts"].as_array().expect("fronts");
+    let panels = v["panels"].as_array().expect("panels");
+    assert_eq!(panels.len(), 1, "no bound: one panel");
+    assert!(panels[0]["max_collision"].is_null());
+    let fronts = panels[0]["fronts"].as_array().expect("fronts");
     assert_eq!(fronts.len(), 2);
     assert_eq!(fronts[0]["radio"], "ideal");
+    // One family: the curves are labelled by their channel.
+    assert_eq!(fronts[0]["label"], "ideal");
+    assert_eq!(fronts[1]["trigger"], "box");
     for f in fronts {
         let pts = f["points"].as_array().expect("points");
         assert!(pts.len() >= 2, "{f}");

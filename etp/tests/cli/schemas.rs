@@ -282,6 +282,8 @@ fn the_pipeline_commands_json_match_their_strict_described_schemas() {
         "bench",
         "demo",
         "fronts",
+        "compare",
+        "trigger-curves",
     ];
     let root = schema("x").parent().expect("schemas/").to_path_buf();
     let mut files: Vec<String> = std::fs::read_dir(&root)

@@ -3,106 +3,20 @@
 //! strategy kept from its own on-policy rebuilds.
 
 use super::{Args, EXIT_OUT_OF_REACH, Request, certified};
-use crate::output::{read_front, read_mdp, refuse_existing, write_new};
+use crate::output::{refuse_existing, write_new};
 use crate::predictions;
 use crate::progress;
-use anyhow::{Context, Result, bail};
-use etp_shared::radio::RadioOverride;
-use etp_shared::scenario::Scenario;
+pub use crate::synthesis_dir::Synthesis;
+use anyhow::{Context, Result};
 use etp_shared::strategy::Strategy;
 use etp_synthesis::abstraction;
 use etp_synthesis::mdp::{CostModel, Mdp};
-use etp_synthesis::pareto::ParetoFront;
 use etp_synthesis::pareto::policy::{Objectives, RandomisedPolicy, as_randomised, evaluate};
 use etp_synthesis::pareto::select::{Request as FrontRequest, select};
-use etp_synthesis::pareto::to_strategy;
 use etp_synthesis::predict::rebuild::predict;
 use etp_synthesis::predict::request::{Goal, LoopSettings, Outcome, Verdict, meet_request};
 use serde_json::{Value, json};
-use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-/// A synthesis directory, loaded for selection.
-pub struct Synthesis {
-    pub dir: PathBuf,
-    pub mdp: Mdp,
-    pub scenario_text: Option<String>,
-    pub front: ParetoFront,
-    /// The scenario under the synthesis's channel (what the rebuilds simulate).
-    pub scenario: Scenario,
-    pub output: PathBuf,
-}
-
-impl Synthesis {
-    pub fn load(dir: &Path, output: Option<&Path>) -> Result<Self> {
-        let (mdp, scenario_text) = read_mdp(dir)?;
-        if mdp.policy_only() {
-            bail!(
-                "{}: this MDP offers at its states only the thresholds of the strategy its pools \
-                 were drawn on (`etp synthesize --pool-policy` without --all-actions), so its front \
-                 is not the scenario's; predict that strategy with `etp strategy evaluate \
-                 STRATEGY.json DIR` on the synthesis it came from",
-                dir.display()
-            );
-        }
-        let front = read_front(dir, &mdp)?;
-        let mut scenario = match &scenario_text {
-            Some(t) => Scenario::from_toml(t).context("parsing DIR/scenario.toml")?,
-            None => Scenario::builtin(&mdp.scenario_name).with_context(|| {
-                format!(
-                    "{} has no scenario.toml and `{}` is not a built-in scenario",
-                    dir.display(),
-                    mdp.scenario_name
-                )
-            })?,
-        };
-        if scenario.content_hash != mdp.scenario_hash {
-            bail!(
-                "the scenario of {} is not its MDP's (hash {:.12}… vs {:.12}…)",
-                dir.display(),
-                scenario.content_hash,
-                mdp.scenario_hash
-            );
-        }
-        // The channel the synthesis ran under: steps 1–2 of the one override
-        // rule (docs/MODEL.md §8.6), as `Strategy::scenario` applies them.
-        scenario.radio = scenario
-            .radio
-            .for_use(front.radio.as_ref(), &RadioOverride::default())
-            .with_context(|| format!("the channel recorded in {}", dir.display()))?;
-        let output = output
-            .map(Path::to_path_buf)
-            .unwrap_or_else(|| dir.join("strategy.json"));
-        Ok(Self {
-            dir: dir.to_path_buf(),
-            mdp,
-            scenario_text,
-            front,
-            scenario,
-            output,
-        })
-    }
-
-    pub fn cost(&self) -> CostModel {
-        self.front.cost_model
-    }
-
-    /// A policy on `mdp` (this synthesis's or a refinement of it) as a
-    /// strategy file: its exact value there under diagnostics, the
-    /// scenario text and channel.
-    pub fn strategy_of(
-        &self,
-        mdp: &Mdp,
-        omega: &RandomisedPolicy,
-        value: Objectives,
-        label: &str,
-    ) -> Strategy {
-        let mut s = to_strategy(mdp, omega, label.to_string(), value);
-        s.scenario_toml.clone_from(&self.scenario_text);
-        s.radio.clone_from(&self.front.radio);
-        s
-    }
-}
 
 /// The values of `omega` on the selection MDP, stored as diagnostics.
 pub fn selection_diagnostics(

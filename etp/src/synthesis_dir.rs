@@ -1,0 +1,199 @@
+//! A synthesis directory (`etp synthesize -o DIR`) loaded for selection:
+//! its MDP, front, scenario text and the scenario under the synthesis's
+//! channel, as `etp strategy` and `etp compare` select and predict on it.
+
+use crate::output::{read_front, read_mdp};
+use anyhow::{Context, Result, bail};
+use etp_shared::radio::RadioOverride;
+use etp_shared::scenario::{Scenario, ScenarioText, builtin_text};
+use etp_shared::strategy::Strategy;
+use etp_shared::trigger::TriggerFamily;
+use etp_synthesis::mdp::{CostModel, Mdp};
+use etp_synthesis::pareto::ParetoFront;
+use etp_synthesis::pareto::policy::{Objectives, RandomisedPolicy};
+use etp_synthesis::pareto::to_strategy;
+use std::path::{Path, PathBuf};
+
+/// A synthesis directory, loaded for selection.
+pub struct Synthesis {
+    pub dir: PathBuf,
+    pub mdp: Mdp,
+    pub scenario_text: Option<String>,
+    pub front: ParetoFront,
+    /// The scenario under the synthesis's channel (what the rebuilds simulate).
+    pub scenario: Scenario,
+    pub output: PathBuf,
+}
+
+impl Synthesis {
+    pub fn load(dir: &Path, output: Option<&Path>) -> Result<Self> {
+        let (mdp, scenario_text) = read_mdp(dir)?;
+        if mdp.policy_only() {
+            bail!(
+                "{}: this MDP offers at its states only the thresholds of the strategy its pools \
+                 were drawn on (`etp synthesize --pool-policy` without --all-actions), so its front \
+                 is not the scenario's; predict that strategy with `etp strategy evaluate \
+                 STRATEGY.json DIR` on the synthesis it came from",
+                dir.display()
+            );
+        }
+        let front = read_front(dir, &mdp)?;
+        let mut scenario = match &scenario_text {
+            Some(t) => Scenario::from_toml(t).context("parsing DIR/scenario.toml")?,
+            None => Scenario::builtin(&mdp.scenario_name).with_context(|| {
+                format!(
+                    "{} has no scenario.toml and `{}` is not a built-in scenario",
+                    dir.display(),
+                    mdp.scenario_name
+                )
+            })?,
+        };
+        if scenario.content_hash != mdp.scenario_hash {
+            bail!(
+                "the scenario of {} is not its MDP's (hash {:.12}… vs {:.12}…)",
+                dir.display(),
+                scenario.content_hash,
+                mdp.scenario_hash
+            );
+        }
+        // The channel the synthesis ran under: steps 1–2 of the one override
+        // rule (docs/MODEL.md §8.6), as `Strategy::scenario` applies them.
+        scenario.radio = scenario
+            .radio
+            .for_use(front.radio.as_ref(), &RadioOverride::default())
+            .with_context(|| format!("the channel recorded in {}", dir.display()))?;
+        let output = output
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| dir.join("strategy.json"));
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            mdp,
+            scenario_text,
+            front,
+            scenario,
+            output,
+        })
+    }
+
+    pub fn cost(&self) -> CostModel {
+        self.front.cost_model
+    }
+
+    /// A policy on `mdp` (this synthesis's or a refinement of it) as a
+    /// strategy file: its exact value there under diagnostics, the
+    /// scenario text and channel.
+    pub fn strategy_of(
+        &self,
+        mdp: &Mdp,
+        omega: &RandomisedPolicy,
+        value: Objectives,
+        label: &str,
+    ) -> Strategy {
+        let mut s = to_strategy(mdp, omega, label.to_string(), value);
+        s.scenario_toml.clone_from(&self.scenario_text);
+        s.radio.clone_from(&self.front.radio);
+        s
+    }
+}
+
+/// What tells syntheses of one scenario apart in a comparison (`etp fronts`,
+/// `etp compare`): the trigger family, the channel, and the scenario
+/// without its family.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Identity {
+    pub trigger: TriggerFamily,
+    /// The channel the synthesis sampled under, in `Radio::describe`'s words.
+    pub radio: String,
+    /// The content hash of its scenario with the family `box`: syntheses of
+    /// "one scenario" under different families share it (the family changes
+    /// the content hash, docs/MODEL.md §9).
+    pub scenario_key: String,
+}
+
+/// The identity of the synthesis in `dir` from its front and scenario text
+/// (`None`: the built-in scenario of the front's name).
+pub fn identity(dir: &Path, front: &ParetoFront, text: Option<&str>) -> Result<Identity> {
+    let own = match text {
+        Some(t) => ScenarioText::parse(t.to_string())
+            .with_context(|| format!("the scenario of {}", dir.display()))?,
+        None => {
+            let name = &front.scenario_name;
+            let t = builtin_text(name).with_context(|| {
+                format!(
+                    "{} has no scenario.toml and `{name}` is not a built-in scenario",
+                    dir.display()
+                )
+            })?;
+            ScenarioText::parse(t.to_string())?
+        }
+    };
+    let trigger = own.scenario.trigger;
+    let names: Vec<String> = own
+        .scenario
+        .sensors
+        .iter()
+        .map(|s| s.name.clone())
+        .collect();
+    let radio = own
+        .scenario
+        .radio
+        .for_use(front.radio.as_ref(), &RadioOverride::default())
+        .with_context(|| format!("the radio of {}", dir.display()))?
+        .describe(&names);
+    let scenario_key = own
+        .with_trigger(TriggerFamily::Box)
+        .with_context(|| format!("the scenario of {} without its family", dir.display()))?
+        .scenario
+        .content_hash;
+    Ok(Identity {
+        trigger,
+        radio,
+        scenario_key,
+    })
+}
+
+/// Refuse syntheses of different scenarios (by [`Identity::scenario_key`]).
+pub fn check_one_scenario(items: &[(&Path, &str, &Identity)]) -> Result<()> {
+    if let Some((d0, n0, first)) = items.first() {
+        for (dir, name, id) in items {
+            if id.scenario_key != first.scenario_key {
+                bail!(
+                    "{} is a synthesis of scenario `{name}`, {} of `{n0}`: compare syntheses of one \
+                     scenario (the same scenario under different radios or trigger families)",
+                    dir.display(),
+                    d0.display(),
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Each synthesis's legend: the family where families differ, the channel
+/// where channels differ (both when both do, the channel when neither); the
+/// directory added where two would read the same.
+pub fn labels(items: &[(&Path, &Identity)]) -> Vec<String> {
+    let Some((_, first)) = items.first() else {
+        return Vec::new();
+    };
+    let families = items.iter().any(|(_, i)| i.trigger != first.trigger);
+    let radios = items.iter().any(|(_, i)| i.radio != first.radio);
+    let base: Vec<String> = items
+        .iter()
+        .map(|(_, i)| match (families, radios) {
+            (true, true) => format!("{} · {}", i.trigger, i.radio),
+            (true, false) => i.trigger.name().to_string(),
+            _ => i.radio.clone(),
+        })
+        .collect();
+    base.iter()
+        .zip(items)
+        .map(|(l, (dir, _))| {
+            if base.iter().filter(|b| *b == l).count() > 1 {
+                format!("{l} ({})", dir.display())
+            } else {
+                l.clone()
+            }
+        })
+        .collect()
+}
