@@ -50,6 +50,17 @@ pub struct TriggerArgs {
 }
 
 /// A family name on the command line (`--trigger`, `--families`): the error names it.
+/// A command-line probability (`--min-target`, `--max-collision`): a
+/// number in [0, 1], else the error clap prints after the flag's name.
+pub fn probability(s: &str) -> std::result::Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if (0.0..=1.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("must be a probability in [0, 1], got {v}"))
+    }
+}
+
 pub fn parse_family(s: &str) -> std::result::Result<TriggerFamily, String> {
     TriggerFamily::parse(s).map_err(|e| e.to_string())
 }

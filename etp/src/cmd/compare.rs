@@ -33,10 +33,10 @@ pub struct Args {
     pub dirs: Vec<PathBuf>,
     /// The requests: least energy with P_tar ≥ P (repeat the option or
     /// separate by commas).
-    #[arg(long, value_name = "P", value_delimiter = ',', required = true, value_parser = probability)]
+    #[arg(long, value_name = "P", value_delimiter = ',', required = true, value_parser = crate::input::probability)]
     pub min_target: Vec<f64>,
     /// With every request: also P_coll ≤ C.
-    #[arg(long, value_name = "C", value_parser = probability)]
+    #[arg(long, value_name = "C", value_parser = crate::input::probability)]
     pub max_collision: Option<f64>,
     /// On-policy rebuilds of each prediction (as `etp strategy --replicates`).
     #[arg(long, value_name = "R", default_value_t = etp_synthesis::predict::rebuild::DEFAULT_REPLICATES,
@@ -49,15 +49,6 @@ pub struct Args {
     /// Print the table as JSON.
     #[arg(long)]
     pub json: bool,
-}
-
-fn probability(s: &str) -> Result<f64, String> {
-    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
-    if (0.0..=1.0).contains(&v) {
-        Ok(v)
-    } else {
-        Err(format!("must be a probability in [0, 1], got {v}"))
-    }
 }
 
 /// One (request, synthesis) cell of the table.

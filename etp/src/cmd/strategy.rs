@@ -43,10 +43,10 @@ pub struct Args {
     #[arg(required = true)]
     pub dir: Option<PathBuf>,
     /// Least energy with P_tar ≥ P.
-    #[arg(long, value_name = "P", value_parser = probability)]
+    #[arg(long, value_name = "P", value_parser = crate::input::probability)]
     pub min_target: Option<f64>,
     /// With --min-target: also P_coll ≤ C.
-    #[arg(long, value_name = "C", requires = "min_target", value_parser = probability)]
+    #[arg(long, value_name = "C", requires = "min_target", value_parser = crate::input::probability)]
     pub max_collision: Option<f64>,
     /// Highest P_tar with expected energy ≤ E.
     #[arg(long, value_name = "E", value_parser = energy)]
@@ -139,15 +139,6 @@ pub struct EvaluateArgs {
     pub prediction: PredictionArgs,
     #[command(flatten)]
     pub out: OutArgs,
-}
-
-fn probability(s: &str) -> Result<f64, String> {
-    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
-    if (0.0..=1.0).contains(&v) {
-        Ok(v)
-    } else {
-        Err(format!("must be a probability in [0, 1], got {v}"))
-    }
 }
 
 fn energy(s: &str) -> Result<f64, String> {
