@@ -170,6 +170,10 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
     let mut last_flush = Instant::now();
     let mut batch = Vec::new();
     let mut stopping = false;
+    // A replay's metadata, read when its first message arrives: `etp replay
+    // publish` leaves the file before its first message, and the run's folder
+    // that holds it may be gone by the time this recorder stops.
+    let mut handed_over: Option<HandedOver> = None;
     loop {
         let mut got = 0usize;
         for c in &mut channels {
@@ -192,6 +196,9 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
                 c.count = c.count.wrapping_add(1);
             }
             got += batch.len();
+        }
+        if got > 0 && handed_over.is_none() && cli.meta.is_none() {
+            handed_over = Some(read_handed_over_metadata(&run)?);
         }
         if last_flush.elapsed() >= FLUSH_EVERY {
             w.flush().context("flushing the recording")?;
@@ -217,7 +224,14 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
         }
     }
     if cli.meta.is_none() {
-        write_handed_over_metadata(&mut w, &run)?;
+        let records = match handed_over {
+            Some(records) => records,
+            None => read_handed_over_metadata(&run)?,
+        };
+        for (name, metadata) in records {
+            w.write_metadata(&Metadata { name, metadata })
+                .context("writing metadata")?;
+        }
     }
     let summary = w.finish().context("finishing the recording")?;
     drop(w);
@@ -242,26 +256,22 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
     }))
 }
 
-/// The metadata that `etp replay publish` left for this run (if any): a
-/// recorder started by hand without `--meta` on a replay's run id makes a
-/// copy that carries the original's scenario, strategy and run record, so it
-/// passes `etp replay verify`.
-fn write_handed_over_metadata<W: std::io::Write + std::io::Seek>(
-    w: &mut mcap::Writer<W>,
-    run: &RunId,
-) -> Result<()> {
+/// Metadata records by name, as `etp replay publish` hands them over.
+type HandedOver = BTreeMap<String, BTreeMap<String, String>>;
+
+/// The metadata that `etp replay publish` left for this run (none if it left
+/// none): a recorder started by hand without `--meta` on a replay's run id
+/// makes a copy that carries the original's scenario, strategy and run
+/// record, so it passes `etp replay verify`.
+fn read_handed_over_metadata(run: &RunId) -> Result<HandedOver> {
     let path = recording::handover_path(run);
     let Ok(text) = std::fs::read_to_string(&path) else {
-        return Ok(());
+        return Ok(BTreeMap::new());
     };
-    let records: BTreeMap<String, BTreeMap<String, String>> =
+    let records: HandedOver =
         serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
     tracing::info!(path = %path.display(), records = records.len(), "metadata of the replay");
-    for (name, metadata) in records {
-        w.write_metadata(&Metadata { name, metadata })
-            .context("writing metadata")?;
-    }
-    Ok(())
+    Ok(records)
 }
 
 /// The recorder process, as the process shell runs it (`main` of

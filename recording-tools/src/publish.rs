@@ -182,5 +182,9 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Res
 fn hand_over_metadata(c: &Contents, run: &RunId) -> Result<()> {
     let path = recording::handover_path(run);
     let text = serde_json::to_string(&c.metadata).context("encoding the metadata")?;
-    std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))
+    // Written beside and renamed: a recorder reading it meanwhile sees the
+    // whole file or none.
+    let beside = path.with_extension("json.part");
+    std::fs::write(&beside, text).with_context(|| format!("writing {}", beside.display()))?;
+    std::fs::rename(&beside, &path).with_context(|| format!("renaming to {}", path.display()))
 }

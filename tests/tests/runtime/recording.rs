@@ -52,7 +52,7 @@ pub(super) fn replay(args: &[&str]) -> Value {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
-        "etp replay failed: {}",
+        "etp replay failed: {}\nits JSON: {text}",
         String::from_utf8_lossy(&out.stderr)
     );
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("bad JSON ({e}): {text}"))

@@ -416,9 +416,16 @@ fn run_job(a: Job) -> Result<()> {
     if let Some(v) = verified
         && !v.passed()
     {
+        let first = v.mismatches.first().map_or(String::new(), |m| {
+            format!(
+                " (first: episode {} leg {} step {}: {})",
+                m.episode, m.leg, m.step, m.what
+            )
+        });
         bail!(
-            "verify FAILED: {} of the recorded beliefs were not reproduced",
-            v.mismatch_count
+            "verify FAILED: {} of the {} re-run episodes were not reproduced{first}",
+            v.mismatch_count,
+            v.episodes_checked
         );
     }
     summary_exit(&a, &file, &c, &s)
