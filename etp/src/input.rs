@@ -40,7 +40,8 @@ pub struct RadioArgs {
 
 /// `--trigger FAMILY` of `simulate`, `synthesize`, `run` and `bench`: the
 /// trigger family every sensor uses, over the scenario's `[triggering]
-/// family` (docs/MODEL.md §9).
+/// family` (docs/MODEL.md §9). On `validate` (and `run` with a strategy) it
+/// can only confirm the strategy's own family ([`TriggerArgs::confirm`]).
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct TriggerArgs {
     /// Trigger family over the scenario's own: box (the paper's ∞-norm trigger), stochastic,
@@ -49,7 +50,6 @@ pub struct TriggerArgs {
     pub trigger: Option<TriggerFamily>,
 }
 
-/// A family name on the command line (`--trigger`, `--families`): the error names it.
 /// A command-line probability (`--min-target`, `--max-collision`): a
 /// number in [0, 1], else the error clap prints after the flag's name.
 pub fn probability(s: &str) -> std::result::Result<f64, String> {
@@ -61,6 +61,7 @@ pub fn probability(s: &str) -> std::result::Result<f64, String> {
     }
 }
 
+/// A family name on the command line (`--trigger`, `--families`): the error names it.
 pub fn parse_family(s: &str) -> std::result::Result<TriggerFamily, String> {
     TriggerFamily::parse(s).map_err(|e| e.to_string())
 }
@@ -74,6 +75,20 @@ impl TriggerArgs {
         };
         let own = ScenarioText::parse(text).context("scenario")?;
         Ok(own.with_trigger(family).context("--trigger")?.text)
+    }
+
+    /// A strategy's family, confirmed: a strategy is made for its scenario's
+    /// family (its thresholds and predictions mean nothing under another), so
+    /// `--trigger` naming another is refused by name.
+    pub fn confirm(&self, strategy_family: TriggerFamily) -> Result<()> {
+        match self.trigger {
+            Some(family) if family != strategy_family => bail!(
+                "--trigger {family}: the strategy was made for trigger family `{strategy_family}` \
+                 (its thresholds and predictions hold for that family only); synthesize with \
+                 --trigger {family} for a strategy of that family"
+            ),
+            _ => Ok(()),
+        }
     }
 
     /// The scenario with the family applied (for runs that write no file

@@ -42,12 +42,16 @@ pub struct Args {
     /// Evaluate under this radio instead of the scenario's (a robustness study).
     #[command(flatten)]
     pub radio: crate::input::RadioArgs,
+    /// The strategy's trigger family, confirmed (another family is refused).
+    #[command(flatten)]
+    pub trigger: crate::input::TriggerArgs,
 }
 
 use etp_runtime::strategy_arg::load_strategy;
 
 pub fn run(a: Args) -> Result<()> {
     let (strategy, scenario) = load_strategy(&a.strategy)?;
+    a.trigger.confirm(scenario.trigger)?;
     // The strategy's own channel unless the options say otherwise (a
     // robustness study); the report names both.
     let synthesized = scenario.radio.clone();

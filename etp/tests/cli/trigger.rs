@@ -165,6 +165,29 @@ fn a_family_is_read_from_the_scenario_named_when_unknown_and_a_strategys_family_
             "the strategy was made for trigger family `box`",
         ],
     );
+    // validate likewise: --trigger confirms the strategy's family (a
+    // validation as usual), another is refused by name.
+    fails_with(
+        &["validate", s(&strategy), "--trigger", "periodic"],
+        &[
+            "--trigger periodic",
+            "the strategy was made for trigger family `box`",
+        ],
+    );
+    let same = ok_json(&[
+        "validate",
+        s(&strategy),
+        "--trigger",
+        "box",
+        "--episodes",
+        "20",
+        "--json",
+    ]);
+    let plain = ok_json(&["validate", s(&strategy), "--episodes", "20", "--json"]);
+    assert_eq!(
+        same, plain,
+        "--trigger box on a box strategy changes nothing"
+    );
     let out = etp(&["check", s(&stochastic)]);
     assert!(
         out.status.success(),

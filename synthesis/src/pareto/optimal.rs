@@ -245,14 +245,24 @@ fn master_primal(m: &Master, cols: &[Column]) -> Result<Option<(Vec<f64>, f64)>,
     }
 }
 
-/// Dual master: `max z − Σ y_i b_i` s.t. `z − Σ y_i a_i·o_k ≤ w·o_k`, `y ≥ 0`.
-fn master_dual(m: &Master, cols: &[Column]) -> Result<(f64, Vec<f64>), SelectError> {
+/// Dual master: `max z − Σ y_i b_i` s.t. `z − Σ y_i a_i·o_k ≤ w·o_k`, `y ≥ 0`
+/// (and `y ≤ bound` on a boundary request, see [`boundary_bound`]).
+fn master_dual(
+    m: &Master,
+    cols: &[Column],
+    bound: Option<f64>,
+) -> Result<(f64, Vec<f64>), SelectError> {
     let mut vars = variables!();
     let z = vars.add(variable());
     let y: Vec<Variable> = m
         .rows
         .iter()
-        .map(|_| vars.add(variable().min(0.0)))
+        .map(|_| {
+            vars.add(match bound {
+                Some(b) => variable().min(0.0).max(b),
+                None => variable().min(0.0),
+            })
+        })
         .collect();
     let objective: Expression = Expression::from(z)
         - y.iter()
@@ -301,6 +311,40 @@ fn add(cols: &mut Vec<Column>, c: Column) -> bool {
 /// than this, relative to the objective's size.
 const PRICING_TOLERANCE: f64 = 1e-12;
 
+/// A row's bound this close (relative) to the row's own optimum makes the
+/// request a boundary request (see [`boundary_bound`]).
+const BOUNDARY: f64 = 1e-9;
+
+/// The bound on the dual prices of a boundary request, relative to the
+/// largest objective value of a column.
+///
+/// Why: when a row's bound `b` equals the best `a·o` of any policy (the
+/// request loop asks exactly the highest P_tar when a request is out of
+/// reach), only the policies optimal for that row are feasible: the primal
+/// master is degenerate and the dual's optimal set is a ray (every price
+/// beyond the slope of the face is optimal). microlp's simplex cycles on
+/// that ray without end (found on an open-2d stochastic synthesis, `etp
+/// strategy --min-target 1.0 --rounds 2`). Bounding the prices makes the
+/// dual's set a polytope; a price at the bound prices P_tar lexicographically
+/// first, which is what the face asks. Away from the boundary nothing is
+/// bounded, so every other request keeps its bits.
+const BOUNDARY_PRICE: f64 = 1e8;
+
+/// [`BOUNDARY_PRICE`] in the columns' scale, if some row of `m` is at its
+/// own optimum (`best[i]`, the least `a_i·o` of any policy).
+fn boundary_bound(m: &Master, best: &[f64], cols: &[Column]) -> Option<f64> {
+    let at_boundary = m
+        .rows
+        .iter()
+        .zip(best)
+        .any(|(&(_, b), &best)| best >= b - BOUNDARY * b.abs().max(1.0));
+    let scale = cols
+        .iter()
+        .map(|c| dot3(m.w, &c.values).abs())
+        .fold(1.0, f64::max);
+    at_boundary.then_some(BOUNDARY_PRICE * scale)
+}
+
 /// The whole-MDP occupation LP of `request` by column generation:
 /// `x(s, c)` of the optimal mixture and the optimum.
 pub fn solve_by_columns(
@@ -319,12 +363,14 @@ pub fn solve_by_columns(
     }
     // Feasibility: each constraint alone is feasible iff its own optimum
     // meets it; jointly, the master with the columns of phase 1 decides.
+    let mut bests = Vec::with_capacity(master.rows.len());
     for &(a, b) in &master.rows {
         let (c, best) = price(mdp, cost, a);
         add(&mut cols, c);
         if best > b {
             return Err(infeasible(mdp, cost, request));
         }
+        bests.push(best);
     }
     if let Some(&(a2, b2)) = master.rows.get(1) {
         // Two constraints: least a₂·o subject to the first, by columns.
@@ -332,12 +378,12 @@ pub fn solve_by_columns(
             w: a2,
             rows: vec![master.rows[0]],
         };
-        let best = generate(mdp, cost, &phase1, &mut cols)?;
+        let best = generate(mdp, cost, &phase1, &bests[..1], &mut cols)?;
         if best > b2 {
             return Err(infeasible(mdp, cost, request));
         }
     }
-    generate(mdp, cost, &master, &mut cols)?;
+    generate(mdp, cost, &master, &bests, &mut cols)?;
     let (mu, value) = master_primal(&master, &cols)?
         .ok_or_else(|| SelectError::Solver("master LP infeasible after phase 1".into()))?;
     let x = mixed_occupation(
@@ -351,10 +397,12 @@ pub fn solve_by_columns(
 }
 
 /// Column generation on `master` from the columns `cols`; returns the optimum.
+/// `best[i]`: the least `a_i·o` of any policy (row i's own optimum).
 fn generate(
     mdp: &Mdp,
     cost: CostModel,
     master: &Master,
+    best: &[f64],
     cols: &mut Vec<Column>,
 ) -> Result<f64, SelectError> {
     const MAX_ITERATIONS: usize = 10_000;
@@ -364,7 +412,7 @@ fn generate(
                 "master LP infeasible although every constraint is".into(),
             ));
         };
-        let (z, y) = master_dual(master, cols)?;
+        let (z, y) = master_dual(master, cols, boundary_bound(master, best, cols))?;
         let mut g = master.w;
         for (yi, (a, _)) in y.iter().zip(&master.rows) {
             for k in 0..3 {
@@ -514,4 +562,57 @@ pub fn optimal_strategy(
         ))
         .unwrap_or_default()
     )))
+}
+
+#[cfg(test)]
+mod boundary_tests {
+    use super::*;
+
+    fn column(energy: f64, p_target: f64, tag: u16) -> Column {
+        Column {
+            policy: vec![tag],
+            values: Objectives {
+                energy,
+                p_collision: 0.0,
+                p_target,
+            },
+        }
+    }
+
+    /// The dual master that microlp cycled on without end (an open-2d
+    /// stochastic synthesis; the request is exactly the highest P_tar, 0.98333…):
+    /// with the boundary's bound on the price it returns, with prices that
+    /// are dual-feasible and optimal (equal to the primal optimum, the only
+    /// feasible column's energy), to the 1e-8 that prices of 1e10 leave of
+    /// an energy of 110.
+    #[test]
+    fn a_request_at_the_highest_p_tar_has_a_bounded_dual_and_returns() {
+        let top = 0.983_333_333_333_333_4;
+        let cols = [
+            column(110.426_107_237_654_3, top, 0),
+            column(47.112_630_069_444_44, 0.312_917_692_901_234_6, 1),
+        ];
+        let m = Master::of(LpRequest::MinEnergy {
+            min_target: top,
+            max_collision: None,
+        });
+        // The row's own optimum: −(the highest P_tar).
+        let bound = boundary_bound(&m, &[-top], &cols).expect("a boundary request");
+        let (z, y) = master_dual(&m, &cols, Some(bound)).expect("the dual solves");
+        for c in &cols {
+            let lhs = z + y[0] * c.values.p_target;
+            assert!(
+                lhs <= c.values.energy * (1.0 + 1e-8),
+                "{lhs} > {c:?}",
+                c = c.values
+            );
+        }
+        let dual_value = z + y[0] * top;
+        assert!(
+            (dual_value - 110.426_107_237_654_3).abs() < 1e-8 * 110.0,
+            "dual {dual_value}"
+        );
+        // Away from the boundary no bound is put on the prices.
+        assert_eq!(boundary_bound(&m, &[-top - 1e-6], &cols), None);
+    }
 }
