@@ -3,7 +3,8 @@
 //! family, the agent (and the sensor's replica) update with the family's
 //! silence, every count identity holds, and `replay verify` re-draws every
 //! decision — for the stochastic family its random draw — from the
-//! recorded true states.
+//! recorded true states; the Foxglove copy of each family's recording has
+//! every slot and transmission.
 
 use super::recording::{out_file, replay};
 use super::{DELTA, assert_ledgers_match, serial};
@@ -38,6 +39,38 @@ fn run_and_verify(family: &str, episodes: &str) -> (Value, Value) {
     assert!(ok, "etp run --trigger {family} failed: {err}");
     let v: Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("bad JSON ({e}): {out}"));
     let r = replay(&["verify", &file.display().to_string()]);
+    // The Foxglove copy of the family's recording: its agent's ellipses come
+    // from the same family-aware re-run, one per slot, and every delivered
+    // measurement is a transmission.
+    let fox = file.with_extension("fox.mcap");
+    let f = replay(&[
+        "foxglove",
+        &file.display().to_string(),
+        &fox.display().to_string(),
+    ]);
+    let st = &f["foxglove"];
+    let counts = &v["recording"]["counts"];
+    let n = |x: &Value| {
+        x.as_u64()
+            .unwrap_or_else(|| panic!("{family}: not a count: {x}"))
+    };
+    assert!(n(&counts["slot"]) > 0, "{family}: {counts}");
+    assert_eq!(
+        n(&st["topics"]["/agent"]),
+        n(&counts["slot"]),
+        "{family}: {st}"
+    );
+    assert_eq!(
+        n(&st["topics"]["/transmissions"]),
+        n(&counts["measurement"]),
+        "{family}: {st}"
+    );
+    assert_eq!(
+        st["incomplete_episodes"].as_u64(),
+        Some(0),
+        "{family}: {st}"
+    );
+    let _ = std::fs::remove_file(&fox);
     let _ = std::fs::remove_file(&file);
     (v, r)
 }
