@@ -8,7 +8,7 @@
 use crate::AgentError;
 use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_sensor::{Ack, Handover, Truth};
-use etp_runtime::wire::coordinator_to_all::Threshold;
+use etp_runtime::wire::coordinator_to_sensor::Threshold;
 use etp_runtime::wire::sensor_to_agent::{Measurement, Slot};
 use etp_runtime::wire::{
     Header, Notifier, Ports, Pub, ServiceId, Stamper, Sub, WireVec, belief_to_wire, to_wire_vec,

@@ -8,7 +8,7 @@ use etp_runtime::report::RunReport;
 use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_coordinator::{Outcome, Waypoint};
 use etp_runtime::wire::coordinator_to_agent::Control;
-use etp_runtime::wire::coordinator_to_all::Threshold;
+use etp_runtime::wire::coordinator_to_sensor::Threshold;
 use etp_runtime::wire::sensor_to_coordinator::Ledger;
 use etp_runtime::wire::to_coordinator::Hello;
 use etp_runtime::wire::{

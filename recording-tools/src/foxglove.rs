@@ -35,7 +35,7 @@ mod tests;
 use anyhow::{Context, Result};
 use etp_runtime::recording::{self, Contents, Recorded};
 use etp_runtime::wire::coordinator_to_agent::Control;
-use etp_runtime::wire::coordinator_to_all::Threshold;
+use etp_runtime::wire::coordinator_to_sensor::Threshold;
 use etp_runtime::wire::{Header, agent_to_coordinator::Outcome, sensor_to_agent::Measurement};
 use etp_shared::scenario::Scenario;
 use geometry::{block3, point3};

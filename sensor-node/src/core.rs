@@ -22,7 +22,7 @@
 //! radio's factor ([`CompiledScenario::silence_beta`]).
 
 use etp_runtime::wire::agent_to_sensor::{Ack, Handover, Truth};
-use etp_runtime::wire::coordinator_to_all::Threshold;
+use etp_runtime::wire::coordinator_to_sensor::Threshold;
 use etp_runtime::wire::{ThresholdKind, WireVec, belief_from_wire, to_wire_vec, vec_from_wire};
 use etp_shared::episode::{CompiledScenario, LegReplica, SlotKey, SlotOutcome, belief_digest};
 use etp_shared::etkf::{EtKalmanFilter, Vector};

@@ -5,7 +5,7 @@ use crate::core::{ControlAction, SensorCore, SensorId, SensorStats, SlotError};
 use crate::{Exit, IDLE_CHECK, LIST_EVERY, SensorError};
 use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_sensor::{Ack, Handover, Truth};
-use etp_runtime::wire::coordinator_to_all::Threshold;
+use etp_runtime::wire::coordinator_to_sensor::Threshold;
 use etp_runtime::wire::sensor_to_agent::{Measurement, Slot};
 use etp_runtime::wire::sensor_to_coordinator::Ledger;
 use etp_runtime::wire::{

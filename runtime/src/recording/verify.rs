@@ -39,7 +39,7 @@ use super::{META_RUN, META_SCENARIO, Recorded, RecordingError, decode, read::Con
 use crate::wire::agent_to_coordinator::{Outcome, Waypoint};
 use crate::wire::agent_to_sensor::{Handover, Truth};
 use crate::wire::coordinator_to_agent::Control;
-use crate::wire::coordinator_to_all::Threshold;
+use crate::wire::coordinator_to_sensor::Threshold;
 use crate::wire::sensor_to_agent::{Measurement, Slot};
 use crate::wire::{WireMat, WireVec, belief_to_wire, vec_from_wire};
 use etp_shared::episode::{

@@ -26,7 +26,7 @@
 
 use super::messages::{
     Header, agent_to_coordinator as a2c, agent_to_sensor as a2s, coordinator_to_agent as c2a,
-    coordinator_to_all as c2all, sensor_to_agent as s2a, sensor_to_coordinator as s2c,
+    coordinator_to_sensor as c2s, sensor_to_agent as s2a, sensor_to_coordinator as s2c,
     to_coordinator as tc,
 };
 use iceoryx2::prelude::ZeroCopySend;
@@ -381,7 +381,7 @@ catalogue! {
         names: ["kind": ControlKind],
         codes: "kind: 1 = START (an episode), 2 = STOP (the agent exits)",
     }
-    Threshold(sensor) => c2all::Threshold {
+    Threshold(sensor) => c2s::Threshold {
         topic: "sensor/{sensor}/threshold",
         owner: Coordinator, reader: Sensor,
         // Read by its sensor and by the agent; at most an OPEN and a CLOSE

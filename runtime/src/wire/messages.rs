@@ -74,8 +74,9 @@ pub mod coordinator_to_agent {
     }
 }
 
-/// Coordinator → agent and sensors.
-pub mod coordinator_to_all {
+/// Coordinator → one sensor, with the agent listening (one service per
+/// sensor, `threshold/<i>`, so a sensor is woken only for its own legs).
+pub mod coordinator_to_sensor {
     use super::*;
 
     /// `threshold`: open leg i with δ at the serving sensor, close a leg (the
@@ -355,9 +356,9 @@ code_enum! {
 code_enum! {
     /// `Threshold::kind`.
     ThresholdKind {
-        Open = coordinator_to_all::Threshold::OPEN,
-        Close = coordinator_to_all::Threshold::CLOSE,
-        Stop = coordinator_to_all::Threshold::STOP,
+        Open = coordinator_to_sensor::Threshold::OPEN,
+        Close = coordinator_to_sensor::Threshold::CLOSE,
+        Stop = coordinator_to_sensor::Threshold::STOP,
     }
 }
 

@@ -1,7 +1,7 @@
 //! The runtime's wire vocabulary (ARCHITECTURE.md "Runtime processes and services").
 //!
 //! * [`messages`] — the fixed-size `#[repr(C)]` + `ZeroCopySend` payloads, one
-//!   module per direction (`coordinator_to_agent`, `coordinator_to_all`,
+//!   module per direction (`coordinator_to_agent`, `coordinator_to_sensor`,
 //!   `agent_to_sensor`, `sensor_to_agent`, `agent_to_coordinator`,
 //!   `sensor_to_coordinator`, `to_coordinator`), each starting with a [`Header`].
 //! * [`catalogue`] — THE list of messages, one row each (type, topic,
