@@ -38,7 +38,10 @@ fn round_trip(stem: &str) {
     }
     // What the earlier code wrote back is itself a valid strategy file.
     Strategy::from_sealed_json(&expected).expect("sealed");
-    strategy.scenario().expect("its embedded scenario, hash checked");
+    strategy
+        .policy
+        .scenario()
+        .expect("its embedded scenario, hash checked");
 }
 
 #[test]
