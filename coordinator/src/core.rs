@@ -18,7 +18,7 @@ use etp_runtime::wire::sensor_to_coordinator::Ledger;
 use etp_runtime::wire::{Header, OutcomeCode, SENDER_AGENT};
 use etp_shared::rng::{SimRng, stream_rng, streams};
 use etp_shared::scenario::Scenario;
-use etp_shared::strategy::Strategy;
+use etp_shared::strategy::Policy;
 use nalgebra::DMatrix;
 use rand::RngExt;
 use std::collections::HashMap;
@@ -101,7 +101,7 @@ struct Running {
 #[derive(Debug)]
 pub struct CoordinatorCore<'a> {
     scenario: &'a Scenario,
-    strategy: &'a Strategy,
+    policy: &'a Policy,
     seed: u64,
     tag: u64,
     running: Option<Running>,
@@ -112,11 +112,11 @@ pub struct CoordinatorCore<'a> {
 
 impl<'a> CoordinatorCore<'a> {
     /// The run of tag `tag` (messages of other runs are ignored) under
-    /// `strategy` with run seed `seed`.
-    pub fn new(scenario: &'a Scenario, strategy: &'a Strategy, seed: u64, tag: u64) -> Self {
+    /// `policy` with run seed `seed`.
+    pub fn new(scenario: &'a Scenario, policy: &'a Policy, seed: u64, tag: u64) -> Self {
         Self {
             scenario,
-            strategy,
+            policy,
             seed,
             tag,
             running: None,
@@ -197,8 +197,8 @@ impl<'a> CoordinatorCore<'a> {
             prev.received = w.prev_received;
         }
         let u: f64 = running.rng.random();
-        let index = self.strategy.draw(leg as usize, &cov, u);
-        let delta = self.strategy.deltas[index];
+        let index = self.policy.draw(leg as usize, &cov, u);
+        let delta = self.policy.deltas[index];
         running.legs.push(LegRecord {
             leg,
             sensor,
@@ -367,7 +367,9 @@ impl<'a> CoordinatorCore<'a> {
             run_id,
             scenario: s.name.clone(),
             scenario_hash: s.content_hash.clone(),
-            strategy_label: self.strategy.label.clone(),
+            // The strategy's label and predictions: the coordinator runs its
+            // policy only; [`crate::run`] names the strategy in the report.
+            strategy_label: String::new(),
             seed: self.seed,
             requested_episodes: requested,
             episodes: records.len() as u64,
@@ -377,8 +379,8 @@ impl<'a> CoordinatorCore<'a> {
             degraded: records.iter().filter(|r| r.degraded).count() as u64,
             steps: records.iter().map(|r| u64::from(r.steps)).sum(),
             seconds,
-            predicted: self.strategy.predicted,
-            predicted_ci95: self.strategy.predicted_ci95,
+            predicted: None,
+            predicted_ci95: None,
             sensors,
             faults: std::mem::take(&mut self.faults),
             episode_results: records,

@@ -5,12 +5,13 @@
 //!
 //! * [`Args`] — run id, scenario, `strategy.json`, episodes, seed.
 //! * [`run`] — loads the scenario and the strategy (refusing a strategy made
-//!   for another scenario: `Strategy::check_scenario`), waits for `hello`
+//!   for another scenario: `Policy::check_scenario`), waits for `hello`
 //!   from the agent and every sensor, runs the episodes and returns the
-//!   [`RunReport`].
+//!   [`RunReport`], which names the strategy and its prediction.
 //! * [`core::CoordinatorCore`] — the decisions, pure (no ports,
-//!   unit-tested): on each `waypoint` it classifies the agent's covariance
-//!   into the strategy's region and draws δ from ω (`Strategy::draw`,
+//!   unit-tested), given the strategy's policy only: on each `waypoint` it
+//!   classifies the agent's covariance into the policy's region and draws δ
+//!   from ω (`Policy::draw`,
 //!   uniform numbers from `streams::COORDINATOR`), closing the previous leg
 //!   and opening the new one at its sensor; on `outcome` it records the
 //!   episode; the sensors' `ledger`s are joined to the agent's received
@@ -81,15 +82,22 @@ pub fn run(args: &Args) -> Result<RunReport, CoordinatorError> {
     let strategy = Strategy::from_sealed_json(&text)
         .map_err(|e| CoordinatorError::Input(format!("{}: {e}", args.strategy)))?;
     strategy
+        .policy
         .check_scenario(&scenario)
         .map_err(|e| CoordinatorError::Input(e.to_string()))?;
     let startup = Duration::from_secs_f64(args.startup_timeout.max(0.1));
-    let mut c = session::Coordinator::new(&run, &scenario, &strategy, args.seed)?;
+    let mut c = session::Coordinator::new(&run, &scenario, &strategy.policy, args.seed)?;
     if let Some(p) = &args.progress {
         c.report_progress_to(p.clone());
     }
     c.wait_ready(startup)?;
-    c.run_episodes(args.episodes)
+    let mut report = c.run_episodes(args.episodes)?;
+    // The episodes ran the policy alone; the report names the strategy and
+    // what it predicted, to be compared with what the run measured.
+    report.strategy_label = strategy.provenance.label;
+    report.predicted = strategy.predictions.predicted;
+    report.predicted_ci95 = strategy.predictions.predicted_ci95;
+    Ok(report)
 }
 
 use anyhow::Context;

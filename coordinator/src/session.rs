@@ -16,7 +16,7 @@ use etp_runtime::wire::{
     ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, to_wire_vec,
 };
 use etp_shared::scenario::Scenario;
-use etp_shared::strategy::Strategy;
+use etp_shared::strategy::Policy;
 use iceoryx2::prelude::*;
 use std::time::{Duration, Instant};
 
@@ -53,7 +53,7 @@ impl<'a> Coordinator<'a> {
     pub fn new(
         run: &RunId,
         scenario: &'a Scenario,
-        strategy: &'a Strategy,
+        policy: &'a Policy,
         seed: u64,
     ) -> Result<Self, CoordinatorError> {
         let node = wire::create_node(run, COORDINATOR_NODE)?;
@@ -81,7 +81,7 @@ impl<'a> Coordinator<'a> {
                 .collect::<Result<_, _>>()?,
             run: run.clone(),
             scenario,
-            core: CoordinatorCore::new(scenario, strategy, seed, stamp.tag()),
+            core: CoordinatorCore::new(scenario, policy, seed, stamp.tag()),
             stamp,
             terminating: false,
             progress: None,

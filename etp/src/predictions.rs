@@ -37,10 +37,10 @@ pub const AGGREGATION_CHECK_EPISODES: u64 = 4000;
 /// the prediction etp stands by, or for a `--quick` strategy its
 /// cross-fitted (else selection-time) value on the selection MDP, named.
 pub fn reference(s: &Strategy) -> Option<(Prediction, Option<PredictionCi95>, &'static str)> {
-    if let Some(p) = s.predicted {
-        return Some((p, s.predicted_ci95, "predicted"));
+    if let Some(p) = s.predictions.predicted {
+        return Some((p, s.predictions.predicted_ci95, "predicted"));
     }
-    let sel = s.diagnostics.as_ref()?.selection;
+    let sel = s.predictions.diagnostics.as_ref()?.selection;
     match (sel.crossfit, sel.selection_time) {
         (Some(c), _) => Some((
             c,
@@ -60,6 +60,7 @@ pub fn aggregation_check(
     quiet: bool,
 ) -> Result<Option<AggregationCheck>> {
     let scenario = strategy
+        .policy
         .scenario()
         .context("the aggregation check needs the strategy's scenario")?;
     let pb = progress::bar(episodes, "aggregation check", quiet);
@@ -177,20 +178,30 @@ pub fn json_fields(s: &Strategy) -> serde_json::Map<String, Value> {
     let mut m = serde_json::Map::new();
     m.insert(
         "predicted".into(),
-        s.predicted.as_ref().map_or(Value::Null, prediction_json),
+        s.predictions
+            .predicted
+            .as_ref()
+            .map_or(Value::Null, prediction_json),
     );
     m.insert(
         "predicted_ci95".into(),
-        s.predicted_ci95.as_ref().map_or(Value::Null, ci95_json),
+        s.predictions
+            .predicted_ci95
+            .as_ref()
+            .map_or(Value::Null, ci95_json),
     );
     m.insert("prediction_basis".into(), json!(basis_text(s)));
     m.insert(
         "certified".into(),
-        s.certified.as_ref().map_or(Value::Null, certified_json),
+        s.predictions
+            .certified
+            .as_ref()
+            .map_or(Value::Null, certified_json),
     );
     m.insert(
         "aggregation".into(),
-        s.aggregation
+        s.predictions
+            .aggregation
             .as_ref()
             .map_or(Value::Null, |c| aggregation_json(c, reference_name(s))),
     );
@@ -200,12 +211,12 @@ pub fn json_fields(s: &Strategy) -> serde_json::Map<String, Value> {
 
 /// `prediction_basis`, or what a strategy without a prediction is.
 pub fn basis_text(s: &Strategy) -> String {
-    if s.predicted.is_none() {
+    if s.predictions.predicted.is_none() {
         QUICK.into()
-    } else if s.prediction_basis.is_empty() {
+    } else if s.predictions.prediction_basis.is_empty() {
         "not stated (a strategy file without `prediction_basis`)".into()
     } else {
-        s.prediction_basis.clone()
+        s.predictions.prediction_basis.clone()
     }
 }
 
@@ -215,7 +226,7 @@ pub const QUICK: &str = "none: a --quick strategy (its values on the selection M
 
 /// `diagnostics` of a strategy file as JSON (null without).
 pub fn diagnostics_json(s: &Strategy) -> Value {
-    let Some(d) = &s.diagnostics else {
+    let Some(d) = &s.predictions.diagnostics else {
         return Value::Null;
     };
     let sel = &d.selection;
@@ -253,7 +264,7 @@ fn prob(x: f64) -> String {
 /// first, then its bounds and check, then the diagnostics, labelled.
 pub fn text_of(s: &Strategy) -> String {
     let mut o = String::new();
-    match (&s.predicted, &s.predicted_ci95) {
+    match (&s.predictions.predicted, &s.predictions.predicted_ci95) {
         (Some(p), Some(h)) => o.push_str(&format!(
             "  predicted       P_tar {} ± {}  P_coll {} ± {}  energy {:.3} ± {:.3}   (95 %)\n",
             prob(p.p_target),
@@ -272,7 +283,7 @@ pub fn text_of(s: &Strategy) -> String {
         (None, _) => {}
     }
     o.push_str(&format!("    ({})\n", basis_text(s)));
-    if let Some(c) = &s.certified {
+    if let Some(c) = &s.predictions.certified {
         o.push_str(&format!(
             "  certified {:.0} %  P_tar ≥ {:.6}  P_coll ≤ {:.6}  energy ≤ {:.4}\n    ({})\n",
             100.0 * c.confidence,
@@ -286,7 +297,7 @@ pub fn text_of(s: &Strategy) -> String {
             },
         ));
     }
-    if let Some(c) = &s.aggregation {
+    if let Some(c) = &s.predictions.aggregation {
         o.push_str(&aggregation_text(c, reference_name(s), "at selection"));
     }
     o.push_str(&diagnostics_text(s));
@@ -295,7 +306,7 @@ pub fn text_of(s: &Strategy) -> String {
 
 /// The diagnostics, each line saying what it is.
 pub fn diagnostics_text(s: &Strategy) -> String {
-    let Some(d) = &s.diagnostics else {
+    let Some(d) = &s.predictions.diagnostics else {
         return String::new();
     };
     let mut o = String::from(

@@ -90,8 +90,8 @@ impl Synthesis {
         label: &str,
     ) -> Strategy {
         let mut s = to_strategy(mdp, omega, label.to_string(), value);
-        s.scenario_toml.clone_from(&self.scenario_text);
-        s.radio.clone_from(&self.front.radio);
+        s.policy.scenario_toml.clone_from(&self.scenario_text);
+        s.policy.radio.clone_from(&self.front.radio);
         s
     }
 }

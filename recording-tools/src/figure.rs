@@ -126,7 +126,7 @@ pub fn figure(c: &Contents, names: &[String]) -> Result<RunFigure> {
     let strategy = c
         .meta(recording::META_STRATEGY, "json")
         .and_then(|t| Strategy::from_json(t).ok());
-    let p = strategy.as_ref().and_then(|s| s.predicted);
+    let p = strategy.as_ref().and_then(|s| s.predictions.predicted);
     let n = episodes.len() as u64;
     let outcome = |name: &str, k: u64, pred: Option<f64>| {
         let (measured, ci95) = proportion(k, n);
@@ -150,7 +150,7 @@ pub fn figure(c: &Contents, names: &[String]) -> Result<RunFigure> {
         strategy
             .as_ref()
             .map_or("strategy unknown".to_string(), |s| {
-                short_label(&s.label)
+                short_label(&s.provenance.label)
             }),
     );
     Ok(RunFigure {

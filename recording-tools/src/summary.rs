@@ -316,19 +316,19 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
     let scenario = c
         .meta(recording::META_RUN, "scenario_name")
         .map(str::to_string)
-        .or_else(|| strategy.as_ref().map(|s| s.scenario_name.clone()));
+        .or_else(|| strategy.as_ref().map(|s| s.policy.scenario_name.clone()));
     Ok(json!({
         "run_id": c.meta(recording::META_RUN, "run_id"),
         "scenario": scenario,
         "seed": num("seed"),
-        "strategy": strategy.as_ref().map(|s| s.label.clone()),
+        "strategy": strategy.as_ref().map(|s| s.provenance.label.clone()),
         "delta": strategy.as_ref().and_then(crate::vocab::constant_delta),
-        "predicted": crate::vocab::prediction(strategy.as_ref().and_then(|s| s.predicted.as_ref())),
-        "predicted_ci95": strategy.as_ref().and_then(|s| s.predicted_ci95).map(|c| json!({
+        "predicted": crate::vocab::prediction(strategy.as_ref().and_then(|s| s.predictions.predicted.as_ref())),
+        "predicted_ci95": strategy.as_ref().and_then(|s| s.predictions.predicted_ci95).map(|c| json!({
             "p_target": c.p_target, "p_collision": c.p_collision, "energy_mean": c.energy_mean})),
         "prediction_check": crate::vocab::prediction_check(
-            strategy.as_ref().and_then(|s| s.predicted.as_ref()),
-            strategy.as_ref().and_then(|s| s.predicted_ci95.as_ref()),
+            strategy.as_ref().and_then(|s| s.predictions.predicted.as_ref()),
+            strategy.as_ref().and_then(|s| s.predictions.predicted_ci95.as_ref()),
             [
                 crate::vocab::Measured { value: p_target, ci95: p_target_ci95 },
                 crate::vocab::Measured { value: p_collision, ci95: p_collision_ci95 },

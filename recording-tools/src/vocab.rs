@@ -103,7 +103,7 @@ pub fn prediction(p: Option<&Prediction>) -> Value {
 /// on one δ, the same everywhere); `None` when δ varies.
 pub fn constant_delta(s: &Strategy) -> Option<f64> {
     let mut index = None;
-    for st in &s.states {
+    for st in &s.policy.states {
         let (k, w) = st
             .omega
             .iter()
@@ -114,7 +114,7 @@ pub fn constant_delta(s: &Strategy) -> Option<f64> {
         }
         index = Some(k);
     }
-    s.deltas.get(index?).copied()
+    s.policy.deltas.get(index?).copied()
 }
 
 /// An energy or count-like float without the noise of its last bits

@@ -45,6 +45,7 @@ pub fn load_strategy(path: &Path) -> Result<(Strategy, Scenario), StrategyArgErr
             source,
         })?;
     let scenario = strategy
+        .policy
         .scenario()
         .map_err(|source| StrategyArgError::Scenario {
             path: path.to_path_buf(),

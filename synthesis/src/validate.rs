@@ -17,10 +17,15 @@ use rand::RngExt;
 fn strategy_policy<const N: usize>(
     strategy: &Strategy,
 ) -> impl Fn(usize, &Belief<N>, &mut SimRng) -> LegMode<N> + Sync + '_ {
-    let thresholds: Vec<Threshold> = strategy.deltas.iter().map(|&d| Threshold::new(d)).collect();
+    let thresholds: Vec<Threshold> = strategy
+        .policy
+        .deltas
+        .iter()
+        .map(|&d| Threshold::new(d))
+        .collect();
     move |leg, belief, rng| {
         let u: f64 = rng.random();
-        let k = strategy.draw(leg, &to_dynamic(&belief.cov), u);
+        let k = strategy.policy.draw(leg, &to_dynamic(&belief.cov), u);
         LegMode::EventTriggered(thresholds[k])
     }
 }

@@ -100,7 +100,7 @@ fn a_split_region_becomes_two_states_and_survives_the_files() {
         },
     );
     let back = Strategy::from_sealed_json(&strategy.to_json()).expect("loads");
-    assert_eq!(back.splits, vec![split]);
-    assert_eq!(back.states, strategy.states);
-    assert_eq!(back.discretization, strategy.discretization);
+    assert_eq!(back.policy.splits, vec![split]);
+    assert_eq!(back.policy.states, strategy.policy.states);
+    assert_eq!(back.policy.discretization, strategy.policy.discretization);
 }

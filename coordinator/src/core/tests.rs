@@ -1,5 +1,5 @@
 use super::*;
-use etp_shared::strategy::Prediction;
+use etp_shared::strategy::{Prediction, Strategy};
 
 const TAG: u64 = 0xabc;
 
@@ -91,7 +91,7 @@ fn episode(core: &mut CoordinatorCore<'_>, e: u64, legs: u32) -> Vec<Opening> {
 fn each_waypoint_closes_the_previous_leg_and_opens_its_own_at_the_strategys_delta() {
     let s = scenario();
     let st = constant(&s, 2);
-    let mut core = CoordinatorCore::new(&s, &st, 1, TAG);
+    let mut core = CoordinatorCore::new(&s, &st.policy, 1, TAG);
     let legs = s.legs.len() as u32;
     let openings = episode(&mut core, 0, legs);
     for (leg, o) in openings.iter().enumerate() {
@@ -113,11 +113,11 @@ fn each_waypoint_closes_the_previous_leg_and_opens_its_own_at_the_strategys_delt
 fn the_draw_is_the_strategys_with_the_coordinators_stream() {
     let s = scenario();
     let mut st = constant(&s, 0);
-    for state in &mut st.states {
+    for state in &mut st.policy.states {
         state.omega = vec![0.2; s.deltas.len()];
     }
     let draws = |seed: u64| {
-        let mut core = CoordinatorCore::new(&s, &st, seed, TAG);
+        let mut core = CoordinatorCore::new(&s, &st.policy, seed, TAG);
         (0..20)
             .flat_map(|e| episode(&mut core, e, 2))
             .map(|o| o.delta_index)
@@ -128,7 +128,7 @@ fn the_draw_is_the_strategys_with_the_coordinators_stream() {
     let mut rng = stream_rng(3, streams::COORDINATOR, 0);
     let cov = DMatrix::from_fn(2, 2, |r, c| if r == c { 1e-3 } else { 0.0 });
     let u: f64 = rng.random();
-    assert_eq!(a[0] as usize, st.draw(0, &cov, u));
+    assert_eq!(a[0] as usize, st.policy.draw(0, &cov, u));
     assert!(a.iter().any(|&i| i != a[0]), "a mixed ω draws several δ");
 }
 
@@ -136,7 +136,7 @@ fn the_draw_is_the_strategys_with_the_coordinators_stream() {
 fn messages_of_other_runs_or_episodes_are_ignored() {
     let s = scenario();
     let st = constant(&s, 1);
-    let mut core = CoordinatorCore::new(&s, &st, 1, TAG);
+    let mut core = CoordinatorCore::new(&s, &st.policy, 1, TAG);
     core.start_episode(4);
     let mut other_run = waypoint(4, 0, 0, 0);
     other_run.header.run = TAG + 1;
@@ -164,7 +164,7 @@ fn messages_of_other_runs_or_episodes_are_ignored() {
 fn bad_outcomes_and_legs_are_protocol_errors() {
     let s = scenario();
     let st = constant(&s, 1);
-    let mut core = CoordinatorCore::new(&s, &st, 1, TAG);
+    let mut core = CoordinatorCore::new(&s, &st.policy, 1, TAG);
     core.start_episode(0);
     let beyond = s.legs.len() as u32;
     assert!(core.on_waypoint(&waypoint(0, beyond, 0, 0)).is_err());
@@ -181,7 +181,7 @@ fn bad_outcomes_and_legs_are_protocol_errors() {
 fn the_report_joins_ledgers_and_prices_missing_ones_at_the_received() {
     let s = scenario();
     let st = constant(&s, 1);
-    let mut core = CoordinatorCore::new(&s, &st, 1, TAG);
+    let mut core = CoordinatorCore::new(&s, &st.policy, 1, TAG);
     episode(&mut core, 0, 2);
     core.start_episode(1);
     core.on_waypoint(&waypoint(1, 0, 0, 0)).expect("valid");

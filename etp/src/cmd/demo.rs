@@ -134,7 +134,7 @@ pub fn run(a: Args) -> Result<()> {
     let make = |omega: &etp_synthesis::pareto::policy::RandomisedPolicy,
                 value: etp_synthesis::pareto::policy::Objectives| {
         let mut s = to_strategy(&built.mdp, omega, label.clone(), value);
-        s.scenario_toml = Some(text.clone());
+        s.policy.scenario_toml = Some(text.clone());
         s
     };
     let outcome = meet_request(
@@ -169,7 +169,7 @@ pub fn run(a: Args) -> Result<()> {
     outcome
         .on_policy
         .stand_by(&mut strategy, &outcome.certified, 0.95);
-    if let Some(d) = strategy.diagnostics.as_mut() {
+    if let Some(d) = strategy.predictions.diagnostics.as_mut() {
         d.rounds = outcome.rounds.iter().map(|r| r.record()).collect();
     }
     let strategy_path = dir.join("strategy.json");
@@ -237,9 +237,10 @@ pub fn run(a: Args) -> Result<()> {
     let (mp, problems) = run_cmd::execute(&rargs)?;
 
     let p = strategy
+        .predictions
         .predicted
         .context("the demo's strategy has no prediction (a bug)")?;
-    let h = strategy.predicted_ci95.unwrap_or_default();
+    let h = strategy.predictions.predicted_ci95.unwrap_or_default();
     let num = |v: &Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
     let result = json!({
         "scenario": scenario.name,
@@ -247,7 +248,7 @@ pub fn run(a: Args) -> Result<()> {
         "vertices": front.front.vertices.len(),
         "predicted": crate::vocab::prediction(Some(&p)),
         "predicted_ci95": {"p_target": h.p_target, "p_collision": h.p_collision, "energy_mean": h.energy_mean},
-        "prediction_basis": strategy.prediction_basis,
+        "prediction_basis": strategy.predictions.prediction_basis,
         "in_process": {"episodes": sim.episodes, "p_target": sim.p_target.value, "p_target_ci95": sim.p_target.ci95,
                         "p_collision": sim.p_collision.value, "p_collision_ci95": sim.p_collision.ci95,
                         "energy_mean": sim.energy_mean.value, "energy_mean_ci95": sim.energy_mean.ci95},
@@ -260,7 +261,10 @@ pub fn run(a: Args) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&result)?);
         return run_cmd::exit_for(&problems);
     }
-    println!("\netp demo — {} — {}", scenario.name, strategy.label);
+    println!(
+        "\netp demo — {} — {}",
+        scenario.name, strategy.provenance.label
+    );
     println!(
         "Pareto front: {} vertices (front.json); energy of the full Kalman filter {:.1}\n",
         front.front.vertices.len(),

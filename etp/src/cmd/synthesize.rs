@@ -291,7 +291,7 @@ pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
             }
             let (st, _) = etp_runtime::strategy_arg::load_strategy(path)
                 .with_context(|| format!("--pool-policy {}", path.display()))?;
-            st.check_scenario(&s).with_context(|| {
+            st.policy.check_scenario(&s).with_context(|| {
                 format!(
                     "--pool-policy {}: not a strategy of {}",
                     path.display(),

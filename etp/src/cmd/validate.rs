@@ -91,7 +91,7 @@ pub fn run(a: Args) -> Result<()> {
             ))?
         );
     } else {
-        println!("{} — {}", scenario.name, strategy.label);
+        println!("{} — {}", scenario.name, strategy.provenance.label);
         print!("{}", comparison_table(&strategy, &sum));
         println!("\npredictions of the strategy file:");
         print!("{}", predictions::text_of(&strategy));
@@ -147,8 +147,8 @@ pub fn run(a: Args) -> Result<()> {
 /// nothing: no check.
 fn checks(strategy: &Strategy, sum: &SimulationSummary) -> Vec<(&'static str, bool)> {
     let mut v = Vec::new();
-    if let Some(p) = &strategy.predicted {
-        let own = strategy.predicted_ci95.unwrap_or_default();
+    if let Some(p) = &strategy.predictions.predicted {
+        let own = strategy.predictions.predicted_ci95.unwrap_or_default();
         let near = |x: f64, e: &etp_shared::stats::Estimate, r: f64| {
             (x - e.value).abs() <= e.ci95.hypot(r)
         };
@@ -165,7 +165,7 @@ fn checks(strategy: &Strategy, sum: &SimulationSummary) -> Vec<(&'static str, bo
             near(p.energy_mean, &sum.energy_mean, own.energy_mean),
         ));
     }
-    if let Some(c) = &strategy.certified {
+    if let Some(c) = &strategy.predictions.certified {
         // Simulated ≥ lower bound (resp. ≤ upper) within the simulation's interval.
         v.push((
             "certified P_tar ≤ simulated (+95 %)",
@@ -213,7 +213,7 @@ pub fn comparison_json(
     let mut v = summary_json(scenario, sum);
     // The per-sensor prediction of the strategy file (the MDP's), if it has one.
     if let (Some(per_ep), Some(sensors)) = (
-        strategy.sensor_energy(scenario),
+        strategy.predictions.sensor_energy(scenario),
         v.get_mut("sensors")
             .and_then(serde_json::Value::as_array_mut),
     ) {
@@ -229,7 +229,7 @@ pub fn comparison_json(
             json!(synthesized.describe(&names)),
         );
         m.insert("seed".into(), json!(seed));
-        m.insert("strategy".into(), json!(strategy.label));
+        m.insert("strategy".into(), json!(strategy.provenance.label));
         m.insert(
             "delta".into(),
             json!(crate::vocab::constant_delta(strategy)),
@@ -237,7 +237,7 @@ pub fn comparison_json(
         m.extend(predictions::json_fields(strategy));
         m.insert(
             "predicted".into(),
-            crate::vocab::prediction(strategy.predicted.as_ref()),
+            crate::vocab::prediction(strategy.predictions.predicted.as_ref()),
         );
         m.insert(
             "error".into(),
@@ -258,14 +258,15 @@ pub fn comparison_json(
 
 /// Predicted vs simulated, one row per quantity.
 pub fn comparison_table(strategy: &Strategy, sum: &SimulationSummary) -> String {
-    let Some(p) = strategy.predicted.as_ref().or(strategy
+    let Some(p) = strategy.predictions.predicted.as_ref().or(strategy
+        .predictions
         .diagnostics
         .as_ref()
         .and_then(|d| d.selection.selection_time.as_ref()))
     else {
         return String::new();
     };
-    let heading = if strategy.predicted.is_some() {
+    let heading = if strategy.predictions.predicted.is_some() {
         "predicted"
     } else {
         "sel.-time"

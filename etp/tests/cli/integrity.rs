@@ -148,9 +148,9 @@ fn an_edited_strategy_is_refused_by_etp_run_and_validate_with_a_builtin() {
     let out = synthesize(&dir);
     let text = std::fs::read_to_string(out.join("strategy.json")).expect("strategy");
     let mut st = Strategy::from_sealed_json(&text).expect("sealed");
-    st.scenario_toml = None;
-    let n = st.deltas.len();
-    st.deltas[n - 1] = 3.5;
+    st.policy.scenario_toml = None;
+    let n = st.policy.deltas.len();
+    st.policy.deltas[n - 1] = 3.5;
     let bent = dir.path("bent.json");
     std::fs::write(&bent, st.to_json()).expect("write");
     fails_with(&["validate", s(&bent)], &["`deltas`"]);
@@ -209,7 +209,7 @@ fn every_field_of_a_strategy_is_sealed_and_a_failing_check_exits_6() {
     // A sealed strategy whose prediction is far from what it does: the
     // report is printed, then exit 6 naming the failing check.
     let mut st = Strategy::from_sealed_json(&text).expect("sealed");
-    if let Some(p) = st.predicted.as_mut() {
+    if let Some(p) = st.predictions.predicted.as_mut() {
         p.p_target = if p.p_target > 0.5 { 0.05 } else { 0.95 };
     }
     let wrong = dir.path("wrong.json");

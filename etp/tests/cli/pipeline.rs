@@ -214,7 +214,8 @@ fn pipeline_predicts_what_simulation_measures_and_refuses_bad_files() {
         &["changed after it was written"],
     );
     let mut forged = etp_shared::strategy::Strategy::from_sealed_json(&text).expect("sealed");
-    forged.scenario_toml = forged
+    forged.policy.scenario_toml = forged
+        .policy
         .scenario_toml
         .map(|t| t.replacen("k_max = 200", "k_max = 150", 1));
     std::fs::write(dir.path("tampered.json"), forged.to_json()).expect("write");

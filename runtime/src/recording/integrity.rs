@@ -70,7 +70,7 @@ pub fn check_metadata(c: &Contents) -> Result<Option<Scenario>, RecordingError> 
             let strategy = Strategy::from_json(json).map_err(|e| {
                 RecordingError::Metadata(format!("the recorded strategy (`{META_STRATEGY}`): {e}"))
             })?;
-            strategy.check_scenario(&scenario).map_err(|e| {
+            strategy.policy.check_scenario(&scenario).map_err(|e| {
                 RecordingError::Metadata(format!(
                     "scenario hash mismatch: the recorded strategy (`{META_STRATEGY}`) does not \
                      fit the recorded scenario (`{META_SCENARIO}`): {e}"

@@ -252,20 +252,20 @@ mod tests {
         };
         let plain = {
             let mut t = st.clone();
-            t.discretization = Some(d.clone());
+            t.policy.discretization = Some(d.clone());
             t.to_json()
         };
         assert!(!plain.contains("\"splits\""), "no key without splits");
         let (small, large) = (diag(2e-3, 1e-3), diag(2e-2, 1e-3));
         let base = d.classify(2, &small);
-        st.discretization = Some(d);
-        st.splits = vec![RegionSplit {
+        st.policy.discretization = Some(d);
+        st.policy.splits = vec![RegionSplit {
             decision_point: 2,
             region: base.clone(),
             feature: 0,
             threshold: 5e-3_f64.ln(),
         }];
-        st.states.retain(|x| x.decision_point != 2);
+        st.policy.states.retain(|x| x.decision_point != 2);
         for (side, omega) in [
             (0, vec![0.0, 1.0, 0.0, 0.0, 0.0]),
             (1, vec![0.0, 0.0, 0.0, 1.0, 0.0]),
@@ -274,7 +274,7 @@ mod tests {
             r.0.push((SPLIT_MARK, side));
             let mut omega = omega;
             omega.resize(s.deltas.len(), 0.0);
-            st.states.push(StrategyState {
+            st.policy.states.push(StrategyState {
                 decision_point: 2,
                 region: r,
                 omega,
@@ -283,13 +283,13 @@ mod tests {
         let back = Strategy::from_sealed_json(&st.to_json()).expect("loads");
         assert_eq!(back, st);
         for t in [&st, &back] {
-            assert_eq!(t.draw(2, &small, 0.5), 1);
-            assert_eq!(t.draw(2, &large, 0.5), 3);
-            assert!(matches!(t.omega(2, &small), OmegaChoice::Exact(_)));
+            assert_eq!(t.policy.draw(2, &small, 0.5), 1);
+            assert_eq!(t.policy.draw(2, &large, 0.5), 3);
+            assert!(matches!(t.policy.omega(2, &small), OmegaChoice::Exact(_)));
         }
         // A split naming a feature the bins do not have is refused.
         let mut bad = st.clone();
-        bad.splits[0].feature = 9;
+        bad.policy.splits[0].feature = 9;
         let e = Strategy::from_json(&bad.to_json()).expect_err("bad feature");
         assert!(e.to_string().contains("splits[0].feature"), "{e}");
     }

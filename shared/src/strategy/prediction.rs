@@ -1,9 +1,77 @@
-//! What a strategy file says of the strategy's outcome: the one prediction
-//! etp stands by ([`super::Strategy::predicted`]) and, apart, the values
-//! that only explain it ([`Diagnostics`]).
+//! What a strategy file says of the strategy's outcome ([`Predictions`]):
+//! the one prediction etp stands by ([`Predictions::predicted`]) and,
+//! apart, the values that only explain it ([`Diagnostics`]).
 
-use super::PredictionCi95;
+use super::{AggregationCheck, PredictionCi95, StrategyError};
+use crate::scenario::Scenario;
 use serde::{Deserialize, Serialize};
+
+/// What etp predicts of a strategy and how it knows: reported by `etp
+/// run`, `etp validate` and the run report, never needed to run it.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Predictions {
+    /// The prediction etp stands by (docs/MODEL.md §7.4): for a strategy of
+    /// `etp strategy`, the mean cross-fitted value of its on-policy rebuilds
+    /// (its own beliefs in the pools, so no aggregation error), with
+    /// [`Predictions::predicted_ci95`]; for a constant δ of `etp run
+    /// --scenario … --delta`, an in-process simulation. `None` for a
+    /// `--quick` strategy, whose only values are the biased ones of
+    /// [`Diagnostics`].
+    pub predicted: Option<Prediction>,
+    /// The 95 % half-widths of [`Predictions::predicted`] (Student's t over
+    /// the rebuilds, or the simulation's interval).
+    pub predicted_ci95: Option<PredictionCi95>,
+    /// How [`Predictions::predicted`] was obtained, in words.
+    pub prediction_basis: String,
+    /// Certified bounds at a confidence level (for a strategy of `etp
+    /// strategy`: from the first on-policy rebuild's own transitions).
+    pub certified: Option<CertifiedPrediction>,
+    /// Selection-time expected energy spent on each leg (the MDP's
+    /// occupation measure × mean segment energy, transmissions × cost): the
+    /// per-sensor prediction of `etp run` and `etp validate` (a sensor's
+    /// share = the legs it serves). Absent in older files and for strategies
+    /// made without an MDP.
+    pub leg_energy: Option<Vec<f64>>,
+    /// The aggregation error measured at selection time (`etp strategy
+    /// --aggregation-check N`, on by default): the strategy simulated
+    /// against its prediction. Absent in older files and with N = 0.
+    pub aggregation: Option<AggregationCheck>,
+    /// Every other value, for diagnosis only: the selection-time and
+    /// cross-fitted values on the MDP it was selected on (biased), each
+    /// rebuild's, and the rounds of the request loop.
+    pub diagnostics: Option<Diagnostics>,
+}
+
+impl Predictions {
+    /// Predicted energy per episode of each of `scenario`'s sensors, from
+    /// [`Predictions::leg_energy`]; `None` without it (or if it does not
+    /// match the scenario's legs).
+    pub fn sensor_energy(&self, scenario: &Scenario) -> Option<Vec<f64>> {
+        let legs = self.leg_energy.as_ref()?;
+        if legs.len() != scenario.legs.len() {
+            return None;
+        }
+        let mut out = vec![0.0; scenario.sensors.len()];
+        for (leg, e) in scenario.legs.iter().zip(legs) {
+            *out.get_mut(leg.sensor)? += e;
+        }
+        Some(out)
+    }
+
+    pub(super) fn check_consistent(&self) -> Result<(), StrategyError> {
+        if let Some(i) = self
+            .leg_energy
+            .iter()
+            .flatten()
+            .position(|e| !(e.is_finite() && *e >= 0.0))
+        {
+            return Err(StrategyError::Invalid(format!(
+                "leg_energy[{i}] must be finite and ≥ 0"
+            )));
+        }
+        Ok(())
+    }
+}
 
 /// P_tar, P_coll, P_free and the expected energy of one episode.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

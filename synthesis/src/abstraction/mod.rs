@@ -341,19 +341,21 @@ pub fn build_on_policy(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Mdp, AbstractionError> {
     check_params(scenario, params)?;
-    let bins = match (&strategy.discretization, params.method) {
+    let bins = match (&strategy.policy.discretization, params.method) {
         (Some(b), Method::Discretized) => b,
         _ => return Err(AbstractionError::PoolPolicy),
     };
-    if bins.decision_points.len() != scenario.num_legs() || strategy.deltas != scenario.deltas {
+    if bins.decision_points.len() != scenario.num_legs()
+        || strategy.policy.deltas != scenario.deltas
+    {
         return Err(AbstractionError::PoolPolicy);
     }
     let omega = |dp: usize, cov: &nalgebra::DMatrix<f64>| -> Vec<f64> {
-        match strategy.omega(dp, cov) {
+        match strategy.policy.omega(dp, cov) {
             etp_shared::strategy::OmegaChoice::Exact(w)
             | etp_shared::strategy::OmegaChoice::Nearest(w) => w.to_vec(),
             etp_shared::strategy::OmegaChoice::FullKf(i) => {
-                let mut w = vec![0.0; strategy.deltas.len()];
+                let mut w = vec![0.0; strategy.policy.deltas.len()];
                 if let Some(x) = w.get_mut(i) {
                     *x = 1.0;
                 }
@@ -363,7 +365,7 @@ pub fn build_on_policy(
     };
     let given = layers::Given {
         bins,
-        splits: &strategy.splits,
+        splits: &strategy.policy.splits,
         policy: Some(&omega),
         carry_state,
         policy_only,

@@ -22,7 +22,8 @@ pub use certified::{CertifiedFront, CertifiedPoint};
 
 use crate::mdp::{CostModel, Mdp, Method};
 use etp_shared::strategy::{
-    Diagnostics, STRATEGY_FORMAT_VERSION, SelectionValues, Strategy, StrategyState,
+    Diagnostics, Policy, Predictions, Provenance, STRATEGY_FORMAT_VERSION, SelectionValues,
+    Strategy, StrategyState,
 };
 use policy::{
     DeterministicPolicy, Objectives, RandomisedPolicy, as_randomised, constant_action, evaluate,
@@ -259,31 +260,33 @@ pub fn to_strategy(
         })
         .collect();
     Strategy {
-        format_version: STRATEGY_FORMAT_VERSION,
-        scenario_name: mdp.scenario_name.clone(),
-        scenario_hash: mdp.scenario_hash.clone(),
-        label,
-        deltas: mdp.deltas.clone(),
-        discretization: mdp.discretization.clone(),
-        states,
+        provenance: Provenance {
+            format_version: STRATEGY_FORMAT_VERSION,
+            label,
+        },
+        policy: Policy {
+            scenario_name: mdp.scenario_name.clone(),
+            scenario_hash: mdp.scenario_hash.clone(),
+            deltas: mdp.deltas.clone(),
+            discretization: mdp.discretization.clone(),
+            states,
+            scenario_toml: None,
+            radio: None,
+            splits: mdp.splits.clone(),
+        },
         // Its value on this MDP is a diagnostic: the prediction etp stands
         // by comes from the strategy's own rebuilds (`crate::predict`).
-        predicted: None,
-        predicted_ci95: None,
-        prediction_basis: String::new(),
-        certified: None,
-        scenario_toml: None,
-        leg_energy: Some(policy::leg_energy(mdp, policy, CostModel::Counted)),
-        radio: None,
-        splits: mdp.splits.clone(),
-        aggregation: None,
-        diagnostics: Some(Diagnostics {
-            selection: SelectionValues {
-                selection_time: Some(predicted.prediction()),
-                ..SelectionValues::default()
-            },
-            ..Diagnostics::default()
-        }),
+        predictions: Predictions {
+            leg_energy: Some(policy::leg_energy(mdp, policy, CostModel::Counted)),
+            diagnostics: Some(Diagnostics {
+                selection: SelectionValues {
+                    selection_time: Some(predicted.prediction()),
+                    ..SelectionValues::default()
+                },
+                ..Diagnostics::default()
+            }),
+            ..Predictions::default()
+        },
     }
 }
 

@@ -42,7 +42,7 @@ fn occupation_of_a_policy_reproduces_its_values() {
         "{legs:?}"
     );
     let s = to_strategy(&m, &pol, "t".into(), v);
-    assert_eq!(s.leg_energy.as_deref(), Some(legs.as_slice()));
+    assert_eq!(s.predictions.leg_energy.as_deref(), Some(legs.as_slice()));
 }
 
 #[test]

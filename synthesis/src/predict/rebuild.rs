@@ -92,10 +92,13 @@ pub fn policy_on(mdp: &Mdp, strategy: &Strategy) -> RandomisedPolicy {
     mdp.states
         .iter()
         .map(|s| {
-            let omega = match strategy.omega_of_region(s.decision_point as usize, &s.region) {
+            let omega = match strategy
+                .policy
+                .omega_of_region(s.decision_point as usize, &s.region)
+            {
                 OmegaChoice::Exact(w) | OmegaChoice::Nearest(w) => w.to_vec(),
                 OmegaChoice::FullKf(i) => {
-                    let mut w = vec![0.0; strategy.deltas.len()];
+                    let mut w = vec![0.0; strategy.policy.deltas.len()];
                     if let Some(x) = w.get_mut(i) {
                         *x = 1.0;
                     }
@@ -221,6 +224,7 @@ pub fn predict(
 /// checked, under its own channel).
 pub fn scenario_of(strategy: &Strategy) -> Result<Scenario, PredictError> {
     strategy
+        .policy
         .scenario()
         .map_err(|e| PredictError::Scenario(e.to_string()))
 }
@@ -244,18 +248,21 @@ impl OnPolicy {
     /// ±, the per-leg energy, the certified bounds of the first rebuild
     /// (`certified`, at `level`) and every rebuild under `diagnostics`.
     pub fn stand_by(&self, strategy: &mut Strategy, certified: &Certified, level: f64) {
-        strategy.predicted = Some(self.combined.mean.prediction());
-        strategy.predicted_ci95 = Some(self.combined.ci95.ci95());
-        strategy.prediction_basis = basis(&self.replicas);
-        strategy.leg_energy = Some(self.leg_energy.clone());
-        strategy.certified = Some(etp_shared::strategy::CertifiedPrediction {
+        strategy.predictions.predicted = Some(self.combined.mean.prediction());
+        strategy.predictions.predicted_ci95 = Some(self.combined.ci95.ci95());
+        strategy.predictions.prediction_basis = basis(&self.replicas);
+        strategy.predictions.leg_energy = Some(self.leg_energy.clone());
+        strategy.predictions.certified = Some(etp_shared::strategy::CertifiedPrediction {
             confidence: level,
             p_target_low: certified.p_target_low,
             p_collision_high: certified.p_collision_high,
             energy_high: certified.energy_high,
             covers_aggregation: true,
         });
-        let d = strategy.diagnostics.get_or_insert_with(Default::default);
+        let d = strategy
+            .predictions
+            .diagnostics
+            .get_or_insert_with(Default::default);
         d.rebuilds = self
             .replicas
             .iter()

@@ -95,14 +95,14 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
                 .with_context(|| format!("reading {}", path.display()))?;
             let st = Strategy::from_sealed_json(&s)
                 .with_context(|| format!("loading strategy {}", path.display()))?;
-            let text = match (&a.scenario, &st.scenario_toml) {
+            let text = match (&a.scenario, &st.policy.scenario_toml) {
                 (Some(arg), _) => scenario_text(arg)?,
                 (None, Some(t)) => t.clone(),
-                (None, None) => scenario_text(&st.scenario_name).with_context(|| {
+                (None, None) => scenario_text(&st.policy.scenario_name).with_context(|| {
                     format!(
                         "strategy {} names scenario `{}`",
                         path.display(),
-                        st.scenario_name
+                        st.policy.scenario_name
                     )
                 })?,
             };
@@ -144,10 +144,11 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
     // first and then re-stamped with the run text's hash.
     let own = ScenarioText::parse(text).context("scenario")?;
     if let Some(st) = &strategy_in {
-        st.check_scenario(&own.scenario)
+        st.policy
+            .check_scenario(&own.scenario)
             .context("strategy and scenario")?;
     }
-    let recorded = strategy_in.as_ref().and_then(|st| st.radio.as_ref());
+    let recorded = strategy_in.as_ref().and_then(|st| st.policy.radio.as_ref());
     let own_radio = own
         .scenario
         .radio
@@ -172,8 +173,8 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         Some(mut st) => {
             // Checked against its own text above; the run's text carries the
             // channel (and so another hash when it is not the text's own).
-            st.scenario_hash = scenario.content_hash.clone();
-            st.radio = None;
+            st.policy.scenario_hash = scenario.content_hash.clone();
+            st.policy.radio = None;
             st
         }
         None => {
@@ -200,7 +201,7 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
     // Under another channel than its own, the strategy file's predictions
     // (the MDP's, of its own channel) are not the run's: the in-process
     // simulation under the run's channel predicts instead.
-    let (sensor_energy_per_episode, prediction_from) = match strategy.sensor_energy(&scenario) {
+    let (sensor_energy_per_episode, prediction_from) = match strategy.predictions.sensor_energy(&scenario) {
         Some(e) if a.strategy.is_some() && !robustness => (
             e,
             "the MDP: the strategy's expected energy per leg (strategy.json `leg_energy`: occupation measure × segment energy on its rebuilds, scaled to sum to `predicted`), summed over each sensor's legs".to_string(),
@@ -214,24 +215,24 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
                 } else {
                     ""
                 };
-                strategy.predicted = Some(Prediction {
+                strategy.predictions.predicted = Some(Prediction {
                     p_target: sim.p_target.value,
                     p_collision: sim.p_collision.value,
                     p_free: sim.p_free.value,
                     energy_mean: sim.energy_mean.value,
                 });
-                strategy.predicted_ci95 = Some(etp_shared::strategy::PredictionCi95 {
+                strategy.predictions.predicted_ci95 = Some(etp_shared::strategy::PredictionCi95 {
                     p_target: sim.p_target.ci95,
                     p_collision: sim.p_collision.ci95,
                     energy_mean: sim.energy_mean.ci95,
                 });
-                strategy.prediction_basis = format!(
+                strategy.predictions.prediction_basis = format!(
                     "in-process simulation{under}, {predict_episodes} episodes (seed {})",
                     a.seed()
                 );
-                strategy.label = format!(
+                strategy.provenance.label = format!(
                     "{} (prediction: in-process simulation{under}, {predict_episodes} episodes)",
-                    strategy.label
+                    strategy.provenance.label
                 );
             }
             (
@@ -248,7 +249,7 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
             )
         }
     };
-    strategy.scenario_toml = Some(text.clone());
+    strategy.policy.scenario_toml = Some(text.clone());
 
     let dir = dir.to_path_buf();
     let scenario_path = dir.join("scenario.toml");

@@ -20,12 +20,14 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
     let syn = Synthesis::load(&a.dir, Some(a.out.output.as_deref().unwrap_or(&a.strategy)))?;
     let (mut strategy, _) = etp_runtime::strategy_arg::load_strategy(&a.strategy)
         .with_context(|| format!("etp strategy evaluate {}", a.strategy.display()))?;
-    if strategy.scenario_hash != syn.mdp.scenario_hash || strategy.deltas != syn.mdp.deltas {
+    if strategy.policy.scenario_hash != syn.mdp.scenario_hash
+        || strategy.policy.deltas != syn.mdp.deltas
+    {
         bail!(
             "{}: a strategy of {} (hash {:.12}…), not of {}'s {} (hash {:.12}…) with its thresholds",
             a.strategy.display(),
-            strategy.scenario_name,
-            strategy.scenario_hash,
+            strategy.policy.scenario_name,
+            strategy.policy.scenario_hash,
             a.dir.display(),
             syn.mdp.scenario_name,
             syn.mdp.scenario_hash
@@ -49,7 +51,7 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
     );
     let started = Instant::now();
     // The rebuilds simulate the strategy under DIR's channel.
-    strategy.radio.clone_from(&syn.front.radio);
+    strategy.policy.radio.clone_from(&syn.front.radio);
     let on_policy = predict(
         &syn.scenario,
         &params,
@@ -63,13 +65,17 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
     let certified = on_policy.certify_first(a.confidence, cost)?;
     let first = on_policy.first();
     on_policy.stand_by(&mut strategy, &certified, a.confidence);
-    if let Some(d) = strategy.diagnostics.as_mut() {
+    if let Some(d) = strategy.predictions.diagnostics.as_mut() {
         d.rounds.clear();
     }
-    strategy.label = format!("{} — predicted on {}", strategy.label, a.dir.display());
-    strategy.aggregation = None;
+    strategy.provenance.label = format!(
+        "{} — predicted on {}",
+        strategy.provenance.label,
+        a.dir.display()
+    );
+    strategy.predictions.aggregation = None;
     if a.prediction.aggregation_check > 0 {
-        strategy.aggregation =
+        strategy.predictions.aggregation =
             predictions::aggregation_check(&strategy, a.prediction.aggregation_check, a.out.json)?;
     }
     write_new(&syn.output, strategy.to_json().as_bytes(), a.out.force)?;
@@ -77,7 +83,7 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
     if a.out.json {
         let mut m = serde_json::Map::new();
         m.insert("strategy".into(), json!(syn.output));
-        m.insert("label".into(), json!(strategy.label));
+        m.insert("label".into(), json!(strategy.provenance.label));
         m.insert("verdict".into(), json!("evaluated"));
         m.extend(predictions::json_fields(&strategy));
         if let Some(serde_json::Value::Object(d)) = m.get_mut("diagnostics") {
@@ -93,7 +99,7 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
             serde_json::to_string_pretty(&serde_json::Value::Object(m))?
         );
     } else {
-        println!("{}", strategy.label);
+        println!("{}", strategy.provenance.label);
         print!("{}", predictions::text_of(&strategy));
         println!(
             "  rebuilds: {} × {} states, {} segments, {seconds:.1} s",

@@ -74,14 +74,14 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
     let mut strategy = syn.strategy_of(mdp, &omega, value, &label);
     let unmatched = selection_diagnostics(&mut strategy, mdp, &omega, cost, level)?;
     if a.prediction.aggregation_check > 0 {
-        strategy.aggregation =
+        strategy.predictions.aggregation =
             predictions::aggregation_check(&strategy, a.prediction.aggregation_check, a.out.json)?;
     }
     write_new(&syn.output, strategy.to_json().as_bytes(), a.out.force)?;
     if a.out.json {
         let mut m = serde_json::Map::new();
         m.insert("strategy".into(), json!(syn.output));
-        m.insert("label".into(), json!(strategy.label));
+        m.insert("label".into(), json!(strategy.provenance.label));
         m.insert("verdict".into(), json!("quick"));
         m.extend(predictions::json_fields(&strategy));
         if let Some(serde_json::Value::Object(d)) = m.get_mut("diagnostics") {
@@ -94,7 +94,7 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
             serde_json::to_string_pretty(&serde_json::Value::Object(m))?
         );
     } else {
-        println!("{}", strategy.label);
+        println!("{}", strategy.provenance.label);
         println!(
             "  QUICK: no prediction — the values below are the strategy's on the MDP it was selected on, BIASED (the optimiser's pick, other strategies' beliefs in the pools); `etp strategy evaluate {} {}` predicts it",
             syn.output.display(),

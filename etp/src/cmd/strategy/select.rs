@@ -27,7 +27,10 @@ pub fn selection_diagnostics(
     level: f64,
 ) -> Result<Option<f64>> {
     let a = certified::assess(mdp, omega, cost, level)?;
-    let d = strategy.diagnostics.get_or_insert_with(Default::default);
+    let d = strategy
+        .predictions
+        .diagnostics
+        .get_or_insert_with(Default::default);
     d.selection.crossfit = a.crossfit.as_ref().map(|c| c.objectives.prediction());
     d.selection.crossfit_ci95 = a.crossfit.as_ref().map(|c| c.ci95());
     d.selection.certified = Some(a.certified);
@@ -111,14 +114,14 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
         .on_policy
         .stand_by(&mut strategy, &outcome.certified, level);
     let unmatched = selection_diagnostics(&mut strategy, mdp, &outcome.omega, cost, level)?;
-    if let Some(d) = strategy.diagnostics.as_mut() {
+    if let Some(d) = strategy.predictions.diagnostics.as_mut() {
         d.rounds = outcome.rounds.iter().map(|r| r.record()).collect();
     }
     if outcome.verdict != Verdict::Met {
-        strategy.label = format!("{label} — OUT OF REACH: the closest strategy found");
+        strategy.provenance.label = format!("{label} — OUT OF REACH: the closest strategy found");
     }
     if a.prediction.aggregation_check > 0 {
-        strategy.aggregation =
+        strategy.predictions.aggregation =
             predictions::aggregation_check(&strategy, a.prediction.aggregation_check, a.out.json)?;
     }
     write_new(&syn.output, strategy.to_json().as_bytes(), a.out.force)?;
@@ -155,7 +158,7 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
 
 /// By how much the kept strategy's prediction misses the request.
 fn miss_text(request: Request, s: &Strategy) -> String {
-    let (Some(p), Some(h)) = (s.predicted, s.predicted_ci95) else {
+    let (Some(p), Some(h)) = (s.predictions.predicted, s.predictions.predicted_ci95) else {
         return "no prediction".into();
     };
     match request {
@@ -173,7 +176,7 @@ fn miss_text(request: Request, s: &Strategy) -> String {
                     p.p_collision, h.p_collision
                 ));
             }
-            if let Some(c) = &s.certified.filter(|c| c.covers_aggregation) {
+            if let Some(c) = &s.predictions.certified.filter(|c| c.covers_aggregation) {
                 t.push_str(&format!(
                     " (certified P_tar ≥ {:.4}, P_coll ≤ {:.4})",
                     c.p_target_low, c.p_collision_high
@@ -227,7 +230,7 @@ impl Report<'_> {
         let o = self.outcome;
         let mut m = serde_json::Map::new();
         m.insert("strategy".into(), json!(self.syn.output));
-        m.insert("label".into(), json!(self.strategy.label));
+        m.insert("label".into(), json!(self.strategy.provenance.label));
         m.insert(
             "verdict".into(),
             json!(match self.request {
@@ -266,7 +269,7 @@ impl Report<'_> {
     fn text(&self) -> String {
         let o = self.outcome;
         let s = self.strategy;
-        let mut t = format!("{}\n", s.label);
+        let mut t = format!("{}\n", s.provenance.label);
         t.push_str(&predictions::text_of(s));
         match (self.request, o.verdict) {
             (Request::Vertex(_), _) => {}
