@@ -33,7 +33,7 @@ pub enum StrategyArgError {
 
 /// The strategy of file `path` (its seal checked) and its scenario: the
 /// embedded text, else the built-in of that name, hash checked, under the
-/// channel the strategy was synthesized for ([`Strategy::scenario`]).
+/// channel the strategy was synthesized for ([`Policy::scenario`](etp_shared::strategy::Policy::scenario)).
 pub fn load_strategy(path: &Path) -> Result<(Strategy, Scenario), StrategyArgError> {
     let text = std::fs::read_to_string(path).map_err(|source| StrategyArgError::Read {
         path: path.to_path_buf(),
