@@ -101,8 +101,7 @@ pub struct AgentProcess;
 impl shell::Process for AgentProcess {
     const NAME: &'static str = "etp-agent";
     type Args = Args;
-    type Error = AgentError;
-    fn body(args: &Args) -> Result<Done, AgentError> {
+    fn body(args: &Args) -> anyhow::Result<Done> {
         let _span = tracing::info_span!("agent").entered();
         let (exit, stats) = run(args)?;
         tracing::info!(?exit, ?stats, "agent done");

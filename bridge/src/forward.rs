@@ -48,23 +48,10 @@ pub const STALL: Duration = Duration::from_millis(250);
 /// stopped reading.
 pub const CLOSED: Duration = crate::session::STALLED_PEER_CLOSE;
 
-/// Puts held up by a stalled peer, per sensor: how many, the longest, the
-/// host the sensor's downlink goes to (on the agent host), and whether that
-/// host was closed for not reading and refused for the rest of the run
-/// (then how many of the sensor's messages were not sent).
-#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
-pub struct Stall {
-    pub puts: u64,
-    pub longest_ms: u64,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub host: Option<String>,
-    #[serde(default)]
-    pub refused: bool,
-    #[serde(default)]
-    pub dropped: u64,
-}
+/// Puts held up by a stalled peer, per sensor (the record `etp run` reads
+/// from the `stalled` line).
+pub use etp_runtime::report::Stall;
 
-/// Per-sensor stalls, shared by the outbound threads.
 pub type Stalls = Arc<Mutex<BTreeMap<usize, Stall>>>;
 
 /// Who a remote sensor's downlink goes to (agent host).

@@ -137,12 +137,11 @@ pub struct BridgeProcess;
 impl etp_runtime::shell::Process for BridgeProcess {
     const NAME: &'static str = "etp-bridge";
     type Args = Cli;
-    type Error = BridgeError;
-    fn body(cli: &Cli) -> Result<etp_runtime::shell::Done, BridgeError> {
+    fn body(cli: &Cli) -> anyhow::Result<etp_runtime::shell::Done> {
         match cli {
             Cli::AgentHost(a) => agent_host::run(a),
             Cli::SensorHost(a) => sensor_host::run(a),
-        }
-        .map(|()| etp_runtime::shell::Done::Quiet)
+        }?;
+        Ok(etp_runtime::shell::Done::Quiet)
     }
 }

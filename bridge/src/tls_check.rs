@@ -34,27 +34,18 @@ pub struct Cause {
     pub text: String,
 }
 
-/// A date `YYYY-MM-DD HH:MM:SS UTC` of a Unix time (a certificate's bound).
+/// A certificate's bound as an RFC 3339 UTC date (`2026-12-31T23:59:59Z`);
+/// past the year 9999 (which RFC 3339 cannot write) the seconds since 1970.
 pub fn utc(t: UnixTime) -> String {
     let secs = t.as_secs();
-    let (days, rem) = (secs / 86_400, secs % 86_400);
-    // Civil from days (H. Hinnant's algorithm), days since 1970-01-01.
-    let z = days as i64 + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z.rem_euclid(146_097);
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!(
-        "{y:04}-{m:02}-{d:02} {:02}:{:02}:{:02} UTC",
-        rem / 3600,
-        rem % 3600 / 60,
-        rem % 60
-    )
+    if secs >= LAST_RFC3339_SECOND {
+        return format!("{secs} s after 1970-01-01 UTC");
+    }
+    humantime::format_rfc3339_seconds(std::time::UNIX_EPOCH + Duration::from_secs(secs)).to_string()
 }
+
+/// The first second of the year 10000.
+const LAST_RFC3339_SECOND: u64 = 253_402_300_800;
 
 /// The cause of a rustls error, seen from the end that verified (or was
 /// refused by) the other's certificate.
@@ -296,19 +287,23 @@ mod tests {
     fn dates_are_utc_calendar_dates() {
         assert_eq!(
             utc(UnixTime::since_unix_epoch(Duration::ZERO)),
-            "1970-01-01 00:00:00 UTC"
+            "1970-01-01T00:00:00Z"
         );
         assert_eq!(
             utc(UnixTime::since_unix_epoch(Duration::from_secs(
                 951_782_400 + 3_723
             ))),
-            "2000-02-29 01:02:03 UTC"
+            "2000-02-29T01:02:03Z"
         );
         assert_eq!(
             utc(UnixTime::since_unix_epoch(Duration::from_secs(
                 1_798_761_599
             ))),
-            "2026-12-31 23:59:59 UTC"
+            "2026-12-31T23:59:59Z"
+        );
+        assert_eq!(
+            utc(UnixTime::since_unix_epoch(Duration::from_secs(u64::MAX))),
+            format!("{} s after 1970-01-01 UTC", u64::MAX)
         );
     }
 

@@ -110,7 +110,6 @@ pub struct CoordinatorProcess;
 impl shell::Process for CoordinatorProcess {
     const NAME: &'static str = "etp-coordinator";
     type Args = Args;
-    type Error = anyhow::Error;
     fn body(args: &Args) -> anyhow::Result<Done> {
         let _span = tracing::info_span!("coordinator").entered();
         let report = run(args).context("coordinator")?;

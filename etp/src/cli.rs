@@ -45,7 +45,7 @@ pub enum Command {
     /// Run a strategy as processes (coordinator, agent, one per sensor) over iceoryx2.
     Run(crate::cmd::run::Args),
     /// Serve remote sensors of a run on this host (`etp run --listen … --remote …` on the agent host).
-    SensorHost(crate::cmd::run::sensor_host::Args),
+    SensorHost(crate::cmd::sensor_host::Args),
     /// Key material of an authenticated, encrypted run across hosts:
     /// `etp certs init DIR` (then `--tls DIR` on `run` and `sensor-host`).
     Certs(crate::cmd::certs::Args),

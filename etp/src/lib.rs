@@ -24,6 +24,8 @@ pub mod cli;
 pub mod cmd;
 pub mod front;
 pub mod input;
+pub mod mdp_build;
+pub mod multiprocess;
 pub mod output;
 pub mod predictions;
 pub mod processes;

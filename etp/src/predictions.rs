@@ -66,7 +66,7 @@ pub fn aggregation_check(
     let pb = progress::bar(episodes, "aggregation check", quiet);
     let sum = etp_synthesis::validate::simulate_strategy(
         &scenario,
-        strategy,
+        &strategy.policy,
         episodes,
         AGGREGATION_CHECK_SEED,
         &|k| pb.inc(k),

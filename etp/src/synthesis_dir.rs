@@ -8,10 +8,15 @@ use etp_shared::radio::RadioOverride;
 use etp_shared::scenario::{Scenario, ScenarioText, builtin_text};
 use etp_shared::strategy::Strategy;
 use etp_shared::trigger::TriggerFamily;
+use etp_synthesis::abstraction;
+use etp_synthesis::certify::robust::Certified;
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::ParetoFront;
 use etp_synthesis::pareto::policy::{Objectives, RandomisedPolicy};
 use etp_synthesis::pareto::to_strategy;
+use etp_synthesis::predict::rebuild::{self, OnPolicy};
+use etp_synthesis::predict::request::{Goal, LoopSettings, Outcome, meet_request};
+use indicatif::ProgressBar;
 use std::path::{Path, PathBuf};
 
 /// A synthesis directory, loaded for selection.
@@ -93,6 +98,59 @@ impl Synthesis {
         s.policy.scenario_toml.clone_from(&self.scenario_text);
         s.policy.radio.clone_from(&self.front.radio);
         s
+    }
+
+    /// `strategy`'s prediction from `replicates` rebuilds of this synthesis
+    /// (docs/MODEL.md §7.4) and the first rebuild's certified bounds at
+    /// `level`; the rebuilds' segments counted on `pb`.
+    pub fn predict(
+        &self,
+        strategy: &Strategy,
+        replicates: u32,
+        level: f64,
+        pb: &ProgressBar,
+    ) -> Result<(OnPolicy, Certified)> {
+        let params = abstraction::params_of(&self.mdp);
+        let on_policy = rebuild::predict(
+            &self.scenario,
+            &params,
+            &strategy.policy,
+            replicates,
+            self.cost(),
+            Vec::new(),
+            &|k| pb.inc(k),
+        )?;
+        let certified = on_policy.certify_first(level, self.cost())?;
+        Ok((on_policy, certified))
+    }
+
+    /// The request loop (`meet_request`) for `goal` on `mdp` (this
+    /// synthesis's or a refinement of it), rebuilding on this synthesis's
+    /// scenario and parameters; `pb` grows by each round's rebuilds and
+    /// counts their segments.
+    pub fn meet(
+        &self,
+        mdp: &Mdp,
+        goal: Goal,
+        settings: LoopSettings,
+        level: f64,
+        make: &dyn Fn(&RandomisedPolicy, Objectives) -> Strategy,
+        pb: &ProgressBar,
+    ) -> Result<Outcome> {
+        let params = abstraction::params_of(&self.mdp);
+        let units = rebuild::progress_units(&self.scenario, &params);
+        Ok(meet_request(
+            mdp,
+            self.cost(),
+            &self.scenario,
+            &params,
+            goal,
+            settings,
+            level,
+            make,
+            &|n| pb.inc_length(u64::from(n) * units),
+            &|k| pb.inc(k),
+        )?)
     }
 }
 

@@ -29,7 +29,6 @@ where
     DB::ErrorType: 'static,
 {
     let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
-    root.fill(&WHITE).map_err(e)?;
     let all: Vec<(f64, f64, f64)> = front
         .vertices
         .iter()
@@ -62,15 +61,13 @@ where
         .max(t_nominal - 0.2);
     let y_lo = (t_min - 0.02).max(0.0);
     let bounds = collision_bounds(front);
-    let area = root
-        .titled(
-            &format!(
-                "Pareto front of {}: least expected energy for each P_tar, per bound on P_coll",
-                front.scenario_name
-            ),
-            ("sans-serif", 20),
-        )
-        .map_err(e)?;
+    let area = crate::titled_area(
+        root,
+        &format!(
+            "Pareto front of {}: least expected energy for each P_tar, per bound on P_coll",
+            front.scenario_name
+        ),
+    )?;
     let mut chart = ChartBuilder::on(&area)
         .caption(
             format!(
@@ -86,14 +83,12 @@ where
         .y_label_area_size(70)
         .build_cartesian_2d(0.0..e_max, y_lo..1.005)
         .map_err(e)?;
-    chart
-        .configure_mesh()
-        .x_desc("expected energy per episode (transmissions × cost)")
-        .y_desc("P_tar (probability of reaching the target)")
-        .label_style(("sans-serif", 15))
-        .axis_desc_style(("sans-serif", 16))
-        .draw()
-        .map_err(e)?;
+    crate::draw_axes(
+        &mut chart,
+        "expected energy per episode (transmissions × cost)",
+        "P_tar (probability of reaching the target)",
+        (15, 16),
+    )?;
     // One curve per P_coll bound: the (energy, P_tar) frontier of the
     // vertices whose P_coll is within the bound (only the non-dominated
     // vertices in that plane; mixtures lie on the segments between them).
@@ -178,14 +173,7 @@ where
             .label("Method 1 (KF convergence), any P_coll")
             .legend(|(x, y)| Cross::new((x, y), 5, RGBColor(0, 120, 0).stroke_width(2)));
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        .position(SeriesLabelPosition::LowerRight)
-        .draw()
-        .map_err(e)?;
+    crate::draw_legend(&mut chart, SeriesLabelPosition::LowerRight, 14, 0.8)?;
     Ok(())
 }
 

@@ -86,18 +86,15 @@ impl super::Figure for FrontsFigure<'_> {
         DB::ErrorType: 'static,
     {
         let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
-        root.fill(&WHITE).map_err(e)?;
-        let area = root
-            .titled(
-                &format!(
-                    "What {} cost{} ({}): least expected energy per P_tar",
-                    self.what,
-                    if self.what.ends_with('s') { "" } else { "s" },
-                    self.scenario
-                ),
-                ("sans-serif", 20),
-            )
-            .map_err(e)?;
+        let area = crate::titled_area(
+            root,
+            &format!(
+                "What {} cost{} ({}): least expected energy per P_tar",
+                self.what,
+                if self.what.ends_with('s') { "" } else { "s" },
+                self.scenario
+            ),
+        )?;
         let cells = area.split_evenly((1, self.panels.len().max(1)));
         // One scale for every panel, so that they compare.
         let all = self
@@ -130,14 +127,12 @@ impl super::Figure for FrontsFigure<'_> {
                 .y_label_area_size(70)
                 .build_cartesian_2d((t_lo - pad)..(t_hi + pad).min(1.0 + pad), 0.0..e_hi * 1.08)
                 .map_err(e)?;
-            chart
-                .configure_mesh()
-                .x_desc("P_tar (probability of reaching the target)")
-                .y_desc("least expected energy per episode (attempts × cost)")
-                .label_style(("sans-serif", 15))
-                .axis_desc_style(("sans-serif", 16))
-                .draw()
-                .map_err(e)?;
+            crate::draw_axes(
+                &mut chart,
+                "P_tar (probability of reaching the target)",
+                "least expected energy per episode (attempts × cost)",
+                (15, 16),
+            )?;
             for (i, c) in panel.curves.iter().enumerate() {
                 let colour = PALETTE[i % PALETTE.len()];
                 chart
@@ -166,14 +161,7 @@ impl super::Figure for FrontsFigure<'_> {
                     )
                     .map_err(e)?;
             }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 14))
-                .position(SeriesLabelPosition::UpperLeft)
-                .draw()
-                .map_err(e)?;
+            crate::draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, 14, 0.8)?;
         }
         Ok(())
     }

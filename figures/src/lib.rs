@@ -34,7 +34,8 @@ pub use map::map_plot;
 pub use report::{Bar, RunFigure, mean_ci, proportion, report_plot, short_label};
 pub use trigger_curves::{FamilySeries, RatePoint, trigger_curves_plot};
 
-use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
+use plotters::coord::{CoordTranslate, Shift};
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::Once;
@@ -61,6 +62,61 @@ pub type Result<T> = std::result::Result<T, FigureError>;
 /// A drawing error of plotters as a [`FigureError::Plot`].
 pub(crate) fn plot_error<E: std::fmt::Debug>(e: E) -> FigureError {
     FigureError::Plot(format!("{e:?}"))
+}
+
+/// A white figure with its title (20 pt): the area left for the panels.
+pub(crate) fn titled_area<'a, DB: DrawingBackend>(
+    root: &'a DrawingArea<DB, Shift>,
+    title: &str,
+) -> Result<DrawingArea<DB, Shift>>
+where
+    DB::ErrorType: 'static,
+{
+    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
+    root.fill(&WHITE).map_err(e)?;
+    root.titled(title, ("sans-serif", 20)).map_err(e)
+}
+
+/// The axes of a chart of two real axes: their descriptions, the tick
+/// labels `sizes.0` pt and the descriptions `sizes.1` pt.
+pub(crate) fn draw_axes<'a, DB: DrawingBackend + 'a>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    x_desc: &str,
+    y_desc: &str,
+    sizes: (u32, u32),
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .label_style(("sans-serif", sizes.0))
+        .axis_desc_style(("sans-serif", sizes.1))
+        .draw()
+        .map_err(plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>)
+}
+
+/// The legend box of a chart: framed, on white of opacity `opacity`, its
+/// labels `font` pt, in the corner `at`.
+pub(crate) fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    at: SeriesLabelPosition,
+    font: u32,
+    opacity: f64,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(opacity))
+        .border_style(BLACK)
+        .label_font(("sans-serif", font))
+        .position(at)
+        .draw()
+        .map_err(plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>)
 }
 
 static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");

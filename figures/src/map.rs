@@ -252,14 +252,7 @@ where
                 )
         }))
         .map_err(e)?;
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 13))
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()
-        .map_err(e)?;
+    crate::draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, 13, 0.85)?;
     Ok(())
 }
 

@@ -30,9 +30,7 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, fig: &RunFigure) -> R
 where
     DB::ErrorType: 'static,
 {
-    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
-    root.fill(&WHITE).map_err(e)?;
-    let area = root.titled(&fig.title, ("sans-serif", 20)).map_err(e)?;
+    let area = crate::titled_area(root, &fig.title)?;
     let (left, right) = area.split_horizontally(740);
     let top = fig
         .sensors
@@ -144,13 +142,6 @@ where
         .map_err(e)?
         .label("predicted")
         .legend(move |(x, y)| TriangleMarker::new((x, y), 6, orange.filled()));
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 13))
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(e)?;
+    crate::draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 13, 0.85)?;
     Ok(())
 }

@@ -60,16 +60,13 @@ impl super::Figure for CurvesFigure<'_> {
         DB::ErrorType: 'static,
     {
         let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
-        root.fill(&WHITE).map_err(e)?;
-        let area = root
-            .titled(
-                &format!(
-                    "Trigger families on {}: estimation error vs communication rate (one point per δ, ± 95 %)",
-                    self.scenario
-                ),
-                ("sans-serif", 20),
-            )
-            .map_err(e)?;
+        let area = crate::titled_area(
+            root,
+            &format!(
+                "Trigger families on {}: estimation error vs communication rate (one point per δ, ± 95 %)",
+                self.scenario
+            ),
+        )?;
         let cells = area.split_evenly((1, 3));
         let pts = || self.series.iter().flat_map(|s| s.points.iter());
         let (r_lo, r_hi) = bounds(pts().flat_map(|p| [p.rate.0 - p.rate.1, p.rate.0 + p.rate.1]));
@@ -98,14 +95,12 @@ impl super::Figure for CurvesFigure<'_> {
                 .y_label_area_size(70)
                 .build_cartesian_2d(r_lo..r_hi, y_lo.max(0.0)..y_hi)
                 .map_err(e)?;
-            chart
-                .configure_mesh()
-                .x_desc("communication rate (transmissions per slot)")
-                .y_desc(desc)
-                .label_style(("sans-serif", 14))
-                .axis_desc_style(("sans-serif", 15))
-                .draw()
-                .map_err(e)?;
+            crate::draw_axes(
+                &mut chart,
+                "communication rate (transmissions per slot)",
+                desc,
+                (14, 15),
+            )?;
             if let Some(r) = reference {
                 chart
                     .draw_series(LineSeries::new(
@@ -143,14 +138,7 @@ impl super::Figure for CurvesFigure<'_> {
                     )
                     .map_err(e)?;
             }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 13))
-                .position(SeriesLabelPosition::UpperRight)
-                .draw()
-                .map_err(e)?;
+            crate::draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 13, 0.8)?;
         }
         // The rate against δ: measured (points) and closed form (dashed).
         let (d_lo, d_hi) = bounds(pts().map(|p| p.delta));
@@ -164,14 +152,12 @@ impl super::Figure for CurvesFigure<'_> {
             .y_label_area_size(70)
             .build_cartesian_2d(d_lo.max(-0.05)..d_hi, 0.0..1.05)
             .map_err(e)?;
-        chart
-            .configure_mesh()
-            .x_desc("threshold δ")
-            .y_desc("communication rate (transmissions per slot)")
-            .label_style(("sans-serif", 14))
-            .axis_desc_style(("sans-serif", 15))
-            .draw()
-            .map_err(e)?;
+        crate::draw_axes(
+            &mut chart,
+            "threshold δ",
+            "communication rate (transmissions per slot)",
+            (14, 15),
+        )?;
         for (i, s) in self.series.iter().enumerate() {
             let colour = PALETTE[i % PALETTE.len()];
             chart
@@ -191,14 +177,7 @@ impl super::Figure for CurvesFigure<'_> {
                 .label(s.name.clone())
                 .legend(move |(x, y)| Circle::new((x, y), 4, colour.filled()));
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 13))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(e)?;
+        crate::draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 13, 0.8)?;
         Ok(())
     }
 }

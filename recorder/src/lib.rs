@@ -283,7 +283,6 @@ pub struct RecorderProcess;
 impl shell::Process for RecorderProcess {
     const NAME: &'static str = "etp-recorder";
     type Args = Cli;
-    type Error = anyhow::Error;
     fn body(cli: &Cli) -> anyhow::Result<Done> {
         let file = create_output(&cli.out)?;
         let mut ready = false;

@@ -322,7 +322,7 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
         "scenario": scenario,
         "seed": num("seed"),
         "strategy": strategy.as_ref().map(|s| s.provenance.label.clone()),
-        "delta": strategy.as_ref().and_then(crate::vocab::constant_delta),
+        "delta": strategy.as_ref().and_then(|s| crate::vocab::constant_delta(&s.policy)),
         "predicted": crate::vocab::prediction(strategy.as_ref().and_then(|s| s.predictions.predicted.as_ref())),
         "predicted_ci95": strategy.as_ref().and_then(|s| s.predictions.predicted_ci95).map(|c| json!({
             "p_target": c.p_target, "p_collision": c.p_collision, "energy_mean": c.energy_mean})),

@@ -21,7 +21,7 @@
 //!
 //! Numbers are JSON numbers, never strings.
 
-use etp_shared::strategy::{Prediction, PredictionCi95, Strategy};
+use etp_shared::strategy::{Policy, Prediction, PredictionCi95};
 use serde_json::{Value, json};
 
 /// A measurement with its 95 % half-width.
@@ -99,11 +99,11 @@ pub fn prediction(p: Option<&Prediction>) -> Value {
     })
 }
 
-/// The constant threshold of a strategy (every state's ω puts all its mass
-/// on one δ, the same everywhere); `None` when δ varies.
-pub fn constant_delta(s: &Strategy) -> Option<f64> {
+/// The constant threshold of a strategy's policy (every state's ω puts all
+/// its mass on one δ, the same everywhere); `None` when δ varies.
+pub fn constant_delta(policy: &Policy) -> Option<f64> {
     let mut index = None;
-    for st in &s.policy.states {
+    for st in &policy.states {
         let (k, w) = st
             .omega
             .iter()
@@ -114,7 +114,7 @@ pub fn constant_delta(s: &Strategy) -> Option<f64> {
         }
         index = Some(k);
     }
-    s.policy.deltas.get(index?).copied()
+    policy.deltas.get(index?).copied()
 }
 
 /// An energy or count-like float without the noise of its last bits

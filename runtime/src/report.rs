@@ -130,3 +130,20 @@ pub struct SessionInfo {
     /// Indices of the sensors served from other hosts.
     pub remote: Vec<usize>,
 }
+
+/// Puts towards one remote sensor held up by a peer that stopped reading:
+/// the bridge's `stalled` line, per sensor, as `etp run` reads it.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Stall {
+    pub puts: u64,
+    pub longest_ms: u64,
+    /// The host the sensor's downlink went to (agent host).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub host: Option<String>,
+    /// The host was closed for not reading and refused for the rest of the run.
+    #[serde(default)]
+    pub refused: bool,
+    /// The sensor's messages not sent since (its host refused).
+    #[serde(default)]
+    pub dropped: u64,
+}

@@ -58,10 +58,9 @@ pub trait Process {
     const NAME: &'static str;
     /// Its command line.
     type Args: clap::Parser;
-    /// What its body fails with.
-    type Error: Into<anyhow::Error>;
-    /// The process's own work.
-    fn body(args: &Self::Args) -> Result<Done, Self::Error>;
+    /// The process's own work; its error (with its causes) is the process's
+    /// last line on stderr.
+    fn body(args: &Self::Args) -> anyhow::Result<Done>;
 }
 
 /// THE entry point of every process (`main` of its binary, and `etp process
@@ -96,7 +95,6 @@ where
         Err(e) => {
             // The error and its causes; stderr may be closed too: never
             // panic on it.
-            let e: anyhow::Error = e.into();
             let _ = writeln!(std::io::stderr(), "{name}: error: {e:#}");
             ExitCode::FAILURE
         }
@@ -146,7 +144,6 @@ mod tests {
     impl Process for Probe {
         const NAME: &'static str = "t";
         type Args = Args;
-        type Error = anyhow::Error;
         fn body(a: &Args) -> anyhow::Result<Done> {
             if a.fail {
                 Err(anyhow::anyhow!("asked to"))

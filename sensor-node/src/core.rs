@@ -24,7 +24,9 @@
 use etp_runtime::wire::agent_to_sensor::{Ack, Handover, Truth};
 use etp_runtime::wire::coordinator_to_sensor::Threshold;
 use etp_runtime::wire::{ThresholdKind, WireVec, belief_from_wire, to_wire_vec, vec_from_wire};
-use etp_shared::episode::{CompiledScenario, LegReplica, SlotKey, SlotOutcome, belief_digest};
+use etp_shared::episode::{
+    CompiledScenario, LegReplica, RunSlot, SlotKey, SlotOutcome, belief_digest,
+};
 use etp_shared::etkf::{EtKalmanFilter, Vector};
 use etp_shared::radio::LinkChannel;
 use etp_shared::rng::streams;
@@ -316,32 +318,31 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
         let slot_in_leg = open.ledger.slots;
         let reference = replica.reference();
         let reference = reference.as_ref().map(|r| &r[..]);
-        let served = scenario.serve_run_slot(
-            &filter,
-            &prior,
-            &x,
-            open.delta,
+        let slot = RunSlot {
+            prior: &prior,
+            x: &x,
+            delta: open.delta,
             slot_in_leg,
             reference,
             key,
-            || {
-                let channel = match channel {
-                    Some((e, c)) if *e == episode => c,
-                    slot => {
-                        let c = LinkChannel::of_episode(
-                            &scenario.radio,
-                            seed,
-                            streams::AGENT,
-                            episode,
-                            self.id.index as usize,
-                        );
-                        &mut slot.insert((episode, c)).1
-                    }
-                };
-                channel.advance_to(u64::from(step));
-                channel.transmit()
-            },
-        );
+        };
+        let served = scenario.serve_run_slot(&filter, slot, || {
+            let channel = match channel {
+                Some((e, c)) if *e == episode => c,
+                slot => {
+                    let c = LinkChannel::of_episode(
+                        &scenario.radio,
+                        seed,
+                        streams::AGENT,
+                        episode,
+                        self.id.index as usize,
+                    );
+                    &mut slot.insert((episode, c)).1
+                }
+            };
+            channel.advance_to(u64::from(step));
+            channel.transmit()
+        });
         let (y, fired, sent) = (served.y, served.fired, served.sending);
         // What the agent will receive: the wire copy of y (same bits).
         let y_wire = to_wire_vec(y.as_slice());

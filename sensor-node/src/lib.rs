@@ -105,7 +105,6 @@ pub struct SensorProcess;
 impl shell::Process for SensorProcess {
     const NAME: &'static str = "etp-sensor-node";
     type Args = Args;
-    type Error = anyhow::Error;
     fn body(args: &Args) -> anyhow::Result<Done> {
         let _span = tracing::info_span!("sensor", name = %args.sensor).entered();
         let (exit, stats) = run(args).with_context(|| format!("sensor `{}`", args.sensor))?;

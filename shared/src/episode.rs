@@ -46,7 +46,7 @@ pub mod step;
 
 pub use agent_core::{AgentCore, Begun, LegRule, OpenSlot, Plant, Unseen, World, slot_update};
 pub use replica::{LegReplica, belief_digest};
-pub use step::{ServedSlot, SlotKey, SlotOutcome, serve_slot};
+pub use step::{RunSlot, ServedSlot, SlotKey, SlotOutcome, serve_slot};
 
 use crate::controller::{FeedbackController, reached};
 use crate::etkf::{
@@ -259,6 +259,38 @@ pub struct CompiledScenario<const N: usize> {
     pub trigger: TriggerFamily,
 }
 
+/// One leg's call, from [`CompiledScenario::run_leg`] through the
+/// instruction-set dispatch to the leg loop, which takes its borrows apart
+/// again (as parameters of an inlined function they keep telling the
+/// optimiser that they do not alias).
+pub(crate) struct LegCall<'a, const N: usize, R: ?Sized, O> {
+    leg: usize,
+    state: &'a mut AgentState<N>,
+    mode: &'a LegMode<N>,
+    rng: &'a mut R,
+    channels: &'a mut EpisodeChannels,
+    observer: &'a mut O,
+}
+
+impl<const N: usize, R: Rng + ?Sized, O: EpisodeObserver<N>> LegCall<'_, N, R, O> {
+    #[inline(always)]
+    fn run<const M: usize>(
+        self,
+        scenario: &CompiledScenario<N>,
+        filter: &EtKalmanFilter<N, M>,
+    ) -> LegResult {
+        let Self {
+            leg,
+            state,
+            mode,
+            rng,
+            channels,
+            observer,
+        } = self;
+        scenario.run_leg_with(filter, leg, state, mode, rng, channels, observer)
+    }
+}
+
 impl<const N: usize> CompiledScenario<N> {
     /// Convert a validated scenario; `N` must equal `scenario.dim`
     /// (use [`crate::with_dim!`]).
@@ -425,17 +457,25 @@ impl<const N: usize> CompiledScenario<N> {
         observer: &mut O,
     ) -> LegResult {
         let sensor = self.legs[leg].sensor;
+        let call = LegCall {
+            leg,
+            state,
+            mode,
+            rng,
+            channels,
+            observer: &mut *observer,
+        };
         #[cfg(target_arch = "x86_64")]
         #[allow(unsafe_code)]
         let result = if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked just above), the one
             // requirement of calling a `#[target_feature]` function.
-            unsafe { self.run_leg_avx2(sensor, leg, state, mode, rng, channels, observer) }
+            unsafe { self.run_leg_avx2(sensor, call) }
         } else {
-            on_filter!(&self.filters[sensor], f => self.run_leg_portable(f, leg, state, mode, rng, channels, observer))
+            on_filter!(&self.filters[sensor], f => self.run_leg_portable(f, call))
         };
         #[cfg(not(target_arch = "x86_64"))]
-        let result = on_filter!(&self.filters[sensor], f => self.run_leg_portable(f, leg, state, mode, rng, channels, observer));
+        let result = on_filter!(&self.filters[sensor], f => self.run_leg_portable(f, call));
         observer.on_leg_end(leg, sensor, &result);
         result
     }
@@ -451,20 +491,12 @@ impl<const N: usize> CompiledScenario<N> {
     /// slower per thread (`etp bench`, interleaved medians).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    // The leg's state travels by reference into the inlined loop: a struct
-    // of eight borrows would add nothing but a name.
-    #[allow(clippy::too_many_arguments)]
     fn run_leg_avx2<R: Rng + ?Sized, O: EpisodeObserver<N>>(
         &self,
         sensor: usize,
-        leg: usize,
-        state: &mut AgentState<N>,
-        mode: &LegMode<N>,
-        rng: &mut R,
-        channels: &mut EpisodeChannels,
-        observer: &mut O,
+        call: LegCall<'_, N, R, O>,
     ) -> LegResult {
-        on_filter!(&self.filters[sensor], f => self.run_leg_with(f, leg, state, mode, rng, channels, observer))
+        on_filter!(&self.filters[sensor], f => call.run(self, f))
     }
 
     /// [`Self::run_leg_with`] in the baseline instruction set, one function
@@ -473,18 +505,12 @@ impl<const N: usize> CompiledScenario<N> {
     /// super-linear time (the AVX2 comparison test held 36 of them: 31
     /// CPU-minutes of one rustc).
     #[inline(never)]
-    #[allow(clippy::too_many_arguments)]
     pub(crate) fn run_leg_portable<const M: usize, R: Rng + ?Sized, O: EpisodeObserver<N>>(
         &self,
         filter: &EtKalmanFilter<N, M>,
-        leg: usize,
-        state: &mut AgentState<N>,
-        mode: &LegMode<N>,
-        rng: &mut R,
-        channels: &mut EpisodeChannels,
-        observer: &mut O,
+        call: LegCall<'_, N, R, O>,
     ) -> LegResult {
-        self.run_leg_with(filter, leg, state, mode, rng, channels, observer)
+        call.run(self, filter)
     }
 
     /// The leg loop: [`AgentCore`]'s step (the one order of the step) with

@@ -9,38 +9,33 @@ use etp_shared::gaussian::expected_rate;
 use etp_shared::linalg::to_dynamic;
 use etp_shared::rng::{SimRng, stream_rng, streams};
 use etp_shared::scenario::Scenario;
-use etp_shared::strategy::Strategy;
+use etp_shared::strategy::Policy;
 use etp_shared::with_dim;
 use rand::RngExt;
 
-/// The leg policy of a strategy: classify, draw δ with one uniform from the episode's RNG.
+/// The leg policy of a strategy's policy: classify, draw δ with one uniform from the episode's RNG.
 fn strategy_policy<const N: usize>(
-    strategy: &Strategy,
+    policy: &Policy,
 ) -> impl Fn(usize, &Belief<N>, &mut SimRng) -> LegMode<N> + Sync + '_ {
-    let thresholds: Vec<Threshold> = strategy
-        .policy
-        .deltas
-        .iter()
-        .map(|&d| Threshold::new(d))
-        .collect();
+    let thresholds: Vec<Threshold> = policy.deltas.iter().map(|&d| Threshold::new(d)).collect();
     move |leg, belief, rng| {
         let u: f64 = rng.random();
-        let k = strategy.policy.draw(leg, &to_dynamic(&belief.cov), u);
+        let k = policy.draw(leg, &to_dynamic(&belief.cov), u);
         LegMode::EventTriggered(thresholds[k])
     }
 }
 
-/// Simulate `episodes` episodes of `strategy` on `scenario` (all threads, reproducible).
+/// Simulate `episodes` episodes of a strategy's `policy` on `scenario` (all threads, reproducible).
 pub fn simulate_strategy(
     scenario: &Scenario,
-    strategy: &Strategy,
+    policy: &Policy,
     episodes: u64,
     seed: u64,
     progress: &(dyn Fn(u64) + Sync),
 ) -> SimulationTotals {
     with_dim!(scenario.dim, N => {
         let c = CompiledScenario::<N>::new(scenario);
-        simulate(&c, &strategy_policy::<N>(strategy), episodes, seed, streams::VALIDATE, progress)
+        simulate(&c, &strategy_policy::<N>(policy), episodes, seed, streams::VALIDATE, progress)
     })
 }
 
@@ -89,16 +84,16 @@ impl<const N: usize> EpisodeObserver<N> for Recorder<'_, N> {
     }
 }
 
-/// The first `count` validation episodes of a seed, step by step.
+/// The first `count` validation episodes of a strategy's `policy` from a seed, step by step.
 pub fn sample_trajectories(
     scenario: &Scenario,
-    strategy: &Strategy,
+    policy: &Policy,
     count: u64,
     seed: u64,
 ) -> Vec<Trajectory> {
     with_dim!(scenario.dim, N => {
         let c = CompiledScenario::<N>::new(scenario);
-        let policy = strategy_policy::<N>(strategy);
+        let policy = strategy_policy::<N>(policy);
         (0..count)
             .map(|e| {
                 let mut rng = stream_rng(seed, streams::VALIDATE, e);

@@ -14,9 +14,8 @@ use crate::synthesis_dir::{Identity, Synthesis, check_one_scenario, identity, la
 use anyhow::{Result, bail};
 use etp_shared::stats::{Estimate, ratio};
 use etp_shared::trigger::TriggerFamily;
-use etp_synthesis::abstraction;
 use etp_synthesis::pareto::policy::Objectives;
-use etp_synthesis::predict::request::{Goal, LoopSettings, Verdict, meet_request};
+use etp_synthesis::predict::request::{Goal, LoopSettings, Verdict};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -115,25 +114,13 @@ pub fn run(a: Args) -> Result<()> {
         let mut rows = Vec::new();
         for (syn, _) in &syns {
             let started = Instant::now();
-            let params = abstraction::params_of(&syn.mdp);
-            let units = etp_synthesis::predict::rebuild::progress_units(&syn.scenario, &params);
             let make = |omega: &_, value| syn.strategy_of(&syn.mdp, omega, value, "compare");
-            let o = meet_request(
-                &syn.mdp,
-                syn.cost(),
-                &syn.scenario,
-                &params,
-                goal,
-                LoopSettings {
-                    replicates: a.replicates,
-                    max_rounds: a.rounds,
-                    certified: None,
-                },
-                LEVEL,
-                &make,
-                &|n| pb.inc_length(u64::from(n) * units),
-                &|k| pb.inc(k),
-            )?;
+            let settings = LoopSettings {
+                replicates: a.replicates,
+                max_rounds: a.rounds,
+                certified: None,
+            };
+            let o = syn.meet(&syn.mdp, goal, settings, LEVEL, &make, &pb)?;
             rows.push(Row {
                 verdict: o.verdict,
                 predicted: o.on_policy.combined.mean,

@@ -3,9 +3,10 @@
 //! processes over iceoryx2 — and one table: predicted vs in-process vs
 //! multi-process, packets per sensor, and where the plots and files are.
 
-use crate::cmd::{run as run_cmd, synthesize};
 use crate::front::write_front;
-use crate::input::scenario_text;
+use crate::input::{RadioArgs, load_scenario_with_radio, scenario_text};
+use crate::mdp_build::{MdpRequest, build_mdp};
+use crate::multiprocess;
 use crate::output::write_new;
 use crate::progress;
 use anyhow::{Context, Result};
@@ -59,7 +60,8 @@ pub fn run(a: Args) -> Result<()> {
     let stamp = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_millis() as u64);
-    let scenario = crate::input::load_scenario(&a.scenario)?;
+    // The scenario as `etp synthesize` loads it without options.
+    let scenario = load_scenario_with_radio(&a.scenario, &RadioArgs::default())?;
     let dir = a.out.clone().unwrap_or_else(|| {
         PathBuf::from("out").join(format!(
             "demo-{}-{}-{:x}",
@@ -84,37 +86,13 @@ pub fn run(a: Args) -> Result<()> {
             scenario.name, a.samples
         ),
     );
-    let sargs = synthesize::Args {
-        scenario: a.scenario.clone(),
-        method: synthesize::MethodArg::Discretized,
-        samples: a.samples,
-        // The demo keeps its time: no held-out set (strategies then report
-        // cross-fitted values as n/a; `etp synthesize` has one by default).
-        holdout_samples: Some(0),
-        seed: a.seed,
-        magnitude_bins: etp_shared::discretization::BinCounts::default().magnitude,
-        angle_bins: etp_shared::discretization::BinCounts::default().angle,
-        pool: etp_synthesis::abstraction::DEFAULT_POOL_PER_REGION,
-        descriptor: synthesize::DescriptorArg::Auto,
-        rest_bins: etp_synthesis::abstraction::DEFAULT_REST_BINS,
-        lookahead: etp_synthesis::abstraction::DEFAULT_LOOKAHEAD,
-        range: synthesize::RangeArg::Arrivals,
-        eps_kf: None,
-        eps_p: None,
-        out: Some(dir.clone()),
-        force: false,
-        json: a.json,
-        no_kf_baseline: true,
-        merge: None,
-        radio: Default::default(),
-        trigger: Default::default(),
-        aggregation_episodes: 0,
-        aggregation_alpha: 0.05,
-        split: Default::default(),
-        pool_policy: None,
-        all_actions: false,
-    };
-    let built = synthesize::build_mdp(&sargs)?;
+    // `etp synthesize`'s defaults, but no held-out sample (the demo keeps
+    // its time; strategies then report cross-fitted values as n/a) and no
+    // Method 1 baseline.
+    let mut request = MdpRequest::defaults(scenario.clone(), a.samples, a.seed);
+    request.out = Some(dir.clone());
+    request.quiet = a.json;
+    let built = build_mdp(request)?;
     let front = write_front(&built.dir, &built.mdp, None, &text, None, false)?;
 
     // 2. Strategy.
@@ -186,7 +164,7 @@ pub fn run(a: Args) -> Result<()> {
     let pb = progress::bar(a.validate_episodes, "validate", a.json);
     let sim = simulate_strategy(
         &built.scenario,
-        &strategy,
+        &strategy.policy,
         a.validate_episodes,
         a.seed,
         &|k| pb.inc(k),
@@ -196,7 +174,7 @@ pub fn run(a: Args) -> Result<()> {
     let map_stem = dir.join("strategy-map");
     etp_figures::map_plot(
         &built.scenario,
-        &sample_trajectories(&built.scenario, &strategy, 40, a.seed),
+        &sample_trajectories(&built.scenario, &strategy.policy, 40, a.seed),
         &map_stem,
     )?;
 
@@ -208,7 +186,7 @@ pub fn run(a: Args) -> Result<()> {
             a.run_episodes
         ),
     );
-    let rargs = run_cmd::Args {
+    let rargs = multiprocess::Args {
         config: None,
         strategy: Some(strategy_path.clone()),
         scenario: None,
@@ -234,7 +212,7 @@ pub fn run(a: Args) -> Result<()> {
         radio: Default::default(),
         trigger: Default::default(),
     };
-    let (mp, problems) = run_cmd::execute(&rargs)?;
+    let (mp, problems) = multiprocess::execute(&rargs)?;
 
     let p = strategy
         .predictions
@@ -259,7 +237,7 @@ pub fn run(a: Args) -> Result<()> {
     });
     if a.json {
         println!("{}", serde_json::to_string_pretty(&result)?);
-        return run_cmd::exit_for(&problems);
+        return multiprocess::exit_for(&problems);
     }
     println!(
         "\netp demo — {} — {}",
@@ -345,5 +323,5 @@ pub fn run(a: Args) -> Result<()> {
         println!("    recording      {r}  (etp replay {r})");
     }
     println!("  finished in {:.1} s", started.elapsed().as_secs_f64());
-    run_cmd::exit_for(&problems)
+    multiprocess::exit_for(&problems)
 }

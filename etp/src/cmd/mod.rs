@@ -16,6 +16,7 @@ pub mod process;
 pub mod replay;
 pub mod run;
 pub mod scenario;
+pub mod sensor_host;
 pub mod simulate;
 pub mod strategy;
 pub mod synthesize;
@@ -33,7 +34,7 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Simulate(a) => simulate::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Run(a) => run::run(a),
-        Command::SensorHost(a) => run::sensor_host::run(a),
+        Command::SensorHost(a) => sensor_host::run(a),
         Command::Certs(a) => certs::run(a),
         Command::Replay(a) => replay::run(a),
         Command::Synthesize(a) => synthesize::run(a),

@@ -1,16 +1,17 @@
 //! `etp synthesize SCENARIO`: build the belief-space MDP by Monte Carlo
 //! (docs/MODEL.md §4) and write `DIR/mdp.bin`.
 //!
-//! [`build_mdp`] is the MDP part (load, refuse to overwrite, simulate with a
-//! progress bar, write the file, measure); [`run`] prints its report. The Pareto
-//! step appends to [`run`] after [`build_mdp`].
+//! The MDP part is [`crate::mdp_build`] (shared with `demo`), given the
+//! typed request [`Args::request`] makes of the command line; [`run`] adds
+//! the Method 1 baseline, the Pareto step and the aggregation check, and
+//! prints the report.
 
 pub mod aggregation;
-pub mod split;
 
 use crate::input::{RadioArgs, TriggerArgs, load_scenario_with_radio};
+use crate::mdp_build::split::{self, SplitArgs};
+use crate::mdp_build::{MdpReport, MdpRequest, build_mdp};
 use crate::output::write_new;
-use crate::progress;
 use anyhow::{Context, Result, bail};
 use etp_shared::discretization::BinCounts;
 use etp_shared::scenario::Scenario;
@@ -18,10 +19,8 @@ use etp_synthesis::abstraction::{
     self, AbstractionParams, DEFAULT_LOOKAHEAD, DEFAULT_POOL_PER_REGION, DEFAULT_REST_BINS,
     DEFAULT_SAMPLES, Descriptor, default_kf_params,
 };
-use etp_synthesis::mdp::{KfConvergenceParams, MDP_FILE, Mdp, Method};
-use serde::Serialize;
+use etp_synthesis::mdp::{KfConvergenceParams, Method};
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 /// Method 2's belief descriptor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -152,7 +151,7 @@ pub struct Args {
     pub aggregation_alpha: f64,
     /// Adaptive splitting of the regions the aggregation test flags.
     #[command(flatten)]
-    pub split: split::SplitArgs,
+    pub split: SplitArgs,
     /// Draw the pools on-policy (docs/MODEL.md §7.3): on this strategy's
     /// bins, each region's pool sampled from the arrivals weighted by the
     /// probability that the strategy brings a belief there. A strategy of a
@@ -165,55 +164,6 @@ pub struct Args {
     /// cost). Needed to select other strategies on these pools.
     #[arg(long, requires = "pool_policy")]
     pub all_actions: bool,
-}
-
-/// What [`build_mdp`] did, for the summary.
-#[derive(Debug, Clone, Serialize)]
-pub struct MdpReport {
-    pub scenario: String,
-    pub method: String,
-    pub path: PathBuf,
-    pub samples: u32,
-    pub holdout_samples: u32,
-    pub seed: u64,
-    pub states: usize,
-    pub states_per_decision_point: Vec<usize>,
-    /// `--merge`: the level and the states per decision point before lumping.
-    pub merge: Option<MergeSummary>,
-    /// `--split-budget`: what adaptive splitting did (before any lumping).
-    pub split: Option<split::SplitSummary>,
-    /// Sampled segments per state over its actions (`samples` × actions
-    /// unless sample allocation added some): smallest and largest.
-    pub samples_per_state: [u64; 2],
-    /// Sampled segments that arrived in each non-initial state: min, median, max.
-    pub arrivals_per_state: [u64; 3],
-    /// Non-initial states that fewer than 100 sampled segments arrived in.
-    pub states_under_100_arrivals: usize,
-    pub choices: usize,
-    pub transitions: usize,
-    pub segments: u64,
-    pub segment_steps: u64,
-    pub seconds: f64,
-    pub segment_steps_per_second: f64,
-    pub threads: usize,
-}
-
-/// What `--merge` did.
-#[derive(Debug, Clone, Serialize)]
-pub struct MergeSummary {
-    pub alpha: f64,
-    pub states_before: usize,
-    pub states_per_decision_point_before: Vec<usize>,
-}
-
-/// The result of the MDP step of `synthesize`.
-#[derive(Debug, Clone)]
-pub struct BuiltMdp {
-    pub scenario: Scenario,
-    pub mdp: Mdp,
-    /// The output directory (holds `mdp.bin`).
-    pub dir: PathBuf,
-    pub report: MdpReport,
 }
 
 /// `--range`.
@@ -263,131 +213,22 @@ pub fn params(a: &Args, s: &Scenario) -> Result<AbstractionParams> {
     })
 }
 
-/// Build the MDP of `a.scenario` and write `DIR/mdp.bin`; refuses (before any
-/// work, touching nothing) when the file exists and `--force` is not given.
-pub fn build_mdp(a: &Args) -> Result<BuiltMdp> {
-    let s = load(a)?;
-    let dir = a
-        .out
-        .clone()
-        .unwrap_or_else(|| Path::new("out").join(&s.name));
-    let path = dir.join(MDP_FILE);
-    crate::output::output_folder(&dir)?;
-    crate::output::refuse_existing(&path, a.force)?;
-    if let Some(alpha) = a.merge
-        && !(alpha > 0.0 && alpha < 1.0)
-    {
-        bail!("--merge: the level α must lie in (0, 1) (got {alpha})");
-    }
-    let p = params(a, &s)?;
-    split::check(&a.split, p.method)?;
-    let pool_policy = match &a.pool_policy {
-        None => None,
-        Some(path) => {
-            if a.split.split_budget > 0 {
-                bail!(
-                    "--pool-policy and --split-budget: choose one (the policy's strategy carries its own splits)"
-                );
-            }
-            let (st, _) = etp_runtime::strategy_arg::load_strategy(path)
-                .with_context(|| format!("--pool-policy {}", path.display()))?;
-            st.policy.check_scenario(&s).with_context(|| {
-                format!(
-                    "--pool-policy {}: not a strategy of {}",
-                    path.display(),
-                    s.name
-                )
-            })?;
-            Some(st)
-        }
-    };
-    let pb = progress::bar(abstraction::progress_total(&s, &p), "synthesize", a.json);
-    let started = Instant::now();
-    let mdp = match &pool_policy {
-        None => abstraction::build(&s, &p, &|k| pb.inc(k)),
-        Some(st) => abstraction::build_on_policy(&s, &p, st, true, !a.all_actions, &|k| pb.inc(k)),
-    }
-    .context("building the abstraction")?;
-    pb.finish_and_clear();
-    mdp.check()
-        .context("the built MDP failed its own consistency check (a bug)")?;
-    let first_seconds = started.elapsed().as_secs_f64();
-    let (mdp, split) = split::apply(&s, &p, mdp, first_seconds, &a.split, a.json)?;
-    let (mdp, merge) = match a.merge {
-        None => (mdp, None),
-        Some(alpha) => {
-            let (merged, r) = abstraction::merge_equivalent(&mdp, alpha).context("--merge")?;
-            merged
-                .check()
-                .context("the merged MDP failed its own consistency check (a bug)")?;
-            let summary = MergeSummary {
-                alpha,
-                states_before: mdp.states.len(),
-                states_per_decision_point_before: r.before,
-            };
-            (merged, Some(summary))
-        }
-    };
-    let seconds = started.elapsed().as_secs_f64();
-    // Checked above; `force` here only covers a file that appeared meanwhile.
-    write_new(&path, &mdp.encode(), a.force)?;
-    let arrivals = arrivals_summary(&mdp);
-    let report = MdpReport {
-        scenario: s.name.clone(),
-        method: format!("{:?}", mdp.method),
-        path: path.clone(),
-        samples: mdp.samples_per_choice,
-        holdout_samples: mdp.holdout_samples,
-        seed: mdp.seed,
-        states: mdp.states.len(),
-        states_per_decision_point: mdp.states_per_decision_point(),
-        merge,
-        split,
-        samples_per_state: samples_per_state(&mdp),
-        arrivals_per_state: arrivals.0,
-        states_under_100_arrivals: arrivals.1,
-        choices: mdp.states.iter().map(|s| s.choices.len()).sum(),
-        transitions: mdp.num_transitions(),
-        segments: mdp.total_segments,
-        segment_steps: mdp.total_steps,
-        seconds,
-        segment_steps_per_second: mdp.total_steps as f64 / seconds.max(1e-9),
-        threads: rayon::current_num_threads(),
-    };
-    Ok(BuiltMdp {
-        scenario: s,
-        mdp,
-        dir,
-        report,
-    })
-}
-
-fn samples_per_state(mdp: &Mdp) -> [u64; 2] {
-    let per: Vec<u64> = mdp
-        .states
-        .iter()
-        .map(|s| s.choices.iter().map(|c| u64::from(c.samples)).sum())
-        .collect();
-    [
-        per.iter().copied().min().unwrap_or(0),
-        per.iter().copied().max().unwrap_or(0),
-    ]
-}
-
-/// `([min, median, max], states under 100)` of the arrivals into non-initial states.
-fn arrivals_summary(mdp: &Mdp) -> ([u64; 3], usize) {
-    let mut a: Vec<u64> = mdp
-        .arrivals_per_state()
-        .into_iter()
-        .zip(&mdp.states)
-        .filter(|(_, s)| s.decision_point > 0)
-        .map(|(n, _)| n)
-        .collect();
-    a.sort_unstable();
-    let under = a.iter().filter(|&&n| n < 100).count();
-    match (a.first(), a.last()) {
-        (Some(&lo), Some(&hi)) => ([lo, a[a.len() / 2], hi], under),
-        _ => ([0; 3], 0),
+impl Args {
+    /// The MDP step's request: the scenario of the command line (its text
+    /// under `--trigger`, then the radio options) and its parameters.
+    pub fn request(&self) -> Result<MdpRequest> {
+        let scenario = load(self)?;
+        Ok(MdpRequest {
+            params: params(self, &scenario)?,
+            scenario,
+            out: self.out.clone(),
+            force: self.force,
+            merge: self.merge,
+            split: self.split.clone(),
+            pool_policy: self.pool_policy.clone(),
+            all_actions: self.all_actions,
+            quiet: self.json,
+        })
     }
 }
 
@@ -468,7 +309,7 @@ pub fn run(a: Args) -> Result<()> {
     let text = a
         .trigger
         .apply_to_text(crate::input::scenario_text(&a.scenario)?)?;
-    let built = build_mdp(&a)?;
+    let built = build_mdp(a.request()?)?;
     // Method 1 as a baseline beside Method 2 (cheap: one state per decision point).
     let method1 = if a.method == MethodArg::Discretized && !a.no_kf_baseline {
         let d = default_kf_params(&built.scenario);

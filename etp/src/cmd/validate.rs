@@ -57,9 +57,13 @@ pub fn run(a: Args) -> Result<()> {
     let synthesized = scenario.radio.clone();
     let scenario = a.radio.apply(scenario)?;
     let pb = progress::bar(a.sim.episodes, "validate", a.json);
-    let sum = simulate_strategy(&scenario, &strategy, a.sim.episodes, a.sim.seed, &|k| {
-        pb.inc(k)
-    })
+    let sum = simulate_strategy(
+        &scenario,
+        &strategy.policy,
+        a.sim.episodes,
+        a.sim.seed,
+        &|k| pb.inc(k),
+    )
     .summary();
     pb.finish_and_clear();
     let mut plot_paths = Vec::new();
@@ -74,7 +78,7 @@ pub fn run(a: Args) -> Result<()> {
         for p in [stem.with_extension("png"), stem.with_extension("svg")] {
             crate::output::refuse_existing(&p, a.force)?;
         }
-        let tr = sample_trajectories(&scenario, &strategy, a.plot_episodes, a.sim.seed);
+        let tr = sample_trajectories(&scenario, &strategy.policy, a.plot_episodes, a.sim.seed);
         etp_figures::map_plot(&scenario, &tr, &stem)?;
         plot_paths.push(stem.with_extension("png"));
         plot_paths.push(stem.with_extension("svg"));
@@ -232,7 +236,7 @@ pub fn comparison_json(
         m.insert("strategy".into(), json!(strategy.provenance.label));
         m.insert(
             "delta".into(),
-            json!(crate::vocab::constant_delta(strategy)),
+            json!(crate::vocab::constant_delta(&strategy.policy)),
         );
         m.extend(predictions::json_fields(strategy));
         m.insert(

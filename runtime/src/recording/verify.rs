@@ -43,7 +43,7 @@ use crate::wire::coordinator_to_sensor::Threshold;
 use crate::wire::sensor_to_agent::{Measurement, Slot};
 use crate::wire::{WireMat, WireVec, belief_to_wire, vec_from_wire};
 use etp_shared::episode::{
-    AgentCore, Begun, CompiledScenario, SlotKey, SlotOutcome, World, belief_digest,
+    AgentCore, Begun, CompiledScenario, RunSlot, SlotKey, SlotOutcome, World, belief_digest,
 };
 use etp_shared::etkf::{Belief, Vector};
 use etp_shared::radio::LinkChannel;
@@ -490,15 +490,15 @@ fn rerun<const N: usize>(
                     sensor: sensor as u32,
                 };
                 let reference = core.reference();
-                let (sent, y_again) = c.redecide_slot(
-                    leg as usize,
-                    &prior,
-                    &x,
+                let run_slot = RunSlot {
+                    prior: &prior,
+                    x: &x,
                     delta,
                     slot_in_leg,
-                    reference.as_ref().map(|r| &r[..]),
+                    reference: reference.as_ref().map(|r| &r[..]),
                     key,
-                );
+                };
+                let (sent, y_again) = c.redecide_slot(leg as usize, run_slot);
                 if sent != (slot.attempts > 0) {
                     return Err(miss(
                         leg,

@@ -168,7 +168,14 @@ fn the_avx2_leg_loop_is_the_portable_one_bit_for_bit() {
                     for leg in 0..c.legs.len() {
                         let ra = c.run_leg(leg, &mut a, &mode, &mut rng_a, &mut EpisodeChannels::ideal(), &mut ());
                         let sensor = c.legs[leg].sensor;
-                        let rb = on_filter!(&c.filters[sensor], f => c.run_leg_portable(f, leg, &mut b, &mode, &mut rng_b, &mut EpisodeChannels::ideal(), &mut ()));
+                        let rb = on_filter!(&c.filters[sensor], f => c.run_leg_portable(f, super::LegCall {
+                            leg,
+                            state: &mut b,
+                            mode: &mode,
+                            rng: &mut rng_b,
+                            channels: &mut EpisodeChannels::ideal(),
+                            observer: &mut (),
+                        }));
                         assert_eq!(ra, rb, "{name} δ = {delta} episode {e} leg {leg}");
                         let bits = |st: &AgentState<N>| {
                             st.x.iter()

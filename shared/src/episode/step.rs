@@ -120,62 +120,58 @@ impl SlotKey {
     }
 }
 
+/// A slot of a run as its serving sensor sees it: the agent's prior, the
+/// true state, the leg's threshold, the slot's number in the leg (from 0),
+/// for send-on-delta the leg's last delivered measurement
+/// ([`super::AgentCore::reference`]), and the keys of its draws.
+#[derive(Debug, Clone, Copy)]
+pub struct RunSlot<'a, const N: usize> {
+    pub prior: &'a Belief<N>,
+    pub x: &'a Vector<N>,
+    pub delta: f64,
+    pub slot_in_leg: u32,
+    pub reference: Option<&'a [f64]>,
+    pub key: SlotKey,
+}
+
 impl<const N: usize> CompiledScenario<N> {
     /// A run's slot at the serving sensor: [`serve_slot`] with the noise and
-    /// the trigger draw of `key`, deciding with the scenario's family at the
-    /// leg's slot number `slot_in_leg` (from 0) and, for send-on-delta, the
-    /// leg's last delivered measurement `reference`
-    /// ([`super::AgentCore::reference`]). The sensor process and
-    /// `etp replay verify` ([`Self::redecide_slot`]) both serve it here.
+    /// the trigger draw of `slot.key`, deciding with the scenario's family.
+    /// The sensor process and `etp replay verify` ([`Self::redecide_slot`])
+    /// both serve it here.
     #[inline]
-    #[allow(clippy::too_many_arguments)]
     pub fn serve_run_slot<const M: usize>(
         &self,
         filter: &EtKalmanFilter<N, M>,
-        prior: &Belief<N>,
-        x: &Vector<N>,
-        delta: f64,
-        slot_in_leg: u32,
-        reference: Option<&[f64]>,
-        key: SlotKey,
+        slot: RunSlot<'_, N>,
         link: impl FnOnce() -> Transmission,
     ) -> ServedSlot<N, M> {
-        let mut rng = key.noise_rng();
-        let reference = reference.map(|r| Vector::<M>::from_fn(|i, _| r[i]));
+        let mut rng = slot.key.noise_rng();
+        let reference = slot.reference.map(|r| Vector::<M>::from_fn(|i, _| r[i]));
         serve_slot(
             filter,
-            prior,
-            x,
+            slot.prior,
+            slot.x,
             &mut rng,
             |inn, y| {
                 self.decides(
                     filter,
                     inn,
                     y,
-                    delta,
-                    slot_in_leg,
+                    slot.delta,
+                    slot.slot_in_leg,
                     reference.as_ref(),
-                    || Some(key.trigger_uniform()),
+                    || Some(slot.key.trigger_uniform()),
                 )
             },
             link,
         )
     }
 
-    /// The decision a run's sensor made in a slot of leg `leg`, again from
+    /// The decision a run's sensor made in `slot` of leg `leg`, again from
     /// the recorded true state: whether it sent, and the measurement `y`
     /// (its first m entries; the rest 0).
-    #[allow(clippy::too_many_arguments)]
-    pub fn redecide_slot(
-        &self,
-        leg: usize,
-        prior: &Belief<N>,
-        x: &Vector<N>,
-        delta: f64,
-        slot_in_leg: u32,
-        reference: Option<&[f64]>,
-        key: SlotKey,
-    ) -> (bool, [f64; 6]) {
+    pub fn redecide_slot(&self, leg: usize, slot: RunSlot<'_, N>) -> (bool, [f64; 6]) {
         let delivered = || Transmission {
             attempts: 1,
             delivered: true,
@@ -183,8 +179,7 @@ impl<const N: usize> CompiledScenario<N> {
         let mut y = [0.0; 6];
         let sensor = self.legs[leg].sensor;
         let fired = on_filter!(&self.filters[sensor], f => {
-            let served =
-                self.serve_run_slot(f, prior, x, delta, slot_in_leg, reference, key, delivered);
+            let served = self.serve_run_slot(f, slot, delivered);
             for (o, v) in y.iter_mut().zip(served.y.iter()) {
                 *o = *v;
             }

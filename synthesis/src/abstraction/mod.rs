@@ -321,8 +321,8 @@ pub fn build_split(
 }
 
 /// [`build`] with pools drawn on-policy (docs/MODEL.md §7.3, `etp synthesize
-/// --pool-policy`): on `strategy`'s bins and splits, the pool of each region
-/// is sampled from the arrivals weighted by the probability that `strategy`
+/// --pool-policy`): on a strategy's `policy` — its bins and splits —, the pool of each region
+/// is sampled from the arrivals weighted by the probability that the strategy
 /// brings a belief there (its ω times its reach of the source state), so the
 /// beliefs lumped in a region are the ones this strategy produces. Every
 /// region reached keeps a pool (unweighted where the strategy never goes).
@@ -335,27 +335,25 @@ pub fn build_split(
 pub fn build_on_policy(
     scenario: &Scenario,
     params: &AbstractionParams,
-    strategy: &etp_shared::strategy::Strategy,
+    policy: &etp_shared::strategy::Policy,
     carry_state: bool,
     policy_only: bool,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Mdp, AbstractionError> {
     check_params(scenario, params)?;
-    let bins = match (&strategy.policy.discretization, params.method) {
+    let bins = match (&policy.discretization, params.method) {
         (Some(b), Method::Discretized) => b,
         _ => return Err(AbstractionError::PoolPolicy),
     };
-    if bins.decision_points.len() != scenario.num_legs()
-        || strategy.policy.deltas != scenario.deltas
-    {
+    if bins.decision_points.len() != scenario.num_legs() || policy.deltas != scenario.deltas {
         return Err(AbstractionError::PoolPolicy);
     }
     let omega = |dp: usize, cov: &nalgebra::DMatrix<f64>| -> Vec<f64> {
-        match strategy.policy.omega(dp, cov) {
+        match policy.omega(dp, cov) {
             etp_shared::strategy::OmegaChoice::Exact(w)
             | etp_shared::strategy::OmegaChoice::Nearest(w) => w.to_vec(),
             etp_shared::strategy::OmegaChoice::FullKf(i) => {
-                let mut w = vec![0.0; strategy.policy.deltas.len()];
+                let mut w = vec![0.0; policy.deltas.len()];
                 if let Some(x) = w.get_mut(i) {
                     *x = 1.0;
                 }
@@ -365,7 +363,7 @@ pub fn build_on_policy(
     };
     let given = layers::Given {
         bins,
-        splits: &strategy.policy.splits,
+        splits: &policy.splits,
         policy: Some(&omega),
         carry_state,
         policy_only,

@@ -15,7 +15,7 @@ use crate::certify::robust::{Certified, certify};
 use crate::mdp::{CostModel, Mdp};
 use crate::pareto::policy::{Objectives, RandomisedPolicy, evaluate, leg_energy};
 use etp_shared::scenario::Scenario;
-use etp_shared::strategy::{OmegaChoice, Strategy};
+use etp_shared::strategy::{OmegaChoice, Policy, Strategy};
 
 /// The fewest rebuilds a prediction is made of (the Student-t interval needs
 /// a spread).
@@ -86,19 +86,17 @@ impl Replica {
     }
 }
 
-/// ω of `strategy` on every state of `mdp` (by region; a region the strategy
-/// never saw takes its nearest, as the strategy itself does at run time).
-pub fn policy_on(mdp: &Mdp, strategy: &Strategy) -> RandomisedPolicy {
+/// ω of a strategy's `policy` on every state of `mdp` (by region; a region
+/// the strategy never saw takes its nearest, as the strategy itself does at
+/// run time).
+pub fn policy_on(mdp: &Mdp, policy: &Policy) -> RandomisedPolicy {
     mdp.states
         .iter()
         .map(|s| {
-            let omega = match strategy
-                .policy
-                .omega_of_region(s.decision_point as usize, &s.region)
-            {
+            let omega = match policy.omega_of_region(s.decision_point as usize, &s.region) {
                 OmegaChoice::Exact(w) | OmegaChoice::Nearest(w) => w.to_vec(),
                 OmegaChoice::FullKf(i) => {
-                    let mut w = vec![0.0; strategy.policy.deltas.len()];
+                    let mut w = vec![0.0; policy.deltas.len()];
                     if let Some(x) = w.get_mut(i) {
                         *x = 1.0;
                     }
@@ -141,22 +139,23 @@ pub fn progress_units(scenario: &Scenario, params: &AbstractionParams) -> u64 {
     abstraction::progress_total(scenario, &rebuild_params(params, 0))
 }
 
-/// Rebuild `replicate` (seed `params.seed + replicate`) on `strategy`'s own
+/// Rebuild `replicate` (seed `params.seed + replicate`) on a strategy's `policy`:
+/// its own
 /// pools and thresholds, and evaluate it there.
 pub fn rebuild_one(
     scenario: &Scenario,
     params: &AbstractionParams,
-    strategy: &Strategy,
+    policy: &Policy,
     replicate: u32,
     cost: CostModel,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Replica, PredictError> {
     let p = rebuild_params(params, replicate);
-    let mdp = abstraction::build_on_policy(scenario, &p, strategy, true, true, progress)
+    let mdp = abstraction::build_on_policy(scenario, &p, policy, true, true, progress)
         .map_err(|source| PredictError::Rebuild { replicate, source })?;
     mdp.check()
         .map_err(|e| PredictError::Inconsistent(e.to_string()))?;
-    let omega = policy_on(&mdp, strategy);
+    let omega = policy_on(&mdp, policy);
     let crossfit = crossfit(&mdp, &omega, cost);
     Ok(Replica {
         value: evaluate(&mdp, &omega, cost),
@@ -203,28 +202,27 @@ pub fn combine(replicas: Vec<Replica>) -> Result<OnPolicy, PredictError> {
     })
 }
 
-/// `strategy` predicted on `replicates` rebuilds (seeds `params.seed + r`),
+/// A strategy's `policy` predicted on `replicates` rebuilds (seeds `params.seed + r`),
 /// reusing `done` (the first rebuilds, already made).
 pub fn predict(
     scenario: &Scenario,
     params: &AbstractionParams,
-    strategy: &Strategy,
+    policy: &Policy,
     replicates: u32,
     cost: CostModel,
     mut done: Vec<Replica>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<OnPolicy, PredictError> {
     for r in done.len() as u32..replicates.max(MIN_REPLICATES) {
-        done.push(rebuild_one(scenario, params, strategy, r, cost, progress)?);
+        done.push(rebuild_one(scenario, params, policy, r, cost, progress)?);
     }
     combine(done)
 }
 
-/// The scenario a rebuild of `mdp` simulates: `strategy`'s own (hash
+/// The scenario a rebuild of `mdp` simulates: the policy's own (hash
 /// checked, under its own channel).
-pub fn scenario_of(strategy: &Strategy) -> Result<Scenario, PredictError> {
-    strategy
-        .policy
+pub fn scenario_of(policy: &Policy) -> Result<Scenario, PredictError> {
+    policy
         .scenario()
         .map_err(|e| PredictError::Scenario(e.to_string()))
 }

@@ -88,34 +88,11 @@ impl Asked {
         }
     }
 
-    /// `self` moved a fraction `lambda` of the way to `to`.
-    fn towards(self, to: Self, lambda: f64) -> Self {
-        let mix = |a: f64, b: f64| a + lambda * (b - a);
-        match (self, to) {
-            (
-                Self::MinTarget {
-                    min_target: a,
-                    max_collision: c,
-                },
-                Self::MinTarget {
-                    min_target: b,
-                    max_collision: d,
-                },
-            ) => Self::MinTarget {
-                min_target: mix(a, b),
-                max_collision: c.zip(d).map(|(c, d)| mix(c, d)),
-            },
-            (Self::MaxEnergy { max_energy: a }, Self::MaxEnergy { max_energy: b }) => {
-                Self::MaxEnergy {
-                    max_energy: mix(a, b),
-                }
-            }
-            _ => to,
-        }
-    }
-
-    /// The largest move of any bound from `self` to `other`.
-    fn distance(self, other: Self) -> f64 {
+    /// The bounds of `self` and `other` side by side when the two are
+    /// requests of one kind: (main bound of each, their collision bounds
+    /// when both have one).
+    #[allow(clippy::type_complexity)]
+    fn paired(self, other: Self) -> Option<((f64, f64), Option<(f64, f64)>)> {
         match (self, other) {
             (
                 Self::MinTarget {
@@ -126,10 +103,37 @@ impl Asked {
                     min_target: b,
                     max_collision: d,
                 },
-            ) => (a - b)
-                .abs()
-                .max(c.zip(d).map_or(0.0, |(c, d)| (c - d).abs())),
+            ) => Some(((a, b), c.zip(d))),
             (Self::MaxEnergy { max_energy: a }, Self::MaxEnergy { max_energy: b }) => {
+                Some(((a, b), None))
+            }
+            _ => None,
+        }
+    }
+
+    /// `self` moved a fraction `lambda` of the way to `to`.
+    fn towards(self, to: Self, lambda: f64) -> Self {
+        let mix = |(a, b): (f64, f64)| a + lambda * (b - a);
+        match (to, self.paired(to)) {
+            (Self::MinTarget { .. }, Some((main, collision))) => Self::MinTarget {
+                min_target: mix(main),
+                max_collision: collision.map(mix),
+            },
+            (Self::MaxEnergy { .. }, Some((main, _))) => Self::MaxEnergy {
+                max_energy: mix(main),
+            },
+            _ => to,
+        }
+    }
+
+    /// The largest move of any bound from `self` to `other` (energy
+    /// relative to its size).
+    fn distance(self, other: Self) -> f64 {
+        match (other, self.paired(other)) {
+            (Self::MinTarget { .. }, Some(((a, b), collision))) => (a - b)
+                .abs()
+                .max(collision.map_or(0.0, |(c, d)| (c - d).abs())),
+            (Self::MaxEnergy { .. }, Some(((a, b), _))) => {
                 (a - b).abs() / a.abs().max(b.abs()).max(1e-12)
             }
             _ => f64::INFINITY,
@@ -383,6 +387,19 @@ pub fn meet_request(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Outcome, PredictError> {
     let level = settings.certified.unwrap_or(report_level);
+    // A strategy's prediction on `settings.replicates` rebuilds, those in
+    // `done` (drawn already) kept.
+    let rebuilt = |strategy: &Strategy, done: Vec<Replica>| {
+        predict(
+            scenario,
+            params,
+            &strategy.policy,
+            settings.replicates,
+            cost,
+            done,
+            progress,
+        )
+    };
     let selection_im = match settings.certified {
         Some(l) => Some(interval_mdp(mdp, l, cost)?),
         None => None,
@@ -436,7 +453,7 @@ pub fn meet_request(
         };
         let strategy = make(&candidate.omega, candidate.selection_time);
         plan(1);
-        let first = rebuild_one(scenario, params, &strategy, 0, cost, progress)?;
+        let first = rebuild_one(scenario, params, &strategy.policy, 0, cost, progress)?;
         // Certified selection judges a round by the bounds of its first
         // rebuild; otherwise only the kept strategy is certified, at the end.
         let cert_for_goal = match settings.certified {
@@ -464,15 +481,7 @@ pub fn meet_request(
             (one, one_ci, vec![first], 1)
         } else {
             plan(settings.replicates.saturating_sub(1));
-            let all = predict(
-                scenario,
-                params,
-                &strategy,
-                settings.replicates,
-                cost,
-                vec![first],
-                progress,
-            )?;
+            let all = rebuilt(&strategy, vec![first])?;
             let (q, h) = (all.combined.mean, all.combined.ci95);
             (q, h, all.replicas, settings.replicates)
         };
@@ -516,15 +525,7 @@ pub fn meet_request(
         let selection_time = evaluate(mdp, &omega, cost);
         let strategy = make(&omega, selection_time);
         plan(settings.replicates);
-        let all = predict(
-            scenario,
-            params,
-            &strategy,
-            settings.replicates,
-            cost,
-            Vec::new(),
-            progress,
-        )?;
+        let all = rebuilt(&strategy, Vec::new())?;
         let cert_for_goal = match (settings.certified, all.replicas.first()) {
             (Some(l), Some(first)) => Some(first.certify(l, cost)?),
             _ => None,
@@ -560,15 +561,7 @@ pub fn meet_request(
     };
     let missing = settings.replicates.saturating_sub(replicas.len() as u32);
     plan(missing);
-    let on_policy = predict(
-        scenario,
-        params,
-        &strategy,
-        settings.replicates,
-        cost,
-        replicas,
-        progress,
-    )?;
+    let on_policy = rebuilt(&strategy, replicas)?;
     let certified = on_policy.certify_first(level, cost)?;
     Ok(Outcome {
         omega: candidate.omega,

@@ -1,6 +1,6 @@
 //! A subcommand of `etp replay` as the one [`Job`] that runs it.
 
-use super::{Action, SelectArgs};
+use super::{Action, SelectArgs, WriteArgs};
 use etp_recording_tools::{export, foxglove, select};
 use std::path::PathBuf;
 
@@ -33,8 +33,7 @@ impl Action {
                 file,
                 dir,
                 format,
-                force,
-                json,
+                write: WriteArgs { force, json },
                 select,
             } => sel(
                 Job {
@@ -50,8 +49,7 @@ impl Action {
             Action::Filter {
                 file,
                 out,
-                force,
-                json,
+                write: WriteArgs { force, json },
                 select,
             } => sel(
                 Job {
@@ -71,8 +69,7 @@ impl Action {
             Action::Repair {
                 file,
                 out,
-                force,
-                json,
+                write: WriteArgs { force, json },
             } => Job {
                 repair: Some(out),
                 force,
@@ -103,8 +100,7 @@ impl Action {
                 out,
                 clock,
                 episodes,
-                force,
-                json,
+                write: WriteArgs { force, json },
             } => Job {
                 foxglove: Some(out),
                 foxglove_clock: clock,
@@ -117,7 +113,10 @@ impl Action {
                 },
                 ..on(file)
             },
-            Action::Plot { file, force, json } => Job {
+            Action::Plot {
+                file,
+                write: WriteArgs { force, json },
+            } => Job {
                 plot: true,
                 force,
                 json,

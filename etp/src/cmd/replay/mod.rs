@@ -74,6 +74,18 @@ pub struct SelectArgs {
     pub end: Option<f64>,
 }
 
+/// What a tool that writes a file is told: whether it may replace one, and
+/// whether it prints what it wrote as one JSON object.
+#[derive(Debug, Clone, Copy, Default, clap::Args)]
+pub struct WriteArgs {
+    /// Replace an existing output (written beside, then renamed).
+    #[arg(long)]
+    pub force: bool,
+    /// Print what was written as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
 /// One recording tool.
 #[derive(Debug, clap::Subcommand)]
 pub enum Action {
@@ -109,11 +121,8 @@ pub enum Action {
         dir: PathBuf,
         #[arg(long, value_enum, default_value = "csv")]
         format: export::Format,
-        #[arg(long)]
-        force: bool,
-        /// Print what was written (`{"exported": …}`) as one JSON object.
-        #[arg(long)]
-        json: bool,
+        #[command(flatten)]
+        write: WriteArgs,
         #[command(flatten)]
         select: SelectArgs,
     },
@@ -122,10 +131,8 @@ pub enum Action {
     Filter {
         file: PathBuf,
         out: PathBuf,
-        #[arg(long)]
-        force: bool,
-        #[arg(long)]
-        json: bool,
+        #[command(flatten)]
+        write: WriteArgs,
         #[command(flatten)]
         select: SelectArgs,
     },
@@ -142,10 +149,8 @@ pub enum Action {
     Repair {
         file: PathBuf,
         out: PathBuf,
-        #[arg(long)]
-        force: bool,
-        #[arg(long)]
-        json: bool,
+        #[command(flatten)]
+        write: WriteArgs,
     },
     /// Re-publish the recorded traffic on iceoryx2 (like `ros2 bag play`).
     Publish {
@@ -176,19 +181,15 @@ pub enum Action {
         /// Only these episodes (`A..B`, `A..=B`, `A..`, `..B` or `N`).
         #[arg(long, value_parser = select::parse_episodes, value_name = "RANGE")]
         episodes: Option<select::Episodes>,
-        #[arg(long)]
-        force: bool,
-        #[arg(long)]
-        json: bool,
+        #[command(flatten)]
+        write: WriteArgs,
     },
     /// Draw measured vs predicted (per-sensor energy per episode, outcomes,
     /// 95 % intervals) to `<FILE without .mcap>-replay.png` and `.svg`.
     Plot {
         file: PathBuf,
-        #[arg(long)]
-        force: bool,
-        #[arg(long)]
-        json: bool,
+        #[command(flatten)]
+        write: WriteArgs,
     },
 }
 

@@ -12,7 +12,6 @@ use crate::predictions;
 use crate::progress;
 use anyhow::{Context, Result, bail};
 use etp_synthesis::abstraction;
-use etp_synthesis::predict::rebuild::predict;
 use serde_json::json;
 use std::time::Instant;
 
@@ -41,7 +40,6 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
         );
     }
     refuse_existing(&syn.output, a.out.force)?;
-    let cost = syn.cost();
     let params = abstraction::params_of(&syn.mdp);
     let units = etp_synthesis::predict::rebuild::progress_units(&syn.scenario, &params);
     let pb = progress::bar(
@@ -52,17 +50,9 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
     let started = Instant::now();
     // The rebuilds simulate the strategy under DIR's channel.
     strategy.policy.radio.clone_from(&syn.front.radio);
-    let on_policy = predict(
-        &syn.scenario,
-        &params,
-        &strategy,
-        a.prediction.replicates,
-        cost,
-        Vec::new(),
-        &|k| pb.inc(k),
-    )?;
+    let (on_policy, certified) =
+        syn.predict(&strategy, a.prediction.replicates, a.confidence, &pb)?;
     pb.finish_and_clear();
-    let certified = on_policy.certify_first(a.confidence, cost)?;
     let first = on_policy.first();
     on_policy.stand_by(&mut strategy, &certified, a.confidence);
     if let Some(d) = strategy.predictions.diagnostics.as_mut() {

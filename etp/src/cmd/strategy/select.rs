@@ -13,8 +13,7 @@ use etp_synthesis::abstraction;
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::policy::{Objectives, RandomisedPolicy, as_randomised, evaluate};
 use etp_synthesis::pareto::select::{Request as FrontRequest, select};
-use etp_synthesis::predict::rebuild::predict;
-use etp_synthesis::predict::request::{Goal, LoopSettings, Outcome, Verdict, meet_request};
+use etp_synthesis::predict::request::{Goal, LoopSettings, Outcome, Verdict};
 use serde_json::{Value, json};
 use std::time::Instant;
 
@@ -61,11 +60,8 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
     let make =
         |omega: &RandomisedPolicy, value: Objectives| syn.strategy_of(mdp, omega, value, &label);
     let outcome = match request {
-        Request::Goal(goal) => meet_request(
+        Request::Goal(goal) => syn.meet(
             mdp,
-            cost,
-            &syn.scenario,
-            &params,
             goal,
             LoopSettings {
                 replicates: a.prediction.replicates,
@@ -74,8 +70,7 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
             },
             level,
             &make,
-            &|n| pb.inc_length(u64::from(n) * units),
-            &|k| pb.inc(k),
+            &pb,
         )?,
         Request::Vertex(k) => {
             let selection =
@@ -85,16 +80,8 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
             let value = evaluate(mdp, &omega, cost);
             let strategy = make(&omega, value);
             pb.inc_length(u64::from(a.prediction.replicates) * units);
-            let on_policy = predict(
-                &syn.scenario,
-                &params,
-                &strategy,
-                a.prediction.replicates,
-                cost,
-                Vec::new(),
-                &|k| pb.inc(k),
-            )?;
-            let certified = on_policy.certify_first(level, cost)?;
+            let (on_policy, certified) =
+                syn.predict(&strategy, a.prediction.replicates, level, &pb)?;
             Outcome {
                 omega,
                 selection_time: value,

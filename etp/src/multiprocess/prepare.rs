@@ -208,7 +208,7 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         ),
         _ => {
             let sim =
-                simulate_strategy(&scenario, &strategy, predict_episodes, a.seed(), &|_| {}).summary();
+                simulate_strategy(&scenario, &strategy.policy, predict_episodes, a.seed(), &|_| {}).summary();
             if a.strategy.is_none() || robustness {
                 let under = if robustness {
                     " under the run's channel"
@@ -270,7 +270,7 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         prediction_from,
         predict_episodes,
         config_toml: String::new(),
-        delta: crate::vocab::constant_delta(&strategy),
+        delta: crate::vocab::constant_delta(&strategy.policy),
         radio_synthesized,
     })
 }

@@ -1,4 +1,6 @@
-//! `etp run`: the multi-process run of a strategy.
+//! The multi-process run of a strategy, shared by `etp run` (which prints
+//! its report: `cmd/run.rs`) and `etp demo` (which takes its JSON object:
+//! [`execute`]).
 //!
 //! Spawns `etp-coordinator`, `etp-agent` and one `etp-sensor-node` per sensor
 //! (binaries found next to the running `etp`), supervises them with tokio
@@ -17,16 +19,15 @@
 //! * [`config`] — `--config RUN.toml`, the launch file of a run.
 
 pub mod config;
-mod figure;
+pub mod figure;
 pub mod link;
-mod prepare;
-mod process;
+pub mod prepare;
+pub mod process;
 mod record;
 mod remote;
-mod report;
+pub mod report;
 mod rundir;
-pub mod sensor_host;
-mod supervise;
+pub mod supervise;
 mod verdict;
 
 use anyhow::{Context, Result, bail};
@@ -34,8 +35,7 @@ use etp_runtime::cleanup;
 use etp_runtime::wire::RunId;
 use std::path::PathBuf;
 use std::time::Duration;
-pub use verdict::exit_for;
-use verdict::problems;
+pub use verdict::{exit_for, problems};
 
 /// Exit code: the run completed but a count disagrees (a sensor's ledger ≠
 /// what the agent received), a ledger is missing, or the requested
@@ -178,21 +178,9 @@ impl Args {
     }
 }
 
-/// Where `--plot` writes (`{run}` = the run id, known once the run starts).
-fn plot_stem(a: &Args) -> PathBuf {
-    match (&a.record, &a.run_id) {
-        (Some(r), _) => r.with_extension("").with_file_name(format!(
-            "{}-report",
-            r.file_stem().and_then(|x| x.to_str()).unwrap_or("run")
-        )),
-        (None, Some(id)) => PathBuf::from(format!("run-{id}-report")),
-        (None, None) => PathBuf::from("run-{run}-report"),
-    }
-}
-
 /// Spawn, supervise and clean up one run (`a` resolved: see
 /// [`config::resolve`]); the report data.
-fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
+pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     if a.episodes() == 0 {
         bail!("--episodes must be at least 1");
     }
@@ -311,29 +299,4 @@ pub fn execute(a: &Args) -> Result<(serde_json::Value, Vec<(u8, String)>)> {
         );
     }
     Ok((v, problems))
-}
-
-/// Run, print the report; the exit code is 0 only for a clean run, else
-/// [`EXIT_INTERRUPTED`], [`EXIT_ACCOUNTING`] or [`EXIT_DEGRADED`] (the
-/// report and stderr say why).
-pub fn run(a: Args) -> Result<()> {
-    let a = config::resolve(a)?;
-
-    let stem = a.plot.then(|| plot_stem(&a));
-    if let Some(stem) = &stem {
-        for p in [stem.with_extension("png"), stem.with_extension("svg")] {
-            crate::output::refuse_existing(&p, a.force)?;
-        }
-    }
-    let (plan, outcome) = execute_run(&a)?;
-    report::print(&a, &plan, &outcome)?;
-    if let Some(stem) = &stem {
-        let stem = stem
-            .to_string_lossy()
-            .replace("{run}", plan.run_id.as_str());
-        let stem = std::path::Path::new(&stem);
-        etp_figures::report_plot(&figure::figure(&plan, &outcome), stem)?;
-        eprintln!("wrote {} and .svg", stem.with_extension("png").display());
-    }
-    exit_for(&problems(&a, &outcome))
 }

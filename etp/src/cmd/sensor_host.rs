@@ -8,7 +8,7 @@
 //! is gone (the bridge says so; the sensors see their coordinator vanish),
 //! and removes every file it made.
 
-use super::process::{ProcessExit, sibling_binary, signal, spawn_env, status_text};
+use crate::multiprocess::process::{ProcessExit, sibling_binary, signal, spawn_env, status_text};
 use anyhow::{Context, Result, bail};
 use etp_runtime::cleanup;
 use etp_runtime::wire::{IPC_DOMAIN_ENV, RunId};
@@ -31,7 +31,7 @@ pub struct Args {
     pub json: bool,
     /// The link's protection.
     #[command(flatten)]
-    pub link: super::link::LinkArgs,
+    pub link: crate::multiprocess::link::LinkArgs,
     /// This host's name in the key folder (`etp certs init --sensor-host NAME`).
     #[arg(long, value_name = "NAME", requires = "tls", default_value = etp_runtime::link_keys::DEFAULT_SENSOR_HOST)]
     pub name: String,

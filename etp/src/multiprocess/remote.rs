@@ -8,7 +8,7 @@
 use super::prepare::Plan;
 use super::process::{ProcessExit, sibling_binary, signal, spawn, status_text};
 use anyhow::{Context, Result, bail};
-use etp_runtime::report::SessionInfo;
+use etp_runtime::report::{SessionInfo, Stall};
 use etp_runtime::wire::traffic::LinkTraffic;
 use std::collections::BTreeMap;
 use tokio::io::{AsyncBufReadExt, BufReader};
@@ -54,22 +54,6 @@ pub struct LinkReport {
     pub handshakes_refused: BTreeMap<String, u64>,
     /// The first refusals in words, with their peer.
     pub handshakes_named: Vec<String>,
-}
-
-/// Puts held up by a stalled peer (the bridge's `stalled` line).
-#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
-pub struct Stall {
-    pub puts: u64,
-    pub longest_ms: u64,
-    /// The host the sensor's downlink went to (agent host).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub host: Option<String>,
-    /// The host was closed for not reading and refused for the rest of the run.
-    #[serde(default)]
-    pub refused: bool,
-    /// The sensor's messages not sent since (its host refused).
-    #[serde(default)]
-    pub dropped: u64,
 }
 
 impl LinkReport {

@@ -132,7 +132,7 @@ pub fn verdict(
 }
 
 /// What is wrong with a finished run, most important first (empty: clean).
-pub(super) fn problems(a: &Args, outcome: &supervise::Supervised) -> Vec<(u8, String)> {
+pub fn problems(a: &Args, outcome: &supervise::Supervised) -> Vec<(u8, String)> {
     let recording_ok = outcome.recording.as_ref().is_none_or(|r| r.finished);
     let mut problems = verdict(&outcome.report, recording_ok, a.allow_degraded);
     if let Some(why) = outcome.recording.as_ref().and_then(|r| r.problem.clone()) {

@@ -1,0 +1,45 @@
+//! `etp run`: run a strategy as processes ([`crate::multiprocess`]) and
+//! print the report; `--plot` draws it.
+
+use crate::multiprocess::{config, exit_for, figure, problems, report};
+use anyhow::Result;
+use std::path::PathBuf;
+
+pub use crate::multiprocess::{Args, EXIT_ACCOUNTING, EXIT_DEGRADED, EXIT_INTERRUPTED};
+
+/// Where `--plot` writes (`{run}` = the run id, known once the run starts).
+fn plot_stem(a: &Args) -> PathBuf {
+    match (&a.record, &a.run_id) {
+        (Some(r), _) => r.with_extension("").with_file_name(format!(
+            "{}-report",
+            r.file_stem().and_then(|x| x.to_str()).unwrap_or("run")
+        )),
+        (None, Some(id)) => PathBuf::from(format!("run-{id}-report")),
+        (None, None) => PathBuf::from("run-{run}-report"),
+    }
+}
+
+/// Run, print the report; the exit code is 0 only for a clean run, else
+/// [`EXIT_INTERRUPTED`], [`EXIT_ACCOUNTING`] or [`EXIT_DEGRADED`] (the
+/// report and stderr say why).
+pub fn run(a: Args) -> Result<()> {
+    let a = config::resolve(a)?;
+
+    let stem = a.plot.then(|| plot_stem(&a));
+    if let Some(stem) = &stem {
+        for p in [stem.with_extension("png"), stem.with_extension("svg")] {
+            crate::output::refuse_existing(&p, a.force)?;
+        }
+    }
+    let (plan, outcome) = crate::multiprocess::execute_run(&a)?;
+    report::print(&a, &plan, &outcome)?;
+    if let Some(stem) = &stem {
+        let stem = stem
+            .to_string_lossy()
+            .replace("{run}", plan.run_id.as_str());
+        let stem = std::path::Path::new(&stem);
+        etp_figures::report_plot(&figure::figure(&plan, &outcome), stem)?;
+        eprintln!("wrote {} and .svg", stem.with_extension("png").display());
+    }
+    exit_for(&problems(&a, &outcome))
+}
