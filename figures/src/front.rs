@@ -16,15 +16,22 @@ pub fn front_plot(front: &ParetoFront, stem: &Path) -> Result<()> {
 struct FrontFigure<'a>(&'a ParetoFront);
 
 impl super::Figure for FrontFigure<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    fn title(&self) -> Option<String> {
+        Some(format!(
+            "Pareto front of {}: least expected energy for each P_tar, per bound on P_coll",
+            self.0.scenario_name
+        ))
+    }
+    fn draw<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> Result<()>
     where
         DB::ErrorType: 'static,
     {
-        draw_front(root, self.0)
+        draw_front(area, self.0)
     }
 }
 
-fn draw_front<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, front: &ParetoFront) -> Result<()>
+/// The front's panel in `area` (under the title).
+fn draw_front<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, front: &ParetoFront) -> Result<()>
 where
     DB::ErrorType: 'static,
 {
@@ -61,14 +68,7 @@ where
         .max(t_nominal - 0.2);
     let y_lo = (t_min - 0.02).max(0.0);
     let bounds = collision_bounds(front);
-    let area = crate::titled_area(
-        root,
-        &format!(
-            "Pareto front of {}: least expected energy for each P_tar, per bound on P_coll",
-            front.scenario_name
-        ),
-    )?;
-    let mut chart = ChartBuilder::on(&area)
+    let mut chart = ChartBuilder::on(area)
         .caption(
             format!(
                 "{} vertices of the 3-D front (P_tar, P_coll, energy), certified to ε = {:.1e} (energy {:.1e}); curves: its non-dominated vertices in the plane",

@@ -81,20 +81,19 @@ pub(crate) fn dashes(points: &[(f64, f64)], pieces: usize) -> Vec<Vec<(f64, f64)
 }
 
 impl super::Figure for FrontsFigure<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    fn title(&self) -> Option<String> {
+        Some(format!(
+            "What {} cost{} ({}): least expected energy per P_tar",
+            self.what,
+            if self.what.ends_with('s') { "" } else { "s" },
+            self.scenario
+        ))
+    }
+    fn draw<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> Result<()>
     where
         DB::ErrorType: 'static,
     {
         let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
-        let area = crate::titled_area(
-            root,
-            &format!(
-                "What {} cost{} ({}): least expected energy per P_tar",
-                self.what,
-                if self.what.ends_with('s') { "" } else { "s" },
-                self.scenario
-            ),
-        )?;
         let cells = area.split_evenly((1, self.panels.len().max(1)));
         // One scale for every panel, so that they compare.
         let all = self

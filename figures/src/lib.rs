@@ -18,7 +18,11 @@
 //!   predicted ones (`etp run --plot`, `etp replay plot`), from the data of
 //!   `etp_recording_tools::figure`.
 //!
-//! All are written by `png_and_svg`, the one writer of a figure. The font is
+//! All are written by `png_and_svg`, the one writer of a figure: white, the
+//! figure's title (`Figure::title`) above its panels (`Figure::draw`), PNG
+//! and SVG from one drawing. The chart parts every figure shares are drawn
+//! once: `draw_axes` (descriptions and tick labels of two real axes) and
+//! `draw_legend` (the framed legend box). The font is
 //! embedded (DejaVu Sans, see `assets/`), so plots render the same on a
 //! machine without any installed fonts.
 
@@ -65,7 +69,7 @@ pub(crate) fn plot_error<E: std::fmt::Debug>(e: E) -> FigureError {
 }
 
 /// A white figure with its title (20 pt): the area left for the panels.
-pub(crate) fn titled_area<'a, DB: DrawingBackend>(
+fn titled_area<'a, DB: DrawingBackend>(
     root: &'a DrawingArea<DB, Shift>,
     title: &str,
 ) -> Result<DrawingArea<DB, Shift>>
@@ -132,9 +136,28 @@ pub(crate) fn register_font() {
 
 /// A figure drawn the same way on any plotters backend (PNG and SVG).
 pub(crate) trait Figure {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    /// The title [`png_and_svg`] writes above the panels (20 pt, on white);
+    /// `None`: the figure titles itself.
+    fn title(&self) -> Option<String>;
+    /// The panels, in `area`: under the title, or the whole white figure.
+    fn draw<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> Result<()>
     where
         DB::ErrorType: 'static;
+}
+
+/// A figure on a white `root`, under its title if it has one.
+fn draw_figure<DB: DrawingBackend>(fig: &impl Figure, root: &DrawingArea<DB, Shift>) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    match fig.title() {
+        Some(title) => fig.draw(&titled_area(root, &title)?),
+        None => {
+            root.fill(&WHITE)
+                .map_err(plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>)?;
+            fig.draw(root)
+        }
+    }
 }
 
 /// THE way every figure is written: `stem.png` and `stem.svg`, `size` pixels,
@@ -146,7 +169,7 @@ pub(crate) fn png_and_svg(fig: &impl Figure, stem: &Path, size: (u32, u32)) -> R
     let png = stem.with_extension("png");
     write_figure(&png, |tmp| {
         let root = BitMapBackend::new(tmp, size).into_drawing_area();
-        fig.draw(&root)?;
+        draw_figure(fig, &root)?;
         root.present().map_err(|e| FigureError::Write {
             path: png.clone(),
             source: Box::new(e),
@@ -155,7 +178,7 @@ pub(crate) fn png_and_svg(fig: &impl Figure, stem: &Path, size: (u32, u32)) -> R
     let svg = stem.with_extension("svg");
     write_figure(&svg, |tmp| {
         let root = SVGBackend::new(tmp, size).into_drawing_area();
-        fig.draw(&root)?;
+        draw_figure(fig, &root)?;
         root.present().map_err(|e| FigureError::Write {
             path: svg.clone(),
             source: Box::new(e),

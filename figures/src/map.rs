@@ -27,6 +27,10 @@ pub fn map_plot(scenario: &Scenario, trajectories: &[Trajectory], stem: &Path) -
 struct MapFigure<'a>(&'a Scenario, &'a [Trajectory]);
 
 impl super::Figure for MapFigure<'_> {
+    /// The map titles itself (its title names what its panels show).
+    fn title(&self) -> Option<String> {
+        None
+    }
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
     where
         DB::ErrorType: 'static,
@@ -43,8 +47,6 @@ fn draw_maps<DB: DrawingBackend>(
 where
     DB::ErrorType: 'static,
 {
-    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
-    root.fill(&WHITE).map_err(e)?;
     let title = format!(
         "{} — {} sampled episodes coloured by the expected transmission rate γ̄(δ) of the threshold in force",
         scenario.name,

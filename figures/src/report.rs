@@ -18,19 +18,22 @@ pub fn report_plot(fig: &RunFigure, stem: &Path) -> Result<()> {
 struct ReportFigure<'a>(&'a RunFigure);
 
 impl crate::Figure for ReportFigure<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    fn title(&self) -> Option<String> {
+        Some(self.0.title.clone())
+    }
+    fn draw<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> Result<()>
     where
         DB::ErrorType: 'static,
     {
-        draw(root, self.0)
+        draw(area, self.0)
     }
 }
 
-fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, fig: &RunFigure) -> Result<()>
+/// The two panels in `area` (under the title).
+fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, fig: &RunFigure) -> Result<()>
 where
     DB::ErrorType: 'static,
 {
-    let area = crate::titled_area(root, &fig.title)?;
     let (left, right) = area.split_horizontally(740);
     let top = fig
         .sensors

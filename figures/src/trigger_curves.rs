@@ -55,18 +55,17 @@ fn bounds(values: impl Iterator<Item = f64>) -> (f64, f64) {
 }
 
 impl super::Figure for CurvesFigure<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    fn title(&self) -> Option<String> {
+        Some(format!(
+            "Trigger families on {}: estimation error vs communication rate (one point per δ, ± 95 %)",
+            self.scenario
+        ))
+    }
+    fn draw<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> Result<()>
     where
         DB::ErrorType: 'static,
     {
         let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
-        let area = crate::titled_area(
-            root,
-            &format!(
-                "Trigger families on {}: estimation error vs communication rate (one point per δ, ± 95 %)",
-                self.scenario
-            ),
-        )?;
         let cells = area.split_evenly((1, 3));
         let pts = || self.series.iter().flat_map(|s| s.points.iter());
         let (r_lo, r_hi) = bounds(pts().flat_map(|p| [p.rate.0 - p.rate.1, p.rate.0 + p.rate.1]));

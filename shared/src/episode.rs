@@ -260,9 +260,7 @@ pub struct CompiledScenario<const N: usize> {
 }
 
 /// One leg's call, from [`CompiledScenario::run_leg`] through the
-/// instruction-set dispatch to the leg loop, which takes its borrows apart
-/// again (as parameters of an inlined function they keep telling the
-/// optimiser that they do not alias).
+/// instruction-set dispatch to the leg loop.
 pub(crate) struct LegCall<'a, const N: usize, R: ?Sized, O> {
     leg: usize,
     state: &'a mut AgentState<N>,
@@ -270,25 +268,6 @@ pub(crate) struct LegCall<'a, const N: usize, R: ?Sized, O> {
     rng: &'a mut R,
     channels: &'a mut EpisodeChannels,
     observer: &'a mut O,
-}
-
-impl<const N: usize, R: Rng + ?Sized, O: EpisodeObserver<N>> LegCall<'_, N, R, O> {
-    #[inline(always)]
-    fn run<const M: usize>(
-        self,
-        scenario: &CompiledScenario<N>,
-        filter: &EtKalmanFilter<N, M>,
-    ) -> LegResult {
-        let Self {
-            leg,
-            state,
-            mode,
-            rng,
-            channels,
-            observer,
-        } = self;
-        scenario.run_leg_with(filter, leg, state, mode, rng, channels, observer)
-    }
 }
 
 impl<const N: usize> CompiledScenario<N> {
@@ -496,7 +475,7 @@ impl<const N: usize> CompiledScenario<N> {
         sensor: usize,
         call: LegCall<'_, N, R, O>,
     ) -> LegResult {
-        on_filter!(&self.filters[sensor], f => call.run(self, f))
+        on_filter!(&self.filters[sensor], f => self.run_leg_with(f, call))
     }
 
     /// [`Self::run_leg_with`] in the baseline instruction set, one function
@@ -510,7 +489,7 @@ impl<const N: usize> CompiledScenario<N> {
         filter: &EtKalmanFilter<N, M>,
         call: LegCall<'_, N, R, O>,
     ) -> LegResult {
-        call.run(self, filter)
+        self.run_leg_with(filter, call)
     }
 
     /// The leg loop: [`AgentCore`]'s step (the one order of the step) with
@@ -518,17 +497,19 @@ impl<const N: usize> CompiledScenario<N> {
     /// serving sensor's typed filter (`M` known here: one innovation for
     /// trigger and update; the radio's fate from `channels`).
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn run_leg_with<const M: usize, R: Rng + ?Sized, O: EpisodeObserver<N>>(
         &self,
         filter: &EtKalmanFilter<N, M>,
-        leg: usize,
-        state: &mut AgentState<N>,
-        mode: &LegMode<N>,
-        rng: &mut R,
-        channels: &mut EpisodeChannels,
-        observer: &mut O,
+        call: LegCall<'_, N, R, O>,
     ) -> LegResult {
+        let LegCall {
+            leg,
+            state,
+            mode,
+            rng,
+            channels,
+            observer,
+        } = call;
         let sensor = self.legs[leg].sensor;
         // A lossy serving link takes the lossy step; an ideal one the step of
         // §2 exactly (same operations, same bits).
