@@ -4,19 +4,26 @@
 //!   whole interface).
 //! * [`cmd`] — one module per subcommand, none importing another; each exposes
 //!   `run(args) -> anyhow::Result<()>`.
-//! * [`input`] — resolving a `SCENARIO` argument (built-in name or path).
+//! * [`input`] — resolving a `SCENARIO` argument (built-in name or path)
+//!   and its options.
+//! * [`mdp_build`] — the MDP step of a synthesis from a typed request
+//!   (`synthesize`, `demo`).
+//! * [`front`], [`output`] — a synthesis's front and figure written; the
+//!   synthesis folder's files read, the overwrite rule.
 //! * [`predictions`] — a strategy file's predictions as `strategy` and
 //!   `validate` report them (text, JSON, the aggregation check).
-//! * [`progress`] — indicatif bars that hide themselves when stderr is not a terminal.
-//! * [`report`] — a simulation summary's JSON and tables, the channel line.
+//! * [`progress`] — indicatif bars that hide themselves when stderr is not a
+//!   terminal (`etp_runtime::progress`).
+//! * [`report`] — a simulation summary's JSON and tables.
 //! * [`simulation`] — the constant-threshold simulation of `simulate` and `bench`.
 //! * [`synthesis_dir`] — a synthesis directory loaded for selection (`strategy`, `compare`).
 //! * [`processes`] — the run's processes `etp process NAME` plays.
 //! * [`vocab`] — the JSON vocabulary shared by simulate, validate, run and replay.
 //!
 //! The work is in libraries: the maths in `etp-shared` and `etp-synthesis`,
-//! the runtime in `etp-runtime`, the recording tools in
-//! `etp-recording-tools`, the figures in `etp-figures`.
+//! the runtime in `etp-runtime`, the multi-process run in `etp-launcher`,
+//! the recording tools in `etp-recording-tools`, the figures in
+//! `etp-figures`.
 //!
 //! Errors are `anyhow` with context; [`run`] prints them to stderr and exits non-zero.
 
@@ -25,33 +32,18 @@ pub mod cmd;
 pub mod front;
 pub mod input;
 pub mod mdp_build;
-pub mod multiprocess;
 pub mod output;
 pub mod predictions;
 pub mod processes;
-pub mod progress;
 pub mod report;
 pub mod simulation;
 pub mod synthesis_dir;
 pub use etp_recording_tools::vocab;
+pub use etp_runtime::progress;
 
 use std::process::ExitCode;
 
-/// An outcome with its own exit code (documented by the command that uses
-/// it), e.g. `etp replay` on an unfinished recording exits with 3.
-#[derive(Debug)]
-pub struct ExitWith {
-    pub code: u8,
-    pub message: String,
-}
-
-impl std::fmt::Display for ExitWith {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.message)
-    }
-}
-
-impl std::error::Error for ExitWith {}
+pub use etp_runtime::shell::ExitWith;
 
 /// Run a parsed command line; print any error chain to stderr.
 pub fn run(cli: cli::Cli) -> ExitCode {

@@ -3,22 +3,10 @@
 //! not installed beside `etp`) and their one entry point each, the same
 //! library call as the standalone binary's `main`.
 
+use etp_launcher::process::NAMES;
 use etp_runtime::shell::main_with;
 use std::ffi::OsString;
 use std::process::ExitCode;
-
-/// The processes `etp` can run as `etp process <name>`.
-pub const NAMES: [&str; 4] = [
-    "etp-agent",
-    "etp-sensor-node",
-    "etp-coordinator",
-    "etp-recorder",
-];
-
-/// Can `etp process` run `name`?
-pub fn known(name: &str) -> bool {
-    NAMES.contains(&name)
-}
 
 /// Run process `name` with its own arguments `args` (without the program
 /// name), in this process; exit 2 for a name that is not one of [`NAMES`].

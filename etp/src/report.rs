@@ -2,7 +2,6 @@
 //! commands that print one: `simulate`, `validate` and `run` (the flat keys
 //! of `crate::vocab`, the tables, the channel line).
 
-use etp_shared::radio::Radio;
 use etp_shared::scenario::Scenario;
 use etp_shared::stats::Estimate;
 use etp_synthesis::simulate::{SensorCounts, SimulationSummary};
@@ -129,19 +128,4 @@ pub fn summary_table(sum: &SimulationSummary) -> String {
         o.push_str(&format!("  {k:<22} {:>12.4} ± {:.4}\n", e.value, e.ci95));
     }
     o
-}
-
-/// The radio of a validation or a run: the strategy's own channel, or both
-/// when the options evaluate it under another one (a robustness study,
-/// docs/MODEL.md §8.6).
-pub fn channels_text(synthesized: &Radio, evaluated: &Radio, names: &[String]) -> String {
-    if synthesized == evaluated {
-        format!("radio: {}, the strategy's own", evaluated.describe(names))
-    } else {
-        format!(
-            "radio: {} — the strategy was synthesized for {}",
-            evaluated.describe(names),
-            synthesized.describe(names)
-        )
-    }
 }

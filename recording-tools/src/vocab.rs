@@ -164,3 +164,22 @@ mod tests {
         assert_eq!(human(2.0e-7), "2e-7");
     }
 }
+
+/// The radio of a validation or a run: the strategy's own channel, or both
+/// when the options evaluate it under another one (a robustness study,
+/// docs/MODEL.md §8.6).
+pub fn channels_text(
+    synthesized: &etp_shared::radio::Radio,
+    evaluated: &etp_shared::radio::Radio,
+    names: &[String],
+) -> String {
+    if synthesized == evaluated {
+        format!("radio: {}, the strategy's own", evaluated.describe(names))
+    } else {
+        format!(
+            "radio: {} — the strategy was synthesized for {}",
+            evaluated.describe(names),
+            synthesized.describe(names)
+        )
+    }
+}

@@ -17,9 +17,12 @@
 //! * [`wire::waiter`] — the one wait point of every process loop
 //!   ([`wire::Waiter`], over one wake-up event or several), the liveness
 //!   [`wire::Watchdog`] and the header [`wire::Stamper`].
+//! * [`progress`] — the progress of long work on stderr: a bar on a
+//!   terminal, a plain line every few seconds otherwise, nothing with `--json`.
 //! * [`shell`] — the one process shell: argument parsing, logging, exit
 //!   codes ([`shell::main_with`]).
-//! * [`scenario_arg`] — a `SCENARIO` argument (built-in name or TOML path);
+//! * [`scenario_arg`] — a `SCENARIO` argument (built-in name or TOML path),
+//!   [`scenario_options`] the options that change it (radio, trigger family);
 //!   [`strategy_arg`] — a `STRATEGY` argument (sealed file and its scenario).
 //! * [`report`] — the coordinator's run report and a run's session info;
 //!   [`cleanup`] — removing what a run left in /dev/shm and its folder;
@@ -35,9 +38,11 @@
 pub mod cleanup;
 pub mod folders;
 pub mod link_keys;
+pub mod progress;
 pub mod recording;
 pub mod report;
 pub mod scenario_arg;
+pub mod scenario_options;
 pub mod shell;
 pub mod strategy_arg;
 pub mod wire;

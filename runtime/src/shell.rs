@@ -63,6 +63,22 @@ pub trait Process {
     fn body(args: &Self::Args) -> anyhow::Result<Done>;
 }
 
+/// An outcome with its own exit code (documented by the command that uses
+/// it), e.g. `etp replay` on an unfinished recording exits with 3.
+#[derive(Debug)]
+pub struct ExitWith {
+    pub code: u8,
+    pub message: String,
+}
+
+impl std::fmt::Display for ExitWith {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for ExitWith {}
+
 /// THE entry point of every process (`main` of its binary, and `etp process
 /// <name>` for all but the bridge): parse `args` (the first is the program name) as `P::Args`, set
 /// up logging, run `P::body`, and map its result to the exit code.

@@ -6,10 +6,10 @@
 use crate::front::write_front;
 use crate::input::{RadioArgs, load_scenario_with_radio, scenario_text};
 use crate::mdp_build::{MdpRequest, build_mdp};
-use crate::multiprocess;
 use crate::output::write_new;
 use crate::progress;
 use anyhow::{Context, Result};
+use etp_launcher as multiprocess;
 use etp_shared::rng::mix64;
 use etp_shared::scenario::DEFAULT_SCENARIO;
 use etp_synthesis::mdp::MDP_FILE;

@@ -1,11 +1,11 @@
-//! `etp run`: run a strategy as processes ([`crate::multiprocess`]) and
+//! `etp run`: run a strategy as processes ([`etp_launcher`]) and
 //! print the report; `--plot` draws it.
 
-use crate::multiprocess::{config, exit_for, figure, problems, report};
 use anyhow::Result;
+use etp_launcher::{config, exit_for, figure, problems, report};
 use std::path::PathBuf;
 
-pub use crate::multiprocess::{Args, EXIT_ACCOUNTING, EXIT_DEGRADED, EXIT_INTERRUPTED};
+pub use etp_launcher::{Args, EXIT_ACCOUNTING, EXIT_DEGRADED, EXIT_INTERRUPTED};
 
 /// Where `--plot` writes (`{run}` = the run id, known once the run starts).
 fn plot_stem(a: &Args) -> PathBuf {
@@ -31,7 +31,7 @@ pub fn run(a: Args) -> Result<()> {
             crate::output::refuse_existing(&p, a.force)?;
         }
     }
-    let (plan, outcome) = crate::multiprocess::execute_run(&a)?;
+    let (plan, outcome) = etp_launcher::execute_run(&a)?;
     report::print(&a, &plan, &outcome)?;
     if let Some(stem) = &stem {
         let stem = stem

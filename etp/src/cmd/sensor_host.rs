@@ -8,8 +8,8 @@
 //! is gone (the bridge says so; the sensors see their coordinator vanish),
 //! and removes every file it made.
 
-use crate::multiprocess::process::{ProcessExit, sibling_binary, signal, spawn_env, status_text};
 use anyhow::{Context, Result, bail};
+use etp_launcher::process::{ProcessExit, sibling_binary, signal, spawn_env, status_text};
 use etp_runtime::cleanup;
 use etp_runtime::wire::{IPC_DOMAIN_ENV, RunId};
 use std::time::Duration;
@@ -31,7 +31,7 @@ pub struct Args {
     pub json: bool,
     /// The link's protection.
     #[command(flatten)]
-    pub link: crate::multiprocess::link::LinkArgs,
+    pub link: etp_launcher::link::LinkArgs,
     /// This host's name in the key folder (`etp certs init --sensor-host NAME`).
     #[arg(long, value_name = "NAME", requires = "tls", default_value = etp_runtime::link_keys::DEFAULT_SENSOR_HOST)]
     pub name: String,

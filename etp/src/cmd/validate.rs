@@ -3,7 +3,8 @@
 
 use crate::predictions;
 use crate::progress;
-use crate::report::{channels_text, radio_table, summary_json, summary_table};
+use crate::report::{radio_table, summary_json, summary_table};
+use crate::vocab::channels_text;
 use anyhow::Result;
 use etp_shared::strategy::Strategy;
 use etp_synthesis::simulate::SimulationSummary;

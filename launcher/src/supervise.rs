@@ -100,7 +100,7 @@ pub async fn supervise(
     ]);
     let mut coordinator = spawn(&sibling_binary("etp-coordinator")?, &coord_args, true)?;
     // Episodes finished, from the coordinator's progress file.
-    let pb = crate::progress::bar(plan.episodes, "run", quiet);
+    let pb = etp_runtime::progress::bar(plan.episodes, "run", quiet);
     let shown = pb.clone();
     let progress = tokio::spawn(async move {
         loop {

@@ -1,22 +1,39 @@
-//! The multi-process run of a strategy, shared by `etp run` (which prints
-//! its report: `cmd/run.rs`) and `etp demo` (which takes its JSON object:
-//! [`execute`]).
+//! `etp-launcher`: the multi-process run of a strategy as a library — what
+//! `etp run` prints (`etp/src/cmd/run.rs`), `etp demo` tabulates and a
+//! notebook can start — kept out of the CLI crate.
 //!
-//! Spawns `etp-coordinator`, `etp-agent` and one `etp-sensor-node` per sensor
-//! (binaries found next to the running `etp`), supervises them with tokio
-//! (exit codes, ctrl-c, a deadline), cleans the run's iceoryx2 files and
-//! prints the report: outcomes with 95 % intervals beside the strategy's
-//! prediction, and per sensor its ledger (transmitted), what the agent
-//! received, and its predicted energy.
+//! It spawns `etp-coordinator`, `etp-agent`, one `etp-sensor-node` per
+//! sensor and the `etp-recorder` (binaries found next to the running
+//! executable, else `etp process NAME`), supervises them with tokio (exit
+//! codes, ctrl-c, a deadline), judges the finished run, cleans the run's
+//! iceoryx2 files and folder, and reports it: outcomes with 95 % intervals
+//! beside the strategy's prediction, and per sensor its ledger
+//! (transmitted), what the agent received, and its predicted energy.
 //!
-//! * `prepare` — strategy and scenario (a strategy file, or `--scenario
-//!   NAME --delta D` for a constant-δ strategy made on the fly), the run
-//!   folder, `--clone-sensors K` for the scaling benchmark.
-//! * `supervise` — spawning and supervising the processes.
-//! * `report` — the table and the `--json` object.
-//! * `verdict` — is the finished run clean (accounting identities, the
-//!   recording, refused link traffic, an interrupt) and its exit code.
-//! * [`config`] — `--config RUN.toml`, the launch file of a run.
+//! A short tour:
+//!
+//! * [`Args`] — a run's request (`etp run`'s arguments); [`config`] its
+//!   launch file (`--config RUN.toml`, each key named once).
+//! * [`execute_run`] — spawn, supervise and clean up one run: the
+//!   [`prepare::Plan`] and the [`supervise::Supervised`] outcome;
+//!   [`execute`] the same as the `--json` object with its problems.
+//! * [`prepare`] — strategy and scenario (a strategy file, or `--scenario
+//!   NAME --delta D` for a constant-δ strategy made on the fly), the run's
+//!   files, `--clone-sensors K` for the scaling benchmark.
+//! * [`supervise`] — spawning and supervising the processes ([`process`]:
+//!   where their binaries are, how one is started and signalled).
+//! * [`problems`] and [`exit_for`] — is the finished run clean (accounting
+//!   identities leg by leg and over the totals, the recording, refused link
+//!   traffic, an interrupt) and its exit code ([`EXIT_ACCOUNTING`],
+//!   [`EXIT_DEGRADED`], [`EXIT_INTERRUPTED`]).
+//! * [`report`] — the table and the `--json` object; [`figure`] the data of
+//!   `--plot`'s figure.
+//! * [`link`] — `--tls DIR` / `--insecure` of a run across hosts; the
+//!   bridge process for remote sensors and its report (`remote`).
+//! * `record` — the recording's target (claimed before the run, replaced
+//!   only once the run ran) and the recorder process; `rundir` — the run's
+//!   private folder, owned by one live run (a lock the kernel drops when
+//!   the owner dies).
 
 pub mod config;
 pub mod figure;
@@ -90,11 +107,11 @@ pub struct Args {
     /// channel is written into the run's scenario text (every process and the
     /// recording read that text).
     #[command(flatten)]
-    pub radio: crate::input::RadioArgs,
+    pub radio: etp_runtime::scenario_options::RadioArgs,
     /// The trigger family (docs/MODEL.md §9), written into the run's
     /// scenario text; with a strategy it must be the strategy's own.
     #[command(flatten)]
-    pub trigger: crate::input::TriggerArgs,
+    pub trigger: etp_runtime::scenario_options::TriggerArgs,
     /// Kill everything and fail after this many seconds [default: 3600].
     #[arg(long)]
     pub deadline: Option<f64>,

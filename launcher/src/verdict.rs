@@ -168,7 +168,7 @@ pub fn problems(a: &Args, outcome: &supervise::Supervised) -> Vec<(u8, String)> 
 pub fn exit_for(problems: &[(u8, String)]) -> Result<()> {
     match problems.first() {
         None => Ok(()),
-        Some(&(code, _)) => Err(crate::ExitWith {
+        Some(&(code, _)) => Err(etp_runtime::shell::ExitWith {
             code,
             message: problems
                 .iter()

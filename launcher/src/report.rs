@@ -66,11 +66,11 @@ fn downlink(s: &Supervised, traffic: &[LinkTraffic]) -> Value {
 
 /// The run's measurements against the strategy's prediction.
 fn prediction_check(e: &Estimates, r: &etp_runtime::report::RunReport) -> Value {
-    let m = |x: &etp_shared::stats::Estimate| crate::vocab::Measured {
+    let m = |x: &etp_shared::stats::Estimate| etp_recording_tools::vocab::Measured {
         value: x.value,
         ci95: x.ci95,
     };
-    crate::vocab::prediction_check(
+    etp_recording_tools::vocab::prediction_check(
         r.predicted.as_ref(),
         r.predicted_ci95.as_ref(),
         [m(&e.p_target), m(&e.p_collision), m(&e.energy)],
@@ -92,7 +92,7 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
                    "delivered": t.delivered, "lost": t.lost, "triggers": t.triggers,
                    "received": t.received,
                    "received_without_ledger": t.received_without_ledger,
-                   "predicted_energy": crate::vocab::round_energy(per_ep * r.episodes as f64),
+                   "predicted_energy": etp_recording_tools::vocab::round_energy(per_ep * r.episodes as f64),
                    "energy": t.energy, "slots": t.slots, "missing_ledgers": t.missing_ledgers,
                    "traffic": link});
             if let Some(carried) = s.link.as_ref().and_then(|l| l.traffic.get(&t.name))
@@ -116,7 +116,7 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         "p_collision": e.p_collision.value, "p_collision_ci95": e.p_collision.ci95,
         "p_free": e.p_free.value, "p_free_ci95": e.p_free.ci95,
         "energy_mean": e.energy.value, "energy_mean_ci95": e.energy.ci95,
-        "predicted": crate::vocab::prediction(r.predicted.as_ref()),
+        "predicted": etp_recording_tools::vocab::prediction(r.predicted.as_ref()),
         "predicted_ci95": r.predicted_ci95.map(|c| json!({"p_target": c.p_target,
             "p_collision": c.p_collision, "energy_mean": c.energy_mean})),
         "prediction_check": prediction_check(&e, r),
@@ -198,7 +198,8 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
     println!(
         "  {}",
         match &plan.radio_synthesized {
-            Some(own) => crate::report::channels_text(own, &plan.scenario.radio, &names),
+            Some(own) =>
+                etp_recording_tools::vocab::channels_text(own, &plan.scenario.radio, &names),
             None => format!("radio: {}", plan.scenario.radio.describe(&names)),
         }
     );
@@ -240,7 +241,7 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
     if r.episodes > 0 {
         print!(
             "{}",
-            crate::vocab::prediction_check_text(&prediction_check(&e, r))
+            etp_recording_tools::vocab::prediction_check_text(&prediction_check(&e, r))
         );
     }
     println!(

@@ -95,7 +95,7 @@ impl Target {
     /// Claim `path` for run `run_id` (before anything of the run starts): an
     /// existing file is refused unless `force`, and nothing is removed.
     pub fn claim(path: &Path, force: bool, run_id: &str) -> Result<Self> {
-        crate::output::refuse_existing(path, force)?;
+        etp_recording_tools::files::refuse_existing(path, force)?;
         let before = file_id(path).with_context(|| format!("--record {}", path.display()))?;
         if before.is_some() && path.is_dir() {
             bail!("--record {}: is a directory", path.display());

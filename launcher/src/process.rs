@@ -7,6 +7,19 @@ use std::path::PathBuf;
 use std::process::Stdio;
 use tokio::process::{Child, Command};
 
+/// The processes `etp` can run as `etp process <name>`.
+pub const NAMES: [&str; 4] = [
+    "etp-agent",
+    "etp-sensor-node",
+    "etp-coordinator",
+    "etp-recorder",
+];
+
+/// Can `etp process` run `name`?
+pub fn known(name: &str) -> bool {
+    NAMES.contains(&name)
+}
+
 /// How one process ended.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct ProcessExit {
@@ -56,7 +69,7 @@ pub fn sibling_binary(name: &str) -> Result<Launcher> {
             });
         }
     }
-    if crate::processes::known(name) && exe.file_stem().is_some_and(|s| s == "etp") {
+    if known(name) && exe.file_stem().is_some_and(|s| s == "etp") {
         return Ok(Launcher {
             program: exe,
             prefix: vec!["process".into(), name.into()],

@@ -27,7 +27,7 @@ pub struct Plan {
     pub predict_episodes: u64,
     /// The resolved run as a run file (`etp.config` of the recording).
     pub config_toml: String,
-    /// The strategy's constant threshold, if it is constant (`crate::vocab`).
+    /// The strategy's constant threshold, if it is constant (`etp_recording_tools::vocab`).
     pub delta: Option<f64>,
     /// The channel a strategy file was synthesized for (`None` for a
     /// constant threshold made here); the run's is `scenario.radio`.
@@ -270,7 +270,7 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         prediction_from,
         predict_episodes,
         config_toml: String::new(),
-        delta: crate::vocab::constant_delta(&strategy.policy),
+        delta: etp_recording_tools::vocab::constant_delta(&strategy.policy),
         radio_synthesized,
     })
 }

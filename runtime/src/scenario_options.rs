@@ -1,0 +1,99 @@
+//! The options that change a `SCENARIO` argument, for every command that
+//! takes one (`etp simulate`, `synthesize`, `validate`, `run`, `bench`):
+//! the radio (`--loss`, `--retries`, `--burst`, `--estimator`,
+//! docs/MODEL.md §8) and the trigger family (`--trigger`, §9).
+
+use anyhow::{Context, Result, bail};
+use etp_shared::radio::{Estimator, RadioOverride};
+use etp_shared::scenario::{Scenario, ScenarioText};
+use etp_shared::trigger::TriggerFamily;
+
+/// The radio options of `simulate`, `synthesize`, `validate` and `run`
+/// (docs/MODEL.md §8): each one given replaces the scenario's setting on every
+/// sensor link.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct RadioArgs {
+    /// Probability that one transmission attempt is lost, in [0, 1) (0 = ideal radio).
+    #[arg(long, value_name = "P", allow_negative_numbers = true)]
+    pub loss: Option<f64>,
+    /// Further attempts in the same step after a lost one (acknowledged link).
+    #[arg(long, value_name = "R", allow_negative_numbers = true)]
+    pub retries: Option<i64>,
+    /// Gilbert–Elliott channel with this mean burst length in steps (≥ 1).
+    #[arg(long, value_name = "B", allow_negative_numbers = true)]
+    pub burst: Option<f64>,
+    /// The agent's silence update: `aware` (β_q, knows packets get lost) or `naive` (β).
+    #[arg(long, value_parser = ["aware", "naive"])]
+    pub estimator: Option<String>,
+}
+
+impl RadioArgs {
+    /// The settings as an override of the scenario's radio.
+    pub fn to_override(&self) -> RadioOverride {
+        RadioOverride {
+            loss: self.loss,
+            retries: self.retries,
+            burst: self.burst,
+            estimator: self.estimator.as_deref().and_then(Estimator::parse),
+        }
+    }
+
+    /// `scenario` under these settings (errors name the option).
+    pub fn apply(&self, scenario: Scenario) -> Result<Scenario> {
+        scenario
+            .with_radio_override(&self.to_override())
+            .context("radio options")
+    }
+}
+
+/// `--trigger FAMILY` of `simulate`, `synthesize`, `run` and `bench`: the
+/// trigger family every sensor uses, over the scenario's `[triggering]
+/// family` (docs/MODEL.md §9). On `validate` (and `run` with a strategy) it
+/// can only confirm the strategy's own family ([`TriggerArgs::confirm`]).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct TriggerArgs {
+    /// Trigger family over the scenario's own: box (the paper's ∞-norm trigger), stochastic,
+    /// send-on-delta, variance or periodic (docs/MODEL.md §9).
+    #[arg(long, value_name = "FAMILY", value_parser = parse_family)]
+    pub trigger: Option<TriggerFamily>,
+}
+
+/// A family name on the command line (`--trigger`, `--families`): the error names it.
+pub fn parse_family(s: &str) -> std::result::Result<TriggerFamily, String> {
+    TriggerFamily::parse(s).map_err(|e| e.to_string())
+}
+
+impl TriggerArgs {
+    /// The scenario `text` with the family written into it (the text itself
+    /// without the option or when it already says so).
+    pub fn apply_to_text(&self, text: String) -> Result<String> {
+        let Some(family) = self.trigger else {
+            return Ok(text);
+        };
+        let own = ScenarioText::parse(text).context("scenario")?;
+        Ok(own.with_trigger(family).context("--trigger")?.text)
+    }
+
+    /// A strategy's family, confirmed: a strategy is made for its scenario's
+    /// family (its thresholds and predictions mean nothing under another), so
+    /// `--trigger` naming another is refused by name.
+    pub fn confirm(&self, strategy_family: TriggerFamily) -> Result<()> {
+        match self.trigger {
+            Some(family) if family != strategy_family => bail!(
+                "--trigger {family}: the strategy was made for trigger family `{strategy_family}` \
+                 (its thresholds and predictions hold for that family only); synthesize with \
+                 --trigger {family} for a strategy of that family"
+            ),
+            _ => Ok(()),
+        }
+    }
+
+    /// The scenario with the family applied (for runs that write no file
+    /// carrying the scenario).
+    pub fn apply(&self, mut s: Scenario) -> Scenario {
+        if let Some(family) = self.trigger {
+            s.trigger = family;
+        }
+        s
+    }
+}
