@@ -69,8 +69,8 @@ pub(crate) fn plot_error<E: std::fmt::Debug>(e: E) -> FigureError {
 }
 
 /// A white figure with its title (20 pt): the area left for the panels.
-fn titled_area<'a, DB: DrawingBackend>(
-    root: &'a DrawingArea<DB, Shift>,
+fn titled_area<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
     title: &str,
 ) -> Result<DrawingArea<DB, Shift>>
 where

@@ -149,22 +149,6 @@ pub fn human(x: f64) -> String {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn numbers_lose_their_noise() {
-        assert_eq!(round_energy(25869.399999999994), 25869.4);
-        assert_eq!(human(25869.399999999994), "25869");
-        assert_eq!(human(0.95213), "0.95213");
-        assert_eq!(human(0.952134), "0.95213");
-        assert_eq!(human(1.5), "1.5");
-        assert_eq!(human(0.0), "0");
-        assert_eq!(human(2.0e-7), "2e-7");
-    }
-}
-
 /// The radio of a validation or a run: the strategy's own channel, or both
 /// when the options evaluate it under another one (a robustness study,
 /// docs/MODEL.md §8.6).
@@ -181,5 +165,21 @@ pub fn channels_text(
             evaluated.describe(names),
             synthesized.describe(names)
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_lose_their_noise() {
+        assert_eq!(round_energy(25869.399999999994), 25869.4);
+        assert_eq!(human(25869.399999999994), "25869");
+        assert_eq!(human(0.95213), "0.95213");
+        assert_eq!(human(0.952134), "0.95213");
+        assert_eq!(human(1.5), "1.5");
+        assert_eq!(human(0.0), "0");
+        assert_eq!(human(2.0e-7), "2e-7");
     }
 }
