@@ -43,7 +43,7 @@ pub mod simulation;
 pub mod synthesis_dir;
 pub use etp_recording_tools::vocab;
 /// `etp_runtime::progress`, its bars shown by rank 0 alone in an MPI job
-/// ([`dist`]).
+/// ([`crate::dist`]).
 pub mod progress {
     pub use etp_runtime::progress::*;
 
