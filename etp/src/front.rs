@@ -47,7 +47,9 @@ pub fn write_front(
     let scenario_path = dir.join("scenario.toml");
     write_new(&scenario_path, scenario_text.as_bytes(), true)?;
     let stem = dir.join("front");
-    etp_figures::front_plot(&front, &stem)?;
+    if crate::dist::is_root() {
+        etp_figures::front_plot(&front, &stem)?;
+    }
     Ok(FrontReport {
         front,
         seconds,

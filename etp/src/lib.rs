@@ -12,8 +12,10 @@
 //!   synthesis folder's files read, the overwrite rule.
 //! * [`predictions`] — a strategy file's predictions as `strategy` and
 //!   `validate` report them (text, JSON, the aggregation check).
+//! * [`dist`] — the ranks of an MPI job (feature `mpi`): the executor the
+//!   Monte Carlo is shared through, rank 0 writes.
 //! * [`progress`] — indicatif bars that hide themselves when stderr is not a
-//!   terminal (`etp_runtime::progress`).
+//!   terminal (`etp_runtime::progress`), and on every MPI rank but 0.
 //! * [`report`] — a simulation summary's JSON and tables.
 //! * [`simulation`] — the constant-threshold simulation of `simulate` and `bench`.
 //! * [`synthesis_dir`] — a synthesis directory loaded for selection (`strategy`, `compare`).
@@ -29,6 +31,7 @@
 
 pub mod cli;
 pub mod cmd;
+pub mod dist;
 pub mod front;
 pub mod input;
 pub mod mdp_build;
@@ -39,7 +42,16 @@ pub mod report;
 pub mod simulation;
 pub mod synthesis_dir;
 pub use etp_recording_tools::vocab;
-pub use etp_runtime::progress;
+/// `etp_runtime::progress`, its bars shown by rank 0 alone in an MPI job
+/// ([`crate::dist`]).
+pub mod progress {
+    pub use etp_runtime::progress::*;
+
+    /// [`etp_runtime::progress::bar`], quiet on every rank but 0.
+    pub fn bar(len: u64, message: &str, quiet: bool) -> indicatif::ProgressBar {
+        etp_runtime::progress::bar(len, message, quiet || !crate::dist::is_root())
+    }
+}
 
 use std::process::ExitCode;
 
@@ -52,16 +64,53 @@ pub fn run(cli: cli::Cli) -> ExitCode {
         return cmd::process::run(a);
     }
     init_tracing();
-    match cmd::dispatch(cli.command) {
-        Ok(()) => ExitCode::SUCCESS,
+    let session = match dist::start() {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: starting MPI: {e:#}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let (code, failed) = run_command(cli.command);
+    dist::finish(session, code, failed)
+}
+
+/// Dispatch one subcommand: its exit code, and whether it failed (an
+/// error, as opposed to a command's own documented exit code).
+fn run_command(command: cli::Command) -> (u8, bool) {
+    let ranks = dist::executor().ranks();
+    let shared = matches!(
+        command,
+        cli::Command::Synthesize(_)
+            | cli::Command::Strategy(_)
+            | cli::Command::Validate(_)
+            | cli::Command::Simulate(_)
+    );
+    let result = if ranks > 1 && !shared {
+        Err(anyhow::anyhow!(
+            "this subcommand does not run on {ranks} MPI ranks: run it without mpirun/srun \
+             (synthesize, strategy, validate and simulate share their work across ranks)"
+        ))
+    } else {
+        cmd::dispatch(command)
+    };
+    match result {
+        Ok(()) => (0, false),
         Err(e) => match e.downcast_ref::<ExitWith>() {
             Some(x) => {
-                eprintln!("{}", x.message);
-                ExitCode::from(x.code)
+                // Every rank reached the same outcome: rank 0 says it.
+                if dist::is_root() {
+                    eprintln!("{}", x.message);
+                }
+                (x.code, false)
             }
             None => {
-                eprintln!("error: {e:#}");
-                ExitCode::FAILURE
+                if ranks > 1 {
+                    eprintln!("error (rank {} of {ranks}): {e:#}", dist::executor().rank());
+                } else {
+                    eprintln!("error: {e:#}");
+                }
+                (1, true)
             }
         },
     }

@@ -69,8 +69,8 @@ pub fn aggregation_check(
         &strategy.policy,
         episodes,
         AGGREGATION_CHECK_SEED,
-        &|k| pb.inc(k),
-    )
+        &crate::dist::work(|k| pb.inc(k)),
+    )?
     .summary();
     pb.finish_and_clear();
     Ok(check_of(strategy, &sum, AGGREGATION_CHECK_SEED))

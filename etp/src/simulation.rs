@@ -12,18 +12,19 @@ use etp_shared::with_dim;
 use etp_synthesis::simulate::{SimulationSummary, simulate};
 
 /// Simulate `episodes` episodes of `scenario` with the constant threshold
-/// `delta` on every leg, on stream `SIMULATE` of `seed` (all threads).
+/// `delta` on every leg, on stream `SIMULATE` of `seed` (all threads, and the ranks of the
+/// progress's executor).
 pub fn simulate_constant(
     scenario: &Scenario,
     delta: f64,
     episodes: u64,
     seed: u64,
-    progress: &(dyn Fn(u64) + Sync),
-) -> SimulationSummary {
+    progress: &dyn etp_synthesis::exec::Work,
+) -> Result<SimulationSummary, etp_synthesis::exec::ExecError> {
     let t = Threshold::new(delta);
     with_dim!(scenario.dim, N => {
         let c = CompiledScenario::<N>::new(scenario);
         let policy = move |_: usize, _: &_, _: &mut _| LegMode::<N>::EventTriggered(t);
-        simulate(&c, &policy, episodes, seed, streams::SIMULATE, progress).summary()
+        Ok(simulate(&c, &policy, episodes, seed, streams::SIMULATE, progress)?.summary())
     })
 }

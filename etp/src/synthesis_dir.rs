@@ -118,7 +118,7 @@ impl Synthesis {
             replicates,
             self.cost(),
             Vec::new(),
-            &|k| pb.inc(k),
+            &crate::dist::work(|k| pb.inc(k)),
         )?;
         let certified = on_policy.certify_first(level, self.cost())?;
         Ok((on_policy, certified))
@@ -149,7 +149,7 @@ impl Synthesis {
             level,
             make,
             &|n| pb.inc_length(u64::from(n) * units),
-            &|k| pb.inc(k),
+            &crate::dist::work(|k| pb.inc(k)),
         )?)
     }
 }

@@ -208,7 +208,7 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         ),
         _ => {
             let sim =
-                simulate_strategy(&scenario, &strategy.policy, predict_episodes, a.seed(), &|_| {}).summary();
+                simulate_strategy(&scenario, &strategy.policy, predict_episodes, a.seed(), &|_: u64| {})?.summary();
             if a.strategy.is_none() || robustness {
                 let under = if robustness {
                     " under the run's channel"

@@ -20,7 +20,7 @@ use rand_distr::StandardNormal;
 pub use crate::linalg::{Matrix, Vector};
 
 /// A Gaussian belief `N(mean, cov)` over the state.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Belief<const N: usize> {
     pub mean: Vector<N>,
     pub cov: Matrix<N, N>,

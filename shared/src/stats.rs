@@ -42,7 +42,7 @@ impl Estimate {
 }
 
 /// Running sums of a scalar sample, for a mean with a confidence interval.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MeanAccumulator {
     pub n: u64,
     pub sum: f64,
@@ -118,7 +118,7 @@ pub fn proportion(k: u64, n: u64) -> Estimate {
 
 /// Per-unit sums for a ratio estimator `Σa / Σb` (e.g. transmissions per slot
 /// over episodes), with a delta-method interval treating episodes as units.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RatioAccumulator {
     pub n: u64,
     pub sum_a: f64,

@@ -22,12 +22,15 @@
 //! * [`validate`] — simulating a strategy (belief → region → δ ~ ω), trajectories.
 //! * [`prism`] — PRISM explicit export.
 //! * [`synthetic`] — seeded synthetic layered MDPs for benchmarks at scale.
+//! * [`exec`] — where a computation's Monte Carlo units run: this process's
+//!   threads, or (through an [`exec::Executor`] passed in) the ranks of a job.
 //!
 //! Pure maths: no I/O, no clock. Progress is reported through a callback so the
 //! front end can draw a bar.
 
 pub mod abstraction;
 pub mod certify;
+pub mod exec;
 pub mod mdp;
 pub mod pareto;
 pub mod predict;

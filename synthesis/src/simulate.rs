@@ -10,7 +10,6 @@ use etp_shared::episode::{
 use etp_shared::etkf::Belief;
 use etp_shared::rng::{SimRng, stream_rng};
 use etp_shared::stats::{Estimate, MeanAccumulator, RatioAccumulator, proportion};
-use rayon::prelude::*;
 use serde::Serialize;
 
 /// Episodes per work unit: large enough to amortise scheduling, small enough
@@ -18,7 +17,7 @@ use serde::Serialize;
 const CHUNK: u64 = 64;
 
 /// Per-sensor counts over a simulation.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct SensorCounts {
     /// Measurement slots the sensor served.
     pub slots: u64,
@@ -40,7 +39,7 @@ impl SensorCounts {
 }
 
 /// Raw sums of a batch of episodes (mergeable).
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct SimulationTotals {
     pub episodes: u64,
     pub target: u64,
@@ -217,33 +216,36 @@ fn root(m: Estimate) -> Estimate {
 
 /// Simulate `episodes` episodes under `policy` (called at each leg start with the
 /// belief; may draw from the episode's RNG), on random stream `stream` of `seed`.
-/// `progress(k)` is called as batches of `k` episodes finish.
+/// `progress(k)` is called as batches of `k` episodes finish. The chunks run
+/// on the progress's executor ([`crate::exec`]): on several ranks each
+/// simulates a contiguous slice of them, and every rank gets the same total.
 pub fn simulate<const N: usize, P>(
     scenario: &CompiledScenario<N>,
     policy: &P,
     episodes: u64,
     seed: u64,
     stream: u64,
-    progress: &(dyn Fn(u64) + Sync),
-) -> SimulationTotals
+    progress: &dyn crate::exec::Work,
+) -> Result<SimulationTotals, crate::exec::ExecError>
 where
     P: Fn(usize, &Belief<N>, &mut SimRng) -> LegMode<N> + Sync,
 {
     let chunks = episodes.div_ceil(CHUNK);
-    let parts: Vec<SimulationTotals> = (0..chunks)
-        .into_par_iter()
-        .map(|c| {
-            let range = c * CHUNK..((c + 1) * CHUNK).min(episodes);
-            let t = simulate_range(scenario, policy, range.clone(), seed, stream);
-            progress(range.end - range.start);
-            t
-        })
-        .collect();
+    let range = |c: u64| c * CHUNK..((c + 1) * CHUNK).min(episodes);
+    let parts: Vec<SimulationTotals> = crate::exec::map(
+        progress,
+        chunks as usize,
+        |c| simulate_range(scenario, policy, range(c as u64), seed, stream),
+        |c| {
+            let r = range(c as u64);
+            r.end - r.start
+        },
+    )?;
     let mut total = SimulationTotals::new(scenario.filters.len());
     for p in &parts {
         total.merge(p);
     }
-    total
+    Ok(total)
 }
 
 /// Simulate episodes `range` sequentially (one thread).
@@ -301,12 +303,30 @@ mod tests {
     fn summary_does_not_depend_on_thread_count() {
         let s = Scenario::builtin("winding-2d").expect("built-in");
         let c = CompiledScenario::<2>::new(&s);
-        let par = simulate(&c, &constant(1.4986), 300, 5, streams::SIMULATE, &|_| {});
+        let par = simulate(
+            &c,
+            &constant(1.4986),
+            300,
+            5,
+            streams::SIMULATE,
+            &|_: u64| {},
+        )
+        .expect("simulates");
         let one = rayon::ThreadPoolBuilder::new()
             .num_threads(1)
             .build()
             .expect("pool")
-            .install(|| simulate(&c, &constant(1.4986), 300, 5, streams::SIMULATE, &|_| {}));
+            .install(|| {
+                simulate(
+                    &c,
+                    &constant(1.4986),
+                    300,
+                    5,
+                    streams::SIMULATE,
+                    &|_: u64| {},
+                )
+                .expect("simulates")
+            });
         assert_eq!(par, one);
         assert_eq!(par.target + par.collision + par.free, 300);
         let per_sensor: u64 = par.sensors.iter().map(|s| s.transmissions).sum();
@@ -320,13 +340,22 @@ mod tests {
     fn golden_numbers_on_the_reference_scenarios() {
         let w = Scenario::builtin("winding-2d").expect("built-in");
         let c = CompiledScenario::<2>::new(&w);
-        let t = simulate(&c, &constant(0.0), 3000, 0, streams::SIMULATE, &|_| {});
+        let t = simulate(&c, &constant(0.0), 3000, 0, streams::SIMULATE, &|_: u64| {})
+            .expect("simulates");
         assert_eq!(
             (t.target, t.collision, t.free),
             (2885, 108, 7),
             "winding-2d δ = 0"
         );
-        let t = simulate(&c, &constant(2.2365), 3000, 0, streams::SIMULATE, &|_| {});
+        let t = simulate(
+            &c,
+            &constant(2.2365),
+            3000,
+            0,
+            streams::SIMULATE,
+            &|_: u64| {},
+        )
+        .expect("simulates");
         assert_eq!(
             (t.target, t.collision, t.free),
             (587, 615, 1798),
@@ -377,7 +406,9 @@ mod tests {
     fn full_kf_rate_is_one() {
         let s = Scenario::builtin("open-2d").expect("built-in");
         let c = CompiledScenario::<2>::new(&s);
-        let t = simulate(&c, &constant(0.0), 50, 1, streams::SIMULATE, &|_| {}).summary();
+        let t = simulate(&c, &constant(0.0), 50, 1, streams::SIMULATE, &|_: u64| {})
+            .expect("simulates")
+            .summary();
         assert_eq!(t.trigger_rate.value, 1.0);
         assert_eq!(t.trigger_rate_expected.value, 1.0);
         assert!((t.energy_mean.value - t.steps_mean.value).abs() < 2.0);

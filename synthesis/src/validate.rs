@@ -25,14 +25,15 @@ fn strategy_policy<const N: usize>(
     }
 }
 
-/// Simulate `episodes` episodes of a strategy's `policy` on `scenario` (all threads, reproducible).
+/// Simulate `episodes` episodes of a strategy's `policy` on `scenario` (all threads, and
+/// the ranks of the progress's executor; reproducible).
 pub fn simulate_strategy(
     scenario: &Scenario,
     policy: &Policy,
     episodes: u64,
     seed: u64,
-    progress: &(dyn Fn(u64) + Sync),
-) -> SimulationTotals {
+    progress: &dyn crate::exec::Work,
+) -> Result<SimulationTotals, crate::exec::ExecError> {
     with_dim!(scenario.dim, N => {
         let c = CompiledScenario::<N>::new(scenario);
         simulate(&c, &strategy_policy::<N>(policy), episodes, seed, streams::VALIDATE, progress)

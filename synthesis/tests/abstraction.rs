@@ -72,7 +72,7 @@ fn corridor_has_known_transitions_and_costs() {
     let (k_max, a) = (40, 0.15);
     let s = corridor(k_max, a);
     let samples = 20_000;
-    let mdp = abstraction::build(&s, &params(samples), &|_| {}).expect("builds");
+    let mdp = abstraction::build(&s, &params(samples), &|_: u64| {}).expect("builds");
     mdp.check().expect("consistent");
     // The full KF always ends in the same covariance (P_KF, the lowest
     // magnitude bin): one successor with probability 1, no obstacle.
@@ -195,7 +195,7 @@ fn every_choice_is_a_distribution_with_counted_cost() {
 fn isotropic_system_uses_magnitudes_only() {
     for name in ["winding-2d", "superg-3d"] {
         let s = Scenario::builtin(name).expect("built-in");
-        let mdp = abstraction::build(&s, &params(60), &|_| {}).expect("builds");
+        let mdp = abstraction::build(&s, &params(60), &|_: u64| {}).expect("builds");
         let d = mdp.discretization.as_ref().expect("Method 2 has bins");
         assert_eq!(d.decision_points.len(), s.num_legs());
         for st in &mdp.states {
@@ -220,7 +220,7 @@ fn method_one_has_one_state_per_decision_point() {
         method: Method::KfConvergence,
         ..params(100)
     };
-    let mdp = abstraction::build(&s, &p, &|_| {}).expect("builds");
+    let mdp = abstraction::build(&s, &p, &|_: u64| {}).expect("builds");
     mdp.check().expect("consistent");
     // |S| = N + 3 with the three terminals.
     assert_eq!(mdp.states.len() + 3, s.num_legs() + 3);
@@ -239,7 +239,7 @@ fn method_one_has_one_state_per_decision_point() {
 fn same_seed_same_bytes_any_thread_count() {
     let s = Scenario::builtin("winding-2d").expect("built-in");
     let p = params(80);
-    let a = abstraction::build(&s, &p, &|_| {})
+    let a = abstraction::build(&s, &p, &|_: u64| {})
         .expect("builds")
         .encode();
     let one = rayon::ThreadPoolBuilder::new()
@@ -247,12 +247,12 @@ fn same_seed_same_bytes_any_thread_count() {
         .build()
         .expect("pool")
         .install(|| {
-            abstraction::build(&s, &p, &|_| {})
+            abstraction::build(&s, &p, &|_: u64| {})
                 .expect("builds")
                 .encode()
         });
     assert!(a == one, "1 thread vs all threads differ");
-    let other = abstraction::build(&s, &AbstractionParams { seed: 8, ..p }, &|_| {})
+    let other = abstraction::build(&s, &AbstractionParams { seed: 8, ..p }, &|_: u64| {})
         .expect("builds")
         .encode();
     assert!(a != other, "another seed gives another MDP");
@@ -261,7 +261,7 @@ fn same_seed_same_bytes_any_thread_count() {
 #[test]
 fn bad_parameters_are_refused() {
     let s = corridor(10, 0.1);
-    assert!(abstraction::build(&s, &params(0), &|_| {}).is_err());
+    assert!(abstraction::build(&s, &params(0), &|_: u64| {}).is_err());
     let bins = AbstractionParams {
         bins: etp_shared::discretization::BinCounts {
             magnitude: 0,
@@ -269,7 +269,7 @@ fn bad_parameters_are_refused() {
         },
         ..params(10)
     };
-    assert!(abstraction::build(&s, &bins, &|_| {}).is_err());
+    assert!(abstraction::build(&s, &bins, &|_: u64| {}).is_err());
 }
 
 /// `(E[energy], P_coll, P_tar)` of the constant action `a` on the MDP, by one
@@ -305,15 +305,22 @@ fn constant_threshold_prediction_matches_simulation() {
     use etp_shared::etkf::Threshold;
     use etp_shared::rng::streams;
     let s = Scenario::builtin("winding-2d").expect("built-in");
-    let mdp = abstraction::build(&s, &params(1500), &|_| {}).expect("builds");
+    let mdp = abstraction::build(&s, &params(1500), &|_: u64| {}).expect("builds");
     let cs = CompiledScenario::<2>::new(&s);
     for a in [0u16, 2, 4] {
         let (energy, p_coll, p_tar) = constant_action_values(&mdp, a);
         let t = Threshold::new(s.deltas[a as usize]);
         let policy = move |_: usize, _: &_, _: &mut _| LegMode::<2>::EventTriggered(t);
-        let sim =
-            etp_synthesis::simulate::simulate(&cs, &policy, 4000, 11, streams::VALIDATE, &|_| {})
-                .summary();
+        let sim = etp_synthesis::simulate::simulate(
+            &cs,
+            &policy,
+            4000,
+            11,
+            streams::VALIDATE,
+            &|_: u64| {},
+        )
+        .expect("simulates")
+        .summary();
         let e_err = (energy - sim.energy_mean.value).abs() / sim.energy_mean.value;
         eprintln!(
             "δ#{a}: MDP (E {energy:.2}, P_coll {p_coll:.4}, P_tar {p_tar:.4}) vs simulated (E {:.2} ± {:.2}, P_coll {:.4} ± {:.4}, P_tar {:.4} ± {:.4})",
@@ -357,7 +364,7 @@ fn arrival_range_puts_the_workspace_bins_where_the_beliefs_are() {
             range,
             ..params(200)
         };
-        abstraction::build(&s, &p, &|_| {}).expect("builds")
+        abstraction::build(&s, &p, &|_: u64| {}).expect("builds")
     };
     let arrivals = build(abstraction::RangeRule::Arrivals);
     let propagation = build(abstraction::RangeRule::Propagation);

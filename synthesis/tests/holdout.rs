@@ -17,7 +17,7 @@ fn build(holdout: u32) -> Mdp {
         seed: 5,
         ..AbstractionParams::default()
     };
-    abstraction::build(&s, &p, &|_| {}).expect("builds")
+    abstraction::build(&s, &p, &|_: u64| {}).expect("builds")
 }
 
 /// The main sample without its held-out parts (to compare two builds).
@@ -83,7 +83,7 @@ fn extra_segments_change_only_their_choice() {
         .map(|s| vec![0; s.choices.len()])
         .collect();
     extra[0][1] = 60;
-    let more = build_with_extra(&s, &params_of(&base), &extra, &|_| {}).expect("builds");
+    let more = build_with_extra(&s, &params_of(&base), &extra, &|_: u64| {}).expect("builds");
     assert_eq!(more.states.len(), base.states.len());
     for (k, (a, b)) in more.states.iter().zip(&base.states).enumerate() {
         assert_eq!(a.region, b.region);

@@ -22,16 +22,16 @@ fn params() -> AbstractionParams {
 #[test]
 fn given_bins_without_splits_reproduce_the_build_bit_for_bit() {
     let s = Scenario::builtin("winding-2d").expect("built-in");
-    let first = abstraction::build(&s, &params(), &|_| {}).expect("builds");
+    let first = abstraction::build(&s, &params(), &|_: u64| {}).expect("builds");
     let bins = first.discretization.clone().expect("Method 2");
-    let again = abstraction::build_split(&s, &params(), &bins, &[], &|_| {}).expect("builds");
+    let again = abstraction::build_split(&s, &params(), &bins, &[], &|_: u64| {}).expect("builds");
     assert_eq!(first.encode(), again.encode());
 }
 
 #[test]
 fn a_split_region_becomes_two_states_and_survives_the_files() {
     let s = Scenario::builtin("winding-2d").expect("built-in");
-    let first = abstraction::build(&s, &params(), &|_| {}).expect("builds");
+    let first = abstraction::build(&s, &params(), &|_: u64| {}).expect("builds");
     let bins = first.discretization.clone().expect("Method 2");
     // The most visited state of decision point 1, cut on its beliefs'
     // leading log eigenvalue (as the aggregation episodes see them) between
@@ -39,7 +39,9 @@ fn a_split_region_becomes_two_states_and_survives_the_files() {
     // after a leg takes few values (the filter's recursion is deterministic
     // given the transmissions), so a median can coincide with the smallest
     // and leave one side empty.
-    let segs = aggregation::sample_segments(&s, &first, 2000, 5, &|_| {}).expect("Method 2");
+    let segs = aggregation::sample_segments(&s, &first, 2000, 5, &|_: u64| {})
+        .expect("samples")
+        .expect("Method 2");
     let at = |k: u32| {
         segs.iter()
             .filter(move |g| g.decision_point == 1 && g.state == k)
@@ -63,8 +65,14 @@ fn a_split_region_becomes_two_states_and_survives_the_files() {
         feature: 0,
         threshold: 0.5 * (v[0] + next),
     };
-    let mdp = abstraction::build_split(&s, &params(), &bins, std::slice::from_ref(&split), &|_| {})
-        .expect("builds");
+    let mdp = abstraction::build_split(
+        &s,
+        &params(),
+        &bins,
+        std::slice::from_ref(&split),
+        &|_: u64| {},
+    )
+    .expect("builds");
     mdp.check().expect("consistent");
     assert_eq!(mdp.splits, vec![split.clone()]);
     let regions_at_1: Vec<_> = mdp

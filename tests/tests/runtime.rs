@@ -210,7 +210,9 @@ fn ledgers_equal_received_and_outcomes_agree_with_in_process_simulation() {
     let c = CompiledScenario::<2>::new(&s);
     let t = Threshold::new(DELTA.parse().expect("δ"));
     let policy = move |_: usize, _: &_, _: &mut _| LegMode::<2>::EventTriggered(t);
-    let sim = simulate(&c, &policy, 3000, 5, streams::VALIDATE, &|_| {}).summary();
+    let sim = simulate(&c, &policy, 3000, 5, streams::VALIDATE, &|_: u64| {})
+        .expect("simulates")
+        .summary();
     for (k, inproc) in [
         ("p_target", sim.p_target),
         ("p_collision", sim.p_collision),

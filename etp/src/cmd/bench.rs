@@ -166,12 +166,13 @@ pub fn run(a: Args) -> Result<()> {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build()?;
             // Warm-up run (page faults, caches), then the timed ones (the
             // same episodes each time: same seed).
-            pool.install(|| simulate_constant(&s, delta, a.episodes / 10 + 1, 1, &|_| {}));
+            pool.install(|| simulate_constant(&s, delta, a.episodes / 10 + 1, 1, &|_: u64| {}))?;
             let mut secs = Vec::new();
             let mut steps = 0;
             for _ in 0..a.repeats.max(1) {
                 let start = Instant::now();
-                let sum = pool.install(|| simulate_constant(&s, delta, a.episodes, 2, &|_| {}));
+                let sum =
+                    pool.install(|| simulate_constant(&s, delta, a.episodes, 2, &|_: u64| {}))?;
                 secs.push(start.elapsed().as_secs_f64());
                 steps = sum.total_steps;
             }

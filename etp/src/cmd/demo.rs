@@ -168,7 +168,7 @@ pub fn run(a: Args) -> Result<()> {
         a.validate_episodes,
         a.seed,
         &|k| pb.inc(k),
-    )
+    )?
     .summary();
     pb.finish_and_clear();
     let map_stem = dir.join("strategy-map");

@@ -35,7 +35,13 @@ pub fn run(a: Args) -> Result<()> {
         .apply(load_scenario_with_radio(&a.scenario, &a.radio)?);
     let pb = progress::bar(a.sim.episodes, "simulate", a.json);
     let started = std::time::Instant::now();
-    let sum = simulate_constant(&s, a.delta, a.sim.episodes, a.sim.seed, &|k| pb.inc(k));
+    let sum = simulate_constant(
+        &s,
+        a.delta,
+        a.sim.episodes,
+        a.sim.seed,
+        &crate::dist::work(|k| pb.inc(k)),
+    )?;
     pb.finish_and_clear();
     let secs = started.elapsed().as_secs_f64();
     if a.json {

@@ -318,7 +318,7 @@ pub fn run(a: Args) -> Result<()> {
         p.kf = Some(d);
         // The baseline is only drawn; it needs no cross-fitting.
         p.holdout_samples = 0;
-        let m1 = abstraction::build(&built.scenario, &p, &|_| {})
+        let m1 = abstraction::build(&built.scenario, &p, &crate::dist::work(|_| {}))
             .context("building the Method 1 baseline")?;
         write_new(&dir.join("mdp-kf-convergence.bin"), &m1.encode(), true)?;
         Some(m1)
@@ -341,7 +341,7 @@ pub fn run(a: Args) -> Result<()> {
     )?;
     // Only now that the new front is written: what was derived from the
     // old MDP would sit beside it as if derived from the new one.
-    let stale = if replaced {
+    let stale = if replaced && crate::dist::is_root() {
         set_aside_stale(&built.dir)?
     } else {
         None
@@ -352,7 +352,7 @@ pub fn run(a: Args) -> Result<()> {
         a.aggregation_episodes,
         a.aggregation_alpha,
         a.json,
-    );
+    )?;
     if a.json {
         let v = serde_json::json!({
             "mdp": built.report,

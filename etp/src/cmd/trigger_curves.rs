@@ -88,8 +88,8 @@ pub fn run(a: Args) -> Result<()> {
         let points = deltas
             .into_iter()
             .map(|delta| {
-                let sum = simulate_constant(&s, delta, a.sim.episodes, a.sim.seed, &|k| pb.inc(k));
-                Measured {
+                let sum = simulate_constant(&s, delta, a.sim.episodes, a.sim.seed, &|k| pb.inc(k))?;
+                Ok(Measured {
                     delta,
                     rate: sum.trigger_rate,
                     rate_model: sum.trigger_rate_expected,
@@ -98,9 +98,9 @@ pub fn run(a: Args) -> Result<()> {
                     nees: sum.nees,
                     p_target: sum.p_target,
                     energy: sum.energy_mean,
-                }
+                })
             })
-            .collect();
+            .collect::<Result<Vec<_>>>()?;
         results.push((family, points));
     }
     pb.finish_and_clear();

@@ -63,8 +63,8 @@ pub fn run(a: Args) -> Result<()> {
         &strategy.policy,
         a.sim.episodes,
         a.sim.seed,
-        &|k| pb.inc(k),
-    )
+        &crate::dist::work(|k| pb.inc(k)),
+    )?
     .summary();
     pb.finish_and_clear();
     let mut plot_paths = Vec::new();
@@ -80,7 +80,9 @@ pub fn run(a: Args) -> Result<()> {
             crate::output::refuse_existing(&p, a.force)?;
         }
         let tr = sample_trajectories(&scenario, &strategy.policy, a.plot_episodes, a.sim.seed);
-        etp_figures::map_plot(&scenario, &tr, &stem)?;
+        if crate::dist::is_root() {
+            etp_figures::map_plot(&scenario, &tr, &stem)?;
+        }
         plot_paths.push(stem.with_extension("png"));
         plot_paths.push(stem.with_extension("svg"));
     }

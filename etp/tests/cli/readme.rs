@@ -22,6 +22,22 @@ const ELSEWHERE: &[(&str, &str)] = &[
         "two hosts: tests/tests/runtime/remote.rs",
     ),
     (
+        "apt-get install -y openmpi-bin libopenmpi-dev libclang-dev",
+        "root and the network: .ci/run installs them when mpirun is missing",
+    ),
+    (
+        "cargo build --release -p etp --features mpi",
+        "the MPI build: .ci/run builds it for clippy and the MPI tests",
+    ),
+    (
+        "mpirun -n 4 -x RAYON_NUM_THREADS=2 target/release/etp synthesize winding-2d --samples 2000 -o out/w",
+        "Open MPI and the feature build: etp/tests/mpi/bytes.rs runs synthesize on 1, 2 and 4 ranks",
+    ),
+    (
+        "cargo test --release -p etp --features mpi --test mpi",
+        "the MPI tests: .ci/run runs them (with `--workspace --features etp/mpi`)",
+    ),
+    (
         "prism -importmodel out/winding-2d/prism/model.all -mdp out/winding-2d/prism/model.props",
         "PRISM is not installed here; synthesis/tests check the files it reads",
     ),

@@ -46,7 +46,6 @@ use etp_shared::rng::stream_rng;
 use etp_shared::scenario::Scenario;
 use etp_shared::with_dim;
 use rand::RngExt;
-use rayon::prelude::*;
 use std::collections::BTreeMap;
 
 /// The random stream of the aggregation episodes (its own: the main,
@@ -61,7 +60,7 @@ pub const MIN_HALF: usize = 40;
 const UNMATCHED: Next = Next::State(u32::MAX);
 
 /// One simulated leg: where it started and how it ended.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Segment {
     pub decision_point: u32,
     /// The MDP state of the start belief (`u32::MAX`: no state).
@@ -168,15 +167,15 @@ pub fn feature_names(mdp: &Mdp, scenario: &Scenario) -> Vec<String> {
 
 /// Simulate `episodes` episodes with uniformly random thresholds and record
 /// every leg as a [`Segment`]. Deterministic for a seed whatever the thread
-/// count (episodes are merged in index order). `None` for Method 1, whose one
+/// and rank count (episodes are merged in index order). `None` for Method 1, whose one
 /// state per decision point has no region to split.
 pub fn sample_segments(
     scenario: &Scenario,
     mdp: &Mdp,
     episodes: u64,
     seed: u64,
-    progress: &(dyn Fn(u64) + Sync),
-) -> Option<Vec<Segment>> {
+    progress: &dyn crate::exec::Work,
+) -> Result<Option<Vec<Segment>>, crate::exec::ExecError> {
     sample_segments_on(scenario, mdp, episodes, seed, AGGREGATION_STREAM, progress)
 }
 
@@ -188,12 +187,14 @@ pub fn sample_segments_on(
     episodes: u64,
     seed: u64,
     stream: u64,
-    progress: &(dyn Fn(u64) + Sync),
-) -> Option<Vec<Segment>> {
+    progress: &dyn crate::exec::Work,
+) -> Result<Option<Vec<Segment>>, crate::exec::ExecError> {
     if mdp.method != Method::Discretized {
-        return None;
+        return Ok(None);
     }
-    let disc = mdp.discretization.as_ref()?;
+    let Some(disc) = mdp.discretization.as_ref() else {
+        return Ok(None);
+    };
     let mut state_of: BTreeMap<(u32, &etp_shared::discretization::Region), u32> = BTreeMap::new();
     for (k, s) in mdp.states.iter().enumerate() {
         for r in std::iter::once(&s.region).chain(&s.merged) {
@@ -208,9 +209,8 @@ pub fn sample_segments_on(
     let segs = with_dim!(scenario.dim, N => {
         let cs = CompiledScenario::<N>::new(scenario);
         let legs = cs.legs.len();
-        (0..episodes)
-            .into_par_iter()
-            .map(|e| {
+        let episode = |e: usize| {
+                let e = e as u64;
                 let mut rng = stream_rng(seed, stream, e);
                 let mut st: AgentState<N> = cs.initial_state(&mut rng);
                 let mut out = Vec::with_capacity(legs);
@@ -244,12 +244,12 @@ pub fn sample_segments_on(
                         None => break,
                     }
                 }
-                progress(1);
                 out
-            })
-            .collect::<Vec<_>>()
-    });
-    Some(segs.into_iter().flatten().collect())
+            };
+        // On the progress's executor: every rank gets every episode's legs.
+        crate::exec::map(progress, episodes as usize, episode, |_| 1)
+    })?;
+    Ok(Some(segs.into_iter().flatten().collect()))
 }
 
 fn tv(a: &BTreeMap<Next, u32>, b: &BTreeMap<Next, u32>) -> f64 {
@@ -366,9 +366,11 @@ pub fn measure(
     episodes: u64,
     seed: u64,
     alpha: f64,
-    progress: &(dyn Fn(u64) + Sync),
-) -> Option<AggregationReport> {
-    let segments = sample_segments(scenario, mdp, episodes, seed, progress)?;
+    progress: &dyn crate::exec::Work,
+) -> Result<Option<AggregationReport>, crate::exec::ExecError> {
+    let Some(segments) = sample_segments(scenario, mdp, episodes, seed, progress)? else {
+        return Ok(None);
+    };
     let pooled = |state: u32, action: u16| {
         let c = mdp
             .states
@@ -386,7 +388,7 @@ pub fn measure(
     let mut flagged_states: Vec<u32> = flags.iter().map(|f| f.state).collect();
     flagged_states.sort_unstable();
     flagged_states.dedup();
-    Some(AggregationReport {
+    Ok(Some(AggregationReport {
         alpha,
         episodes,
         seed,
@@ -396,7 +398,7 @@ pub fn measure(
         groups_thin,
         flags,
         flagged_states,
-    })
+    }))
 }
 
 #[cfg(test)]

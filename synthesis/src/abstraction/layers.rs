@@ -113,7 +113,7 @@ pub(super) fn build<const N: usize>(
     kf: Option<KfConvergenceParams>,
     extra: &[Vec<u32>],
     given: Option<&Given<'_>>,
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &dyn crate::exec::Work,
 ) -> Result<Mdp, AbstractionError> {
     let deltas = &scenario.deltas;
     let samples = params.samples;
@@ -213,7 +213,7 @@ pub(super) fn build<const N: usize>(
         }
         if layer.is_empty() {
             // Every segment collided before this decision point.
-            progress(deltas.len() as u64 * u64::from(samples + holdout));
+            progress.progress(deltas.len() as u64 * u64::from(samples + holdout));
             classifier = classifier_for(dp + 1, &mut std::iter::empty(), lambda);
             continue;
         }
@@ -269,17 +269,17 @@ pub(super) fn build<const N: usize>(
         // over the offered choices: segment position g of C · M maps to
         // unit g · |Δ| / C.
         let (units, n_choices) = (deltas.len() as u64, offered.len().max(1) as u64);
-        let mut results: Vec<ChunkTally<N>> = tasks
-            .par_iter()
-            .map(|&t| {
-                let m = u64::from(if t.holdout { holdout } else { samples });
-                let r = run(t);
-                let g = t.choice as u64 * m;
-                let unit = |pos: u64| pos * units / n_choices;
-                progress(unit(g + u64::from(t.hi)) - unit(g + u64::from(t.lo)));
-                r
-            })
-            .collect();
+        // Through the executor: on several ranks each simulates a contiguous
+        // slice of the tasks and every rank receives all results (exec.rs).
+        let task_units = |i: usize| {
+            let t = tasks[i];
+            let m = u64::from(if t.holdout { holdout } else { samples });
+            let g = t.choice as u64 * m;
+            let unit = |pos: u64| pos * units / n_choices;
+            unit(g + u64::from(t.hi)) - unit(g + u64::from(t.lo))
+        };
+        let mut results: Vec<ChunkTally<N>> =
+            crate::exec::map(progress, tasks.len(), |i| run(tasks[i]), task_units)?;
         let held: Vec<ChunkTally<N>> = results.split_off(n_main);
         // Extra segments of sample allocation for this layer's states.
         let extra_tasks: Vec<ExtraTask> = (0..layer.len())
@@ -300,19 +300,19 @@ pub(super) fn build<const N: usize>(
                 })
             })
             .collect();
-        let extra_results: Vec<ChunkTally<N>> = extra_tasks
-            .par_iter()
-            .map(|t| {
-                run(Task {
-                    state: t.state,
-                    action: t.action,
-                    choice: 0,
-                    lo: t.lo,
-                    hi: t.hi,
-                    holdout: false,
-                })
+        let extra_task = |i: usize| {
+            let t = extra_tasks[i];
+            run(Task {
+                state: t.state,
+                action: t.action,
+                choice: 0,
+                lo: t.lo,
+                hi: t.hi,
+                holdout: false,
             })
-            .collect();
+        };
+        let extra_results: Vec<ChunkTally<N>> =
+            crate::exec::map(progress, extra_tasks.len(), extra_task, |_| 0)?;
 
         // The next layer's bins and the region of every arrival.
         let next_classifier = if last {

@@ -108,6 +108,8 @@ pub enum AbstractionError {
         "--pool-policy: the strategy must come from a Method 2 (discretized) synthesis of this scenario, with its bins per leg and its thresholds"
     )]
     PoolPolicy,
+    #[error(transparent)]
+    Exec(#[from] crate::exec::ExecError),
 }
 
 /// Settings of one abstraction run.
@@ -200,7 +202,7 @@ pub fn resolve_descriptor(scenario: &Scenario, d: Descriptor) -> Descriptor {
 pub fn build(
     scenario: &Scenario,
     params: &AbstractionParams,
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &dyn crate::exec::Work,
 ) -> Result<Mdp, AbstractionError> {
     build_with_extra(scenario, params, &[], progress)
 }
@@ -264,7 +266,7 @@ pub fn build_with_extra(
     scenario: &Scenario,
     params: &AbstractionParams,
     extra: &[Vec<u32>],
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &dyn crate::exec::Work,
 ) -> Result<Mdp, AbstractionError> {
     check_params(scenario, params)?;
     let kf = match params.method {
@@ -295,7 +297,7 @@ pub fn build_split(
     params: &AbstractionParams,
     bins: &Discretization,
     splits: &[RegionSplit],
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &dyn crate::exec::Work,
 ) -> Result<Mdp, AbstractionError> {
     check_params(scenario, params)?;
     if params.method != Method::Discretized {
@@ -338,7 +340,7 @@ pub fn build_on_policy(
     policy: &etp_shared::strategy::Policy,
     carry_state: bool,
     policy_only: bool,
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &dyn crate::exec::Work,
 ) -> Result<Mdp, AbstractionError> {
     check_params(scenario, params)?;
     let bins = match (&policy.discretization, params.method) {

@@ -115,16 +115,19 @@ pub fn plan_round(
     round: u32,
     settings: &SplitSettings,
     budget: usize,
-    progress: &(dyn Fn(u64) + Sync),
-) -> Option<(RoundReport, Vec<RegionSplit>)> {
-    let mut segments = sample_segments_on(
+    progress: &dyn crate::exec::Work,
+) -> Result<Option<(RoundReport, Vec<RegionSplit>)>, crate::exec::ExecError> {
+    let Some(mut segments) = sample_segments_on(
         scenario,
         mdp,
         settings.episodes,
         mdp.seed,
         SPLIT_STREAM + u64::from(round),
         progress,
-    )?;
+    )?
+    else {
+        return Ok(None);
+    };
     for s in &mut segments {
         let keep = s.features.len().saturating_sub(MEAN_FEATURES);
         s.features.truncate(keep);
@@ -150,7 +153,7 @@ pub fn plan_round(
         states_before: mdp.states.len(),
         states_after: mdp.states.len(),
     };
-    Some((report, splits))
+    Ok(Some((report, splits)))
 }
 
 /// Split `first` (built by [`super::build`] with `params`) adaptively (see
@@ -161,7 +164,7 @@ pub fn split_adaptively(
     params: &AbstractionParams,
     first: Mdp,
     settings: &SplitSettings,
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &dyn crate::exec::Work,
     on_round: &mut dyn FnMut(&RoundReport),
 ) -> Result<Mdp, AbstractionError> {
     if first.method != Method::Discretized {
@@ -177,7 +180,7 @@ pub fn split_adaptively(
         if left == 0 {
             break;
         }
-        let Some((mut report, new)) = plan_round(scenario, &mdp, round, settings, left, progress)
+        let Some((mut report, new)) = plan_round(scenario, &mdp, round, settings, left, progress)?
         else {
             break;
         };

@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 
 /// A belief that reached the next decision point, with its reservoir key and
 /// the true state it arrived with.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub(super) struct Arrival<const N: usize> {
     pub key: u64,
     pub belief: Belief<N>,
@@ -17,7 +17,7 @@ pub(super) struct Arrival<const N: usize> {
 
 /// Sums over segments of their length and energy (both cost models, with
 /// second moments): what a chunk holds and what merging chunks adds up.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
 pub(super) struct SegmentSums {
     pub samples: u32,
     pub steps: u64,
@@ -50,7 +50,7 @@ impl SegmentSums {
 }
 
 /// Raw sums of a chunk of segments of one (state, action).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub(super) struct ChunkTally<const N: usize> {
     pub sums: SegmentSums,
     pub collisions: u32,

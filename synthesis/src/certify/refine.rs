@@ -67,7 +67,7 @@ pub fn refine(
     target_gap: f64,
     rounds: u32,
     select: &dyn Fn(&Mdp) -> Result<Selection, CertifyError>,
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &dyn crate::exec::Work,
 ) -> Result<Refined, CertifyError> {
     if !(target_gap.is_finite() && target_gap >= 0.0) {
         return Err(CertifyError::Refine(format!(

@@ -148,7 +148,7 @@ pub fn rebuild_one(
     policy: &Policy,
     replicate: u32,
     cost: CostModel,
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &dyn crate::exec::Work,
 ) -> Result<Replica, PredictError> {
     let p = rebuild_params(params, replicate);
     let mdp = abstraction::build_on_policy(scenario, &p, policy, true, true, progress)
@@ -211,7 +211,7 @@ pub fn predict(
     replicates: u32,
     cost: CostModel,
     mut done: Vec<Replica>,
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &dyn crate::exec::Work,
 ) -> Result<OnPolicy, PredictError> {
     for r in done.len() as u32..replicates.max(MIN_REPLICATES) {
         done.push(rebuild_one(scenario, params, policy, r, cost, progress)?);

@@ -384,7 +384,7 @@ pub fn meet_request(
     report_level: f64,
     make: &dyn Fn(&RandomisedPolicy, Objectives) -> Strategy,
     plan: &dyn Fn(u32),
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &dyn crate::exec::Work,
 ) -> Result<Outcome, PredictError> {
     let level = settings.certified.unwrap_or(report_level);
     // A strategy's prediction on `settings.replicates` rebuilds, those in

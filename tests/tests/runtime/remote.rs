@@ -479,7 +479,9 @@ fn across_three_hosts(tag: &str, radio: Option<&str>) {
     let cs = CompiledScenario::<2>::new(&s);
     let t = Threshold::new(DELTA.parse().expect("δ"));
     let policy = move |_: usize, _: &_, _: &mut _| LegMode::<2>::EventTriggered(t);
-    let sim = simulate(&cs, &policy, 3000, 5, streams::VALIDATE, &|_| {}).summary();
+    let sim = simulate(&cs, &policy, 3000, 5, streams::VALIDATE, &|_: u64| {})
+        .expect("simulates")
+        .summary();
     for (k, inproc) in [("p_target", sim.p_target), ("p_collision", sim.p_collision)] {
         let ipc = est(&v, k);
         assert!(

@@ -142,7 +142,7 @@ pub fn refine_selection(a: &Args, syn: &Synthesis, gap: f64, level: f64) -> Resu
                 c.certified.p_target_low,
             ))
         },
-        &|k| pb.inc(k),
+        &crate::dist::work(|k| pb.inc(k)),
     )
     .context("allocating samples")?;
     pb.finish_and_clear();

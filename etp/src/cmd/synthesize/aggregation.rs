@@ -12,22 +12,23 @@ use std::fmt::Write;
 /// Flags listed in the text report (all of them are in `--json`).
 const SHOWN: usize = 12;
 
-/// Run the check (`None` when `episodes` is 0 or the MDP has no regions).
+/// Run the check on the job's ranks (`None` when `episodes` is 0 or the MDP has no regions).
 pub fn measure(
     scenario: &Scenario,
     mdp: &Mdp,
     episodes: u64,
     alpha: f64,
     json: bool,
-) -> Option<(AggregationReport, f64)> {
+) -> anyhow::Result<Option<(AggregationReport, f64)>> {
     if episodes == 0 {
-        return None;
+        return Ok(None);
     }
     let pb = progress::bar(episodes, "aggregation check", json);
     let started = std::time::Instant::now();
-    let r = aggregation::measure(scenario, mdp, episodes, mdp.seed, alpha, &|k| pb.inc(k));
+    let work = crate::dist::work(|k| pb.inc(k));
+    let r = aggregation::measure(scenario, mdp, episodes, mdp.seed, alpha, &work)?;
     pb.finish_and_clear();
-    r.map(|r| (r, started.elapsed().as_secs_f64()))
+    Ok(r.map(|r| (r, started.elapsed().as_secs_f64())))
 }
 
 /// The text report.
