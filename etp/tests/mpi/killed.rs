@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 /// The pid of rank `rank` among the children of `parent` (Open MPI sets
 /// OMPI_COMM_WORLD_RANK in each rank's environment).
-fn rank_pid(parent: u32, rank: u32) -> Option<u32> {
+pub(crate) fn rank_pid(parent: u32, rank: u32) -> Option<u32> {
     let want = format!("OMPI_COMM_WORLD_RANK={rank}");
     for e in std::fs::read_dir("/proc").ok()?.flatten() {
         let Some(pid) = e.file_name().to_str().and_then(|s| s.parse::<u32>().ok()) else {

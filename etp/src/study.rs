@@ -1,0 +1,220 @@
+//! `etp study SPEC.toml`: a batch of cases — every scenario × trigger family
+//! × request of the SPEC ([`spec`]) — each synthesized, its strategy
+//! selected and predicted as `etp strategy` does, and validated as `etp
+//! validate` does ([`case`]); one JSON and one CSV table out ([`table`]).
+//!
+//! * **Resumable.** A case is finished when its row file is on disk
+//!   (`DIR/cases/<job>/row-K.json`, written beside and renamed, after its
+//!   strategy); a study started again on the same DIR and SPEC does only
+//!   the rest (a DIR of another SPEC is refused by name: `DIR/spec.json`).
+//!   The tables are written at the end, beside and renamed: a killed study
+//!   leaves its finished cases and no table.
+//! * **Across ranks.** In an MPI job (`mpirun -n R etp study …`, feature
+//!   `mpi`) rank 0 reads what is finished and says what is left ([`Plan`]);
+//!   with at least R jobs left, whole jobs are handed to ranks (largest
+//!   first, each to the least loaded rank: a deterministic schedule), each
+//!   rank doing its own on its threads ([`crate::dist::alone`]) and writing
+//!   its cases' files (the study folder must be shared by the ranks, as on
+//!   a cluster's file system); with fewer, every rank works on each job in
+//!   turn, its Monte Carlo shared out as in `etp synthesize`. At the end the
+//!   ranks' rows are gathered and rank 0 writes the tables.
+//! * **Same bytes.** Every case is the same bits whoever computes it (the
+//!   streams are keyed by seed, not by rank or thread), and the tables hold
+//!   no timing (`timings.csv` does): the same SPEC gives the same
+//!   `study.json` and `study.csv` for any number of ranks and threads, in
+//!   one go or resumed.
+
+pub mod case;
+pub mod spec;
+pub mod table;
+
+use anyhow::{Context, Result, bail};
+use serde::{Deserialize, Serialize};
+use spec::Spec;
+use std::path::{Path, PathBuf};
+use table::{Finished, Row};
+
+/// What is left of a study: per job (index into `Spec::jobs`), its
+/// unfinished cases (request indices; `None`: the synthesis-only row).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Plan {
+    pub work: Vec<(usize, Vec<Option<usize>>)>,
+}
+
+impl Plan {
+    pub fn cases(&self) -> usize {
+        self.work.iter().map(|(_, p)| p.len()).sum()
+    }
+}
+
+/// The cases of job `j` (request indices, or the synthesis-only row).
+fn cases_of(spec: &Spec) -> Vec<Option<usize>> {
+    if spec.requests.is_empty() {
+        vec![None]
+    } else {
+        (0..spec.requests.len()).map(Some).collect()
+    }
+}
+
+/// The finished cases under `dir` and what is left.
+pub fn survey(spec: &Spec, dir: &Path) -> Result<(Vec<Finished>, Plan)> {
+    let mut finished = Vec::new();
+    let mut plan = Plan::default();
+    for (j, job) in spec.jobs.iter().enumerate() {
+        let job_dir = dir.join("cases").join(&job.id);
+        let mut pending = Vec::new();
+        for k in cases_of(spec) {
+            match case::finished(&case::row_path(&job_dir, k))? {
+                Some(f) => finished.push(f),
+                None => pending.push(k),
+            }
+        }
+        if !pending.is_empty() {
+            plan.work.push((j, pending));
+        }
+    }
+    Ok((finished, plan))
+}
+
+/// A job's expected cost in segment-steps of simulation: its synthesis and
+/// about two rounds of rebuilds per request (the schedule's weights; only
+/// their order matters).
+fn cost(spec: &Spec, j: usize, cases: usize) -> u64 {
+    let job = &spec.jobs[j];
+    let params = etp_synthesis::abstraction::AbstractionParams {
+        samples: spec.settings.samples,
+        seed: spec.settings.seed,
+        ..Default::default()
+    };
+    let synth = etp_synthesis::abstraction::progress_total(&job.scenario, &params);
+    let rebuild = etp_synthesis::predict::rebuild::progress_units(&job.scenario, &params)
+        * u64::from(spec.settings.replicates)
+        * 2;
+    synth + cases as u64 * rebuild
+}
+
+/// Which rank does which job when jobs are handed out: largest first, each
+/// to the least loaded rank (ties: the lower index). `assign[k]` is the
+/// rank of `plan.work[k]`.
+pub fn schedule(spec: &Spec, plan: &Plan, ranks: usize) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..plan.work.len()).collect();
+    let costs: Vec<u64> = plan
+        .work
+        .iter()
+        .map(|(j, p)| cost(spec, *j, p.len()))
+        .collect();
+    order.sort_by(|&a, &b| costs[b].cmp(&costs[a]).then(a.cmp(&b)));
+    let mut load = vec![0u64; ranks.max(1)];
+    let mut assign = vec![0; plan.work.len()];
+    for k in order {
+        let r = (0..load.len())
+            .min_by_key(|&r| (load[r], r))
+            .unwrap_or_default();
+        load[r] += costs[k];
+        assign[k] = r;
+    }
+    assign
+}
+
+/// The study's result: every row, in job then request order.
+#[derive(Debug, Clone, Serialize)]
+pub struct Tables {
+    pub rows: Vec<Row>,
+    pub timings: Vec<TimingRow>,
+}
+
+/// A line of `timings.csv`.
+#[derive(Debug, Clone, Serialize)]
+pub struct TimingRow {
+    pub case: String,
+    pub request_index: Option<usize>,
+    pub rank: usize,
+    pub threads: usize,
+    pub synthesis_seconds: f64,
+    pub selection_seconds: f64,
+    pub validation_seconds: f64,
+}
+
+/// Put the rows of every case in order, refusing a gap or a duplicate.
+pub fn tables(spec: &Spec, mut all: Vec<Finished>) -> Result<Tables> {
+    let index = |f: &Finished| {
+        (
+            spec.jobs.iter().position(|j| j.id == f.row.case),
+            f.row.request_index,
+        )
+    };
+    all.sort_by_key(index);
+    let want = spec.jobs.len() * spec.rows_per_job();
+    for w in all.windows(2) {
+        if index(&w[0]) == index(&w[1]) {
+            bail!(
+                "case {} request {:?} finished twice (a bug)",
+                w[0].row.case,
+                w[0].row.request_index
+            );
+        }
+    }
+    if all.len() != want || all.iter().any(|f| index(f).0.is_none()) {
+        bail!(
+            "{} of the SPEC's {want} cases have a row (a bug: every case was scheduled)",
+            all.len()
+        );
+    }
+    let timings = all
+        .iter()
+        .map(|f| TimingRow {
+            case: f.row.case.clone(),
+            request_index: f.row.request_index,
+            rank: f.timing.rank,
+            threads: f.timing.threads,
+            synthesis_seconds: f.timing.synthesis_seconds,
+            selection_seconds: f.timing.selection_seconds,
+            validation_seconds: f.timing.validation_seconds,
+        })
+        .collect();
+    Ok(Tables {
+        rows: all.into_iter().map(|f| f.row).collect(),
+        timings,
+    })
+}
+
+/// `study.json`: the SPEC as understood, every row, and the counts.
+pub fn study_json(spec: &Spec, rows: &[Row]) -> Result<String> {
+    let count = |f: &dyn Fn(&Row) -> bool| rows.iter().filter(|r| f(r)).count();
+    let v = serde_json::json!({
+        "study": spec.name,
+        "spec": serde_json::from_str::<serde_json::Value>(&spec.canonical())?,
+        "cases": rows.len(),
+        "met": count(&|r| r.verdict.as_deref() == Some("met")),
+        "not_met": count(&|r| r.verdict.as_deref().is_some_and(|v| v != "met")),
+        "checks_hold": count(&|r| r.checks_hold == Some(true)),
+        "checks_fail": count(&|r| r.checks_hold == Some(false)),
+        "rows": rows,
+    });
+    Ok(serde_json::to_string_pretty(&v)? + "\n")
+}
+
+/// The study's folder: `-o DIR`, else `out/study-<name>`.
+pub fn folder(spec: &Spec, out: Option<&Path>) -> PathBuf {
+    out.map(Path::to_path_buf)
+        .unwrap_or_else(|| Path::new("out").join(format!("study-{}", spec.name)))
+}
+
+/// Refuse a DIR that holds another SPEC's study; otherwise (rank 0)
+/// record this one.
+pub fn claim(spec: &Spec, dir: &Path) -> Result<()> {
+    let path = dir.join("spec.json");
+    let mine = spec.canonical();
+    match std::fs::read_to_string(&path) {
+        Ok(theirs) if theirs == mine => Ok(()),
+        Ok(_) => bail!(
+            "{} holds the study of another SPEC (its spec.json differs): give another -o, or \
+             move it away to start over",
+            dir.display()
+        ),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            crate::output::write_new(&path, mine.as_bytes(), false)
+        }
+        Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
+    }
+}
