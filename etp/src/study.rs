@@ -34,16 +34,28 @@ use spec::Spec;
 use std::path::{Path, PathBuf};
 use table::{Finished, Row};
 
-/// What is left of a study: per job (index into `Spec::jobs`), its
-/// unfinished cases (request indices; `None`: the synthesis-only row).
+/// What is left of one job.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JobPlan {
+    /// Index into `Spec::jobs`.
+    pub job: usize,
+    /// Its synthesis is on disk (front.json written): loaded, not built.
+    /// Rank 0 says so for every rank: a rank that looked for itself could
+    /// see a file rank 0 has just written and skip the build's collectives.
+    pub synthesized: bool,
+    /// Its unfinished cases (request indices; `None`: the synthesis-only row).
+    pub pending: Vec<Option<usize>>,
+}
+
+/// What is left of a study.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Plan {
-    pub work: Vec<(usize, Vec<Option<usize>>)>,
+    pub work: Vec<JobPlan>,
 }
 
 impl Plan {
     pub fn cases(&self) -> usize {
-        self.work.iter().map(|(_, p)| p.len()).sum()
+        self.work.iter().map(|w| w.pending.len()).sum()
     }
 }
 
@@ -70,7 +82,11 @@ pub fn survey(spec: &Spec, dir: &Path) -> Result<(Vec<Finished>, Plan)> {
             }
         }
         if !pending.is_empty() {
-            plan.work.push((j, pending));
+            plan.work.push(JobPlan {
+                job: j,
+                synthesized: job_dir.join("front.json").exists(),
+                pending,
+            });
         }
     }
     Ok((finished, plan))
@@ -101,7 +117,7 @@ pub fn schedule(spec: &Spec, plan: &Plan, ranks: usize) -> Vec<usize> {
     let costs: Vec<u64> = plan
         .work
         .iter()
-        .map(|(j, p)| cost(spec, *j, p.len()))
+        .map(|w| cost(spec, w.job, w.pending.len()))
         .collect();
     order.sort_by(|&a, &b| costs[b].cmp(&costs[a]).then(a.cmp(&b)));
     let mut load = vec![0u64; ranks.max(1)];

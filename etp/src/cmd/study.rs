@@ -119,15 +119,18 @@ pub fn run(a: Args) -> Result<()> {
         .iter()
         .zip(&assign)
         .filter(|(_, r)| **r == rank)
-        .map(|((_, p), _)| p.len())
+        .map(|(w, _)| w.pending.len())
         .sum();
     let pb = progress::bar(mine_count as u64, "study", a.json);
     let mut mine: Vec<Finished> = Vec::new();
-    for ((j, pending), r) in plan.work.iter().zip(&assign) {
+    for (w, r) in plan.work.iter().zip(&assign) {
         if *r != rank {
             continue;
         }
-        let job = &spec.jobs[*j];
+        let job = spec
+            .jobs
+            .get(w.job)
+            .context("rank 0's plan names a job the SPEC does not have")?;
         pb.set_message(job.id.clone());
         let mut done = |f: &Finished| {
             let text = line(f, ranks);
@@ -142,10 +145,10 @@ pub fn run(a: Args) -> Result<()> {
         let mut work = || {
             case::run_job(
                 job,
+                w,
                 &cases_dir,
                 &spec.requests,
                 &spec.settings,
-                pending,
                 &mut done,
             )
         };

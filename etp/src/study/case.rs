@@ -7,6 +7,7 @@
 //! strategy-K.json, row-K.json), each written beside and renamed, the row
 //! last: a row file on disk is a finished case.
 
+use super::JobPlan;
 use super::spec::{Job, Request, Settings, Target};
 use super::table::{Finished, Row, Timing};
 use crate::front::write_front;
@@ -43,20 +44,29 @@ pub fn finished(path: &Path) -> Result<Option<Finished>> {
     }
 }
 
-/// The job's synthesis: loaded when its front is on disk, else built (a
-/// leftover mdp.bin of a killed run is rebuilt: same seed, same bytes).
-fn synthesis(job: &Job, dir: &Path, s: &Settings, timing: &mut Timing) -> Result<Synthesis> {
-    if !dir.join("front.json").exists() {
-        let started = Instant::now();
-        let mut request = MdpRequest::defaults(job.scenario.clone(), s.samples, s.seed);
-        request.out = Some(dir.to_path_buf());
-        request.force = true;
-        request.quiet = true;
-        let built = build_mdp(request)?;
-        write_front(&built.dir, &built.mdp, None, &job.text, None, true)?;
-        timing.synthesis_seconds = started.elapsed().as_secs_f64();
+/// The job's synthesis: loaded when rank 0 found its front on disk, else
+/// built (a leftover mdp.bin of a killed run is rebuilt: same seed, same
+/// bytes) and kept in memory — in an MPI job only rank 0 writes the files,
+/// and the other ranks must not wait for them.
+fn synthesis(
+    job: &Job,
+    synthesized: bool,
+    dir: &Path,
+    s: &Settings,
+    timing: &mut Timing,
+) -> Result<Synthesis> {
+    if synthesized {
+        return Synthesis::load(dir, None);
     }
-    Synthesis::load(dir, None)
+    let started = Instant::now();
+    let mut request = MdpRequest::defaults(job.scenario.clone(), s.samples, s.seed);
+    request.out = Some(dir.to_path_buf());
+    request.force = true;
+    request.quiet = true;
+    let built = build_mdp(request)?;
+    let front = write_front(&built.dir, &built.mdp, None, &job.text, None, true)?;
+    timing.synthesis_seconds = started.elapsed().as_secs_f64();
+    Synthesis::from_parts(dir, built.mdp, Some(job.text.clone()), front.front, None)
 }
 
 fn base_row(job: &Job, syn: &Synthesis, s: &Settings) -> Row {
@@ -232,14 +242,14 @@ fn request(
     Ok(row)
 }
 
-/// Do the cases of `job` that `pending` names (request indices; `None`:
+/// Do the cases of `job` that its `plan` names (request indices; `None`:
 /// the synthesis-only row), in order, calling `done` as each is written.
 pub fn run_job(
     job: &Job,
+    plan: &JobPlan,
     cases_dir: &Path,
     requests: &[Request],
     s: &Settings,
-    pending: &[Option<usize>],
     done: &mut dyn FnMut(&Finished),
 ) -> Result<()> {
     let dir = cases_dir.join(&job.id);
@@ -251,9 +261,9 @@ pub fn run_job(
         threads,
         ..Timing::default()
     };
-    let syn = synthesis(job, &dir, s, &mut timing)
+    let syn = synthesis(job, plan.synthesized, &dir, s, &mut timing)
         .with_context(|| format!("study case {}: the synthesis", job.id))?;
-    for &k in pending {
+    for &k in &plan.pending {
         let row = match k {
             None => base_row(job, &syn, s),
             Some(k) => {

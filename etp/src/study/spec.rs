@@ -358,7 +358,12 @@ mod tests {
 
     #[test]
     fn errors_name_the_key() {
-        let err = |t: &str| format!("{:#}", Spec::parse(t, "t", Path::new(".")).unwrap_err());
+        let err = |t: &str| {
+            format!(
+                "{:#}",
+                Spec::parse(t, "t", Path::new(".")).expect_err("refused")
+            )
+        };
         assert!(
             err(r#"scenarios = ["winding-2d"]
             requests = [{ min_target = 1.5 }]"#)

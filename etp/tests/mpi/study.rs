@@ -150,7 +150,7 @@ fn a_study_whose_rank_is_killed_resumes_to_the_same_bytes() {
         "a failed study left a table"
     );
     let kept = finished(&dir);
-    assert!(kept >= 1 && kept < 4, "{kept} of 4 cases finished");
+    assert!((1..4).contains(&kept), "{kept} of 4 cases finished");
     // Resumed on 2 ranks: the rest only, and the same bytes as the whole run.
     let stdout = expect(
         etp(Some(2), 1, &["study", f, "-o", d]),
