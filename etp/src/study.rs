@@ -11,13 +11,14 @@
 //!   leaves its finished cases and no table.
 //! * **Across ranks.** In an MPI job (`mpirun -n R etp study …`, feature
 //!   `mpi`) rank 0 reads what is finished and says what is left ([`Plan`]);
-//!   with at least R jobs left, whole jobs are handed to ranks (largest
-//!   first, each to the least loaded rank: a deterministic schedule), each
-//!   rank doing its own on its threads ([`crate::dist::alone`]) and writing
-//!   its cases' files (the study folder must be shared by the ranks, as on
-//!   a cluster's file system); with fewer, every rank works on each job in
-//!   turn, its Monte Carlo shared out as in `etp synthesize`. At the end the
-//!   ranks' rows are gathered and rank 0 writes the tables.
+//!   with enough jobs left ([`hand_out`]), whole jobs are handed to ranks
+//!   (largest first, each to the least loaded rank: a deterministic
+//!   schedule), each rank doing its own on its threads
+//!   ([`crate::dist::alone`]) and writing its cases' files (the study folder
+//!   must be shared by the ranks, as on a cluster's file system); with
+//!   fewer, every rank works on each job in turn, its Monte Carlo shared out
+//!   as in `etp synthesize`. At the end the ranks' rows are gathered and
+//!   rank 0 writes the tables.
 //! * **Same bytes.** Every case is the same bits whoever computes it (the
 //!   streams are keyed by seed, not by rank or thread), and the tables hold
 //!   no timing (`timings.csv` does): the same SPEC gives the same
@@ -107,6 +108,27 @@ fn cost(spec: &Spec, j: usize, cases: usize) -> u64 {
         * u64::from(spec.settings.replicates)
         * 2;
     synth + cases as u64 * rebuild
+}
+
+/// The share of a synthesis that does not speed up with ranks (the Pareto
+/// front and its certification, the aggregation test, each layer's
+/// classification on every rank): 0.21 of `etp synthesize winding-2d` on
+/// one rank, fitted to 1 and 2 ranks at two sample sizes
+/// (docs/measurements.md, "MPI: efficiency and the model to 64 ranks").
+pub const SERIAL_SHARE: f64 = 0.21;
+
+/// Whether to hand whole jobs to ranks (`true`) or put every rank on each
+/// job in turn: handing out is worth it when the ranks it keeps busy,
+/// min(jobs, ranks), are more than Amdahl's speed-up of one job on all the
+/// ranks, 1 / (σ + (1 − σ) / R) with σ = [`SERIAL_SHARE`]. With 2 ranks: 2
+/// jobs or more; with 4: 3; with 64: 5.
+pub fn hand_out(jobs: usize, ranks: usize) -> bool {
+    if ranks < 2 || jobs < 2 {
+        return false;
+    }
+    let r = ranks as f64;
+    let together = 1.0 / (SERIAL_SHARE + (1.0 - SERIAL_SHARE) / r);
+    jobs.min(ranks) as f64 >= together
 }
 
 /// Which rank does which job when jobs are handed out: largest first, each
@@ -232,5 +254,22 @@ pub fn claim(spec: &Spec, dir: &Path) -> Result<()> {
             crate::output::write_new(&path, mine.as_bytes(), false)
         }
         Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::hand_out;
+
+    #[test]
+    fn jobs_are_handed_out_when_that_keeps_more_ranks_busy_than_sharing() {
+        assert!(!hand_out(5, 1));
+        assert!(!hand_out(1, 64));
+        assert!(hand_out(2, 2));
+        assert!(!hand_out(2, 4));
+        assert!(hand_out(3, 4));
+        assert!(!hand_out(4, 64));
+        assert!(hand_out(5, 64));
+        assert!(hand_out(15, 64));
     }
 }

@@ -106,9 +106,9 @@ pub fn run(a: Args) -> Result<()> {
             plan.cases()
         );
     }
-    // Whole jobs to ranks when there are enough of them; else every rank on
-    // each job.
-    let apart = ranks > 1 && plan.work.len() >= ranks;
+    // Whole jobs to ranks when there are enough of them (`hand_out`); else
+    // every rank on each job.
+    let apart = study::hand_out(plan.work.len(), ranks);
     let assign = if apart {
         study::schedule(&spec, &plan, ranks)
     } else {
