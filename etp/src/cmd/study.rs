@@ -193,13 +193,14 @@ pub fn run(a: Args) -> Result<()> {
         .count();
     let asked = rows.iter().filter(|r| r.verdict.is_some()).count();
     let validated: Vec<_> = rows.iter().filter_map(|r| r.checks_hold).collect();
+    let plural = |n: usize, word: &str| format!("{n} {word}{}", if n == 1 { "" } else { "s" });
     println!(
-        "study {} — {} cases ({} jobs × {} per job) on {ranks} rank{} in {:.1} s",
+        "study {} — {} ({} × {} per job) on {} in {:.1} s",
         spec.name,
-        rows.len(),
-        spec.jobs.len(),
+        plural(rows.len(), "case"),
+        plural(spec.jobs.len(), "job"),
         spec.rows_per_job(),
-        if ranks == 1 { "" } else { "s" },
+        plural(ranks, "rank"),
         started.elapsed().as_secs_f64()
     );
     if asked > 0 {
