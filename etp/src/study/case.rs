@@ -118,13 +118,33 @@ fn round4(x: f64) -> f64 {
     (x * 1e4).round() / 1e4
 }
 
+/// The full Kalman filter's simulated P_tar on the job's scenario (`etp
+/// simulate SCENARIO --delta 0 --episodes N --seed S`), once per job
+/// however many `kf-…` requests ask it.
+fn kf_p_target(syn: &Synthesis, s: &Settings, kf: &mut Option<f64>) -> Result<f64> {
+    if let Some(p) = *kf {
+        return Ok(p);
+    }
+    let p = crate::simulation::simulate_constant(
+        &syn.scenario,
+        0.0,
+        s.kf_episodes,
+        s.seed,
+        &crate::dist::work(|_| {}),
+    )?
+    .p_target
+    .value;
+    *kf = Some(p);
+    Ok(p)
+}
+
 /// Request `k` of the job: selected, predicted, validated; its row.
 fn request(
     job: &Job,
     syn: &Synthesis,
     s: &Settings,
-    k: usize,
-    r: &Request,
+    (k, r): (usize, &Request),
+    kf: &mut Option<f64>,
     timing: &mut Timing,
 ) -> Result<Row> {
     let mut row = base_row(job, syn, s);
@@ -134,16 +154,7 @@ fn request(
     let min_target = match r.min_target {
         Target::Value(p) => p,
         Target::BelowKf(d) => {
-            // `etp simulate SCENARIO --delta 0 --episodes N --seed S`.
-            let kf = crate::simulation::simulate_constant(
-                &syn.scenario,
-                0.0,
-                s.kf_episodes,
-                s.seed,
-                &crate::dist::work(|_| {}),
-            )?
-            .p_target
-            .value;
+            let kf = kf_p_target(syn, s, kf)?;
             row.kf_p_target = Some(kf);
             round4(kf - d).clamp(0.0, 1.0)
         }
@@ -256,11 +267,13 @@ pub fn run_job(
     crate::output::output_folder(&dir)?;
     let threads = rayon::current_num_threads();
     let rank = crate::dist::job().rank();
-    let mut timing = Timing {
+    let fresh = || Timing {
         rank,
         threads,
         ..Timing::default()
     };
+    let mut timing = fresh();
+    let mut kf = None;
     let syn = synthesis(job, plan.synthesized, &dir, s, &mut timing)
         .with_context(|| format!("study case {}: the synthesis", job.id))?;
     for &k in &plan.pending {
@@ -270,21 +283,16 @@ pub fn run_job(
                 let r = requests
                     .get(k)
                     .with_context(|| format!("study case {}: no request {k} (a bug)", job.id))?;
-                request(job, &syn, s, k, r, &mut timing)
+                request(job, &syn, s, (k, r), &mut kf, &mut timing)
                     .with_context(|| format!("study case {} request {k}", job.id))?
             }
         };
         let f = Finished {
             row,
-            timing: timing.clone(),
+            timing: std::mem::replace(&mut timing, fresh()),
         };
         write_new(&row_path(&dir, k), f.to_json().as_bytes(), true)?;
         done(&f);
-        timing = Timing {
-            rank,
-            threads,
-            ..Timing::default()
-        };
     }
     Ok(())
 }

@@ -133,18 +133,7 @@ fn a_study_whose_rank_is_killed_resumes_to_the_same_bytes() {
         );
         std::thread::sleep(Duration::from_millis(20));
     }
-    let victim = super::killed::rank_pid(child.id(), 1).expect("rank 1 is running");
-    let killed = std::process::Command::new("kill")
-        .args(["-9", &victim.to_string()])
-        .status()
-        .expect("kill runs");
-    assert!(killed.success());
-    let out = child.wait_with_output().expect("mpirun ends");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success(),
-        "the job succeeded without rank 1: {stderr}"
-    );
+    super::killed::kill_rank_1(child);
     assert!(
         !dir.join("study.json").exists() && !dir.join("study.csv").exists(),
         "a failed study left a table"
