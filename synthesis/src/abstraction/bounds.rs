@@ -19,7 +19,6 @@ use etp_shared::gaussian;
 use etp_shared::linalg::to_dynamic;
 use etp_shared::trigger::TriggerFamily;
 use nalgebra::DMatrix;
-use rayon::prelude::*;
 
 /// `[λ_lo, λ_hi]` of the magnitude bins.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -179,23 +178,34 @@ pub const ARRIVAL_QUANTILE: f64 = 0.995;
 /// their largest. `None` (keep the propagation range) without arrivals or
 /// for a degenerate range. Main-sample arrivals only, so the held-out set
 /// stays independent of the states.
+///
+/// The eigenvalues go through the executor (each rank a slice of the
+/// chunks): on several ranks no rank decomposes every arrival.
 pub(super) fn arrival_range<const N: usize>(
     results: &[ChunkTally<N>],
     workspace: &WorkspaceMarginal,
     floor: f64,
-) -> Option<(f64, f64)> {
-    let mut pairs: Vec<(f64, f64)> = results
-        .par_iter()
-        .flat_map_iter(|r| {
-            r.arrivals.iter().map(|a| {
-                let m = workspace.marginal(&to_dynamic(&a.belief.cov));
-                let e = ((&m + m.transpose()) * 0.5).symmetric_eigenvalues();
-                (e.min(), e.max())
-            })
-        })
-        .collect();
+    progress: &dyn crate::exec::Work,
+) -> Result<Option<(f64, f64)>, crate::exec::ExecError> {
+    let per_chunk: Vec<Vec<(f64, f64)>> = crate::exec::map(
+        progress,
+        results.len(),
+        |i| {
+            results[i]
+                .arrivals
+                .iter()
+                .map(|a| {
+                    let m = workspace.marginal(&to_dynamic(&a.belief.cov));
+                    let e = ((&m + m.transpose()) * 0.5).symmetric_eigenvalues();
+                    (e.min(), e.max())
+                })
+                .collect()
+        },
+        |_| 0,
+    )?;
+    let mut pairs: Vec<(f64, f64)> = per_chunk.into_iter().flatten().collect();
     if pairs.is_empty() {
-        return None;
+        return Ok(None);
     }
     let lo = pairs
         .iter()
@@ -205,5 +215,5 @@ pub(super) fn arrival_range<const N: usize>(
     pairs.sort_by(|a, b| a.1.total_cmp(&b.1));
     let k = ((pairs.len() as f64 * ARRIVAL_QUANTILE) as usize).min(pairs.len() - 1);
     let hi = pairs[k].1;
-    (lo.is_finite() && hi > lo * (1.0 + 1e-6)).then_some((lo, hi))
+    Ok((lo.is_finite() && hi > lo * (1.0 + 1e-6)).then_some((lo, hi)))
 }

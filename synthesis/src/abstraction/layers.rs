@@ -322,7 +322,7 @@ pub(super) fn build<const N: usize>(
                 // Given bins carry their own range.
                 _ if given.is_some() => lambda,
                 (Some(w), RangeRule::Arrivals) => {
-                    arrival_range(&results, w, lambda.0).unwrap_or(lambda)
+                    arrival_range(&results, w, lambda.0, progress)?.unwrap_or(lambda)
                 }
                 _ => lambda,
             };
@@ -332,22 +332,27 @@ pub(super) fn build<const N: usize>(
             Some(classifier_for(dp + 1, &mut covs, range))
         };
         // Each chunk's arrivals classified into the next decision point's
-        // regions (none after the last leg).
-        let regions_of = |chunks: &[ChunkTally<N>]| -> Vec<Vec<Region>> {
-            match &next_classifier {
-                Some(c) => chunks
-                    .par_iter()
-                    .map(|r| {
-                        r.arrivals
+        // regions (none after the last leg); through the executor, so that
+        // on several ranks each classifies a slice (an eigen-decomposition
+        // per arrival: a tenth of a synthesis, serial if every rank did all).
+        let regions_of = |chunks: &[ChunkTally<N>]| -> Result<Vec<Vec<Region>>, AbstractionError> {
+            Ok(match &next_classifier {
+                Some(c) => crate::exec::map(
+                    progress,
+                    chunks.len(),
+                    |i| {
+                        chunks[i]
+                            .arrivals
                             .iter()
                             .map(|a| c.classify(&a.belief.cov))
                             .collect()
-                    })
-                    .collect(),
+                    },
+                    |_| 0,
+                )?,
                 None => Vec::new(),
-            }
+            })
         };
-        let arrival_regions = regions_of(&results);
+        let arrival_regions = regions_of(&results)?;
         let mut region_index: BTreeMap<&Region, u32> = BTreeMap::new();
         for r in arrival_regions.iter().flatten() {
             region_index.insert(r, 0);
@@ -359,9 +364,9 @@ pub(super) fn build<const N: usize>(
 
         // The held-out arrivals' regions (same bins; a region the main sample
         // did not reach has no state and is counted as unmatched).
-        let held_regions = regions_of(&held);
+        let held_regions = regions_of(&held)?;
 
-        let extra_regions = regions_of(&extra_results);
+        let extra_regions = regions_of(&extra_results)?;
 
         // Transitions and costs per (state, action), chunks merged in order.
         // The state index of arrival `j` of a segment whose arrivals fell in
