@@ -291,7 +291,7 @@ pub fn run_job(
             row,
             timing: std::mem::replace(&mut timing, fresh()),
         };
-        write_new(&row_path(&dir, k), f.to_json().as_bytes(), true)?;
+        write_new(&row_path(&dir, k), f.to_json()?.as_bytes(), true)?;
         done(&f);
     }
     Ok(())

@@ -290,8 +290,8 @@ impl Spec {
 
     /// The SPEC as stored beside the results (`DIR/spec.json`): what a
     /// resumed study must equal.
-    pub fn canonical(&self) -> String {
-        serde_json::to_string_pretty(self).unwrap_or_default() + "\n"
+    pub fn canonical(&self) -> Result<String> {
+        Ok(serde_json::to_string_pretty(self).context("the SPEC as JSON")? + "\n")
     }
 
     /// The rows of a job: one per request, or one (the synthesis) when the

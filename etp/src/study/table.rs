@@ -82,8 +82,8 @@ pub struct Finished {
 }
 
 impl Finished {
-    pub fn to_json(&self) -> String {
-        serde_json::to_string_pretty(self).unwrap_or_default() + "\n"
+    pub fn to_json(&self) -> Result<String> {
+        Ok(serde_json::to_string_pretty(self).context("a finished case as JSON")? + "\n")
     }
 
     pub fn from_json(text: &str) -> Result<Self> {
