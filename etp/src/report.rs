@@ -4,9 +4,9 @@
 //! package.
 
 use etp_shared::scenario::Scenario;
-use etp_synthesis::simulate::SimulationSummary;
-pub use etp_synthesis::report::{sensor_names, summary_json};
 use etp_synthesis::report::estimates;
+pub use etp_synthesis::report::{sensor_names, summary_json};
+use etp_synthesis::simulate::SimulationSummary;
 
 /// Per-sensor radio counts (only when the radio loses packets).
 pub fn radio_table(s: &Scenario, sum: &SimulationSummary) -> String {

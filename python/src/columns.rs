@@ -116,16 +116,28 @@ impl Column {
         let rows = self.len();
         let bytes = |b: Vec<u8>| PyBytes::new(py, &b).into_any();
         let (dtype, data) = match self.values {
-            Values::U64(v) => ("u8", bytes(v.iter().flat_map(|x| x.to_le_bytes()).collect())),
-            Values::I64(v) => ("i8", bytes(v.iter().flat_map(|x| x.to_le_bytes()).collect())),
-            Values::F64(v) => ("f8", bytes(v.iter().flat_map(|x| x.to_le_bytes()).collect())),
+            Values::U64(v) => (
+                "u8",
+                bytes(v.iter().flat_map(|x| x.to_le_bytes()).collect()),
+            ),
+            Values::I64(v) => (
+                "i8",
+                bytes(v.iter().flat_map(|x| x.to_le_bytes()).collect()),
+            ),
+            Values::F64(v) => (
+                "f8",
+                bytes(v.iter().flat_map(|x| x.to_le_bytes()).collect()),
+            ),
             Values::Bool(v) => ("bool", bytes(v.iter().map(|&x| u8::from(x)).collect())),
             Values::Text(v) => ("str", PyList::new(py, v)?.into_any()),
         };
         let mask = if self.nulls.iter().any(|&n| n) {
             let mut m = self.nulls;
             m.resize(rows, false);
-            Some(PyBytes::new(py, &m.iter().map(|&x| u8::from(x)).collect::<Vec<_>>()))
+            Some(PyBytes::new(
+                py,
+                &m.iter().map(|&x| u8::from(x)).collect::<Vec<_>>(),
+            ))
         } else {
             None
         };

@@ -27,9 +27,8 @@ fn file_in(path: &Path, file: &str) -> PathBuf {
 #[pyfunction]
 pub fn read_front(path: PathBuf) -> PyResult<String> {
     let path = file_in(&path, "front.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        FileFormatError::new_err(format!("reading {}: {e}", path.display()))
-    })?;
+    let text = std::fs::read_to_string(&path)
+        .map_err(|e| FileFormatError::new_err(format!("reading {}: {e}", path.display())))?;
     ParetoFront::from_json(&text)
         .map_err(|e| FileFormatError::new_err(format!("loading {}: {e}", path.display())))?;
     Ok(text)
@@ -46,11 +45,10 @@ pub fn read_strategy<'py>(
     path: PathBuf,
 ) -> PyResult<(String, Bound<'py, PyList>)> {
     let path = file_in(&path, "strategy.json");
-    let (strategy, _scenario) =
-        etp_runtime::load_strategy(&path).map_err(|e| FileFormatError::new_err(chain(&e)))?;
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        FileFormatError::new_err(format!("reading {}: {e}", path.display()))
-    })?;
+    let (strategy, _scenario) = etp_runtime::strategy_arg::load_strategy(&path)
+        .map_err(|e| FileFormatError::new_err(chain(&e)))?;
+    let text = std::fs::read_to_string(&path)
+        .map_err(|e| FileFormatError::new_err(format!("reading {}: {e}", path.display())))?;
     let p = &strategy.policy;
     let (mut state, mut point, mut region, mut delta, mut omega) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());

@@ -11,6 +11,9 @@ use pyo3::types::PyDict;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
+/// A recording's metadata records: name → key → value.
+type Metadata = BTreeMap<String, BTreeMap<String, String>>;
+
 /// Read the finished recording at `path`: `(tables, metadata)`, tables a
 /// dict topic → columns (see `columns::Column::into_py`), metadata the
 /// recording's metadata records (name → dict). Raises `RecordingError`
@@ -19,7 +22,7 @@ use std::path::PathBuf;
 pub fn read_recording<'py>(
     py: Python<'py>,
     path: PathBuf,
-) -> PyResult<(Bound<'py, PyDict>, BTreeMap<String, BTreeMap<String, String>>)> {
+) -> PyResult<(Bound<'py, PyDict>, Metadata)> {
     let read = py.detach(|| -> anyhow::Result<_> {
         if !etp_runtime::recording::ends_finished(&path).unwrap_or(false) {
             anyhow::bail!(

@@ -44,7 +44,11 @@ impl PyScenario {
     /// The sensors' names, in file order.
     #[getter]
     fn sensors(&self) -> Vec<String> {
-        self.scenario.sensors.iter().map(|s| s.name.clone()).collect()
+        self.scenario
+            .sensors
+            .iter()
+            .map(|s| s.name.clone())
+            .collect()
     }
     /// The sensor serving each leg, by name.
     #[getter]

@@ -28,7 +28,10 @@ fn episode_table(r: &Records) -> Vec<Column> {
         Values::U64(e.iter().map(|x| u64::from(f(x))).collect())
     };
     vec![
-        Column::new("episode", Values::U64(e.iter().map(|x| x.episode).collect())),
+        Column::new(
+            "episode",
+            Values::U64(e.iter().map(|x| x.episode).collect()),
+        ),
         Column::new(
             "outcome",
             Values::Text(
@@ -47,7 +50,10 @@ fn episode_table(r: &Records) -> Vec<Column> {
             "expected_transmissions",
             Values::F64(e.iter().map(|x| x.expected_transmissions).collect()),
         ),
-        Column::new("nees_sum", Values::F64(e.iter().map(|x| x.nees_sum).collect())),
+        Column::new(
+            "nees_sum",
+            Values::F64(e.iter().map(|x| x.nees_sum).collect()),
+        ),
         Column::new(
             "squared_error_sum",
             Values::F64(e.iter().map(|x| x.squared_error_sum).collect()),
@@ -69,9 +75,15 @@ fn leg_table(r: &Records, s: &Scenario) -> Vec<Column> {
         })
     };
     vec![
-        Column::new("episode", Values::U64(l.iter().map(|x| x.episode).collect())),
+        Column::new(
+            "episode",
+            Values::U64(l.iter().map(|x| x.episode).collect()),
+        ),
         Column::new("leg", u32s(|x| x.leg)),
-        Column::new("sensor", Values::Text(l.iter().map(|x| sensor(x.sensor)).collect())),
+        Column::new(
+            "sensor",
+            Values::Text(l.iter().map(|x| sensor(x.sensor)).collect()),
+        ),
         Column::new(
             "collision",
             Values::Text(l.iter().map(|x| obstacle(x.collision)).collect()),
@@ -101,6 +113,9 @@ fn leg_table(r: &Records, s: &Scenario) -> Vec<Column> {
     ]
 }
 
+/// A table's columns for Python (`crate::columns`).
+type Table<'py> = Bound<'py, PyList>;
+
 /// Simulate like `etp simulate SCENARIO --delta D --episodes N --seed S
 /// [--trigger F] --json`: `(summary_json_text, episodes, legs)`, the
 /// summary as the CLI's text, the tables as columns (`records=False`:
@@ -115,7 +130,7 @@ pub fn simulate<'py>(
     seed: u64,
     trigger: Option<String>,
     records: bool,
-) -> PyResult<(String, Option<Bound<'py, PyList>>, Option<Bound<'py, PyList>>)> {
+) -> PyResult<(String, Option<Table<'py>>, Option<Table<'py>>)> {
     let delta = check_delta(delta).map_err(|e| SimulationError::new_err(e.to_string()))?;
     if episodes == 0 {
         // clap's range check of `--episodes` (at least 1).
@@ -130,16 +145,17 @@ pub fn simulate<'py>(
         .map_err(SimulationError::new_err)?;
     let s = TriggerArgs { trigger: family }.apply(crate::scenario::resolve(scenario)?);
     let quiet = |_: u64| {};
-    let (summary, recs) = py.detach(|| {
-        let summary = simulate_constant(&s, delta, episodes, seed, &quiet)?;
-        let recs = if records {
-            Some(constant_records(&s, delta, episodes, seed, &quiet)?)
-        } else {
-            None
-        };
-        Ok::<_, etp_synthesis::exec::ExecError>((summary, recs))
-    })
-    .map_err(|e| EtpError::new_err(chain(&e)))?;
+    let (summary, recs) = py
+        .detach(|| {
+            let summary = simulate_constant(&s, delta, episodes, seed, &quiet)?;
+            let recs = if records {
+                Some(constant_records(&s, delta, episodes, seed, &quiet)?)
+            } else {
+                None
+            };
+            Ok::<_, etp_synthesis::exec::ExecError>((summary, recs))
+        })
+        .map_err(|e| EtpError::new_err(chain(&e)))?;
     let text = serde_json::to_string(&simulate_json(&s, &summary, delta, seed))
         .map_err(|e| EtpError::new_err(e.to_string()))?;
     let (eps, legs) = match recs {
@@ -151,4 +167,3 @@ pub fn simulate<'py>(
     };
     Ok((text, eps, legs))
 }
-

@@ -203,7 +203,11 @@ mod tests {
         assert_eq!(rec.episodes.len(), 150);
         let count = |o: Outcome| rec.episodes.iter().filter(|e| e.outcome == o).count() as u64;
         assert_eq!(
-            (count(Outcome::Target), count(Outcome::Collision), count(Outcome::Free)),
+            (
+                count(Outcome::Target),
+                count(Outcome::Collision),
+                count(Outcome::Free)
+            ),
             (tot.target, tot.collision, tot.free)
         );
         let steps: u64 = rec.episodes.iter().map(|e| u64::from(e.steps)).sum();
@@ -223,7 +227,12 @@ mod tests {
             }
             assert_eq!(
                 (got.slots, got.transmissions, got.triggers, got.delivered),
-                (want.slots, want.transmissions, want.triggers, want.delivered),
+                (
+                    want.slots,
+                    want.transmissions,
+                    want.triggers,
+                    want.delivered
+                ),
                 "sensor {i}"
             );
         }
@@ -237,6 +246,9 @@ mod tests {
                 .sum();
             assert_eq!(legs, e.transmissions, "episode {}", e.episode);
         }
-        assert!(tot.sensors.iter().any(|c| c.lost() > 0), "a lossy radio loses");
+        assert!(
+            tot.sensors.iter().any(|c| c.lost() > 0),
+            "a lossy radio loses"
+        );
     }
 }

@@ -65,7 +65,9 @@ pub fn summary_json(s: &Scenario, sum: &SimulationSummary) -> Value {
             o.insert("transmissions".into(), json!(c.transmissions));
             o.insert(
                 "energy".into(),
-                json!(etp_shared::stats::round_energy(x.cost * c.transmissions as f64)),
+                json!(etp_shared::stats::round_energy(
+                    x.cost * c.transmissions as f64
+                )),
             );
             o.insert("predicted_energy".into(), Value::Null);
             radio_counts(&mut o, c);
