@@ -7,7 +7,7 @@ import json
 import os
 import subprocess
 from pathlib import Path
-from typing import Any, List
+from typing import Any
 
 import pytest
 
@@ -40,10 +40,9 @@ def etp_error(*args: str) -> str:
     """The message ``etp`` prints after ``error: `` for a failing command."""
     out = etp(*args, check=False)
     assert out.returncode == 1, (out.returncode, out.stderr)
-    lines: List[str] = out.stderr.strip().splitlines()
-    assert lines and lines[0].startswith("error: "), out.stderr
-    return "\n".join(lines)[len("error: "):]
-
+    # `eprintln!("error: {e:#}")`: the message is what lies between.
+    assert out.stderr.startswith("error: ") and out.stderr.endswith("\n"), out.stderr
+    return out.stderr[len("error: "):-1]
 
 @pytest.fixture(scope="session")
 def repo() -> Path:

@@ -33,7 +33,8 @@ def check_against_cli(path, tmp_path):
             elif pd.api.types.is_bool_dtype(got):
                 assert list(got) == [str(x).lower() == "true" for x in want], (topic, col)
             else:
-                assert [str(x) for x in got] == [str(x) for x in want], (topic, col)
+                text = [None if pd.isna(x) else str(x) for x in got]
+                assert text == [None if pd.isna(x) else str(x) for x in want], (topic, col)
     return tables, info
 
 

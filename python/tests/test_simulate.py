@@ -79,7 +79,7 @@ def test_episodes_and_legs_are_the_summarised_episodes():
 def test_a_bad_delta_raises_the_cli_message():
     with pytest.raises(etpareto.SimulationError) as e:
         etpareto.simulate("winding-2d", delta=-1.0, episodes=10)
-    assert str(e.value) == etp_error("simulate", "winding-2d", "--delta", "-1", "--episodes", "10")
+    assert str(e.value) == etp_error("simulate", "winding-2d", "--delta=-1", "--episodes", "10")
 
 
 def test_an_unknown_scenario_raises_scenario_error():
