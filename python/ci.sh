@@ -44,3 +44,8 @@ cargo build --release -p etp -p etp-agent -p etp-sensor-node -p etp-coordinator 
 # the source folder.
 cd "$ROOT/python/tests"
 ETP_BIN="$ROOT/target/release/etp" "$VENV/bin/python" -m pytest -q -p no:cacheprovider "$@"
+# The example: the constant-δ table of winding-2d, every row checked
+# against `etp simulate --json` (it fails on any difference).
+cd "$ROOT"
+"$VENV/bin/python" python/examples/baselines.py winding-2d --episodes 300 --seed 7 \
+  --check "$ROOT/target/release/etp"
