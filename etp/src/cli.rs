@@ -23,6 +23,10 @@ pub enum Command {
     Simulate(crate::cmd::simulate::Args),
     /// Pick the strategy for a requested trade-off from a synthesized front.
     Strategy(crate::cmd::strategy::Args),
+    /// A batch of cases (scenario × trigger family × request: synthesis,
+    /// strategy, validation) from a SPEC file, resumable, shared across MPI
+    /// ranks; one JSON and one CSV table.
+    Study(crate::cmd::study::Args),
     /// Simulate a strategy in-process and compare with its prediction.
     Validate(crate::cmd::validate::Args),
     /// Build the belief-space MDP by Monte Carlo and write DIR/mdp.bin.

@@ -15,6 +15,7 @@
 
 use etp_synthesis::exec::{Executor, Local, On};
 use std::sync::OnceLock;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 #[cfg(feature = "mpi")]
 #[path = "dist/mpi_exec.rs"]
@@ -22,15 +23,47 @@ mod mpi_exec;
 
 static EXECUTOR: OnceLock<Box<dyn Executor + Send>> = OnceLock::new();
 
-/// The executor of this process: the job's ranks, or [`Local`].
+/// Set while this rank works alone ([`alone`]).
+static ALONE: AtomicBool = AtomicBool::new(false);
+
+/// The executor of this process: the job's ranks, or [`Local`] (no job, or
+/// inside [`alone`]).
 pub fn executor() -> &'static dyn Executor {
+    if ALONE.load(Ordering::SeqCst) {
+        return &Local;
+    }
     match EXECUTOR.get() {
         Some(e) => e.as_ref(),
         None => &Local,
     }
 }
 
-/// Whether this process writes the outputs: rank 0 (or no job at all).
+/// The ranks of the job, whatever [`alone`] says (the study's scheduler).
+pub fn job() -> &'static dyn Executor {
+    match EXECUTOR.get() {
+        Some(e) => e.as_ref(),
+        None => &Local,
+    }
+}
+
+/// Run `f` as if this rank were the whole job: its Monte Carlo on this
+/// rank's threads only, its files written by this rank (`etp study` hands
+/// whole cases to ranks; the other ranks are busy with theirs). Called from
+/// one thread at a time (the study's loop); not re-entrant.
+pub fn alone<T>(f: impl FnOnce() -> T) -> T {
+    struct Reset;
+    impl Drop for Reset {
+        fn drop(&mut self) {
+            ALONE.store(false, Ordering::SeqCst);
+        }
+    }
+    ALONE.store(true, Ordering::SeqCst);
+    let _reset = Reset;
+    f()
+}
+
+/// Whether this process writes the outputs: rank 0 (or no job at all, or
+/// inside [`alone`]).
 pub fn is_root() -> bool {
     executor().rank() == 0
 }

@@ -19,6 +19,10 @@
 //! * [`report`] — a simulation summary's JSON and tables.
 //! * [`simulation`] — the constant-threshold simulation of `simulate` and `bench`.
 //! * [`synthesis_dir`] — a synthesis directory loaded for selection (`strategy`, `compare`).
+//! * [`selection`] — the strategy a request's loop stands by, as its file
+//!   (`strategy`, `study`).
+//! * [`study`] — `etp study`: a SPEC's cases, resumable, scheduled across
+//!   MPI ranks; its tables.
 //! * [`processes`] — the run's processes `etp process NAME` plays.
 //! * [`vocab`] — the JSON vocabulary shared by simulate, validate, run and replay.
 //!
@@ -39,7 +43,9 @@ pub mod output;
 pub mod predictions;
 pub mod processes;
 pub mod report;
+pub mod selection;
 pub mod simulation;
+pub mod study;
 pub mod synthesis_dir;
 pub use etp_recording_tools::vocab;
 /// `etp_runtime::progress`, its bars shown by rank 0 alone in an MPI job
@@ -78,18 +84,19 @@ pub fn run(cli: cli::Cli) -> ExitCode {
 /// Dispatch one subcommand: its exit code, and whether it failed (an
 /// error, as opposed to a command's own documented exit code).
 fn run_command(command: cli::Command) -> (u8, bool) {
-    let ranks = dist::executor().ranks();
+    let ranks = dist::job().ranks();
     let shared = matches!(
         command,
         cli::Command::Synthesize(_)
             | cli::Command::Strategy(_)
             | cli::Command::Validate(_)
             | cli::Command::Simulate(_)
+            | cli::Command::Study(_)
     );
     let result = if ranks > 1 && !shared {
         Err(anyhow::anyhow!(
             "this subcommand does not run on {ranks} MPI ranks: run it without mpirun/srun \
-             (synthesize, strategy, validate and simulate share their work across ranks)"
+             (synthesize, strategy, validate, simulate and study share their work across ranks)"
         ))
     } else {
         cmd::dispatch(command)
@@ -106,7 +113,7 @@ fn run_command(command: cli::Command) -> (u8, bool) {
             }
             None => {
                 if ranks > 1 {
-                    eprintln!("error (rank {} of {ranks}): {e:#}", dist::executor().rank());
+                    eprintln!("error (rank {} of {ranks}): {e:#}", dist::job().rank());
                 } else {
                     eprintln!("error: {e:#}");
                 }

@@ -43,6 +43,19 @@ impl Synthesis {
             );
         }
         let front = read_front(dir, &mdp)?;
+        Self::from_parts(dir, mdp, scenario_text, front, output)
+    }
+
+    /// A synthesis from its parts (read from DIR, or just built): its
+    /// scenario from the text (else the built-in of the MDP's name), checked
+    /// against the MDP, under the channel the front records.
+    pub fn from_parts(
+        dir: &Path,
+        mdp: Mdp,
+        scenario_text: Option<String>,
+        front: ParetoFront,
+        output: Option<&Path>,
+    ) -> Result<Self> {
         let mut scenario = match &scenario_text {
             Some(t) => Scenario::from_toml(t).context("parsing DIR/scenario.toml")?,
             None => Scenario::builtin(&mdp.scenario_name).with_context(|| {

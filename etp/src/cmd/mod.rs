@@ -19,6 +19,7 @@ pub mod scenario;
 pub mod sensor_host;
 pub mod simulate;
 pub mod strategy;
+pub mod study;
 pub mod synthesize;
 pub mod trigger_curves;
 pub mod validate;
@@ -43,6 +44,7 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Compare(a) => compare::run(a),
         Command::TriggerCurves(a) => trigger_curves::run(a),
         Command::Strategy(a) => strategy::run(a),
+        Command::Study(a) => study::run(a),
         Command::Validate(a) => validate::run(a),
         Command::Process(_) => anyhow::bail!("`etp process` is dispatched by etp::run"),
     }

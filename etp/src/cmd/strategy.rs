@@ -168,29 +168,8 @@ pub enum Request {
 
 impl Request {
     pub fn label(&self, certified: Option<f64>) -> String {
-        use etp_synthesis::predict::request::Goal;
-        let cert = |what: &str| match certified {
-            Some(l) => format!("certified {what} at {l}"),
-            None => what.to_string(),
-        };
         match self {
-            Self::Goal(Goal::MinTarget {
-                min_target,
-                max_collision: Some(c),
-            }) => format!(
-                "least energy with {} and {}",
-                cert(&format!("P_tar ≥ {min_target}")),
-                cert(&format!("P_coll ≤ {c}"))
-            ),
-            Self::Goal(Goal::MinTarget { min_target, .. }) => {
-                format!(
-                    "least energy with {}",
-                    cert(&format!("P_tar ≥ {min_target}"))
-                )
-            }
-            Self::Goal(Goal::MaxEnergy { max_energy }) => {
-                format!("highest P_tar with energy ≤ {max_energy}")
-            }
+            Self::Goal(goal) => crate::selection::goal_label(*goal, certified),
             Self::Vertex(k) => format!("vertex {k} of the front"),
         }
     }

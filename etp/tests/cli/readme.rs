@@ -109,6 +109,14 @@ fn every_command_of_the_readme_runs() {
         );
     }
     let dir = Scratch::new("readme");
+    // The README's study SPECs (`etp study studies/quick.toml`), as in a checkout.
+    std::fs::create_dir_all(dir.path("studies")).expect("studies folder");
+    for e in std::fs::read_dir(root.join("studies"))
+        .expect("studies/")
+        .flatten()
+    {
+        std::fs::copy(e.path(), dir.path("studies").join(e.file_name())).expect("copy a SPEC");
+    }
     let bin = PathBuf::from(env!("CARGO_BIN_EXE_etp"));
     let bin_dir = bin.parent().expect("bin dir");
     let py = super::pyenv::python();
@@ -184,6 +192,7 @@ fn every_command_of_the_readme_runs() {
         "out/winding-2d/mdp.bin",
         "copy.mcap",
         "winding-foxglove.mcap",
+        "out/study-quick/study.csv",
     ] {
         assert!(dir.path(f).is_file(), "{f} missing");
     }

@@ -32,6 +32,39 @@ fn rank_pid(parent: u32, rank: u32) -> Option<u32> {
     None
 }
 
+/// Kill (-9) rank 1 of the job `mpirun` runs as `child` (waiting up to
+/// 60 s for it to appear): the job must fail and say which rank died and
+/// how. Its stderr.
+pub(crate) fn kill_rank_1(child: std::process::Child) -> String {
+    let started = Instant::now();
+    let victim = loop {
+        if let Some(pid) = rank_pid(child.id(), 1) {
+            break pid;
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(60),
+            "rank 1 never appeared"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let killed = std::process::Command::new("kill")
+        .args(["-9", &victim.to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(killed.success());
+    let out = child.wait_with_output().expect("mpirun ends");
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        !out.status.success(),
+        "the job succeeded without rank 1: {stderr}"
+    );
+    assert!(
+        stderr.contains("rank 1") && (stderr.contains("signal 9") || stderr.contains("Killed")),
+        "no word of the killed rank: {stderr}"
+    );
+    stderr
+}
+
 #[test]
 fn a_killed_rank_fails_the_job_and_leaves_no_output() {
     require_mpirun();
@@ -46,34 +79,8 @@ fn a_killed_rank_fails_the_job_and_leaves_no_output() {
         .stderr(Stdio::piped())
         .spawn()
         .expect("mpirun starts");
-    // Wait for rank 1 to be up and working, then kill it.
-    let started = Instant::now();
-    let victim = loop {
-        if let Some(pid) = rank_pid(child.id(), 1) {
-            break pid;
-        }
-        assert!(
-            started.elapsed() < Duration::from_secs(60),
-            "rank 1 never appeared"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    };
     std::thread::sleep(Duration::from_secs(3));
-    let killed = std::process::Command::new("kill")
-        .args(["-9", &victim.to_string()])
-        .status()
-        .expect("kill runs");
-    assert!(killed.success());
-    let out = child.wait_with_output().expect("mpirun ends");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success(),
-        "the job succeeded without rank 1: {stderr}"
-    );
-    assert!(
-        stderr.contains("rank 1") && (stderr.contains("signal 9") || stderr.contains("Killed")),
-        "no word of the killed rank: {stderr}"
-    );
+    kill_rank_1(child);
     // Nothing at the output path: no output, no temporary sibling.
     let left: Vec<String> = std::fs::read_dir(&dir)
         .map(|d| {

@@ -6,6 +6,7 @@
 
 mod bytes;
 mod killed;
+mod study;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

@@ -7,46 +7,15 @@ use super::select::Synthesis;
 use crate::output::{refuse_existing, write_new};
 use crate::progress;
 use anyhow::{Context, Result, bail};
-use etp_shared::strategy::CertifiedPrediction;
-use etp_synthesis::certify::crossfit::{CrossFit, crossfit};
 use etp_synthesis::certify::intervals::interval_mdp;
 use etp_synthesis::certify::refine::{Refined, prepare, refine};
-use etp_synthesis::certify::robust::certify;
 use etp_synthesis::certify::select::certified_strategy;
-use etp_synthesis::mdp::{CostModel, Mdp};
-use etp_synthesis::pareto::policy::RandomisedPolicy;
+use etp_synthesis::mdp::Mdp;
 use serde_json::{Value, json};
 use std::path::PathBuf;
 use std::time::Instant;
 
-/// Level of the certified bounds reported without `--confidence`.
-pub const DEFAULT_LEVEL: f64 = 0.95;
-
-/// Cross-fitted values and certified bounds of a strategy on one MDP.
-pub struct Assessment {
-    pub crossfit: Option<CrossFit>,
-    pub certified: CertifiedPrediction,
-}
-
-pub fn assess(
-    mdp: &Mdp,
-    policy: &RandomisedPolicy,
-    cost: CostModel,
-    level: f64,
-) -> Result<Assessment> {
-    let im = interval_mdp(mdp, level, cost).context("building the interval MDP")?;
-    let c = certify(mdp, &im, policy);
-    Ok(Assessment {
-        crossfit: crossfit(mdp, policy, cost),
-        certified: CertifiedPrediction {
-            confidence: level,
-            p_target_low: c.p_target_low,
-            p_collision_high: c.p_collision_high,
-            energy_high: c.energy_high,
-            covers_aggregation: false,
-        },
-    })
-}
+pub use crate::selection::DEFAULT_LEVEL;
 
 /// `--refine-gap`: the selection MDP with samples added where the certified
 /// strategy's gap binds (written to DIR/mdp-refined.bin).

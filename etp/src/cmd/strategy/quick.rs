@@ -6,10 +6,11 @@
 //! pools (docs/MODEL.md §7.3) — are kept under `diagnostics` and printed as
 //! such. `etp strategy evaluate FILE DIR` predicts it later.
 
-use super::select::{Synthesis, selection_diagnostics};
+use super::select::Synthesis;
 use super::{Args, Request, certified};
 use crate::output::{refuse_existing, write_new};
 use crate::predictions;
+use crate::selection::selection_diagnostics;
 use anyhow::{Context, Result};
 use etp_synthesis::certify::intervals::interval_mdp;
 use etp_synthesis::certify::select::certified_strategy;

@@ -6,35 +6,16 @@ use super::{Args, EXIT_OUT_OF_REACH, Request, certified};
 use crate::output::{refuse_existing, write_new};
 use crate::predictions;
 use crate::progress;
+use crate::selection::standing_strategy;
 pub use crate::synthesis_dir::Synthesis;
 use anyhow::{Context, Result};
 use etp_shared::strategy::Strategy;
 use etp_synthesis::abstraction;
-use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::policy::{Objectives, RandomisedPolicy, as_randomised, evaluate};
 use etp_synthesis::pareto::select::{Request as FrontRequest, select};
 use etp_synthesis::predict::request::{Goal, LoopSettings, Outcome, Verdict};
 use serde_json::{Value, json};
 use std::time::Instant;
-
-/// The values of `omega` on the selection MDP, stored as diagnostics.
-pub fn selection_diagnostics(
-    strategy: &mut Strategy,
-    mdp: &Mdp,
-    omega: &RandomisedPolicy,
-    cost: CostModel,
-    level: f64,
-) -> Result<Option<f64>> {
-    let a = certified::assess(mdp, omega, cost, level)?;
-    let d = strategy
-        .predictions
-        .diagnostics
-        .get_or_insert_with(Default::default);
-    d.selection.crossfit = a.crossfit.as_ref().map(|c| c.objectives.prediction());
-    d.selection.crossfit_ci95 = a.crossfit.as_ref().map(|c| c.ci95());
-    d.selection.certified = Some(a.certified);
-    Ok(a.crossfit.map(|c| c.unmatched_mass))
-}
 
 pub fn run(a: &Args, request: Request) -> Result<()> {
     let dir = a.dir.as_deref().context("DIR is required")?;
@@ -96,21 +77,15 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
     };
     pb.finish_and_clear();
     let seconds = started.elapsed().as_secs_f64();
-    let mut strategy = outcome.strategy.clone();
-    outcome
-        .on_policy
-        .stand_by(&mut strategy, &outcome.certified, level);
-    let unmatched = selection_diagnostics(&mut strategy, mdp, &outcome.omega, cost, level)?;
-    if let Some(d) = strategy.predictions.diagnostics.as_mut() {
-        d.rounds = outcome.rounds.iter().map(|r| r.record()).collect();
-    }
-    if outcome.verdict != Verdict::Met {
-        strategy.provenance.label = format!("{label} — OUT OF REACH: the closest strategy found");
-    }
-    if a.prediction.aggregation_check > 0 {
-        strategy.predictions.aggregation =
-            predictions::aggregation_check(&strategy, a.prediction.aggregation_check, a.out.json)?;
-    }
+    let (strategy, unmatched) = standing_strategy(
+        &syn,
+        mdp,
+        &outcome,
+        &outcome.certified,
+        level,
+        a.prediction.aggregation_check,
+        a.out.json,
+    )?;
     write_new(&syn.output, strategy.to_json().as_bytes(), a.out.force)?;
     let explanation = explanation(&syn, request);
     let report = Report {

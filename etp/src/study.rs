@@ -1,0 +1,275 @@
+//! `etp study SPEC.toml`: a batch of cases — every scenario × trigger family
+//! × request of the SPEC ([`spec`]) — each synthesized, its strategy
+//! selected and predicted as `etp strategy` does, and validated as `etp
+//! validate` does ([`case`]); one JSON and one CSV table out ([`table`]).
+//!
+//! * **Resumable.** A case is finished when its row file is on disk
+//!   (`DIR/cases/<job>/row-K.json`, written beside and renamed, after its
+//!   strategy); a study started again on the same DIR and SPEC does only
+//!   the rest (a DIR of another SPEC is refused by name: `DIR/spec.json`).
+//!   The tables are written at the end, beside and renamed: a killed study
+//!   leaves its finished cases and no table.
+//! * **Across ranks.** In an MPI job (`mpirun -n R etp study …`, feature
+//!   `mpi`) rank 0 reads what is finished and says what is left ([`Plan`]);
+//!   with enough jobs left ([`hand_out`]), whole jobs are handed to ranks
+//!   (largest first, each to the least loaded rank: a deterministic
+//!   schedule), each rank doing its own on its threads
+//!   ([`crate::dist::alone`]) and writing its cases' files (the study folder
+//!   must be shared by the ranks, as on a cluster's file system); with
+//!   fewer, every rank works on each job in turn, its Monte Carlo shared out
+//!   as in `etp synthesize`. At the end the ranks' rows are gathered and
+//!   rank 0 writes the tables.
+//! * **Same bytes.** Every case is the same bits whoever computes it (the
+//!   streams are keyed by seed, not by rank or thread), and the tables hold
+//!   no timing (`timings.csv` does): the same SPEC gives the same
+//!   `study.json` and `study.csv` for any number of ranks and threads, in
+//!   one go or resumed.
+
+pub mod case;
+pub mod spec;
+pub mod table;
+
+use anyhow::{Context, Result, bail};
+use serde::{Deserialize, Serialize};
+use spec::Spec;
+use std::path::{Path, PathBuf};
+use table::{Finished, Row};
+
+/// What is left of one job.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JobPlan {
+    /// Index into `Spec::jobs`.
+    pub job: usize,
+    /// Its synthesis is on disk (front.json written): loaded, not built.
+    /// Rank 0 says so for every rank: a rank that looked for itself could
+    /// see a file rank 0 has just written and skip the build's collectives.
+    pub synthesized: bool,
+    /// Its unfinished cases (request indices; `None`: the synthesis-only row).
+    pub pending: Vec<Option<usize>>,
+}
+
+/// What is left of a study.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Plan {
+    pub work: Vec<JobPlan>,
+}
+
+impl Plan {
+    pub fn cases(&self) -> usize {
+        self.work.iter().map(|w| w.pending.len()).sum()
+    }
+}
+
+/// The cases of job `j` (request indices, or the synthesis-only row).
+fn cases_of(spec: &Spec) -> Vec<Option<usize>> {
+    if spec.requests.is_empty() {
+        vec![None]
+    } else {
+        (0..spec.requests.len()).map(Some).collect()
+    }
+}
+
+/// The finished cases under `dir` and what is left.
+pub fn survey(spec: &Spec, dir: &Path) -> Result<(Vec<Finished>, Plan)> {
+    let mut finished = Vec::new();
+    let mut plan = Plan::default();
+    for (j, job) in spec.jobs.iter().enumerate() {
+        let job_dir = dir.join("cases").join(&job.id);
+        let mut pending = Vec::new();
+        for k in cases_of(spec) {
+            match case::finished(&case::row_path(&job_dir, k))? {
+                Some(f) => finished.push(f),
+                None => pending.push(k),
+            }
+        }
+        if !pending.is_empty() {
+            plan.work.push(JobPlan {
+                job: j,
+                synthesized: job_dir.join("front.json").exists(),
+                pending,
+            });
+        }
+    }
+    Ok((finished, plan))
+}
+
+/// A job's expected cost in segment-steps of simulation: its synthesis and
+/// about two rounds of rebuilds per request (the schedule's weights; only
+/// their order matters).
+fn cost(spec: &Spec, j: usize, cases: usize) -> u64 {
+    let job = &spec.jobs[j];
+    let params = etp_synthesis::abstraction::AbstractionParams {
+        samples: spec.settings.samples,
+        seed: spec.settings.seed,
+        ..Default::default()
+    };
+    let synth = etp_synthesis::abstraction::progress_total(&job.scenario, &params);
+    let rebuild = etp_synthesis::predict::rebuild::progress_units(&job.scenario, &params)
+        * u64::from(spec.settings.replicates)
+        * 2;
+    synth + cases as u64 * rebuild
+}
+
+/// The share of a synthesis that does not speed up with ranks (the Pareto
+/// front and its certification, the aggregation test, each layer's
+/// classification on every rank): 0.21 of `etp synthesize winding-2d` on
+/// one rank, fitted to 1 and 2 ranks at two sample sizes
+/// (docs/measurements.md, "MPI: efficiency and the model to 64 ranks").
+pub const SERIAL_SHARE: f64 = 0.21;
+
+/// Whether to hand whole jobs to ranks (`true`) or put every rank on each
+/// job in turn: handing out is worth it when the ranks it keeps busy,
+/// min(jobs, ranks), are more than Amdahl's speed-up of one job on all the
+/// ranks, 1 / (σ + (1 − σ) / R) with σ = [`SERIAL_SHARE`]. With 2 ranks: 2
+/// jobs or more; with 4: 3; with 64: 5.
+pub fn hand_out(jobs: usize, ranks: usize) -> bool {
+    if ranks < 2 || jobs < 2 {
+        return false;
+    }
+    let r = ranks as f64;
+    let together = 1.0 / (SERIAL_SHARE + (1.0 - SERIAL_SHARE) / r);
+    jobs.min(ranks) as f64 >= together
+}
+
+/// Which rank does which job when jobs are handed out: largest first, each
+/// to the least loaded rank (ties: the lower index). `assign[k]` is the
+/// rank of `plan.work[k]`.
+pub fn schedule(spec: &Spec, plan: &Plan, ranks: usize) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..plan.work.len()).collect();
+    let costs: Vec<u64> = plan
+        .work
+        .iter()
+        .map(|w| cost(spec, w.job, w.pending.len()))
+        .collect();
+    order.sort_by(|&a, &b| costs[b].cmp(&costs[a]).then(a.cmp(&b)));
+    let mut load = vec![0u64; ranks.max(1)];
+    let mut assign = vec![0; plan.work.len()];
+    for k in order {
+        let r = (0..load.len())
+            .min_by_key(|&r| (load[r], r))
+            .unwrap_or_default();
+        load[r] += costs[k];
+        assign[k] = r;
+    }
+    assign
+}
+
+/// The study's result: every row, in job then request order.
+#[derive(Debug, Clone, Serialize)]
+pub struct Tables {
+    pub rows: Vec<Row>,
+    pub timings: Vec<TimingRow>,
+}
+
+/// A line of `timings.csv`.
+#[derive(Debug, Clone, Serialize)]
+pub struct TimingRow {
+    pub case: String,
+    pub request_index: Option<usize>,
+    pub rank: usize,
+    pub threads: usize,
+    pub synthesis_seconds: f64,
+    pub selection_seconds: f64,
+    pub validation_seconds: f64,
+}
+
+/// Put the rows of every case in order, refusing a gap or a duplicate.
+pub fn tables(spec: &Spec, mut all: Vec<Finished>) -> Result<Tables> {
+    let index = |f: &Finished| {
+        (
+            spec.jobs.iter().position(|j| j.id == f.row.case),
+            f.row.request_index,
+        )
+    };
+    all.sort_by_key(index);
+    let want = spec.jobs.len() * spec.rows_per_job();
+    for w in all.windows(2) {
+        if index(&w[0]) == index(&w[1]) {
+            bail!(
+                "case {} request {:?} finished twice (a bug)",
+                w[0].row.case,
+                w[0].row.request_index
+            );
+        }
+    }
+    if all.len() != want || all.iter().any(|f| index(f).0.is_none()) {
+        bail!(
+            "{} of the SPEC's {want} cases have a row (a bug: every case was scheduled)",
+            all.len()
+        );
+    }
+    let timings = all
+        .iter()
+        .map(|f| TimingRow {
+            case: f.row.case.clone(),
+            request_index: f.row.request_index,
+            rank: f.timing.rank,
+            threads: f.timing.threads,
+            synthesis_seconds: f.timing.synthesis_seconds,
+            selection_seconds: f.timing.selection_seconds,
+            validation_seconds: f.timing.validation_seconds,
+        })
+        .collect();
+    Ok(Tables {
+        rows: all.into_iter().map(|f| f.row).collect(),
+        timings,
+    })
+}
+
+/// `study.json`: the SPEC as understood, every row, and the counts.
+pub fn study_json(spec: &Spec, rows: &[Row]) -> Result<String> {
+    let count = |f: &dyn Fn(&Row) -> bool| rows.iter().filter(|r| f(r)).count();
+    let v = serde_json::json!({
+        "study": spec.name,
+        "spec": serde_json::from_str::<serde_json::Value>(&spec.canonical())?,
+        "cases": rows.len(),
+        "met": count(&|r| r.verdict.as_deref() == Some("met")),
+        "not_met": count(&|r| r.verdict.as_deref().is_some_and(|v| v != "met")),
+        "checks_hold": count(&|r| r.checks_hold == Some(true)),
+        "checks_fail": count(&|r| r.checks_hold == Some(false)),
+        "rows": rows,
+    });
+    Ok(serde_json::to_string_pretty(&v)? + "\n")
+}
+
+/// The study's folder: `-o DIR`, else `out/study-<name>`.
+pub fn folder(spec: &Spec, out: Option<&Path>) -> PathBuf {
+    out.map(Path::to_path_buf)
+        .unwrap_or_else(|| Path::new("out").join(format!("study-{}", spec.name)))
+}
+
+/// Refuse a DIR that holds another SPEC's study; otherwise (rank 0)
+/// record this one.
+pub fn claim(spec: &Spec, dir: &Path) -> Result<()> {
+    let path = dir.join("spec.json");
+    let mine = spec.canonical();
+    match std::fs::read_to_string(&path) {
+        Ok(theirs) if theirs == mine => Ok(()),
+        Ok(_) => bail!(
+            "{} holds the study of another SPEC (its spec.json differs): give another -o, or \
+             move it away to start over",
+            dir.display()
+        ),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            crate::output::write_new(&path, mine.as_bytes(), false)
+        }
+        Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::hand_out;
+
+    #[test]
+    fn jobs_are_handed_out_when_that_keeps_more_ranks_busy_than_sharing() {
+        assert!(!hand_out(5, 1));
+        assert!(!hand_out(1, 64));
+        assert!(hand_out(2, 2));
+        assert!(!hand_out(2, 4));
+        assert!(hand_out(3, 4));
+        assert!(!hand_out(4, 64));
+        assert!(hand_out(5, 64));
+        assert!(hand_out(15, 64));
+    }
+}

@@ -1,0 +1,298 @@
+//! One job of a study — a scenario under one trigger family — done as the
+//! commands do it: `etp synthesize` (MDP and front, no Method 1 baseline),
+//! then per request `etp strategy DIR --min-target P [--max-collision C]`
+//! (the request loop and the strategy it stands by, [`crate::selection`])
+//! and `etp validate STRATEGY --episodes N --seed S`. Every file goes into
+//! the job's folder (`DIR/cases/<job>/`: mdp.bin, front.json, scenario.toml,
+//! strategy-K.json, row-K.json), each written beside and renamed, the row
+//! last: a row file on disk is a finished case.
+
+use super::JobPlan;
+use super::spec::{Job, Request, Settings, Target};
+use super::table::{Finished, Row, Timing};
+use crate::front::write_front;
+use crate::mdp_build::{MdpRequest, build_mdp};
+use crate::output::write_new;
+use crate::predictions::checks;
+use crate::progress;
+use crate::selection::{DEFAULT_LEVEL, goal_label, standing_strategy};
+use crate::synthesis_dir::Synthesis;
+use anyhow::{Context, Result};
+use etp_shared::strategy::Strategy;
+use etp_synthesis::predict::request::{Goal, LoopSettings};
+use etp_synthesis::validate::simulate_strategy;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The file of request `k`'s row (`None`: the synthesis-only row).
+pub fn row_path(job_dir: &Path, k: Option<usize>) -> PathBuf {
+    match k {
+        Some(k) => job_dir.join(format!("row-{k}.json")),
+        None => job_dir.join("row.json"),
+    }
+}
+
+/// The finished case at `path`, if any (a file that does not parse is an
+/// error naming it: it was written whole, so it was edited).
+pub fn finished(path: &Path) -> Result<Option<Finished>> {
+    match std::fs::read_to_string(path) {
+        Ok(t) => Finished::from_json(&t)
+            .map(Some)
+            .with_context(|| path.display().to_string()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
+    }
+}
+
+/// The job's synthesis: loaded when rank 0 found its front on disk, else
+/// built (a leftover mdp.bin of a killed run is rebuilt: same seed, same
+/// bytes) and kept in memory — in an MPI job only rank 0 writes the files,
+/// and the other ranks must not wait for them.
+fn synthesis(
+    job: &Job,
+    synthesized: bool,
+    dir: &Path,
+    s: &Settings,
+    timing: &mut Timing,
+) -> Result<Synthesis> {
+    if synthesized {
+        return Synthesis::load(dir, None);
+    }
+    let started = Instant::now();
+    let mut request = MdpRequest::defaults(job.scenario.clone(), s.samples, s.seed);
+    request.out = Some(dir.to_path_buf());
+    request.force = true;
+    request.quiet = true;
+    let built = build_mdp(request)?;
+    let front = write_front(&built.dir, &built.mdp, None, &job.text, None, true)?;
+    timing.synthesis_seconds = started.elapsed().as_secs_f64();
+    Synthesis::from_parts(dir, built.mdp, Some(job.text.clone()), front.front, None)
+}
+
+fn base_row(job: &Job, syn: &Synthesis, s: &Settings) -> Row {
+    Row {
+        case: job.id.clone(),
+        request_index: None,
+        scenario: job.scenario.name.clone(),
+        source: job.source.clone(),
+        family: job.family.name().to_string(),
+        n: job.scenario.dim,
+        samples: s.samples,
+        seed: s.seed,
+        states: syn.mdp.states.len(),
+        vertices: syn.front.vertices.len(),
+        front_epsilon: syn.front.epsilon,
+        request: None,
+        kf_p_target: None,
+        min_target: None,
+        max_collision: None,
+        verdict: None,
+        rounds: None,
+        strategy: None,
+        predicted_p_target: None,
+        predicted_p_target_ci95: None,
+        predicted_p_collision: None,
+        predicted_p_collision_ci95: None,
+        predicted_energy: None,
+        predicted_energy_ci95: None,
+        certified_p_target_low: None,
+        certified_p_collision_high: None,
+        certified_energy_high: None,
+        episodes: None,
+        simulated_p_target: None,
+        simulated_p_target_ci95: None,
+        simulated_p_collision: None,
+        simulated_p_collision_ci95: None,
+        simulated_energy: None,
+        simulated_energy_ci95: None,
+        miss_p_target: None,
+        miss_p_collision: None,
+        miss_energy_relative: None,
+        checks_hold: None,
+        failed_checks: None,
+    }
+}
+
+/// Rounded to 4 decimals (a `kf-…` request as a person would write it).
+fn round4(x: f64) -> f64 {
+    (x * 1e4).round() / 1e4
+}
+
+/// The full Kalman filter's simulated P_tar on the job's scenario (`etp
+/// simulate SCENARIO --delta 0 --episodes N --seed S`), once per job
+/// however many `kf-…` requests ask it.
+fn kf_p_target(syn: &Synthesis, s: &Settings, kf: &mut Option<f64>) -> Result<f64> {
+    if let Some(p) = *kf {
+        return Ok(p);
+    }
+    let p = crate::simulation::simulate_constant(
+        &syn.scenario,
+        0.0,
+        s.kf_episodes,
+        s.seed,
+        &crate::dist::work(|_| {}),
+    )?
+    .p_target
+    .value;
+    *kf = Some(p);
+    Ok(p)
+}
+
+/// Request `k` of the job: selected, predicted, validated; its row.
+fn request(
+    job: &Job,
+    syn: &Synthesis,
+    s: &Settings,
+    (k, r): (usize, &Request),
+    kf: &mut Option<f64>,
+    timing: &mut Timing,
+) -> Result<Row> {
+    let mut row = base_row(job, syn, s);
+    row.request_index = Some(k);
+    row.request = Some(r.describe());
+    let started = Instant::now();
+    let min_target = match r.min_target {
+        Target::Value(p) => p,
+        Target::BelowKf(d) => {
+            let kf = kf_p_target(syn, s, kf)?;
+            row.kf_p_target = Some(kf);
+            round4(kf - d).clamp(0.0, 1.0)
+        }
+    };
+    row.min_target = Some(min_target);
+    row.max_collision = r.max_collision;
+    let goal = Goal::MinTarget {
+        min_target,
+        max_collision: r.max_collision,
+    };
+    let label = goal_label(goal, None);
+    let make = |omega: &etp_synthesis::pareto::policy::RandomisedPolicy,
+                value: etp_synthesis::pareto::policy::Objectives| {
+        syn.strategy_of(&syn.mdp, omega, value, &label)
+    };
+    let pb = progress::bar(0, "rebuilds", true);
+    let outcome = syn.meet(
+        &syn.mdp,
+        goal,
+        LoopSettings {
+            replicates: s.replicates,
+            max_rounds: s.rounds,
+            certified: None,
+        },
+        DEFAULT_LEVEL,
+        &make,
+        &pb,
+    )?;
+    let (strategy, _) = standing_strategy(
+        syn,
+        &syn.mdp,
+        &outcome,
+        &outcome.certified,
+        DEFAULT_LEVEL,
+        s.aggregation_check,
+        true,
+    )?;
+    let file = format!("strategy-{k}.json");
+    let path = syn.dir.join(&file);
+    write_new(&path, strategy.to_json().as_bytes(), true)?;
+    timing.selection_seconds = started.elapsed().as_secs_f64();
+    row.verdict = Some(outcome.verdict.name().to_string());
+    row.rounds = Some(outcome.rounds.len());
+    row.strategy = Some(format!("cases/{}/{file}", job.id));
+    let p = strategy.predictions.predicted;
+    let h = strategy.predictions.predicted_ci95;
+    row.predicted_p_target = p.map(|p| p.p_target);
+    row.predicted_p_collision = p.map(|p| p.p_collision);
+    row.predicted_energy = p.map(|p| p.energy_mean);
+    row.predicted_p_target_ci95 = h.map(|h| h.p_target);
+    row.predicted_p_collision_ci95 = h.map(|h| h.p_collision);
+    row.predicted_energy_ci95 = h.map(|h| h.energy_mean);
+    let c = strategy.predictions.certified;
+    row.certified_p_target_low = c.map(|c| c.p_target_low);
+    row.certified_p_collision_high = c.map(|c| c.p_collision_high);
+    row.certified_energy_high = c.map(|c| c.energy_high);
+    if s.episodes == 0 {
+        return Ok(row);
+    }
+    // `etp validate STRATEGY --episodes N --seed S`: the strategy as read
+    // back from its file's bytes (in memory: in an MPI job the other ranks
+    // do not wait for rank 0's file).
+    let started = Instant::now();
+    let strategy = Strategy::from_sealed_json(&strategy.to_json())
+        .with_context(|| format!("{} read back", path.display()))?;
+    let scenario = strategy
+        .policy
+        .scenario()
+        .context("the strategy's scenario")?;
+    let sum = simulate_strategy(
+        &scenario,
+        &strategy.policy,
+        s.episodes,
+        s.seed,
+        &crate::dist::work(|_| {}),
+    )?
+    .summary();
+    timing.validation_seconds = started.elapsed().as_secs_f64();
+    row.episodes = Some(sum.episodes);
+    row.simulated_p_target = Some(sum.p_target.value);
+    row.simulated_p_target_ci95 = Some(sum.p_target.ci95);
+    row.simulated_p_collision = Some(sum.p_collision.value);
+    row.simulated_p_collision_ci95 = Some(sum.p_collision.ci95);
+    row.simulated_energy = Some(sum.energy_mean.value);
+    row.simulated_energy_ci95 = Some(sum.energy_mean.ci95);
+    if let Some(p) = p {
+        row.miss_p_target = Some(sum.p_target.value - p.p_target);
+        row.miss_p_collision = Some(sum.p_collision.value - p.p_collision);
+        row.miss_energy_relative =
+            (p.energy_mean != 0.0).then(|| (sum.energy_mean.value - p.energy_mean) / p.energy_mean);
+    }
+    let all = checks(&strategy, &sum);
+    let failed: Vec<&str> = all.iter().filter(|(_, ok)| !ok).map(|(n, _)| *n).collect();
+    row.checks_hold = Some(failed.is_empty());
+    row.failed_checks = Some(failed.join("; "));
+    Ok(row)
+}
+
+/// Do the cases of `job` that its `plan` names (request indices; `None`:
+/// the synthesis-only row), in order, calling `done` as each is written.
+pub fn run_job(
+    job: &Job,
+    plan: &JobPlan,
+    cases_dir: &Path,
+    requests: &[Request],
+    s: &Settings,
+    done: &mut dyn FnMut(&Finished),
+) -> Result<()> {
+    let dir = cases_dir.join(&job.id);
+    crate::output::output_folder(&dir)?;
+    let threads = rayon::current_num_threads();
+    let rank = crate::dist::job().rank();
+    let fresh = || Timing {
+        rank,
+        threads,
+        ..Timing::default()
+    };
+    let mut timing = fresh();
+    let mut kf = None;
+    let syn = synthesis(job, plan.synthesized, &dir, s, &mut timing)
+        .with_context(|| format!("study case {}: the synthesis", job.id))?;
+    for &k in &plan.pending {
+        let row = match k {
+            None => base_row(job, &syn, s),
+            Some(k) => {
+                let r = requests
+                    .get(k)
+                    .with_context(|| format!("study case {}: no request {k} (a bug)", job.id))?;
+                request(job, &syn, s, (k, r), &mut kf, &mut timing)
+                    .with_context(|| format!("study case {} request {k}", job.id))?
+            }
+        };
+        let f = Finished {
+            row,
+            timing: std::mem::replace(&mut timing, fresh()),
+        };
+        write_new(&row_path(&dir, k), f.to_json().as_bytes(), true)?;
+        done(&f);
+    }
+    Ok(())
+}

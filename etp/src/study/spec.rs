@@ -1,0 +1,390 @@
+//! A study's SPEC file (TOML): which cases — every scenario × trigger
+//! family × request — and how each is done (the settings of `etp
+//! synthesize`, `etp strategy` and `etp validate`). Parsed once into a
+//! [`Spec`] whose jobs are numbered in the file's order; every error names
+//! the key.
+
+use crate::input::parse_family;
+use anyhow::{Context, Result, bail};
+use etp_shared::scenario::random::{AgentKind, random_scenario};
+use etp_shared::scenario::{Scenario, ScenarioText, builtin_text};
+use etp_shared::trigger::TriggerFamily;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// The SPEC as written (unknown keys refused).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSpec {
+    /// The study's name (default: the SPEC file's stem).
+    name: Option<String>,
+    scenarios: Vec<RawScenario>,
+    /// Trigger families (default: each scenario's own).
+    families: Option<Vec<String>>,
+    /// Requests (default none: the study synthesizes only).
+    #[serde(default)]
+    requests: Vec<RawRequest>,
+    samples: Option<u32>,
+    seed: Option<u64>,
+    replicates: Option<u32>,
+    rounds: Option<u32>,
+    episodes: Option<u64>,
+    aggregation_check: Option<u64>,
+    kf_episodes: Option<u64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+enum RawScenario {
+    /// A built-in name or a TOML path (relative to the SPEC's folder).
+    Named(String),
+    /// `{ random = N, seed = S }`: `etp scenario random --dim-agent N --seed S`.
+    Random { random: usize, seed: u64 },
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRequest {
+    min_target: RawTarget,
+    max_collision: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+enum RawTarget {
+    Value(f64),
+    /// `"kf-0.02"`: the full Kalman filter's simulated P_tar minus 0.02.
+    Relative(String),
+}
+
+/// What a request asks for P_tar.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Target {
+    /// P_tar ≥ this.
+    Value(f64),
+    /// P_tar ≥ (the full Kalman filter's simulated P_tar − this), rounded
+    /// to 4 decimals: a request every scenario can meet, scaled to it.
+    BelowKf(f64),
+}
+
+/// One request of every case: least energy with P_tar ≥ …, P_coll ≤ ….
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Request {
+    pub min_target: Target,
+    pub max_collision: Option<f64>,
+}
+
+impl Request {
+    /// The request in words (the table's `request` column).
+    pub fn describe(&self) -> String {
+        let t = match self.min_target {
+            Target::Value(p) => format!("P_tar ≥ {p}"),
+            Target::BelowKf(d) => format!("P_tar ≥ KF − {d}"),
+        };
+        match self.max_collision {
+            Some(c) => format!("{t}, P_coll ≤ {c}"),
+            None => t,
+        }
+    }
+}
+
+/// How every case is done: `etp synthesize --samples --seed`, `etp
+/// strategy --replicates --rounds --aggregation-check`, `etp validate
+/// --episodes --seed`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Settings {
+    pub samples: u32,
+    pub seed: u64,
+    pub replicates: u32,
+    pub rounds: u32,
+    /// Validation episodes (0: no validation).
+    pub episodes: u64,
+    pub aggregation_check: u64,
+    /// Episodes of the full-Kalman-filter simulation of a `kf-…` request.
+    pub kf_episodes: u64,
+}
+
+/// One scenario under one trigger family, with every request: the unit a
+/// rank is handed (one synthesis, then its requests).
+#[derive(Debug, Clone, Serialize)]
+pub struct Job {
+    /// `NN-<scenario>-<family>`: its folder under `DIR/cases/`.
+    pub id: String,
+    /// Where the scenario came from (name, path or `random n=N seed=S`).
+    pub source: String,
+    pub family: TriggerFamily,
+    /// The scenario's content hash under the family.
+    pub scenario_hash: String,
+    #[serde(skip)]
+    pub text: String,
+    #[serde(skip)]
+    pub scenario: Scenario,
+}
+
+/// A parsed SPEC.
+#[derive(Debug, Clone, Serialize)]
+pub struct Spec {
+    pub name: String,
+    pub settings: Settings,
+    pub requests: Vec<Request>,
+    pub jobs: Vec<Job>,
+}
+
+fn probability(key: &str, v: f64) -> Result<f64> {
+    if (0.0..=1.0).contains(&v) {
+        Ok(v)
+    } else {
+        bail!("{key}: must be a probability in [0, 1], got {v}")
+    }
+}
+
+impl Spec {
+    /// Read and check the SPEC at `path`.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("reading study spec {}", path.display()))?;
+        let stem = path
+            .file_stem()
+            .map_or_else(|| "study".into(), |s| s.to_string_lossy().into_owned());
+        let base = path.parent().unwrap_or(Path::new("."));
+        Self::parse(&text, &stem, base).with_context(|| format!("study spec {}", path.display()))
+    }
+
+    /// Parse SPEC `text`; scenario paths relative to `base`.
+    pub fn parse(text: &str, default_name: &str, base: &Path) -> Result<Self> {
+        let raw: RawSpec = toml::from_str(text)?;
+        let d = etp_synthesis::predict::rebuild::DEFAULT_REPLICATES;
+        let settings = Settings {
+            samples: raw
+                .samples
+                .unwrap_or(etp_synthesis::abstraction::DEFAULT_SAMPLES),
+            seed: raw.seed.unwrap_or(0),
+            replicates: raw.replicates.unwrap_or(d),
+            rounds: raw
+                .rounds
+                .unwrap_or(etp_synthesis::predict::request::DEFAULT_ROUNDS),
+            episodes: raw.episodes.unwrap_or(3000),
+            aggregation_check: raw
+                .aggregation_check
+                .unwrap_or(crate::predictions::AGGREGATION_CHECK_EPISODES),
+            kf_episodes: raw.kf_episodes.unwrap_or(3000),
+        };
+        if settings.samples == 0 {
+            bail!("samples: at least 1 segment per state-action");
+        }
+        if !(2..=64).contains(&settings.replicates) {
+            bail!(
+                "replicates: 2 to 64 rebuilds per prediction, got {}",
+                settings.replicates
+            );
+        }
+        if !(1..=20).contains(&settings.rounds) {
+            bail!("rounds: 1 to 20, got {}", settings.rounds);
+        }
+        if settings.kf_episodes == 0 {
+            bail!("kf_episodes: at least 1");
+        }
+        let mut requests = Vec::new();
+        for (k, r) in raw.requests.iter().enumerate() {
+            let key = format!("requests[{k}]");
+            let min_target = match &r.min_target {
+                RawTarget::Value(p) => {
+                    Target::Value(probability(&format!("{key}.min_target"), *p)?)
+                }
+                RawTarget::Relative(t) => {
+                    let d = t
+                        .strip_prefix("kf-")
+                        .and_then(|x| x.parse::<f64>().ok())
+                        .with_context(|| {
+                            format!(
+                                "{key}.min_target: a probability or \"kf-D\" (the full Kalman \
+                                 filter's P_tar minus D), got \"{t}\""
+                            )
+                        })?;
+                    Target::BelowKf(probability(&format!("{key}.min_target"), d)?)
+                }
+            };
+            let max_collision = r
+                .max_collision
+                .map(|c| probability(&format!("{key}.max_collision"), c))
+                .transpose()?;
+            requests.push(Request {
+                min_target,
+                max_collision,
+            });
+        }
+        let families: Option<Vec<TriggerFamily>> = raw
+            .families
+            .as_ref()
+            .map(|fs| {
+                fs.iter()
+                    .map(|f| parse_family(f).map_err(|e| anyhow::anyhow!("families: {e}")))
+                    .collect::<Result<_>>()
+            })
+            .transpose()?;
+        if raw.scenarios.is_empty() {
+            bail!("scenarios: give at least one");
+        }
+        let mut jobs = Vec::new();
+        for (i, s) in raw.scenarios.iter().enumerate() {
+            let (source, own_text) = match s {
+                RawScenario::Named(name) => {
+                    let text = match builtin_text(name) {
+                        Some(t) => t.to_string(),
+                        None => {
+                            let p = base.join(name);
+                            std::fs::read_to_string(&p).with_context(|| {
+                                format!(
+                                    "scenarios[{i}]: `{name}` is not a built-in scenario and {} cannot be read",
+                                    p.display()
+                                )
+                            })?
+                        }
+                    };
+                    (name.clone(), text)
+                }
+                RawScenario::Random { random, seed } => {
+                    let kind =
+                        AgentKind::from_dim(*random).with_context(|| format!("scenarios[{i}]"))?;
+                    let (text, _) =
+                        random_scenario(kind, *seed).with_context(|| format!("scenarios[{i}]"))?;
+                    (format!("random n={random} seed={seed}"), text)
+                }
+            };
+            let own = ScenarioText::parse(own_text).with_context(|| format!("scenarios[{i}]"))?;
+            // Each family as `etp synthesize --trigger FAMILY` writes it into
+            // the text; without `families`, the scenario's own text.
+            let texts: Vec<(TriggerFamily, String)> = match &families {
+                None => vec![(own.scenario.trigger, own.text.clone())],
+                Some(fs) => fs
+                    .iter()
+                    .map(|&f| {
+                        own.clone()
+                            .with_trigger(f)
+                            .map(|t| (f, t.text))
+                            .with_context(|| format!("scenarios[{i}] under {f}"))
+                    })
+                    .collect::<Result<_>>()?,
+            };
+            for (family, text) in texts {
+                let scenario =
+                    Scenario::from_toml(&text).with_context(|| format!("scenarios[{i}]"))?;
+                jobs.push(Job {
+                    id: format!("{:02}-{}-{}", jobs.len(), scenario.name, family.name()),
+                    source: source.clone(),
+                    family,
+                    scenario_hash: scenario.content_hash.clone(),
+                    text,
+                    scenario,
+                });
+            }
+        }
+        Ok(Self {
+            name: raw.name.unwrap_or_else(|| default_name.to_string()),
+            settings,
+            requests,
+            jobs,
+        })
+    }
+
+    /// The SPEC as stored beside the results (`DIR/spec.json`): what a
+    /// resumed study must equal.
+    pub fn canonical(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_default() + "\n"
+    }
+
+    /// The rows of a job: one per request, or one (the synthesis) when the
+    /// study asks none.
+    pub fn rows_per_job(&self) -> usize {
+        self.requests.len().max(1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_scenario_under_every_family_with_its_requests() {
+        let s = Spec::parse(
+            r#"
+            scenarios = ["winding-2d", { random = 4, seed = 9105 }]
+            families = ["box", "stochastic"]
+            requests = [{ min_target = 0.9 }, { min_target = "kf-0.02", max_collision = 0.05 }]
+            samples = 100
+            "#,
+            "t",
+            Path::new("."),
+        )
+        .expect("parses");
+        let ids: Vec<&str> = s.jobs.iter().map(|j| j.id.as_str()).collect();
+        assert_eq!(
+            ids,
+            [
+                "00-winding-2d-box",
+                "01-winding-2d-stochastic",
+                "02-random-n4-s9105-box",
+                "03-random-n4-s9105-stochastic"
+            ]
+        );
+        assert_eq!(s.requests[1].min_target, Target::BelowKf(0.02));
+        assert_eq!(s.requests[1].describe(), "P_tar ≥ KF − 0.02, P_coll ≤ 0.05");
+        assert_eq!(s.settings.samples, 100);
+        assert_eq!(s.rows_per_job(), 2);
+        // The family said aloud keeps the scenario's own text (and hash).
+        assert_eq!(
+            s.jobs[0].scenario_hash,
+            Scenario::builtin("winding-2d")
+                .expect("built-in")
+                .content_hash
+        );
+        assert_ne!(s.jobs[0].scenario_hash, s.jobs[1].scenario_hash);
+    }
+
+    #[test]
+    fn the_repository_specs_parse() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../studies");
+        let mut n = 0;
+        for e in std::fs::read_dir(&dir).expect("studies/").flatten() {
+            let spec = Spec::load(&e.path()).unwrap_or_else(|err| panic!("{err:#}"));
+            assert!(!spec.jobs.is_empty());
+            n += 1;
+        }
+        assert!(n >= 3, "{n} SPECs in studies/");
+        let families = Spec::load(&dir.join("families.toml")).expect("families.toml");
+        assert_eq!(families.jobs.len(), 15);
+    }
+
+    #[test]
+    fn errors_name_the_key() {
+        let err = |t: &str| {
+            format!(
+                "{:#}",
+                Spec::parse(t, "t", Path::new(".")).expect_err("refused")
+            )
+        };
+        assert!(
+            err(r#"scenarios = ["winding-2d"]
+            requests = [{ min_target = 1.5 }]"#)
+            .contains("requests[0].min_target")
+        );
+        assert!(
+            err(r#"scenarios = ["winding-2d"]
+            requests = [{ min_target = "kf+0.1" }]"#)
+            .contains("requests[0].min_target")
+        );
+        assert!(
+            err(r#"scenarios = ["winding-2d"]
+            families = ["boxy"]"#)
+            .contains("families")
+        );
+        assert!(err(r#"scenarios = ["no-such-scenario"]"#).contains("scenarios[0]"));
+        assert!(
+            err(r#"scenarios = ["winding-2d"]
+            sample = 3"#)
+            .contains("sample")
+        );
+        assert!(err(r#"scenarios = [{ random = 5, seed = 1 }]"#).contains("scenarios[0]"));
+    }
+}
