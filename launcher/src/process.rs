@@ -20,6 +20,10 @@ pub fn known(name: &str) -> bool {
     NAMES.contains(&name)
 }
 
+/// The environment variable naming the folder of the run's process
+/// binaries, for a front end that is not `etp` ([`sibling_binary`]).
+pub const PROCESS_DIR_VAR: &str = "ETP_PROCESS_DIR";
+
 /// How one process ended.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct ProcessExit {
@@ -56,7 +60,32 @@ impl Launcher {
 /// or the same folder after `cargo install`), else `etp` itself as
 /// `etp process <name>` — the same library entry point in its own process,
 /// so `cargo run -p etp -- demo` works before the workspace is built.
+///
+/// A front end that is not `etp` (the Python package `etpareto`, whose
+/// executable is Python's) names the folder in [`PROCESS_DIR_VAR`]: `name`
+/// there, else that folder's `etp` as `etp process <name>`.
 pub fn sibling_binary(name: &str) -> Result<Launcher> {
+    if let Some(dir) = std::env::var_os(PROCESS_DIR_VAR) {
+        let dir = PathBuf::from(dir);
+        let (own, etp) = (dir.join(name), dir.join("etp"));
+        if own.is_file() {
+            return Ok(Launcher {
+                program: own,
+                prefix: Vec::new(),
+            });
+        }
+        if known(name) && etp.is_file() {
+            return Ok(Launcher {
+                program: etp,
+                prefix: vec!["process".into(), name.into()],
+            });
+        }
+        return Err(anyhow!(
+            "neither `{name}` nor `etp` in {PROCESS_DIR_VAR}={} (build the workspace: \
+             cargo build --release --workspace, and name its target/release)",
+            dir.display()
+        ));
+    }
     let exe = std::env::current_exe().context("locating the etp executable")?;
     let dir = exe.parent().context("etp executable has no folder")?;
     // Test harnesses run from target/<profile>/deps: look one level up too.

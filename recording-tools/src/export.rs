@@ -178,6 +178,68 @@ pub fn export_streaming(
     Ok((e, c))
 }
 
+/// A message of an etp channel as its table's typed row: THE decoding of
+/// `export`, `cat` and [`Rows`].
+fn decoded_row(t: &Table, m: &recording::RawMessage, names: &Names) -> Result<Vec<Cell>> {
+    let rec = recording::decode(&m.topic, &m.data)
+        .with_context(|| format!("message at log time {}", m.log_time))?;
+    Ok(t.row(m.log_time, &rec, names))
+}
+
+/// A finished recording's typed rows, read the way [`export_streaming`]
+/// reads them (the same checks, tables and decoding) but handed to the
+/// caller instead of written: the Python package's `read_recording`.
+/// [`Rows::open`] is the first pass (everything but the messages: the
+/// metadata that names the sensors may follow them), [`Rows::for_each`]
+/// the second, one chunk at a time.
+pub struct Rows {
+    pub source: PathBuf,
+    /// The file without its messages.
+    pub contents: Contents,
+    /// Topic → table, etp's channels only.
+    pub tables: BTreeMap<String, Table>,
+    names: Names,
+}
+
+impl Rows {
+    /// The first pass over the finished file at `source`; a damaged file or
+    /// metadata whose hashes disagree is refused as `export` refuses it.
+    pub fn open(source: &Path) -> Result<Self> {
+        let c = recording::stream_finished(source, |_| -> Result<()> { Ok(()) })?;
+        if c.damaged {
+            bail!(
+                "{} is damaged: {} (`etp replay repair {} OUT` salvages the records before the damage)",
+                source.display(),
+                c.truncated.as_deref().unwrap_or("unreadable record"),
+                source.display()
+            );
+        }
+        recording::check_metadata(&c)?;
+        let (names, dim) = names(&c);
+        let tables = tables(&c, dim)?;
+        Ok(Self {
+            source: source.to_path_buf(),
+            contents: c,
+            tables,
+            names,
+        })
+    }
+
+    /// The second pass: `row(topic, cells)` for every message of an etp
+    /// channel, in file order (cells in the order of its table's columns).
+    pub fn for_each(&self, mut row: impl FnMut(&str, Vec<Cell>) -> Result<()>) -> Result<()> {
+        recording::stream_finished(&self.source, |m| -> Result<()> {
+            match self.tables.get(&m.topic) {
+                Some(t) => row(&m.topic, decoded_row(t, &m, &self.names)?),
+                // A channel etp did not write has no typed table.
+                None if self.contents.channels.contains_key(&m.topic) => Ok(()),
+                None => bail!("message on undeclared channel `{}`", m.topic),
+            }
+        })
+        .map(|_| ())
+    }
+}
+
 /// The export, its messages handed in by `messages` (from memory or streamed).
 fn export_with(
     c: &Contents,
@@ -219,9 +281,7 @@ fn export_with(
             }
             bail!("message on undeclared channel `{}`", m.topic);
         };
-        let rec = recording::decode(&m.topic, &m.data)
-            .with_context(|| format!("message at log time {}", m.log_time))?;
-        let row = t.row(m.log_time, &rec, &names);
+        let row = decoded_row(t, m, &names)?;
         writeln!(w, "{}", row_line(t, &row, format))
             .with_context(|| format!("writing {}", tmp.display()))?;
         *n += 1;
@@ -301,9 +361,7 @@ pub fn cat(c: &Contents, out: &mut impl Write) -> Result<u64> {
             n += 1;
             continue;
         };
-        let rec = recording::decode(&m.topic, &m.data)
-            .with_context(|| format!("message at log time {}", m.log_time))?;
-        let row = t.row(m.log_time, &rec, &names);
+        let row = decoded_row(t, m, &names)?;
         writeln!(
             out,
             "{}",

@@ -117,23 +117,9 @@ pub fn constant_delta(policy: &Policy) -> Option<f64> {
     policy.deltas.get(index?).copied()
 }
 
-/// An energy or count-like float without the noise of its last bits
-/// (`25869.399999999994` → `25869.4`): 10 significant digits.
-pub fn round_energy(x: f64) -> f64 {
-    round_sig(x, 10)
-}
-
-/// `x` rounded to `digits` significant digits (non-finite and 0 unchanged).
-pub fn round_sig(x: f64, digits: i32) -> f64 {
-    if !x.is_finite() || x == 0.0 {
-        return x;
-    }
-    // Rust's `{:e}` rounds correctly to the digits asked; parsing it back
-    // gives the nearest f64 (which prints with those digits only).
-    format!("{:.*e}", (digits - 1).max(0) as usize, x)
-        .parse()
-        .unwrap_or(x)
-}
+/// The rounding of the vocabulary's energies (`etp_shared::stats`: the
+/// simulation summary of `etp-synthesis` rounds with it too).
+pub use etp_shared::stats::{round_energy, round_sig};
 
 /// A number for people: a few significant digits, no float noise
 /// (`25869.399999999994` → `25869.4`, `0.95213` → `0.9521`).

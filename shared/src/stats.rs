@@ -92,6 +92,24 @@ impl MeanAccumulator {
     }
 }
 
+/// An energy or count-like float without the noise of its last bits
+/// (`25869.399999999994` → `25869.4`): 10 significant digits.
+pub fn round_energy(x: f64) -> f64 {
+    round_sig(x, 10)
+}
+
+/// `x` rounded to `digits` significant digits (non-finite and 0 unchanged).
+pub fn round_sig(x: f64, digits: i32) -> f64 {
+    if !x.is_finite() || x == 0.0 {
+        return x;
+    }
+    // Rust's `{:e}` rounds correctly to the digits asked; parsing it back
+    // gives the nearest f64 (which prints with those digits only).
+    format!("{:.*e}", (digits - 1).max(0) as usize, x)
+        .parse()
+        .unwrap_or(x)
+}
+
 /// Wilson score interval `(lo, hi)` for `k` successes in `n` trials.
 pub fn wilson_interval(k: u64, n: u64) -> (f64, f64) {
     if n == 0 {

@@ -3,7 +3,9 @@
 //! * [`simulate`] — the in-process Monte Carlo episode simulator (parallel over
 //!   episodes with rayon, reproducible from a seed whatever the thread count):
 //!   [`simulate::simulate`] runs any threshold policy, [`simulate::SimulationSummary`]
-//!   holds outcome frequencies, energy, steps and trigger rates with 95 % intervals.
+//!   holds outcome frequencies, energy, steps and trigger rates with 95 % intervals;
+//!   [`constant`] the constant-threshold simulation of `etp simulate`,
+//!   [`records`] its episodes one row each, [`report`] its `--json` object.
 //!
 //! * [`abstraction`] — the belief-space MDP by layered Monte Carlo (docs/MODEL.md §4,
 //!   Method 2 discretized regions and Method 1 KF convergence).
@@ -30,11 +32,14 @@
 
 pub mod abstraction;
 pub mod certify;
+pub mod constant;
 pub mod exec;
 pub mod mdp;
 pub mod pareto;
 pub mod predict;
 pub mod prism;
+pub mod records;
+pub mod report;
 pub mod simulate;
 pub mod synthetic;
 pub mod validate;

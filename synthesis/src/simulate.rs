@@ -14,7 +14,7 @@ use serde::Serialize;
 
 /// Episodes per work unit: large enough to amortise scheduling, small enough
 /// for a smooth progress bar and load balance on 2 cores.
-const CHUNK: u64 = 64;
+pub(crate) const CHUNK: u64 = 64;
 
 /// Per-sensor counts over a simulation.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, serde::Deserialize)]
@@ -87,13 +87,14 @@ impl SimulationTotals {
     }
 }
 
-/// Counts per sensor as legs end, and the episode's consistency sum.
-struct SensorTally<'a> {
-    sensors: &'a mut [SensorCounts],
+/// Counts per sensor as legs end, and the episode's consistency sum (also
+/// the tally of `crate::records`, so a record's sums are the summary's).
+pub(crate) struct SensorTally<'a> {
+    pub(crate) sensors: &'a mut [SensorCounts],
     /// Σ over slots of (x − x̂)ᵀ P⁻¹ (x − x̂) / n.
-    nees: f64,
+    pub(crate) nees: f64,
     /// Σ over slots of ‖x − x̂‖².
-    squared_error: f64,
+    pub(crate) squared_error: f64,
 }
 
 impl<const N: usize> EpisodeObserver<N> for SensorTally<'_> {

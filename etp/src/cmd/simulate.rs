@@ -2,11 +2,11 @@
 
 use crate::input::{RadioArgs, TriggerArgs, load_scenario_with_radio};
 use crate::progress;
-use crate::report::{radio_table, sensor_names, summary_json, summary_table};
-use crate::simulation::simulate_constant;
-use anyhow::{Result, bail};
+use crate::report::{radio_table, sensor_names, summary_table};
+use crate::simulation::{check_delta, simulate_constant};
+use anyhow::Result;
 use etp_shared::trigger::TriggerFamily;
-use serde_json::{Value, json};
+use etp_synthesis::report::simulate_json;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -27,9 +27,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    if !(a.delta.is_finite() && a.delta >= 0.0) {
-        bail!("--delta must be a finite number ≥ 0, got {}", a.delta);
-    }
+    check_delta(a.delta)?;
     let s = a
         .trigger
         .apply(load_scenario_with_radio(&a.scenario, &a.radio)?);
@@ -45,21 +43,7 @@ pub fn run(a: Args) -> Result<()> {
     pb.finish_and_clear();
     let secs = started.elapsed().as_secs_f64();
     if a.json {
-        let mut v = summary_json(&s, &sum);
-        if let Some(m) = v.as_object_mut() {
-            m.insert("scenario".into(), json!(s.name));
-            m.insert("seed".into(), json!(a.sim.seed));
-            m.insert(
-                "strategy".into(),
-                json!(format!("constant δ = {}", a.delta)),
-            );
-            m.insert("delta".into(), json!(a.delta));
-            if s.trigger != TriggerFamily::Box {
-                m.insert("trigger".into(), json!(s.trigger.name()));
-            }
-            // No model prediction for a plain simulation.
-            m.insert("predicted".into(), Value::Null);
-        }
+        let v = simulate_json(&s, &sum, a.delta, a.sim.seed);
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!(

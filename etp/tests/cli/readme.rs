@@ -38,6 +38,10 @@ const ELSEWHERE: &[(&str, &str)] = &[
         "the MPI tests: .ci/run runs them (with `--workspace --features etp/mpi`)",
     ),
     (
+        "pip install ./python",
+        "a Python venv and the package's build: python/ci.sh installs it that way into a fresh venv and runs its pytest suite",
+    ),
+    (
         "prism -importmodel out/winding-2d/prism/model.all -mdp out/winding-2d/prism/model.props",
         "PRISM is not installed here; synthesis/tests check the files it reads",
     ),

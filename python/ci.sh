@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# The Python package's check, from a clean state: a fresh venv under
+# target/ (target/pyvenv-etpareto), the package installed by the README's
+# one command (`pip install ./python`, maturin as its build backend), the
+# CLI built for the comparisons, and pytest. A missing tool fails the
+# script (never a skip) and says how to get it.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$(pwd)
+VENV=${ETPARETO_VENV:-$ROOT/target/pyvenv-etpareto}
+PYTHON=${PYTHON:-python3}
+
+need() {
+  command -v "$1" >/dev/null 2>&1 || {
+    echo "python/ci.sh: \`$1\` is missing: $2" >&2
+    exit 1
+  }
+}
+need "$PYTHON" "install CPython ≥ 3.9 (Debian: apt-get install -y python3 python3-venv python3-dev) or set PYTHON"
+need cargo "install Rust (https://rustup.rs) — the package compiles the workspace's crates"
+"$PYTHON" -c 'import sys; assert sys.version_info >= (3, 9), sys.version' || {
+  echo "python/ci.sh: $PYTHON is older than 3.9" >&2
+  exit 1
+}
+"$PYTHON" -m venv --help >/dev/null 2>&1 || {
+  echo "python/ci.sh: $PYTHON has no venv module (Debian: apt-get install -y python3-venv)" >&2
+  exit 1
+}
+
+# A fresh venv each time: what a user gets from the README's command.
+rm -rf "$VENV"
+"$PYTHON" -m venv "$VENV"
+"$VENV/bin/python" -m pip install --quiet --upgrade pip
+"$VENV/bin/python" -m pip install --quiet maturin pytest pandas numpy || {
+  echo "python/ci.sh: pip could not install maturin, pytest, pandas, numpy (is PyPI reachable?)" >&2
+  exit 1
+}
+# The README's command. It builds the extension in the workspace's
+# target/release (shared with `cargo build --release`).
+"$VENV/bin/python" -m pip install --quiet ./python
+# The CLI and the run's processes, for the comparisons and etpareto.run.
+cargo build --release -p etp -p etp-agent -p etp-sensor-node -p etp-coordinator -p etp-recorder
+# Run from python/tests so `import etpareto` is the installed package, not
+# the source folder.
+cd "$ROOT/python/tests"
+ETP_BIN="$ROOT/target/release/etp" "$VENV/bin/python" -m pytest -q -p no:cacheprovider "$@"
+# The example: the constant-δ table of winding-2d, every row checked
+# against `etp simulate --json` (it fails on any difference).
+cd "$ROOT"
+"$VENV/bin/python" python/examples/baselines.py winding-2d --episodes 300 --seed 7 \
+  --check "$ROOT/target/release/etp"

@@ -1,0 +1,322 @@
+"""etpareto from Python: Pareto-optimal event-triggered estimation strategies.
+
+The package calls etpareto's library crates (the code behind the ``etp``
+command, not the command itself) and returns Python values:
+
+* :func:`load_scenario` — a built-in scenario or a scenario TOML, validated.
+* :func:`simulate` — in-process episodes with a constant threshold δ; its
+  ``.summary`` is the dict ``etp simulate … --json`` prints for the same
+  arguments, ``.episodes`` and ``.legs`` one row per episode and per leg.
+* :func:`read_recording` — an MCAP recording of ``etp run --record`` as one
+  DataFrame per channel (the decoding of ``etp replay export``), streamed
+  from disk.
+* :func:`read_front`, :func:`read_strategy` — ``front.json`` and
+  ``strategy.json`` as dicts and DataFrames.
+* :func:`run` — a multi-process run (``etp run``), its report as a dict.
+
+Errors are :class:`EtpError` subclasses whose message is the text ``etp``
+prints after ``error:`` for the same failure.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+
+import pandas as pd
+
+from . import _native
+from ._frames import frame
+from ._native import (
+    EtpError,
+    FileFormatError,
+    RecordingError,
+    RunError,
+    Scenario,
+    ScenarioError,
+    SimulationError,
+    builtin_scenarios,
+)
+
+__version__: str = _native.__version__
+
+__all__ = [
+    "EtpError",
+    "FileFormatError",
+    "Front",
+    "RecordingError",
+    "RunError",
+    "RunReport",
+    "Scenario",
+    "ScenarioError",
+    "Simulation",
+    "SimulationError",
+    "Strategy",
+    "builtin_scenarios",
+    "load_scenario",
+    "read_front",
+    "read_recording",
+    "read_strategy",
+    "run",
+    "simulate",
+]
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+def load_scenario(name_or_path: PathLike) -> Scenario:
+    """Load and validate a scenario, like ``etp check NAME_OR_PATH``.
+
+    ``name_or_path`` is a built-in name (see :func:`builtin_scenarios`) or the
+    path of a scenario TOML. Raises :class:`ScenarioError` carrying ``etp
+    check``'s message when it is neither or does not validate.
+    """
+    return _native.load_scenario(os.fspath(name_or_path))
+
+
+class Simulation:
+    """The result of :func:`simulate`.
+
+    Attributes:
+        summary: the dict ``etp simulate SCENARIO --delta D --episodes N
+            --seed S [--trigger F] --json`` prints (same keys, same values).
+        episodes: one row per episode (``episode``, ``outcome``, ``steps``,
+            ``slots``, ``transmissions``, ``triggers``, ``delivered``,
+            ``energy``, ``expected_transmissions``, ``nees_sum``,
+            ``squared_error_sum``), or ``None`` with ``records=False``.
+        legs: one row per leg run (``episode``, ``leg``, ``sensor``,
+            ``collision`` — the obstacle hit or ``<NA>`` —, ``steps``,
+            ``slots``, ``transmissions``, ``triggers``, ``delivered``,
+            ``kf_slots``, ``expected_transmissions``, ``energy``), or ``None``.
+    """
+
+    def __init__(
+        self,
+        summary: Dict[str, Any],
+        episodes: Optional[pd.DataFrame],
+        legs: Optional[pd.DataFrame],
+    ) -> None:
+        self.summary = summary
+        self.episodes = episodes
+        self.legs = legs
+
+    def __repr__(self) -> str:
+        s = self.summary
+        return (
+            f"Simulation({s['scenario']}, delta={s['delta']}, episodes={s['episodes']}, "
+            f"p_target={s['p_target']:.4f}, energy_mean={s['energy_mean']:.4f})"
+        )
+
+
+def simulate(
+    scenario: Union[Scenario, PathLike],
+    delta: float,
+    episodes: int = 3000,
+    seed: int = 0,
+    trigger: Optional[str] = None,
+    records: bool = True,
+) -> Simulation:
+    """In-process episodes with the constant threshold ``delta`` on every leg.
+
+    The same computation as ``etp simulate SCENARIO --delta DELTA --episodes
+    EPISODES --seed SEED [--trigger TRIGGER] --json`` (same defaults): the
+    result's ``.summary`` equals that command's JSON object. With ``records``
+    (default) the same episodes are also returned one row each
+    (``.episodes``) and per leg (``.legs``); ``records=False`` skips them
+    (half the work).
+
+    ``scenario`` is a :class:`Scenario` or what :func:`load_scenario` takes;
+    ``trigger`` a family name (``box``, ``stochastic``, ``send-on-delta``,
+    ``variance``, ``periodic``) over the scenario's own.
+
+    Raises :class:`ScenarioError` or :class:`SimulationError` with the CLI's
+    message (e.g. ``--delta must be a finite number ≥ 0, got -1``).
+    """
+    if not isinstance(scenario, Scenario):
+        scenario = os.fspath(scenario)
+    text, eps, legs = _native.simulate(
+        scenario, float(delta), int(episodes), int(seed), trigger, bool(records)
+    )
+    return Simulation(
+        json.loads(text),
+        None if eps is None else frame(eps),
+        None if legs is None else frame(legs),
+    )
+
+
+def read_recording(
+    path: PathLike, *, with_metadata: bool = False
+) -> Union[Dict[str, pd.DataFrame], Tuple[Dict[str, pd.DataFrame], Dict[str, Dict[str, str]]]]:
+    """A finished MCAP recording of ``etp run --record`` as DataFrames.
+
+    Returns a dict channel topic → DataFrame, one row per message in file
+    order and the columns of ``etp replay export`` (``log_time_ns`` first,
+    the header's fields unprefixed, arrays one column per entry, codes by
+    name; ``run``, the run's 64-bit id, as a string). The file is read twice
+    chunk by chunk (as ``etp replay export`` reads it): memory holds the
+    tables being built, never the file. ``with_metadata=True`` also returns
+    the recording's metadata records (name → dict).
+
+    Raises :class:`RecordingError` with ``etp replay``'s message for a
+    file that is not MCAP, damaged, or unfinished (``etp replay repair``
+    writes a finished copy).
+    """
+    tables, metadata = _native.read_recording(os.fspath(path))
+    frames = {topic: frame(cols) for topic, cols in tables.items()}
+    if with_metadata:
+        return frames, metadata
+    return frames
+
+
+class Front:
+    """A ``front.json``: ``.data`` the whole file as a dict; ``.vertices``
+    (one row per vertex of the ε-front, its objectives as columns),
+    ``.baselines`` (one row per constant δ) and ``.certified`` (the
+    certified front's points, empty without one) as DataFrames."""
+
+    def __init__(self, data: Dict[str, Any]) -> None:
+        self.data = data
+        self.vertices = pd.json_normalize(data.get("vertices") or [], sep="_")
+        self.baselines = pd.json_normalize(data.get("baselines") or [], sep="_")
+        certified = data.get("certified") or {}
+        points = certified.get("points") if isinstance(certified, dict) else None
+        self.certified = pd.json_normalize(points or [], sep="_")
+
+    @property
+    def epsilon(self) -> float:
+        """The certified gap ε (scaled units)."""
+        return float(self.data["epsilon"])
+
+    def __repr__(self) -> str:
+        return (
+            f"Front({self.data.get('scenario_name')}, vertices={len(self.vertices)}, "
+            f"epsilon={self.data.get('epsilon')})"
+        )
+
+
+def read_front(path: PathLike) -> Front:
+    """``front.json`` (a path to it, or to the synthesis folder holding it),
+    checked by the parser of ``etp strategy``; :class:`FileFormatError` with
+    its message otherwise."""
+    return Front(json.loads(_native.read_front(os.fspath(path))))
+
+
+class Strategy:
+    """A sealed ``strategy.json``: ``.data`` the file as a dict,
+    ``.predicted`` its prediction (dict or ``None``), ``.omega`` the policy
+    as a DataFrame — one row per (state, threshold): ``state``,
+    ``decision_point``, ``region``, ``delta``, ``omega`` (the probability of
+    that δ in that state)."""
+
+    def __init__(self, data: Dict[str, Any], omega: pd.DataFrame) -> None:
+        self.data = data
+        self.omega = omega
+
+    @property
+    def predicted(self) -> Optional[Dict[str, float]]:
+        return self.data.get("predicted")
+
+    def __repr__(self) -> str:
+        return f"Strategy({self.data.get('scenario_name')}, {self.data.get('label')!r})"
+
+
+def read_strategy(path: PathLike) -> Strategy:
+    """``strategy.json`` (a path to it or to its folder), loaded like ``etp
+    validate`` loads it (seal and scenario hash checked); raises
+    :class:`FileFormatError` with its message otherwise."""
+    text, omega = _native.read_strategy(os.fspath(path))
+    return Strategy(json.loads(text), frame(omega))
+
+
+class RunReport:
+    """The report of :func:`run`: ``.report`` the dict ``etp run … --json``
+    prints, ``.problems`` the ``(exit code, text)`` pairs that make the run
+    not clean (empty: ``etp run`` would exit 0), ``.exit_code`` that exit
+    code, and ``.episodes`` the per-episode records of the report when it
+    has them (``episode_details=True``)."""
+
+    def __init__(self, report: Dict[str, Any], problems: List[Tuple[int, str]]) -> None:
+        self.report = report
+        self.problems = problems
+
+    @property
+    def exit_code(self) -> int:
+        return max((code for code, _ in self.problems), default=0)
+
+    @property
+    def clean(self) -> bool:
+        return not self.problems
+
+    @property
+    def sensors(self) -> pd.DataFrame:
+        """The per-sensor rows of the report (``name``, ``transmissions``,
+        ``received``, ``energy``, ``predicted_energy``, …)."""
+        return pd.DataFrame(self.report.get("sensors") or [])
+
+    def __repr__(self) -> str:
+        r = self.report
+        return f"RunReport(run_id={r.get('run_id')!r}, episodes={r.get('episodes')}, clean={self.clean})"
+
+
+def _process_dir(bin_dir: Optional[PathLike]) -> str:
+    """The folder of the run's process binaries: ``bin_dir``, else
+    ``ETP_PROCESS_DIR``, else the folder of ``etp`` on ``PATH``."""
+    if bin_dir is not None:
+        return os.fspath(bin_dir)
+    if os.environ.get("ETP_PROCESS_DIR"):
+        return os.environ["ETP_PROCESS_DIR"]
+    etp = shutil.which("etp")
+    if etp:
+        return str(Path(etp).resolve().parent)
+    raise RunError(
+        "no folder of the run's processes: pass bin_dir= (e.g. target/release of a built "
+        "workspace: cargo build --release --workspace) or set ETP_PROCESS_DIR"
+    )
+
+
+def run(
+    strategy: Optional[PathLike] = None,
+    *,
+    scenario: Optional[Union[str, Scenario]] = None,
+    delta: Optional[float] = None,
+    episodes: Optional[int] = None,
+    seed: Optional[int] = None,
+    record: Optional[PathLike] = None,
+    force: bool = False,
+    args: Sequence[str] = (),
+    bin_dir: Optional[PathLike] = None,
+) -> RunReport:
+    """A multi-process run — coordinator, agent, one process per sensor,
+    recorder — like ``etp run STRATEGY`` (or ``etp run --scenario S --delta
+    D``), through the launcher library; returns its report.
+
+    The keywords are ``etp run``'s flags (``record`` = ``--record FILE``);
+    ``args`` passes any other flag as on the command line. The processes'
+    binaries are looked up in ``bin_dir`` (or ``ETP_PROCESS_DIR``, or next to
+    ``etp`` on ``PATH``). Raises :class:`RunError` with ``etp run``'s message
+    when the run cannot start; a run that ran but is not clean returns its
+    report with ``.problems``.
+    """
+    argv: List[str] = []
+    if strategy is not None:
+        argv.append(os.fspath(strategy))
+    if scenario is not None:
+        argv += ["--scenario", scenario.source if isinstance(scenario, Scenario) else str(scenario)]
+    if delta is not None:
+        argv += ["--delta", repr(float(delta))]
+    if episodes is not None:
+        argv += ["--episodes", str(int(episodes))]
+    if seed is not None:
+        argv += ["--seed", str(int(seed))]
+    if record is not None:
+        argv += ["--record", os.fspath(record)]
+    if force:
+        argv.append("--force")
+    argv += list(args)
+    os.environ["ETP_PROCESS_DIR"] = _process_dir(bin_dir)
+    text, problems = _native.run(argv)
+    return RunReport(json.loads(text), [(int(c), str(t)) for c, t in problems])
+

@@ -1,0 +1,70 @@
+"""Type stubs of ``etpareto._native``, the compiled half of ``etpareto``.
+
+Tables cross as lists of columns ``(name, dtype, data, mask)``: see
+``etpareto._frames``. JSON objects cross as the CLI's JSON text.
+"""
+
+from typing import Any, Dict, List, Optional, Tuple, Union
+
+_Column = Tuple[str, str, Union[bytes, List[Optional[str]]], Optional[bytes]]
+
+__version__: str
+
+class EtpError(Exception):
+    """Any etpareto error; its message is the text ``etp`` prints after ``error:``."""
+
+class ScenarioError(EtpError):
+    """A scenario argument that is neither a built-in name nor a valid scenario TOML."""
+
+class SimulationError(EtpError):
+    """A simulation request that cannot run (a bad delta, an unknown trigger family)."""
+
+class RecordingError(EtpError):
+    """An unreadable, unfinished or damaged MCAP recording."""
+
+class FileFormatError(EtpError):
+    """An unreadable front.json or strategy.json."""
+
+class RunError(EtpError):
+    """A multi-process run that could not start or finish."""
+
+class Scenario:
+    """A validated scenario (``etpareto.load_scenario``)."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def description(self) -> str: ...
+    @property
+    def source(self) -> str:
+        """The built-in name or path it was loaded from."""
+    @property
+    def dim(self) -> int: ...
+    @property
+    def content_hash(self) -> str: ...
+    @property
+    def sensors(self) -> List[str]: ...
+    @property
+    def legs(self) -> List[str]:
+        """The sensor serving each leg, by name."""
+    @property
+    def deltas(self) -> List[float]: ...
+    @property
+    def trigger(self) -> str: ...
+    @property
+    def warnings(self) -> List[str]: ...
+
+def load_scenario(name_or_path: str) -> Scenario: ...
+def builtin_scenarios() -> List[str]: ...
+def simulate(
+    scenario: Union[Scenario, str],
+    delta: float,
+    episodes: int = 3000,
+    seed: int = 0,
+    trigger: Optional[str] = None,
+    records: bool = True,
+) -> Tuple[str, Optional[List[_Column]], Optional[List[_Column]]]: ...
+def read_recording(path: str) -> Tuple[Dict[str, List[_Column]], Dict[str, Dict[str, str]]]: ...
+def read_front(path: str) -> str: ...
+def read_strategy(path: str) -> Tuple[str, List[_Column]]: ...
+def run(args: List[str]) -> Tuple[str, List[Tuple[int, str]]]: ...
