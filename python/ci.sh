@@ -7,7 +7,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
-VENV=${ETPARETO_VENV:-$ROOT/target/pyvenv-etpareto}
+# Cargo's target folder (CARGO_TARGET_DIR when set, as cargo itself does).
+TARGET=${CARGO_TARGET_DIR:-$ROOT/target}
+VENV=${ETPARETO_VENV:-$TARGET/pyvenv-etpareto}
 PYTHON=${PYTHON:-python3}
 
 need() {
@@ -43,9 +45,9 @@ cargo build --release -p etp -p etp-agent -p etp-sensor-node -p etp-coordinator 
 # Run from python/tests so `import etpareto` is the installed package, not
 # the source folder.
 cd "$ROOT/python/tests"
-ETP_BIN="$ROOT/target/release/etp" "$VENV/bin/python" -m pytest -q -p no:cacheprovider "$@"
+ETP_BIN="$TARGET/release/etp" "$VENV/bin/python" -m pytest -q -p no:cacheprovider "$@"
 # The example: the constant-δ table of winding-2d, every row checked
 # against `etp simulate --json` (it fails on any difference).
 cd "$ROOT"
 "$VENV/bin/python" python/examples/baselines.py winding-2d --episodes 300 --seed 7 \
-  --check "$ROOT/target/release/etp"
+  --check "$TARGET/release/etp"
