@@ -334,7 +334,8 @@ pub(super) fn build<const N: usize>(
         // Each chunk's arrivals classified into the next decision point's
         // regions (none after the last leg); through the executor, so that
         // on several ranks each classifies a slice (an eigen-decomposition
-        // per arrival: a tenth of a synthesis, serial if every rank did all).
+        // per arrival: several per cent of a synthesis, serial if every rank
+        // did them all).
         let regions_of = |chunks: &[ChunkTally<N>]| -> Result<Vec<Vec<Region>>, AbstractionError> {
             Ok(match &next_classifier {
                 Some(c) => crate::exec::map(
