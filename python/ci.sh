@@ -41,7 +41,10 @@ rm -rf "$VENV"
 # target/release (shared with `cargo build --release`).
 "$VENV/bin/python" -m pip install --quiet ./python
 # The CLI and the run's processes, for the comparisons and etpareto.run.
-cargo build --release -p etp -p etp-agent -p etp-sensor-node -p etp-coordinator -p etp-recorder
+# `cargo test --no-run`, not `cargo build -p …`: the feature set of the
+# workspace's tests, so that after `.ci/run`'s `cargo test` nothing is rebuilt
+# (a `cargo build -p …` resolves features apart and rebuilt every crate, 4 min).
+cargo test --release --workspace --no-run
 # Run from python/tests so `import etpareto` is the installed package, not
 # the source folder.
 cd "$ROOT/python/tests"
