@@ -5,7 +5,7 @@
 //! `etpareto.simulate`.
 
 use crate::exec::{ExecError, Work};
-use crate::simulate::{CHUNK, SensorCounts, SensorTally};
+use crate::simulate::{SensorCounts, SensorTally};
 use etp_shared::episode::{
     CompiledScenario, EpisodeObserver, LegEnd, LegMode, LegResult, Outcome, StepEvent,
 };
@@ -155,17 +155,9 @@ pub fn records<const N: usize, P>(
 where
     P: Fn(usize, &Belief<N>, &mut SimRng) -> LegMode<N> + Sync,
 {
-    let chunks = episodes.div_ceil(CHUNK);
-    let range = |c: u64| c * CHUNK..((c + 1) * CHUNK).min(episodes);
-    let parts: Vec<Records> = crate::exec::map(
-        progress,
-        chunks as usize,
-        |c| records_range(scenario, policy, range(c as u64), seed, stream),
-        |c| {
-            let r = range(c as u64);
-            r.end - r.start
-        },
-    )?;
+    let parts: Vec<Records> = crate::simulate::map_episode_chunks(progress, episodes, |r| {
+        records_range(scenario, policy, r, seed, stream)
+    })?;
     let mut out = Records::default();
     for mut p in parts {
         out.episodes.append(&mut p.episodes);

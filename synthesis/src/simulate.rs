@@ -16,6 +16,33 @@ use serde::Serialize;
 /// for a smooth progress bar and load balance on 2 cores.
 pub(crate) const CHUNK: u64 = 64;
 
+/// `f` of every chunk of [`CHUNK`] episodes of `0..episodes`, in order, on
+/// `progress`'s executor (one progress unit per episode): the split that
+/// simulation and per-episode records share, so both draw the same streams.
+pub(crate) fn map_episode_chunks<T, F>(
+    progress: &dyn crate::exec::Work,
+    episodes: u64,
+    f: F,
+) -> Result<Vec<T>, crate::exec::ExecError>
+where
+    T: serde::Serialize + serde::de::DeserializeOwned + Send,
+    F: Fn(std::ops::Range<u64>) -> T + Sync,
+{
+    let range = |c: usize| {
+        let c = c as u64;
+        c * CHUNK..((c + 1) * CHUNK).min(episodes)
+    };
+    crate::exec::map(
+        progress,
+        episodes.div_ceil(CHUNK) as usize,
+        |c| f(range(c)),
+        |c| {
+            let r = range(c);
+            r.end - r.start
+        },
+    )
+}
+
 /// Per-sensor counts over a simulation.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct SensorCounts {
@@ -231,17 +258,9 @@ pub fn simulate<const N: usize, P>(
 where
     P: Fn(usize, &Belief<N>, &mut SimRng) -> LegMode<N> + Sync,
 {
-    let chunks = episodes.div_ceil(CHUNK);
-    let range = |c: u64| c * CHUNK..((c + 1) * CHUNK).min(episodes);
-    let parts: Vec<SimulationTotals> = crate::exec::map(
-        progress,
-        chunks as usize,
-        |c| simulate_range(scenario, policy, range(c as u64), seed, stream),
-        |c| {
-            let r = range(c as u64);
-            r.end - r.start
-        },
-    )?;
+    let parts: Vec<SimulationTotals> = map_episode_chunks(progress, episodes, |r| {
+        simulate_range(scenario, policy, r, seed, stream)
+    })?;
     let mut total = SimulationTotals::new(scenario.filters.len());
     for p in &parts {
         total.merge(p);
