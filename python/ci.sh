@@ -33,8 +33,9 @@ need cargo "install Rust (https://rustup.rs) — the package compiles the worksp
 rm -rf "$VENV"
 "$PYTHON" -m venv "$VENV"
 "$VENV/bin/python" -m pip install --quiet --upgrade pip
-"$VENV/bin/python" -m pip install --quiet maturin pytest pandas numpy || {
-  echo "python/ci.sh: pip could not install maturin, pytest, pandas, numpy (is PyPI reachable?)" >&2
+"$VENV/bin/python" -m pip install --quiet maturin pytest pandas numpy \
+  nbformat nbclient ipykernel matplotlib || {
+  echo "python/ci.sh: pip could not install maturin, pytest, pandas, numpy, nbformat, nbclient, ipykernel, matplotlib (is PyPI reachable?)" >&2
   exit 1
 }
 # The README's command. It builds the extension in the workspace's
@@ -54,3 +55,42 @@ ETP_BIN="$TARGET/release/etp" "$VENV/bin/python" -m pytest -q -p no:cacheprovide
 cd "$ROOT"
 "$VENV/bin/python" python/examples/baselines.py winding-2d --episodes 300 --seed 7 \
   --check "$TARGET/release/etp"
+# The example notebook (python/examples/demo.ipynb): executed end to end
+# in a kernel of the venv (nbclient), at CI's sizes, its last cell checking
+# every number against `etp demo --json` for the same seeds (ETP_NB_CHECK:
+# that comparison must run).
+NB_OUT=$(mktemp -d "$TARGET/notebook-XXXXXX")
+trap 'rm -rf "$NB_OUT"' EXIT
+ETP_BIN="$TARGET/release/etp" ETP_PROCESS_DIR="$TARGET/release" ETP_NB_CHECK=1 \
+  ETP_NB_SAMPLES=1500 ETP_NB_VALIDATE_EPISODES=1000 ETP_NB_RUN_EPISODES=40 ETP_NB_SEED=0 \
+  ETP_NB_OUT="$NB_OUT" \
+  "$VENV/bin/python" - <<'PY'
+import os
+import sys
+
+import nbformat
+from jupyter_client.manager import KernelManager
+from nbclient import NotebookClient
+
+path = "python/examples/demo.ipynb"
+nb = nbformat.read(path, as_version=4)
+# The kernel over IPC sockets (files in the run's own folder), not TCP.
+km = KernelManager(kernel_name="python3", transport="ipc",
+                   ip=os.path.join(os.environ["ETP_NB_OUT"], "kernel"))
+try:
+    NotebookClient(nb, timeout=1200, km=km).execute()
+finally:
+    # A kernel manager handed in is not shut down by nbclient: do it here,
+    # so no kernel outlives the run.
+    if km.has_kernel:
+        km.shutdown_kernel(now=False)
+outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
+figures = sum("image/png" in o.get("data", {}) for o in outputs)
+last = "".join(o.get("text", "") for o in nb.cells[-1].outputs if o.get("output_type") == "stream")
+print(f"{path}: executed, {len(nb.cells)} cells, {figures} figures; last cell: {last.strip()}")
+# The demo's figures: the front (drawn here and etp's), the map, the recording's sends.
+if figures < 4:
+    sys.exit(f"{path}: {figures} figures, expected 4")
+if "every number equals" not in last:
+    sys.exit(f"{path}: the comparison with etp demo did not run")
+PY

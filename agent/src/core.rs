@@ -76,6 +76,13 @@ pub struct SlotRequest<const N: usize> {
     open: OpenSlot<N>,
 }
 
+impl<const N: usize> SlotRequest<N> {
+    /// The prior of this slot (what the serving sensor's replica triggers on).
+    pub fn prior(&self) -> &Belief<N> {
+        self.open.prior()
+    }
+}
+
 /// The episode's end: its outcome message (the header is the adapter's),
 /// at (leg, step k).
 #[derive(Debug, Clone, Copy, PartialEq)]

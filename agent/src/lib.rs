@@ -62,6 +62,11 @@ pub struct Args {
     /// a live sensor is waited for, however slow.
     #[arg(long, value_name = "MS")]
     pub slot_deadline: Option<u64>,
+    /// `etp run --live`: the live view's feed socket (a Unix datagram socket
+    /// in the run's folder). Frames are sent non-blocking and dropped when
+    /// the view has no room: the run is the same with and without it.
+    #[arg(long, value_name = "SOCKET", hide = true)]
+    pub live_feed: Option<std::path::PathBuf>,
 }
 
 /// How the agent ended.
@@ -90,7 +95,13 @@ pub fn run(args: &Args) -> Result<(Exit, AgentStats), AgentError> {
     let run = RunId::new(&args.run.run_id)?;
     let scenario = etp_runtime::load_scenario(&args.run.scenario)?;
     let deadline = args.slot_deadline.map(Duration::from_millis);
-    etp_shared::with_dim!(scenario.dim, N => runtime::Agent::<N>::new(&run, &scenario, deadline)?.serve())
+    // A view that cannot be reached is no reason to stop the run.
+    let live = args.live_feed.as_deref().and_then(|p| {
+        etp_runtime::live::LiveTap::connect(p, scenario.sensors.len())
+            .map_err(|e| tracing::warn!("live view feed {}: {e}; running without it", p.display()))
+            .ok()
+    });
+    etp_shared::with_dim!(scenario.dim, N => runtime::Agent::<N>::new(&run, &scenario, deadline, live)?.serve())
 }
 
 /// The agent process, as the process shell runs it

@@ -29,6 +29,9 @@ pub struct Links {
     measurement: Sub<Measurement>,
     /// Liveness as far as the agent knows; a dead sensor stays dead for the run.
     pub alive: Vec<bool>,
+    /// Transmission attempts of the last slot [`Links::take_slot`] closed
+    /// (for the live view's counts only).
+    pub last_attempts: u32,
 }
 
 impl Links {
@@ -53,6 +56,7 @@ impl Links {
             slot: ports.subscriber::<Slot>(ServiceId::Slot)?,
             measurement: ports.subscriber::<Measurement>(ServiceId::Measurement)?,
             alive: vec![true; n],
+            last_attempts: 0,
         })
     }
 
@@ -120,12 +124,13 @@ impl Links {
         {
             let h = s.header;
             if h.episode == episode && h.step == step && h.sender == sensor {
-                closed = Some((s.delivered == 1, s.prior_digest, h.leg));
+                closed = Some((s.delivered == 1, s.prior_digest, h.leg, s.attempts));
             }
         }
-        let Some((delivered, digest, leg)) = closed else {
+        let Some((delivered, digest, leg, attempts)) = closed else {
             return Ok(None);
         };
+        self.last_attempts = attempts;
         let m = self.take_measurement(episode, step, sensor)?;
         if delivered && m.is_none() {
             return Err(AgentError::Protocol(format!(

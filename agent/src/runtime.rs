@@ -12,9 +12,10 @@
 //! however slow or paused; only a dead one (or, with `--slot-deadline`, a
 //! late one) makes a dead link.
 
-use crate::core::{AfterSlot, EpisodeCore, EpisodeEnd, Fault, SlotResult, Step};
+use crate::core::{AfterSlot, EpisodeCore, EpisodeEnd, Fault, SlotRequest, SlotResult, Step};
 use crate::link::Links;
 use crate::{AgentError, AgentStats, Exit, IDLE_CHECK, SLOT_CHECK};
+use etp_runtime::live::{LiveTap, SlotFrame, Totals};
 use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_coordinator::{Outcome, Waypoint};
 use etp_runtime::wire::coordinator_to_agent::Control;
@@ -63,6 +64,8 @@ pub struct Agent<const N: usize> {
     outcome: Pub<Outcome>,
     coordinator_wake: Notifier,
     stats: AgentStats,
+    /// `etp run --live`: the view's feed (never blocks, never fails the run).
+    live: Option<LiveTap>,
     _hello: Option<Pub<Hello>>,
 }
 
@@ -76,6 +79,7 @@ impl<const N: usize> Agent<N> {
         run: &wire::RunId,
         scenario: &Scenario,
         slot_deadline: Option<Duration>,
+        live: Option<LiveTap>,
     ) -> Result<Self, AgentError> {
         let node = wire::create_node(run, AGENT_NODE)?;
         let sensors = scenario.sensors.len();
@@ -105,6 +109,7 @@ impl<const N: usize> Agent<N> {
             outcome,
             coordinator_wake,
             stats: AgentStats::default(),
+            live,
             _hello: Some(hello),
             node,
         })
@@ -314,12 +319,51 @@ impl<const N: usize> Agent<N> {
                     Ok(r) => r,
                     Err(exit) => return Ok(Some(exit)),
                 };
+                if self.live.is_some() {
+                    self.feed_view(episode, delta, &core, &request, &result);
+                }
                 match core.close_slot(&self.c, request, result, fault)? {
                     AfterSlot::Continue => {}
                     AfterSlot::LegEnded => break,
                     AfterSlot::Ended(end) => return self.finish(episode, end).map(|()| None),
                 }
             }
+        }
+    }
+
+    /// Count a closed slot for the live view and send it if a frame is due.
+    fn feed_view(
+        &mut self,
+        episode: u64,
+        delta: f64,
+        core: &EpisodeCore<N>,
+        request: &SlotRequest<N>,
+        result: &SlotResult,
+    ) {
+        let Some(tap) = self.live.as_mut() else {
+            return;
+        };
+        let (attempts, delivered) = match result {
+            SlotResult::Closed(y, _) => (self.links.last_attempts, y.is_some()),
+            // A dead link's attempts are in no slot message.
+            SlotResult::Dead(y) => (0, y.is_some()),
+        };
+        if tap.count_slot(request.sensor, attempts, delivered) {
+            let prior = request.prior();
+            tap.send_slot(SlotFrame {
+                episode,
+                leg: request.leg,
+                step: request.step,
+                sensor: request.sensor as u32,
+                delta,
+                x: core.x().as_slice().to_vec(),
+                mean: prior.mean.as_slice().to_vec(),
+                // Symmetric: column-major is row-major.
+                cov: prior.cov.as_slice().to_vec(),
+                attempts,
+                delivered,
+                totals: Totals::default(),
+            });
         }
     }
 
@@ -342,6 +386,10 @@ impl<const N: usize> Agent<N> {
         self.outcome
             .send_copy(o)
             .map_err(|e| PortError::send("outcome", e))?;
-        self.notify_coordinator()
+        self.notify_coordinator()?;
+        if let Some(tap) = self.live.as_mut() {
+            tap.send_outcome(episode, o.outcome, o.steps, o.degraded != 0);
+        }
+        Ok(())
     }
 }

@@ -1,6 +1,7 @@
 //! The two directions of a bridge. Outbound: the iceoryx2 services a remote
 //! reader needs, drained on their readers' wake-up events in causal order
-//! and put on Zenoh as the recording's bytes. Inbound: Zenoh samples decoded
+//! and put on Zenoh in the link encoding (bincode, as format-4 recordings
+//! held payloads: fixed sizes for the traffic counts). Inbound: Zenoh samples decoded
 //! and published on the local iceoryx2 service, then its reader's wake-up
 //! event notified, exactly as a local publisher would.
 //!
@@ -265,7 +266,7 @@ impl Outbound {
             for (s, sub, publishers) in &mut links {
                 let s: ServiceId = *s;
                 batch.clear();
-                sub.drain(&mut batch)?;
+                sub.drain(recording::Encoding::Bincode, &mut batch)?;
                 for (h, bytes) in &batch {
                     let sensor = sensor_of(s, h);
                     let target = if self.down {
@@ -454,7 +455,9 @@ impl Inbound {
         let s = recording::service_of_topic(topic)
             .filter(|s| self.publishers.contains_key(s))
             .ok_or(Refusal::UnknownKey)?;
-        let message = recording::decode(topic, bytes).map_err(|_| Refusal::Malformed)?;
+        let message = recording::Encoding::Bincode
+            .decode(topic, bytes)
+            .map_err(|_| Refusal::Malformed)?;
         if let Some(i) = key_sensor
             && sensor_of(s, message.header()) != i
         {

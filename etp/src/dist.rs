@@ -5,77 +5,19 @@
 //! * [`start`] initialises MPI when the process was launched by a job
 //!   launcher (Open MPI's `OMPI_COMM_WORLD_SIZE`, PMI's `PMI_SIZE`, PMIx's
 //!   `PMIX_RANK`), and sets the executor every command hands to the
-//!   libraries' Monte Carlo through [`work`] (`etp_synthesis::exec`).
-//! * Rank 0 alone writes files (`crate::output` skips the others), prints to
+//!   libraries' Monte Carlo through [`work`] (`etp_pipeline::exec`).
+//! * Rank 0 alone writes files (`etp_pipeline::output` skips the others), prints to
 //!   stdout and draws progress; the other ranks compute the same things
 //!   and exchange their share of the segments and episodes.
 //! * [`finish`] ends the job: a normal end (exit code 0, or a command's own
 //!   documented code) finalises MPI; an error aborts the whole job
 //!   (`MPI_Abort`), so no rank waits forever for one that gave up.
 
-use etp_synthesis::exec::{Executor, Local, On};
-use std::sync::OnceLock;
-use std::sync::atomic::{AtomicBool, Ordering};
+pub use etp_pipeline::exec::{alone, executor, is_root, job, work};
 
 #[cfg(feature = "mpi")]
 #[path = "dist/mpi_exec.rs"]
 mod mpi_exec;
-
-static EXECUTOR: OnceLock<Box<dyn Executor + Send>> = OnceLock::new();
-
-/// Set while this rank works alone ([`alone`]).
-static ALONE: AtomicBool = AtomicBool::new(false);
-
-/// The executor of this process: the job's ranks, or [`Local`] (no job, or
-/// inside [`alone`]).
-pub fn executor() -> &'static dyn Executor {
-    if ALONE.load(Ordering::SeqCst) {
-        return &Local;
-    }
-    match EXECUTOR.get() {
-        Some(e) => e.as_ref(),
-        None => &Local,
-    }
-}
-
-/// The ranks of the job, whatever [`alone`] says (the study's scheduler).
-pub fn job() -> &'static dyn Executor {
-    match EXECUTOR.get() {
-        Some(e) => e.as_ref(),
-        None => &Local,
-    }
-}
-
-/// Run `f` as if this rank were the whole job: its Monte Carlo on this
-/// rank's threads only, its files written by this rank (`etp study` hands
-/// whole cases to ranks; the other ranks are busy with theirs). Called from
-/// one thread at a time (the study's loop); not re-entrant.
-pub fn alone<T>(f: impl FnOnce() -> T) -> T {
-    struct Reset;
-    impl Drop for Reset {
-        fn drop(&mut self) {
-            ALONE.store(false, Ordering::SeqCst);
-        }
-    }
-    ALONE.store(true, Ordering::SeqCst);
-    let _reset = Reset;
-    f()
-}
-
-/// Whether this process writes the outputs: rank 0 (or no job at all, or
-/// inside [`alone`]).
-pub fn is_root() -> bool {
-    executor().rank() == 0
-}
-
-/// A progress callback on this process's executor, for the libraries'
-/// `progress: &dyn Work` arguments.
-pub fn work<F: Fn(u64) + Sync>(progress: F) -> On<'static, F> {
-    On {
-        exec: executor(),
-        progress,
-    }
-}
 
 /// Whether the environment says a job launcher started this process.
 pub fn launched_by_mpi() -> bool {
@@ -97,12 +39,13 @@ pub fn start() -> anyhow::Result<Session> {
         if !launched_by_mpi() {
             return Ok(Session { inner: None });
         }
+        use etp_synthesis::exec::Executor;
         let (session, exec) = mpi_exec::start()?;
         if exec.rank() != 0 {
             mpi_exec::silence_stdout()?;
         }
         // Set once, at start: `start` is called once, before any command.
-        let _ = EXECUTOR.set(Box::new(exec));
+        etp_pipeline::exec::install(Box::new(exec)).map_err(anyhow::Error::msg)?;
         Ok(Session {
             inner: Some(session),
         })

@@ -4,7 +4,7 @@
 
 use anyhow::{Context, Result, bail};
 pub use etp_runtime::scenario_options::{RadioArgs, TriggerArgs, parse_family};
-use etp_shared::scenario::{Scenario, ScenarioText, builtin_text};
+use etp_shared::scenario::{Scenario, ScenarioText};
 
 /// A `SCENARIO` argument: a built-in name (`winding-2d`, …) or a TOML path
 /// (resolved by `etp_runtime`, as in every process of a run).
@@ -13,12 +13,7 @@ pub fn load_scenario(arg: &str) -> Result<Scenario> {
 }
 
 /// The TOML text of a scenario argument (for embedding into outputs).
-pub fn scenario_text(arg: &str) -> Result<String> {
-    if let Some(text) = builtin_text(arg) {
-        return Ok(text.to_string());
-    }
-    std::fs::read_to_string(arg).with_context(|| format!("reading scenario file {arg}"))
-}
+pub use etp_pipeline::synthesize::scenario_text;
 
 /// A command-line probability (`--min-target`, `--max-collision`): a
 /// number in [0, 1], else the error clap prints after the flag's name.

@@ -6,28 +6,21 @@
 //!   `run(args) -> anyhow::Result<()>`.
 //! * [`input`] — resolving a `SCENARIO` argument (built-in name or path)
 //!   and its options.
-//! * [`mdp_build`] — the MDP step of a synthesis from a typed request
-//!   (`synthesize`, `demo`).
-//! * [`front`], [`output`] — a synthesis's front and figure written; the
-//!   synthesis folder's files read, the overwrite rule.
-//! * [`predictions`] — a strategy file's predictions as `strategy` and
-//!   `validate` report them (text, JSON, the aggregation check).
-//! * [`dist`] — the ranks of an MPI job (feature `mpi`): the executor the
-//!   Monte Carlo is shared through, rank 0 writes.
-//! * [`progress`] — indicatif bars that hide themselves when stderr is not a
-//!   terminal (`etp_runtime::progress`), and on every MPI rank but 0.
+//! * [`mdp_build`], [`front`], [`output`], [`predictions`], [`selection`],
+//!   [`synthesis_dir`], [`progress`] — re-exported from `etp-pipeline`, the
+//!   pipeline's steps as a library (shared with the Python package).
+//! * [`dist`] — the ranks of an MPI job (feature `mpi`): MPI started and
+//!   its executor installed into `etp_pipeline::exec`; rank 0 writes.
 //! * [`report`] — a simulation summary's JSON and tables.
 //! * [`simulation`] — the constant-threshold simulation of `simulate` and `bench`.
-//! * [`synthesis_dir`] — a synthesis directory loaded for selection (`strategy`, `compare`).
-//! * [`selection`] — the strategy a request's loop stands by, as its file
-//!   (`strategy`, `study`).
 //! * [`study`] — `etp study`: a SPEC's cases, resumable, scheduled across
 //!   MPI ranks; its tables.
 //! * [`processes`] — the run's processes `etp process NAME` plays.
 //! * [`vocab`] — the JSON vocabulary shared by simulate, validate, run and replay.
 //!
 //! The work is in libraries: the maths in `etp-shared` and `etp-synthesis`,
-//! the runtime in `etp-runtime`, the multi-process run in `etp-launcher`,
+//! the pipeline's steps in `etp-pipeline`, the runtime in `etp-runtime`,
+//! the multi-process run in `etp-launcher`,
 //! the recording tools in `etp-recording-tools`, the figures in
 //! `etp-figures`.
 //!
@@ -36,28 +29,13 @@
 pub mod cli;
 pub mod cmd;
 pub mod dist;
-pub mod front;
 pub mod input;
-pub mod mdp_build;
-pub mod output;
-pub mod predictions;
 pub mod processes;
 pub mod report;
-pub mod selection;
 pub mod simulation;
 pub mod study;
-pub mod synthesis_dir;
+pub use etp_pipeline::{front, mdp_build, output, predictions, progress, selection, synthesis_dir};
 pub use etp_recording_tools::vocab;
-/// `etp_runtime::progress`, its bars shown by rank 0 alone in an MPI job
-/// ([`crate::dist`]).
-pub mod progress {
-    pub use etp_runtime::progress::*;
-
-    /// [`etp_runtime::progress::bar`], quiet on every rank but 0.
-    pub fn bar(len: u64, message: &str, quiet: bool) -> indicatif::ProgressBar {
-        etp_runtime::progress::bar(len, message, quiet || !crate::dist::is_root())
-    }
-}
 
 use std::process::ExitCode;
 

@@ -11,7 +11,10 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     for m in &c.messages {
-        let _ = recording::decode(&m.topic, &m.data);
+        let _ = m.decode();
+        // Both encodings, whatever the channel says.
+        let _ = recording::Encoding::Protobuf.decode(&m.topic, &m.data);
+        let _ = recording::Encoding::Bincode.decode(&m.topic, &m.data);
     }
     let _ = c.counts();
     let _ = recording::verify(&c);

@@ -30,6 +30,8 @@
 //!   `--plot`'s figure.
 //! * [`link`] — `--tls DIR` / `--insecure` of a run across hosts; the
 //!   bridge process for remote sensors and its report (`remote`).
+//! * `live` — `--live [ADDR:PORT]`: the Foxglove view (`etp-live`), bound
+//!   before any process starts, fed by the agent without ever waiting.
 //! * `record` — the recording's target (claimed before the run, replaced
 //!   only once the run ran) and the recorder process; `rundir` — the run's
 //!   private folder, owned by one live run (a lock the kernel drops when
@@ -38,6 +40,7 @@
 pub mod config;
 pub mod figure;
 pub mod link;
+mod live;
 pub mod prepare;
 pub mod process;
 mod record;
@@ -173,6 +176,26 @@ pub struct Args {
     /// The link's protection (with `--listen`).
     #[command(flatten)]
     pub link: link::LinkArgs,
+    /// Serve the run live to Foxglove (the Foxglove SDK's WebSocket server, `foxglove.sdk.v1`)
+    /// at ADDR:PORT [default: 127.0.0.1:8765; port 0: any free port]: the
+    /// map, the true state, the estimate with its 3σ ellipse, each sensor's
+    /// transmissions and threshold, each episode's outcome, rates and
+    /// energy vs predicted (layout: docs/foxglove-live-layout.json). The view
+    /// never slows or changes the run: it drops frames, not steps. It is
+    /// plain WebSocket, neither authenticated nor encrypted: an address
+    /// other than loopback is refused unless --insecure is given.
+    #[arg(
+        long,
+        value_name = "ADDR:PORT",
+        num_args = 0..=1,
+        default_missing_value = etp_live::DEFAULT_ADDR
+    )]
+    pub live: Option<std::net::SocketAddr>,
+    /// With --live: start the episodes only once a Foxglove client has
+    /// subscribed (waits at most --deadline). Changes only when the run
+    /// starts, not what it computes.
+    #[arg(long, requires = "live")]
+    pub live_wait: bool,
 }
 
 impl Args {
@@ -211,6 +234,7 @@ pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         Some(id) => RunId::new(id)?,
         None => RunId::generate(),
     };
+    live::check(a)?;
     // `--record PATH` is claimed before any work (an existing file is
     // refused without --force); `--record-default` once its name is known.
     let mut target = match &a.record {
@@ -237,6 +261,14 @@ pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     });
     let plan = match prepared {
         Ok(p) => p,
+        Err(e) => {
+            dir.remove();
+            return Err(e);
+        }
+    };
+    // The view listens before any process starts (a port in use fails here).
+    let view = match live::start(a, &plan, &dir.path) {
+        Ok(v) => v,
         Err(e) => {
             dir.remove();
             return Err(e);
@@ -276,8 +308,13 @@ pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         target.as_ref().map(|t| t.partial.as_path()),
         a.slot_deadline,
         remote.as_ref(),
+        view.as_ref().map(|v| v.feed.as_path()),
         a.json,
     ));
+    if let Some(v) = view {
+        let stats = v.view.finish();
+        tracing::info!(?stats, "live view stopped");
+    }
     // Whatever happened: no iceoryx2 leftovers of this run.
     let cleaned = cleanup::remove_run(&run_id);
     dir.remove();

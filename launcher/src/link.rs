@@ -15,7 +15,8 @@ pub struct LinkArgs {
     #[arg(long, value_name = "DIR", conflicts_with = "insecure")]
     pub tls: Option<PathBuf>,
     /// Plain TCP (`tcp/ADDR:PORT`): no authentication, no encryption.
-    /// For isolated test networks only.
+    /// For isolated test networks only. Also lets `etp run --live` serve
+    /// its (plain WebSocket) view on an address other than loopback.
     #[arg(long)]
     pub insecure: bool,
 }

@@ -36,6 +36,7 @@ pub async fn supervise(
     record: Option<&Path>,
     slot_deadline_ms: Option<u64>,
     remote: Option<&super::remote::RemoteSpec>,
+    live_feed: Option<&Path>,
     quiet: bool,
 ) -> Result<Supervised> {
     let started = Instant::now();
@@ -79,10 +80,14 @@ pub async fn supervise(
             spawn(&sensor_bin, &args, false)?,
         ));
     }
-    let agent_args = match slot_deadline_ms {
-        Some(ms) => common(&["--slot-deadline".into(), ms.to_string()]),
-        None => common(&[]),
-    };
+    let mut agent_extra = Vec::new();
+    if let Some(ms) = slot_deadline_ms {
+        agent_extra.extend(["--slot-deadline".to_string(), ms.to_string()]);
+    }
+    if let Some(feed) = live_feed {
+        agent_extra.extend(["--live-feed".to_string(), feed.display().to_string()]);
+    }
+    let agent_args = common(&agent_extra);
     children.push((
         "agent".into(),
         spawn(&sibling_binary("etp-agent")?, &agent_args, false)?,

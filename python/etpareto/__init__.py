@@ -10,6 +10,12 @@ command, not the command itself) and returns Python values:
 * :func:`read_recording` — an MCAP recording of ``etp run --record`` as one
   DataFrame per channel (the decoding of ``etp replay export``), streamed
   from disk.
+* :func:`synthesize` — ``etp synthesize``: the MDP, its Pareto front and
+  their files in a folder, with a progress callback.
+* :func:`select_strategy` — ``etp strategy DIR --min-target P``: the request
+  loop and the strategy it stands by, with its prediction.
+* :func:`validate` — ``etp validate STRATEGY``: the strategy simulated
+  against its prediction, the checks.
 * :func:`read_front`, :func:`read_strategy` — ``front.json`` and
   ``strategy.json`` as dicts and DataFrames.
 * :func:`run` — a multi-process run (``etp run``), its report as a dict.
@@ -24,7 +30,7 @@ import json
 import os
 import shutil
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import pandas as pd
 
@@ -55,14 +61,24 @@ __all__ = [
     "Simulation",
     "SimulationError",
     "Strategy",
+    "Synthesis",
+    "Validation",
     "builtin_scenarios",
     "load_scenario",
     "read_front",
     "read_recording",
     "read_strategy",
     "run",
+    "select_strategy",
     "simulate",
+    "synthesize",
+    "validate",
 ]
+
+#: ``progress(stage, done, total)``: the step under way (``"synthesize"``,
+#: ``"aggregation check"``, ``"rebuilds"``, ``"validate"``, …) and its
+#: units done of ``total`` (0 while unknown), at most every 0.2 s.
+ProgressCallback = Callable[[str, int, int], None]
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -214,6 +230,10 @@ class Strategy:
     def __init__(self, data: Dict[str, Any], omega: pd.DataFrame) -> None:
         self.data = data
         self.omega = omega
+        #: Set by :func:`select_strategy`: the loop's verdict and rounds, the file.
+        self.verdict: Optional[str] = None
+        self.rounds: Optional[int] = None
+        self.path: Optional[Path] = None
 
     @property
     def predicted(self) -> Optional[Dict[str, float]]:
@@ -228,7 +248,194 @@ def read_strategy(path: PathLike) -> Strategy:
     validate`` loads it (seal and scenario hash checked); raises
     :class:`FileFormatError` with its message otherwise."""
     text, omega = _native.read_strategy(os.fspath(path))
-    return Strategy(json.loads(text), frame(omega))
+    s = Strategy(json.loads(text), frame(omega))
+    p = Path(path)
+    s.path = p / "strategy.json" if p.is_dir() else p
+    return s
+
+
+class Synthesis:
+    """The result of :func:`synthesize`: ``.dir`` the folder written
+    (``mdp.bin``, ``front.json``, ``front.png``/``.svg``, ``scenario.toml``),
+    ``.report`` the dict ``etp synthesize … --json`` prints, ``.front`` the
+    :class:`Front` read back from ``dir``."""
+
+    def __init__(self, dir: Path, report: Dict[str, Any]) -> None:
+        self.dir = dir
+        self.report = report
+        self.front = read_front(dir)
+
+    def __repr__(self) -> str:
+        m = self.report["mdp"]
+        return (
+            f"Synthesis({str(self.dir)!r}, states={m['states']}, "
+            f"vertices={self.report['front']['vertices']})"
+        )
+
+
+def synthesize(
+    scenario: Union[Scenario, PathLike],
+    out: PathLike,
+    *,
+    samples: int = 6000,
+    seed: int = 0,
+    trigger: Optional[str] = None,
+    holdout_samples: int = 0,
+    kf_baseline: bool = True,
+    aggregation_episodes: int = 50_000,
+    force: bool = False,
+    progress: Optional[ProgressCallback] = None,
+) -> Synthesis:
+    """Synthesize like ``etp synthesize SCENARIO -o OUT`` (same defaults,
+    same files, the same bytes for the same seed on any thread count).
+
+    The keywords are the command's flags: ``samples`` (``--samples``),
+    ``seed``, ``trigger`` (``--trigger``: a family over the scenario's own,
+    written into ``OUT/scenario.toml``), ``holdout_samples``,
+    ``kf_baseline=False`` (``--no-kf-baseline``), ``aggregation_episodes``
+    (0: no check), ``force`` (replace an existing synthesis; what was
+    derived from it is moved to ``OUT/stale-…/``). ``progress`` is called
+    as ``progress(stage, done, total)`` while it works.
+
+    Raises :class:`ScenarioError`, or :class:`EtpError` with ``etp
+    synthesize``'s message (e.g. an existing ``front.json`` without
+    ``force``), touching nothing.
+    """
+    if not isinstance(scenario, Scenario):
+        scenario = os.fspath(scenario)
+    text = _native.synthesize(
+        scenario,
+        os.fspath(out),
+        samples=int(samples),
+        seed=int(seed),
+        trigger=trigger,
+        holdout_samples=int(holdout_samples),
+        kf_baseline=bool(kf_baseline),
+        aggregation_episodes=int(aggregation_episodes),
+        force=bool(force),
+        progress=progress,
+    )
+    return Synthesis(Path(out), json.loads(text))
+
+
+def select_strategy(
+    dir: Union[Synthesis, PathLike],
+    *,
+    min_target: Optional[float] = None,
+    max_collision: Optional[float] = None,
+    max_energy: Optional[float] = None,
+    replicates: int = 4,
+    rounds: int = 5,
+    confidence: Optional[float] = None,
+    aggregation_check: int = 4000,
+    output: Optional[PathLike] = None,
+    force: bool = False,
+    progress: Optional[ProgressCallback] = None,
+) -> Strategy:
+    """Select like ``etp strategy DIR --min-target P [--max-collision C]``
+    (or ``--max-energy E``): the request loop — select on the MDP, predict
+    on the strategy's own rebuilds, tighten while the prediction misses —
+    and the strategy it stands by, written to ``output`` (default
+    ``DIR/strategy.json``; the same bytes as the command's). The default,
+    honest path of the CLI; its ``predicted`` is the prediction etp stands
+    by.
+
+    The returned :class:`Strategy` has ``.verdict`` (``"met"``, or why the
+    request is out of reach — the CLI's exit 7: the closest strategy found
+    is written and returned, its label says OUT OF REACH) and ``.rounds``.
+    Raises :class:`EtpError` with the command's message, ``ValueError`` for
+    an argument out of range.
+    """
+    if isinstance(dir, Synthesis):
+        dir = dir.dir
+    text, verdict, n_rounds = _native.select_strategy(
+        os.fspath(dir),
+        min_target=None if min_target is None else float(min_target),
+        max_collision=None if max_collision is None else float(max_collision),
+        max_energy=None if max_energy is None else float(max_energy),
+        replicates=int(replicates),
+        rounds=int(rounds),
+        confidence=None if confidence is None else float(confidence),
+        aggregation_check=int(aggregation_check),
+        output=None if output is None else os.fspath(output),
+        force=bool(force),
+        progress=progress,
+    )
+    path = Path(output) if output is not None else Path(dir) / "strategy.json"
+    s = read_strategy(path)
+    if s.data != json.loads(text):
+        raise EtpError(f"{path} changed while it was being written and read back")
+    s.verdict = verdict
+    s.rounds = n_rounds
+    s.path = path
+    return s
+
+
+class Validation:
+    """The result of :func:`validate`: ``.report`` the dict ``etp validate
+    … --json`` prints (predicted vs simulated, the checks), ``.failed`` the
+    names of the checks that fail (``etp validate`` exits 6 when any does),
+    ``.holds`` whether none does."""
+
+    def __init__(self, report: Dict[str, Any], failed: List[str], plots: List[Path]) -> None:
+        self.report = report
+        self.failed = failed
+        #: The map figures written (``plot_episodes``): PNG, SVG.
+        self.plots = plots
+
+    @property
+    def holds(self) -> bool:
+        return not self.failed
+
+    def table(self) -> pd.DataFrame:
+        """Predicted vs simulated (with the simulation's 95 % half-width),
+        one row per quantity: ``p_target``, ``p_collision``, ``energy_mean``."""
+        r = self.report
+        pred = r.get("predicted") or {}
+        pred_ci = r.get("predicted_ci95") or {}
+        rows = []
+        for key in ("p_target", "p_collision", "energy_mean"):
+            rows.append({
+                "quantity": key,
+                "predicted": pred.get(key),
+                "predicted_ci95": pred_ci.get(key),
+                "simulated": r.get(key),
+                "simulated_ci95": r.get(f"{key}_ci95"),
+            })
+        return pd.DataFrame(rows).set_index("quantity")
+
+    def __repr__(self) -> str:
+        return f"Validation(episodes={self.report.get('episodes')}, holds={self.holds}, failed={self.failed})"
+
+
+def validate(
+    strategy: Union[Strategy, PathLike],
+    *,
+    episodes: int = 3000,
+    seed: int = 0,
+    plot_episodes: Optional[int] = None,
+    force: bool = False,
+    progress: Optional[ProgressCallback] = None,
+) -> Validation:
+    """Validate like ``etp validate STRATEGY --episodes N --seed S``: the
+    strategy simulated in-process against its prediction. ``.report``
+    equals that command's ``--json`` object; a failing check is returned
+    in ``.failed``, not raised. ``plot_episodes=N`` also draws the map with
+    N sampled trajectories coloured by γ̄(δ) (``--plot --plot-episodes N``:
+    ``<strategy>-map.png``/``.svg`` beside the file, ``.plots``; existing
+    ones are replaced only with ``force``). Raises :class:`FileFormatError`
+    for an unreadable or edited strategy file."""
+    if isinstance(strategy, Strategy):
+        strategy = strategy.path
+    text, failed, plots = _native.validate(
+        os.fspath(strategy),
+        episodes=int(episodes),
+        seed=int(seed),
+        plot_episodes=None if plot_episodes is None else int(plot_episodes),
+        force=bool(force),
+        progress=progress,
+    )
+    return Validation(json.loads(text), list(failed), [Path(p) for p in plots])
 
 
 class RunReport:

@@ -4,7 +4,7 @@ Tables cross as lists of columns ``(name, dtype, data, mask)``: see
 ``etpareto._frames``. JSON objects cross as the CLI's JSON text.
 """
 
-from typing import Any, Dict, List, Optional, Tuple, Union
+from typing import Any, Callable, Dict, List, Optional, Tuple, Union
 
 _Column = Tuple[str, str, Union[bytes, List[Optional[str]]], Optional[bytes]]
 
@@ -68,3 +68,39 @@ def read_recording(path: str) -> Tuple[Dict[str, List[_Column]], Dict[str, Dict[
 def read_front(path: str) -> str: ...
 def read_strategy(path: str) -> Tuple[str, List[_Column]]: ...
 def run(args: List[str]) -> Tuple[str, List[Tuple[int, str]]]: ...
+def synthesize(
+    scenario: Union[Scenario, str],
+    out: str,
+    samples: int = 6000,
+    seed: int = 0,
+    trigger: Optional[str] = None,
+    holdout_samples: int = 0,
+    kf_baseline: bool = True,
+    aggregation_episodes: int = 50000,
+    force: bool = False,
+    progress: Optional[Callable[[str, int, int], None]] = None,
+) -> str:
+    """``etp synthesize … --json``'s text; the files written into ``out``."""
+def select_strategy(
+    dir: str,
+    min_target: Optional[float] = None,
+    max_collision: Optional[float] = None,
+    max_energy: Optional[float] = None,
+    replicates: int = 4,
+    rounds: int = 5,
+    confidence: Optional[float] = None,
+    aggregation_check: int = 4000,
+    output: Optional[str] = None,
+    force: bool = False,
+    progress: Optional[Callable[[str, int, int], None]] = None,
+) -> Tuple[str, str, int]:
+    """(strategy.json's text, the loop's verdict, its rounds); the file written."""
+def validate(
+    strategy: str,
+    episodes: int = 3000,
+    seed: int = 0,
+    plot_episodes: Optional[int] = None,
+    force: bool = False,
+    progress: Optional[Callable[[str, int, int], None]] = None,
+) -> Tuple[str, List[str], List[str]]:
+    """(``etp validate … --json``'s text, the failing checks' names, the map figures written)."""

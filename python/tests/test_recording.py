@@ -46,6 +46,9 @@ def test_the_fixture_equals_the_cli_export(tmp_path):
         assert df["run"].str.fullmatch(r"[0-9]+").all()
     assert tables["outcome"]["outcome"].isin(["target", "collision", "free"]).all()
     assert len(tables["outcome"]) == info["episodes"] == 4
+    # The fixture is the old format (bincode channels): still read.
+    assert info["format_version"] == 4
+    assert {c["message_encoding"] for c in info["channels"]} == {"bincode2-serde-legacy"}
 
 
 def test_metadata_comes_with_the_tables():

@@ -57,6 +57,8 @@ pub struct Cli {
 /// (a publication not followed by a wake-up would wait at most this long).
 const FLUSH_EVERY: Duration = Duration::from_millis(100);
 const CHUNK: u64 = 128 * 1024;
+/// What the recorder writes: format 5, every channel protobuf.
+const ENCODING: recording::Encoding = recording::Encoding::Protobuf;
 
 fn now_ns() -> u64 {
     SystemTime::now()
@@ -69,6 +71,9 @@ struct Channel {
     topic: String,
     drain: Box<dyn recording::ports::EncodedSubscriber>,
     count: u32,
+    /// What the last pass took from the queue, and when.
+    batch: Vec<recording::Recorded>,
+    received_at: u64,
 }
 
 /// Create the output exclusively: fails if anything exists at `path`.
@@ -101,7 +106,11 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
         .compression(Some(mcap::Compression::Zstd))
         .chunk_size(Some(CHUNK))
         .profile(recording::PROFILE)
-        .library(format!("etp-recorder {}", env!("CARGO_PKG_VERSION")))
+        .library(format!(
+            "etp-recorder {} (recording format {})",
+            env!("CARGO_PKG_VERSION"),
+            recording::FORMAT_VERSION
+        ))
         .create(BufWriter::new(file))
         .context("starting the MCAP writer")?;
     if let Some(meta) = &cli.meta {
@@ -123,11 +132,8 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
         let schema = match schemas.get(&kind) {
             Some(id) => *id,
             None => {
-                let id = w.add_schema(
-                    kind.schema_name(),
-                    recording::SCHEMA_ENCODING,
-                    kind.schema_text().as_bytes(),
-                )?;
+                let (name, encoding, data) = ENCODING.schema(kind)?;
+                let id = w.add_schema(&name, encoding, &data)?;
                 schemas.insert(kind, id);
                 id
             }
@@ -135,7 +141,7 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
         let id = w.add_channel(
             schema,
             &topic,
-            recording::MESSAGE_ENCODING,
+            ENCODING.name(),
             &BTreeMap::from([("service".to_string(), s.name(&run))]),
         )?;
         let drain = recording::ports::encoded_subscriber(&ports, s, true)?;
@@ -144,6 +150,8 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
             topic,
             drain,
             count: 0,
+            batch: Vec::new(),
+            received_at: 0,
         });
     }
     let waiter = Waiter::over(
@@ -168,7 +176,6 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
     );
     let parent = std::os::unix::process::parent_id();
     let mut last_flush = Instant::now();
-    let mut batch = Vec::new();
     let mut stopping = false;
     // A replay's metadata, read when its first message arrives: `etp replay
     // publish` leaves the file before its first message, and the run's folder
@@ -176,13 +183,22 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
     let mut handed_over: Option<HandedOver> = None;
     loop {
         let mut got = 0usize;
+        // Every queue emptied first (copies), then encoded and written:
+        // protobuf encoding is slower than a copy, and a publisher that
+        // ends (a replay, the run's last messages) must not outrun it.
         for c in &mut channels {
-            batch.clear();
+            c.batch.clear();
             c.drain
-                .drain(&mut batch)
+                .take(&mut c.batch)
                 .with_context(|| format!("receiving on {}", c.topic))?;
-            let t = now_ns();
-            for (_, data) in &batch {
+            c.received_at = now_ns();
+        }
+        for c in &mut channels {
+            let t = c.received_at;
+            for r in &c.batch {
+                let data = ENCODING
+                    .encode_recorded(r)
+                    .with_context(|| format!("encoding a message of {}", c.topic))?;
                 w.write_to_known_channel(
                     &MessageHeader {
                         channel_id: c.id,
@@ -190,12 +206,12 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
                         log_time: t,
                         publish_time: t,
                     },
-                    data,
+                    &data,
                 )
                 .with_context(|| format!("writing a message of {}", c.topic))?;
                 c.count = c.count.wrapping_add(1);
             }
-            got += batch.len();
+            got += c.batch.len();
         }
         if got > 0 && handed_over.is_none() && cli.meta.is_none() {
             handed_over = Some(read_handed_over_metadata(&run)?);
@@ -268,8 +284,18 @@ fn read_handed_over_metadata(run: &RunId) -> Result<HandedOver> {
     let Ok(text) = std::fs::read_to_string(&path) else {
         return Ok(BTreeMap::new());
     };
-    let records: HandedOver =
+    let mut records: HandedOver =
         serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    // The copy's channels are this recorder's (format 5), whatever the
+    // replayed file's format was.
+    if let Some(run) = records.get_mut(recording::META_RUN)
+        && run.contains_key("format_version")
+    {
+        run.insert(
+            "format_version".into(),
+            recording::FORMAT_VERSION.to_string(),
+        );
+    }
     tracing::info!(path = %path.display(), records = records.len(), "metadata of the replay");
     Ok(records)
 }

@@ -56,13 +56,14 @@ pub fn table_file(topic: &str, format: Format) -> String {
     format!("{}.{}", topic.replace('/', "-"), format.ext())
 }
 
-/// Is `topic` one of etp's channels in etp's encoding (decoded into typed
-/// rows), rather than a channel of another MCAP writer?
+/// Is `topic` one of etp's channels in one of etp's encodings (protobuf
+/// since format 5, bincode before; decoded into typed rows), rather than a
+/// channel of another MCAP writer?
 pub fn is_etp_channel(c: &Contents, topic: &str) -> bool {
     recording::kind_of_topic(topic).is_some()
         && c.encodings
             .get(topic)
-            .is_none_or(|e| e == recording::MESSAGE_ENCODING)
+            .is_none_or(|e| recording::Encoding::of(e).is_some())
 }
 
 /// A message of a channel etp did not write, as `cat` shows it: `json`
@@ -181,7 +182,8 @@ pub fn export_streaming(
 /// A message of an etp channel as its table's typed row: THE decoding of
 /// `export`, `cat` and [`Rows`].
 fn decoded_row(t: &Table, m: &recording::RawMessage, names: &Names) -> Result<Vec<Cell>> {
-    let rec = recording::decode(&m.topic, &m.data)
+    let rec = m
+        .decode()
         .with_context(|| format!("message at log time {}", m.log_time))?;
     Ok(t.row(m.log_time, &rec, names))
 }

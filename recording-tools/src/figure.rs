@@ -73,7 +73,8 @@ pub fn figure(c: &Contents, names: &[String]) -> Result<RunFigure> {
     let mut episodes: BTreeSet<u64> = BTreeSet::new();
     let mut counts = crate::OutcomeCounts::default();
     for m in &c.messages {
-        match recording::decode(&m.topic, &m.data)
+        match m
+            .decode()
             .with_context(|| format!("message at log time {}", m.log_time))?
         {
             Recorded::Ledger(l) => {

@@ -26,7 +26,7 @@
 //! whole episode lasts some tens of milliseconds). The copy is written in
 //! time order (the source is in drain order).
 
-mod geometry;
+pub mod geometry;
 mod msg;
 mod scene;
 #[cfg(test)]
@@ -170,7 +170,8 @@ fn step_of<'a>(
 fn gather(c: &Contents) -> Result<BTreeMap<u64, Episode>> {
     let mut eps: BTreeMap<u64, Episode> = BTreeMap::new();
     for m in &c.messages {
-        let rec = recording::decode(&m.topic, &m.data)
+        let rec = m
+            .decode()
             .with_context(|| format!("{} message at log time {}", m.topic, m.log_time))?;
         let t = m.log_time;
         let (header, rec) = match rec {

@@ -61,7 +61,8 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Res
     // Decode everything first: a damaged payload stops the replay before it starts.
     let mut order: Vec<(u64, &str, Recorded)> = Vec::with_capacity(c.messages.len());
     for m in &c.messages {
-        let r = recording::decode(&m.topic, &m.data)
+        let r = m
+            .decode()
             .with_context(|| format!("message at log time {}", m.log_time))?;
         order.push((m.log_time, m.topic.as_str(), r));
     }

@@ -24,12 +24,17 @@ fn write_copy(c: &Contents, tmp: &std::path::Path, what: &str) -> Result<u64> {
         let Some(kind) = recording::kind_of_topic(topic) else {
             bail!("unknown channel `{topic}` in the recording");
         };
-        let schema = w.add_schema(
-            kind.schema_name(),
-            recording::SCHEMA_ENCODING,
-            kind.schema_text().as_bytes(),
-        )?;
-        let id = w.add_channel(schema, topic, recording::MESSAGE_ENCODING, &BTreeMap::new())?;
+        // The copy keeps each channel's own encoding (a format-4 file stays
+        // format 4: its metadata says so), with this etp's schema of it.
+        let encoding = match c.encodings.get(topic) {
+            None => recording::Encoding::Protobuf,
+            Some(e) => recording::Encoding::of(e).with_context(|| {
+                format!("channel `{topic}`: message encoding `{e}` is not one etp writes")
+            })?,
+        };
+        let (name, schema_encoding, data) = encoding.schema(kind)?;
+        let schema = w.add_schema(&name, schema_encoding, &data)?;
+        let id = w.add_channel(schema, topic, encoding.name(), &BTreeMap::new())?;
         ids.insert(topic, id);
     }
     let mut seq: BTreeMap<u16, u32> = BTreeMap::new();

@@ -148,7 +148,8 @@ impl Selection {
         }
         match &self.episodes {
             Some(r) => {
-                let rec = recording::decode(&m.topic, &m.data)
+                let rec = m
+                    .decode()
                     .with_context(|| format!("message at log time {}", m.log_time))?;
                 Ok(r.contains(rec.header().episode))
             }

@@ -116,7 +116,8 @@ impl Tally {
         if !crate::export::is_etp_channel(c, &m.topic) {
             return Ok(());
         }
-        let rec = recording::decode(&m.topic, &m.data)
+        let rec = m
+            .decode()
             .with_context(|| format!("message at log time {}", m.log_time))?;
         let h = *rec.header();
         // `hello` and the like belong to no episode.

@@ -38,6 +38,7 @@
 pub mod cleanup;
 pub mod folders;
 pub mod link_keys;
+pub mod live;
 pub mod progress;
 pub mod recording;
 pub mod report;

@@ -28,7 +28,9 @@ pub struct DeltaError(pub f64);
 /// `delta` if it is a threshold: finite and ≥ 0 (0 = full Kalman filter).
 pub fn check_delta(delta: f64) -> Result<f64, DeltaError> {
     if delta.is_finite() && delta >= 0.0 {
-        Ok(delta)
+        // −0 as +0: the same threshold, and one the recording's protobuf
+        // (proto3 drops zero scalars) can keep bit for bit.
+        Ok(delta + 0.0)
     } else {
         Err(DeltaError(delta))
     }
@@ -69,4 +71,17 @@ pub fn constant_records(
         let policy = move |_: usize, _: &_, _: &mut _| LegMode::<N>::EventTriggered(t);
         records(&c, &policy, episodes, seed, streams::SIMULATE, progress)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::check_delta;
+
+    #[test]
+    fn a_threshold_is_finite_and_non_negative_and_minus_zero_is_plus_zero() {
+        assert_eq!(check_delta(1.5), Ok(1.5));
+        assert_eq!(check_delta(-0.0).map(f64::to_bits), Ok(0.0f64.to_bits()));
+        assert_eq!(check_delta(-0.5), Err(super::DeltaError(-0.5)));
+        assert!(check_delta(f64::NAN).is_err() && check_delta(f64::INFINITY).is_err());
+    }
 }

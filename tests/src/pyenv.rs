@@ -1,5 +1,6 @@
 //! The pinned Python environment of the independent checks (the PyPI `mcap`
-//! reader, `jsonschema`, SciPy's HiGHS LP, `eclipse-zenoh`): a venv in
+//! reader and its protobuf decoder, `jsonschema`, SciPy's HiGHS LP,
+//! `eclipse-zenoh`): a venv in
 //! `target/pyenv`, made by the first test that needs it, under a file lock
 //! so parallel tests (and test binaries) do not race. No test skips a
 //! Python check: without `python3 -m venv` or PyPI the test fails and says
@@ -20,6 +21,10 @@ pub const REQUIREMENTS: &[&str] = &[
     "numpy==2.4.6",
     "scipy==1.17.1",
     "eclipse-zenoh==1.10.2",
+    // Foxglove's protobuf decoder for MCAP (recording format 5), and the
+    // protobuf runtime it resolves to.
+    "mcap-protobuf-support==0.6.0",
+    "protobuf==7.36.2",
 ];
 
 /// `target/` of the workspace (`CARGO_TARGET_DIR` if set).

@@ -14,6 +14,10 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 #[path = "runtime/recording.rs"]
 mod recording;
 
+// Recording format 5 read by other tools; the format-4 fixture (issue 43).
+#[path = "runtime/mcap_tools.rs"]
+mod mcap_tools;
+
 #[path = "runtime/publish.rs"]
 mod publish;
 
@@ -47,6 +51,10 @@ mod folders;
 // Trigger families as processes (issue 40 item 2).
 #[path = "runtime/families.rs"]
 mod families;
+
+// The live view over the Foxglove WebSocket protocol (issue 43 item 3).
+#[path = "runtime/live.rs"]
+mod live;
 
 const DELTA: &str = "1.4986";
 

@@ -209,6 +209,8 @@ pub fn run(a: Args) -> Result<()> {
         remote: Vec::new(),
         join_timeout: None,
         link: Default::default(),
+        live: None,
+        live_wait: false,
         radio: Default::default(),
         trigger: Default::default(),
     };

@@ -1,18 +1,19 @@
 //! `etp synthesize SCENARIO`: build the belief-space MDP by Monte Carlo
 //! (docs/MODEL.md §4) and write `DIR/mdp.bin`.
 //!
-//! The MDP part is [`crate::mdp_build`] (shared with `demo`), given the
-//! typed request [`Args::request`] makes of the command line; [`run`] adds
-//! the Method 1 baseline, the Pareto step and the aggregation check, and
-//! prints the report.
+//! The work is `etp_pipeline::synthesize` (the MDP, the Method 1 baseline,
+//! the Pareto step and the aggregation check), given the typed request
+//! [`Args::request`] makes of the command line; [`run`] prints the report.
 
-pub mod aggregation;
-
-use crate::input::{RadioArgs, TriggerArgs, load_scenario_with_radio};
+use crate::input::{RadioArgs, TriggerArgs};
 use crate::mdp_build::split::{self, SplitArgs};
-use crate::mdp_build::{MdpReport, MdpRequest, build_mdp};
-use crate::output::write_new;
-use anyhow::{Context, Result, bail};
+use crate::mdp_build::{MdpReport, MdpRequest};
+use anyhow::{Result, bail};
+pub use etp_pipeline::aggregation;
+use etp_pipeline::synthesize::{
+    DEFAULT_AGGREGATION_ALPHA, DEFAULT_AGGREGATION_EPISODES, SynthesisRequest, scenario_under,
+    synthesize,
+};
 use etp_shared::discretization::BinCounts;
 use etp_shared::scenario::Scenario;
 use etp_synthesis::abstraction::{
@@ -20,7 +21,7 @@ use etp_synthesis::abstraction::{
     DEFAULT_SAMPLES, Descriptor, default_kf_params,
 };
 use etp_synthesis::mdp::{KfConvergenceParams, Method};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Method 2's belief descriptor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -144,10 +145,10 @@ pub struct Args {
     /// Aggregation check: episodes with random thresholds whose legs test, per
     /// region and action, whether the outcomes differ between the halves of
     /// the region split at the median of a finer belief feature (0: off).
-    #[arg(long, value_name = "N", default_value_t = 50_000)]
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_AGGREGATION_EPISODES)]
     pub aggregation_episodes: u64,
     /// Aggregation check: false discovery rate of the flagged splits.
-    #[arg(long, value_name = "ALPHA", default_value_t = 0.05)]
+    #[arg(long, value_name = "ALPHA", default_value_t = DEFAULT_AGGREGATION_ALPHA)]
     pub aggregation_alpha: f64,
     /// Adaptive splitting of the regions the aggregation test flags.
     #[command(flatten)]
@@ -217,7 +218,7 @@ impl Args {
     /// The MDP step's request: the scenario of the command line (its text
     /// under `--trigger`, then the radio options) and its parameters.
     pub fn request(&self) -> Result<MdpRequest> {
-        let scenario = load(self)?;
+        let (scenario, _) = load(self)?;
         Ok(MdpRequest {
             params: params(self, &scenario)?,
             scenario,
@@ -279,101 +280,31 @@ pub fn report_text(r: &MdpReport) -> String {
 
 /// The scenario of the command line: its text under `--trigger` (so that
 /// the content hash is the family's), then the radio options.
-fn load(a: &Args) -> Result<Scenario> {
-    if a.trigger.trigger.is_none() {
-        return load_scenario_with_radio(&a.scenario, &a.radio);
-    }
-    let text = a
-        .trigger
-        .apply_to_text(crate::input::scenario_text(&a.scenario)?)?;
-    let s = Scenario::from_toml(&text).with_context(|| format!("scenario {}", a.scenario))?;
-    a.radio.apply(s)
+fn load(a: &Args) -> Result<(Scenario, String)> {
+    let (s, text) = scenario_under(&a.scenario, &a.trigger)?;
+    Ok((a.radio.apply(s)?, text))
 }
 
 pub fn run(a: Args) -> Result<()> {
-    // Refuse before any work if the Pareto step would have to overwrite.
-    let s = load(&a)?;
-    let dir = a
-        .out
-        .clone()
-        .unwrap_or_else(|| Path::new("out").join(&s.name));
-    let front_path = dir.join("front.json");
-    crate::output::output_folder(&dir)?;
-    crate::output::refuse_existing(&front_path, a.force)?;
-    if !(a.aggregation_alpha > 0.0 && a.aggregation_alpha < 1.0) {
-        bail!(
-            "--aggregation-alpha must lie in (0, 1) (got {})",
-            a.aggregation_alpha
-        );
-    }
-    let text = a
-        .trigger
-        .apply_to_text(crate::input::scenario_text(&a.scenario)?)?;
-    let built = build_mdp(a.request()?)?;
-    // Method 1 as a baseline beside Method 2 (cheap: one state per decision point).
-    let method1 = if a.method == MethodArg::Discretized && !a.no_kf_baseline {
-        let d = default_kf_params(&built.scenario);
-        let mut p = params(&a, &built.scenario)?;
-        p.method = Method::KfConvergence;
-        p.kf = Some(d);
-        // The baseline is only drawn; it needs no cross-fitting.
-        p.holdout_samples = 0;
-        let m1 = abstraction::build(&built.scenario, &p, &crate::dist::work(|_| {}))
-            .context("building the Method 1 baseline")?;
-        write_new(&dir.join("mdp-kf-convergence.bin"), &m1.encode(), true)?;
-        Some(m1)
-    } else {
-        None
+    let (_, text) = load(&a)?;
+    let request = SynthesisRequest {
+        mdp: a.request()?,
+        text,
+        kf_baseline: !a.no_kf_baseline,
+        aggregation_episodes: a.aggregation_episodes,
+        aggregation_alpha: a.aggregation_alpha,
     };
-    // The channel is recorded when the options changed the scenario text's own.
-    let own_radio = etp_shared::scenario::Scenario::from_toml(&text)
-        .context("scenario")?
-        .radio;
-    let radio = (built.scenario.radio != own_radio).then_some(&built.scenario.radio);
-    let replaced = front_path.exists();
-    let front = crate::front::write_front(
-        &built.dir,
-        &built.mdp,
-        method1.as_ref(),
-        &text,
-        radio,
-        a.force,
-    )?;
-    // Only now that the new front is written: what was derived from the
-    // old MDP would sit beside it as if derived from the new one.
-    let stale = if replaced && crate::dist::is_root() {
-        set_aside_stale(&built.dir)?
-    } else {
-        None
-    };
-    let aggregation = aggregation::measure(
-        &built.scenario,
-        &built.mdp,
-        a.aggregation_episodes,
-        a.aggregation_alpha,
-        a.json,
-    )?;
+    let done = synthesize(request)?;
+    let built = &done.built;
     if a.json {
-        let v = serde_json::json!({
-            "mdp": built.report,
-            "aggregation": aggregation.as_ref().map(|r| &r.0),
-            "front": {
-                "vertices": front.front.vertices.len(),
-                "facets": front.front.facets.len(),
-                "optimisations": front.front.optimisations,
-                "seconds": front.seconds,
-                "energy_scale": front.front.energy_scale,
-                "files": front.files,
-            }
-        });
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        println!("{}", serde_json::to_string_pretty(&done.to_json())?);
     } else {
         print!("{}", report_text(&built.report));
-        if let Some((r, secs)) = &aggregation {
+        if let Some((r, secs)) = &done.aggregation {
             print!("{}", aggregation::describe(r, &built.mdp, *secs));
         }
-        print!("{}", crate::front::describe(&front.front));
-        println!("  computed in {:.3} s", front.seconds);
+        print!("{}", crate::front::describe(&done.front.front));
+        println!("  computed in {:.3} s", done.front.seconds);
         if built.mdp.policy_only() {
             let policy = a
                 .pool_policy
@@ -386,11 +317,11 @@ pub fn run(a: Args) -> Result<()> {
                 etp_synthesis::predict::rebuild::DEFAULT_REPLICATES
             );
         }
-        for f in &front.files {
+        for f in &done.front.files {
             println!("  wrote {}", f.display());
         }
     }
-    if let Some((dir, names)) = &stale {
+    if let Some((dir, names)) = &done.stale {
         eprintln!(
             "moved {} (made from the replaced MDP) to {}",
             names.join(", "),
@@ -398,41 +329,4 @@ pub fn run(a: Args) -> Result<()> {
         );
     }
     Ok(())
-}
-
-/// What `etp strategy`, `etp validate --plot` and `etp export-prism` write
-/// into a synthesis folder by default: derived from its MDP.
-const DERIVED: [&str; 4] = [
-    "strategy.json",
-    "strategy-map.png",
-    "strategy-map.svg",
-    "prism",
-];
-
-/// After `--force` replaced a synthesis: move what was derived from the old
-/// MDP into `DIR/stale-<unix seconds>/` (moved, not deleted). The folder and
-/// the names moved, if any.
-fn set_aside_stale(dir: &Path) -> Result<Option<(std::path::PathBuf, Vec<String>)>> {
-    let found: Vec<&str> = DERIVED
-        .into_iter()
-        .filter(|n| dir.join(n).symlink_metadata().is_ok())
-        .collect();
-    if found.is_empty() {
-        return Ok(None);
-    }
-    let secs = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    let mut stale = dir.join(format!("stale-{secs}"));
-    let mut k = 1;
-    while stale.symlink_metadata().is_ok() {
-        stale = dir.join(format!("stale-{secs}-{k}"));
-        k += 1;
-    }
-    std::fs::create_dir(&stale).with_context(|| format!("creating {}", stale.display()))?;
-    for n in &found {
-        std::fs::rename(dir.join(n), stale.join(n))
-            .with_context(|| format!("moving {} to {}", dir.join(n).display(), stale.display()))?;
-    }
-    Ok(Some((stale, found.iter().map(|n| n.to_string()).collect())))
 }

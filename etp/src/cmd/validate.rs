@@ -3,13 +3,13 @@
 
 use crate::predictions::{self, checks};
 use crate::progress;
-use crate::report::{radio_table, summary_json, summary_table};
+use crate::report::{radio_table, summary_table};
 use crate::vocab::channels_text;
 use anyhow::Result;
+use etp_pipeline::validation::{comparison_json, failed_checks, plot_map};
 use etp_shared::strategy::Strategy;
 use etp_synthesis::simulate::SimulationSummary;
-use etp_synthesis::validate::{sample_trajectories, simulate_strategy};
-use serde_json::json;
+use etp_synthesis::validate::simulate_strategy;
 use std::path::PathBuf;
 
 /// Exit code: the report was printed and at least one of the strategy's
@@ -67,25 +67,18 @@ pub fn run(a: Args) -> Result<()> {
     )?
     .summary();
     pb.finish_and_clear();
-    let mut plot_paths = Vec::new();
-    if a.plot {
-        let stem = a.strategy.with_extension("").with_file_name(format!(
-            "{}-map",
-            a.strategy
-                .file_stem()
-                .and_then(|s| s.to_str())
-                .unwrap_or("strategy")
-        ));
-        for p in [stem.with_extension("png"), stem.with_extension("svg")] {
-            crate::output::refuse_existing(&p, a.force)?;
-        }
-        let tr = sample_trajectories(&scenario, &strategy.policy, a.plot_episodes, a.sim.seed);
-        if crate::dist::is_root() {
-            etp_figures::map_plot(&scenario, &tr, &stem)?;
-        }
-        plot_paths.push(stem.with_extension("png"));
-        plot_paths.push(stem.with_extension("svg"));
-    }
+    let plot_paths = if a.plot {
+        plot_map(
+            &scenario,
+            &strategy,
+            &a.strategy,
+            a.plot_episodes,
+            a.sim.seed,
+            a.force,
+        )?
+    } else {
+        Vec::new()
+    };
     if a.json {
         println!(
             "{}",
@@ -124,11 +117,7 @@ pub fn run(a: Args) -> Result<()> {
             println!("wrote {}", p.display());
         }
     }
-    let failed: Vec<&str> = checks(&strategy, &sum)
-        .into_iter()
-        .filter(|(_, holds)| !holds)
-        .map(|(name, _)| name)
-        .collect();
+    let failed = failed_checks(&strategy, &sum);
     if failed.is_empty() {
         Ok(())
     } else {
@@ -161,62 +150,6 @@ fn check_text(strategy: &Strategy, sum: &SimulationSummary) -> String {
         ));
     }
     o
-}
-
-/// The simulation in the vocabulary of `crate::vocab` (the flat keys of
-/// `etp simulate`), with the strategy's identity, its predictions and the
-/// checks of each prediction against the simulation.
-pub fn comparison_json(
-    scenario: &etp_shared::scenario::Scenario,
-    synthesized: &etp_shared::radio::Radio,
-    strategy: &Strategy,
-    sum: &SimulationSummary,
-    seed: u64,
-) -> serde_json::Value {
-    let mut v = summary_json(scenario, sum);
-    // The per-sensor prediction of the strategy file (the MDP's), if it has one.
-    if let (Some(per_ep), Some(sensors)) = (
-        strategy.predictions.sensor_energy(scenario),
-        v.get_mut("sensors")
-            .and_then(serde_json::Value::as_array_mut),
-    ) {
-        for (x, e) in sensors.iter_mut().zip(per_ep) {
-            x["predicted_energy"] = json!(crate::vocab::round_energy(e * sum.episodes as f64));
-        }
-    }
-    if let Some(m) = v.as_object_mut() {
-        m.insert("scenario".into(), json!(scenario.name));
-        let names: Vec<String> = scenario.sensors.iter().map(|x| x.name.clone()).collect();
-        m.insert(
-            "radio_synthesized".into(),
-            json!(synthesized.describe(&names)),
-        );
-        m.insert("seed".into(), json!(seed));
-        m.insert("strategy".into(), json!(strategy.provenance.label));
-        m.insert(
-            "delta".into(),
-            json!(crate::vocab::constant_delta(&strategy.policy)),
-        );
-        m.extend(predictions::json_fields(strategy));
-        m.insert(
-            "predicted".into(),
-            crate::vocab::prediction(strategy.predictions.predicted.as_ref()),
-        );
-        m.insert(
-            "error".into(),
-            predictions::check_of(strategy, sum, seed).map_or(serde_json::Value::Null, |c| {
-                predictions::aggregation_json(&c, predictions::reference_name(strategy))
-            }),
-        );
-        m.insert(
-            "checks".into(),
-            checks(strategy, sum)
-                .into_iter()
-                .map(|(k, ok)| json!({"check": k, "holds": ok}))
-                .collect(),
-        );
-    }
-    v
 }
 
 /// Predicted vs simulated, one row per quantity.

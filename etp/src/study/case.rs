@@ -14,12 +14,11 @@ use crate::front::write_front;
 use crate::mdp_build::{MdpRequest, build_mdp};
 use crate::output::write_new;
 use crate::predictions::checks;
-use crate::progress;
-use crate::selection::{DEFAULT_LEVEL, goal_label, standing_strategy};
+use crate::selection::{RequestSettings, meet_goal};
 use crate::synthesis_dir::Synthesis;
 use anyhow::{Context, Result};
 use etp_shared::strategy::Strategy;
-use etp_synthesis::predict::request::{Goal, LoopSettings};
+use etp_synthesis::predict::request::Goal;
 use etp_synthesis::validate::simulate_strategy;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -165,33 +164,13 @@ fn request(
         min_target,
         max_collision: r.max_collision,
     };
-    let label = goal_label(goal, None);
-    let make = |omega: &etp_synthesis::pareto::policy::RandomisedPolicy,
-                value: etp_synthesis::pareto::policy::Objectives| {
-        syn.strategy_of(&syn.mdp, omega, value, &label)
+    let settings = RequestSettings {
+        replicates: s.replicates,
+        rounds: s.rounds,
+        confidence: None,
+        aggregation_check: s.aggregation_check,
     };
-    let pb = progress::bar(0, "rebuilds", true);
-    let outcome = syn.meet(
-        &syn.mdp,
-        goal,
-        LoopSettings {
-            replicates: s.replicates,
-            max_rounds: s.rounds,
-            certified: None,
-        },
-        DEFAULT_LEVEL,
-        &make,
-        &pb,
-    )?;
-    let (strategy, _) = standing_strategy(
-        syn,
-        &syn.mdp,
-        &outcome,
-        &outcome.certified,
-        DEFAULT_LEVEL,
-        s.aggregation_check,
-        true,
-    )?;
+    let (outcome, strategy, _) = meet_goal(syn, goal, &settings, true)?;
     let file = format!("strategy-{k}.json");
     let path = syn.dir.join(&file);
     write_new(&path, strategy.to_json().as_bytes(), true)?;

@@ -199,6 +199,7 @@ fn synthetic() -> Contents {
             topic: topic.into(),
             log_time: t,
             data,
+            encoding: Some(recording::Encoding::Protobuf),
         });
     };
     let enc = |r: Result<Vec<u8>, recording::RecordingError>| r.expect("encodes");

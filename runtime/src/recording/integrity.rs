@@ -20,15 +20,31 @@ pub const META_RUN_SCENARIO_HASH: &str = "scenario_hash";
 /// started by hand without `--meta`).
 pub fn check_metadata(c: &Contents) -> Result<Option<Scenario>, RecordingError> {
     let bad = |m: String| Err(RecordingError::Metadata(m));
-    if let Some(v) = c.meta(META_RUN, "format_version")
-        && v != super::FORMAT_VERSION
-    {
-        return bad(format!(
-            "format version {v}: this etp reads format {} (format 2 and older sent the agent's \
-             prior every step; 3 a handover per leg and the sensor's replica digest in `slot`; since 4 \
-             the radio's attempts, deliveries and losses in `slot` and `ledger`)",
-            super::FORMAT_VERSION
-        ));
+    if let Some(v) = c.meta(META_RUN, "format_version") {
+        let expected = match v {
+            super::FORMAT_VERSION => super::Encoding::Protobuf,
+            super::LEGACY_FORMAT_VERSION => super::Encoding::Bincode,
+            _ => {
+                return bad(format!(
+                    "format version {v}: this etp reads formats {} and {} (format 2 and older sent \
+                     the agent's prior every step; 3 a handover per leg and the sensor's replica \
+                     digest in `slot`; since 4 the radio's attempts, deliveries and losses in \
+                     `slot` and `ledger`; 5 the same messages in protobuf)",
+                    super::LEGACY_FORMAT_VERSION,
+                    super::FORMAT_VERSION
+                ));
+            }
+        };
+        // Every etp channel is in its format's encoding (a file whose
+        // metadata and channels disagree was assembled by hand).
+        for (topic, encoding) in &c.encodings {
+            if super::kind_of_topic(topic).is_some() && encoding != expected.name() {
+                return bad(format!(
+                    "format {v} has `{}` channels, but `{topic}` is `{encoding}`",
+                    expected.name()
+                ));
+            }
+        }
     }
     let Some(text) = c.meta(META_SCENARIO, "toml") else {
         if c.meta(META_RUN, META_RUN_SCENARIO_HASH).is_some()
@@ -159,5 +175,39 @@ mod tests {
         let mut orphan = contents(text, Some(&s.content_hash), None);
         orphan.metadata.remove(META_SCENARIO);
         assert!(check_metadata(&orphan).is_err());
+    }
+
+    #[test]
+    fn the_format_version_names_the_channels_encoding() {
+        use crate::recording::{
+            FORMAT_VERSION, LEGACY_FORMAT_VERSION, LEGACY_MESSAGE_ENCODING, MESSAGE_ENCODING,
+        };
+        let file = |version: &str, encoding: &str| {
+            let mut c = Contents::default();
+            c.metadata.insert(
+                META_RUN.into(),
+                BTreeMap::from([("format_version".to_string(), version.to_string())]),
+            );
+            c.encodings.insert("measurement".into(), encoding.into());
+            // Another writer's channel is not etp's to check.
+            c.encodings.insert("/camera".into(), "cdr".into());
+            c
+        };
+        assert!(check_metadata(&file(FORMAT_VERSION, MESSAGE_ENCODING)).is_ok());
+        assert!(check_metadata(&file(LEGACY_FORMAT_VERSION, LEGACY_MESSAGE_ENCODING)).is_ok());
+        for (v, e) in [
+            (FORMAT_VERSION, LEGACY_MESSAGE_ENCODING),
+            (LEGACY_FORMAT_VERSION, MESSAGE_ENCODING),
+        ] {
+            let err = check_metadata(&file(v, e)).expect_err("mixed").to_string();
+            assert!(err.contains("`measurement`"), "{err}");
+        }
+        let err = check_metadata(&file("6", MESSAGE_ENCODING))
+            .expect_err("a newer format")
+            .to_string();
+        assert!(
+            err.contains("format version 6") && err.contains("formats 4 and 5"),
+            "{err}"
+        );
     }
 }

@@ -4,12 +4,18 @@
 //!
 //! * One channel per publish-subscribe service; its topic is the service name
 //!   without the `etp/<run-id>/` prefix (`measurement`, `sensor/0/truth`, …).
-//! * Message encoding [`MESSAGE_ENCODING`]: bincode 2.0.1 through serde with
-//!   `config::legacy()` (fixed-width little-endian integers, so any reader can
-//!   `struct.unpack` a payload: the field order is that of the `#[repr(C)]`
-//!   struct, padding fields included).
-//! * Schema encoding [`SCHEMA_ENCODING`]: the schema data is a text listing of
-//!   the fields (`name: type`), named after the iceoryx2 type name.
+//! * Format 5 (written since issue 43): message encoding `protobuf`, schema
+//!   encoding `protobuf`, schema name `etp.<Kind>`, schema data a serialized
+//!   `FileDescriptorSet` built from the payload type (`wire::proto`), so any
+//!   MCAP tool decodes every channel (Foxglove, the `mcap` CLIs,
+//!   `mcap-protobuf-support`). [`protobuf`] is the codec.
+//! * Format 4 and older (still read): message encoding
+//!   [`LEGACY_MESSAGE_ENCODING`], bincode 2.0.1 through serde with
+//!   `config::legacy()` (fixed-width little-endian integers, the field order
+//!   of the `#[repr(C)]` struct, padding included), schema encoding
+//!   [`LEGACY_SCHEMA_ENCODING`] (a text listing of the fields). Every
+//!   message is decoded by its channel's encoding ([`Encoding`]), so both
+//!   formats go through the same readers.
 //! * Metadata records: [`META_RUN`] (format version, software version, run
 //!   id, seed, episodes, scenario name, scenario content hash
 //!   [`META_RUN_SCENARIO_HASH`]), [`META_SCENARIO`] (`toml`),
@@ -25,6 +31,7 @@ use crate::wire::sensor_to_agent as s2a;
 mod integrity;
 mod layout;
 pub mod ports;
+pub mod protobuf;
 mod read;
 pub mod table;
 mod verify;
@@ -41,14 +48,21 @@ pub use verify::{Mismatch, PriorTable, VerifyReport, priors, verify};
 /// payload's size and Python `struct` format (readers need neither). 4: the
 /// lossy radio (docs/MODEL.md §8): `slot` carries the slot's `attempts` and
 /// `delivered`, `ledger` triggers, delivered and lost, and the agent's
-/// `sensor/<i>/ack` is recorded.
-pub const FORMAT_VERSION: &str = "4";
+/// `sensor/<i>/ack` is recorded. 5: the same messages encoded as protobuf
+/// with `FileDescriptorSet` schemas (issue 43); format 4 is still read.
+pub const FORMAT_VERSION: &str = "5";
+/// The last format whose channels are bincode ([`LEGACY_MESSAGE_ENCODING`]).
+pub const LEGACY_FORMAT_VERSION: &str = "4";
 /// MCAP profile string.
 pub const PROFILE: &str = "etpareto";
-/// Message encoding of every channel.
-pub const MESSAGE_ENCODING: &str = crate::wire::catalogue::PAYLOAD_ENCODING;
-/// Schema encoding of every schema.
-pub const SCHEMA_ENCODING: &str = "etp-field-list";
+/// Message encoding of every channel (format 5).
+pub const MESSAGE_ENCODING: &str = "protobuf";
+/// Schema encoding of every schema (format 5).
+pub const SCHEMA_ENCODING: &str = "protobuf";
+/// Message encoding of format 4 and older (and of the bridge's link).
+pub const LEGACY_MESSAGE_ENCODING: &str = crate::wire::catalogue::PAYLOAD_ENCODING;
+/// Schema encoding of format 4 and older.
+pub const LEGACY_SCHEMA_ENCODING: &str = "etp-field-list";
 /// Metadata record names.
 pub const META_RUN: &str = "etp.run";
 pub const META_SCENARIO: &str = "etp.scenario";
@@ -101,6 +115,101 @@ pub fn kind_of_topic(topic: &str) -> Option<Kind> {
     service_of_topic(topic)?.kind()
 }
 
+/// How a channel's payloads are encoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Encoding {
+    /// `protobuf` (format 5): what the recorder writes.
+    Protobuf,
+    /// `bincode2-serde-legacy` (format 4 and older; the bridge's link).
+    Bincode,
+}
+
+impl Encoding {
+    /// The encoding of a channel's `message_encoding`; `None` for one etp
+    /// does not write (a channel of another MCAP writer).
+    pub fn of(message_encoding: &str) -> Option<Self> {
+        match message_encoding {
+            MESSAGE_ENCODING => Some(Self::Protobuf),
+            LEGACY_MESSAGE_ENCODING => Some(Self::Bincode),
+            _ => None,
+        }
+    }
+
+    /// The channel's `message_encoding`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Protobuf => MESSAGE_ENCODING,
+            Self::Bincode => LEGACY_MESSAGE_ENCODING,
+        }
+    }
+
+    /// The schema encoding and data of a channel of `kind` in this encoding.
+    pub fn schema(self, kind: Kind) -> Result<(String, &'static str, Vec<u8>), RecordingError> {
+        Ok(match self {
+            Self::Protobuf => (
+                kind.proto_name(),
+                SCHEMA_ENCODING,
+                kind.proto_schema()
+                    .map_err(RecordingError::Encode)?
+                    .to_vec(),
+            ),
+            Self::Bincode => (
+                kind.schema_name().to_string(),
+                LEGACY_SCHEMA_ENCODING,
+                kind.schema_text().into_bytes(),
+            ),
+        })
+    }
+
+    /// Encode one payload.
+    pub fn encode<T: crate::wire::Message>(self, payload: &T) -> Result<Vec<u8>, RecordingError> {
+        match self {
+            Self::Protobuf => {
+                protobuf::encode(payload).map_err(|e| RecordingError::Encode(e.to_string()))
+            }
+            Self::Bincode => bincode::serde::encode_to_vec(payload, cfg())
+                .map_err(|e| RecordingError::Encode(e.to_string())),
+        }
+    }
+
+    /// Encode one decoded payload, whatever its kind.
+    pub fn encode_recorded(self, r: &Recorded) -> Result<Vec<u8>, RecordingError> {
+        struct Enc<'a>(Encoding, &'a Recorded);
+        impl crate::wire::KindVisitor for Enc<'_> {
+            type Out = Result<Vec<u8>, RecordingError>;
+            fn visit<T: crate::wire::Message>(self) -> Self::Out {
+                let v = T::from_recorded(self.1.clone()).ok_or_else(|| {
+                    RecordingError::Encode(format!("a {:?} payload", self.1.kind()))
+                })?;
+                self.0.encode(&v)
+            }
+        }
+        r.kind().visit(Enc(self, r))
+    }
+
+    /// Decode one payload of a channel (THE decoder of the recording).
+    pub fn decode(self, topic: &str, data: &[u8]) -> Result<Recorded, RecordingError> {
+        struct Decode<'a>(Encoding, &'a str, &'a [u8]);
+        impl crate::wire::KindVisitor for Decode<'_> {
+            type Out = Result<Recorded, RecordingError>;
+            fn visit<T: crate::wire::Message>(self) -> Self::Out {
+                let r = match self.0 {
+                    Encoding::Protobuf => protobuf::decode::<T>(self.2).map_err(|e| e.to_string()),
+                    Encoding::Bincode => dec::<T>(self.2),
+                };
+                r.map(T::into_recorded)
+                    .map_err(|reason| RecordingError::Decode {
+                        topic: self.1.to_string(),
+                        reason,
+                    })
+            }
+        }
+        let kind =
+            kind_of_topic(topic).ok_or_else(|| RecordingError::UnknownTopic(topic.into()))?;
+        kind.visit(Decode(self, topic, data))
+    }
+}
+
 fn cfg() -> bincode::config::Configuration<
     bincode::config::LittleEndian,
     bincode::config::Fixint,
@@ -109,35 +218,24 @@ fn cfg() -> bincode::config::Configuration<
     bincode::config::legacy()
 }
 
-/// Encode one payload (THE encoder of the recording).
-pub fn encode<T: serde::Serialize>(payload: &T) -> Result<Vec<u8>, RecordingError> {
-    bincode::serde::encode_to_vec(payload, cfg()).map_err(|e| RecordingError::Encode(e.to_string()))
+/// Encode one payload as the recorder writes it (format 5, protobuf).
+pub fn encode<T: crate::wire::Message>(payload: &T) -> Result<Vec<u8>, RecordingError> {
+    Encoding::Protobuf.encode(payload)
 }
 
-fn dec<T: serde::de::DeserializeOwned>(topic: &str, data: &[u8]) -> Result<T, RecordingError> {
-    let err = |reason: String| RecordingError::Decode {
-        topic: topic.to_string(),
-        reason,
-    };
-    let (v, used) =
-        bincode::serde::decode_from_slice(data, cfg()).map_err(|e| err(e.to_string()))?;
+fn dec<T: serde::de::DeserializeOwned>(data: &[u8]) -> Result<T, String> {
+    let (v, used) = bincode::serde::decode_from_slice(data, cfg()).map_err(|e| e.to_string())?;
     if used != data.len() {
-        return Err(err(format!("{} trailing bytes", data.len() - used)));
+        return Err(format!("{} trailing bytes", data.len() - used));
     }
     Ok(v)
 }
 
-/// Decode one payload of a channel (THE decoder of the recording).
+/// Decode one payload of a channel in the current format (protobuf); a
+/// message read from a file is decoded by its own channel's encoding
+/// ([`RawMessage::decode`]).
 pub fn decode(topic: &str, data: &[u8]) -> Result<Recorded, RecordingError> {
-    struct Decode<'a>(&'a str, &'a [u8]);
-    impl crate::wire::KindVisitor for Decode<'_> {
-        type Out = Result<Recorded, RecordingError>;
-        fn visit<T: crate::wire::Message>(self) -> Self::Out {
-            dec::<T>(self.0, self.1).map(T::into_recorded)
-        }
-    }
-    let kind = kind_of_topic(topic).ok_or_else(|| RecordingError::UnknownTopic(topic.into()))?;
-    kind.visit(Decode(topic, data))
+    Encoding::Protobuf.decode(topic, data)
 }
 
 #[cfg(test)]
@@ -178,20 +276,34 @@ mod tests {
             sequence: 4,
             y: [0.25, -1.5, 0.0, 0.0, 0.0, 0.0],
         };
+        for enc in [Encoding::Protobuf, Encoding::Bincode] {
+            let bytes = enc.encode(&m).expect("encode");
+            if enc == Encoding::Bincode {
+                // Fixed-width legacy encoding: header (8+8+4·4) + 2·4 + 6·8 bytes.
+                assert_eq!(bytes.len(), 32 + 8 + 48);
+            }
+            assert_eq!(
+                enc.decode("measurement", &bytes).expect("decode"),
+                Recorded::Measurement(m)
+            );
+            let mut long = bytes.clone();
+            long.push(0);
+            assert!(matches!(
+                enc.decode("measurement", &long),
+                Err(RecordingError::Decode { .. })
+            ));
+            assert!(
+                enc.decode("measurement", &bytes[..bytes.len() - 1])
+                    .is_err()
+            );
+            // One format's bytes are not the other's.
+            let other = match enc {
+                Encoding::Protobuf => Encoding::Bincode,
+                Encoding::Bincode => Encoding::Protobuf,
+            };
+            assert!(other.decode("measurement", &bytes).is_err(), "{enc:?}");
+        }
         let bytes = encode(&m).expect("encode");
-        // Fixed-width legacy encoding: header (8+8+4·4) + 2·4 + 6·8 bytes.
-        assert_eq!(bytes.len(), 32 + 8 + 48);
-        assert_eq!(
-            decode("measurement", &bytes).expect("decode"),
-            Recorded::Measurement(m)
-        );
-        let mut long = bytes.clone();
-        long.push(0);
-        assert!(matches!(
-            decode("measurement", &long),
-            Err(RecordingError::Decode { .. })
-        ));
-        assert!(decode("measurement", &bytes[..bytes.len() - 1]).is_err());
         assert!(matches!(
             decode("sensor/9/wake", &bytes),
             Err(RecordingError::UnknownTopic(_))

@@ -2,27 +2,53 @@
 //! yields the payloads encoded in the recording's encoding, and a publisher
 //! that takes them decoded. The recorder (encoded subscribers), `etp replay
 //! --publish` (publishers) and the Zenoh bridge (both: what crosses a host
-//! boundary is exactly the bytes a recording holds) open their ports here.
+//! boundary is a payload encoded as format-4 recordings held it, bincode,
+//! whose fixed sizes the traffic counts use) open their ports here.
 
-use super::{RecordingError, encode};
+use super::{Encoding, RecordingError};
 use crate::wire::{
     Header, Kind, KindVisitor, Message, PortError, Ports, Recorded, ServiceId, WireError,
 };
 
 /// A subscriber of one service, whatever its payload type.
 pub trait EncodedSubscriber {
-    /// Append every waiting payload, encoded, with its header.
-    fn drain(&self, out: &mut Vec<(Header, Vec<u8>)>) -> Result<(), RecordingError>;
+    /// Append every waiting payload, decoded (a copy: cheap), so a reader
+    /// that encodes slowly (the recorder: protobuf) empties the service's
+    /// queue first and encodes afterwards.
+    fn take(&self, out: &mut Vec<Recorded>) -> Result<(), RecordingError>;
+
+    /// Append every waiting payload, encoded in `encoding` (the recorder:
+    /// protobuf; the bridge's link: bincode), with its header.
+    fn drain(
+        &self,
+        encoding: Encoding,
+        out: &mut Vec<(Header, Vec<u8>)>,
+    ) -> Result<(), RecordingError>;
 }
 
 impl<T: Message> EncodedSubscriber for crate::wire::Sub<T> {
-    fn drain(&self, out: &mut Vec<(Header, Vec<u8>)>) -> Result<(), RecordingError> {
+    fn take(&self, out: &mut Vec<Recorded>) -> Result<(), RecordingError> {
         while let Some(s) = self
             .receive()
             .map_err(|e| PortError::receive("subscriber", e))?
         {
             let v: T = *s;
-            out.push((*v.header(), encode(&v)?));
+            out.push(v.into_recorded());
+        }
+        Ok(())
+    }
+
+    fn drain(
+        &self,
+        encoding: Encoding,
+        out: &mut Vec<(Header, Vec<u8>)>,
+    ) -> Result<(), RecordingError> {
+        while let Some(s) = self
+            .receive()
+            .map_err(|e| PortError::receive("subscriber", e))?
+        {
+            let v: T = *s;
+            out.push((*v.header(), encoding.encode(&v)?));
         }
         Ok(())
     }

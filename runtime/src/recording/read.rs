@@ -10,6 +10,22 @@ pub struct RawMessage {
     pub topic: String,
     pub log_time: u64,
     pub data: Vec<u8>,
+    /// Its channel's encoding, `None` for one etp does not write.
+    pub encoding: Option<super::Encoding>,
+}
+
+impl RawMessage {
+    /// Decode the payload by its channel's encoding (format 5 protobuf, or
+    /// format 4 bincode).
+    pub fn decode(&self) -> Result<super::Recorded, RecordingError> {
+        match self.encoding {
+            Some(e) => e.decode(&self.topic, &self.data),
+            None => Err(RecordingError::Decode {
+                topic: self.topic.clone(),
+                reason: "its channel's message encoding is not one etp writes".into(),
+            }),
+        }
+    }
 }
 
 /// Everything a (possibly unfinished) recording holds, in file order.
@@ -306,7 +322,7 @@ fn collect<E: From<RecordingError>>(
 ) -> Result<bool, E> {
     use mcap::records::Record;
     let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
-    let mut topics: BTreeMap<u16, String> = BTreeMap::new();
+    let mut topics: BTreeMap<u16, (String, Option<super::Encoding>)> = BTreeMap::new();
     let mut data_end = false;
     let mut footer = false;
     for rec in reader {
@@ -330,10 +346,11 @@ fn collect<E: From<RecordingError>>(
                 out.channels.insert(c.topic.clone(), schema);
                 out.encodings
                     .insert(c.topic.clone(), c.message_encoding.clone());
-                topics.insert(c.id, c.topic);
+                let encoding = super::Encoding::of(&c.message_encoding);
+                topics.insert(c.id, (c.topic, encoding));
             }
             Record::Message { header, data } => {
-                let Some(topic) = topics.get(&header.channel_id) else {
+                let Some((topic, encoding)) = topics.get(&header.channel_id) else {
                     out.truncated = Some(format!(
                         "message on unknown channel id {}",
                         header.channel_id
@@ -345,6 +362,7 @@ fn collect<E: From<RecordingError>>(
                     topic: topic.clone(),
                     log_time: header.log_time,
                     data: data.into_owned(),
+                    encoding: *encoding,
                 })?;
             }
             Record::Metadata(m) => {

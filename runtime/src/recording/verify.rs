@@ -35,7 +35,7 @@
 //! does not hold. An episode cut by the end of an unfinished file is checked
 //! up to its last complete slot and counted as incomplete.
 
-use super::{META_RUN, META_SCENARIO, Recorded, RecordingError, decode, read::Contents};
+use super::{META_RUN, META_SCENARIO, Recorded, RecordingError, read::Contents};
 use crate::wire::agent_to_coordinator::{Outcome, Waypoint};
 use crate::wire::agent_to_sensor::{Handover, Truth};
 use crate::wire::coordinator_to_agent::Control;
@@ -161,7 +161,7 @@ fn group(c: &Contents) -> Result<(BTreeMap<u64, EpisodeRecord>, u64), RecordingE
     let mut eps: BTreeMap<u64, EpisodeRecord> = BTreeMap::new();
     let mut last_of_stream: BTreeMap<(&str, u32), u64> = BTreeMap::new();
     for m in &c.messages {
-        let rec = decode(&m.topic, &m.data)?;
+        let rec = m.decode()?;
         let header = match &rec {
             Recorded::Control(x) => Some(x.header),
             Recorded::Threshold(x) => Some(x.header),

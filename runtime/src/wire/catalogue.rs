@@ -467,9 +467,11 @@ catalogue! {
     }
 }
 
-/// How payloads are encoded in a recording: bincode 2.0.1 through serde with
-/// `config::legacy()` (fixed-width little-endian integers, fields in the
-/// order of the `#[repr(C)]` struct, padding fields included).
+/// How payloads are encoded on the bridge's link and in recordings of
+/// format 4 and older: bincode 2.0.1 through serde with `config::legacy()`
+/// (fixed-width little-endian integers, fields in the order of the
+/// `#[repr(C)]` struct, padding fields included). Recordings are protobuf
+/// since format 5 (`super::proto`, `crate::recording`).
 pub const PAYLOAD_ENCODING: &str = "bincode2-serde-legacy";
 
 /// Codes of the header, common to every kind.

@@ -35,6 +35,7 @@ pub mod limits;
 pub mod liveness;
 pub mod messages;
 pub mod ports;
+pub mod proto;
 pub mod run_id;
 pub mod schema;
 pub mod services;

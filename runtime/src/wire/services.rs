@@ -299,5 +299,6 @@ mod tests {
             crate::recording::decode("sensor/4/probe", &bytes).expect("decodes"),
             super::super::Recorded::Probe(p)
         );
+        assert_eq!(Kind::Probe.proto_name(), "etp.Probe");
     }
 }

@@ -20,15 +20,18 @@ pub fn link_class(s: ServiceId) -> Option<(Class, Direction)> {
     Some((row.link.class()?, row.forward.direction()?.0))
 }
 
-/// Bytes of one encoded payload of `kind` (fixed: every payload is a
-/// fixed-size struct and the encoding uses fixed-width integers).
+/// Bytes of one encoded payload of `kind` on the sensor link (fixed: every
+/// payload is a fixed-size struct and the link's bincode encoding uses
+/// fixed-width integers; a recording's protobuf is not fixed-size).
 pub fn encoded_size(kind: Kind) -> usize {
     struct Size;
     impl KindVisitor for Size {
         type Out = usize;
         fn visit<T: Message>(self) -> usize {
             // A default payload encodes to the same length as any other.
-            crate::recording::encode(&T::default()).map_or(0, |b| b.len())
+            crate::recording::Encoding::Bincode
+                .encode(&T::default())
+                .map_or(0, |b| b.len())
         }
     }
     kind.visit(Size)

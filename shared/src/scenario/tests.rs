@@ -203,6 +203,24 @@ fn thresholds_must_be_non_negative_and_distinct() {
     refused(&t, "triggering.deltas", "");
 }
 
+/// A threshold or cost written as −0 is +0 from the start: the same value,
+/// and one the recording's protobuf keeps bit for bit (proto3 drops zero
+/// scalars, so a −0 would come back as +0).
+#[test]
+fn a_negative_zero_threshold_or_cost_is_plus_zero() {
+    let t = replace_once(
+        &winding(),
+        "deltas = [0.0, 1.0518",
+        "deltas = [-0.0, 1.0518",
+    );
+    let s = Scenario::from_toml(&t).expect("−0 is a threshold");
+    assert_eq!(s.deltas[0].to_bits(), 0.0f64.to_bits());
+    let cost = s.sensors[0].cost;
+    let t = t.replacen(&format!("cost = {cost:?}"), "cost = -0.0", 1);
+    let s = Scenario::from_toml(&t).expect("−0 is a cost");
+    assert_eq!(s.sensors[0].cost.to_bits(), 0.0f64.to_bits());
+}
+
 #[test]
 fn duplicate_sensor_names() {
     let t = replace_once(&winding(), "name = \"s1\"", "name = \"s0\"");

@@ -125,7 +125,7 @@ pub(crate) fn validate(mut raw: RawScenario) -> Result<Scenario> {
                 ),
             ));
         }
-        let cost = s.cost;
+        let cost = s.cost + 0.0; // −0 as +0 (see the thresholds below)
         if !cost.is_finite() || cost < 0.0 {
             return Err(ScenarioError::invalid(
                 format!("{at}.cost"),
@@ -207,7 +207,10 @@ pub(crate) fn validate(mut raw: RawScenario) -> Result<Scenario> {
 
     let target = aabb("target", &raw.target, &point)?;
 
-    let deltas = raw.triggering.deltas.clone();
+    // `+ 0.0` turns a −0 into +0 and leaves every other value's bits: a
+    // threshold or cost of −0 would otherwise reach the wire as −0, which
+    // the recording's protobuf (proto3 drops zero scalars) cannot keep.
+    let deltas: Vec<f64> = raw.triggering.deltas.iter().map(|d| d + 0.0).collect();
     if deltas.is_empty() {
         return Err(ScenarioError::invalid(
             "triggering.deltas",

@@ -137,3 +137,24 @@ fn etp_command_modules_import_no_other_command() {
         found.join("\n")
     );
 }
+
+/// The Python package calls the library crates (the pipeline's steps in
+/// `etp-pipeline`), never the CLI's crate: what it offers is what a library
+/// offers, and `etp`'s command line can change without breaking it.
+#[test]
+fn the_python_package_links_the_libraries_not_the_cli() {
+    let deps = normal_dependencies("etpareto-py");
+    for needed in ["etp-pipeline", "etp-synthesis", "etp-launcher", "pyo3"] {
+        assert!(deps.iter().any(|d| d == needed), "etpareto-py: {deps:?}");
+    }
+    assert!(
+        !deps.iter().any(|d| d == "etp"),
+        "etpareto-py links the CLI crate etp: {deps:?}"
+    );
+    // Nor does the pipeline: the CLI depends on it, not the other way.
+    let pipeline = normal_dependencies("etp-pipeline");
+    assert!(
+        !pipeline.iter().any(|d| d == "etp"),
+        "etp-pipeline: {pipeline:?}"
+    );
+}

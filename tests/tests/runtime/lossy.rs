@@ -31,21 +31,21 @@ fn sum(v: &Value, k: &str) -> u64 {
 }
 
 /// Per-channel message counts of a recording, by the Python `mcap` reader,
-/// and the sum of `slot.attempts` decoded from the payload by the schema's
-/// `struct` format (header 32 B, then delivered u32, attempts u32).
+/// and the sum of `slot.attempts` decoded from the payload by Foxglove's
+/// protobuf decoder with the schema the file carries.
 fn python_attempts(file: &Path) -> Value {
     let script = r#"
-import sys, json, struct
+import sys, json
 from mcap.reader import make_reader
+from mcap_protobuf.decoder import DecoderFactory
 with open(sys.argv[1], "rb") as f:
-    r = make_reader(f)
+    r = make_reader(f, decoder_factories=[DecoderFactory()])
     counts, attempts, delivered = {}, 0, 0
-    for schema, channel, message in r.iter_messages():
+    for schema, channel, message, m in r.iter_decoded_messages():
         counts[channel.topic] = counts.get(channel.topic, 0) + 1
         if channel.topic == "slot":
-            d, a = struct.unpack_from("<II", message.data, 32)
-            attempts += a
-            delivered += d
+            attempts += m.attempts
+            delivered += m.delivered
     print(json.dumps({"counts": counts, "attempts": attempts, "delivered": delivered}))
 "#;
     python_json(script, file)

@@ -47,7 +47,7 @@ pub fn write_front(
     let scenario_path = dir.join("scenario.toml");
     write_new(&scenario_path, scenario_text.as_bytes(), true)?;
     let stem = dir.join("front");
-    if crate::dist::is_root() {
+    if crate::exec::is_root() {
         etp_figures::front_plot(&front, &stem)?;
     }
     Ok(FrontReport {

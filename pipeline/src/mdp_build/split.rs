@@ -115,7 +115,7 @@ pub fn apply(
         params,
         first,
         &settings,
-        &crate::dist::work(|k| pb.inc(k)),
+        &crate::exec::work(|k| pb.inc(k)),
         &mut |r| {
             rounds.push(TimedRound {
                 round: r.clone(),

@@ -10,7 +10,7 @@ pub use etp_recording_tools::files::output_folder;
 /// `refuse_existing` of `etp_recording_tools::files` on rank 0 only: in an
 /// MPI job rank 0 may already have written the file another rank checks.
 pub fn refuse_existing(path: &Path, force: bool) -> Result<()> {
-    if !crate::dist::is_root() {
+    if !crate::exec::is_root() {
         return Ok(());
     }
     etp_recording_tools::files::refuse_existing(path, force)
@@ -20,7 +20,7 @@ pub fn refuse_existing(path: &Path, force: bool) -> Result<()> {
 /// rank 0 only: in an MPI job the other ranks hold the same bytes and write
 /// nothing.
 pub fn write_new(path: &Path, bytes: &[u8], force: bool) -> Result<()> {
-    if !crate::dist::is_root() {
+    if !crate::exec::is_root() {
         return Ok(());
     }
     etp_recording_tools::files::write_new(path, bytes, force)

@@ -157,14 +157,14 @@ pub fn build_mdp(r: MdpRequest) -> Result<BuiltMdp> {
     let pb = progress::bar(abstraction::progress_total(&s, &p), "synthesize", quiet);
     let started = Instant::now();
     let mdp = match &pool_policy {
-        None => abstraction::build(&s, &p, &crate::dist::work(|k| pb.inc(k))),
+        None => abstraction::build(&s, &p, &crate::exec::work(|k| pb.inc(k))),
         Some(st) => abstraction::build_on_policy(
             &s,
             &p,
             &st.policy,
             true,
             !all_actions,
-            &crate::dist::work(|k| pb.inc(k)),
+            &crate::exec::work(|k| pb.inc(k)),
         ),
     }
     .context("building the abstraction")?;

@@ -25,7 +25,7 @@ pub fn measure(
     }
     let pb = progress::bar(episodes, "aggregation check", json);
     let started = std::time::Instant::now();
-    let work = crate::dist::work(|k| pb.inc(k));
+    let work = crate::exec::work(|k| pb.inc(k));
     let r = aggregation::measure(scenario, mdp, episodes, mdp.seed, alpha, &work)?;
     pb.finish_and_clear();
     Ok(r.map(|r| (r, started.elapsed().as_secs_f64())))

@@ -131,7 +131,7 @@ impl Synthesis {
             replicates,
             self.cost(),
             Vec::new(),
-            &crate::dist::work(|k| pb.inc(k)),
+            &crate::exec::work(|k| pb.inc(k)),
         )?;
         let certified = on_policy.certify_first(level, self.cost())?;
         Ok((on_policy, certified))
@@ -162,7 +162,7 @@ impl Synthesis {
             level,
             make,
             &|n| pb.inc_length(u64::from(n) * units),
-            &crate::dist::work(|k| pb.inc(k)),
+            &crate::exec::work(|k| pb.inc(k)),
         )?)
     }
 }

@@ -69,7 +69,7 @@ pub fn aggregation_check(
         &strategy.policy,
         episodes,
         AGGREGATION_CHECK_SEED,
-        &crate::dist::work(|k| pb.inc(k)),
+        &crate::exec::work(|k| pb.inc(k)),
     )?
     .summary();
     pb.finish_and_clear();

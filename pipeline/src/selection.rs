@@ -125,3 +125,74 @@ pub fn standing_strategy(
     }
     Ok((strategy, unmatched))
 }
+
+/// How a request is met: `etp strategy DIR --min-target P`'s options
+/// (defaults: [`Default`]).
+#[derive(Debug, Clone, Copy)]
+pub struct RequestSettings {
+    /// On-policy rebuilds of each prediction (`--replicates`).
+    pub replicates: u32,
+    /// Rounds of the request loop at most (`--rounds`).
+    pub rounds: u32,
+    /// Select on certified bounds at this level (`--confidence`; a
+    /// `MinTarget` goal only); without it the bounds are reported at
+    /// [`DEFAULT_LEVEL`].
+    pub confidence: Option<f64>,
+    /// Episodes of the selection-time aggregation check (0: none).
+    pub aggregation_check: u64,
+}
+
+impl Default for RequestSettings {
+    fn default() -> Self {
+        Self {
+            replicates: etp_synthesis::predict::rebuild::DEFAULT_REPLICATES,
+            rounds: etp_synthesis::predict::request::DEFAULT_ROUNDS,
+            confidence: None,
+            aggregation_check: predictions::AGGREGATION_CHECK_EPISODES,
+        }
+    }
+}
+
+/// The request loop on `syn`'s MDP for `goal` and the strategy it stands
+/// by (the bytes `etp strategy DIR --min-target P` writes for the same
+/// settings): the outcome, the file, the cross-fit's unmatched mass.
+pub fn meet_goal(
+    syn: &Synthesis,
+    goal: Goal,
+    s: &RequestSettings,
+    quiet: bool,
+) -> Result<(Outcome, Strategy, Option<f64>)> {
+    let level = s.confidence.unwrap_or(DEFAULT_LEVEL);
+    let certified = match goal {
+        Goal::MinTarget { .. } => s.confidence,
+        Goal::MaxEnergy { .. } => None,
+    };
+    let label = goal_label(goal, certified);
+    let make = |omega: &RandomisedPolicy, value: etp_synthesis::pareto::policy::Objectives| {
+        syn.strategy_of(&syn.mdp, omega, value, &label)
+    };
+    let pb = crate::progress::bar(0, "rebuilds", quiet);
+    let outcome = syn.meet(
+        &syn.mdp,
+        goal,
+        etp_synthesis::predict::request::LoopSettings {
+            replicates: s.replicates,
+            max_rounds: s.rounds,
+            certified,
+        },
+        level,
+        &make,
+        &pb,
+    )?;
+    pb.finish_and_clear();
+    let (strategy, unmatched) = standing_strategy(
+        syn,
+        &syn.mdp,
+        &outcome,
+        &outcome.certified,
+        level,
+        s.aggregation_check,
+        quiet,
+    )?;
+    Ok((outcome, strategy, unmatched))
+}

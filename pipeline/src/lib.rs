@@ -1,0 +1,38 @@
+//! etpareto's pipeline as a library: the steps `etp synthesize`, `etp
+//! strategy` and `etp validate` run, callable without the command line —
+//! by the `etp` binary's subcommands (which add arguments and printing) and
+//! by the Python package `etpareto` (`python/`).
+//!
+//! A tour, in the order a user meets them:
+//! * [`synthesize`] — a whole synthesis from a typed [`synthesize::SynthesisRequest`]:
+//!   * [`mdp_build`] — the belief-space MDP by layered Monte Carlo, written
+//!     as `DIR/mdp.bin` ([`mdp_build::split`]: adaptive splitting);
+//!   * [`front`] — the Pareto front, `front.json`, its figure, `scenario.toml`;
+//!   * [`aggregation`] — the aggregation check of the MDP's regions.
+//! * [`synthesis_dir`] — a synthesis folder loaded for selection
+//!   ([`synthesis_dir::Synthesis`]): the request loop (`meet`), predictions
+//!   from on-policy rebuilds.
+//! * [`selection`] — the strategy a request's loop stands by, as its file.
+//! * [`predictions`] — a strategy file's predictions as reports show them,
+//!   the aggregation check, the checks against a simulation.
+//! * [`validation`] — `etp validate`'s JSON and failed checks.
+//! * [`output`] — files written beside and renamed, never over one unasked.
+//! * [`exec`] — the executor the Monte Carlo runs on (threads, or MPI ranks
+//!   `etp` installs); [`progress`] — the steps' bars, and the bar under way
+//!   for a caller that draws progress itself.
+//!
+//! The maths is in `etp-shared` and `etp-synthesis` (pure: no I/O, no
+//! clock); this crate adds files, progress and the executor. Errors are
+//! `anyhow` with context, the same text `etp` prints after `error:`.
+
+pub mod aggregation;
+pub mod exec;
+pub mod front;
+pub mod mdp_build;
+pub mod output;
+pub mod predictions;
+pub mod progress;
+pub mod selection;
+pub mod synthesis_dir;
+pub mod synthesize;
+pub mod validation;
