@@ -1,7 +1,8 @@
 //! `etp run --config RUN.toml`: the launch file of a run. Its keys are the
 //! long flags of `etp run` (`strategy` or `scenario` + `delta`, `episodes`,
 //! `seed`, `record`, `slot_deadline`, `listen` + `remote` sensors, the radio
-//! `loss`, `retries`, `burst`, `estimator`, …); a flag
+//! `loss`, `retries`, `burst`, `estimator`, the live view's `live` and
+//! `live_wait`, …); a flag
 //! given on the command line
 //! wins over the file. Relative paths in the file are relative to the file.
 //! The resolved configuration of every run — file or flags — is stored in the
@@ -95,6 +96,11 @@ run_file_keys! {
     estimator: String => radio.estimator,
     /// The trigger family (`--trigger`, docs/MODEL.md §9).
     trigger: etp_shared::trigger::TriggerFamily => trigger.trigger,
+    /// The live view (`--live ADDR:PORT`, `--live-wait`): how the run is
+    /// watched, not what it computes, so never stored in a recording's
+    /// `etp.config` (a run again from it is not served live).
+    live: std::net::SocketAddr => live,
+    live_wait: bool,
 }
 
 /// Read a run file (errors name the file and the key).
@@ -139,6 +145,7 @@ pub fn resolve(mut a: Args) -> Result<Args> {
         }
         merge_plain(&mut a, &mut c);
         a.allow_degraded |= c.allow_degraded.unwrap_or(false);
+        a.live_wait |= c.live_wait.unwrap_or(false);
         if a.remote.is_empty() {
             a.remote = c.remote.unwrap_or_default();
         }
@@ -210,6 +217,8 @@ pub fn of_args(a: &Args, record: Option<&Path>) -> RunConfig {
         allow_degraded: Some(a.allow_degraded),
         remote: (!a.remote.is_empty()).then(|| a.remote.clone()),
         insecure: a.link.insecure.then_some(true),
+        live: None,
+        live_wait: None,
         ..plain_of_args(a)
     }
 }
@@ -237,6 +246,15 @@ mod tests {
         assert!(e.to_string().contains("episodez"), "{e}");
         let e = toml::from_str::<RunConfig>("episodes = \"ten\"").expect_err("bad type");
         assert!(e.to_string().contains("episodes"), "{e}");
+        let c: RunConfig = toml::from_str("live = \"127.0.0.1:8765\"\nlive_wait = true")
+            .expect("the live view's keys");
+        assert_eq!(
+            c.live,
+            Some(std::net::SocketAddr::from(([127, 0, 0, 1], 8765)))
+        );
+        assert_eq!(c.live_wait, Some(true));
+        let e = toml::from_str::<RunConfig>("live = \"localhost\"").expect_err("no port");
+        assert!(e.to_string().contains("live"), "{e}");
     }
 
     #[test]
@@ -263,5 +281,37 @@ mod tests {
         };
         let back: RunConfig = toml::from_str(&stored(&builtin).expect("stored")).expect("toml");
         assert_eq!(back.scenario.as_deref(), Some("winding-2d"));
+    }
+
+    /// The run file's `live`/`live_wait` serve the run live, and the stored
+    /// record of the run leaves them out.
+    #[test]
+    fn a_run_file_serves_live_and_its_record_does_not() {
+        use clap::Parser;
+        #[derive(clap::Parser)]
+        struct Cmd {
+            #[command(flatten)]
+            a: Args,
+        }
+        let dir = std::env::temp_dir().join(format!("etp-config-live-{}", std::process::id()));
+        std::fs::create_dir(&dir).expect("a fresh folder");
+        let file = dir.join("run.toml");
+        std::fs::write(
+            &file,
+            "scenario = \"open-2d\"\ndelta = 1.0\nlive = \"127.0.0.1:0\"\nlive_wait = true\n",
+        )
+        .expect("run file");
+        let a = Cmd::try_parse_from(["run", "--config", &file.display().to_string()])
+            .expect("flags")
+            .a;
+        let a = resolve(a).expect("resolved");
+        std::fs::remove_dir_all(&dir).expect("clean up");
+        assert_eq!(
+            a.live,
+            Some(std::net::SocketAddr::from(([127, 0, 0, 1], 0)))
+        );
+        assert!(a.live_wait);
+        let text = stored(&of_args(&a, None)).expect("stored");
+        assert!(!text.contains("live"), "{text}");
     }
 }

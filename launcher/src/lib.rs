@@ -274,10 +274,23 @@ pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
             return Err(e);
         }
     };
-    let rt = tokio::runtime::Builder::new_current_thread()
+    let rt = match tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
-        .context("starting the tokio runtime")?;
+        .context("starting the tokio runtime")
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            dir.remove();
+            return Err(e);
+        }
+    };
+    if let Some(v) = &view
+        && let Err(e) = live::wait(a, v, &rt)
+    {
+        dir.remove();
+        return Err(e);
+    }
     let remote = match &a.listen {
         Some(listen) => match remote::remote_indices(&plan, &a.remote) {
             Ok(r) => match a

@@ -303,3 +303,49 @@ fn live_refuses_a_public_address_without_insecure_and_a_port_in_use() {
     assert!(out.is_empty(), "no report: {out}");
     assert!(processes_of_run(&id).is_empty());
 }
+
+/// Ctrl-C while `--live-wait` waits for a client: exit 130, nothing ran, no
+/// report, nothing of the run left (its folder, its iceoryx2 files).
+#[test]
+fn ctrl_c_during_live_wait_ends_the_command_cleanly() {
+    let _serial = serial();
+    let id = unique_run_id("live-wait-int");
+    let mut a = args("2");
+    a.extend(["--live", "127.0.0.1:0", "--live-wait"]);
+    let mut run = EtpRun::spawn(&id, &a);
+    let stderr = run
+        .child
+        .as_mut()
+        .and_then(|c| c.stderr.take())
+        .expect("stderr");
+    let (tx, rx) = std::sync::mpsc::channel();
+    let reader = std::thread::spawn(move || {
+        let mut all = String::new();
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            if line.contains("--live-wait: the episodes start") {
+                let _ = tx.send(());
+            }
+            all.push_str(&line);
+            all.push('\n');
+        }
+        all
+    });
+    rx.recv_timeout(Duration::from_secs(120))
+        .expect("etp run printed that it waits for a client");
+    let pid = run.pid().to_string();
+    let sent = std::process::Command::new("kill")
+        .args(["-INT", &pid])
+        .status()
+        .expect("kill");
+    assert!(sent.success());
+    let (code, out, _) = run.finish_code();
+    let err = reader.join().expect("stderr reader");
+    assert_eq!(code, Some(130), "{err}");
+    assert!(
+        err.contains("interrupted (SIGINT) during --live-wait"),
+        "{err}"
+    );
+    assert!(out.is_empty(), "no report: {out}");
+    assert!(processes_of_run(&id).is_empty());
+    no_leftovers(&id).expect("nothing of the run left");
+}
