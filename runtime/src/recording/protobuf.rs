@@ -89,6 +89,31 @@ struct ListSer {
     items: Vec<Value>,
 }
 
+/// The generic `Serializer` methods no payload uses: refused.
+macro_rules! unsupported_generic_ser {
+    ($ok:ty) => {
+        fn serialize_some<V: ?Sized + Serialize>(self, _: &V) -> Result<$ok, ProtoError> {
+            err("unsupported in a payload: Option")
+        }
+        fn serialize_newtype_struct<V: ?Sized + Serialize>(
+            self,
+            _: &'static str,
+            _: &V,
+        ) -> Result<$ok, ProtoError> {
+            err("unsupported in a payload: newtype struct")
+        }
+        fn serialize_newtype_variant<V: ?Sized + Serialize>(
+            self,
+            _: &'static str,
+            _: u32,
+            _: &'static str,
+            _: &V,
+        ) -> Result<$ok, ProtoError> {
+            err("unsupported in a payload: enum")
+        }
+    };
+}
+
 macro_rules! unsupported_ser {
     ($($m:ident($($t:ty),*) -> $ok:ty;)*) => {
         $(fn $m(self, $(_: $t),*) -> Result<$ok, ProtoError> {
@@ -141,25 +166,7 @@ impl ser::Serializer for MessageSer {
         serialize_struct_variant(&'static str, u32, &'static str, usize) -> Self::SerializeStructVariant;
     }
 
-    fn serialize_some<V: ?Sized + Serialize>(self, _: &V) -> Result<DynamicMessage, ProtoError> {
-        err("unsupported in a payload: Option")
-    }
-    fn serialize_newtype_struct<V: ?Sized + Serialize>(
-        self,
-        _: &'static str,
-        _: &V,
-    ) -> Result<DynamicMessage, ProtoError> {
-        err("unsupported in a payload: newtype struct")
-    }
-    fn serialize_newtype_variant<V: ?Sized + Serialize>(
-        self,
-        _: &'static str,
-        _: u32,
-        _: &'static str,
-        _: &V,
-    ) -> Result<DynamicMessage, ProtoError> {
-        err("unsupported in a payload: enum")
-    }
+    unsupported_generic_ser!(DynamicMessage);
 }
 
 impl ser::SerializeStruct for StructSer {
@@ -273,25 +280,7 @@ impl ser::Serializer for ValueSer {
         serialize_struct_variant(&'static str, u32, &'static str, usize) -> Self::SerializeStructVariant;
     }
 
-    fn serialize_some<V: ?Sized + Serialize>(self, _: &V) -> Result<Value, ProtoError> {
-        err("unsupported in a payload: Option")
-    }
-    fn serialize_newtype_struct<V: ?Sized + Serialize>(
-        self,
-        _: &'static str,
-        _: &V,
-    ) -> Result<Value, ProtoError> {
-        err("unsupported in a payload: newtype struct")
-    }
-    fn serialize_newtype_variant<V: ?Sized + Serialize>(
-        self,
-        _: &'static str,
-        _: u32,
-        _: &'static str,
-        _: &V,
-    ) -> Result<Value, ProtoError> {
-        err("unsupported in a payload: enum")
-    }
+    unsupported_generic_ser!(Value);
 }
 
 /// A nested struct (the header) as a message value.

@@ -39,6 +39,36 @@ fn args(episodes: &str) -> Vec<&str> {
     ]
 }
 
+/// Read the run's stderr on a thread until its end (the thread's result);
+/// wait (at most 120 s, a guard) for the first line containing `marker` and
+/// return it.
+fn watch_stderr(
+    run: &mut EtpRun,
+    marker: &'static str,
+) -> (String, std::thread::JoinHandle<String>) {
+    let stderr = run
+        .child
+        .as_mut()
+        .and_then(|c| c.stderr.take())
+        .expect("stderr");
+    let (tx, rx) = std::sync::mpsc::channel();
+    let reader = std::thread::spawn(move || {
+        let mut all = String::new();
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            if line.contains(marker) {
+                let _ = tx.send(line.clone());
+            }
+            all.push_str(&line);
+            all.push('\n');
+        }
+        all
+    });
+    let line = rx
+        .recv_timeout(Duration::from_secs(120))
+        .unwrap_or_else(|_| panic!("etp run printed no line with {marker:?}"));
+    (line, reader)
+}
+
 /// What the client saw: channels by id (topic, schema name, encoding),
 /// and the messages received per topic.
 #[derive(Default)]
@@ -146,28 +176,16 @@ fn a_foxglove_client_sees_the_scene_and_the_steps_and_the_run_is_unchanged() {
     live_args.extend(["--live", "127.0.0.1:0", "--live-wait"]);
     let mut run = EtpRun::spawn(&id, &live_args);
     // The port, from the line `etp: live view: … ws://127.0.0.1:PORT …`.
-    let stderr = run
-        .child
-        .as_mut()
-        .and_then(|c| c.stderr.take())
-        .expect("stderr");
-    let (tx, rx) = std::sync::mpsc::channel();
-    let reader = std::thread::spawn(move || {
-        let mut all = String::new();
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            if let Some(rest) = line.split("ws://127.0.0.1:").nth(1) {
-                let port: String = rest.chars().take_while(char::is_ascii_digit).collect();
-                let _ = tx.send(port.parse::<u16>().ok());
-            }
-            all.push_str(&line);
-            all.push('\n');
-        }
-        all
-    });
-    let port = rx
-        .recv_timeout(Duration::from_secs(120))
-        .ok()
-        .flatten()
+    let (line, reader) = watch_stderr(&mut run, "ws://127.0.0.1:");
+    let port = line
+        .split("ws://127.0.0.1:")
+        .nth(1)
+        .map(|rest| {
+            rest.chars()
+                .take_while(char::is_ascii_digit)
+                .collect::<String>()
+        })
+        .and_then(|p| p.parse::<u16>().ok())
         .expect("etp run printed the live view's address");
     let sensors = 7;
     let expected: Vec<(String, &str)> = [
@@ -313,25 +331,7 @@ fn ctrl_c_during_live_wait_ends_the_command_cleanly() {
     let mut a = args("2");
     a.extend(["--live", "127.0.0.1:0", "--live-wait"]);
     let mut run = EtpRun::spawn(&id, &a);
-    let stderr = run
-        .child
-        .as_mut()
-        .and_then(|c| c.stderr.take())
-        .expect("stderr");
-    let (tx, rx) = std::sync::mpsc::channel();
-    let reader = std::thread::spawn(move || {
-        let mut all = String::new();
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            if line.contains("--live-wait: the episodes start") {
-                let _ = tx.send(());
-            }
-            all.push_str(&line);
-            all.push('\n');
-        }
-        all
-    });
-    rx.recv_timeout(Duration::from_secs(120))
-        .expect("etp run printed that it waits for a client");
+    let (_, reader) = watch_stderr(&mut run, "--live-wait: the episodes start");
     let pid = run.pid().to_string();
     let sent = std::process::Command::new("kill")
         .args(["-INT", &pid])
