@@ -26,7 +26,7 @@ use prost::Message as _;
 use prost_reflect::{DescriptorPool, MessageDescriptor};
 use prost_types::field_descriptor_proto::{Label, Type};
 use prost_types::{DescriptorProto, FieldDescriptorProto, FileDescriptorProto, FileDescriptorSet};
-use serde_reflection::{ContainerFormat, Format, Registry, Tracer, TracerConfig};
+use serde_reflection::{ContainerFormat, Format, Registry};
 use std::collections::BTreeMap;
 use std::sync::OnceLock;
 
@@ -97,14 +97,7 @@ struct FileOf;
 impl KindVisitor for FileOf {
     type Out = Result<FileDescriptorProto, String>;
     fn visit<T: Message>(self) -> Self::Out {
-        let mut tracer = Tracer::new(TracerConfig::default());
-        tracer.trace_simple_type::<T>().map_err(|e| e.to_string())?;
-        let registry = tracer.registry().map_err(|e| e.to_string())?;
-        let name = std::any::type_name::<T>()
-            .rsplit("::")
-            .next()
-            .unwrap_or_default()
-            .to_string();
+        let (registry, name) = super::schema::traced::<T>()?;
         let full = format!(".{PACKAGE}.{name}");
         let message = message(&registry, &name, &full)?;
         Ok(FileDescriptorProto {

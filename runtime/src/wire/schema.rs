@@ -102,11 +102,26 @@ impl Field {
     }
 }
 
+/// The serde trace of a payload type: its registry of containers and its
+/// own (unqualified) name in it — what the schema text here and the
+/// protobuf descriptors of `wire::proto` are both made from.
+pub(super) fn traced<T: Message>() -> Result<(serde_reflection::Registry, String), String> {
+    let mut tracer = serde_reflection::Tracer::new(serde_reflection::TracerConfig::default());
+    tracer.trace_simple_type::<T>().map_err(|e| e.to_string())?;
+    let registry = tracer.registry().map_err(|e| e.to_string())?;
+    let name = std::any::type_name::<T>()
+        .rsplit("::")
+        .next()
+        .unwrap_or_default()
+        .to_string();
+    Ok((registry, name))
+}
+
 /// The fields of `T` in wire order, nested structs (the header) flattened;
 /// traced from the type's serde implementation, so it is the layout bincode
 /// writes.
 fn fields_of<T: Message>() -> Result<Vec<Field>, String> {
-    use serde_reflection::{ContainerFormat, Format, Tracer, TracerConfig};
+    use serde_reflection::{ContainerFormat, Format};
     fn scalar(f: &Format, shape: &mut Vec<usize>) -> Result<Scalar, String> {
         Ok(match f {
             Format::U8 => Scalar::U8,
@@ -152,14 +167,7 @@ fn fields_of<T: Message>() -> Result<Vec<Field>, String> {
         }
         Ok(())
     }
-    let mut tracer = Tracer::new(TracerConfig::default());
-    tracer.trace_simple_type::<T>().map_err(|e| e.to_string())?;
-    let registry = tracer.registry().map_err(|e| e.to_string())?;
-    let name = std::any::type_name::<T>()
-        .rsplit("::")
-        .next()
-        .unwrap_or_default()
-        .to_string();
+    let (registry, name) = traced::<T>()?;
     let mut out = Vec::new();
     walk(&registry, &name, &[], &mut out)?;
     Ok(out)
