@@ -1,10 +1,13 @@
 //! The front figure: for a few bounds on P_coll, the (energy, P_tar)
 //! frontier of the front's vertices within the bound, with the constant-δ
-//! baselines, the certified front and the Method 1 front.
+//! baselines, the certified front and the Method 1 front; over them, where
+//! `front.json` holds it, the predicted front (the strategies etp returns,
+//! at their predictions with ±).
 
 use crate::{Result, plot_error};
 use etp_synthesis::pareto::ParetoFront;
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -17,10 +20,17 @@ struct FrontFigure<'a>(&'a ParetoFront);
 
 impl super::Figure for FrontFigure<'_> {
     fn title(&self) -> Option<String> {
-        Some(format!(
-            "Pareto front of {}: least expected energy for each P_tar, per bound on P_coll",
-            self.0.scenario_name
-        ))
+        Some(if self.0.predicted.is_empty() {
+            format!(
+                "Pareto front of {} on its MDP (selection-time values): least expected energy for each P_tar, per bound on P_coll",
+                self.0.scenario_name
+            )
+        } else {
+            format!(
+                "Pareto front of {}: the strategies etp returns, predicted on their own beliefs, and the MDP's front",
+                self.0.scenario_name
+            )
+        })
     }
     fn draw<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> Result<()>
     where
@@ -42,6 +52,13 @@ where
         .map(|v| &v.objectives)
         .chain(front.baselines.iter().map(|b| &b.objectives))
         .map(|o| (o.energy, o.p_target, o.p_collision))
+        .chain(front.predicted.iter().flat_map(|c| &c.points).map(|p| {
+            (
+                p.predicted.energy + p.predicted_ci95.energy,
+                p.predicted.p_target - p.predicted_ci95.p_target,
+                p.predicted.p_collision,
+            )
+        }))
         .collect();
     // The certified front (docs/MODEL.md §4.1): its points non-dominated in
     // the (energy, P_tar) plane.
@@ -103,9 +120,9 @@ where
                 .filter(|o| o.p_collision <= *b + 1e-12),
         );
         let label = if *b >= 1.0 {
-            format!("any P_coll ({} points)", curve.len())
+            format!("MDP front, any P_coll ({} vertices)", curve.len())
         } else {
-            format!("P_coll ≤ {b} ({} points)", curve.len())
+            format!("MDP front, P_coll ≤ {b} ({} vertices)", curve.len())
         };
         chart
             .draw_series(LineSeries::new(curve.clone(), colour.stroke_width(2)))
@@ -173,7 +190,92 @@ where
             .label("Method 1 (KF convergence), any P_coll")
             .legend(|(x, y)| Cross::new((x, y), 5, RGBColor(0, 120, 0).stroke_width(2)));
     }
+    draw_predicted(&mut chart, front)?;
     crate::draw_legend(&mut chart, SeriesLabelPosition::LowerRight, 14, 0.8)?;
+    Ok(())
+}
+
+/// The predicted front (docs/MODEL.md §7.5), over the MDP's: each point the
+/// strategy `etp strategy` returns for its request, at its prediction with
+/// its 95 % ± in energy and P_tar; a hollow marker where the request was out
+/// of reach (the point is the closest strategy found).
+fn draw_predicted<DB: DrawingBackend>(
+    chart: &mut ChartContext<'_, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    front: &ParetoFront,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
+    let styles = [
+        RGBColor(200, 30, 30),
+        RGBColor(230, 120, 0),
+        RGBColor(150, 0, 90),
+    ];
+    for (i, curve) in front.predicted.iter().enumerate() {
+        let colour = styles[i % styles.len()];
+        let at: Vec<(f64, f64)> = curve
+            .points
+            .iter()
+            .map(|p| (p.predicted.energy, p.predicted.p_target))
+            .collect();
+        let label = match curve.max_collision {
+            Some(c) => format!("predicted front, P_coll ≤ {c} (95 % ±)"),
+            None => "predicted front (strategies that run, 95 % ±)".to_string(),
+        };
+        chart
+            .draw_series(LineSeries::new(at.clone(), colour.stroke_width(3)))
+            .map_err(e)?
+            .label(label)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x - 12, y), (x + 12, y)], colour.stroke_width(4))
+            });
+        for p in &curve.points {
+            let (x, y) = (p.predicted.energy, p.predicted.p_target);
+            let (hx, hy) = (p.predicted_ci95.energy, p.predicted_ci95.p_target);
+            chart
+                .draw_series([ErrorBar::new_vertical(
+                    x,
+                    y - hy,
+                    y,
+                    y + hy,
+                    colour.stroke_width(2),
+                    8,
+                )])
+                .map_err(e)?;
+            chart
+                .draw_series([ErrorBar::new_horizontal(
+                    y,
+                    x - hx,
+                    x,
+                    x + hx,
+                    colour.stroke_width(2),
+                    8,
+                )])
+                .map_err(e)?;
+            let style = if p.met() {
+                colour.filled()
+            } else {
+                colour.stroke_width(2)
+            };
+            chart
+                .draw_series([Circle::new((x, y), 5, style)])
+                .map_err(e)?;
+        }
+    }
+    if front
+        .predicted
+        .iter()
+        .flat_map(|c| &c.points)
+        .any(|p| !p.met())
+    {
+        let grey = RGBColor(200, 30, 30);
+        chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
+            .map_err(e)?
+            .label("hollow: request out of reach (closest strategy found)")
+            .legend(move |(x, y)| Circle::new((x, y), 5, grey.stroke_width(2)));
+    }
     Ok(())
 }
 

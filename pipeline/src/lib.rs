@@ -30,6 +30,7 @@ pub mod exec;
 pub mod front;
 pub mod mdp_build;
 pub mod output;
+pub mod predicted_front;
 pub mod predictions;
 pub mod progress;
 pub mod selection;

@@ -48,6 +48,10 @@ pub struct Args {
     pub json: bool,
 }
 
+/// Requests of the demo's predicted front (`etp strategy front` has
+/// `--points`, default 6).
+const DEMO_FRONT_POINTS: usize = 4;
+
 fn stage(quiet: bool, text: &str) {
     if !quiet {
         eprintln!("{text}");
@@ -153,6 +157,32 @@ pub fn run(a: Args) -> Result<()> {
     let strategy_path = dir.join("strategy.json");
     write_new(&strategy_path, strategy.to_json().as_bytes(), false)?;
 
+    // The predicted front (docs/MODEL.md §7.5): what `etp strategy front
+    // DIR --points DEMO_FRONT_POINTS` stores and draws over the MDP's front.
+    stage(
+        a.json,
+        &format!("      the predicted front ({DEMO_FRONT_POINTS} requests, each a request loop)…"),
+    );
+    let mut syn = etp_pipeline::synthesis_dir::Synthesis::from_parts(
+        &built.dir,
+        built.mdp.clone(),
+        Some(text.clone()),
+        front.front.clone(),
+        None,
+    )?;
+    let curves = etp_pipeline::predicted_front::compute(
+        &syn,
+        &[None],
+        DEMO_FRONT_POINTS,
+        &etp_pipeline::selection::RequestSettings {
+            aggregation_check: 0,
+            ..Default::default()
+        },
+        a.json,
+        &|_, _| {},
+    )?;
+    etp_pipeline::predicted_front::store(&mut syn, curves.clone())?;
+
     // 3. In-process validation (+ map plot).
     stage(
         a.json,
@@ -226,6 +256,7 @@ pub fn run(a: Args) -> Result<()> {
         "scenario": scenario.name,
         "strategy": strategy_path,
         "vertices": front.front.vertices.len(),
+        "predicted_front": curves,
         "predicted": crate::vocab::prediction(Some(&p)),
         "predicted_ci95": {"p_target": h.p_target, "p_collision": h.p_collision, "energy_mean": h.energy_mean},
         "prediction_basis": strategy.predictions.prediction_basis,
@@ -250,6 +281,24 @@ pub fn run(a: Args) -> Result<()> {
         front.front.vertices.len(),
         front.front.energy_scale
     );
+    for c in &curves {
+        println!(
+            "Predicted front (front.png; each point the strategy `etp strategy --min-target P` returns):"
+        );
+        for q in &c.points {
+            println!(
+                "  P_tar ≥ {:.4}: {:<12} predicted P_tar {:.4} ± {:.4}, energy {:.2} ± {:.2} (MDP's value {:.2})",
+                q.min_target,
+                q.verdict,
+                q.predicted.p_target,
+                q.predicted_ci95.p_target,
+                q.predicted.energy,
+                q.predicted_ci95.energy,
+                q.selection_time.energy
+            );
+        }
+        println!();
+    }
     println!(
         "  {:<10} {:>12} {:>22} {:>22}",
         "", "predicted", "in-process (95 %)", "multi-process (95 %)"

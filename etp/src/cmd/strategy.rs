@@ -14,6 +14,7 @@ use std::path::PathBuf;
 
 mod certified;
 mod evaluate;
+mod front;
 mod quick;
 mod select;
 
@@ -124,6 +125,37 @@ pub enum Verb {
     /// DIR's abstraction rebuilt R times on its pools and thresholds, every
     /// prediction of `etp strategy` from the rebuilds.
     Evaluate(EvaluateArgs),
+    /// The predicted front: for requests spread over the P_tar range DIR's
+    /// MDP reaches, the strategy `etp strategy DIR --min-target P` returns
+    /// and its prediction (± 95 %), stored in DIR/front.json (`predicted`)
+    /// and drawn over the MDP's selection-time front in DIR/front.png.
+    Front(FrontArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct FrontArgs {
+    /// Output directory of `etp synthesize` (its front.json gains the curves).
+    pub dir: PathBuf,
+    /// Requests per curve, evenly spaced over the MDP's P_tar range (both
+    /// ends included).
+    #[arg(long, value_name = "K", default_value_t = etp_synthesis::predict::front::DEFAULT_POINTS,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(2..=64))]
+    pub points: usize,
+    /// Bounds on P_coll, one curve each (repeat or separate by commas;
+    /// default: one curve without a bound).
+    #[arg(long, value_name = "C", value_delimiter = ',', value_parser = crate::input::probability)]
+    pub max_collision: Vec<f64>,
+    /// On-policy rebuilds of each prediction (as `etp strategy --replicates`).
+    #[arg(long, value_name = "R", default_value_t = etp_synthesis::predict::rebuild::DEFAULT_REPLICATES,
+          value_parser = clap::value_parser!(u32).range(2..=64))]
+    pub replicates: u32,
+    /// Rounds of each request loop at most (as `etp strategy --rounds`).
+    #[arg(long, value_name = "N", default_value_t = etp_synthesis::predict::request::DEFAULT_ROUNDS,
+          value_parser = clap::value_parser!(u32).range(1..=20))]
+    pub rounds: u32,
+    /// Print the curves as JSON (the files are still written).
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -176,8 +208,10 @@ impl Request {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    if let Some(Verb::Evaluate(e)) = a.verb {
-        return evaluate::run(&e);
+    match &a.verb {
+        Some(Verb::Evaluate(e)) => return evaluate::run(e),
+        Some(Verb::Front(f)) => return front::run(f),
+        None => {}
     }
     use etp_synthesis::predict::request::Goal;
     let request = match (a.min_target, a.max_energy, a.vertex) {

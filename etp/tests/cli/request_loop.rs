@@ -108,3 +108,84 @@ fn the_plain_command_meets_a_request_the_selection_time_value_misses() {
     );
     assert!(f(&v["energy_mean"]) > f(&vq["energy_mean"]));
 }
+
+/// The loop keeps the cheapest round that met, and a point of the predicted
+/// front (`etp strategy front`, docs/MODEL.md §7.5) is exactly what `etp
+/// strategy --min-target P` returns for its request.
+#[test]
+fn predicted_front_points_are_what_strategy_returns() {
+    let dir = Scratch::new("predicted-front");
+    let out = dir.path("w800");
+    ok_json(&[
+        "synthesize",
+        "winding-2d",
+        "--samples",
+        "800",
+        "--seed",
+        "1",
+        "--aggregation-episodes",
+        "0",
+        "--no-kf-baseline",
+        "-o",
+        s(&out),
+        "--json",
+    ]);
+    let front = ok_json(&["strategy", "front", s(&out), "--points", "3", "--json"]);
+    let curves = front["curves"].as_array().expect("curves");
+    assert_eq!(curves.len(), 1, "{front}");
+    let points = curves[0]["points"].as_array().expect("points");
+    assert_eq!(points.len(), 3, "{front}");
+    // Stored in front.json beside the MDP's vertices, and drawn.
+    let stored: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("front.json")).expect("front.json"))
+            .expect("front.json is JSON");
+    assert_eq!(
+        stored["predicted"], front["curves"],
+        "front.json holds the curves"
+    );
+    assert!(out.join("front.png").is_file());
+    // The middle point against the plain command.
+    let p = &points[1];
+    let request = f(&p["min_target"]);
+    let strategy = dir.path("strategy.json");
+    let sel = ok_json(&[
+        "strategy",
+        s(&out),
+        "--min-target",
+        &request.to_string(),
+        "--aggregation-check",
+        "0",
+        "-o",
+        s(&strategy),
+        "--json",
+    ]);
+    assert_eq!(sel["verdict"], p["verdict"], "{sel}\n{p}");
+    for k in ["p_target", "p_collision"] {
+        assert_eq!(
+            f(&sel["predicted"][k]),
+            f(&p["predicted"][k]),
+            "{k}: {sel}\n{p}"
+        );
+        assert_eq!(
+            f(&sel["predicted_ci95"][k]),
+            f(&p["predicted_ci95"][k]),
+            "{k}: {sel}\n{p}"
+        );
+    }
+    assert_eq!(
+        f(&sel["predicted"]["energy_mean"]),
+        f(&p["predicted"]["energy"]),
+        "{sel}\n{p}"
+    );
+    // The answer is the cheapest round that met.
+    let rounds = sel["diagnostics"]["rounds"].as_array().expect("rounds");
+    let kept = sel["diagnostics"]["kept_round"]
+        .as_u64()
+        .expect("kept_round") as usize;
+    if sel["verdict"] == "met" {
+        let e = f(&rounds[kept]["predicted"]["energy_mean"]);
+        for r in rounds.iter().filter(|r| r["meets"] == true) {
+            assert!(e <= f(&r["predicted"]["energy_mean"]), "{sel}");
+        }
+    }
+}

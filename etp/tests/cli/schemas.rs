@@ -217,6 +217,7 @@ fn the_pipeline_commands_json_match_their_strict_described_schemas() {
         "splitting is off by default"
     );
     let strategy = ok_json(&["strategy", s(&syn), "--min-target", "0.5", "--json"]);
+    let strategy_front = ok_json(&["strategy", "front", s(&syn), "--points", "2", "--json"]);
     let bench = ok_json(&[
         "bench",
         "open-2d",
@@ -260,6 +261,7 @@ fn the_pipeline_commands_json_match_their_strict_described_schemas() {
         ("synthesize", &synthesize),
         ("synthesize", &split),
         ("strategy", &strategy),
+        ("strategy-front", &strategy_front),
         ("bench", &bench),
         ("demo", &demo),
     ];
@@ -279,6 +281,7 @@ fn the_pipeline_commands_json_match_their_strict_described_schemas() {
         "check",
         "synthesize",
         "strategy",
+        "strategy-front",
         "bench",
         "demo",
         "fronts",

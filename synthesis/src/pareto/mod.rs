@@ -8,6 +8,8 @@
 //! * [`optimal`] — the exact strategy of a request: the whole-MDP occupation
 //!   LP realised as ω.
 //! * [`select`] — the vertex-mixture LP (the human-readable explanation).
+//! * [`PredictedFront`] — the predicted front's data in `front.json`
+//!   (computed by `predict::front`).
 //! * [`CertifiedFront`] — the certified front's data in `front.json`
 //!   (computed by `certify::front`; kept here so `pareto` imports nothing of
 //!   `certify`).
@@ -16,9 +18,11 @@ mod certified;
 pub mod enumerate;
 pub mod optimal;
 pub mod policy;
+mod predicted;
 pub mod select;
 
 pub use certified::{CertifiedFront, CertifiedPoint};
+pub use predicted::{PredictedFront, PredictedPoint};
 
 use crate::mdp::{CostModel, Mdp, Method};
 use etp_shared::strategy::{
@@ -100,6 +104,11 @@ pub struct ParetoFront {
     /// §8); strategies made from this front carry it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radio: Option<etp_shared::radio::Radio>,
+    /// The predicted front (docs/MODEL.md §7.5): one curve per P_coll bound
+    /// asked, each point the strategy `etp strategy` returns for its request
+    /// with the prediction it stands by. Absent until computed.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub predicted: Vec<PredictedFront>,
 }
 
 impl ParetoFront {
@@ -225,6 +234,7 @@ pub fn compute_front_to(
         mdp_states: mdp.states.len(),
         mdp_transitions: mdp.num_transitions(),
         radio: None,
+        predicted: Vec::new(),
     })
 }
 

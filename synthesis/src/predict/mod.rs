@@ -14,6 +14,7 @@
 //!
 //! Pure: no I/O, no clock; progress through callbacks.
 
+pub mod front;
 pub mod rebuild;
 pub mod request;
 

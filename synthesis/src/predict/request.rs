@@ -1,37 +1,51 @@
-//! The request loop (docs/MODEL.md §7.4): a strategy whose prediction —
-//! the one of its own on-policy rebuilds ([`super::rebuild`]) — meets what
-//! the user asked, not only its value on the MDP it was selected on.
+//! The request loop (docs/MODEL.md §7.4): the least-energy strategy whose
+//! prediction — the one of its own on-policy rebuilds ([`super::rebuild`]) —
+//! meets what the user asked, not only its value on the MDP it was selected
+//! on.
 //!
-//! Round k asks the selection MDP for `asked_k` (round 0: the user's
-//! request) and predicts the strategy it gives on its rebuilds. Where that
-//! prediction misses the user's request (by more than [`TOLERANCE`] of its
-//! own 95 % half-width h), each missed bound of the request to the MDP moves
-//! by the measured gap and that much more (`asked_{k+1} = asked_k +
-//! (request − predicted_k + TOLERANCE·h)`) and the MDP is asked again. A round's first rebuild decides alone when it misses clearly (by
-//! more than three of its own held-out half-widths, or by its certified
-//! bound, which is the first rebuild's): the other rebuilds are made only
-//! for a strategy that may be kept. When the moved request is infeasible on
-//! the MDP, the loop asks for the most it offers in that direction; when
-//! that is what it just asked, the request is out of reach. Every outcome
-//! carries the best strategy the loop could stand behind, with its full
-//! prediction.
+//! Each round asks the selection MDP for a request (round 0: the user's own)
+//! and predicts the strategy it returns on its rebuilds. The gap between the
+//! MDP's value and the prediction is not constant along the front, so one
+//! step by the first gap may overshoot (meet, but pay for more than asked)
+//! or undershoot. The loop therefore searches the asked level:
+//!
+//! * **Tighten** while no round has met: each missed bound moves by its gap
+//!   and [`TOLERANCE`] of the half-width h (`asked += request − predicted +
+//!   TOLERANCE·h`); a request the MDP cannot meet is replaced by the most it
+//!   offers on the way to it, and when that is where the loop stands, the
+//!   request is out of reach.
+//! * **Aim** past a round that met with room to spare: every bound moves by
+//!   its gap, either way, so the next round lands at the edge of meeting —
+//!   tried only when the MDP's selection there is cheaper by more than
+//!   [`BRACKET_TOLERANCE`].
+//! * **Bracket**: between the cheapest round that met and the closest round
+//!   beyond it that missed, regula falsi on their slacks (kept off the ends
+//!   by [`BRACKET_STEP`]), until the two selections' energies on the MDP are
+//!   within [`BRACKET_TOLERANCE`] of each other or the rounds run out.
+//!
+//! Every round is kept in the outcome; the answer is the cheapest round
+//! whose prediction meets the request (for `--max-energy`, the highest
+//! P_tar within the budget), or, when none did, the one that came closest.
+//! A round's first rebuild decides alone when it misses clearly (by more
+//! than three of its own held-out half-widths, or by its certified bound):
+//! the other rebuilds are made only for a strategy that may be kept.
 
 use super::PredictError;
 use super::rebuild::{OnPolicy, Replica, predict, rebuild_one};
 use crate::abstraction::AbstractionParams;
 use crate::certify::intervals::interval_mdp;
 use crate::certify::robust::Certified;
-use crate::certify::select::certified_strategy;
 use crate::mdp::{CostModel, Mdp};
-use crate::pareto::optimal::{LpRequest, optimal_strategy};
 use crate::pareto::policy::{Objectives, RandomisedPolicy, evaluate};
-use crate::pareto::select::SelectError;
+use asking::{Candidate, Move, edge, most_transmitting, moved, select, slack};
 use etp_shared::scenario::Scenario;
 use etp_shared::stats::Z95;
 use etp_shared::strategy::Strategy;
 
+mod asking;
+
 /// Rounds of the loop by default.
-pub const DEFAULT_ROUNDS: u32 = 5;
+pub const DEFAULT_ROUNDS: u32 = 8;
 
 /// A first rebuild misses clearly when it is this many of its own held-out
 /// 95 % half-widths beyond the request (its ± misses about a third of the
@@ -47,8 +61,14 @@ const CLEAR_MISS: f64 = 3.0;
 /// (docs/MODEL.md §7.4).
 pub const TOLERANCE: f64 = 0.25;
 
-/// Bisection steps towards the edge of what the MDP offers.
-const EDGE_STEPS: usize = 30;
+/// The search ends when the cheapest round that met and the closest round
+/// beyond it that missed were selected at MDP energies this close (relative):
+/// no strategy the MDP offers between them is cheaper by more.
+pub const BRACKET_TOLERANCE: f64 = 0.01;
+
+/// A bracketing round asks at least this fraction of the way from either end
+/// of the bracket (regula falsi alone may creep along one end).
+const BRACKET_STEP: f64 = 0.2;
 
 /// What the user asks for.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -203,169 +223,31 @@ pub struct Outcome {
     pub verdict: Verdict,
 }
 
-/// A strategy selected on the MDP, before its rebuilds.
-struct Candidate {
-    omega: RandomisedPolicy,
-    selection_time: Objectives,
+/// A round and what the loop keeps of it while it may be the answer.
+struct Judged {
+    index: usize,
+    slack: f64,
+    candidate: Candidate,
+    strategy: Strategy,
+    replicas: Vec<Replica>,
 }
 
-fn select(
-    mdp: &Mdp,
-    cost: CostModel,
-    asked: Asked,
-    certified: Option<&crate::certify::intervals::IntervalMdp>,
-) -> Result<Result<Candidate, PredictError>, PredictError> {
-    match (asked, certified) {
-        (
-            Asked::MinTarget {
-                min_target,
-                max_collision,
-            },
-            Some(im),
-        ) => match certified_strategy(mdp, im, cost, min_target.min(1.0), max_collision) {
-            Ok(c) => Ok(Ok(Candidate {
-                omega: c.strategy.policy,
-                selection_time: c.strategy.predicted,
-            })),
-            Err(e @ crate::certify::CertifyError::Infeasible { .. }) => Ok(Err(e.into())),
-            Err(e) => Err(e.into()),
-        },
-        (asked, _) => {
-            let request = match asked {
-                Asked::MinTarget {
-                    min_target,
-                    max_collision,
-                } => LpRequest::MinEnergy {
-                    min_target: min_target.min(1.0),
-                    max_collision: max_collision.map(|c| c.max(0.0)),
-                },
-                Asked::MaxEnergy { max_energy } => LpRequest::MaxTarget {
-                    max_energy: max_energy.max(0.0),
-                },
-            };
-            match optimal_strategy(mdp, cost, request) {
-                Ok(o) => Ok(Ok(Candidate {
-                    omega: o.policy,
-                    selection_time: o.predicted,
-                })),
-                Err(e @ SelectError::Infeasible { .. }) => Ok(Err(e.into())),
-                Err(e) => Err(e.into()),
-            }
-        }
+/// Which way the MDP's selection-time energy goes when the answer improves:
+/// down for least energy, up for the highest P_tar within a budget.
+fn improving(goal: Goal) -> f64 {
+    match goal {
+        Goal::MinTarget { .. } => -1.0,
+        Goal::MaxEnergy { .. } => 1.0,
     }
 }
 
-/// The policy that transmits most: at every state the choice with the
-/// smallest threshold δ.
-fn most_transmitting(mdp: &Mdp) -> RandomisedPolicy {
-    mdp.states
-        .iter()
-        .map(|st| {
-            let delta = |a: u16| mdp.deltas.get(a as usize).copied().unwrap_or(f64::INFINITY);
-            let least = (0..st.choices.len())
-                .min_by(|&i, &j| {
-                    delta(st.choices[i].action).total_cmp(&delta(st.choices[j].action))
-                })
-                .unwrap_or(0);
-            (0..st.choices.len())
-                .map(|i| if i == least { 1.0 } else { 0.0 })
-                .collect()
-        })
-        .collect()
-}
-
-/// A feasible request of the kind of `asked` to bisect from: no P_tar bound
-/// (its P_coll bound kept), or the MDP's least energy (a hair above).
-fn loosest(mdp: &Mdp, cost: CostModel, asked: Asked) -> Asked {
-    match asked {
-        Asked::MinTarget { max_collision, .. } => Asked::MinTarget {
-            min_target: 0.0,
-            max_collision,
-        },
-        Asked::MaxEnergy { max_energy } => {
-            let least = LpRequest::MinEnergy {
-                min_target: 0.0,
-                max_collision: None,
-            };
-            let e = optimal_strategy(mdp, cost, least).map_or(max_energy, |o| o.predicted.energy);
-            Asked::MaxEnergy {
-                max_energy: e * (1.0 + 1e-9) + 1e-12,
-            }
-        }
-    }
-}
-
-/// How far a prediction is from missing the request: ≥ 0 meets it (each
-/// bound within `TOLERANCE` of the half-width `h`); the least of its bounds'
-/// slacks (energy relative to the request).
-fn slack(goal: Goal, q: &Objectives, h: &Objectives, cert: Option<&Certified>) -> f64 {
-    let h = Objectives {
-        p_target: TOLERANCE * h.p_target,
-        p_collision: TOLERANCE * h.p_collision,
-        energy: TOLERANCE * h.energy,
-    };
-    match (goal, cert) {
-        (
-            Goal::MinTarget {
-                min_target,
-                max_collision,
-            },
-            Some(c),
-        ) => (c.p_target_low - min_target)
-            .min(max_collision.map_or(f64::INFINITY, |m| m - c.p_collision_high)),
-        (
-            Goal::MinTarget {
-                min_target,
-                max_collision,
-            },
-            None,
-        ) => (q.p_target + h.p_target - min_target)
-            .min(max_collision.map_or(f64::INFINITY, |m| m - (q.p_collision - h.p_collision))),
-        (Goal::MaxEnergy { max_energy }, _) => {
-            (max_energy - (q.energy - h.energy)) / max_energy.abs().max(1e-12)
-        }
-    }
-}
-
-/// The request to the MDP moved by the gaps between `goal` and what the
-/// round measured (point values plus `TOLERANCE` of their half-widths `h`,
-/// or the certified bounds).
-fn moved(
-    goal: Goal,
-    asked: Asked,
-    q: &Objectives,
-    h: &Objectives,
-    cert: Option<&Certified>,
-) -> Asked {
-    match (goal, asked) {
-        (
-            Goal::MinTarget {
-                min_target,
-                max_collision,
-            },
-            Asked::MinTarget {
-                min_target: t,
-                max_collision: c,
-            },
-        ) => {
-            let (got_t, got_c) = match cert {
-                Some(x) => (x.p_target_low, x.p_collision_high),
-                None => (
-                    q.p_target - TOLERANCE * h.p_target,
-                    q.p_collision + TOLERANCE * h.p_collision,
-                ),
-            };
-            Asked::MinTarget {
-                min_target: (t + (min_target - got_t).max(0.0)).min(1.0),
-                max_collision: c
-                    .zip(max_collision)
-                    .map(|(c, m)| (c - (got_c - m).max(0.0)).max(0.0)),
-            }
-        }
-        (Goal::MaxEnergy { max_energy }, Asked::MaxEnergy { max_energy: e }) => Asked::MaxEnergy {
-            max_energy: (e - (q.energy + TOLERANCE * h.energy - max_energy).max(0.0)).max(0.0),
-        },
-        (_, a) => a,
+/// Whether the round `new` (meeting the request) is a better answer than
+/// the kept round `old`: cheaper, or a higher P_tar within the budget, by
+/// their predictions.
+fn better(goal: Goal, new: &Objectives, old: &Objectives) -> bool {
+    match goal {
+        Goal::MinTarget { .. } => new.energy < old.energy,
+        Goal::MaxEnergy { .. } => new.p_target > old.p_target,
     }
 }
 
@@ -404,53 +286,12 @@ pub fn meet_request(
         Some(l) => Some(interval_mdp(mdp, l, cost)?),
         None => None,
     };
-    let mut asked = Asked::of(goal);
-    let mut rounds: Vec<Round> = Vec::new();
-    // The closest round so far: its index, slack, candidate, rebuild(s).
-    let mut best: Option<(usize, f64, Candidate, Strategy, Vec<Replica>)> = None;
-    let mut verdict = Verdict::RoundsSpent;
-    for _ in 0..settings.max_rounds.max(1) {
-        let candidate = match select(mdp, cost, asked, selection_im.as_ref())? {
-            Ok(c) => c,
-            Err(infeasible) => {
-                // The request is infeasible on the MDP: ask for the most it
-                // offers between the last feasible request and it — or, for
-                // the user's own request, from the loosest one. (The MDP may
-                // be pessimistic for the strategy at its edge: its rebuild
-                // judges.)
-                let first_round = rounds.is_empty();
-                let last = match rounds.last() {
-                    Some(r) => r.asked,
-                    None => loosest(mdp, cost, asked),
-                };
-                if first_round && select(mdp, cost, last, selection_im.as_ref())?.is_err() {
-                    return Err(infeasible);
-                }
-                let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
-                let mut found = None;
-                for _ in 0..EDGE_STEPS {
-                    let mid = 0.5 * (lo + hi);
-                    match select(mdp, cost, last.towards(asked, mid), selection_im.as_ref())? {
-                        Ok(c) => {
-                            lo = mid;
-                            found = Some(c);
-                        }
-                        Err(_) => hi = mid,
-                    }
-                }
-                let edge = last.towards(asked, lo);
-                match found {
-                    Some(c) if first_round || edge.distance(last) > 1e-6 => {
-                        asked = edge;
-                        c
-                    }
-                    _ => {
-                        verdict = Verdict::OutOfReach;
-                        break;
-                    }
-                }
-            }
-        };
+    // One round: the candidate's first rebuild, and the others unless it
+    // misses clearly.
+    let judge = |asked: Asked,
+                 candidate: Candidate,
+                 index: usize|
+     -> Result<(Round, Judged), PredictError> {
         let strategy = make(&candidate.omega, candidate.selection_time);
         plan(1);
         let first = rebuild_one(scenario, params, &strategy.policy, 0, cost, progress)?;
@@ -486,31 +327,158 @@ pub fn meet_request(
             (q, h, all.replicas, settings.replicates)
         };
         let s = slack(goal, &q, &h, cert_for_goal.as_ref());
-        let meets = s >= 0.0;
-        rounds.push(Round {
+        let round = Round {
             asked,
             selection_time: candidate.selection_time,
             predicted: q,
             ci95: h,
             rebuilds,
             certified: cert_for_goal,
-            meets,
+            meets: s >= 0.0,
             most_transmitting: false,
-        });
-        let next = moved(goal, asked, &q, &h, cert_for_goal.as_ref());
-        if best.as_ref().is_none_or(|b| s > b.1 || meets) {
-            best = Some((rounds.len() - 1, s, candidate, strategy, replicas));
-        }
-        if meets {
-            verdict = Verdict::Met;
-            break;
-        }
-        if next.distance(asked) <= 1e-9 {
-            // Nothing left to move (a bound already at its limit).
+        };
+        Ok((
+            round,
+            Judged {
+                index,
+                slack: s,
+                candidate,
+                strategy,
+                replicas,
+            },
+        ))
+    };
+    let sign = improving(goal);
+    let mut asked = Asked::of(goal);
+    let mut rounds: Vec<Round> = Vec::new();
+    // The answer so far: the best meeting round, else the closest one.
+    let mut best: Option<Judged> = None;
+    // While aiming past a meeting round: the selection-time energy a new
+    // candidate must improve on by `BRACKET_TOLERANCE` to be worth rebuilds.
+    let mut must_beat: Option<f64> = None;
+    let mut verdict = Verdict::RoundsSpent;
+    for _ in 0..settings.max_rounds.max(1) {
+        let candidate = match select(mdp, cost, asked, selection_im.as_ref())? {
+            Ok(c) => c,
+            Err(infeasible) => {
+                // The request is infeasible on the MDP: ask for the most it
+                // offers between the last request and it — or, for the
+                // user's own request, from the loosest one. (The MDP may be
+                // pessimistic for the strategy at its edge: its rebuild
+                // judges.)
+                let first_round = rounds.is_empty();
+                match edge(
+                    mdp,
+                    cost,
+                    rounds.last().map(|r| r.asked),
+                    asked,
+                    selection_im.as_ref(),
+                )? {
+                    None if first_round => return Err(infeasible),
+                    Some((at, c, from)) if first_round || at.distance(from) > 1e-6 => {
+                        asked = at;
+                        c
+                    }
+                    _ => {
+                        verdict = Verdict::OutOfReach;
+                        break;
+                    }
+                }
+            }
+        };
+        let e = candidate.selection_time.energy;
+        if must_beat.is_some_and(|m| sign * (e - m) <= BRACKET_TOLERANCE * m.abs())
+            || rounds
+                .iter()
+                .any(|r| r.selection_time == candidate.selection_time)
+        {
+            // Nothing better on offer than what was judged already.
             verdict = Verdict::OutOfReach;
             break;
         }
-        asked = next;
+        let (round, judged) = judge(asked, candidate, rounds.len())?;
+        let meets = round.meets;
+        rounds.push(round);
+        let replace = match &best {
+            None => true,
+            Some(b) if rounds[b.index].meets => {
+                meets
+                    && better(
+                        goal,
+                        &rounds[judged.index].predicted,
+                        &rounds[b.index].predicted,
+                    )
+            }
+            Some(b) => meets || judged.slack > b.slack,
+        };
+        if replace {
+            best = Some(judged);
+        }
+        let Some(b) = best.as_ref() else { break };
+        let kept = &rounds[b.index];
+        if kept.meets {
+            // Bracket the edge of meeting: the kept round and the closest
+            // round beyond it (cheaper on the MDP, or richer within the
+            // budget) that missed.
+            let m = kept.selection_time.energy;
+            let beyond = rounds
+                .iter()
+                .filter(|r| !r.meets && sign * (r.selection_time.energy - m) > 0.0)
+                .min_by(|a, b| {
+                    (a.selection_time.energy - m)
+                        .abs()
+                        .total_cmp(&(b.selection_time.energy - m).abs())
+                });
+            match beyond {
+                Some(x) => {
+                    let gap = (x.selection_time.energy - m).abs();
+                    if gap <= BRACKET_TOLERANCE * m.abs().max(x.selection_time.energy.abs()) {
+                        break;
+                    }
+                    // Regula falsi on the slacks, kept off the ends.
+                    let sx = slack(goal, &x.predicted, &x.ci95, x.certified.as_ref());
+                    let lambda = (sx / (sx - b.slack)).clamp(BRACKET_STEP, 1.0 - BRACKET_STEP);
+                    asked = x.asked.towards(kept.asked, lambda);
+                    must_beat = None;
+                }
+                None => {
+                    // Every round met: aim at the edge past the kept one.
+                    let next = moved(
+                        goal,
+                        kept.asked,
+                        &kept.predicted,
+                        &kept.ci95,
+                        kept.certified.as_ref(),
+                        Move::Aim,
+                    );
+                    if next.distance(kept.asked) <= 1e-9 {
+                        break;
+                    }
+                    asked = next;
+                    must_beat = Some(m);
+                }
+            }
+        } else {
+            let last = &rounds[rounds.len() - 1];
+            let next = moved(
+                goal,
+                last.asked,
+                &last.predicted,
+                &last.ci95,
+                last.certified.as_ref(),
+                Move::Tighten,
+            );
+            if next.distance(last.asked) <= 1e-9 {
+                // Nothing left to move (a bound already at its limit).
+                verdict = Verdict::OutOfReach;
+                break;
+            }
+            asked = next;
+            must_beat = None;
+        }
+    }
+    if best.as_ref().is_some_and(|b| rounds[b.index].meets) {
+        verdict = Verdict::Met;
     }
     // The MDP is pessimistic at its P_tar edge (its pools hold other
     // strategies' beliefs, docs/MODEL.md §7.4): when the loop could not meet
@@ -520,7 +488,7 @@ pub fn meet_request(
     if verdict != Verdict::Met
         && matches!(goal, Goal::MinTarget { .. })
         && let omega = most_transmitting(mdp)
-        && best.as_ref().is_none_or(|b| b.2.omega != omega)
+        && best.as_ref().is_none_or(|b| b.candidate.omega != omega)
     {
         let selection_time = evaluate(mdp, &omega, cost);
         let strategy = make(&omega, selection_time);
@@ -543,18 +511,30 @@ pub fn meet_request(
             meets,
             most_transmitting: true,
         });
-        if best.as_ref().is_none_or(|b| s > b.1 || meets) {
-            let candidate = Candidate {
-                omega,
-                selection_time,
-            };
-            best = Some((rounds.len() - 1, s, candidate, strategy, all.replicas));
+        if best.as_ref().is_none_or(|b| s > b.slack || meets) {
+            best = Some(Judged {
+                index: rounds.len() - 1,
+                slack: s,
+                candidate: Candidate {
+                    omega,
+                    selection_time,
+                },
+                strategy,
+                replicas: all.replicas,
+            });
         }
         if meets {
             verdict = Verdict::Met;
         }
     }
-    let Some((kept, _, candidate, strategy, replicas)) = best else {
+    let Some(Judged {
+        index: kept,
+        candidate,
+        strategy,
+        replicas,
+        ..
+    }) = best
+    else {
         return Err(PredictError::Inconsistent(
             "the request loop ended without a round (a bug)".into(),
         ));
