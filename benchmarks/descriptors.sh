@@ -3,7 +3,7 @@
 # "Descriptors, lumping, splitting"): the MDP of each descriptor at
 # comparable size, each asked for the least energy with P_tar ≥ 0.9383
 # (the full KF's 0.9583 − 2 pt) and validated on 3000 episodes; then the
-# default MDP lumped at α = 0.05 and 0.01. About 25 min on 2 cores.
+# default MDP lumped at α = 0.05 and 0.01. About 10 min on 2 cores (estimated).
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 SCENARIO=${SCENARIO:-inertia-2d}

@@ -4,7 +4,7 @@
 # five random agents under a lossy radio (loss 0.2, aware filter), whose
 # scenario files are made here. Each case's row says whether the strategy met
 # its request and every miss of the prediction with its sign
-# (`OUT/*/study.csv`). About 13 h on 2 cores.
+# (`OUT/*/study.csv`). Several hours on 2 cores.
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 "$ETP" study benchmarks/fresh-scenarios.toml -o "$OUT/ideal" --json > "$OUT/ideal.json"

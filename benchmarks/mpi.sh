@@ -4,7 +4,7 @@
 # medians give E = T1 / (2 T2). Needs Open MPI and the MPI build:
 #   cargo build --release -p etp --features mpi
 # Every 2-rank output is compared with the 1-rank one byte for byte.
-# About 25 min on 2 cores (the 20 000-sample row alone takes 10).
+# About 20 min on 2 cores (the 20 000-sample rows take 5 of them).
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 ROUNDS=${ROUNDS:-3}

@@ -2,7 +2,7 @@
 # Measured trigger rates against each family's model rate, and NEES/n, at
 # every δ of three scenarios (docs/performance.md, "Trigger families"):
 # `trigger_rate` against `trigger_rate_expected` of `etp simulate --json`.
-# About 10 min on 2 cores; EPISODES=300 makes it a one-minute check.
+# A few minutes on 2 cores; EPISODES=300 makes it a quick check.
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 EPISODES=${EPISODES:-3000}

@@ -2,7 +2,7 @@
 # The simulator's throughput (docs/performance.md, "Simulator"): episode-steps
 # per second on one thread and on all threads, at δ = 0 and at the largest δ,
 # per scenario and trigger family. EPISODES and REPEATS shrink it to a check.
-#   bash benchmarks/simulator.sh                 # ~5 min on 2 cores
+#   bash benchmarks/simulator.sh                 # a few minutes on 2 cores
 #   EPISODES=200 REPEATS=1 bash benchmarks/simulator.sh   # seconds
 set -euo pipefail
 source "$(dirname "$0")/common.sh"

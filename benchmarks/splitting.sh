@@ -3,7 +3,7 @@
 # splitting"): three random n = 4 agents synthesized without and with two
 # rounds of splitting (budget 40), two requests each (the full KF's P_tar
 # − 0.5 and − 2 pt, read from `etp simulate --delta 0`), validated on 3000
-# episodes. About 40 min on 2 cores.
+# episodes. About 25 min on 2 cores (estimated).
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 for seed in 1 2 3; do

@@ -367,7 +367,7 @@ mod tests {
         assert_eq!(
             jobs,
             [
-                ("fresh-scenarios".to_string(), 16),
+                ("fresh-scenarios".to_string(), 15),
                 ("mpi-study".to_string(), 4),
                 ("prediction-accuracy".to_string(), 20),
             ]
