@@ -180,9 +180,18 @@ fn the_checks_of_the_map_see_what_they_should() {
         ["a", "b", "c", "d", "m::e"]
     );
     let sources = rust_sources();
-    assert!(is_test(&sources, "the_architecture_map_names_only_what_exists"));
-    assert!(is_test(&sources, "docs_map::the_architecture_map_names_only_what_exists"));
-    assert!(!is_test(&sources, "readme::the_architecture_map_names_only_what_exists"));
+    assert!(is_test(
+        &sources,
+        "the_architecture_map_names_only_what_exists"
+    ));
+    assert!(is_test(
+        &sources,
+        "docs_map::the_architecture_map_names_only_what_exists"
+    ));
+    assert!(!is_test(
+        &sources,
+        "readme::the_architecture_map_names_only_what_exists"
+    ));
     assert!(!is_test(&sources, "rust_sources"));
     assert!(is_type(&sources, "Scenario") && !is_type(&sources, "Scenari"));
     assert!(Path::new(&root()).join("ARCHITECTURE.md").is_file());
