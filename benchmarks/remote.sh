@@ -2,10 +2,16 @@
 # A run with remote sensors on one machine (docs/performance.md, "Runs across
 # hosts"): the sensor host in its own iceoryx2 domain, over TLS and over plain
 # TCP (`--insecure`), ROUNDS interleaved rounds; steps per second and the
-# counts of each run. About 5 min on 2 cores.
+# counts of each run. Needs the bridge beside etp (it links Zenoh):
+#   cargo build --release -p etp -p etp-bridge
+# About 5 min on 2 cores.
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 ROUNDS=${ROUNDS:-5}
+if [ ! -x "$(dirname "$ETP")/etp-bridge" ]; then
+  echo "benchmarks: $(dirname "$ETP")/etp-bridge is missing: cargo build --release -p etp -p etp-bridge" >&2
+  exit 1
+fi
 "$ETP" certs init "$OUT/keys" --sensor-host b --force > /dev/null
 rate() { python3 -c 'import json,sys; v=json.load(open(sys.argv[1])); print(v["steps_per_second"], "steps/s, transmissions", v.get("transmissions"), "received", v.get("received"))' "$1"; }
 one() { # $1 tls|tcp, $2 port

@@ -12,6 +12,9 @@ for scenario in winding-2d inertia-2d inertia-3d; do
   for family in box stochastic send-on-delta; do
     "$ETP" bench "$scenario" --trigger "$family" --episodes "$EPISODES" --repeats "$REPEATS" --json \
       > "$OUT/$scenario-$family.json"
-    echo "$scenario $family: $(tr -d '\n' < "$OUT/$scenario-$family.json" | head -c 300)…"
+    python3 -c 'import json, sys
+for r in json.load(open(sys.argv[1])):
+    print("%s %s δ = %s, %s thread(s): %.2f M steps/s per thread" % (r["scenario"], r["trigger"],
+          r["delta"], r["threads"], r["steps_per_second_per_thread"] / 1e6))' "$OUT/$scenario-$family.json"
   done
 done
