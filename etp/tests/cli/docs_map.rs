@@ -63,10 +63,7 @@ fn named_tests(text: &str) -> Vec<String> {
         }
         let mut rest = &flat[i + 4..];
         rest = rest.strip_prefix('s').unwrap_or(rest);
-        loop {
-            let Some(r) = rest.strip_prefix(" `") else {
-                break;
-            };
+        while let Some(r) = rest.strip_prefix(" `") {
             let Some(end) = r.find('`') else { break };
             names.push(r[..end].to_string());
             rest = &r[end + 1..];
