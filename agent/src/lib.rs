@@ -23,6 +23,25 @@
 //!   *dead link*: the agent does prediction only, never the implicit update,
 //!   and marks the episode degraded. A live sensor is waited for, however
 //!   slow or paused.
+//!
+//! # One runtime step (lockstep)
+//!
+//! At a decision point: agent `waypoint` → coordinator `threshold` (OPEN δ at the
+//! leg's sensor, CLOSE the previous leg → its `ledger`) → agent `handover` of its
+//! belief to the leg's sensor (radio, once per leg; docs/MODEL.md §3.2).
+//!
+//! Each step: agent: `u = sat(K(C⁺w − x̂))`, move the plant, collision check →
+//! publish `truth` → serving sensor: its replica computes the prior (the agent's
+//! own step functions), measure, whiten, trigger; if it triggers, its radio
+//! draws each attempt's fate from the link's own stream
+//! (`LinkChannel::of_episode(radio, seed, AGENT, episode, sensor)`; every attempt costed, retries within the step; an ideal
+//! link draws nothing and delivers), and it publishes `measurement` only for a
+//! delivered attempt; then `slot` with the attempts, `delivered` and the prior's
+//! digest → agent: the digest must equal its prior's; explicit update if a
+//! measurement arrived (and its `ack` to the sensor, which checks it against
+//! its deliveries), implicit update with `CompiledScenario::silence_beta`
+//! (β(δ), or β_q(δ) on a lossy link) on a closed slot from a live sensor,
+//! prediction only on a dead link (never "silence = small innovation").
 
 pub mod core;
 pub mod link;

@@ -1,5 +1,5 @@
 //! `etp-bridge`: the services of remote sensors, carried between hosts over
-//! Zenoh (ARCHITECTURE.md "Runs across hosts").
+//! Zenoh (docs/remote.md).
 //!
 //! A short tour:
 //!

@@ -20,16 +20,49 @@ pub enum Command {
     /// Generate scenarios: `etp scenario random --dim-agent 4 --seed 7`.
     Scenario(crate::cmd::scenario::Args),
     /// Run episodes in-process with a constant threshold.
+    ///
+    /// Under the scenario's trigger family or `--trigger`, and its radio or
+    /// the radio options: P_tar, P_coll, P_free, energy, steps, the measured
+    /// trigger rate against the family's expected rate and NEES/n, each with
+    /// a 95 % half-width (`<key>_ci95`); the same seed gives the same numbers
+    /// on any thread count.
+    ///
+    /// More: docs/cli.md.
     Simulate(crate::cmd::simulate::Args),
     /// Pick the strategy for a requested trade-off from a synthesized front.
+    ///
+    /// The request loop: select on the MDP (the whole-MDP occupation LP),
+    /// predict the strategy on on-policy rebuilds of the abstraction (its own
+    /// beliefs in the pools), and tighten the request by the measured gap
+    /// while that prediction misses it. The sealed `strategy.json` stands by
+    /// that prediction (`predicted` ± 95 %), with certified bounds from its
+    /// own rebuild; everything else is under `diagnostics`. `--quick`:
+    /// selection only, no prediction.
+    ///
+    /// More: docs/cli.md.
     Strategy(crate::cmd::strategy::Args),
     /// A batch of cases (scenario × trigger family × request: synthesis,
     /// strategy, validation) from a SPEC file, resumable, shared across MPI
     /// ranks; one JSON and one CSV table.
     Study(crate::cmd::study::Args),
     /// Simulate a strategy in-process and compare with its prediction.
+    ///
+    /// Predicted against simulated P_tar, P_coll and energy with 95 %
+    /// intervals, and whether the prediction, the cross-fitted values and the
+    /// certified bounds hold against them; radio options evaluate it under
+    /// another channel; `--plot` draws the map with sampled trajectories.
+    ///
+    /// More: docs/cli.md.
     Validate(crate::cmd::validate::Args),
     /// Build the belief-space MDP by Monte Carlo and write DIR/mdp.bin.
+    ///
+    /// Then its Pareto front: `front.json` (the vertices and facets of an
+    /// ε-front with its certified ε, the certified front at 95 %, constant-δ
+    /// baselines, the Method 1 front), `front.png/svg` and `scenario.toml`
+    /// (the segments' trigger family written into it). The same seed gives
+    /// the same bytes on any thread count and any number of MPI ranks.
+    ///
+    /// More: docs/cli.md.
     Synthesize(crate::cmd::synthesize::Args),
     /// Export an MDP as PRISM explicit files (model.tra/.sta/.lab/.trew).
     ExportPrism(crate::cmd::export_prism::Args),
@@ -45,10 +78,31 @@ pub enum Command {
     /// NEES/n) against communication rate over the scenario's thresholds.
     TriggerCurves(crate::cmd::trigger_curves::Args),
     /// Measure simulator throughput (episode-steps per second).
+    ///
+    /// On one thread and on all threads, at δ = 0 and at the largest δ, the
+    /// median and range of the timed repeats; `--front`: the time of the
+    /// front, the strategy LP and the PRISM export.
+    ///
+    /// More: docs/cli.md.
     Bench(crate::cmd::bench::Args),
     /// Run a strategy as processes (coordinator, agent, one per sensor) over iceoryx2.
+    ///
+    /// The report gives the outcomes with 95 % intervals and each sensor's
+    /// packets (its ledger, what the agent received) against the prediction:
+    /// the MDP's expected energy per leg stored in `strategy.json`, or for
+    /// `--scenario --delta` an in-process simulation (`--predict-episodes`).
+    /// `--record` writes every message to one MCAP file, `--live` serves the
+    /// run to Foxglove, `--listen … --remote …` puts sensors on other hosts.
+    ///
+    /// More: docs/cli.md.
     Run(crate::cmd::run::Args),
     /// Serve remote sensors of a run on this host (`etp run --listen … --remote …` on the agent host).
+    ///
+    /// Fetches the scenario and parameters from the agent host, starts the
+    /// sensor processes and exits when the run ends or the agent host is
+    /// gone. The link and what it admits: docs/remote.md.
+    ///
+    /// More: docs/cli.md.
     SensorHost(crate::cmd::sensor_host::Args),
     /// Key material of an authenticated, encrypted run across hosts:
     /// `etp certs init DIR` (then `--tls DIR` on `run` and `sensor-host`).

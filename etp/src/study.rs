@@ -114,7 +114,7 @@ fn cost(spec: &Spec, j: usize, cases: usize) -> u64 {
 /// front — its hull — and certification, the aggregation test, start-up and
 /// writing): 0.17 of `etp synthesize winding-2d` at its default 6000
 /// samples on one rank, fitted to 1 and 2 ranks at three sample sizes
-/// (docs/measurements.md, "Issue 42: the serial parts shared out").
+/// (docs/performance.md, "MPI"; `benchmarks/mpi.sh`).
 pub const SERIAL_SHARE: f64 = 0.17;
 
 /// Whether to hand whole jobs to ranks (`true`) or put every rank on each

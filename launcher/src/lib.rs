@@ -36,6 +36,55 @@
 //!   only once the run ran) and the recorder process; `rundir` — the run's
 //!   private folder, owned by one live run (a lock the kernel drops when
 //!   the owner dies).
+//!
+//! # Semantics of faults
+//!
+//! * **Dead** (the iceoryx2 node of a process is dead or gone): the episodes it
+//!   serves are *degraded*. A dead sensor is a dead link: the agent predicts only
+//!   on its slots (never the implicit update) and the episode is marked degraded;
+//!   its ledgers are missing. A dead agent fails the run; a dead coordinator ends
+//!   every process: at once under `etp run` (SIGTERM to each), otherwise
+//!   within a sensor's node-list period (3 s).
+//! * **Live but slow or paused** (load, SIGSTOP/SIGCONT, Ctrl-Z + `fg`, a
+//!   debugger): waited for. Simulated time does not advance, nothing is
+//!   degraded. Only `etp run --slot-deadline MS` (real-time studies) turns a slot
+//!   late by MS into a reported fault.
+//! * **Interrupted waits** (EINTR after SIGCONT) are resumed, never fatal.
+//! * **Nothing that carries data, control or accounting is overwritten**: every
+//!   publish-subscribe service has `safe_overflow` off, so a full buffer makes
+//!   the publisher wait for its reader (the recorder included) instead of
+//!   dropping or overwriting; only the wake-up events may coalesce.
+//! * **SIGINT = SIGTERM** to `etp run`: the coordinator stops after the complete
+//!   episodes, collects their ledgers (a live sensor's ledger is always waited
+//!   for; after a termination request for at most 2 s), stops every process,
+//!   the recorder finishes its file, the partial report is printed and every
+//!   file of the run is removed (exit 130). The run's processes live in process
+//!   groups of their own, so a terminal's Ctrl-C reaches `etp run` only.
+//! * **A service left half-made.** A process killed between creating a
+//!   shared-memory file and sizing it leaves it empty (and write-only).
+//!   iceoryx2 0.10, removing a dead node's resources, retries opening such a
+//!   file forever as root. Every removal of dead nodes' resources
+//!   (`wire::remove_dead_nodes`, `wire::liveness`, the stale-run sweeps) first
+//!   removes the run's empty shared-memory files older than 2 s
+//!   (`wire::liveness::remove_abandoned_storage`; a live creator sizes its file within
+//!   microseconds). Before this, one such file hung every later `etp run` on the
+//!   machine, and a CI run (`faults::a_service_left_half_made_…` reproduces it).
+//! * **kill -9 of `etp run`**: its processes see their parent change and exit;
+//!   the run folder (`<private>/run/<id>` in the user's private folder, locked by its owner for the run's
+//!   lifetime) and iceoryx2 files of the dead run are removed by the next start.
+//! * **Exit codes of `etp run`** (README "Exit codes"): 0 only when every
+//!   episode ran, every count agrees and the requested recording finished at its
+//!   path; 4 when a count disagrees (per leg, or per sensor over the legs with a
+//!   ledger), a live sensor's ledger is missing or the recording failed (also:
+//!   its target changed under it); 5 when an episode degraded (unless
+//!   `--allow-degraded`, which excuses exactly a dead sensor's legs without a
+//!   ledger: their received measurements are reported apart as
+//!   `received_without_ledger`); 130 when interrupted; 1 for errors.
+//! * **`--record` never loses a file**: the recorder writes
+//!   `<FILE>.<run-id>.partial`; `record::Target::commit` moves it onto FILE once
+//!   the run ran — with `link(2)` when FILE did not exist, with `rename(2)` when
+//!   it is still the inode `--force` allowed to replace — and otherwise keeps it
+//!   beside and exits 4. A run that fails before it ran removes its partial file.
 
 pub mod config;
 pub mod figure;

@@ -20,6 +20,26 @@
 //!   aware silence update, and each attempt's fate from its own stream.
 //! * [`rng`] — reproducible per-episode random streams (`Xoshiro256++`).
 //! * [`stats`] — confidence intervals for means and proportions.
+//! * [`episode::agent_core`] — `AgentCore`, THE step of docs/MODEL.md §3/§7
+//!   written once (input, move, collision, prior, the served slot's update,
+//!   the leg end): a pure state machine driven by the in-process leg loop,
+//!   the agent process, `replay verify` and the sensor's replica
+//!   ([`episode::replica`], which the serving sensor runs from one handover
+//!   per leg); [`episode::step`] the pieces it orders and `serve_slot`, the
+//!   sensor's side of a slot.
+//! * [`strategy`] — `strategy.json` (format 2): a `Strategy` is its policy
+//!   (scenario, Δ, discretization, ω per state, optional splits, the
+//!   embedded scenario text and channel), its predictions (`predicted` first,
+//!   certified bounds, the aggregation check, diagnostics) and its
+//!   provenance; written through one flat layout whose key order is the
+//!   file's, and sealed by a hash of its text.
+//! * [`discretization`] — covariance regions (Method 2), the workspace
+//!   descriptor and its lookahead map, and `RegionSplit`, the one
+//!   refinement used by synthesis, validation and the coordinator.
+//! * [`structured`] and [`dense`] — fast products (gathers for a selecting
+//!   H, unrolled fixed-size products) that give nalgebra's results bit for
+//!   bit; `linalg::deterministic_eigen` fixes the whitening basis the
+//!   ∞-norm trigger depends on.
 //!
 //! The runtime's payloads, services and recordings live in `etp-runtime`,
 //! which depends on this crate and never the other way round.

@@ -120,8 +120,8 @@ impl Executor for MpiExecutor {
                 part.extend_from_slice(&buf[at..at + counts[k] as usize]);
             }
         }
-        // The model of docs/measurements.md ("MPI: efficiency and the model
-        // to 64 ranks") is fitted to these lines (`RUST_LOG=etp=debug`):
+        // The MPI model of docs/performance.md ("MPI") is fitted to these
+        // lines (`RUST_LOG=etp=debug`):
         // the seconds include the wait for the slowest rank.
         tracing::debug!(
             rank = self.rank,

@@ -354,6 +354,24 @@ mod tests {
         assert!(n >= 3, "{n} SPECs in studies/");
         let families = Spec::load(&dir.join("families.toml")).expect("families.toml");
         assert_eq!(families.jobs.len(), 15);
+        // The study SPECs of benchmarks/ (docs/performance.md) parse too.
+        let bench = Path::new(env!("CARGO_MANIFEST_DIR")).join("../benchmarks");
+        let mut jobs = Vec::new();
+        for e in std::fs::read_dir(&bench).expect("benchmarks/").flatten() {
+            if e.path().extension().is_some_and(|x| x == "toml") {
+                let spec = Spec::load(&e.path()).unwrap_or_else(|err| panic!("{err:#}"));
+                jobs.push((spec.name.clone(), spec.jobs.len()));
+            }
+        }
+        jobs.sort();
+        assert_eq!(
+            jobs,
+            [
+                ("fresh-scenarios".to_string(), 15),
+                ("mpi-study".to_string(), 4),
+                ("prediction-accuracy".to_string(), 20),
+            ]
+        );
     }
 
     #[test]

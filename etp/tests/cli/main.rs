@@ -6,6 +6,7 @@ mod pyenv;
 
 mod aggregation_check;
 mod certified;
+mod docs_map;
 mod exact;
 mod families;
 mod integrity;

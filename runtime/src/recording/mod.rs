@@ -1,4 +1,4 @@
-//! The MCAP recording format of a run (ARCHITECTURE.md "Runtime processes and services", recording): the one place
+//! The MCAP recording format of a run (the processes and services: `crate::wire`): the one place
 //! that names channels and schemas, encodes and decodes payloads, and reads a
 //! recording leniently (an unfinished file from a crashed recorder too).
 //!

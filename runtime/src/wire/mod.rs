@@ -1,4 +1,4 @@
-//! The runtime's wire vocabulary (ARCHITECTURE.md "Runtime processes and services").
+//! The runtime's wire vocabulary (its processes and services: below).
 //!
 //! * [`messages`] — the fixed-size `#[repr(C)]` + `ZeroCopySend` payloads, one
 //!   module per direction (`coordinator_to_agent`, `coordinator_to_sensor`,
@@ -28,6 +28,70 @@
 //! agent publishes `waypoint`; the coordinator answers on `threshold` (open
 //! the leg at the serving sensor, close the previous one, whose sensor answers
 //! on `ledger`). The episode ends with `outcome`.
+//!
+//! # Processes and services
+//!
+//! `etp run` (etp/src/cmd/run.rs over the `etp-launcher` crate) finds `etp-coordinator`, `etp-agent`,
+//! `etp-sensor-node` (and `etp-recorder`) next to its own executable — or, when
+//! they are not installed there (`cargo run -p etp` builds only `etp`), starts
+//! itself as the hidden `etp process <name>`, which calls the same library entry
+//! point (`etp_runtime::shell::main_with::<P>`, with `P` the process's
+//! `shell::Process` — its name, arguments and body; argument parsing,
+//! logging, exit code and the stdout line for the parent are written once
+//! for agent, coordinator, sensor node, recorder and bridge) as the
+//! standalone binary, in a process of its own. It
+//! spawns one sensor process per sensor, supervises them with tokio (exit codes, ctrl-c, a deadline; SIGTERM to
+//! the others when the coordinator ends abnormally) and removes the run's
+//! iceoryx2 files at the end. Every run has a `RunId`; its iceoryx2 configuration
+//! (`wire::run_id::config`) uses its own shm prefix and root folder, and every
+//! service name lives under `etp/<run-id>/…`, so runs and tests never see each other.
+//! Stale runs of dead processes are removed at the start.
+//!
+//! The payloads (`runtime/src/wire/messages.rs`) are `#[repr(C)]` + `ZeroCopySend`,
+//! fixed size for n, m ≤ 6, one module per direction, each with a header. Each
+//! has one row in the catalogue (`runtime/src/wire/catalogue.rs`), and every
+//! service is derived from the rows. The limits of every service come from one
+//! function (`wire::limits`, by the row's limits class), used by every process.
+//! `threshold`, `truth`, `handover` and `ack` have one service per sensor
+//! (`sensor/<i>/…`: only the serving sensor is woken, and an idle sensor's
+//! buffer only ever holds the few messages of legs it serves); `control`,
+//! `measurement`, `slot`, `waypoint`, `outcome`, `ledger` and `hello` are shared.
+//!
+//! **Adding a message** is one struct in `wire/messages.rs` (`#[repr(C)]`,
+//! `ZeroCopySend`, serde, a `Header` first) and one row in the `catalogue!`
+//! invocation, with every column: `Kind(sensor) => type { topic, owner,
+//! reader, limits, link, recorded, forward, names, codes }` (`(sensor)` and
+//! `{sensor}` in the topic for a per-sensor message). From the row alone come
+//! its `Kind` and `ServiceId` variant, topic and `from_topic`, the reader's
+//! wake-up event, limits, link class (`traffic::link_class`), the recorder's
+//! subscription and channel with its schema text, `replay publish`, and the
+//! bridges' forwarding for remote sensors (`ServiceId::forwarded`, in causal
+//! rank). A row lacking a column does not compile; `const` checks refuse a
+//! sensor reading a shared service and a forwarded message off the sensor
+//! link; the test `every_row_has_every_column_and_they_agree` checks the rest,
+//! and `a_test_only_row_derives_everything` adds a `#[cfg(test)]` row
+//! (`Probe`) and checks all of the above for it. The lossy radio's
+//! acknowledgement (docs/MODEL.md §8) was added that way: the struct
+//! `agent_to_sensor::Ack` and the row `Ack(sensor) => a2s::Ack { topic:
+//! "sensor/{sensor}/ack", owner: Agent, reader: Sensor, limits: OneToOne(16),
+//! link: Radio, recorded: true, forward: Down(2), … }` gave it a per-sensor
+//! service, the sensor's wake-up, the recording, the traffic table's radio
+//! downlink and the bridge's downlink (ranked after the handover and before
+//! the truth, which moved to rank 3); its counts are fields of existing
+//! payloads (`slot.attempts`, the ledger's `triggers`, `delivered`, `lost`). What processes do with a message
+//! (publishing it, reading it) is of course code in those processes.
+//!
+//! Each process waits in exactly one place, `wire::Waiter::wait` on its own
+//! wake-up event (`agent/wake`, `coordinator/wake`, `sensor/<i>/wake`) — the
+//! recorder and a bridge's outbound direction on several at once, one
+//! `Waiter::over` them —, and gets
+//! one of a closed set of `Wake`s (notified, silence, terminate); interrupted
+//! waits are resumed inside it. What a silence means is decided by one
+//! `wire::Watchdog` (supervisor gone? peer dead in the node list?). Every
+//! message carries a header from one `wire::Stamper`. The sensor's decisions are
+//! a pure `SensorCore` (unit-tested) behind a thin adapter, and so are the
+//! agent's (`EpisodeCore`, over the one step `episode::AgentCore`) and the
+//! coordinator's (`CoordinatorCore`).
 
 pub mod catalogue;
 pub mod hello;

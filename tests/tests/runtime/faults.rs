@@ -1,4 +1,4 @@
-//! Faults as part of the design (ARCHITECTURE.md "Semantics of faults"):
+//! Faults as part of the design (the semantics of faults: `launcher/src/lib.rs`):
 //! a paused or slow process is waited for and degrades nothing; SIGTERM
 //! stops a run like Ctrl-C (partial report, recording finished, no files
 //! left); a killed supervisor's folder is removed by the next start; the
