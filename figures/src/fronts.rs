@@ -22,6 +22,22 @@ pub struct Curve {
     /// (front.json `certified`, at its confidence), drawn dashed; empty
     /// when the front has none within the bound.
     pub certified: Vec<(f64, f64)>,
+    /// The predicted front under the panel's bound (front.json `predicted`,
+    /// docs/MODEL.md §7.5): the strategies etp returns, at their
+    /// predictions; empty when the synthesis has none for this bound.
+    pub predicted: Vec<PredictedMark>,
+}
+
+/// A point of the predicted front as the figure draws it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PredictedMark {
+    pub p_target: f64,
+    pub energy: f64,
+    /// 95 % half-widths.
+    pub p_target_ci95: f64,
+    pub energy_ci95: f64,
+    /// The request was met (else: the closest strategy found).
+    pub met: bool,
 }
 
 /// One panel: the curves of every synthesis at one bound on P_coll.
@@ -100,9 +116,15 @@ impl super::Figure for FrontsFigure<'_> {
             .panels
             .iter()
             .flat_map(|p| p.curves.iter())
-            .flat_map(|c| c.points.iter().chain(c.certified.iter()));
+            .flat_map(|c| {
+                c.points.iter().chain(c.certified.iter()).copied().chain(
+                    c.predicted
+                        .iter()
+                        .map(|m| (m.p_target, m.energy + m.energy_ci95)),
+                )
+            });
         let (mut t_lo, mut t_hi, mut e_hi) = (1.0f64, 0.0f64, 1.0f64);
-        for &(t, en) in all {
+        for (t, en) in all {
             t_lo = t_lo.min(t);
             t_hi = t_hi.max(t);
             e_hi = e_hi.max(en);
@@ -118,7 +140,7 @@ impl super::Figure for FrontsFigure<'_> {
             };
             let mut chart = ChartBuilder::on(cell)
                 .caption(
-                    format!("{bound}; solid: the front (mixtures of its vertices), dashed: certified at 95 %"),
+                    format!("{bound}; thin: the MDP's front (selection-time), dashed: certified at 95 %, thick with ±: predicted"),
                     ("sans-serif", 13),
                 )
                 .margin(20)
@@ -137,10 +159,11 @@ impl super::Figure for FrontsFigure<'_> {
                 chart
                     .draw_series(LineSeries::new(c.points.clone(), colour.stroke_width(2)))
                     .map_err(e)?
-                    .label(if c.certified.is_empty() {
-                        format!("{} (none certified in this bound)", c.label)
-                    } else {
-                        c.label.clone()
+                    .label(match (c.certified.is_empty(), c.predicted.is_empty()) {
+                        (true, true) => format!("{} (none certified in this bound; no predicted front)", c.label),
+                        (true, false) => format!("{} (none certified in this bound)", c.label),
+                        (false, true) => format!("{} (no predicted front: etp strategy front)", c.label),
+                        (false, false) => c.label.clone(),
                     })
                     .legend(move |(x, y)| {
                         PathElement::new(vec![(x - 12, y), (x + 12, y)], colour.stroke_width(3))
@@ -159,6 +182,42 @@ impl super::Figure for FrontsFigure<'_> {
                             .map(|d| PathElement::new(d, colour.stroke_width(2))),
                     )
                     .map_err(e)?;
+                let at: Vec<(f64, f64)> =
+                    c.predicted.iter().map(|m| (m.p_target, m.energy)).collect();
+                chart
+                    .draw_series(LineSeries::new(at, colour.stroke_width(4)))
+                    .map_err(e)?;
+                for m in &c.predicted {
+                    let (x, y) = (m.p_target, m.energy);
+                    chart
+                        .draw_series([ErrorBar::new_vertical(
+                            x,
+                            y - m.energy_ci95,
+                            y,
+                            y + m.energy_ci95,
+                            colour.stroke_width(2),
+                            8,
+                        )])
+                        .map_err(e)?;
+                    chart
+                        .draw_series([ErrorBar::new_horizontal(
+                            y,
+                            x - m.p_target_ci95,
+                            x,
+                            x + m.p_target_ci95,
+                            colour.stroke_width(2),
+                            8,
+                        )])
+                        .map_err(e)?;
+                    let style = if m.met {
+                        colour.filled()
+                    } else {
+                        colour.stroke_width(2)
+                    };
+                    chart
+                        .draw_series([Circle::new((x, y), 5, style)])
+                        .map_err(e)?;
+                }
             }
             crate::draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, 14, 0.8)?;
         }

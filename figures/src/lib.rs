@@ -33,7 +33,7 @@ mod report;
 mod trigger_curves;
 
 pub use front::front_plot;
-pub use fronts::{Curve, Panel, fronts_plot};
+pub use fronts::{Curve, Panel, PredictedMark, fronts_plot};
 pub use map::map_plot;
 pub use report::{Bar, RunFigure, mean_ci, proportion, report_plot, short_label};
 pub use trigger_curves::{FamilySeries, RatePoint, trigger_curves_plot};

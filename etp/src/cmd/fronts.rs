@@ -107,6 +107,7 @@ pub fn run(a: Args) -> Result<()> {
                         .as_ref()
                         .map(|c| c.least_energy(bound))
                         .unwrap_or_default(),
+                    predicted: predicted_marks(&s.front, bound),
                 })
                 .collect(),
         })
@@ -141,6 +142,10 @@ pub fn run(a: Args) -> Result<()> {
                     "certified_confidence": s.front.certified.as_ref().map(|c| c.confidence),
                     "points": pairs(&c.points),
                     "certified": pairs(&c.certified),
+                    "predicted": c.predicted.iter().map(|m| json!({
+                        "p_target": m.p_target, "p_target_ci95": m.p_target_ci95,
+                        "energy": m.energy, "energy_ci95": m.energy_ci95, "met": m.met,
+                    })).collect::<Vec<_>>(),
                 })).collect::<Vec<_>>(),
             })).collect::<Vec<_>>(),
             "files": files,
@@ -179,6 +184,24 @@ pub fn run(a: Args) -> Result<()> {
         println!("wrote {} and {}", files[0].display(), files[1].display());
     }
     Ok(())
+}
+
+/// The predicted front of `front` under `bound` (front.json `predicted`,
+/// written by `etp strategy front`), as the figure draws it.
+fn predicted_marks(front: &ParetoFront, bound: Option<f64>) -> Vec<etp_figures::PredictedMark> {
+    front
+        .predicted
+        .iter()
+        .filter(|c| c.max_collision == bound)
+        .flat_map(|c| &c.points)
+        .map(|p| etp_figures::PredictedMark {
+            p_target: p.predicted.p_target,
+            energy: p.predicted.energy,
+            p_target_ci95: p.predicted_ci95.p_target,
+            energy_ci95: p.predicted_ci95.energy,
+            met: p.met(),
+        })
+        .collect()
 }
 
 /// Least energy for `points` P_tar targets, from the lowest P_tar of a

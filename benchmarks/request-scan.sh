@@ -1,0 +1,63 @@
+#!/usr/bin/env bash
+# The request loop against a dense scan of asked levels (docs/performance.md,
+# "The least energy that meets the request"). For a fresh random scenario:
+# synthesize; P = the full KF's simulated P_tar − DROP; the plain
+# `etp strategy DIR --min-target P`; then `etp strategy DIR --min-target a
+# --rounds 1` for STEPS asked levels a over [P − 0.01, P + 0.06], each the
+# MDP's strategy for a predicted on its own rebuilds. Prints the plain
+# strategy's predicted energy against the cheapest scanned strategy whose
+# prediction meets P by the loop's own rule (P_tar + h/4 ≥ P).
+#   DIM=4 SEED=9201 DROP=0.02 bash benchmarks/request-scan.sh
+set -euo pipefail
+DIM=${DIM:-4}
+SEED=${SEED:-9201}
+DROP=${DROP:-0.02}
+STEPS=${STEPS:-12}
+ETP=${ETP:-target/release/etp}
+OUT=${OUT:-out/request-scan-$DIM-$SEED}
+echo "machine: $(nproc) cores, $(free -g | awk '/Mem:/{print $2}') GiB; $ETP"
+mkdir -p "$OUT"
+[ -f "$OUT/scenario.toml" ] || "$ETP" scenario random --dim-agent "$DIM" --seed "$SEED" -o "$OUT/scenario.toml"
+[ -f "$OUT/syn/mdp.bin" ] || "$ETP" synthesize "$OUT/scenario.toml" -o "$OUT/syn" --json > "$OUT/synthesize.json"
+KF=$("$ETP" simulate "$OUT/scenario.toml" --delta 0 --episodes 20000 --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["p_target"])')
+P=$(python3 -c "print(round($KF - $DROP, 4))")
+echo "KF P_tar $KF, request P_tar ≥ $P"
+start=$(date +%s.%N)
+"$ETP" strategy "$OUT/syn" --min-target "$P" --aggregation-check 0 -o "$OUT/plain.json" --force --json > "$OUT/plain.out" || true
+end=$(date +%s.%N)
+for k in $(seq 0 $((STEPS - 1))); do
+  a=$(python3 -c "print(round($P - 0.01 + 0.07 * $k / ($STEPS - 1), 5))")
+  "$ETP" strategy "$OUT/syn" --min-target "$a" --rounds 1 --aggregation-check 0 \
+    -o "$OUT/scan-$k.json" --force --json > "$OUT/scan-$k.out" || true
+done
+python3 - "$OUT" "$P" "$STEPS" "$start" "$end" <<'PY'
+import json, sys
+out, p, steps, t0, t1 = sys.argv[1], float(sys.argv[2]), int(sys.argv[3]), float(sys.argv[4]), float(sys.argv[5])
+def load(name):
+    try:
+        return json.load(open(f"{out}/{name}.out"))
+    except Exception:
+        return None
+plain = load("plain")
+print(f"plain: {plain['verdict']}, {len(plain['diagnostics']['rounds'])} rounds, {t1 - t0:.0f} s: "
+      f"P_tar {plain['predicted']['p_target']:.4f} ± {plain['predicted_ci95']['p_target']:.4f}, "
+      f"energy {plain['predicted']['energy_mean']:.2f}")
+best = None
+print(f"{'asked':>8} {'MDP energy':>11} {'P_tar':>8} {'±':>7} {'energy':>8} meets")
+for k in range(steps):
+    s = load(f"scan-{k}")
+    if s is None:
+        continue
+    r = s["diagnostics"]["rounds"][0]
+    q, h = s["predicted"], s["predicted_ci95"]
+    meets = q["p_target"] + 0.25 * h["p_target"] >= p
+    print(f"{r['asked_p_target']:8.4f} {r['selection_time']['energy_mean']:11.2f} {q['p_target']:8.4f} "
+          f"{h['p_target']:7.4f} {q['energy_mean']:8.2f} {'yes' if meets else 'no'}")
+    if meets and (best is None or q["energy_mean"] < best):
+        best = q["energy_mean"]
+if best is not None and plain["verdict"] == "met":
+    e = plain["predicted"]["energy_mean"]
+    print(f"plain {e:.2f} vs the scan's cheapest meeting {best:.2f}: {100 * (e / best - 1):+.2f} %")
+else:
+    print("no comparison: the plain strategy or the scan did not meet the request")
+PY
