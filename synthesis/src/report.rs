@@ -104,6 +104,21 @@ fn radio_counts(m: &mut Map<String, Value>, c: &SensorCounts) {
     );
 }
 
+/// The first estimate (value or half-width) of a summary that is not a
+/// number (NaN, ±∞), by its JSON key: what the front ends refuse to print
+/// (docs/MODEL.md §1.1).
+pub fn first_non_finite(sum: &SimulationSummary) -> Option<(String, f64)> {
+    estimates(sum).into_iter().find_map(|(k, e)| {
+        if !e.value.is_finite() {
+            Some((k.to_string(), e.value))
+        } else if !e.ci95.is_finite() {
+            Some((format!("{k}_ci95"), e.ci95))
+        } else {
+            None
+        }
+    })
+}
+
 pub fn estimates(sum: &SimulationSummary) -> [(&'static str, Estimate); 8] {
     [
         ("p_target", sum.p_target),
