@@ -131,3 +131,33 @@ pub fn estimates(sum: &SimulationSummary) -> [(&'static str, Estimate); 8] {
         ("nees", sum.nees),
     ]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::first_non_finite;
+    use crate::simulate::SimulationTotals;
+
+    /// A summary whose NEES sum overflowed to ∞ − ∞ is named by its key;
+    /// one of finite sums is not.
+    #[test]
+    fn a_quantity_that_is_not_a_number_is_named() {
+        let mut t = SimulationTotals {
+            episodes: 2,
+            target: 1,
+            free: 1,
+            ..SimulationTotals::default()
+        };
+        for e in [3.0, 5.0] {
+            t.energy.push(e);
+            t.steps.push(10.0);
+            t.rate.push(2.0, 10.0);
+            t.expected_rate.push(2.5, 10.0);
+            t.nees.push(9.0, 10.0);
+        }
+        assert_eq!(first_non_finite(&t.summary()), None);
+        t.nees.push(f64::INFINITY - f64::INFINITY, 10.0);
+        let (key, v) = first_non_finite(&t.summary()).expect("NaN named");
+        assert_eq!(key, "nees");
+        assert!(v.is_nan());
+    }
+}

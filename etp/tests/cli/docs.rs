@@ -58,10 +58,11 @@ pub(super) fn markdown_files() -> Vec<PathBuf> {
         for e in entries.flatten() {
             let path = e.path();
             let name = e.file_name().to_string_lossy().to_string();
-            let rel = path.strip_prefix(root).expect("under the root").to_path_buf();
-            if name.starts_with('.')
-                || NOT_COVERED.iter().any(|(p, _)| rel == Path::new(p))
-            {
+            let rel = path
+                .strip_prefix(root)
+                .expect("under the root")
+                .to_path_buf();
+            if name.starts_with('.') || NOT_COVERED.iter().any(|(p, _)| rel == Path::new(p)) {
                 continue;
             }
             // No symlinks followed: a link out of the checkout is not its doc.
@@ -163,16 +164,18 @@ pub(super) fn without_comment(line: &str) -> String {
     line.trim().to_string()
 }
 
-/// The PATH of a docs script: the built `etp` and the venv's `python3` first.
-pub(super) fn script_path() -> String {
+/// The PATH of a docs script: the built `etp` first, then (`python`: the
+/// script runs `python3`) the pinned venv's `python3`, made if need be.
+pub(super) fn script_path(python: bool) -> String {
     let bin = PathBuf::from(env!("CARGO_BIN_EXE_etp"));
-    let py = super::pyenv::python();
-    format!(
-        "{}:{}:{}",
-        bin.parent().expect("bin dir").display(),
-        py.parent().expect("venv bin").display(),
-        std::env::var("PATH").unwrap_or_default()
-    )
+    let mut dirs = vec![bin.parent().expect("bin dir").to_path_buf()];
+    if python {
+        let py = super::pyenv::python();
+        dirs.push(py.parent().expect("venv bin").to_path_buf());
+    }
+    let mut path: Vec<String> = dirs.iter().map(|d| d.display().to_string()).collect();
+    path.push(std::env::var("PATH").unwrap_or_default());
+    path.join(":")
 }
 
 /// Run `script` with bash in `dir`; panics with `what`, the script and its
@@ -206,7 +209,6 @@ pub(super) fn script_of(commands: &[String]) -> String {
 #[test]
 fn every_command_of_the_other_markdown_files_runs() {
     let root = root();
-    let path = script_path();
     let mut ran = 0;
     for file in markdown_files() {
         if file == Path::new("README.md") {
@@ -220,6 +222,11 @@ fn every_command_of_the_other_markdown_files_runs() {
         }
         let dir = Scratch::new("docs");
         let leftovers = super::RunLeftovers::new("docs");
+        let python = runnable
+            .iter()
+            .flat_map(|b| commands(&b.lines))
+            .any(|c| c.split_whitespace().any(|w| w == "python3"));
+        let path = script_path(python);
         for b in runnable {
             let cmds: Vec<String> = commands(&b.lines)
                 .into_iter()
@@ -293,9 +300,11 @@ fn invocations(text: &str) -> Invocations {
             }
         }
     }
-    // Indented code blocks of the prose.
+    // Indented code blocks of the prose (a diagram's `etp strategy ◀──`
+    // is not a command: commands are ASCII).
     for (i, line) in prose.lines().enumerate() {
-        if line.starts_with("    ") && etp_words(line).is_some() {
+        if line.starts_with("    ") && etp_words(line).is_some() && without_comment(line).is_ascii()
+        {
             misplaced.push((i + 1, line.trim().to_string()));
         }
     }
@@ -316,7 +325,9 @@ fn etp_words(line: &str) -> Option<String> {
     let at = if first == "etp" || first.ends_with("/etp") {
         0
     } else if matches!(first, "srun" | "mpirun" | "exec" | "time" | "nice") {
-        tokens.iter().position(|t| *t == "etp" || t.ends_with("/etp"))?
+        tokens
+            .iter()
+            .position(|t| *t == "etp" || t.ends_with("/etp"))?
     } else {
         return None;
     };
@@ -371,6 +382,10 @@ fn code_spans(text: &str) -> Vec<(usize, String)> {
     spans
 }
 
+/// Subcommands whose arguments are another program's (`etp process NAME
+/// ARGS…` runs the named process with its own command line): not checked.
+const RAW_ARGS: &[&str] = &["process"];
+
 /// `etp [path…] --help`: (subcommands, flags), cached per path.
 struct Help {
     cache: HashMap<Vec<String>, (Vec<String>, Vec<String>)>,
@@ -422,6 +437,13 @@ impl Help {
 fn check_invocation(help: &mut Help, words: &str) -> Option<String> {
     let words = words.replace("\\|", "|");
     let tokens: Vec<&str> = words.split_whitespace().skip(1).collect();
+    // `etp … --json`: any command; `etp process NAME …`: another program's flags.
+    if tokens
+        .first()
+        .is_some_and(|t| matches!(*t, "…" | "...") || RAW_ARGS.contains(t))
+    {
+        return None;
+    }
     let mut paths: Vec<Vec<String>> = vec![Vec::new()];
     let mut i = 0;
     // Descend while the word names subcommands (alternatives `a|b` each).
@@ -462,7 +484,10 @@ fn check_invocation(help: &mut Help, words: &str) -> Option<String> {
             continue;
         }
         if !paths.iter().any(|p| help.of(p).1.iter().any(|f| f == flag)) {
-            let shown: Vec<String> = paths.iter().map(|p| format!("etp {}", p.join(" "))).collect();
+            let shown: Vec<String> = paths
+                .iter()
+                .map(|p| format!("etp {}", p.join(" ")))
+                .collect();
             return Some(format!("{flag} is not an option of {}", shown.join(" / ")));
         }
     }
@@ -493,7 +518,10 @@ fn every_etp_command_of_the_docs_names_real_subcommands_and_flags() {
             }
         }
     }
-    assert!(checked > 50, "only {checked} etp commands found in the docs");
+    assert!(
+        checked > 50,
+        "only {checked} etp commands found in the docs"
+    );
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
 
@@ -509,20 +537,28 @@ fn the_docs_checker_reads_the_notation_and_catches_a_refused_flag() {
         "etp run … --live [ADDR:PORT] [--live-wait]",
         "etp replay cat FILE --topics outcome,ledger | head",
         "etp synthesize winding-2d -o out/w",
+        "etp … --json",
+        "etp process etp-recorder --run-id copy --out copy.mcap",
     ] {
         assert_eq!(check_invocation(&mut help, ok), None, "{ok}");
     }
     for (bad, flag) in [
         ("etp replay FILE --export DIR", "--export"),
-        ("etp replay foxglove FILE OUT --foxglove-clock recorded", "--foxglove-clock"),
+        (
+            "etp replay foxglove FILE OUT --foxglove-clock recorded",
+            "--foxglove-clock",
+        ),
         ("etp simulate winding-2d --detla 1", "--detla"),
     ] {
         let why = check_invocation(&mut help, bad).unwrap_or_default();
         assert!(why.starts_with(flag), "{bad}: {why}");
     }
-    let text = "Run `etp check\nwinding-2d --jsn` first.\n\n    etp check x\n\n```bash\nsrun target/release/etp check x\n```\n";
+    let text = "Run `etp check\nwinding-2d --jsn` first.\n\n    etp check x\n    etp run ◀── diagram\n\n```bash\nsrun target/release/etp check x\n```\n";
     let inv = invocations(text);
-    assert_eq!(inv.found, vec![(1, "etp check winding-2d --jsn".to_string())]);
+    assert_eq!(
+        inv.found,
+        vec![(1, "etp check winding-2d --jsn".to_string())]
+    );
     assert_eq!(inv.misplaced.len(), 2, "{:?}", inv.misplaced);
     assert!(has_placeholder("etp replay recordings/w-<run-id>.mcap"));
     assert!(!has_placeholder("python3 x.py < in.txt > out.txt"));

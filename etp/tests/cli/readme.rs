@@ -82,7 +82,7 @@ fn every_command_of_the_readme_runs() {
         std::fs::copy(e.path(), dir.path("studies").join(e.file_name())).expect("copy a SPEC");
     }
     // `etp` the build's, `python3` the venv's.
-    let path = script_path();
+    let path = script_path(true);
     // The README's placeholders: the recording of the example session, and
     // a run id of this test's own for the publish recipe.
     let leftovers = super::RunLeftovers::new("readme");
@@ -91,7 +91,7 @@ fn every_command_of_the_readme_runs() {
     for block in &blocks {
         let mut script = Vec::new();
         for cmd in block {
-            if ELSEWHERE.iter().any(|(c, _)| c == cmd) {
+            if ELSEWHERE.iter().any(|(c, _)| *c == cmd.as_str()) {
                 continue;
             }
             // The binaries a build leaves in target/release are the ones on PATH.

@@ -33,7 +33,10 @@ fn the_scenarios_that_cannot_work_are_refused_by_every_command_naming_the_field(
     let cases = [
         (
             "growth",
-            edited("F = [[1.0, 0.0], [0.0, 1.0]]", "F = [[1e6, 0.0], [0.0, 1.0]]"),
+            edited(
+                "F = [[1.0, 0.0], [0.0, 1.0]]",
+                "F = [[1e6, 0.0], [0.0, 1.0]]",
+            ),
             "`model.F`",
         ),
         (
@@ -74,7 +77,15 @@ fn the_scenarios_that_cannot_work_are_refused_by_every_command_naming_the_field(
             vec!["simulate", path, "--delta", "1.0", "--episodes", "10"],
             vec!["synthesize", path, "--samples", "20", "-o", s(&out)],
             vec!["bench", path],
-            vec!["run", "--scenario", path, "--delta", "1.0", "--episodes", "1"],
+            vec![
+                "run",
+                "--scenario",
+                path,
+                "--delta",
+                "1.0",
+                "--episodes",
+                "1",
+            ],
         ] {
             let (code, err) = refusal(&args);
             assert_eq!(code, Some(1), "etp {args:?}: {err}");
@@ -111,15 +122,34 @@ fn assert_numbers(v: &Value, what: &str) {
 #[test]
 fn every_builtin_random_and_partly_observing_scenario_loads_and_simulates_without_a_nan() {
     let dir = Scratch::new("workable");
-    let mut scenarios: Vec<(String, String)> = ["winding-2d", "open-2d", "superg-3d", "inertia-2d", "inertia-3d"]
-        .iter()
-        .map(|n| (n.to_string(), n.to_string()))
-        .collect();
+    let mut scenarios: Vec<(String, String)> = [
+        "winding-2d",
+        "open-2d",
+        "superg-3d",
+        "inertia-2d",
+        "inertia-3d",
+    ]
+    .iter()
+    .map(|n| (n.to_string(), n.to_string()))
+    .collect();
     for n in ["2", "3", "4", "6"] {
         for seed in ["11", "12", "13"] {
             let file = dir.path(&format!("random-{n}-{seed}.toml"));
-            let out = etp(&["scenario", "random", "--dim-agent", n, "--seed", seed, "-o", s(&file)]);
-            assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+            let out = etp(&[
+                "scenario",
+                "random",
+                "--dim-agent",
+                n,
+                "--seed",
+                seed,
+                "-o",
+                s(&file),
+            ]);
+            assert!(
+                out.status.success(),
+                "{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
             scenarios.push((format!("random n = {n} seed {seed}"), s(&file).to_string()));
         }
     }
@@ -136,11 +166,31 @@ fn every_builtin_random_and_partly_observing_scenario_loads_and_simulates_withou
     scenarios.push(("rank-deficient s0".into(), s(&partial).to_string()));
     for (what, arg) in &scenarios {
         let c = etp(&["check", arg, "--json"]);
-        assert!(c.status.success(), "{what}: {}", String::from_utf8_lossy(&c.stderr));
+        assert!(
+            c.status.success(),
+            "{what}: {}",
+            String::from_utf8_lossy(&c.stderr)
+        );
         let c: Value = serde_json::from_slice(&c.stdout).expect("check JSON");
-        assert_eq!(c["warnings"].as_array().map(Vec::len), Some(0), "{what}: {c}");
-        let out = etp(&["simulate", arg, "--delta", "1.0", "--episodes", "20", "--json"]);
-        assert!(out.status.success(), "{what}: {}", String::from_utf8_lossy(&out.stderr));
+        assert_eq!(
+            c["warnings"].as_array().map(Vec::len),
+            Some(0),
+            "{what}: {c}"
+        );
+        let out = etp(&[
+            "simulate",
+            arg,
+            "--delta",
+            "1.0",
+            "--episodes",
+            "20",
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{what}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let v: Value = serde_json::from_slice(&out.stdout).expect("simulate JSON");
         assert_numbers(&v, what);
         let text = etp(&["simulate", arg, "--delta", "1.0", "--episodes", "20"]);

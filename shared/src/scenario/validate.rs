@@ -5,8 +5,8 @@
 
 use super::fields::{matrix, positive, spd, vector};
 use super::raw::{RawBox, RawRadio, RawScenario, RawSensor};
-use super::{workable, workspace_gain};
 use super::{ControllerParams, Leg, MAX_DIM, Obstacle, Plant, Scenario, ScenarioError, Sensor};
+use super::{workable, workspace_gain};
 use crate::geometry::Aabb;
 use crate::radio::{Estimator, Link, LinkFields, Radio};
 use crate::trigger::TriggerFamily;

@@ -101,7 +101,11 @@ fn detectable(f: &DMatrix<f64>, sensors: &[Sensor], legs: &[Leg]) -> Result<Vec<
         .column_iter()
         .map(|c| {
             // Signed so that its largest entry is positive; −0 printed as 0.
-            let sign = if c.iter().fold(0.0_f64, |m, &x| if x.abs() > m.abs() { x } else { m }) < 0.0 {
+            let sign = if c
+                .iter()
+                .fold(0.0_f64, |m, &x| if x.abs() > m.abs() { x } else { m })
+                < 0.0
+            {
                 -1.0
             } else {
                 1.0
@@ -146,8 +150,16 @@ fn detectable(f: &DMatrix<f64>, sensors: &[Sensor], legs: &[Leg]) -> Result<Vec<
 /// converge.
 fn observable_rows(f: &DMatrix<f64>, h: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     let n = f.ncols();
-    let f_scale = f.clone().try_svd(false, false, f64::EPSILON, 10_000)?.singular_values.max();
-    let h_scale = h.clone().try_svd(false, false, f64::EPSILON, 10_000)?.singular_values.max();
+    let f_scale = f
+        .clone()
+        .try_svd(false, false, f64::EPSILON, 10_000)?
+        .singular_values
+        .max();
+    let h_scale = h
+        .clone()
+        .try_svd(false, false, f64::EPSILON, 10_000)?
+        .singular_values
+        .max();
     let mut basis = DMatrix::<f64>::zeros(0, n);
     let (mut candidates, mut scale) = (h.clone(), h_scale);
     while basis.nrows() < n && candidates.nrows() > 0 && scale > 0.0 {
