@@ -313,9 +313,9 @@ fn reach(
     Err(ScenarioError::invalid(
         "controller.u_max",
         format!(
-            "the controller cannot move the agent along the route: with ‖u‖ ≤ u_max = {} it \
+            "the controller cannot move the agent along the route: with ‖u‖ ≤ u_max = {:e} it \
              moves the workspace point by at most {reach:.3e} in a leg of controller.k_max = \
-             {steps} steps (u_max Σ_j ‖C F^j G‖), but leg[{longest}] is {:.3} long and ends \
+             {steps} steps (u_max Σ_j ‖C F^j G‖₂), but leg[{longest}] is {:.3} long and ends \
              only within controller.eps_x = {} of its waypoint",
             controller.u_max, lengths[longest], controller.eps_x
         ),
