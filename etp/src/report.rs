@@ -4,7 +4,7 @@
 //! package.
 
 use etp_shared::scenario::Scenario;
-use etp_synthesis::report::estimates;
+use etp_synthesis::report::{estimates, first_non_finite};
 pub use etp_synthesis::report::{sensor_names, summary_json};
 use etp_synthesis::simulate::SimulationSummary;
 
@@ -35,6 +35,23 @@ pub fn radio_table(s: &Scenario, sum: &SimulationSummary) -> String {
         ));
     }
     o
+}
+
+/// The last line of defence against a result that is not a number: a
+/// summary holding one (a scenario whose numbers overflowed in a way
+/// `Scenario::from_toml` did not foresee) is an error naming the quantity,
+/// never a table or a JSON `null` with exit 0.
+pub fn ensure_finite(sum: &SimulationSummary) -> anyhow::Result<()> {
+    match first_non_finite(sum) {
+        None => Ok(()),
+        Some((key, v)) => anyhow::bail!(
+            "the simulation's {key} is {v}, not a number: the scenario's arithmetic overflowed \
+             over {} episodes ({} steps); nothing is reported (check the scenario's model.F, \
+             Q, R and P0: docs/MODEL.md §1.1)",
+            sum.episodes,
+            sum.total_steps
+        ),
+    }
 }
 
 /// A readable table of a summary.

@@ -104,6 +104,21 @@ fn radio_counts(m: &mut Map<String, Value>, c: &SensorCounts) {
     );
 }
 
+/// The first estimate (value or half-width) of a summary that is not a
+/// number (NaN, ±∞), by its JSON key: what the front ends refuse to print
+/// (docs/MODEL.md §1.1).
+pub fn first_non_finite(sum: &SimulationSummary) -> Option<(String, f64)> {
+    estimates(sum).into_iter().find_map(|(k, e)| {
+        if !e.value.is_finite() {
+            Some((k.to_string(), e.value))
+        } else if !e.ci95.is_finite() {
+            Some((format!("{k}_ci95"), e.ci95))
+        } else {
+            None
+        }
+    })
+}
+
 pub fn estimates(sum: &SimulationSummary) -> [(&'static str, Estimate); 8] {
     [
         ("p_target", sum.p_target),
@@ -115,4 +130,34 @@ pub fn estimates(sum: &SimulationSummary) -> [(&'static str, Estimate); 8] {
         ("trigger_rate_expected", sum.trigger_rate_expected),
         ("nees", sum.nees),
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::first_non_finite;
+    use crate::simulate::SimulationTotals;
+
+    /// A summary whose NEES sum overflowed to ∞ − ∞ is named by its key;
+    /// one of finite sums is not.
+    #[test]
+    fn a_quantity_that_is_not_a_number_is_named() {
+        let mut t = SimulationTotals {
+            episodes: 2,
+            target: 1,
+            free: 1,
+            ..SimulationTotals::default()
+        };
+        for e in [3.0, 5.0] {
+            t.energy.push(e);
+            t.steps.push(10.0);
+            t.rate.push(2.0, 10.0);
+            t.expected_rate.push(2.5, 10.0);
+            t.nees.push(9.0, 10.0);
+        }
+        assert_eq!(first_non_finite(&t.summary()), None);
+        t.nees.push(f64::INFINITY - f64::INFINITY, 10.0);
+        let (key, v) = first_non_finite(&t.summary()).expect("NaN named");
+        assert_eq!(key, "nees");
+        assert!(v.is_nan());
+    }
 }

@@ -41,6 +41,7 @@ pub fn run(a: Args) -> Result<()> {
         &crate::dist::work(|k| pb.inc(k)),
     )?;
     pb.finish_and_clear();
+    crate::report::ensure_finite(&sum)?;
     let secs = started.elapsed().as_secs_f64();
     if a.json {
         let v = simulate_json(&s, &sum, a.delta, a.sim.seed);

@@ -67,6 +67,7 @@ pub fn run(a: Args) -> Result<()> {
     )?
     .summary();
     pb.finish_and_clear();
+    crate::report::ensure_finite(&sum)?;
     let plot_paths = if a.plot {
         plot_map(
             &scenario,

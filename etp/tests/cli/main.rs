@@ -6,6 +6,7 @@ mod pyenv;
 
 mod aggregation_check;
 mod certified;
+mod docs;
 mod docs_map;
 mod exact;
 mod families;
@@ -27,6 +28,7 @@ mod schemas;
 mod study;
 mod synthesize;
 mod trigger;
+mod workable;
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};

@@ -4,11 +4,13 @@
 //! order; the few commands that cannot run on one machine without extra
 //! software are listed in [`ELSEWHERE`] with the test that covers them. A
 //! new README command is run (or must be listed), and a listed command that
-//! left the README fails the test too.
+//! left the README fails the test too. The other Markdown files' commands
+//! run in `docs.rs`, which also checks the `etp` subcommands and flags of
+//! every file, the README's included.
 
 use super::Scratch;
+use super::docs::{commands, fenced_blocks, run_script, script_of, script_path};
 use std::path::PathBuf;
-use std::process::Command;
 
 /// Commands not run here, and why (each still exercised elsewhere).
 const ELSEWHERE: &[(&str, &str)] = &[
@@ -47,53 +49,15 @@ const ELSEWHERE: &[(&str, &str)] = &[
     ),
 ];
 
-/// The README's `sh` blocks: per block, its commands (continuation lines
-/// joined, comments kept out).
+/// The README's `sh` blocks (not `sh no-run`): per block, its commands
+/// (continuation lines joined, comments kept out).
 fn sh_blocks(text: &str) -> Vec<Vec<String>> {
-    let mut blocks = Vec::new();
-    let mut cur = Vec::new();
-    // Inside a fenced block: Some(it is an `sh` block).
-    let mut fence: Option<bool> = None;
-    let mut pending = String::new();
-    for line in text.lines() {
-        let t = line.trim();
-        if t.starts_with("```") {
-            match fence.take() {
-                Some(true) => blocks.push(std::mem::take(&mut cur)),
-                Some(false) => {}
-                None => fence = Some(t == "```sh"),
-            }
-            continue;
-        }
-        if fence != Some(true) || t.is_empty() || t.starts_with('#') {
-            continue;
-        }
-        pending.push_str(t.strip_suffix('\\').unwrap_or(t).trim_end());
-        if t.ends_with('\\') {
-            pending.push(' ');
-            continue;
-        }
-        cur.push(std::mem::take(&mut pending));
-    }
+    let (blocks, _) = fenced_blocks(text);
     blocks
-}
-
-/// The command without its trailing comment.
-fn command(line: &str) -> String {
-    // A comment starts at " #" outside quotes.
-    let mut quote = None;
-    let bytes: Vec<char> = line.chars().collect();
-    for (i, c) in bytes.iter().enumerate() {
-        match (quote, c) {
-            (None, '"' | '\'') => quote = Some(*c),
-            (Some(q), c) if *c == q => quote = None,
-            (None, '#') if i > 0 && bytes[i - 1] == ' ' => {
-                return bytes[..i].iter().collect::<String>().trim().to_string();
-            }
-            _ => {}
-        }
-    }
-    line.trim().to_string()
+        .iter()
+        .filter(|b| b.info == "sh")
+        .map(|b| commands(&b.lines))
+        .collect()
 }
 
 #[test]
@@ -101,7 +65,7 @@ fn every_command_of_the_readme_runs() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let text = std::fs::read_to_string(root.join("README.md")).expect("README");
     let blocks = sh_blocks(&text);
-    let all: Vec<String> = blocks.iter().flatten().map(|l| command(l)).collect();
+    let all: Vec<String> = blocks.iter().flatten().cloned().collect();
     for (cmd, why) in ELSEWHERE {
         assert!(
             all.iter().any(|c| c == cmd),
@@ -117,35 +81,21 @@ fn every_command_of_the_readme_runs() {
     {
         std::fs::copy(e.path(), dir.path("studies").join(e.file_name())).expect("copy a SPEC");
     }
-    let bin = PathBuf::from(env!("CARGO_BIN_EXE_etp"));
-    let bin_dir = bin.parent().expect("bin dir");
-    let py = super::pyenv::python();
-    let py_dir = py.parent().expect("venv bin");
-    // `python3` of the recipes is the venv's (its bin holds `python3`).
-    let path = format!(
-        "{}:{}:{}",
-        bin_dir.display(),
-        py_dir.display(),
-        std::env::var("PATH").unwrap_or_default()
-    );
+    // `etp` the build's, `python3` the venv's.
+    let path = script_path(true);
     // The README's placeholders: the recording of the example session, and
     // a run id of this test's own for the publish recipe.
     let leftovers = super::RunLeftovers::new("readme");
     let copy = leftovers.0.clone();
     let mut ran = 0;
     for block in &blocks {
-        let mut script = String::from("set -e\n");
-        let mut n = 0;
-        for line in block {
-            let cmd = command(line);
-            if ELSEWHERE.iter().any(|(c, _)| *c == cmd) {
+        let mut script = Vec::new();
+        for cmd in block {
+            if ELSEWHERE.iter().any(|(c, _)| *c == cmd.as_str()) {
                 continue;
             }
             // The binaries a build leaves in target/release are the ones on PATH.
-            let cmd = cmd
-                .strip_prefix("target/release/")
-                .unwrap_or(&cmd)
-                .to_string();
+            let cmd = cmd.strip_prefix("target/release/").unwrap_or(cmd);
             let first = cmd.split_whitespace().next().unwrap_or("");
             assert!(
                 matches!(first, "etp" | "cargo" | "python3" | "kill"),
@@ -159,27 +109,14 @@ fn every_command_of_the_readme_runs() {
                 !cmd.contains('<'),
                 "a placeholder this test cannot fill: {cmd}"
             );
-            script.push_str(&format!("echo '+ {}' >&2\n{cmd}\n", cmd.replace('\'', "")));
-            n += 1;
+            script.push(cmd);
         }
-        if n == 0 {
+        if script.is_empty() {
             continue;
         }
         // A recipe's background process (`&`) is waited for.
-        script.push_str("wait\n");
-        let out = Command::new("bash")
-            .args(["-c", &script])
-            .current_dir(&dir.0)
-            .env("PATH", &path)
-            .env("RAYON_NUM_THREADS", "2")
-            .output()
-            .expect("bash");
-        assert!(
-            out.status.success(),
-            "README block failed:\n{script}\n{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        ran += n;
+        run_script(&script_of(&script), &dir.0, &path, "README block");
+        ran += script.len();
     }
     // What the recipes promise is there.
     for f in [

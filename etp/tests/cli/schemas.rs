@@ -309,8 +309,18 @@ fn the_pipeline_commands_json_match_their_strict_described_schemas() {
         files, want,
         "a schema without a test, or a test without a schema"
     );
-    // Strict and described: every object with properties refuses other keys,
-    // every declared property has a description.
+    // Strict for real: an unknown key is refused.
+    let mut extra = check.clone();
+    extra["colour"] = Value::from("blue");
+    assert!(validate(&dir.0, "check", &extra).is_err());
+}
+
+/// Strict and described: every object with properties refuses other keys,
+/// and every declared property, in variants (`oneOf`, …) and definitions
+/// too, has a description — every schema of `schemas/`, without running a
+/// command.
+#[test]
+fn every_schema_is_strict_and_every_property_described() {
     fn walk(v: &Value, at: &str, bad: &mut Vec<String>) {
         if let Some(props) = v.get("properties").and_then(Value::as_object) {
             if v.get("additionalProperties") != Some(&Value::Bool(false)) {
@@ -326,16 +336,34 @@ fn the_pipeline_commands_json_match_their_strict_described_schemas() {
         if let Some(items) = v.get("items") {
             walk(items, &format!("{at}[]"), bad);
         }
+        for key in ["oneOf", "anyOf", "allOf"] {
+            let variants = v.get(key).and_then(Value::as_array).into_iter().flatten();
+            for (i, variant) in variants.enumerate() {
+                walk(variant, &format!("{at}/{key}[{i}]"), bad);
+            }
+        }
+        for key in ["$defs", "definitions", "patternProperties"] {
+            for (k, def) in v.get(key).and_then(Value::as_object).into_iter().flatten() {
+                walk(def, &format!("{at}/{key}/{k}"), bad);
+            }
+        }
+        if let Some(extra) = v.get("additionalProperties").filter(|x| x.is_object()) {
+            walk(extra, &format!("{at}/additionalProperties"), bad);
+        }
     }
+    let root = schema("x").parent().expect("schemas/").to_path_buf();
     let mut bad = Vec::new();
-    for name in tested {
-        let text = std::fs::read_to_string(schema(name)).expect("schema");
+    let mut seen = 0;
+    for e in std::fs::read_dir(&root).expect("schemas/").flatten() {
+        let path = e.path();
+        if path.extension().and_then(|x| x.to_str()) != Some("json") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).expect("schema");
         let v: Value = serde_json::from_str(&text).expect("schema JSON");
-        walk(&v, name, &mut bad);
+        walk(&v, &e.file_name().to_string_lossy(), &mut bad);
+        seen += 1;
     }
+    assert!(seen >= 10, "only {seen} schemas in {}", root.display());
     assert!(bad.is_empty(), "{bad:#?}");
-    // Strict for real: an unknown key is refused.
-    let mut extra = check.clone();
-    extra["colour"] = Value::from("blue");
-    assert!(validate(&dir.0, "check", &extra).is_err());
 }

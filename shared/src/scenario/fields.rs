@@ -5,6 +5,7 @@
 
 use super::ScenarioError;
 use super::raw::RawMatrix;
+use super::workable::CONDITION_MAX;
 use nalgebra::{DMatrix, DVector};
 
 type Result<T> = std::result::Result<T, ScenarioError>;
@@ -97,11 +98,25 @@ pub(super) fn spd(field: &str, raw: &RawMatrix, n: usize) -> Result<DMatrix<f64>
         }
     }
     let sym = (&a + a.transpose()) * 0.5;
-    let smallest = sym.clone().symmetric_eigenvalues().min();
+    let eigenvalues = sym.clone().symmetric_eigenvalues();
+    let (smallest, largest) = (eigenvalues.min(), eigenvalues.max());
     if smallest <= 0.0 || nalgebra::Cholesky::new(sym.clone()).is_none() {
         return Err(ScenarioError::invalid(
             field,
             format!("not positive definite: smallest eigenvalue is {smallest:e}"),
+        ));
+    }
+    // Singular in all but name: the filter inverts covariances built from
+    // it (Kalman gain, NEES), which rounding would make indefinite.
+    if largest / smallest > CONDITION_MAX {
+        return Err(ScenarioError::invalid(
+            field,
+            format!(
+                "numerically singular: condition number {:.3e} (eigenvalues {smallest:e} to \
+                 {largest:e}) above 1e-3/ε = {CONDITION_MAX:.3e}, where rounding makes the \
+                 filter's covariances indefinite and NEES undefined (docs/MODEL.md §1.1)",
+                largest / smallest
+            ),
         ));
     }
     Ok(sym)

@@ -12,6 +12,7 @@ pub mod random;
 mod raw;
 mod text;
 mod validate;
+mod workable;
 mod workspace_gain;
 
 pub use builtin::{BUILTIN_NAMES, DEFAULT_SCENARIO, builtin_text};
@@ -231,3 +232,6 @@ mod tests;
 
 #[cfg(test)]
 mod radio_tests;
+
+#[cfg(test)]
+mod workable_tests;

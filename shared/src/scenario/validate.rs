@@ -5,8 +5,8 @@
 
 use super::fields::{matrix, positive, spd, vector};
 use super::raw::{RawBox, RawRadio, RawScenario, RawSensor};
-use super::workspace_gain;
 use super::{ControllerParams, Leg, MAX_DIM, Obstacle, Plant, Scenario, ScenarioError, Sensor};
+use super::{workable, workspace_gain};
 use crate::geometry::Aabb;
 use crate::radio::{Estimator, Link, LinkFields, Radio};
 use crate::trigger::TriggerFamily;
@@ -234,7 +234,14 @@ pub(crate) fn validate(mut raw: RawScenario) -> Result<Scenario> {
 
     let radio = radio(raw.radio.as_ref(), &raw.sensors)?;
 
-    let mut warnings = Vec::new();
+    let mut warnings = workable::check(
+        &plant,
+        workspace.as_ref(),
+        &controller,
+        &sensors,
+        &legs,
+        &route_start,
+    )?;
     if let Some(c) = &workspace {
         warnings.extend(workspace_gain::rest_point_warnings(c, &plant.f, &legs));
     }

@@ -10,8 +10,9 @@ use nalgebra::{DMatrix, DVector};
 
 type Result<T> = std::result::Result<T, ScenarioError>;
 
-/// Singular-value ratio under which C counts as rank deficient.
-const RANK_RTOL: f64 = 1e-9;
+/// Singular-value ratio under which a matrix counts as rank deficient (C,
+/// and the observability test of `workable`).
+pub(super) const RANK_RTOL: f64 = 1e-9;
 /// Relative tolerance of the rest-point check `F C⁺ w = C⁺ w`.
 const REST_RTOL: f64 = 1e-9;
 
