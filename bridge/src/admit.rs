@@ -398,10 +398,7 @@ mod tests {
         );
         // A gap that closes in time is forgotten.
         assert!(a.admit(measurement(0, 2)).expect("held").is_empty());
-        assert_eq!(
-            seqs(&a.admit(measurement(0, 1)).expect("closes")),
-            [1, 2]
-        );
+        assert_eq!(seqs(&a.admit(measurement(0, 1)).expect("closes")), [1, 2]);
         a.cut(1);
         assert_eq!(a.gaps(t0 + bound * 9, bound), None);
         assert!(a.admit(measurement(1, 2)).expect("dropped").is_empty());

@@ -238,7 +238,9 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                 event["missing_seq"] = serde_json::json!(seq);
             }
             emit(&event);
-            emit(&serde_json::json!({"event": "lost", "sensor": name(i), "unix_ns": wire_now_ns()}));
+            emit(
+                &serde_json::json!({"event": "lost", "sensor": name(i), "unix_ns": wire_now_ns()}),
+            );
         }
         let wait = if hellos.is_empty() { 100 } else { 5 };
         match rx.recv_timeout(Duration::from_millis(wait)) {
@@ -435,7 +437,10 @@ fn overdue(
 ) -> Option<DeadLink> {
     let now = Instant::now();
     let bound = questions.bound().wait();
-    if let Some(g) = admission.gaps(now, bound).filter(|g| !cut.contains(&g.sensor)) {
+    if let Some(g) = admission
+        .gaps(now, bound)
+        .filter(|g| !cut.contains(&g.sensor))
+    {
         let (s, h) = g.first_held;
         return Some(DeadLink {
             sensor: g.sensor,
@@ -455,7 +460,9 @@ fn overdue(
             missing: Some(g.missing),
         });
     }
-    let o = questions.overdue(now).filter(|o| !cut.contains(&o.sensor))?;
+    let o = questions
+        .overdue(now)
+        .filter(|o| !cut.contains(&o.sensor))?;
     Some(DeadLink {
         sensor: o.sensor,
         message: o.question.to_string(),

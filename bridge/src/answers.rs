@@ -110,9 +110,7 @@ impl Bound {
     /// The bound now: max([`FLOOR`], [`LEASES`] × lease, [`SLOWEST`] ×
     /// slowest answer so far).
     pub fn wait(&self) -> Duration {
-        FLOOR
-            .max(self.lease * LEASES)
-            .max(self.slowest * SLOWEST)
+        FLOOR.max(self.lease * LEASES).max(self.slowest * SLOWEST)
     }
 
     /// The slowest answer seen so far.
@@ -223,7 +221,10 @@ mod tests {
         let open = ThresholdKind::Open.code();
         assert_eq!(
             Question::of_downlink(ServiceId::Threshold(2), &h, Some(close)),
-            Some(Question::Ledger { episode: 13, leg: 1 })
+            Some(Question::Ledger {
+                episode: 13,
+                leg: 1
+            })
         );
         assert_eq!(
             Question::of_downlink(ServiceId::Threshold(2), &h, Some(open)),

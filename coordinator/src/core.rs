@@ -303,9 +303,9 @@ impl<'a> CoordinatorCore<'a> {
                 .records
                 .iter()
                 .find(|r| {
-                    r.legs
-                        .iter()
-                        .any(|l| l.sensor == sensor && !self.ledgers.contains_key(&(r.episode, l.leg)))
+                    r.legs.iter().any(|l| {
+                        l.sensor == sensor && !self.ledgers.contains_key(&(r.episode, l.leg))
+                    })
                 })
                 .map(|r| r.episode)
             else {
