@@ -77,20 +77,44 @@ impl Question {
         }
     }
 
-    /// Whether message `m` of the sensor answers this question.
-    fn answered_by(&self, m: &Recorded) -> bool {
-        let h = m.header();
-        match (*self, m) {
-            (Self::Slot { episode, step, .. }, Recorded::Slot(_)) => {
-                h.episode == episode && h.step == step
-            }
-            (Self::Ledger { episode, leg }, Recorded::Ledger(_)) => {
-                h.episode == episode && h.leg == leg
-            }
-            _ => false,
+    /// The answer that closes this question.
+    fn answer(&self) -> Answer {
+        match *self {
+            Self::Slot { episode, step, .. } => Answer::Slot { episode, step },
+            Self::Ledger { episode, leg } => Answer::Ledger { episode, leg },
         }
     }
 }
+
+/// What a sensor's message answers: a slot of (episode, step), a ledger of
+/// (episode, leg).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Answer {
+    Slot { episode: u64, step: u32 },
+    Ledger { episode: u64, leg: u32 },
+}
+
+impl Answer {
+    fn of(m: &Recorded) -> Option<Self> {
+        let h = m.header();
+        match m {
+            Recorded::Slot(_) => Some(Self::Slot {
+                episode: h.episode,
+                step: h.step,
+            }),
+            Recorded::Ledger(_) => Some(Self::Ledger {
+                episode: h.episode,
+                leg: h.leg,
+            }),
+            _ => None,
+        }
+    }
+}
+
+/// Answers remembered per sensor that came before their question was
+/// noted: the outbound thread notes a question after its put returns, and
+/// on a fast link the answer can reach the agent host's loop first.
+const EARLY: usize = 64;
 
 /// How long an open question may wait.
 #[derive(Debug, Clone, Copy)]
@@ -132,6 +156,8 @@ pub struct Overdue {
 #[derive(Debug)]
 pub struct Questions {
     open: BTreeMap<usize, Vec<(Question, Instant)>>,
+    /// Per sensor, the last [`EARLY`] answers that matched no open question.
+    early: BTreeMap<usize, std::collections::VecDeque<Answer>>,
     bound: Bound,
 }
 
@@ -139,12 +165,19 @@ impl Questions {
     pub fn new(lease: Duration) -> Self {
         Self {
             open: BTreeMap::new(),
+            early: BTreeMap::new(),
             bound: Bound::new(lease),
         }
     }
 
     /// `sensor` was asked `q` at `at`.
     pub fn asked(&mut self, sensor: usize, q: Question, at: Instant) {
+        if let Some(e) = self.early.get_mut(&sensor)
+            && let Some(i) = e.iter().position(|a| *a == q.answer())
+        {
+            e.remove(i);
+            return;
+        }
         let v = self.open.entry(sensor).or_default();
         if !v.iter().any(|(o, _)| *o == q) {
             v.push((q, at));
@@ -154,18 +187,26 @@ impl Questions {
     /// A message of `sensor` reached the agent host at `at`: the question it
     /// answers is closed (the time it took feeds the bound).
     pub fn delivered(&mut self, sensor: usize, m: &Recorded, at: Instant) {
-        let Some(v) = self.open.get_mut(&sensor) else {
+        let Some(a) = Answer::of(m) else {
             return;
         };
-        if let Some(i) = v.iter().position(|(q, _)| q.answered_by(m)) {
+        let v = self.open.entry(sensor).or_default();
+        if let Some(i) = v.iter().position(|(q, _)| q.answer() == a) {
             let (_, asked) = v.remove(i);
             self.bound.slowest = self.bound.slowest.max(at.saturating_duration_since(asked));
+        } else {
+            let e = self.early.entry(sensor).or_default();
+            if e.len() == EARLY {
+                e.pop_front();
+            }
+            e.push_back(a);
         }
     }
 
     /// The sensor is no longer waited for (cut, or lost): its questions go.
     pub fn forget(&mut self, sensor: usize) {
         self.open.remove(&sensor);
+        self.early.remove(&sensor);
     }
 
     /// The oldest question past the bound at `now`, if any.
@@ -292,6 +333,30 @@ mod tests {
         .into_recorded();
         q.delivered(1, &answer, t0 + FLOOR);
         assert_eq!(q.overdue(t0 + FLOOR * 100), None);
+    }
+
+    /// The race the all-remote soak found: the answer reached the agent
+    /// host's loop before the outbound thread noted its question.
+    #[test]
+    fn an_answer_that_came_before_its_question_closes_it() {
+        let t0 = Instant::now();
+        let mut q = Questions::new(Duration::from_millis(300));
+        let answer = s2a::Slot {
+            header: header(11, 4, 255),
+            ..Default::default()
+        }
+        .into_recorded();
+        q.delivered(2, &answer, t0);
+        q.asked(
+            2,
+            Question::Slot {
+                episode: 11,
+                leg: 4,
+                step: 255,
+            },
+            t0,
+        );
+        assert_eq!(q.overdue(t0 + FLOOR * 10), None);
     }
 
     #[test]
