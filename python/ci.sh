@@ -33,9 +33,10 @@ need cargo "install Rust (https://rustup.rs) — the package compiles the worksp
 rm -rf "$VENV"
 "$PYTHON" -m venv "$VENV"
 "$VENV/bin/python" -m pip install --quiet --upgrade pip
+# stormpy (Storm's Python API, wheels for CPython 3.11): etpareto.to_stormpy's tests.
 "$VENV/bin/python" -m pip install --quiet maturin pytest pandas numpy \
-  nbformat nbclient ipykernel matplotlib || {
-  echo "python/ci.sh: pip could not install maturin, pytest, pandas, numpy, nbformat, nbclient, ipykernel, matplotlib (is PyPI reachable?)" >&2
+  nbformat nbclient ipykernel matplotlib stormpy==2.0.0 || {
+  echo "python/ci.sh: pip could not install maturin, pytest, pandas, numpy, nbformat, nbclient, ipykernel, matplotlib, stormpy==2.0.0 (is PyPI reachable? stormpy has wheels for CPython 3.11 on Linux x86-64 and aarch64)" >&2
   exit 1
 }
 # The README's command. It builds the extension in the workspace's

@@ -64,8 +64,9 @@ pub enum Command {
     ///
     /// More: docs/cli.md.
     Synthesize(crate::cmd::synthesize::Args),
-    /// Export an MDP as PRISM explicit files (model.tra/.sta/.lab/.trew).
-    ExportPrism(crate::cmd::export_prism::Args),
+    /// Export an MDP for a model checker: `--format prism` (explicit files),
+    /// `jani` (QComp interchange, properties included) or `drn` (Storm's).
+    Export(crate::cmd::export::Args),
     /// What the radio or the trigger family costs: the fronts of several
     /// syntheses of one scenario (e.g. under different `--loss` or
     /// `--trigger`) on one figure, least energy per P_tar, certified dashed.

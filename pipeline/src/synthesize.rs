@@ -181,7 +181,7 @@ pub fn synthesize(r: SynthesisRequest) -> Result<Synthesized> {
     })
 }
 
-/// What `etp strategy`, `etp validate --plot` and `etp export-prism` write
+/// What `etp strategy`, `etp validate --plot` and `etp export` write
 /// into a synthesis folder by default: derived from its MDP.
 const DERIVED: [&str; 4] = [
     "strategy.json",

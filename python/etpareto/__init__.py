@@ -19,6 +19,9 @@ command, not the command itself) and returns Python values:
 * :func:`read_front`, :func:`read_strategy` — ``front.json`` and
   ``strategy.json`` as dicts and DataFrames.
 * :func:`run` — a multi-process run (``etp run``), its report as a dict.
+* :func:`to_stormpy` — a synthesis's MDP as a stormpy model (labels
+  ``init``, ``coll``, ``tar``, ``free``; reward ``energy``), for Storm's
+  model checking, stormvogel and the like (needs ``pip install stormpy``).
 
 Errors are :class:`EtpError` subclasses whose message is the text ``etp``
 prints after ``error:`` for the same failure.
@@ -29,6 +32,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import tempfile
 from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
@@ -72,6 +76,7 @@ __all__ = [
     "select_strategy",
     "simulate",
     "synthesize",
+    "to_stormpy",
     "validate",
 ]
 
@@ -218,6 +223,39 @@ def read_front(path: PathLike) -> Front:
     checked by the parser of ``etp strategy``; :class:`FileFormatError` with
     its message otherwise."""
     return Front(json.loads(_native.read_front(os.fspath(path))))
+
+
+def to_stormpy(synthesis: Union["Synthesis", PathLike]) -> Any:
+    """The MDP of a synthesis (a :class:`Synthesis` or its folder) as a
+    stormpy sparse MDP: the model of ``etp export --format drn`` — states
+    ``0..S`` of ``mdp.bin`` then the terminals ``coll``, ``tar``, ``free``
+    (labels of the same names, and ``init``), choices labelled ``d<k>``
+    (threshold ``k``), reward model ``energy`` (each choice's expected
+    energy, so ``R{"energy"}min=? [ C ]`` is a strategy's energy).
+
+    stormpy is imported here only: without it, :class:`ImportError` says
+    how to install it (``pip install stormpy``). Raises
+    :class:`FileFormatError` for a folder without a valid ``mdp.bin``.
+    """
+    try:
+        import stormpy
+        import stormpy.io
+    except ImportError as e:
+        raise ImportError(
+            "etpareto.to_stormpy needs stormpy, Storm's Python API: "
+            "pip install stormpy (wheels for CPython 3.11 on Linux)"
+        ) from e
+    folder = synthesis.dir if isinstance(synthesis, Synthesis) else Path(synthesis)
+    text = _native.mdp_drn(os.fspath(folder))
+    options = stormpy.io.DirectEncodingParserOptions()
+    options.build_choice_labeling = True
+    # Storm's DRN parser reads files only: the text goes through a private
+    # temporary folder, removed on return.
+    with tempfile.TemporaryDirectory(prefix="etpareto-drn-") as tmp:
+        path = os.path.join(tmp, "model.drn")
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(text)
+        return stormpy.build_model_from_drn(path, options=options)
 
 
 class Strategy:

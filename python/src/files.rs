@@ -1,6 +1,7 @@
 //! Files of a synthesis read for Python — `front.json`
-//! (`ParetoFront::from_json`) and `strategy.json` (`etp_runtime::load_strategy`,
-//! the loader of `etp validate`: seal and scenario hash checked) — and a
+//! (`ParetoFront::from_json`), `strategy.json` (`etp_runtime::load_strategy`,
+//! the loader of `etp validate`: seal and scenario hash checked) and
+//! `mdp.bin` as Storm's DRN text (`etp export --format drn`) — and a
 //! multi-process run through `etp-launcher`, its report the object `etp run
 //! --json` prints.
 
@@ -32,6 +33,19 @@ pub fn read_front(path: PathBuf) -> PyResult<String> {
     ParetoFront::from_json(&text)
         .map_err(|e| FileFormatError::new_err(format!("loading {}: {e}", path.display())))?;
     Ok(text)
+}
+
+/// The MDP of a synthesis folder (its `mdp.bin`, checked against its
+/// `scenario.toml` as `etp export` does) as the DRN text `etp export
+/// --format drn` writes to `model.drn` (energy: the counted cost).
+#[pyfunction]
+pub fn mdp_drn(dir: PathBuf) -> PyResult<String> {
+    let (mdp, _) = etp_pipeline::output::read_mdp(&dir)
+        .map_err(|e| FileFormatError::new_err(anyhow_text(&e)))?;
+    Ok(etp_synthesis::export::drn::export(
+        &mdp,
+        etp_synthesis::mdp::CostModel::Counted,
+    ))
 }
 
 /// A sealed `strategy.json` (or `DIR/strategy.json`): `(text, omega)`,

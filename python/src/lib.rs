@@ -39,6 +39,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(recording::read_recording, m)?)?;
     m.add_function(wrap_pyfunction!(files::read_front, m)?)?;
     m.add_function(wrap_pyfunction!(files::read_strategy, m)?)?;
+    m.add_function(wrap_pyfunction!(files::mdp_drn, m)?)?;
     m.add_function(wrap_pyfunction!(files::run, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::synthesize, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::select_strategy, m)?)?;

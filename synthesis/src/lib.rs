@@ -22,7 +22,8 @@
 //!   request loop that selects, rebuilds and moves the request by the
 //!   measured gap ([`predict::request::meet_request`]).
 //! * [`validate`] — simulating a strategy (belief → region → δ ~ ω), trajectories.
-//! * [`prism`] — PRISM explicit export.
+//! * [`export`] — the MDP for other model checkers: PRISM explicit files,
+//!   JANI and Storm's DRN, with the queries of its front.
 //! * [`synthetic`] — seeded synthetic layered MDPs for benchmarks at scale.
 //! * [`exec`] — where a computation's Monte Carlo units run: this process's
 //!   threads, or (through an [`exec::Executor`] passed in) the ranks of a job.
@@ -34,10 +35,10 @@ pub mod abstraction;
 pub mod certify;
 pub mod constant;
 pub mod exec;
+pub mod export;
 pub mod mdp;
 pub mod pareto;
 pub mod predict;
-pub mod prism;
 pub mod records;
 pub mod report;
 pub mod simulate;

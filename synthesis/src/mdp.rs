@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 pub const MDP_FORMAT_VERSION: u32 = 7;
 
 /// The file name of a synthesis's MDP inside its output folder (`etp
-/// synthesize` writes it there; `strategy`, `export-prism` and `demo` read it).
+/// synthesize` writes it there; `strategy`, `export` and `demo` read it).
 pub const MDP_FILE: &str = "mdp.bin";
 const MAGIC: &[u8; 8] = b"ETPMDP\0\n";
 /// Magic and version.

@@ -1,6 +1,6 @@
 //! The pinned Python environment of the independent checks (the PyPI `mcap`
 //! reader and its protobuf decoder, `jsonschema`, SciPy's HiGHS LP,
-//! `eclipse-zenoh`): a venv in
+//! `eclipse-zenoh`, Storm's `stormpy`): a venv in
 //! `target/pyenv`, made by the first test that needs it, under a file lock
 //! so parallel tests (and test binaries) do not race. No test skips a
 //! Python check: without `python3 -m venv` or PyPI the test fails and says
@@ -25,6 +25,11 @@ pub const REQUIREMENTS: &[&str] = &[
     // protobuf runtime it resolves to.
     "mcap-protobuf-support==0.6.0",
     "protobuf==7.36.2",
+    // Storm's Python API (manylinux wheels, the model checker included)
+    // and its one dependency with its own.
+    "stormpy==2.0.0",
+    "Deprecated==1.3.1",
+    "wrapt==2.5.2",
 ];
 
 /// `target/` of the workspace (`CARGO_TARGET_DIR` if set).

@@ -82,11 +82,11 @@ fn bench_front_row(name: &str, mdp: &Mdp, tolerance: f64) -> Result<serde_json::
     )?;
     let lp_secs = start.elapsed().as_secs_f64();
     let start = Instant::now();
-    let files = etp_synthesis::prism::export(mdp, CostModel::Counted, String::new());
+    let files = etp_synthesis::export::prism::export(mdp, CostModel::Counted, String::new());
     let export_secs = start.elapsed().as_secs_f64();
     let export_bytes: usize = files.files().iter().map(|(_, t)| t.len()).sum();
     let start = Instant::now();
-    let props = etp_synthesis::prism::properties(mdp, &front, CostModel::Counted);
+    let props = etp_synthesis::export::prism::properties(mdp, &front, CostModel::Counted);
     let props_secs = start.elapsed().as_secs_f64();
     Ok(
         json!({"mdp": name, "states": mdp.states.len(), "transitions": mdp.num_transitions(),

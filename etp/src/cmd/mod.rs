@@ -10,7 +10,7 @@ pub mod certs;
 pub mod check;
 pub mod compare;
 pub mod demo;
-pub mod export_prism;
+pub mod export;
 pub mod fronts;
 pub mod process;
 pub mod replay;
@@ -39,7 +39,7 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Certs(a) => certs::run(a),
         Command::Replay(a) => replay::run(a),
         Command::Synthesize(a) => synthesize::run(a),
-        Command::ExportPrism(a) => export_prism::run(a),
+        Command::Export(a) => export::run(a),
         Command::Fronts(a) => fronts::run(a),
         Command::Compare(a) => compare::run(a),
         Command::TriggerCurves(a) => trigger_curves::run(a),

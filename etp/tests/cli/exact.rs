@@ -1,7 +1,8 @@
 //! Exact strategies and a reproducible front, through the real binary:
 //! * `strategy`'s predicted energy agrees with an independent solution of the
 //!   same constrained query — our own parser of the PRISM export and SciPy's
-//!   HiGHS (`occupation_lp.py`) — to 1e-8 relative, on every built-in scenario;
+//!   HiGHS (`occupation_lp.py`) — to 1e-8 relative, and with Storm on the DRN
+//!   and JANI exports (`storm.rs`), on every built-in scenario;
 //! * `front.json`, the front plots and `strategy.json` are byte-identical on 1
 //!   and 2 threads.
 //!
@@ -41,86 +42,54 @@ fn independent(prism: &Path, queries: &[String]) -> Vec<Option<f64>> {
     v
 }
 
-#[test]
-fn strategy_energy_agrees_with_an_independent_lp_on_every_scenario() {
-    let scratch = Scratch::new("exact-parity");
-    for name in ["winding-2d", "open-2d", "superg-3d"] {
-        let dir = scratch.path(name);
-        run_ok(
-            &[
-                "synthesize",
-                name,
-                "--samples",
-                "150",
-                "--seed",
-                "5",
-                "--no-kf-baseline",
-                "-o",
-                s(&dir),
-            ],
-            "2",
-        );
-        let prism = dir.join("prism");
-        run_ok(&["export-prism", s(&dir), s(&prism)], "2");
-        let front: Value =
-            serde_json::from_slice(&std::fs::read(dir.join("front.json")).expect("front.json"))
-                .expect("json");
-        let targets: Vec<f64> = front["vertices"]
-            .as_array()
-            .expect("vertices")
-            .iter()
-            .filter_map(|v| v["objectives"]["p_target"].as_f64())
-            .collect();
-        let (lo, hi) = targets
-            .iter()
-            .fold((1.0_f64, 0.0_f64), |(lo, hi), &p| (lo.min(p), hi.max(p)));
-        // Targets across the front, each alone and with a collision bound
-        // between the least-energy strategy's P_coll and a tighter one.
-        let mut queries = Vec::new();
-        let mut ours = Vec::new();
-        for frac in [0.2, 0.6, 0.9, 0.99] {
-            let p = lo + frac * (hi - lo);
-            let out = dir.join("s.json");
-            let free: Value = serde_json::from_slice(&run_ok(
-                &[
-                    "strategy",
-                    s(&dir),
-                    "--min-target",
-                    &p.to_string(),
-                    "--quick",
-                    "-o",
-                    s(&out),
-                    "--force",
-                    "--json",
-                ],
-                "2",
-            ))
+/// Constrained queries across the front of the synthesis in `dir` and
+/// `etp strategy --quick`'s exact answer to each: targets P at fractions of
+/// the front's P_tar range, each alone and with a collision bound C below the
+/// least-energy strategy's P_coll. `(P, C)`, and the least energy (None:
+/// etp says infeasible).
+pub(super) fn etp_answers(dir: &Path) -> Vec<((f64, Option<f64>), Option<f64>)> {
+    let front: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("front.json")).expect("front.json"))
             .expect("json");
-            // The LP's optimum on this MDP: the exact value `--quick` keeps
-            // under diagnostics (the default path predicts on rebuilds).
-            let exact = &free["diagnostics"]["selection_time"];
-            let p_coll = exact["p_collision"].as_f64().expect("p_coll");
-            queries.push(p.to_string());
-            ours.push(exact["energy_mean"].as_f64());
-            let c = 0.97 * p_coll;
-            let run = etp_threads(
-                &[
-                    "strategy",
-                    s(&dir),
-                    "--min-target",
-                    &p.to_string(),
-                    "--max-collision",
-                    &c.to_string(),
-                    "--quick",
-                    "-o",
-                    s(&out),
-                    "--force",
-                    "--json",
-                ],
-                "2",
-            );
-            queries.push(format!("{p},{c}"));
-            ours.push(if run.status.success() {
+    let targets: Vec<f64> = front["vertices"]
+        .as_array()
+        .expect("vertices")
+        .iter()
+        .filter_map(|v| v["objectives"]["p_target"].as_f64())
+        .collect();
+    let (lo, hi) = targets
+        .iter()
+        .fold((1.0_f64, 0.0_f64), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    let mut answers = Vec::new();
+    let out = dir.join("s.json");
+    let strategy = |p: f64, c: Option<f64>| {
+        let (p, c) = (p.to_string(), c.map(|c| c.to_string()));
+        let mut args = vec!["strategy", s(dir), "--min-target", &p];
+        if let Some(c) = &c {
+            args.extend(["--max-collision", c]);
+        }
+        args.extend(["--quick", "-o", s(&out), "--force", "--json"]);
+        etp_threads(&args, "2")
+    };
+    for frac in [0.2, 0.6, 0.9, 0.99] {
+        let p = lo + frac * (hi - lo);
+        let free = strategy(p, None);
+        assert!(
+            free.status.success(),
+            "etp strategy --min-target {p} failed: {}",
+            String::from_utf8_lossy(&free.stderr)
+        );
+        let free: Value = serde_json::from_slice(&free.stdout).expect("json");
+        // The LP's optimum on this MDP: the exact value `--quick` keeps
+        // under diagnostics (the default path predicts on rebuilds).
+        let exact = &free["diagnostics"]["selection_time"];
+        let p_coll = exact["p_collision"].as_f64().expect("p_coll");
+        answers.push(((p, None), exact["energy_mean"].as_f64()));
+        let c = 0.97 * p_coll;
+        let run = strategy(p, Some(c));
+        answers.push((
+            (p, Some(c)),
+            if run.status.success() {
                 let v: Value = serde_json::from_slice(&run.stdout).expect("json");
                 let pred = &v["diagnostics"]["selection_time"];
                 // Constraints hold in the strategy's own exact evaluation.
@@ -131,11 +100,49 @@ fn strategy_energy_agrees_with_an_independent_lp_on_every_scenario() {
                 let err = String::from_utf8_lossy(&run.stderr);
                 assert!(err.contains("infeasible"), "{err}");
                 None
-            });
-        }
+            },
+        ));
+    }
+    answers
+}
+
+/// A synthesis small enough for the exact checks (the properties hold for
+/// any sample count).
+pub(super) fn synthesize(scenario: &str, extra: &[&str], dir: &Path) {
+    let mut args = vec![
+        "synthesize",
+        scenario,
+        "--samples",
+        "150",
+        "--seed",
+        "5",
+        "--no-kf-baseline",
+        "-o",
+        s(dir),
+    ];
+    args.extend(extra);
+    run_ok(&args, "2");
+}
+
+#[test]
+fn strategy_energy_agrees_with_an_independent_lp_and_storm_on_every_scenario() {
+    let scratch = Scratch::new("exact-parity");
+    for name in ["winding-2d", "open-2d", "superg-3d"] {
+        let dir = scratch.path(name);
+        synthesize(name, &[], &dir);
+        let prism = dir.join("prism");
+        run_ok(&["export", s(&dir), s(&prism), "--format", "prism"], "2");
+        let answers = etp_answers(&dir);
+        let queries: Vec<String> = answers
+            .iter()
+            .map(|((p, c), _)| match c {
+                Some(c) => format!("{p},{c}"),
+                None => p.to_string(),
+            })
+            .collect();
         let theirs = independent(&prism, &queries);
         let mut feasible = 0;
-        for ((q, a), b) in queries.iter().zip(&ours).zip(&theirs) {
+        for ((q, (_, a)), b) in queries.iter().zip(&answers).zip(&theirs) {
             match (a, b) {
                 (Some(a), Some(b)) => {
                     feasible += 1;
@@ -150,11 +157,13 @@ fn strategy_energy_agrees_with_an_independent_lp_on_every_scenario() {
             }
         }
         assert!(feasible >= 5, "{name}: only {feasible} feasible queries");
+        // The same synthesis, checked by Storm.
+        super::storm::agrees_with_storm(name, &dir, &answers, true);
     }
-    // export-prism refuses a front.json of another scenario.
+    // export refuses a front.json of another scenario.
     let (a, b) = (scratch.path("winding-2d"), scratch.path("open-2d"));
     std::fs::copy(a.join("front.json"), b.join("front.json")).expect("copy");
-    let out = etp_threads(&["export-prism", s(&b), s(&b.join("p2"))], "2");
+    let out = etp_threads(&["export", s(&b), s(&b.join("p2"))], "2");
     assert!(!out.status.success(), "a foreign front.json was accepted");
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("front.json"), "{err}");

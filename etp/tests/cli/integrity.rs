@@ -55,10 +55,7 @@ fn flipped_bits_in_mdp_bin_and_edited_deltas_are_refused() {
         let mut flipped = mdp.clone();
         flipped[at] ^= 0x10;
         std::fs::write(broken.join("mdp.bin"), &flipped).expect("write");
-        fails_with(
-            &["export-prism", s(&broken), s(&dir.path("prism"))],
-            &[needle],
-        );
+        fails_with(&["export", s(&broken), s(&dir.path("prism"))], &[needle]);
     }
     assert!(!dir.path("prism").exists());
 

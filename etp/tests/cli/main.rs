@@ -25,6 +25,7 @@ mod request_loop;
 mod run_config;
 mod scenario_random;
 mod schemas;
+mod storm;
 mod study;
 mod synthesize;
 mod trigger;

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Independent check of `etp strategy`: solve the constrained queries on the
-PRISM explicit files written by `etp export-prism`, with our own parser and a
+PRISM explicit files written by `etp export --format prism`, with our own parser and a
 different LP solver (SciPy's HiGHS dual simplex), sharing no code with etp.
 
 Usage: occupation_lp.py PRISM_DIR QUERY...

@@ -1,4 +1,4 @@
-//! `etp synthesize` and `etp export-prism` through the real binary: files
+//! `etp synthesize` and `etp export` through the real binary: files
 //! written, refusal to overwrite, byte-identical output for a seed on 1 and 2
 //! threads.
 
@@ -59,7 +59,7 @@ fn synthesize_writes_refuses_overwrite_and_exports_prism() {
 
     // PRISM export.
     let out = dir.join("prism");
-    let e = etp(&["export-prism", s(&dir), s(&out)], "2");
+    let e = etp(&["export", s(&dir), s(&out), "--format", "prism"], "2");
     assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
     for f in [
         "model.tra",
@@ -72,7 +72,7 @@ fn synthesize_writes_refuses_overwrite_and_exports_prism() {
     }
     let tra = std::fs::read_to_string(out.join("model.tra")).expect("tra");
     assert_eq!(tra.lines().next().map(|l| l.split(' ').count()), Some(3));
-    let refused = etp(&["export-prism", s(&dir), s(&out)], "2");
+    let refused = etp(&["export", s(&dir), s(&out), "--format", "prism"], "2");
     assert!(!refused.status.success());
 
     // Issue 24 item 10: a strategy and a PRISM export of the old MDP do not
@@ -124,7 +124,7 @@ fn bad_arguments_fail_cleanly() {
     );
     assert!(!zero.status.success());
     assert!(!dir.join("mdp.bin").exists());
-    let missing = etp(&["export-prism", s(&dir), s(&dir.join("p"))], "1");
+    let missing = etp(&["export", s(&dir), s(&dir.join("p"))], "1");
     assert!(!missing.status.success());
     let unknown = etp(&["synthesize", "no-such-scenario", "-o", s(&dir)], "1");
     assert!(!unknown.status.success());

@@ -2,30 +2,27 @@
 //! `model.lab`, `model.trew` (and a `model.props` with example queries), such
 //! that `prism -importmodel OUTDIR/model.all -mdp` loads the abstraction.
 //!
-//! Numbering: the MDP's states keep their indices `0..S`; the absorbing
-//! terminals follow: `coll = S`, `tar = S + 1`, `free = S + 2`, each with one
-//! self-loop choice labelled `done`. State variables (`.sta`): `dp` (decision
+//! Numbering, labels and reward as in [`super`]. State variables (`.sta`): `dp` (decision
 //! point; the terminals get `dp = D`, the number of decision points), `r` (index
 //! of the state's region within its decision point) and `t` (0 = decision state,
 //! 1 = coll, 2 = tar, 3 = free) — lexicographically increasing with the index.
-//! Action labels are `d<k>` for threshold `deltas[k]`. The energy reward is a
-//! transition reward named `energy`: the choice's cost on each of its
-//! transitions, so its expectation is the choice's cost.
+//! The energy reward is a transition reward named `energy`: the choice's cost
+//! on each of its transitions, so its expectation is the choice's cost.
 //!
-//! `model.props` is written from the front ([`properties`]): thresholds the
-//! front shows to be feasible, the exact answer etp computes for each (so a
-//! PRISM run can be compared line by line), and one infeasible query marked
-//! as such (PRISM answers it with NaN or false).
+//! `model.props` holds the queries of [`super::queries`] ([`properties`]).
+//!
+//! Storm reads these files only after edits (its explicit parser wants a
+//! model-type header instead of the counts line, no action column, no
+//! comment line in the reward file and a `#DECLARATION … #END` labelling):
+//! for Storm use [`super::jani`] or [`super::drn`].
 //!
 //! Formats: PRISM manual, appendix "Explicit Model Files" (MDP `.tra` lines
 //! `i k j p [action]`; `.lab` header `0="init" 1="deadlock" …`; a reward file's
 //! optional `# Reward structure "name"` comment names it).
 
-use crate::mdp::{CostModel, Mdp, Next};
+use super::target_index;
+use crate::mdp::{CostModel, Mdp};
 use crate::pareto::ParetoFront;
-use crate::pareto::optimal::{LpRequest, optimal_strategy};
-use crate::pareto::policy::weighted_optimum;
-use crate::pareto::select::{Request, least_collision_with_target, select};
 use std::fmt::Write as _;
 
 /// The text of each exported file.
@@ -52,17 +49,6 @@ impl PrismFiles {
     }
 }
 
-/// PRISM index of a transition target.
-fn target(mdp: &Mdp, next: Next) -> usize {
-    let s = mdp.states.len();
-    match next {
-        Next::State(j) => j as usize,
-        Next::Collision => s,
-        Next::Target => s + 1,
-        Next::Free => s + 2,
-    }
-}
-
 /// Export `mdp`, with the energy reward from cost model `cost` and the
 /// properties `props` (e.g. from [`properties`]).
 pub fn export(mdp: &Mdp, cost: CostModel, props: String) -> PrismFiles {
@@ -79,7 +65,7 @@ pub fn export(mdp: &Mdp, cost: CostModel, props: String) -> PrismFiles {
         for (k, c) in s.choices.iter().enumerate() {
             let r = c.cost(cost);
             for t in &c.transitions {
-                let j = target(mdp, t.next);
+                let j = target_index(mdp, t.next);
                 let _ = writeln!(tra, "{i} {k} {j} {} d{}", t.probability, c.action);
                 if r > 0.0 {
                     rewards.push((i, k, j, r));
@@ -134,135 +120,9 @@ pub fn export(mdp: &Mdp, cost: CostModel, props: String) -> PrismFiles {
     }
 }
 
-/// `floor(x · 1000) / 1000`.
-fn floor3(x: f64) -> f64 {
-    (x * 1000.0).floor() / 1000.0
-}
-
-/// The smallest multiple of 0.001 strictly above `x`.
-fn above3(x: f64) -> f64 {
-    let mut k = (x * 1000.0).floor();
-    while k / 1000.0 <= x {
-        k += 1.0;
-    }
-    k / 1000.0
-}
-
-/// `model.props` for `mdp` from its front: two feasible multi-objective
-/// queries with thresholds read off the front (and etp's exact answer to each),
-/// one infeasible query marked as such, and the single-objective extremes.
+/// `model.props` for `mdp` from its front ([`super::queries`]).
 pub fn properties(mdp: &Mdp, front: &ParetoFront, cost: CostModel) -> String {
-    let mut o = String::new();
-    let _ = writeln!(
-        o,
-        "// Properties for the etp MDP of scenario \"{}\" (scenario hash {:.12}…),\n\
-         // thresholds taken from its Pareto front (front.json). Each \"etp:\" line is\n\
-         // the exact value etp computes (whole-MDP occupation LP, `etp strategy`).",
-        mdp.scenario_name, mdp.scenario_hash
-    );
-    // Exact extremes by backward induction.
-    let bound = |lambda| weighted_optimum(mdp, lambda, 1.0, cost).bound;
-    let max_target = 1.0 - bound([0.0, 0.0, 1.0]);
-    let min_collision = bound([0.0, 1.0, 0.0]);
-    let (lo, hi) = front
-        .vertices
-        .iter()
-        .map(|v| v.objectives.p_target)
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(p), hi.max(p))
-        });
-    let exact = |r: LpRequest| match optimal_strategy(mdp, cost, r) {
-        Ok(s) => format!("// etp: {:.12}", s.predicted.energy),
-        Err(e) => format!("// etp: {e}"),
-    };
-    if lo.is_finite() && hi.is_finite() {
-        // Three quarters of the way up the front's P_tar range, rounded down
-        // (feasible: a vertex reaches `hi`).
-        let p = floor3(lo + 0.75 * (hi - lo));
-        let _ = writeln!(
-            o,
-            "\n// Least expected energy with P(reach target) >= {p} (feasible: the front reaches P_tar = {hi:.6})"
-        );
-        let _ = writeln!(o, "multi(R{{\"energy\"}}min=? [ C ], P>={p} [ F \"tar\" ])");
-        let _ = writeln!(
-            o,
-            "{}",
-            exact(LpRequest::MinEnergy {
-                min_target: p,
-                max_collision: None
-            })
-        );
-        // A collision bound halfway between the least P_coll compatible with
-        // the target (feasible: a mixture of vertices attains it) and the
-        // P_coll of the least-energy strategy, rounded up.
-        let least = least_collision_with_target(front, p);
-        let unconstrained = select(
-            front,
-            Request::MinTarget {
-                min_target: p,
-                max_collision: None,
-            },
-        )
-        .ok()
-        .map(|s| s.predicted.p_collision);
-        if let (Some(least), Some(free)) = (least, unconstrained) {
-            let c = above3(least + 0.5 * (free - least).max(0.0)).min(1.0);
-            let _ = writeln!(
-                o,
-                "\n// Least expected energy with P(reach target) >= {p} and P(collide) <= {c} (feasible: the front reaches P_coll = {least:.6} there)"
-            );
-            let _ = writeln!(
-                o,
-                "multi(R{{\"energy\"}}min=? [ C ], P>={p} [ F \"tar\" ], P<={c} [ F \"coll\" ])"
-            );
-            let _ = writeln!(
-                o,
-                "{}",
-                exact(LpRequest::MinEnergy {
-                    min_target: p,
-                    max_collision: Some(c)
-                })
-            );
-        }
-    }
-    let p_inf = above3(max_target);
-    if p_inf <= 1.0 {
-        let _ = writeln!(
-            o,
-            "\n// INFEASIBLE on purpose: no strategy reaches P(reach target) >= {p_inf} (the highest is {max_target:.6}); PRISM answers NaN or false"
-        );
-        let _ = writeln!(
-            o,
-            "multi(R{{\"energy\"}}min=? [ C ], P>={p_inf} [ F \"tar\" ])"
-        );
-    } else if min_collision >= 0.001 {
-        let c_inf = floor3(min_collision) - 0.001;
-        let c_inf = if c_inf < min_collision {
-            c_inf.max(0.0)
-        } else {
-            0.0
-        };
-        let _ = writeln!(
-            o,
-            "\n// INFEASIBLE on purpose: no strategy keeps P(collide) <= {c_inf} (the lowest is {min_collision:.6}); PRISM answers NaN or false"
-        );
-        let _ = writeln!(
-            o,
-            "multi(R{{\"energy\"}}min=? [ C ], P<={c_inf} [ F \"coll\" ])"
-        );
-    }
-    let _ = writeln!(o, "\n// Highest probability of reaching the target");
-    let _ = writeln!(o, "Pmax=? [ F \"tar\" ]");
-    let _ = writeln!(o, "// etp: {max_target:.12}");
-    let _ = writeln!(o, "\n// Lowest probability of colliding");
-    let _ = writeln!(o, "Pmin=? [ F \"coll\" ]");
-    let _ = writeln!(o, "// etp: {min_collision:.12}");
-    let _ = writeln!(
-        o,
-        "\n// Pareto curve: expected energy vs. probability of reaching the target"
-    );
-    let _ = writeln!(o, "multi(R{{\"energy\"}}min=? [ C ], Pmax=? [ F \"tar\" ])");
-    o
+    super::properties_file(mdp, &super::queries(mdp, front, cost))
 }
 
 #[cfg(test)]

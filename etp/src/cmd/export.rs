@@ -1,15 +1,20 @@
-//! `etp export-prism DIR OUTDIR`: the MDP of `DIR/mdp.bin` as PRISM explicit
-//! files (`model.tra`, `.sta`, `.lab`, `.trew`), loadable with
-//! `prism -importmodel OUTDIR/model.all -mdp`, plus `model.props` whose
-//! thresholds come from the front (`DIR/front.json`, refused if it belongs to
-//! another MDP; computed when absent).
+//! `etp export DIR OUTDIR --format prism|jani|drn`: the MDP of `DIR/mdp.bin`
+//! for another model checker, with queries whose thresholds come from the
+//! front (`DIR/front.json`, refused if it belongs to another MDP; computed
+//! when absent):
+//! * `prism` — PRISM explicit files (`model.tra`, `.sta`, `.lab`, `.trew`)
+//!   and `model.props`: `prism -importmodel OUTDIR/model.all -mdp`;
+//! * `jani` — `model.jani`, the queries inside: `storm --jani
+//!   OUTDIR/model.jani --janiproperty`;
+//! * `drn` — Storm's `model.drn` and `model.props`: `storm --explicit-drn
+//!   OUTDIR/model.drn --prop OUTDIR/model.props`.
 
 use crate::output::{read_front, read_mdp};
 use anyhow::{Context, Result};
+use etp_synthesis::export::{self, drn, jani, prism};
 use etp_synthesis::mdp::MDP_FILE;
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::compute_front;
-use etp_synthesis::prism;
 use std::path::{Path, PathBuf};
 
 /// Which cost becomes the `energy` reward.
@@ -21,16 +26,31 @@ pub enum CostArg {
     Paper,
 }
 
+/// Which model checker's format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    /// PRISM explicit files (model.tra/.sta/.lab/.trew) and model.props.
+    Prism,
+    /// JANI (QComp interchange; Storm, Modest), properties included: model.jani.
+    Jani,
+    /// Storm's explicit DRN format: model.drn and model.props.
+    Drn,
+}
+
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Directory holding mdp.bin (written by `etp synthesize`), or the file itself.
     pub dir: PathBuf,
-    /// Output directory for the PRISM files.
+    /// Output directory for the model files.
     pub outdir: PathBuf,
+    /// The format: jani (default: the interchange format Storm and the
+    /// Modest Toolset read, queries included), drn (Storm) or prism.
+    #[arg(long, value_enum, default_value_t = Format::Jani)]
+    pub format: Format,
     /// Cost model of the energy reward.
     #[arg(long, value_enum, default_value_t = CostArg::Counted)]
     pub cost: CostArg,
-    /// Overwrite existing PRISM files in OUTDIR.
+    /// Overwrite existing model files in OUTDIR.
     #[arg(long)]
     pub force: bool,
 }
@@ -77,12 +97,25 @@ pub fn run(a: Args) -> Result<()> {
             (mdp, front)
         }
     };
-    let props = prism::properties(&mdp, &front, cost);
-    let files = prism::export(&mdp, cost, props);
+    let queries = export::queries(&mdp, &front, cost);
+    let files: Vec<(&str, String)> = match a.format {
+        Format::Prism => {
+            let files = prism::export(&mdp, cost, export::properties_file(&mdp, &queries));
+            files
+                .files()
+                .iter()
+                .map(|(name, text)| (*name, (*text).to_string()))
+                .collect()
+        }
+        Format::Jani => vec![("model.jani", jani::export(&mdp, cost, &queries))],
+        Format::Drn => vec![
+            ("model.drn", drn::export(&mdp, cost)),
+            ("model.props", export::properties_file(&mdp, &queries)),
+        ],
+    };
     let targets: Vec<(PathBuf, &str)> = files
-        .files()
         .iter()
-        .map(|(name, text)| (a.outdir.join(name), *text))
+        .map(|(name, text)| (a.outdir.join(name), text.as_str()))
         .collect();
     crate::output::output_folder(&a.outdir)?;
     // All refused before any is written: no half-updated set of files.
@@ -92,13 +125,25 @@ pub fn run(a: Args) -> Result<()> {
     for (p, text) in &targets {
         crate::output::write_new(p, text.as_bytes(), true)?;
     }
+    let out = |name: &str| a.outdir.join(name).display().to_string();
+    let load = match a.format {
+        Format::Prism => format!(
+            "prism -importmodel {} -mdp {}",
+            out("model.all"),
+            out("model.props")
+        ),
+        Format::Jani => format!("storm --jani {} --janiproperty", out("model.jani")),
+        Format::Drn => format!(
+            "storm --explicit-drn {} --prop {}",
+            out("model.drn"),
+            out("model.props")
+        ),
+    };
     println!(
-        "{} states (+3 terminal), {} transitions → {}\n  load: prism -importmodel {} -mdp {}",
+        "{} states (+3 terminal), {} transitions → {}\n  load: {load}",
         mdp.states.len(),
         mdp.num_transitions(),
         a.outdir.display(),
-        a.outdir.join("model.all").display(),
-        a.outdir.join("model.props").display(),
     );
     Ok(())
 }
