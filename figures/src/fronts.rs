@@ -160,9 +160,14 @@ impl super::Figure for FrontsFigure<'_> {
                     .draw_series(LineSeries::new(c.points.clone(), colour.stroke_width(2)))
                     .map_err(e)?
                     .label(match (c.certified.is_empty(), c.predicted.is_empty()) {
-                        (true, true) => format!("{} (none certified in this bound; no predicted front)", c.label),
+                        (true, true) => format!(
+                            "{} (none certified in this bound; no predicted front)",
+                            c.label
+                        ),
                         (true, false) => format!("{} (none certified in this bound)", c.label),
-                        (false, true) => format!("{} (no predicted front: etp strategy front)", c.label),
+                        (false, true) => {
+                            format!("{} (no predicted front: etp strategy front)", c.label)
+                        }
                         (false, false) => c.label.clone(),
                     })
                     .legend(move |(x, y)| {

@@ -40,6 +40,10 @@ pub struct Args {
     /// Seed of everything.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Requests of the predicted front drawn in front.png (`etp strategy
+    /// front --points`; 0: none, the MDP's front alone).
+    #[arg(long, value_name = "K", default_value_t = DEMO_FRONT_POINTS)]
+    pub front_points: usize,
     /// Output folder (default `out/demo-<scenario>-<seed>-<time>`; never reused).
     #[arg(short = 'o', long = "out")]
     pub out: Option<PathBuf>,
@@ -48,8 +52,8 @@ pub struct Args {
     pub json: bool,
 }
 
-/// Requests of the demo's predicted front (`etp strategy front` has
-/// `--points`, default 6).
+/// Requests of the demo's predicted front by default (`etp strategy front`
+/// has 6).
 const DEMO_FRONT_POINTS: usize = 4;
 
 fn stage(quiet: bool, text: &str) {
@@ -159,10 +163,16 @@ pub fn run(a: Args) -> Result<()> {
 
     // The predicted front (docs/MODEL.md §7.5): what `etp strategy front
     // DIR --points DEMO_FRONT_POINTS` stores and draws over the MDP's front.
-    stage(
-        a.json,
-        &format!("      the predicted front ({DEMO_FRONT_POINTS} requests, each a request loop)…"),
-    );
+    let points = a.front_points;
+    if points == 1 {
+        anyhow::bail!("--front-points must be 0 (no predicted front) or at least 2, got 1");
+    }
+    if points > 0 {
+        stage(
+            a.json,
+            &format!("      the predicted front ({points} requests, each a request loop)…"),
+        );
+    }
     let mut syn = etp_pipeline::synthesis_dir::Synthesis::from_parts(
         &built.dir,
         built.mdp.clone(),
@@ -170,18 +180,24 @@ pub fn run(a: Args) -> Result<()> {
         front.front.clone(),
         None,
     )?;
-    let curves = etp_pipeline::predicted_front::compute(
-        &syn,
-        &[None],
-        DEMO_FRONT_POINTS,
-        &etp_pipeline::selection::RequestSettings {
-            aggregation_check: 0,
-            ..Default::default()
-        },
-        a.json,
-        &|_, _| {},
-    )?;
-    etp_pipeline::predicted_front::store(&mut syn, curves.clone())?;
+    let curves = if points == 0 {
+        Vec::new()
+    } else {
+        etp_pipeline::predicted_front::compute(
+            &syn,
+            &[None],
+            points,
+            &etp_pipeline::selection::RequestSettings {
+                aggregation_check: 0,
+                ..Default::default()
+            },
+            a.json,
+            &|_, _| {},
+        )?
+    };
+    if !curves.is_empty() {
+        etp_pipeline::predicted_front::store(&mut syn, curves.clone())?;
+    }
 
     // 3. In-process validation (+ map plot).
     stage(
