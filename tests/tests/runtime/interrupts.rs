@@ -18,12 +18,12 @@ use std::time::Duration;
 /// Interrupts of each kind (local, one remote sensor): 20 in all.
 const EACH: u64 = 10;
 
-/// The seeded moment of interrupt `k` of `kind`: 0.2 … 2.5 s after the
-/// coordinator started (before the first episode for the earliest ones on a
-/// loaded machine, mid-run for the others).
+/// The seeded moment of interrupt `k` of `kind`: 0.8 … 3 s after the
+/// coordinator started (mid-run; on a loaded machine the earliest may come
+/// before every process said hello).
 fn moment(kind: u64, k: u64) -> Duration {
     let mut rng = stream_rng(52, kind, k);
-    Duration::from_millis(rng.random_range(200..2500))
+    Duration::from_millis(rng.random_range(800..3000))
 }
 
 fn run_args(episodes: &str, seed: &str, record: &str) -> Vec<String> {
@@ -145,6 +145,14 @@ fn interrupted_local_runs_replay_exactly_as_reported() {
         std::thread::sleep(at);
         kill("-INT", &run.pid().to_string());
         let (code, out, err) = run.finish_code();
+        // Before every process said hello the run never started: an error,
+        // no report, nothing to replay.
+        if code == Some(1) && err.contains("before every process was ready") {
+            eprintln!("local interrupt {k} at {at:?}: before the run started");
+            assert!(processes_of_run(&id).is_empty());
+            let _ = std::fs::remove_file(&file);
+            continue;
+        }
         assert_eq!(code, Some(130), "interrupt {k} at {at:?}: {err}");
         let v: Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}: {out}"));
         eprintln!("local interrupt {k} at {at:?}: {} episodes", v["episodes"]);

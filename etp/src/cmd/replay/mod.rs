@@ -480,7 +480,10 @@ fn summary_exit(a: &Job, file: &Path, c: &Contents, s: &serde_json::Value) -> Re
         }
         .into());
     }
+    // An unfinished file may not have reached its channels' records yet:
+    // exit 3 says that first.
     if !a.only
+        && c.finished
         && a.select.topics.is_empty()
         && let Some(missing) = s["missing_channels"].as_array().filter(|m| !m.is_empty())
     {
