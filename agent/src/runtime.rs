@@ -240,10 +240,19 @@ impl<const N: usize> Agent<N> {
             since: Instant::now(),
             since_wall: SystemTime::now(),
         };
+        // The coordinator starts an episode only after the previous one's
+        // outcome: a control message now is its stop (Ctrl-C, SIGTERM). The
+        // episode ends here unfinished, without an outcome: its sensors are
+        // stopping too, and going on prediction-only would publish an
+        // outcome that never happened.
         match self.wait_until(awaiting, |a| {
-            a.links.take_slot(episode, k, who, &mut a.stamp)
+            if a.take_control()?.is_some() {
+                return Ok(Some(None));
+            }
+            Ok(a.links.take_slot(episode, k, who, &mut a.stamp)?.map(Some))
         })? {
-            Waited::Got((y, digest)) => Ok(Ok((SlotResult::Closed(y, digest), None))),
+            Waited::Got(Some((y, digest))) => Ok(Ok((SlotResult::Closed(y, digest), None))),
+            Waited::Got(None) => Ok(Err(Exit::Stopped)),
             Waited::Exit(e) => Ok(Err(e)),
             Waited::DeadLink(fault) => {
                 self.links.alive[sensor] = false;

@@ -35,7 +35,7 @@ mod trigger_curves;
 pub use front::front_plot;
 pub use fronts::{Curve, Panel, PredictedMark, fronts_plot};
 pub use map::map_plot;
-pub use report::{Bar, RunFigure, mean_ci, proportion, report_plot, short_label};
+pub use report::{Bar, RunFigure, report_plot, short_label};
 pub use trigger_curves::{FamilySeries, RatePoint, trigger_curves_plot};
 
 use plotters::coord::types::RangedCoordf64;

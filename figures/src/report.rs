@@ -8,7 +8,7 @@ use plotters::prelude::*;
 use std::path::Path;
 
 use etp_recording_tools::figure::short_to;
-pub use etp_recording_tools::figure::{Bar, RunFigure, mean_ci, proportion, short_label};
+pub use etp_recording_tools::figure::{Bar, RunFigure, short_label};
 
 /// Write `stem.png` and `stem.svg`.
 pub fn report_plot(fig: &RunFigure, stem: &Path) -> Result<()> {
@@ -38,7 +38,11 @@ where
     let top = fig
         .sensors
         .iter()
-        .map(|b| (b.measured + b.ci95).max(b.predicted.unwrap_or(0.0)))
+        .map(|b| {
+            b.interval
+                .map_or(b.measured, |(_, hi)| hi)
+                .max(b.predicted.unwrap_or(0.0))
+        })
         .filter(|x| x.is_finite())
         .fold(1e-9, f64::max)
         * 1.15;
@@ -76,8 +80,9 @@ fn panel<DB: DrawingBackend>(
     caption: &str,
     y_desc: &str,
     y: std::ops::Range<f64>,
-    // The largest value the quantity can take (1 for a probability): a
-    // normal-approximation interval is cut there, not drawn past it.
+    // The largest value the quantity can take (1 for a probability; a
+    // Wilson interval never passes it, a mean's normal interval is cut at it
+    // and at 0).
     cap: f64,
 ) -> Result<()>
 where
@@ -112,21 +117,24 @@ where
         .map_err(e)?;
     let blue = RGBColor(31, 90, 180);
     let orange = RGBColor(230, 120, 0);
-    // Error bars: a vertical line and two caps per measured value.
+    // Error bars: a vertical line and two caps per measured value that has
+    // an interval (none under two episodes: only its point).
     chart
-        .draw_series(bars.iter().enumerate().flat_map(|(i, b)| {
-            let x = i as f64 - 0.12;
-            let (lo, hi) = (
-                (b.measured - b.ci95).max(0.0),
-                (b.measured + b.ci95).min(cap),
-            );
-            let w = 0.06;
-            [
-                PathElement::new(vec![(x, lo), (x, hi)], blue.stroke_width(2)),
-                PathElement::new(vec![(x - w, lo), (x + w, lo)], blue.stroke_width(2)),
-                PathElement::new(vec![(x - w, hi), (x + w, hi)], blue.stroke_width(2)),
-            ]
-        }))
+        .draw_series(
+            bars.iter()
+                .enumerate()
+                .filter_map(|(i, b)| Some((i, b.interval?)))
+                .flat_map(|(i, (lo, hi))| {
+                    let x = i as f64 - 0.12;
+                    let (lo, hi) = (lo.max(0.0), hi.min(cap));
+                    let w = 0.06;
+                    [
+                        PathElement::new(vec![(x, lo), (x, hi)], blue.stroke_width(2)),
+                        PathElement::new(vec![(x - w, lo), (x + w, lo)], blue.stroke_width(2)),
+                        PathElement::new(vec![(x - w, hi), (x + w, hi)], blue.stroke_width(2)),
+                    ]
+                }),
+        )
         .map_err(e)?
         .label("measured, 95 % interval")
         .legend(move |(x, y)| Circle::new((x, y), 4, blue.filled()));
@@ -134,6 +142,7 @@ where
         .draw_series(
             bars.iter()
                 .enumerate()
+                .filter(|(_, b)| b.measured.is_finite())
                 .map(|(i, b)| Circle::new((i as f64 - 0.12, b.measured), 4, blue.filled())),
         )
         .map_err(e)?;

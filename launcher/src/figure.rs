@@ -4,7 +4,8 @@
 
 use super::prepare::Plan;
 use super::supervise::Supervised;
-use etp_figures::{Bar, RunFigure, mean_ci, proportion};
+use etp_figures::{Bar, RunFigure};
+use etp_shared::stats::verdict::Measured;
 
 /// The figure of a finished run.
 pub fn figure(plan: &Plan, s: &Supervised) -> RunFigure {
@@ -26,23 +27,15 @@ pub fn figure(plan: &Plan, s: &Supervised) -> RunFigure {
                         .sum()
                 })
                 .collect();
-            let (measured, ci95) = mean_ci(&xs);
-            Bar {
-                name: sensor.name.clone(),
-                measured,
-                ci95,
-                predicted: plan.sensor_energy_per_episode.get(i).copied(),
-            }
+            Bar::of(
+                &sensor.name,
+                &Measured::mean_of(&xs),
+                plan.sensor_energy_per_episode.get(i).copied(),
+            )
         })
         .collect();
     let outcome = |name: &str, k: u64, pred: f64| {
-        let (measured, ci95) = proportion(k, r.episodes);
-        Bar {
-            name: name.into(),
-            measured,
-            ci95,
-            predicted: Some(pred),
-        }
+        Bar::of(name, &Measured::Proportion { k, n: r.episodes }, Some(pred))
     };
     RunFigure {
         title: format!(

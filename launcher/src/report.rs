@@ -5,28 +5,21 @@ use super::prepare::Plan;
 use super::supervise::Supervised;
 use anyhow::Result;
 use etp_runtime::wire::traffic::LinkTraffic;
-use etp_shared::stats::{Estimate, MeanAccumulator, proportion, wilson_interval};
+use etp_shared::stats::verdict::{Measured, Outcomes};
 use serde_json::{Value, json};
 
-/// Outcomes of the run with 95 % intervals.
-struct Estimates {
-    p_target: Estimate,
-    p_collision: Estimate,
-    p_free: Estimate,
-    energy: Estimate,
+/// The run's outcomes (`etp_shared::stats`; `etp replay` of its recording
+/// counts the same episodes the same way: the same numbers).
+fn estimates(s: &Supervised) -> Outcomes {
+    let r = &s.report;
+    let energies: Vec<f64> = r.episode_results.iter().map(|e| e.energy).collect();
+    Outcomes::count(r.target, r.collision, r.episodes, &energies)
 }
 
-fn estimates(s: &Supervised) -> Estimates {
-    let r = &s.report;
-    let mut energy = MeanAccumulator::default();
-    for e in &r.episode_results {
-        energy.push(e.energy);
-    }
-    Estimates {
-        p_target: proportion(r.target, r.episodes),
-        p_collision: proportion(r.collision, r.episodes),
-        p_free: proportion(r.free, r.episodes),
-        energy: energy.estimate(),
+fn free(s: &Supervised) -> Measured {
+    Measured::Proportion {
+        k: s.report.free,
+        n: s.report.episodes,
     }
 }
 
@@ -65,15 +58,12 @@ fn downlink(s: &Supervised, traffic: &[LinkTraffic]) -> Value {
 }
 
 /// The run's measurements against the strategy's prediction.
-fn prediction_check(e: &Estimates, r: &etp_runtime::report::RunReport) -> Value {
-    let m = |x: &etp_shared::stats::Estimate| etp_recording_tools::vocab::Measured {
-        value: x.value,
-        ci95: x.ci95,
-    };
+fn prediction_check(e: &Outcomes, r: &etp_runtime::report::RunReport) -> Value {
     etp_recording_tools::vocab::prediction_check(
         r.predicted.as_ref(),
         r.predicted_ci95.as_ref(),
-        [m(&e.p_target), m(&e.p_collision), m(&e.energy)],
+        e,
+        &[],
     )
 }
 
@@ -112,10 +102,6 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         "seed": r.seed,
         "episodes": r.episodes,
         "requested_episodes": r.requested_episodes,
-        "p_target": e.p_target.value, "p_target_ci95": e.p_target.ci95,
-        "p_collision": e.p_collision.value, "p_collision_ci95": e.p_collision.ci95,
-        "p_free": e.p_free.value, "p_free_ci95": e.p_free.ci95,
-        "energy_mean": e.energy.value, "energy_mean_ci95": e.energy.ci95,
         "predicted": etp_recording_tools::vocab::prediction(r.predicted.as_ref()),
         "predicted_ci95": r.predicted_ci95.map(|c| json!({"p_target": c.p_target,
             "p_collision": c.p_collision, "energy_mean": c.energy_mean})),
@@ -138,6 +124,12 @@ pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
         "aborted": r.aborted,
         "downlink": downlink(s, &traffic),
     });
+    if let Some(m) = v.as_object_mut() {
+        m.extend(etp_recording_tools::vocab::outcome_fields(
+            &e,
+            Some(free(s)),
+        ));
+    }
     if let Some(own) = &plan.radio_synthesized
         && let Some(m) = v.as_object_mut()
     {
@@ -220,22 +212,23 @@ pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
         ("P_collision", r.collision, p.p_collision),
         ("P_free", r.free, p.p_free),
     ] {
-        let (lo, hi) = wilson_interval(count, r.episodes);
-        let value = if r.episodes > 0 {
-            count as f64 / r.episodes as f64
-        } else {
-            0.0
+        let m = Measured::Proportion {
+            k: count,
+            n: r.episodes,
         };
+        let (lo, hi) = m.interval(etp_shared::stats::Z95);
         println!(
-            "  {k:<12} {value:>10.4} {:<20}   {pr:>10.4}",
+            "  {k:<12} {:>10.4} {:<20}   {pr:>10.4}",
+            m.value(),
             format!("[{lo:.4}, {hi:.4}]")
         );
     }
+    let energy = e.energy.map(|m| m.estimate());
     println!(
         "  {:<12} {:>10.4} {:<20}   {:>10.4}",
         "energy",
-        e.energy.value,
-        format!("± {:.4}", e.energy.ci95),
+        energy.map_or(f64::NAN, |x| x.value),
+        format!("± {:.4}", energy.map_or(f64::NAN, |x| x.ci95)),
         p.energy_mean
     );
     if r.episodes > 0 {

@@ -8,6 +8,7 @@
 
 use crate::progress;
 use anyhow::{Context, Result};
+use etp_shared::stats::verdict::{Check, Family, Measured, Outcomes, prediction_checks};
 use etp_shared::strategy::{
     AggregationCheck, CertifiedPrediction, Prediction, PredictionCi95, SimulatedValue, Strategy,
 };
@@ -379,46 +380,35 @@ pub fn diagnostics_text(s: &Strategy) -> String {
     o
 }
 
-/// Every prediction the strategy file stands by against the simulation:
-/// (name, holds). `predicted` (P_tar, P_coll, energy) within the
-/// simulation's 95 % interval joined in quadrature with its own ±; the
-/// certified bounds on the right side of the simulation's interval. The
-/// diagnostics are reported, never checked. A `--quick` strategy stands by
-/// nothing: no check.
-pub fn checks(strategy: &Strategy, sum: &SimulationSummary) -> Vec<(&'static str, bool)> {
-    let mut v = Vec::new();
-    if let Some(p) = &strategy.predictions.predicted {
-        let own = strategy.predictions.predicted_ci95.unwrap_or_default();
-        let near = |x: f64, e: &etp_shared::stats::Estimate, r: f64| {
-            (x - e.value).abs() <= e.ci95.hypot(r)
-        };
-        v.push((
-            "predicted P_tar",
-            near(p.p_target, &sum.p_target, own.p_target),
-        ));
-        v.push((
-            "predicted P_coll",
-            near(p.p_collision, &sum.p_collision, own.p_collision),
-        ));
-        v.push((
-            "predicted energy",
-            near(p.energy_mean, &sum.energy_mean, own.energy_mean),
-        ));
+/// Every prediction the strategy file stands by against the simulation,
+/// as one family at 95 % family-wise (`etp_shared::stats::verdict`, THE
+/// verdict of `run` and `replay` too): `predicted` (P_tar, P_coll, energy)
+/// within the simulation's interval joined with its own ±; the certified
+/// bounds on the right side of the simulation's interval; each check at
+/// 1 − 0.05/m (Bonferroni over the m checks). The diagnostics are
+/// reported, never checked. A `--quick` strategy stands by nothing: no
+/// check.
+pub fn checks(strategy: &Strategy, sum: &SimulationSummary) -> (Family, Vec<Check>) {
+    prediction_checks(
+        strategy.predictions.predicted.as_ref(),
+        strategy.predictions.predicted_ci95.as_ref(),
+        strategy.predictions.certified.as_ref(),
+        &outcomes_of(sum),
+    )
+}
+
+/// A simulation's P_tar, P_coll (counts of its episodes) and energy per
+/// episode, as the verdict measures them.
+pub fn outcomes_of(sum: &SimulationSummary) -> Outcomes {
+    let n = sum.episodes;
+    // The proportion times the episodes is the count, exactly.
+    let count = |p: f64| Measured::Proportion {
+        k: (p * n as f64).round() as u64,
+        n,
+    };
+    Outcomes {
+        p_target: Some(count(sum.p_target.value)),
+        p_collision: Some(count(sum.p_collision.value)),
+        energy: Some(Measured::from_estimate(sum.energy_mean)),
     }
-    if let Some(c) = &strategy.predictions.certified {
-        // Simulated ≥ lower bound (resp. ≤ upper) within the simulation's interval.
-        v.push((
-            "certified P_tar ≤ simulated (+95 %)",
-            c.p_target_low <= sum.p_target.value + sum.p_target.ci95,
-        ));
-        v.push((
-            "certified P_coll ≥ simulated (−95 %)",
-            c.p_collision_high >= sum.p_collision.value - sum.p_collision.ci95,
-        ));
-        v.push((
-            "certified energy ≥ simulated (−95 %)",
-            c.energy_high >= sum.energy_mean.value - sum.energy_mean.ci95,
-        ));
-    }
-    v
 }

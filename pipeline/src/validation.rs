@@ -41,12 +41,13 @@ pub fn plot_map(
 }
 
 /// The names of the checks of [`checks`] that fail (empty: every check
-/// holds, `etp validate` exits 0).
+/// holds at 95 % family-wise, `etp validate` exits 0).
 pub fn failed_checks(strategy: &Strategy, sum: &SimulationSummary) -> Vec<&'static str> {
     checks(strategy, sum)
+        .1
         .into_iter()
-        .filter(|(_, holds)| !holds)
-        .map(|(name, _)| name)
+        .filter(|c| !c.holds)
+        .map(|c| c.name)
         .collect()
 }
 
@@ -97,12 +98,27 @@ pub fn comparison_json(
                 predictions::aggregation_json(&c, predictions::reference_name(strategy))
             }),
         );
+        let (family, all) = checks(strategy, sum);
+        let num = |x: f64| {
+            if x.is_finite() {
+                json!(x)
+            } else {
+                serde_json::Value::Null
+            }
+        };
         m.insert(
             "checks".into(),
-            checks(strategy, sum)
-                .into_iter()
-                .map(|(k, ok)| json!({"check": k, "holds": ok}))
+            all.iter()
+                .map(|c| {
+                    json!({"check": c.name, "holds": c.holds, "value": c.value,
+                        "low": num(c.low), "high": num(c.high)})
+                })
                 .collect(),
+        );
+        m.insert(
+            "checks_level".into(),
+            json!({"family_wise_level": family.level, "per_check_level": family.per_check_level(),
+                "family_size": family.checks, "method": "Bonferroni"}),
         );
     }
     v

@@ -427,7 +427,10 @@ class Validation:
 
     def table(self) -> pd.DataFrame:
         """Predicted vs simulated (with the simulation's 95 % half-width),
-        one row per quantity: ``p_target``, ``p_collision``, ``energy_mean``."""
+        one row per quantity: ``p_target``, ``p_collision``, ``energy_mean``;
+        ``predicted_minus_simulated`` with the sign of every error etp prints.
+        The numbers are the CLI's (``etp_shared::stats``: Wilson intervals for
+        the probabilities), never recomputed here."""
         r = self.report
         pred = r.get("predicted") or {}
         pred_ci = r.get("predicted_ci95") or {}
@@ -439,6 +442,10 @@ class Validation:
                 "predicted_ci95": pred_ci.get(key),
                 "simulated": r.get(key),
                 "simulated_ci95": r.get(f"{key}_ci95"),
+                "predicted_minus_simulated": (
+                    None if pred.get(key) is None or r.get(key) is None
+                    else pred[key] - r[key]
+                ),
             })
         return pd.DataFrame(rows).set_index("quantity")
 

@@ -88,6 +88,11 @@ def test_validate_is_the_cli_json(pair):
     t = v.table()
     assert t.loc["p_target", "simulated"] == v.report["p_target"]
     assert t.loc["p_target", "predicted_ci95"] == v.report["predicted_ci95"]["p_target"]
+    # One sign: predicted − simulated.
+    assert t.loc["energy_mean", "predicted_minus_simulated"] == (
+        v.report["predicted"]["energy_mean"] - v.report["energy_mean"])
+    # The checks at 95 % family-wise, as the CLI states them.
+    assert v.report["checks_level"]["family_wise_level"] == 0.95
 
 
 def test_bad_requests_raise_value_errors(pair):

@@ -4,6 +4,8 @@
 
 use anyhow::{Context, Result};
 use etp_runtime::recording::{self, Contents, Recorded};
+use etp_shared::stats::Z95;
+use etp_shared::stats::verdict::Measured;
 use etp_shared::strategy::Strategy;
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -12,9 +14,35 @@ use std::collections::{BTreeMap, BTreeSet};
 pub struct Bar {
     pub name: String,
     pub measured: f64,
-    /// 95 % half-width of `measured`.
-    pub ci95: f64,
+    /// The 95 % interval `(lo, hi)` of `measured` (`etp_shared::stats`:
+    /// Wilson for a proportion, never zero width); `None` where there is
+    /// none (fewer than two episodes for a mean): no bar is drawn.
+    pub interval: Option<(f64, f64)>,
     pub predicted: Option<f64>,
+}
+
+impl Bar {
+    /// A quantity the recording cannot measure (a channel missing): the
+    /// prediction alone.
+    pub fn unmeasured(name: &str, predicted: Option<f64>) -> Self {
+        Self {
+            name: name.into(),
+            measured: f64::NAN,
+            interval: None,
+            predicted,
+        }
+    }
+
+    /// The bar of a measurement, its 95 % interval from `etp_shared::stats`.
+    pub fn of(name: &str, m: &Measured, predicted: Option<f64>) -> Self {
+        let (lo, hi) = m.interval(Z95);
+        Self {
+            name: name.into(),
+            measured: m.value(),
+            interval: (lo.is_finite() && hi.is_finite() && hi > lo).then_some((lo, hi)),
+            predicted,
+        }
+    }
 }
 
 /// What the figure shows.
@@ -26,29 +54,6 @@ pub struct RunFigure {
     pub prediction_note: String,
     pub sensors: Vec<Bar>,
     pub outcomes: Vec<Bar>,
-}
-
-/// Mean and 95 % half-width (normal approximation) of `xs`.
-pub fn mean_ci(xs: &[f64]) -> (f64, f64) {
-    let n = xs.len() as f64;
-    if xs.is_empty() {
-        return (f64::NAN, f64::NAN);
-    }
-    let m = xs.iter().sum::<f64>() / n;
-    if xs.len() < 2 {
-        return (m, 0.0);
-    }
-    let var = xs.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
-    (m, 1.96 * (var / n).sqrt())
-}
-
-/// A proportion `k / n` with its 95 % half-width (normal approximation).
-pub fn proportion(k: u64, n: u64) -> (f64, f64) {
-    if n == 0 {
-        return (f64::NAN, f64::NAN);
-    }
-    let p = k as f64 / n as f64;
-    (p, 1.96 * (p * (1.0 - p) / n as f64).sqrt())
 }
 
 /// A strategy label without its parenthesised details, at most 50 characters.
@@ -69,6 +74,7 @@ pub fn short_to(s: &str, n: usize) -> String {
 
 /// The figure of a recording (its selection, if any).
 pub fn figure(c: &Contents, names: &[String]) -> Result<RunFigure> {
+    let has = |t: &str| c.channels.contains_key(t);
     let mut energy: BTreeMap<(u32, u64), f64> = BTreeMap::new();
     let mut episodes: BTreeSet<u64> = BTreeSet::new();
     let mut counts = crate::OutcomeCounts::default();
@@ -115,12 +121,10 @@ pub fn figure(c: &Contents, names: &[String]) -> Result<RunFigure> {
                 .iter()
                 .map(|&ep| energy.get(&(i as u32, ep)).copied().unwrap_or(0.0))
                 .collect();
-            let (measured, ci95) = mean_ci(&xs);
-            Bar {
-                name: name.clone(),
-                measured,
-                ci95,
-                predicted: per_ep.get(i).copied(),
+            if has("ledger") && has("outcome") {
+                Bar::of(name, &Measured::mean_of(&xs), per_ep.get(i).copied())
+            } else {
+                Bar::unmeasured(name, per_ep.get(i).copied())
             }
         })
         .collect();
@@ -130,12 +134,10 @@ pub fn figure(c: &Contents, names: &[String]) -> Result<RunFigure> {
     let p = strategy.as_ref().and_then(|s| s.predictions.predicted);
     let n = episodes.len() as u64;
     let outcome = |name: &str, k: u64, pred: Option<f64>| {
-        let (measured, ci95) = proportion(k, n);
-        Bar {
-            name: name.into(),
-            measured,
-            ci95,
-            predicted: pred,
+        if has("outcome") {
+            Bar::of(name, &Measured::Proportion { k, n }, pred)
+        } else {
+            Bar::unmeasured(name, pred)
         }
     };
     let outcomes = vec![
@@ -143,8 +145,14 @@ pub fn figure(c: &Contents, names: &[String]) -> Result<RunFigure> {
         outcome("P_coll", counts.collision, p.map(|p| p.p_collision)),
         outcome("P_free", counts.free, p.map(|p| p.p_free)),
     ];
+    let missing = crate::summary::missing_channels(c);
+    let lacking = if missing.is_empty() {
+        String::new()
+    } else {
+        format!(" · NO {} channel: not measured", missing.join(", "))
+    };
     let title = format!(
-        "run {} · {} · {} · {n} episodes: measured vs predicted",
+        "run {} · {} · {} · {n} episodes: measured vs predicted{lacking}",
         c.meta(recording::META_RUN, "run_id").unwrap_or("unknown"),
         c.meta(recording::META_RUN, "scenario_name")
             .unwrap_or("unknown"),
@@ -167,13 +175,20 @@ mod tests {
     use super::*;
 
     #[test]
-    fn intervals() {
-        let (m, h) = mean_ci(&[1.0, 3.0]);
-        assert_eq!(m, 2.0);
-        assert!((h - 1.96 * (2.0f64 / 2.0).sqrt()).abs() < 1e-12);
-        assert_eq!(mean_ci(&[5.0]), (5.0, 0.0));
-        let (p, h) = proportion(50, 100);
-        assert_eq!(p, 0.5);
-        assert!((h - 0.098).abs() < 1e-12);
+    fn no_bar_has_zero_width() {
+        // 10 of 10 and 0 of 10: Wilson, not 1 ± 0 or 0 ± 0.
+        for k in [0, 10] {
+            let b = Bar::of("P", &Measured::Proportion { k, n: 10 }, None);
+            let (lo, hi) = b.interval.expect("an interval");
+            assert!(hi - lo > 0.2, "{k}: {lo} {hi}");
+        }
+        // One episode: no interval, no bar.
+        assert_eq!(
+            Bar::of("e", &Measured::mean_of(&[4.0]), None).interval,
+            None
+        );
+        let two = Bar::of("e", &Measured::mean_of(&[1.0, 3.0]), None);
+        let (lo, hi) = two.interval.expect("an interval");
+        assert!((hi - lo - 2.0 * Z95).abs() < 1e-12);
     }
 }

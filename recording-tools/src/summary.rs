@@ -5,6 +5,7 @@
 
 use anyhow::{Context, Result};
 use etp_runtime::recording::{self, Contents, Recorded};
+use etp_shared::stats::verdict::{Measured, Outcomes};
 use etp_shared::strategy::Strategy;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
@@ -165,37 +166,54 @@ pub fn summarize_file(path: &Path) -> Result<Option<(Value, Contents)>> {
     Ok(Some((summarize_tally(&c, t)?, c)))
 }
 
+/// The channels the summary counts with: `outcome` (episodes, P_tar,
+/// P_coll, received), `ledger` (transmissions, energy), `measurement` (the
+/// messages beside the ledgers), `waypoint` (received per leg). A copy
+/// without one of them (`etp replay filter --topics`) is summarised on what
+/// it holds; what needs a missing channel is null and named.
+pub const SUMMARY_CHANNELS: [&str; 4] = ["outcome", "ledger", "measurement", "waypoint"];
+
+/// [`SUMMARY_CHANNELS`] that `c` lacks.
+pub fn missing_channels(c: &Contents) -> Vec<&'static str> {
+    SUMMARY_CHANNELS
+        .into_iter()
+        .filter(|t| !c.channels.contains_key(*t))
+        .collect()
+}
+
 /// The identities a complete episode keeps, per sensor: ledger attempts =
 /// delivered + lost; `measurement` messages = ledger delivered, and =
 /// received unless the episode was degraded (a dead link); attempts
 /// recorded in `slot` = ledger attempts (when `slot` is recorded). Each
-/// failure, in words.
+/// failure, in words. Only identities whose both sides are recorded.
 fn identity_failures(
     sensors: &BTreeMap<u32, SensorSummary>,
     degraded: u64,
-    slots_recorded: bool,
+    has: &dyn Fn(&str) -> bool,
 ) -> Vec<String> {
     let mut out = Vec::new();
+    let (ledger, measurement) = (has("ledger"), has("measurement"));
+    let received = has("outcome") && has("waypoint");
     for s in sensors.values() {
-        if s.transmissions != s.delivered + s.lost {
+        if ledger && s.transmissions != s.delivered + s.lost {
             out.push(format!(
                 "{}: its ledgers count {} attempts but {} delivered + {} lost",
                 s.name, s.transmissions, s.delivered, s.lost
             ));
         }
-        if s.measurements != s.delivered {
+        if ledger && measurement && s.measurements != s.delivered {
             out.push(format!(
                 "{}: {} measurement messages but {} delivered in its ledgers",
                 s.name, s.measurements, s.delivered
             ));
         }
-        if slots_recorded && s.attempts_recorded != s.transmissions {
+        if ledger && has("slot") && s.attempts_recorded != s.transmissions {
             out.push(format!(
                 "{}: {} attempts recorded in its slots but {} in its ledgers",
                 s.name, s.attempts_recorded, s.transmissions
             ));
         }
-        if degraded == 0 && s.received != s.measurements {
+        if received && measurement && degraded == 0 && s.received != s.measurements {
             out.push(format!(
                 "{}: {} measurement messages but the agent received {}",
                 s.name, s.measurements, s.received
@@ -242,6 +260,17 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
     let mut energies: Vec<f64> = Vec::new();
     let (mut partial, mut partial_messages, mut partial_measurements) = (Vec::new(), 0u64, 0u64);
     let ledgers_recorded = c.channels.contains_key("ledger");
+    let scenario = c
+        .meta(recording::META_SCENARIO, "toml")
+        .and_then(|t| etp_shared::scenario::Scenario::from_toml(t).ok());
+    let cost_of_leg = |leg: u32| {
+        scenario.as_ref().map_or(0.0, |s| {
+            s.legs
+                .get(leg as usize)
+                .and_then(|l| s.sensors.get(l.sensor))
+                .map_or(0.0, |x| x.cost)
+        })
+    };
     for (number, e) in t.eps {
         let Some(o) = e.outcome.filter(|_| e.complete(ledgers_recorded)) else {
             partial.push(number);
@@ -264,16 +293,32 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
                 s.measurements += n;
             }
         }
+        // The episode's energy as `etp run` sums it, leg by leg in order: a
+        // ledger's energy, or on a dead link's leg without one what the agent
+        // received there times the sensor's cost.
         let mut energy = 0.0;
-        for (leg, l) in &e.ledgers {
+        let legs = e
+            .ledgers
+            .keys()
+            .last()
+            .copied()
+            .unwrap_or(0)
+            .max(o.header.leg);
+        for leg in 0..=legs {
+            let Some(l) = e.ledgers.get(&leg) else {
+                if o.degraded != 0 {
+                    energy += e.received_of(leg) as f64 * cost_of_leg(leg);
+                }
+                continue;
+            };
             let i = l.header.sender;
             let s = sensor_entry(&mut sensors, &names, i);
             s.transmissions += u64::from(l.transmissions);
             s.delivered += u64::from(l.delivered);
             s.lost += u64::from(l.lost);
-            s.attempts_recorded += e.attempts.get(&(*leg, i)).copied().unwrap_or(0);
+            s.attempts_recorded += e.attempts.get(&(leg, i)).copied().unwrap_or(0);
             s.energy += l.energy;
-            s.received += e.received_of(*leg);
+            s.received += e.received_of(leg);
             energy += l.energy;
         }
         energies.push(energy);
@@ -288,17 +333,33 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
             .map(|e| crate::vocab::round_energy(e * episodes as f64));
         s.energy = crate::vocab::round_energy(s.energy);
     }
-    let failures = identity_failures(&sensors, degraded, c.channels.contains_key("slot"));
+    let has = |t: &str| c.channels.contains_key(t);
+    let failures = identity_failures(&sensors, degraded, &has);
     let measurements: u64 = sensors.values().map(|s| s.measurements).sum();
     let ledgers: u64 = sensors.values().map(|s| s.transmissions).sum();
     let delivered: u64 = sensors.values().map(|s| s.delivered).sum();
     let lost: u64 = sensors.values().map(|s| s.lost).sum();
-    let frac = |n: u64| crate::figure::proportion(n, episodes);
-    let (p_target, p_target_ci95) = frac(counts.target);
-    let (p_collision, p_collision_ci95) = frac(counts.collision);
-    let (p_free, p_free_ci95) = frac(counts.free);
-    let num_or_null = |x: f64| if x.is_finite() { json!(x) } else { Value::Null };
-    let (energy_mean, energy_mean_ci95) = crate::figure::mean_ci(&energies);
+    // What the recording lets us measure (`etp_shared::stats`, the same
+    // function as `etp run`'s report: the same numbers on the same episodes).
+    let missing = missing_channels(c);
+    let outcome_recorded = has("outcome");
+    let proportion = |k: u64| outcome_recorded.then_some(Measured::Proportion { k, n: episodes });
+    let measured = Outcomes {
+        p_target: proportion(counts.target),
+        p_collision: proportion(counts.collision),
+        energy: (outcome_recorded && ledgers_recorded).then(|| Measured::mean_of(&energies)),
+    };
+    let mut unmeasured = Vec::new();
+    if !outcome_recorded {
+        for k in ["p_target", "p_collision", "energy_mean"] {
+            unmeasured.push((k, "the recording has no `outcome` channel".to_string()));
+        }
+    } else if !ledgers_recorded {
+        unmeasured.push((
+            "energy_mean",
+            "the recording has no `ledger` channel".to_string(),
+        ));
+    }
     let energy: f64 = sensors.values().map(|s| s.energy).sum();
     let predicted_energy: Option<f64> = if per_ep.is_empty() {
         None
@@ -318,7 +379,7 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
         .meta(recording::META_RUN, "scenario_name")
         .map(str::to_string)
         .or_else(|| strategy.as_ref().map(|s| s.policy.scenario_name.clone()));
-    Ok(json!({
+    let mut v = json!({
         "run_id": c.meta(recording::META_RUN, "run_id"),
         "scenario": scenario,
         "seed": num("seed"),
@@ -330,11 +391,8 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
         "prediction_check": crate::vocab::prediction_check(
             strategy.as_ref().and_then(|s| s.predictions.predicted.as_ref()),
             strategy.as_ref().and_then(|s| s.predictions.predicted_ci95.as_ref()),
-            [
-                crate::vocab::Measured { value: p_target, ci95: p_target_ci95 },
-                crate::vocab::Measured { value: p_collision, ci95: p_collision_ci95 },
-                crate::vocab::Measured { value: energy_mean, ci95: energy_mean_ci95 },
-            ],
+            &measured,
+            &unmeasured,
         ),
         "software_version": c.meta(recording::META_RUN, "software_version"),
         "format_version": num("format_version"),
@@ -351,12 +409,7 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
             "measurements": partial_measurements,
         },
         "target": counts.target, "collision": counts.collision, "free": counts.free,
-        "p_target": num_or_null(p_target), "p_target_ci95": num_or_null(p_target_ci95),
-        "p_collision": num_or_null(p_collision), "p_collision_ci95": num_or_null(p_collision_ci95),
-        "p_free": num_or_null(p_free), "p_free_ci95": num_or_null(p_free_ci95),
         "steps": steps,
-        "energy_mean": num_or_null(energy_mean),
-        "energy_mean_ci95": num_or_null(energy_mean_ci95),
         "measurements": measurements,
         "transmissions": ledgers,
         "delivered": delivered,
@@ -367,7 +420,78 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
         "sensors": sensors.values().collect::<Vec<_>>(),
         "identities_hold": failures.is_empty(),
         "identity_failures": failures,
-    }))
+        "missing_channels": missing,
+    });
+    if let Some(m) = v.as_object_mut() {
+        m.extend(crate::vocab::outcome_fields(
+            &measured,
+            proportion(counts.free),
+        ));
+    }
+    null_what_is_missing(&mut v, &has);
+    Ok(v)
+}
+
+/// Null the counts whose channel the recording lacks (a filtered copy):
+/// never a 0 that would read as measured.
+fn null_what_is_missing(v: &mut Value, has: &dyn Fn(&str) -> bool) {
+    let needs: [(&str, &[&str]); 4] = [
+        (
+            "outcome",
+            &[
+                "episodes",
+                "target",
+                "collision",
+                "free",
+                "steps",
+                "received",
+                "partial",
+                "degraded_episodes",
+                "predicted_energy",
+            ],
+        ),
+        ("ledger", &["transmissions", "delivered", "lost", "energy"]),
+        ("measurement", &["measurements"]),
+        ("waypoint", &[]),
+    ];
+    let per_sensor: [(&str, &[&str]); 4] = [
+        ("outcome", &["received", "predicted_energy"]),
+        (
+            "ledger",
+            &[
+                "transmissions",
+                "delivered",
+                "lost",
+                "energy",
+                "attempts_recorded",
+            ],
+        ),
+        (
+            "measurement",
+            &["measurements", "measurements_without_ledger"],
+        ),
+        ("waypoint", &["received"]),
+    ];
+    for (channel, keys) in needs {
+        if has(channel) {
+            continue;
+        }
+        for k in keys {
+            v[*k] = Value::Null;
+        }
+    }
+    if let Some(sensors) = v.get_mut("sensors").and_then(Value::as_array_mut) {
+        for s in sensors {
+            for (channel, keys) in per_sensor {
+                if has(channel) {
+                    continue;
+                }
+                for k in keys {
+                    s[*k] = Value::Null;
+                }
+            }
+        }
+    }
 }
 
 /// The summary `s` of the recording `c` read from `file`, as a table.
@@ -440,8 +564,22 @@ fn write_table(out: &mut String, file: &Path, c: &Contents, s: &Value) -> std::f
         h("energy"),
         h("predicted_energy")
     )?;
+    if let Some(missing) = s
+        .get("missing_channels")
+        .and_then(Value::as_array)
+        .filter(|m| !m.is_empty())
+    {
+        let names: Vec<&str> = missing.iter().filter_map(Value::as_str).collect();
+        writeln!(
+            out,
+            "  MISSING channels: {} (a filtered or partial copy): what needs them is not counted (–) and not checked",
+            names.join(", ")
+        )?;
+    }
     if let Some(v) = s.get("prediction_check")
-        && s.get("episodes").and_then(Value::as_u64).unwrap_or(0) > 0
+        && s.get("episodes")
+            .and_then(Value::as_u64)
+            .is_none_or(|n| n > 0)
     {
         write!(out, "{}", crate::vocab::prediction_check_text(v))?;
     }
@@ -459,18 +597,28 @@ fn write_table(out: &mut String, file: &Path, c: &Contents, s: &Value) -> std::f
     )?;
     if let Some(arr) = s.get("sensors").and_then(Value::as_array) {
         for x in arr {
-            let f = |k: &str| x.get(k).cloned().unwrap_or(Value::Null);
+            // A count the recording does not hold (null) shows as –.
+            let n = |k: &str| {
+                x.get(k)
+                    .and_then(Value::as_u64)
+                    .map_or("–".into(), |v| v.to_string())
+            };
+            let e = |k: &str| {
+                x.get(k)
+                    .and_then(Value::as_f64)
+                    .map_or("–".into(), |v| format!("{v:.1}"))
+            };
             writeln!(
                 out,
-                "  {:<10} {:>12} {:>12} {:>10} {:>8} {:>12} {:>12.1} {:>12.1}",
-                f("name").as_str().unwrap_or("?"),
-                f("measurements").as_u64().unwrap_or(0),
-                f("transmissions").as_u64().unwrap_or(0),
-                f("delivered").as_u64().unwrap_or(0),
-                f("lost").as_u64().unwrap_or(0),
-                f("received").as_u64().unwrap_or(0),
-                f("energy").as_f64().unwrap_or(f64::NAN),
-                f("predicted_energy").as_f64().unwrap_or(f64::NAN)
+                "  {:<10} {:>12} {:>12} {:>10} {:>8} {:>12} {:>12} {:>12}",
+                x.get("name").and_then(Value::as_str).unwrap_or("?"),
+                n("measurements"),
+                n("transmissions"),
+                n("delivered"),
+                n("lost"),
+                n("received"),
+                e("energy"),
+                e("predicted_energy")
             )?;
         }
     }

@@ -1,13 +1,31 @@
-//! Point estimates with 95 % confidence half-widths.
+//! THE statistics of etp: every interval a command, a figure or the Python
+//! package shows comes from here (docs/MODEL.md §"Statistics").
 //!
-//! Means use the normal approximation `1.96 s / √n`; proportions use the
-//! Wilson score interval (never a zero-width interval at p = 0 or 1); ratios of
-//! sums (e.g. transmissions per measurement slot) use the delta method.
+//! * proportions (P_tar, P_coll, P_free: k of n episodes): the Wilson score
+//!   interval ([`wilson_interval`], [`proportion`]) — never zero width at
+//!   k = 0 or k = n, never outside [0, 1];
+//! * means (energy per episode): `z s / √n` ([`mean_of`],
+//!   [`MeanAccumulator`]); no interval (infinite) under two samples;
+//! * ratios of sums (e.g. transmissions per measurement slot): the delta
+//!   method ([`RatioAccumulator`], [`ratio`]);
+//! * the verdict "prediction outside the measured interval", one check or a
+//!   family of checks at a family-wise level ([`verdict`]).
+//!
+//! Signs: an error is always predicted − simulated (measured).
 
 use serde::{Deserialize, Serialize};
 
 /// z-value of a two-sided 95 % interval.
 pub const Z95: f64 = 1.959_963_984_540_054;
+
+pub mod verdict;
+
+/// The z-value of a two-sided interval at `level` (0.95 → [`Z95`]):
+/// Φ⁻¹(1 − (1 − level)/2). `level` outside (0, 1) gives NaN or ±∞.
+pub fn z_two_sided(level: f64) -> f64 {
+    use statrs::distribution::{ContinuousCDF, Normal};
+    Normal::standard().inverse_cdf(0.5 + level / 2.0)
+}
 
 /// An estimate and the half-width of its 95 % confidence interval.
 /// `$into.f += $from.f` for each field `f` listed, in order: the field-wise
@@ -110,21 +128,61 @@ pub fn round_sig(x: f64, digits: i32) -> f64 {
         .unwrap_or(x)
 }
 
-/// Wilson score interval `(lo, hi)` for `k` successes in `n` trials.
+/// Wilson score 95 % interval `(lo, hi)` for `k` successes in `n` trials.
 pub fn wilson_interval(k: u64, n: u64) -> (f64, f64) {
+    wilson_interval_z(k, n, Z95)
+}
+
+/// Wilson score interval `(lo, hi)` for `k` successes in `n` trials at the
+/// two-sided z-value `z`: the p₀ whose score test |p̂ − p₀| / √(p₀(1 − p₀)/n)
+/// stays within `z` (Wilson 1927; Newcombe 1998, method 3). At k = 0 its
+/// upper bound is z²/(n + z²) > 0, at k = n its lower bound n/(n + z²) < 1:
+/// unlike p̂ ± z√(p̂(1 − p̂)/n), never a zero-width interval at 0 or 1, and
+/// never outside [0, 1]. No trial: (0, 1).
+pub fn wilson_interval_z(k: u64, n: u64, z: f64) -> (f64, f64) {
     if n == 0 {
         return (0.0, 1.0);
     }
     let n_f = n as f64;
-    let p = k as f64 / n_f;
-    let z2 = Z95 * Z95;
+    let p = k.min(n) as f64 / n_f;
+    let z2 = z * z;
     let denom = 1.0 + z2 / n_f;
     let centre = (p + z2 / (2.0 * n_f)) / denom;
-    let half = Z95 * (p * (1.0 - p) / n_f + z2 / (4.0 * n_f * n_f)).sqrt() / denom;
-    ((centre - half).max(0.0), (centre + half).min(1.0))
+    let half = z * (p * (1.0 - p) / n_f + z2 / (4.0 * n_f * n_f)).sqrt() / denom;
+    // At k = 0 (k = n) the bound is 0 (1) exactly, not a rounding below.
+    let lo = if k == 0 {
+        0.0
+    } else {
+        (centre - half).max(0.0)
+    };
+    let hi = if k >= n {
+        1.0
+    } else {
+        (centre + half).min(1.0)
+    };
+    (lo, hi)
 }
 
-/// The proportion `k/n` with the larger distance to a Wilson bound as half-width.
+/// The mean of `xs` with its 95 % half-width `1.96 s / √n` (the sums of
+/// [`MeanAccumulator`], in the order given): no sample → NaN; one sample →
+/// an infinite half-width (no interval, never a zero-width one).
+pub fn mean_of(xs: &[f64]) -> Estimate {
+    let mut a = MeanAccumulator::default();
+    for &x in xs {
+        a.push(x);
+    }
+    if a.n == 0 {
+        return Estimate {
+            value: f64::NAN,
+            ci95: f64::NAN,
+        };
+    }
+    a.estimate()
+}
+
+/// The proportion `k/n` with the larger distance to a Wilson bound as
+/// half-width (the `_ci95` of every JSON: a symmetric ± that contains the
+/// Wilson interval).
 pub fn proportion(k: u64, n: u64) -> Estimate {
     let p = if n == 0 { 0.0 } else { k as f64 / n as f64 };
     let (lo, hi) = wilson_interval(k, n);
@@ -206,53 +264,4 @@ pub fn ratio(a: Estimate, b: Estimate) -> Option<Estimate> {
 }
 
 #[cfg(test)]
-mod tests {
-    #[test]
-    fn a_ratio_by_the_delta_method() {
-        let e = |value, ci95| super::Estimate { value, ci95 };
-        let r = super::ratio(e(200.0, 6.0), e(100.0, 4.0)).expect("ratio");
-        assert!((r.value - 2.0).abs() < 1e-12);
-        assert!((r.ci95 - 2.0 * (0.03f64.powi(2) + 0.04f64.powi(2)).sqrt()).abs() < 1e-12);
-        assert_eq!(
-            super::ratio(e(1.0, 0.1), e(1.0, 0.0)).map(|r| r.ci95),
-            Some(0.1)
-        );
-        assert!(super::ratio(e(1.0, 0.1), e(0.0, 0.1)).is_none());
-    }
-
-    use super::*;
-
-    #[test]
-    fn mean_of_constant_has_zero_width() {
-        let mut a = MeanAccumulator::default();
-        for _ in 0..10 {
-            a.push(2.5);
-        }
-        let e = a.estimate();
-        assert_eq!(e.value, 2.5);
-        assert!(e.ci95.abs() < 1e-12);
-    }
-
-    #[test]
-    fn wilson_matches_textbook_value() {
-        // 5 of 10: Wilson 95 % interval (0.2366, 0.7634).
-        let (lo, hi) = wilson_interval(5, 10);
-        assert!(
-            (lo - 0.2366).abs() < 1e-4 && (hi - 0.7634).abs() < 1e-4,
-            "{lo} {hi}"
-        );
-        let e = proportion(0, 100);
-        assert_eq!(e.value, 0.0);
-        assert!(e.ci95 > 0.03 && e.ci95 < 0.04, "{}", e.ci95);
-    }
-
-    #[test]
-    fn ratio_of_proportional_sums_is_exact() {
-        let mut r = RatioAccumulator::default();
-        for b in [10.0, 20.0, 30.0] {
-            r.push(0.25 * b, b);
-        }
-        let e = r.estimate();
-        assert!((e.value - 0.25).abs() < 1e-12 && e.ci95 < 1e-9);
-    }
-}
+mod tests;

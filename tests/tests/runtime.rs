@@ -60,6 +60,11 @@ mod families;
 #[path = "runtime/live.rs"]
 mod live;
 
+// Interrupted runs recorded as they happened: 20 seeded interrupts, local
+// and with a remote sensor (issue 52 item 4).
+#[path = "runtime/interrupts.rs"]
+mod interrupts;
+
 const DELTA: &str = "1.4986";
 
 /// Multi-process runs take both cores; run them one at a time so the timing

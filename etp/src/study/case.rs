@@ -220,13 +220,14 @@ fn request(
     row.simulated_energy = Some(sum.energy_mean.value);
     row.simulated_energy_ci95 = Some(sum.energy_mean.ci95);
     if let Some(p) = p {
-        row.miss_p_target = Some(sum.p_target.value - p.p_target);
-        row.miss_p_collision = Some(sum.p_collision.value - p.p_collision);
-        row.miss_energy_relative =
-            (p.energy_mean != 0.0).then(|| (sum.energy_mean.value - p.energy_mean) / p.energy_mean);
+        // Predicted − simulated, the sign of every error etp prints.
+        row.miss_p_target = Some(p.p_target - sum.p_target.value);
+        row.miss_p_collision = Some(p.p_collision - sum.p_collision.value);
+        row.miss_energy_relative = (sum.energy_mean.value != 0.0)
+            .then(|| (p.energy_mean - sum.energy_mean.value) / sum.energy_mean.value);
     }
-    let all = checks(&strategy, &sum);
-    let failed: Vec<&str> = all.iter().filter(|(_, ok)| !ok).map(|(n, _)| *n).collect();
+    let (_, all) = checks(&strategy, &sum);
+    let failed: Vec<&str> = all.iter().filter(|c| !c.holds).map(|c| c.name).collect();
     row.checks_hold = Some(failed.is_empty());
     row.failed_checks = Some(failed.join("; "));
     Ok(row)

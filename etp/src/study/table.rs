@@ -52,12 +52,13 @@ pub struct Row {
     pub simulated_p_collision_ci95: Option<f64>,
     pub simulated_energy: Option<f64>,
     pub simulated_energy_ci95: Option<f64>,
-    /// Simulated − predicted, with its sign.
+    /// Predicted − simulated, with its sign (the sign of every error etp
+    /// prints: positive when the prediction is above the simulation).
     pub miss_p_target: Option<f64>,
     pub miss_p_collision: Option<f64>,
-    /// (simulated − predicted) / predicted.
+    /// (predicted − simulated) / simulated.
     pub miss_energy_relative: Option<f64>,
-    /// Every check of `etp validate` holds.
+    /// Every check of `etp validate` holds (95 % family-wise).
     pub checks_hold: Option<bool>,
     /// The checks that fail, `; `-separated.
     pub failed_checks: Option<String>,

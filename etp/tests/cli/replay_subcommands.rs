@@ -107,7 +107,8 @@ fn a_cut_episode_is_partial_and_a_failed_identity_exits_4() {
     assert_eq!(v["identities_hold"], true, "{v}");
     let text = String::from_utf8_lossy(&etp(&["replay", s(&cut)]).stdout).into_owned();
     assert!(text.contains("partial (not counted)"), "{text}");
-    // Without the `measurement` channel the ledgers disagree: exit 4.
+    // Without the `measurement` channel the identities that need it are not
+    // checked (not failed): the channel is named, exit 5.
     let nomeas = dir.path("no-measurements.mcap");
     ok_json(&[
         "replay",
@@ -119,10 +120,85 @@ fn a_cut_episode_is_partial_and_a_failed_identity_exits_4() {
         "--json",
     ]);
     let (rc, out, err) = code(&["replay", s(&nomeas), "--json"]);
-    assert_eq!(rc, Some(4), "{err}");
+    assert_eq!(rc, Some(5), "{err}");
     let v: Value = serde_json::from_str(&out).expect("json");
-    assert_eq!(v["identities_hold"], false);
-    assert!(err.contains("identity"), "{err}");
+    assert_eq!(v["identities_hold"], true, "{v}");
+    assert_eq!(v["missing_channels"], serde_json::json!(["measurement"]));
+    assert_eq!(v["measurements"], Value::Null);
+    assert_eq!(v["episodes"], 4);
+    assert!(err.contains("measurement"), "{err}");
+}
+
+/// A copy filtered to the `outcome` channel says what it cannot check
+/// (issue 52 item 5): the missing channels named, what needs them null (–
+/// in the table), no prediction judged on them, `verify` refused by name,
+/// never "0 ± 0" or "not reproduced"; exit 5. The same selection asked with
+/// `--topics` on the command line is the user's choice: exit 0.
+#[test]
+fn a_filtered_copy_names_what_it_cannot_check_and_exits_5() {
+    let f = fixture();
+    let dir = Scratch::new("replay-missing");
+    let only = dir.path("outcome-only.mcap");
+    ok_json(&[
+        "replay",
+        "filter",
+        s(&f),
+        s(&only),
+        "--topics",
+        "outcome",
+        "--json",
+    ]);
+    let (rc, out, err) = code(&["replay", s(&only), "--json"]);
+    assert_eq!(rc, Some(5), "{err}");
+    let v: Value = serde_json::from_str(&out).expect("json");
+    assert_eq!(
+        v["missing_channels"],
+        serde_json::json!(["ledger", "measurement", "waypoint"])
+    );
+    let full = ok_json(&["replay", s(&f), "--json"]);
+    // What the outcomes measure is there, the same as the original's.
+    for k in ["episodes", "p_target", "p_target_ci95", "p_collision_ci95"] {
+        assert_eq!(v[k], full[k], "{k}");
+    }
+    for k in [
+        "energy_mean",
+        "energy_mean_ci95",
+        "energy",
+        "transmissions",
+        "measurements",
+    ] {
+        assert_eq!(v[k], Value::Null, "{k}: {v}");
+    }
+    assert_eq!(v["identities_hold"], true, "{v}");
+    if !v["prediction_check"].is_null() {
+        assert!(
+            v["prediction_check"]["energy_mean"]["unchecked"].is_string(),
+            "{v}"
+        );
+        assert_eq!(v["prediction_check"]["family_size"], 2, "{v}");
+    }
+    let (rc, text, _) = code(&["replay", s(&only)]);
+    assert_eq!(rc, Some(5));
+    assert!(
+        text.contains("MISSING channels: ledger, measurement, waypoint"),
+        "{text}"
+    );
+    assert!(!text.contains("± 0") && !text.contains("OUTSIDE"), "{text}");
+    let (rc, out, err) = code(&["replay", "verify", s(&only), "--json"]);
+    assert_eq!(rc, Some(5), "{err}");
+    let v: Value = serde_json::from_str(&out).expect("json");
+    assert_eq!(v["verify"]["passed"], Value::Null, "{v}");
+    let missing = v["verify"]["missing_channels"].as_array().expect("missing");
+    for t in ["control", "waypoint", "sensor/0/threshold"] {
+        assert!(missing.iter().any(|m| m == t), "{t}: {v}");
+    }
+    assert!(
+        !err.contains("not reproduced") && err.contains("lacks"),
+        "{err}"
+    );
+    // The same selection asked on the command line: exit 0.
+    let (rc, _, err) = code(&["replay", s(&f), "--topics", "outcome", "--json"]);
+    assert_eq!(rc, Some(0), "{err}");
 }
 
 /// `filter` writes a finished subset with every metadata record that

@@ -41,6 +41,33 @@ pub use layout::{ChunkStats, Layout, layout};
 pub use read::{Contents, RawMessage, ends_finished, read_lenient, stream_finished};
 pub use verify::{Mismatch, PriorTable, VerifyReport, priors, verify};
 
+/// The channels [`verify`] re-runs the estimator from (module `verify`):
+/// `control` (the seed), `waypoint`, `slot`, `measurement`, `outcome`, and
+/// per sensor `sensor/<i>/threshold`, `…/handover`, `…/truth`. Those that `c`
+/// lacks (a filtered copy): verifying without them would blame the
+/// estimator for what the copy left out. Empty without a readable
+/// scenario (verify then says what is wrong with the metadata).
+pub fn verify_missing_channels(c: &Contents) -> Vec<String> {
+    let Some(sensors) = c
+        .meta(META_SCENARIO, "toml")
+        .and_then(|t| etp_shared::scenario::Scenario::from_toml(t).ok())
+        .map(|s| s.sensors.len())
+    else {
+        return Vec::new();
+    };
+    let mut needed: Vec<String> = ["control", "waypoint", "slot", "measurement", "outcome"]
+        .into_iter()
+        .map(String::from)
+        .collect();
+    for i in 0..sensors {
+        for what in ["threshold", "handover", "truth"] {
+            needed.push(format!("sensor/{i}/{what}"));
+        }
+    }
+    needed.retain(|t| !c.channels.contains_key(t));
+    needed
+}
+
 /// Version of this format (metadata `etp.run` / `format_version`). 3: the
 /// per-leg `handover` replaces the per-step `prior`, and `slot` carries the
 /// sensor replica's prior digest; files written since issue 16 also hold the

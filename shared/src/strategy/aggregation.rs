@@ -39,7 +39,7 @@ pub struct PredictionCi95 {
 }
 
 /// Simulated P_tar, P_coll and mean energy with the half-widths of their
-/// 95 % intervals (normal approximation, as `etp simulate` reports them).
+/// 95 % intervals (`etp_shared::stats`: Wilson for the probabilities, as `etp simulate` reports them).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SimulatedValue {
     pub p_target: f64,

@@ -148,6 +148,20 @@ fn recording_counts_equal_the_report_and_measurements_equal_ledgers_and_received
     assert_eq!(r["transmissions"].as_u64(), Some(transmitted));
     assert_eq!(r["received"].as_u64(), Some(received));
     assert_eq!(r["episodes"].as_f64(), Some(num(&v, "episodes")));
+    // The same statistics and verdict, from the same function (no
+    // zero-width interval, no second kind of 95 %).
+    for k in [
+        "p_target",
+        "p_target_ci95",
+        "p_collision",
+        "p_collision_ci95",
+        "p_free_ci95",
+        "energy_mean",
+        "energy_mean_ci95",
+        "prediction_check",
+    ] {
+        assert_eq!(v[k], r[k], "`{k}` of the run and of its replay");
+    }
     // The independent reader.
     {
         let (py, total) = python_counts(&file);

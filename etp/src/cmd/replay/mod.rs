@@ -11,8 +11,9 @@
 //! verification; 3 an unfinished file (cut by a crash or a copy: every
 //! complete record is summarised); 4 a count identity fails on the complete
 //! episodes (`measurement` messages ≠ ledger transmissions, or ≠ received
-//! without a dead link). Output goes through `emit`: a closed stdout never
-//! panics.
+//! without a dead link); 5 the file lacks channels a count or a check needs
+//! (a filtered copy: what needs them is named, null, not checked). Output
+//! goes through `emit`: a closed stdout never panics.
 
 use anyhow::{Context, Result, bail};
 use etp_recording_tools::{
@@ -198,6 +199,10 @@ pub const EXIT_UNFINISHED: u8 = 3;
 /// Exit code of `etp replay` when a count identity fails on the complete
 /// episodes.
 pub const EXIT_IDENTITY: u8 = 4;
+/// Exit code of `etp replay` on a recording that lacks channels a count or a
+/// check needs (a copy filtered by topic): what it holds is printed, what
+/// needs the missing channels is named and not checked.
+pub const EXIT_MISSING_CHANNELS: u8 = 5;
 
 pub fn run(a: Args) -> Result<()> {
     let job = match a.action {
@@ -374,7 +379,14 @@ fn run_job(a: Job) -> Result<()> {
         }
         false => None,
     };
-    let verified = if a.verify {
+    // A copy without the channels the re-run needs cannot be verified: say
+    // which, never "not reproduced".
+    let unverifiable = if a.verify {
+        recording::verify_missing_channels(&c)
+    } else {
+        Vec::new()
+    };
+    let verified = if a.verify && unverifiable.is_empty() {
         Some(recording::verify(&c).context("verifying the recording")?)
     } else {
         None
@@ -384,6 +396,9 @@ fn run_job(a: Job) -> Result<()> {
         if let Some(v) = &verified {
             s["verify"] = json!(v);
             s["verify"]["passed"] = json!(v.passed());
+        }
+        if !unverifiable.is_empty() {
+            s["verify"] = json!({"passed": null, "missing_channels": unverifiable});
         }
         if let Some(p) = &published {
             s["published"] = json!(p);
@@ -405,6 +420,12 @@ fn run_job(a: Job) -> Result<()> {
         let mut text = summary::render(&file, &c, &s);
         if let Some(v) = &verified {
             text.push_str(&render_verify(v));
+        }
+        if !unverifiable.is_empty() {
+            text.push_str(&format!(
+                "verify: NOT POSSIBLE · the recording lacks the channels the re-run needs: {} (a filtered copy: verify the original)\n",
+                unverifiable.join(", ")
+            ));
         }
         if let Some(p) = &published {
             text.push_str(&format!(
@@ -429,11 +450,23 @@ fn run_job(a: Job) -> Result<()> {
             v.episodes_checked
         );
     }
+    if !unverifiable.is_empty() {
+        return Err(crate::ExitWith {
+            code: EXIT_MISSING_CHANNELS,
+            message: format!(
+                "error: {}: nothing verified: the recording lacks {}",
+                file.display(),
+                unverifiable.join(", ")
+            ),
+        }
+        .into());
+    }
     summary_exit(&a, &file, &c, &s)
 }
 
-/// The exit of a summary `s`: 4 when an identity fails, 3 for an
-/// unfinished file.
+/// The exit of a summary `s`: 4 when an identity fails, 5 when the file
+/// lacks channels the summary needs (a filtered copy; not for a
+/// `--topics` selection, which asked for it), 3 for an unfinished file.
 fn summary_exit(a: &Job, file: &Path, c: &Contents, s: &serde_json::Value) -> Result<()> {
     // A selection of channels leaves the identities' other side out.
     if !a.only && a.select.topics.is_empty() && s["identities_hold"] == json!(false) {
@@ -443,6 +476,25 @@ fn summary_exit(a: &Job, file: &Path, c: &Contents, s: &serde_json::Value) -> Re
                 "error: {}: a count identity fails on the complete episodes: {}",
                 file.display(),
                 s["identity_failures"]
+            ),
+        }
+        .into());
+    }
+    // An unfinished file may not have reached its channels' records yet:
+    // exit 3 says that first.
+    if !a.only
+        && c.finished
+        && a.select.topics.is_empty()
+        && let Some(missing) = s["missing_channels"].as_array().filter(|m| !m.is_empty())
+    {
+        let names: Vec<&str> = missing.iter().filter_map(|m| m.as_str()).collect();
+        return Err(crate::ExitWith {
+            code: EXIT_MISSING_CHANNELS,
+            message: format!(
+                "warning: {}: the recording lacks the channels {}: the summary counts what it holds; \
+                 what needs them is null and not checked",
+                file.display(),
+                names.join(", ")
             ),
         }
         .into());
