@@ -14,7 +14,7 @@ SEED=${SEED:-9201}
 DROP=${DROP:-0.02}
 STEPS=${STEPS:-12}
 ETP=${ETP:-target/release/etp}
-OUT=${OUT:-out/request-scan-$DIM-$SEED}
+OUT=${OUT:-target/benchmarks/request-scan/$DIM-$SEED}
 echo "machine: $(nproc) cores, $(free -g | awk '/Mem:/{print $2}') GiB; $ETP"
 mkdir -p "$OUT"
 [ -f "$OUT/scenario.toml" ] || "$ETP" scenario random --dim-agent "$DIM" --seed "$SEED" -o "$OUT/scenario.toml"

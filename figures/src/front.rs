@@ -120,9 +120,9 @@ where
                 .filter(|o| o.p_collision <= *b + 1e-12),
         );
         let label = if *b >= 1.0 {
-            format!("MDP front, any P_coll ({} vertices)", curve.len())
+            format!("MDP front, any P_coll ({} vertices; selection-time)", curve.len())
         } else {
-            format!("MDP front, P_coll ≤ {b} ({} vertices)", curve.len())
+            format!("MDP front, P_coll ≤ {b} ({} vertices; selection-time)", curve.len())
         };
         chart
             .draw_series(LineSeries::new(curve.clone(), colour.stroke_width(2)))
@@ -220,16 +220,15 @@ where
             .map(|p| (p.predicted.energy, p.predicted.p_target))
             .collect();
         let label = match curve.max_collision {
-            Some(c) => format!("predicted front, P_coll ≤ {c} (95 % ±)"),
-            None => "predicted front (strategies that run, 95 % ±)".to_string(),
+            Some(c) => format!("predicted front, P_coll ≤ {c}: etp's strategies, ± 95 %"),
+            None => "predicted front: etp's strategies for requests across the range, ± 95 %".to_string(),
         };
+        // A thin guide between the points: only the points are strategies.
         chart
-            .draw_series(LineSeries::new(at.clone(), colour.stroke_width(3)))
+            .draw_series(LineSeries::new(at.clone(), colour.stroke_width(1)))
             .map_err(e)?
             .label(label)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x - 12, y), (x + 12, y)], colour.stroke_width(4))
-            });
+            .legend(move |(x, y)| Circle::new((x, y), 6, colour.filled()));
         for p in &curve.points {
             let (x, y) = (p.predicted.energy, p.predicted.p_target);
             let (hx, hy) = (p.predicted_ci95.energy, p.predicted_ci95.p_target);
@@ -253,14 +252,12 @@ where
                     8,
                 )])
                 .map_err(e)?;
-            let style = if p.met() {
-                colour.filled()
+            let marker = if p.met() {
+                Circle::new((x, y), 6, colour.filled())
             } else {
-                colour.stroke_width(2)
+                Circle::new((x, y), 8, colour.stroke_width(3))
             };
-            chart
-                .draw_series([Circle::new((x, y), 5, style)])
-                .map_err(e)?;
+            chart.draw_series([marker]).map_err(e)?;
         }
     }
     if front
@@ -274,7 +271,7 @@ where
             .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
             .map_err(e)?
             .label("hollow: request out of reach (closest strategy found)")
-            .legend(move |(x, y)| Circle::new((x, y), 5, grey.stroke_width(2)));
+            .legend(move |(x, y)| Circle::new((x, y), 7, grey.stroke_width(3)));
     }
     Ok(())
 }
