@@ -48,8 +48,10 @@ for k in range(steps):
     s = load(f"scan-{k}")
     if s is None:
         continue
+    # Round 0 is the MDP's strategy for the asked level (a later round
+    # would be the loop's fallback, not the scanned strategy).
     r = s["diagnostics"]["rounds"][0]
-    q, h = s["predicted"], s["predicted_ci95"]
+    q, h = r["predicted"], r["predicted_ci95"]
     meets = q["p_target"] + 0.25 * h["p_target"] >= p
     print(f"{r['asked_p_target']:8.4f} {r['selection_time']['energy_mean']:11.2f} {q['p_target']:8.4f} "
           f"{h['p_target']:7.4f} {q['energy_mean']:8.2f} {'yes' if meets else 'no'}")
