@@ -120,9 +120,15 @@ where
                 .filter(|o| o.p_collision <= *b + 1e-12),
         );
         let label = if *b >= 1.0 {
-            format!("MDP front, any P_coll ({} vertices; selection-time)", curve.len())
+            format!(
+                "MDP front, any P_coll ({} vertices; selection-time)",
+                curve.len()
+            )
         } else {
-            format!("MDP front, P_coll ≤ {b} ({} vertices; selection-time)", curve.len())
+            format!(
+                "MDP front, P_coll ≤ {b} ({} vertices; selection-time)",
+                curve.len()
+            )
         };
         chart
             .draw_series(LineSeries::new(curve.clone(), colour.stroke_width(2)))
@@ -221,7 +227,8 @@ where
             .collect();
         let label = match curve.max_collision {
             Some(c) => format!("predicted front, P_coll ≤ {c}: etp's strategies, ± 95 %"),
-            None => "predicted front: etp's strategies for requests across the range, ± 95 %".to_string(),
+            None => "predicted front: etp's strategies for requests across the range, ± 95 %"
+                .to_string(),
         };
         // A thin guide between the points: only the points are strategies.
         chart
