@@ -13,9 +13,8 @@ fn f(v: &serde_json::Value) -> f64 {
     v.as_f64().unwrap_or(f64::NAN)
 }
 
-#[test]
-fn the_plain_command_meets_a_request_the_selection_time_value_misses() {
-    let dir = Scratch::new("request-loop");
+/// winding-2d at 800 samples per state-action, seed 1, into `dir/w800`.
+fn synthesize_w800(dir: &Scratch, aggregation_episodes: &str) -> std::path::PathBuf {
     let out = dir.path("w800");
     ok_json(&[
         "synthesize",
@@ -25,12 +24,19 @@ fn the_plain_command_meets_a_request_the_selection_time_value_misses() {
         "--seed",
         "1",
         "--aggregation-episodes",
-        "2000",
+        aggregation_episodes,
         "--no-kf-baseline",
         "-o",
         s(&out),
         "--json",
     ]);
+    out
+}
+
+#[test]
+fn the_plain_command_meets_a_request_the_selection_time_value_misses() {
+    let dir = Scratch::new("request-loop");
+    let out = synthesize_w800(&dir, "2000");
     let request = REQUEST.to_string();
 
     // The fast path: on the MDP the pick meets the request exactly.
@@ -115,21 +121,7 @@ fn the_plain_command_meets_a_request_the_selection_time_value_misses() {
 #[test]
 fn predicted_front_points_are_what_strategy_returns() {
     let dir = Scratch::new("predicted-front");
-    let out = dir.path("w800");
-    ok_json(&[
-        "synthesize",
-        "winding-2d",
-        "--samples",
-        "800",
-        "--seed",
-        "1",
-        "--aggregation-episodes",
-        "0",
-        "--no-kf-baseline",
-        "-o",
-        s(&out),
-        "--json",
-    ]);
+    let out = synthesize_w800(&dir, "0");
     let front = ok_json(&["strategy", "front", s(&out), "--points", "3", "--json"]);
     let curves = front["curves"].as_array().expect("curves");
     assert_eq!(curves.len(), 1, "{front}");
