@@ -47,7 +47,11 @@ fn independent(prism: &Path, queries: &[String]) -> Vec<Option<f64>> {
 /// the front's P_tar range, each alone and with a collision bound C below the
 /// least-energy strategy's P_coll. `(P, C)`, and the least energy (None:
 /// etp says infeasible).
-pub(super) fn etp_answers(dir: &Path) -> Vec<((f64, Option<f64>), Option<f64>)> {
+/// A query's thresholds (P_tar, and P_coll when bounded) and etp's least
+/// energy for it (`None`: infeasible).
+pub(super) type Answer = ((f64, Option<f64>), Option<f64>);
+
+pub(super) fn etp_answers(dir: &Path) -> Vec<Answer> {
     let front: Value =
         serde_json::from_slice(&std::fs::read(dir.join("front.json")).expect("front.json"))
             .expect("json");

@@ -111,7 +111,7 @@ pub(super) struct Agreement {
 pub(super) fn agrees_with_storm(
     name: &str,
     dir: &Path,
-    answers: &[((f64, Option<f64>), Option<f64>)],
+    answers: &[super::exact::Answer],
     exact: bool,
 ) -> Agreement {
     let request = json!({
