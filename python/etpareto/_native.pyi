@@ -88,7 +88,7 @@ def select_strategy(
     max_collision: Optional[float] = None,
     max_energy: Optional[float] = None,
     replicates: int = 4,
-    rounds: int = 5,
+    rounds: int = 8,
     confidence: Optional[float] = None,
     aggregation_check: int = 4000,
     output: Optional[str] = None,
