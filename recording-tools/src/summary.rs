@@ -54,15 +54,26 @@ impl EpisodeTally {
     /// Complete: the outcome and the ledger of every leg it ran are recorded
     /// (the last leg's ledger follows the outcome, so a cut between them
     /// leaves the episode partial) — or the outcome of a degraded episode
-    /// (a dead link): its legs without a ledger are excused, as `etp run
-    /// --allow-degraded` excuses them, their measurements counted apart.
-    /// Without the `ledger` channel (a selection of topics), the outcome
-    /// alone.
-    fn complete(&self, ledgers_recorded: bool) -> bool {
+    /// (a dead link), or an outcome whose legs without a ledger are all of
+    /// sensors the run found dead (`excused`: a sensor stopped after its
+    /// leg closed and before its ledger, found dead in a later episode).
+    /// Those legs are excused, as `etp run --allow-degraded` excuses them,
+    /// their measurements counted apart. Without the `ledger` channel (a
+    /// selection of topics), the outcome alone.
+    fn complete(&self, ledgers_recorded: bool, excused: impl Fn(u32) -> bool) -> bool {
         self.outcome.is_some_and(|o| {
             !ledgers_recorded
                 || o.degraded != 0
-                || (0..=o.header.leg).all(|l| self.ledgers.contains_key(&l))
+                || (0..=o.header.leg).all(|l| self.ledgers.contains_key(&l) || excused(l))
+        })
+    }
+
+    /// Degraded as `etp run` counts it: a dead link met in the episode, or a
+    /// leg it ran without a ledger.
+    fn degraded(&self, ledgers_recorded: bool) -> bool {
+        self.outcome.is_some_and(|o| {
+            o.degraded != 0
+                || (ledgers_recorded && (0..=o.header.leg).any(|l| !self.ledgers.contains_key(&l)))
         })
     }
 
@@ -271,8 +282,24 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
                 .map_or(0.0, |x| x.cost)
         })
     };
+    // The sensors the run found dead: each is named by the outcome of the
+    // episode its link died in (`dead_sensor`), the run's `faults`.
+    let dead: std::collections::BTreeSet<u32> = t
+        .eps
+        .values()
+        .filter_map(|e| e.outcome)
+        .map(|o| o.dead_sensor)
+        .filter(|s| *s != u32::MAX)
+        .collect();
+    let excused = |leg: u32| {
+        scenario.as_ref().is_some_and(|s| {
+            s.legs
+                .get(leg as usize)
+                .is_some_and(|l| dead.contains(&(l.sensor as u32)))
+        })
+    };
     for (number, e) in t.eps {
-        let Some(o) = e.outcome.filter(|_| e.complete(ledgers_recorded)) else {
+        let Some(o) = e.outcome.filter(|_| e.complete(ledgers_recorded, excused)) else {
             partial.push(number);
             partial_messages += e.messages;
             partial_measurements += e.measurements.values().sum::<u64>();
@@ -281,7 +308,8 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
         episodes += 1;
         steps += u64::from(o.steps);
         received += u64::from(o.received);
-        degraded += u64::from(o.degraded != 0);
+        let episode_degraded = e.degraded(ledgers_recorded);
+        degraded += u64::from(episode_degraded);
         counts.add(&o);
         for ((leg, i), n) in &e.measurements {
             let s = sensor_entry(&mut sensors, &names, *i);
@@ -306,7 +334,7 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
             .max(o.header.leg);
         for leg in 0..=legs {
             let Some(l) = e.ledgers.get(&leg) else {
-                if o.degraded != 0 {
+                if episode_degraded {
                     energy += e.received_of(leg) as f64 * cost_of_leg(leg);
                 }
                 continue;
@@ -635,3 +663,6 @@ fn write_table(out: &mut String, file: &Path, c: &Contents, s: &Value) -> std::f
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests;
