@@ -220,3 +220,34 @@ fn front_and_strategy_are_byte_identical_on_one_and_two_threads() {
         );
     }
 }
+
+/// A collision bound of 0 cannot be tightened (no probability is below 0):
+/// when the LP's optimum misses the P_tar bound by rounding, only P_tar is
+/// tightened, and the strategy meets both bounds in its own evaluation. An
+/// open-2d stochastic-trigger synthesis whose optimum at P_tar ≥
+/// 0.9091641568776955, P_coll ≤ 0 is evaluated one ulp short of the bound.
+#[test]
+fn a_request_with_no_collision_at_all_is_met_exactly_when_rounding_misses_p_tar() {
+    let scratch = Scratch::new("exact-zero-collision");
+    let dir = scratch.path("stochastic");
+    synthesize("open-2d", &["--trigger", "stochastic"], &dir);
+    let p = "0.9091641568776955";
+    let out = run_ok(
+        &[
+            "strategy",
+            s(&dir),
+            "--quick",
+            "--min-target",
+            p,
+            "--max-collision",
+            "0",
+            "--json",
+        ],
+        "2",
+    );
+    let v: Value = serde_json::from_slice(&out).expect("json");
+    let exact = &v["diagnostics"]["selection_time"];
+    let p: f64 = p.parse().expect("a number");
+    assert!(exact["p_target"].as_f64().unwrap_or(0.0) >= p, "{exact}");
+    assert_eq!(exact["p_collision"].as_f64(), Some(0.0), "{exact}");
+}

@@ -24,7 +24,11 @@
 //!
 //! Constraints hold in the strategy's own exact evaluation, not just in the LP:
 //! if the evaluated ω misses a bound by rounding, the LP is solved again with
-//! the bound tightened by [`MARGINS`] in turn.
+//! the bound tightened by [`MARGINS`] in turn. A request exactly on the
+//! boundary of what the MDP reaches (the highest P_tar under a P_coll bound,
+//! read off front.json) cannot be tightened: its optimum is kept when its
+//! evaluation misses by no more than the evaluation's own rounding
+//! ([`EVALUATION_ROUNDING`]).
 
 use super::policy::{
     DeterministicPolicy, Objectives, RandomisedPolicy, evaluate, mixed_occupation, weighted_optimum,
@@ -69,6 +73,12 @@ impl std::fmt::Display for LpRequest {
 /// relative for energy) tried until the realised strategy meets the request in
 /// its own evaluation. The first is the exact request.
 pub const MARGINS: [f64; 6] = [0.0, 1e-13, 1e-12, 1e-11, 1e-10, 1e-9];
+
+/// How far the exact evaluation of a strategy may fall short of a bound that
+/// sits on the boundary of what the MDP reaches, and still meet it: the
+/// evaluation's own rounding (its values are sums over the MDP's transitions
+/// in f64, exact to about 1e-15). A miss beyond it is a miss.
+pub const EVALUATION_ROUNDING: f64 = 1e-12;
 
 /// A choice whose occupation is below this fraction of its state's is dropped
 /// (solver round-off, not a decision).
@@ -489,6 +499,8 @@ pub fn realise_occupation(mdp: &Mdp, x: &[Vec<f64>]) -> RandomisedPolicy {
         .collect()
 }
 
+/// The request with its bounds tightened by `margin` (absolute for
+/// probabilities, relative for energy).
 fn tightened(request: LpRequest, margin: f64) -> LpRequest {
     match request {
         LpRequest::MinEnergy {
@@ -496,7 +508,10 @@ fn tightened(request: LpRequest, margin: f64) -> LpRequest {
             max_collision,
         } => LpRequest::MinEnergy {
             min_target: min_target + margin,
-            max_collision: max_collision.map(|c| c - margin),
+            // A probability is never below 0: a bound of 0 (no collision at
+            // all) is met exactly or not at all, tightening it only makes the
+            // LP infeasible.
+            max_collision: max_collision.map(|c| if c > 0.0 { (c - margin).max(0.0) } else { c }),
         },
         LpRequest::MaxTarget { max_energy } => LpRequest::MaxTarget {
             max_energy: max_energy * (1.0 - margin),
@@ -509,13 +524,22 @@ fn tightened(request: LpRequest, margin: f64) -> LpRequest {
 
 /// Does the exact evaluation meet the request's bounds?
 fn meets(request: LpRequest, v: &Objectives) -> bool {
+    meets_within(request, v, 0.0)
+}
+
+/// Does the exact evaluation meet the request's bounds up to `slack`
+/// (absolute for probabilities, relative for energy)?
+fn meets_within(request: LpRequest, v: &Objectives, slack: f64) -> bool {
     match request {
         LpRequest::MinEnergy {
             min_target,
             max_collision,
-        } => v.p_target >= min_target && max_collision.is_none_or(|c| v.p_collision <= c),
-        LpRequest::MaxTarget { max_energy } => v.energy <= max_energy,
-        LpRequest::MinCollision { min_target } => v.p_target >= min_target,
+        } => {
+            v.p_target >= min_target - slack
+                && max_collision.is_none_or(|c| v.p_collision <= c + slack)
+        }
+        LpRequest::MaxTarget { max_energy } => v.energy <= max_energy * (1.0 + slack),
+        LpRequest::MinCollision { min_target } => v.p_target >= min_target - slack,
     }
 }
 
@@ -526,14 +550,21 @@ pub fn optimal_strategy(
     cost: CostModel,
     request: LpRequest,
 ) -> Result<OptimalStrategy, SelectError> {
-    let mut last = None;
+    let mut last: Option<OptimalStrategy> = None;
     for (k, &margin) in MARGINS.iter().enumerate() {
         let (x, lp_objective) = match solve_by_columns(mdp, cost, tightened(request, margin)) {
             Ok(r) => r,
             // The exact request is infeasible: say so with the best values.
             Err(e) if k == 0 => return Err(e),
-            // Tightening made it infeasible: the request sits on the boundary.
-            Err(_) => break,
+            // Tightening made it infeasible: the request sits on the boundary,
+            // where the exact optimum met it up to the evaluation's rounding
+            // or not at all.
+            Err(_) => match last {
+                Some(l) if meets_within(request, &l.predicted, EVALUATION_ROUNDING) => {
+                    return Ok(l);
+                }
+                _ => break,
+            },
         };
         let policy = realise_occupation(mdp, &x);
         let predicted = evaluate(mdp, &policy, cost);
