@@ -337,6 +337,11 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
                 if episode_degraded {
                     energy += e.received_of(leg) as f64 * cost_of_leg(leg);
                 }
+                // `received`, as `etp run` reports it, covers the legs the
+                // ledgers cover: what came on an excused leg is apart.
+                if ledgers_recorded {
+                    received -= e.received_of(leg).min(received);
+                }
                 continue;
             };
             let i = l.header.sender;

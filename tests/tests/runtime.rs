@@ -447,7 +447,9 @@ fn a_sensor_killed_with_its_leg_open_is_excused_exactly_and_every_identity_holds
          {} in all on legs without a ledger",
         without[2]
     );
-    // The recording tells the same: identities hold, exit 0.
+    // The recording tells the same: episodes, counts, statistics and the
+    // verdict equal the run's; identities hold, exit 0.
+    interrupts::assert_replay_is_the_run("a degraded run", &v, &rec);
     let replay = std::process::Command::new(etp_tests::bin_dir().join("etp"))
         .args(["replay", rec.to_str().expect("utf-8"), "--json"])
         .output()

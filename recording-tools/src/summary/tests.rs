@@ -109,6 +109,9 @@ impl Recording {
                 header: header(last, etp_runtime::wire::SENDER_AGENT),
                 outcome: Outcome::TARGET,
                 degraded: u32::from(dead.is_some()),
+                received: (0..=last)
+                    .filter(|l| dead != Some(self.sensor_of(*l)))
+                    .count() as u32,
                 last_received: u32::from(dead != Some(self.sensor_of(last))),
                 dead_sensor: dead.unwrap_or(u32::MAX),
                 ..Outcome::default()
@@ -157,6 +160,11 @@ fn a_ledger_lost_to_a_sensor_found_dead_later_is_excused_and_the_episode_degrade
     assert_eq!(v["episodes"], 3);
     assert_eq!(v["degraded_episodes"], 2);
     assert_eq!(v["identities_hold"], true, "{}", v["identity_failures"]);
+    // `received` covers the legs the ledgers cover, as `etp run`'s does.
+    let sensors = v["sensors"].as_array().expect("sensors");
+    let on_ledgered_legs: u64 = sensors.iter().filter_map(|s| s["received"].as_u64()).sum();
+    assert_eq!(v["received"].as_u64(), Some(on_ledgered_legs), "{v}");
+    assert_eq!(v["received"], v["delivered"], "{v}");
     let s = &v["sensors"][sensor as usize];
     assert_eq!(
         s["measurements_without_ledger"], 1,

@@ -75,7 +75,7 @@ fn replay_summary(file: &std::path::Path) -> (Option<i32>, Value) {
 /// The run's report and the replay of its recording say the same: episodes,
 /// per-sensor counts, the statistics and the verdict; the cut episode (if
 /// any message of it was recorded) is the only partial one.
-fn assert_replay_is_the_run(what: &str, run: &Value, file: &std::path::Path) {
+pub(crate) fn assert_replay_is_the_run(what: &str, run: &Value, file: &std::path::Path) {
     let (code, rep) = replay_summary(file);
     assert_eq!(code, Some(0), "{what}: replay exit; {rep}");
     for k in [
