@@ -4,12 +4,13 @@
 //! multi-process, packets per sensor, and where the plots and files are.
 
 use crate::front::write_front;
-use crate::input::{RadioArgs, load_scenario_with_radio, scenario_text};
+use crate::input::{RadioArgs, load_scenario_with_radio};
 use crate::mdp_build::{MdpRequest, build_mdp};
 use crate::output::write_new;
 use crate::progress;
 use anyhow::{Context, Result};
 use etp_launcher as multiprocess;
+use etp_runtime::scenario_arg::scenario_text;
 use etp_shared::rng::mix64;
 use etp_shared::scenario::DEFAULT_SCENARIO;
 use etp_synthesis::mdp::MDP_FILE;

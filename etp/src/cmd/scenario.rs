@@ -89,7 +89,7 @@ fn radio(r: RadioTextArgs) -> Result<()> {
             "give the channel: --loss P [--retries R] [--burst B] [--estimator aware|naive]"
         );
     }
-    let text = crate::input::scenario_text(&r.scenario)?;
+    let text = etp_runtime::scenario_arg::scenario_text(&r.scenario)?;
     let out = crate::input::text_with_radio(&text, &r.radio)?;
     match &r.out {
         None => print!("{out}"),

@@ -6,8 +6,9 @@
 
 use crate::input::parse_family;
 use anyhow::{Context, Result, bail};
+use etp_runtime::scenario_arg::scenario_text_in;
 use etp_shared::scenario::random::{AgentKind, random_scenario};
-use etp_shared::scenario::{Scenario, ScenarioText, builtin_text};
+use etp_shared::scenario::{Scenario, ScenarioText};
 use etp_shared::trigger::TriggerFamily;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -230,18 +231,8 @@ impl Spec {
         for (i, s) in raw.scenarios.iter().enumerate() {
             let (source, own_text) = match s {
                 RawScenario::Named(name) => {
-                    let text = match builtin_text(name) {
-                        Some(t) => t.to_string(),
-                        None => {
-                            let p = base.join(name);
-                            std::fs::read_to_string(&p).with_context(|| {
-                                format!(
-                                    "scenarios[{i}]: `{name}` is not a built-in scenario and {} cannot be read",
-                                    p.display()
-                                )
-                            })?
-                        }
-                    };
+                    let text =
+                        scenario_text_in(base, name).with_context(|| format!("scenarios[{i}]"))?;
                     (name.clone(), text)
                 }
                 RawScenario::Random { random, seed } => {
