@@ -3,7 +3,7 @@
 //! multi-process launcher).
 
 use anyhow::{Context, Result, bail};
-pub use etp_runtime::scenario_options::{RadioArgs, TriggerArgs, parse_family};
+use etp_runtime::scenario_options::RadioArgs;
 use etp_shared::scenario::{Scenario, ScenarioText};
 
 /// A command-line probability (`--min-target`, `--max-collision`): a

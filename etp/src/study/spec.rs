@@ -4,9 +4,9 @@
 //! [`Spec`] whose jobs are numbered in the file's order; every error names
 //! the key.
 
-use crate::input::parse_family;
 use anyhow::{Context, Result, bail};
 use etp_runtime::scenario_arg::scenario_text_in;
+use etp_runtime::scenario_options::parse_family;
 use etp_shared::scenario::random::{AgentKind, random_scenario};
 use etp_shared::scenario::{Scenario, ScenarioText};
 use etp_shared::trigger::TriggerFamily;
@@ -168,7 +168,7 @@ impl Spec {
             episodes: raw.episodes.unwrap_or(3000),
             aggregation_check: raw
                 .aggregation_check
-                .unwrap_or(crate::predictions::AGGREGATION_CHECK_EPISODES),
+                .unwrap_or(etp_pipeline::predictions::AGGREGATION_CHECK_EPISODES),
             kf_episodes: raw.kf_episodes.unwrap_or(3000),
         };
         if settings.samples == 0 {
