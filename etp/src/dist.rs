@@ -5,15 +5,13 @@
 //! * [`start`] initialises MPI when the process was launched by a job
 //!   launcher (Open MPI's `OMPI_COMM_WORLD_SIZE`, PMI's `PMI_SIZE`, PMIx's
 //!   `PMIX_RANK`), and sets the executor every command hands to the
-//!   libraries' Monte Carlo through [`work`] (`etp_pipeline::exec`).
+//!   libraries' Monte Carlo through `etp_pipeline::exec::work`.
 //! * Rank 0 alone writes files (`etp_pipeline::output` skips the others), prints to
 //!   stdout and draws progress; the other ranks compute the same things
 //!   and exchange their share of the segments and episodes.
 //! * [`finish`] ends the job: a normal end (exit code 0, or a command's own
 //!   documented code) finalises MPI; an error aborts the whole job
 //!   (`MPI_Abort`), so no rank waits forever for one that gave up.
-
-pub use etp_pipeline::exec::{alone, executor, is_root, job, work};
 
 #[cfg(feature = "mpi")]
 #[path = "dist/mpi_exec.rs"]

@@ -3,17 +3,8 @@
 //! multi-process launcher).
 
 use anyhow::{Context, Result, bail};
-pub use etp_runtime::scenario_options::{RadioArgs, TriggerArgs, parse_family};
+use etp_runtime::scenario_options::RadioArgs;
 use etp_shared::scenario::{Scenario, ScenarioText};
-
-/// A `SCENARIO` argument: a built-in name (`winding-2d`, …) or a TOML path
-/// (resolved by `etp_runtime`, as in every process of a run).
-pub fn load_scenario(arg: &str) -> Result<Scenario> {
-    Ok(etp_runtime::load_scenario(arg)?)
-}
-
-/// The TOML text of a scenario argument (for embedding into outputs).
-pub use etp_pipeline::synthesize::scenario_text;
 
 /// A command-line probability (`--min-target`, `--max-collision`): a
 /// number in [0, 1], else the error clap prints after the flag's name.
@@ -38,9 +29,11 @@ pub struct EpisodeArgs {
     pub seed: u64,
 }
 
-/// A `SCENARIO` argument under the radio options.
+/// A `SCENARIO` argument (a built-in name or a TOML path, resolved by
+/// `etp_runtime::scenario_arg` as in every process of a run) under the
+/// radio options.
 pub fn load_scenario_with_radio(arg: &str, radio: &RadioArgs) -> Result<Scenario> {
-    radio.apply(load_scenario(arg)?)
+    radio.apply(etp_runtime::load_scenario(arg)?)
 }
 
 /// The scenario `text` with the radio options written into it

@@ -6,23 +6,21 @@
 //!   `run(args) -> anyhow::Result<()>`.
 //! * [`input`] — resolving a `SCENARIO` argument (built-in name or path)
 //!   and its options.
-//! * [`mdp_build`], [`front`], [`output`], [`predictions`], [`selection`],
-//!   [`synthesis_dir`], [`progress`] — re-exported from `etp-pipeline`, the
-//!   pipeline's steps as a library (shared with the Python package).
 //! * [`dist`] — the ranks of an MPI job (feature `mpi`): MPI started and
 //!   its executor installed into `etp_pipeline::exec`; rank 0 writes.
-//! * [`report`] — a simulation summary's JSON and tables.
-//! * [`simulation`] — the constant-threshold simulation of `simulate` and `bench`.
+//! * [`report`] — a simulation summary's tables.
 //! * [`study`] — `etp study`: a SPEC's cases, resumable, scheduled across
 //!   MPI ranks; its tables.
 //! * [`processes`] — the run's processes `etp process NAME` plays.
-//! * [`vocab`] — the JSON vocabulary shared by simulate, validate, run and replay.
 //!
 //! The work is in libraries: the maths in `etp-shared` and `etp-synthesis`,
-//! the pipeline's steps in `etp-pipeline`, the runtime in `etp-runtime`,
-//! the multi-process run in `etp-launcher`,
-//! the recording tools in `etp-recording-tools`, the figures in
-//! `etp-figures`.
+//! the pipeline's steps in `etp-pipeline` (MDP, front, selection,
+//! predictions, output files, progress; shared with the Python package),
+//! the runtime in `etp-runtime`, the multi-process run in `etp-launcher`,
+//! the recording tools and the JSON vocabulary of simulate, validate, run
+//! and replay in `etp-recording-tools`, the figures in `etp-figures`. A
+//! command imports each item from the crate that defines it: `etp`
+//! re-exports none (`tests/tests/runtime/layering.rs` checks it).
 //!
 //! Errors are `anyhow` with context; [`run`] prints them to stderr and exits non-zero.
 
@@ -32,14 +30,11 @@ pub mod dist;
 pub mod input;
 pub mod processes;
 pub mod report;
-pub mod simulation;
 pub mod study;
-pub use etp_pipeline::{front, mdp_build, output, predictions, progress, selection, synthesis_dir};
-pub use etp_recording_tools::vocab;
 
 use std::process::ExitCode;
 
-pub use etp_runtime::shell::ExitWith;
+use etp_runtime::shell::ExitWith;
 
 /// Run a parsed command line; print any error chain to stderr.
 pub fn run(cli: cli::Cli) -> ExitCode {
@@ -62,7 +57,7 @@ pub fn run(cli: cli::Cli) -> ExitCode {
 /// Dispatch one subcommand: its exit code, and whether it failed (an
 /// error, as opposed to a command's own documented exit code).
 fn run_command(command: cli::Command) -> (u8, bool) {
-    let ranks = dist::job().ranks();
+    let ranks = etp_pipeline::exec::job().ranks();
     let shared = matches!(
         command,
         cli::Command::Synthesize(_)
@@ -84,14 +79,17 @@ fn run_command(command: cli::Command) -> (u8, bool) {
         Err(e) => match e.downcast_ref::<ExitWith>() {
             Some(x) => {
                 // Every rank reached the same outcome: rank 0 says it.
-                if dist::is_root() {
+                if etp_pipeline::exec::is_root() {
                     eprintln!("{}", x.message);
                 }
                 (x.code, false)
             }
             None => {
                 if ranks > 1 {
-                    eprintln!("error (rank {} of {ranks}): {e:#}", dist::job().rank());
+                    eprintln!(
+                        "error (rank {} of {ranks}): {e:#}",
+                        etp_pipeline::exec::job().rank()
+                    );
                 } else {
                     eprintln!("error: {e:#}");
                 }

@@ -5,7 +5,6 @@
 
 use etp_shared::scenario::Scenario;
 use etp_synthesis::report::{estimates, first_non_finite};
-pub use etp_synthesis::report::{sensor_names, summary_json};
 use etp_synthesis::simulate::SimulationSummary;
 
 /// Per-sensor radio counts (only when the radio loses packets).

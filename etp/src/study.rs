@@ -14,7 +14,7 @@
 //!   with enough jobs left ([`hand_out`]), whole jobs are handed to ranks
 //!   (largest first, each to the least loaded rank: a deterministic
 //!   schedule), each rank doing its own on its threads
-//!   ([`crate::dist::alone`]) and writing its cases' files (the study folder
+//!   ([`etp_pipeline::exec::alone`]) and writing its cases' files (the study folder
 //!   must be shared by the ranks, as on a cluster's file system); with
 //!   fewer, every rank works on each job in turn, its Monte Carlo shared out
 //!   as in `etp synthesize`. At the end the ranks' rows are gathered and
@@ -251,7 +251,7 @@ pub fn claim(spec: &Spec, dir: &Path) -> Result<()> {
             dir.display()
         ),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            crate::output::write_new(&path, mine.as_bytes(), false)
+            etp_pipeline::output::write_new(&path, mine.as_bytes(), false)
         }
         Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
     }

@@ -2,9 +2,10 @@
 
 use super::Args;
 use anyhow::{Context, Result, bail};
+use etp_runtime::scenario_arg::scenario_text;
 use etp_runtime::wire::RunId;
 use etp_shared::radio::{Radio, RadioOverride};
-use etp_shared::scenario::{Scenario, ScenarioText, builtin_text};
+use etp_shared::scenario::{Scenario, ScenarioText};
 use etp_shared::strategy::{Prediction, Strategy};
 use etp_synthesis::validate::simulate_strategy;
 use std::path::PathBuf;
@@ -32,15 +33,6 @@ pub struct Plan {
     /// The channel a strategy file was synthesized for (`None` for a
     /// constant threshold made here); the run's is `scenario.radio`.
     pub radio_synthesized: Option<Radio>,
-}
-
-fn scenario_text(arg: &str) -> Result<String> {
-    match builtin_text(arg) {
-        Some(t) => Ok(t.to_string()),
-        None => std::fs::read_to_string(arg).with_context(|| {
-            format!("`{arg}` is neither a built-in scenario (winding-2d, open-2d, superg-3d) nor a readable file")
-        }),
-    }
 }
 
 /// `--clone-sensors K`: K copies of the first sensor (named c0…), legs served

@@ -10,8 +10,9 @@ use crate::front::{FrontReport, write_front};
 use crate::mdp_build::{BuiltMdp, MdpRequest, build_mdp};
 use crate::output::{output_folder, refuse_existing, write_new};
 use anyhow::{Context, Result, bail};
+use etp_runtime::scenario_arg::scenario_text;
 use etp_runtime::scenario_options::TriggerArgs;
-use etp_shared::scenario::{Scenario, builtin_text};
+use etp_shared::scenario::Scenario;
 use etp_synthesis::abstraction::aggregation::AggregationReport;
 use etp_synthesis::abstraction::{self, default_kf_params};
 use etp_synthesis::mdp::Method;
@@ -21,14 +22,6 @@ use std::path::{Path, PathBuf};
 pub const DEFAULT_AGGREGATION_EPISODES: u64 = 50_000;
 /// `etp synthesize`'s default `--aggregation-alpha`.
 pub const DEFAULT_AGGREGATION_ALPHA: f64 = 0.05;
-
-/// The TOML text of a scenario argument: a built-in name or a path.
-pub fn scenario_text(arg: &str) -> Result<String> {
-    if let Some(text) = builtin_text(arg) {
-        return Ok(text.to_string());
-    }
-    std::fs::read_to_string(arg).with_context(|| format!("reading scenario file {arg}"))
-}
 
 /// The scenario of `arg` (a built-in name or a path) under `trigger`, and
 /// its text under that family — what a synthesis writes as

@@ -1,6 +1,8 @@
 //! A `SCENARIO` argument, resolved once for every program: a built-in name
-//! (`winding-2d`, …) or the path of a TOML file. `etp` and every process
-//! of a run (the supervisor passes them the same argument) read it here.
+//! (`winding-2d`, …) or the path of a TOML file. `etp`, the pipeline, the
+//! launcher and every process of a run (the supervisor passes them the same
+//! argument) read it here, so that all of them accept the same names and
+//! refuse an unknown one with the same message.
 
 use etp_shared::scenario::{BUILTIN_NAMES, Scenario, ScenarioError, builtin_text};
 use std::path::{Path, PathBuf};
@@ -31,27 +33,43 @@ pub enum ScenarioArgError {
     },
 }
 
-/// The scenario of a `SCENARIO` argument: a built-in name or a TOML path.
-pub fn load_scenario(arg: &str) -> Result<Scenario, ScenarioArgError> {
+/// The TOML text of a `SCENARIO` argument, not parsed: a built-in's
+/// embedded text, else the file's (written into outputs as given, and
+/// edited as text by the trigger and radio options before parsing).
+pub fn scenario_text(arg: &str) -> Result<String, ScenarioArgError> {
+    scenario_text_in(Path::new(""), arg)
+}
+
+/// [`scenario_text`] of an argument written in a file (a study): a path is
+/// relative to `base`, the file's folder; a built-in name stays a name.
+pub fn scenario_text_in(base: &Path, arg: &str) -> Result<String, ScenarioArgError> {
     if let Some(text) = builtin_text(arg) {
-        return Scenario::from_toml(text).map_err(|source| ScenarioArgError::Builtin {
-            name: arg.to_string(),
-            source,
-        });
+        return Ok(text.to_string());
     }
-    let path = Path::new(arg);
+    let path = base.join(arg);
     if !path.exists() {
         return Err(ScenarioArgError::NotFound {
-            arg: arg.to_string(),
+            arg: path.display().to_string(),
         });
     }
-    let text = std::fs::read_to_string(path).map_err(|source| ScenarioArgError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    Scenario::from_toml(&text).map_err(|source| ScenarioArgError::Invalid {
-        path: path.to_path_buf(),
-        source,
+    std::fs::read_to_string(&path).map_err(|source| ScenarioArgError::Read { path, source })
+}
+
+/// The scenario of a `SCENARIO` argument: a built-in name or a TOML path.
+pub fn load_scenario(arg: &str) -> Result<Scenario, ScenarioArgError> {
+    let text = scenario_text(arg)?;
+    Scenario::from_toml(&text).map_err(|source| {
+        if builtin_text(arg).is_some() {
+            ScenarioArgError::Builtin {
+                name: arg.to_string(),
+                source,
+            }
+        } else {
+            ScenarioArgError::Invalid {
+                path: PathBuf::from(arg),
+                source,
+            }
+        }
     })
 }
 
@@ -59,14 +77,72 @@ pub fn load_scenario(arg: &str) -> Result<Scenario, ScenarioArgError> {
 mod tests {
     use super::*;
 
+    /// The names of `scenarios/*.toml`, the reference scenarios' files.
+    fn scenario_files() -> Vec<String> {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios");
+        let mut names: Vec<String> = std::fs::read_dir(&dir)
+            .expect("scenarios/ is readable")
+            .map(|e| e.expect("a folder entry").path())
+            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+            .filter_map(|p| p.file_stem().map(|s| s.to_string_lossy().into_owned()))
+            .collect();
+        names.sort();
+        names
+    }
+
     #[test]
-    fn built_ins_load_and_a_missing_file_is_named() {
-        assert!(load_scenario("winding-2d").is_ok());
+    fn every_scenario_file_is_a_built_in_that_resolves() {
+        let files = scenario_files();
+        assert!(files.len() >= 5, "{files:?}");
+        for name in &files {
+            let text = scenario_text(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+            let on_disk = std::fs::read_to_string(
+                Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../scenarios/{name}.toml")),
+            )
+            .expect("readable");
+            assert_eq!(text, on_disk, "{name}: the embedded text is the file's");
+            load_scenario(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
+        let mut builtins: Vec<String> = BUILTIN_NAMES.iter().map(|s| s.to_string()).collect();
+        builtins.sort();
+        assert_eq!(builtins, files, "BUILTIN_NAMES against scenarios/*.toml");
+    }
+
+    #[test]
+    fn an_unknown_name_is_refused_with_every_built_in() {
+        for e in [
+            scenario_text("windy-9d").expect_err("unknown"),
+            load_scenario("windy-9d").expect_err("unknown"),
+        ] {
+            assert!(matches!(&e, ScenarioArgError::NotFound { arg } if arg == "windy-9d"));
+            let message = e.to_string();
+            assert!(message.starts_with("`windy-9d` is neither"), "{message}");
+            for name in scenario_files() {
+                assert!(message.contains(&name), "{name} missing from: {message}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_missing_file_is_named() {
         let e = load_scenario("/nonexistent/x.toml").expect_err("missing");
         assert!(
             e.to_string()
                 .starts_with("`/nonexistent/x.toml` is neither a built-in scenario (winding-2d"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_path_in_a_file_is_relative_to_its_folder() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios");
+        assert_eq!(
+            scenario_text_in(&dir, "open-2d.toml").expect("a file"),
+            scenario_text("open-2d").expect("a built-in")
+        );
+        // A built-in name is not looked up in the folder.
+        assert!(scenario_text_in(Path::new("/nonexistent"), "open-2d").is_ok());
+        let e = scenario_text_in(Path::new("/nonexistent"), "x.toml").expect_err("missing");
+        assert!(matches!(&e, ScenarioArgError::NotFound { arg } if arg == "/nonexistent/x.toml"));
     }
 }

@@ -3,9 +3,10 @@
 //! with `--front`: the Pareto front, the strategy LP and the PRISM export of
 //! synthesized MDPs and of a synthetic layered MDP of thousands of states.
 
-use crate::input::{RadioArgs, TriggerArgs, load_scenario_with_radio};
-use crate::simulation::simulate_constant;
+use crate::input::load_scenario_with_radio;
 use anyhow::Result;
+use etp_runtime::scenario_options::{RadioArgs, TriggerArgs};
+use etp_synthesis::constant::simulate_constant;
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::optimal::{LpRequest, optimal_strategy};
 use etp_synthesis::synthetic::{SyntheticParams, layered_mdp};
@@ -105,7 +106,7 @@ fn bench_front_row(name: &str, mdp: &Mdp, tolerance: f64) -> Result<serde_json::
 fn bench_front(dirs: &[std::path::PathBuf], a: &Args) -> Result<()> {
     let mut rows = Vec::new();
     for dir in dirs {
-        let (mdp, _) = crate::output::read_mdp(dir)?;
+        let (mdp, _) = etp_pipeline::output::read_mdp(dir)?;
         rows.push(bench_front_row(
             &dir.display().to_string(),
             &mdp,

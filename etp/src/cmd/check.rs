@@ -1,7 +1,7 @@
 //! `etp check SCENARIO`: validate and describe a scenario.
 
-use crate::input::load_scenario;
 use anyhow::Result;
+use etp_runtime::load_scenario;
 use etp_shared::gaussian::expected_rate;
 use etp_shared::scenario::Scenario;
 use serde_json::json;

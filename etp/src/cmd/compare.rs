@@ -9,9 +9,9 @@
 //! family is reported out of reach, with how close it came. Nothing is
 //! written.
 
-use crate::progress;
-use crate::synthesis_dir::{Identity, Synthesis, check_one_scenario, identity, labels};
 use anyhow::{Result, bail};
+use etp_pipeline::progress;
+use etp_pipeline::synthesis_dir::{Identity, Synthesis, check_one_scenario, identity, labels};
 use etp_shared::stats::{Estimate, ratio};
 use etp_shared::trigger::TriggerFamily;
 use etp_synthesis::pareto::policy::Objectives;

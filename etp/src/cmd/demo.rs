@@ -3,13 +3,15 @@
 //! processes over iceoryx2 — and one table: predicted vs in-process vs
 //! multi-process, packets per sensor, and where the plots and files are.
 
-use crate::front::write_front;
-use crate::input::{RadioArgs, load_scenario_with_radio, scenario_text};
-use crate::mdp_build::{MdpRequest, build_mdp};
-use crate::output::write_new;
-use crate::progress;
+use crate::input::load_scenario_with_radio;
 use anyhow::{Context, Result};
 use etp_launcher as multiprocess;
+use etp_pipeline::front::write_front;
+use etp_pipeline::mdp_build::{MdpRequest, build_mdp};
+use etp_pipeline::output::write_new;
+use etp_pipeline::progress;
+use etp_runtime::scenario_arg::scenario_text;
+use etp_runtime::scenario_options::RadioArgs;
 use etp_shared::rng::mix64;
 use etp_shared::scenario::DEFAULT_SCENARIO;
 use etp_synthesis::mdp::MDP_FILE;
@@ -78,7 +80,7 @@ pub fn run(a: Args) -> Result<()> {
             mix64(stamp) & 0xffff_ffff
         ))
     });
-    crate::output::output_folder(&dir)?;
+    etp_pipeline::output::output_folder(&dir)?;
     if dir.join(MDP_FILE).exists() {
         anyhow::bail!(
             "{} already holds a synthesis; choose another --out",
@@ -273,7 +275,7 @@ pub fn run(a: Args) -> Result<()> {
         "strategy": strategy_path,
         "vertices": front.front.vertices.len(),
         "predicted_front": curves,
-        "predicted": crate::vocab::prediction(Some(&p)),
+        "predicted": etp_recording_tools::vocab::prediction(Some(&p)),
         "predicted_ci95": {"p_target": h.p_target, "p_collision": h.p_collision, "energy_mean": h.energy_mean},
         "prediction_basis": strategy.predictions.prediction_basis,
         "in_process": {"episodes": sim.episodes, "p_target": sim.p_target.value, "p_target_ci95": sim.p_target.ci95,

@@ -9,8 +9,8 @@
 //! * `drn` — Storm's `model.drn` and `model.props`: `storm --explicit-drn
 //!   OUTDIR/model.drn --prop OUTDIR/model.props`.
 
-use crate::output::{read_front, read_mdp};
 use anyhow::{Context, Result};
+use etp_pipeline::output::{read_front, read_mdp};
 use etp_synthesis::export::{self, drn, jani, prism};
 use etp_synthesis::mdp::MDP_FILE;
 use etp_synthesis::mdp::{CostModel, Mdp};
@@ -117,13 +117,13 @@ pub fn run(a: Args) -> Result<()> {
         .iter()
         .map(|(name, text)| (a.outdir.join(name), text.as_str()))
         .collect();
-    crate::output::output_folder(&a.outdir)?;
+    etp_pipeline::output::output_folder(&a.outdir)?;
     // All refused before any is written: no half-updated set of files.
     for (p, _) in &targets {
-        crate::output::refuse_existing(p, a.force)?;
+        etp_pipeline::output::refuse_existing(p, a.force)?;
     }
     for (p, text) in &targets {
-        crate::output::write_new(p, text.as_bytes(), true)?;
+        etp_pipeline::output::write_new(p, text.as_bytes(), true)?;
     }
     let out = |name: &str| a.outdir.join(name).display().to_string();
     let load = match a.format {

@@ -8,9 +8,9 @@
 //! "One scenario" is the scenario without its trigger family: the family
 //! changes the content hash, nothing else does here.
 
-use crate::output::{read_front, read_mdp};
-use crate::synthesis_dir::{Identity, check_one_scenario, identity, labels};
 use anyhow::{Result, bail};
+use etp_pipeline::output::{read_front, read_mdp};
+use etp_pipeline::synthesis_dir::{Identity, check_one_scenario, identity, labels};
 use etp_synthesis::pareto::ParetoFront;
 use etp_synthesis::pareto::select::{Request, select};
 use serde_json::{Value, json};
@@ -40,7 +40,7 @@ pub struct Args {
     pub json: bool,
 }
 
-pub use etp_figures::{Curve, Panel};
+use etp_figures::{Curve, Panel};
 
 /// One synthesis directory as the figure needs it.
 struct Source {
@@ -60,7 +60,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     let stem = a.out.clone();
     for p in [stem.with_extension("png"), stem.with_extension("svg")] {
-        crate::output::refuse_existing(&p, a.force)?;
+        etp_pipeline::output::refuse_existing(&p, a.force)?;
     }
     let mut sources: Vec<Source> = Vec::new();
     for dir in &a.dirs {

@@ -5,7 +5,7 @@ use anyhow::Result;
 use etp_launcher::{config, exit_for, figure, problems, report};
 use std::path::PathBuf;
 
-pub use etp_launcher::{Args, EXIT_ACCOUNTING, EXIT_DEGRADED, EXIT_INTERRUPTED};
+use etp_launcher::Args;
 
 /// Where `--plot` writes (`{run}` = the run id, known once the run starts).
 fn plot_stem(a: &Args) -> PathBuf {
@@ -20,15 +20,15 @@ fn plot_stem(a: &Args) -> PathBuf {
 }
 
 /// Run, print the report; the exit code is 0 only for a clean run, else
-/// [`EXIT_INTERRUPTED`], [`EXIT_ACCOUNTING`] or [`EXIT_DEGRADED`] (the
-/// report and stderr say why).
+/// [`etp_launcher::EXIT_INTERRUPTED`], [`etp_launcher::EXIT_ACCOUNTING`]
+/// or [`etp_launcher::EXIT_DEGRADED`] (the report and stderr say why).
 pub fn run(a: Args) -> Result<()> {
     let a = config::resolve(a)?;
 
     let stem = a.plot.then(|| plot_stem(&a));
     if let Some(stem) = &stem {
         for p in [stem.with_extension("png"), stem.with_extension("svg")] {
-            crate::output::refuse_existing(&p, a.force)?;
+            etp_pipeline::output::refuse_existing(&p, a.force)?;
         }
     }
     let (plan, outcome) = etp_launcher::execute_run(&a)?;

@@ -30,7 +30,7 @@ pub struct RadioTextArgs {
     /// A built-in scenario name or a TOML file without a `[radio]` of its own.
     pub scenario: String,
     #[command(flatten)]
-    pub radio: crate::input::RadioArgs,
+    pub radio: etp_runtime::scenario_options::RadioArgs,
     /// Write the TOML here (refused if it exists, unless --force) instead of stdout.
     #[arg(short = 'o', long = "out")]
     pub out: Option<PathBuf>,
@@ -68,7 +68,7 @@ pub fn run(a: Args) -> Result<()> {
     match &r.out {
         None => print!("{text}"),
         Some(path) => {
-            crate::output::write_new(path, text.as_bytes(), r.force)?;
+            etp_pipeline::output::write_new(path, text.as_bytes(), r.force)?;
             eprintln!(
                 "wrote {} ({}: n = {}, {} legs, {} sensors, {} obstacles)",
                 path.display(),
@@ -89,12 +89,12 @@ fn radio(r: RadioTextArgs) -> Result<()> {
             "give the channel: --loss P [--retries R] [--burst B] [--estimator aware|naive]"
         );
     }
-    let text = crate::input::scenario_text(&r.scenario)?;
+    let text = etp_runtime::scenario_arg::scenario_text(&r.scenario)?;
     let out = crate::input::text_with_radio(&text, &r.radio)?;
     match &r.out {
         None => print!("{out}"),
         Some(path) => {
-            crate::output::write_new(path, out.as_bytes(), r.force)?;
+            etp_pipeline::output::write_new(path, out.as_bytes(), r.force)?;
             eprintln!("wrote {}", path.display());
         }
     }

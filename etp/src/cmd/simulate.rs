@@ -1,11 +1,13 @@
 //! `etp simulate SCENARIO --delta D`: in-process episodes with a constant threshold.
 
-use crate::input::{RadioArgs, TriggerArgs, load_scenario_with_radio};
-use crate::progress;
-use crate::report::{radio_table, sensor_names, summary_table};
-use crate::simulation::{check_delta, simulate_constant};
+use crate::input::load_scenario_with_radio;
+use crate::report::{radio_table, summary_table};
 use anyhow::Result;
+use etp_pipeline::progress;
+use etp_runtime::scenario_options::{RadioArgs, TriggerArgs};
 use etp_shared::trigger::TriggerFamily;
+use etp_synthesis::constant::{check_delta, simulate_constant};
+use etp_synthesis::report::sensor_names;
 use etp_synthesis::report::simulate_json;
 
 #[derive(Debug, clap::Args)]
@@ -38,7 +40,7 @@ pub fn run(a: Args) -> Result<()> {
         a.delta,
         a.sim.episodes,
         a.sim.seed,
-        &crate::dist::work(|k| pb.inc(k)),
+        &etp_pipeline::exec::work(|k| pb.inc(k)),
     )?;
     pb.finish_and_clear();
     crate::report::ensure_finite(&sum)?;

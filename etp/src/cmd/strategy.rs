@@ -18,7 +18,8 @@ mod front;
 mod quick;
 mod select;
 
-pub use crate::predictions::AGGREGATION_CHECK_EPISODES;
+use etp_pipeline::predictions::AGGREGATION_CHECK_EPISODES;
+use etp_pipeline::selection::DEFAULT_LEVEL;
 
 /// `etp strategy` exits with this code when the request is out of reach:
 /// the best strategy the loop could stand behind was written and reported
@@ -165,7 +166,7 @@ pub struct EvaluateArgs {
     /// The synthesis whose settings and seed the rebuilds take.
     pub dir: PathBuf,
     /// Level of the certified bounds.
-    #[arg(long, value_name = "LEVEL", default_value_t = certified::DEFAULT_LEVEL, value_parser = level)]
+    #[arg(long, value_name = "LEVEL", default_value_t = DEFAULT_LEVEL, value_parser = level)]
     pub confidence: f64,
     #[command(flatten)]
     pub prediction: PredictionArgs,
@@ -201,7 +202,7 @@ pub enum Request {
 impl Request {
     pub fn label(&self, certified: Option<f64>) -> String {
         match self {
-            Self::Goal(goal) => crate::selection::goal_label(*goal, certified),
+            Self::Goal(goal) => etp_pipeline::selection::goal_label(*goal, certified),
             Self::Vertex(k) => format!("vertex {k} of the front"),
         }
     }

@@ -4,11 +4,10 @@
 //! `DIR/study.csv` and `DIR/timings.csv`; resumes a killed study on the
 //! same DIR; on MPI ranks, shares out the jobs (`crate::study`).
 
-use crate::dist;
-use crate::output::write_new;
-use crate::progress;
 use crate::study::{self, Plan, case, spec::Spec, table::Finished};
 use anyhow::{Context, Result};
+use etp_pipeline::output::write_new;
+use etp_pipeline::progress;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -74,11 +73,11 @@ pub fn run(a: Args) -> Result<()> {
     let started = Instant::now();
     let spec = Spec::load(&a.spec)?;
     let dir = study::folder(&spec, a.out.as_deref());
-    crate::output::output_folder(&dir)?;
+    etp_pipeline::output::output_folder(&dir)?;
     study::claim(&spec, &dir)?;
     let cases_dir = dir.join("cases");
-    crate::output::output_folder(&cases_dir)?;
-    let job = dist::job();
+    etp_pipeline::output::output_folder(&cases_dir)?;
+    let job = etp_pipeline::exec::job();
     let (rank, ranks) = (job.rank(), job.ranks());
     // Rank 0 says what is finished and what is left: the others follow its
     // plan (they may look at the folder after rank 0 has written to it).
@@ -152,7 +151,11 @@ pub fn run(a: Args) -> Result<()> {
                 &mut done,
             )
         };
-        if apart { dist::alone(work) } else { work() }?;
+        if apart {
+            etp_pipeline::exec::alone(work)
+        } else {
+            work()
+        }?;
     }
     pb.finish_and_clear();
     // Every rank's new rows to rank 0 (working together, rank 0 has them all).

@@ -5,15 +5,15 @@
 //! the Pareto step and the aggregation check), given the typed request
 //! [`Args::request`] makes of the command line; [`run`] prints the report.
 
-use crate::input::{RadioArgs, TriggerArgs};
-use crate::mdp_build::split::{self, SplitArgs};
-use crate::mdp_build::{MdpReport, MdpRequest};
 use anyhow::{Result, bail};
-pub use etp_pipeline::aggregation;
+use etp_pipeline::aggregation;
+use etp_pipeline::mdp_build::split::{self, SplitArgs};
+use etp_pipeline::mdp_build::{MdpReport, MdpRequest};
 use etp_pipeline::synthesize::{
     DEFAULT_AGGREGATION_ALPHA, DEFAULT_AGGREGATION_EPISODES, SynthesisRequest, scenario_under,
     synthesize,
 };
+use etp_runtime::scenario_options::{RadioArgs, TriggerArgs};
 use etp_shared::discretization::BinCounts;
 use etp_shared::scenario::Scenario;
 use etp_synthesis::abstraction::{
@@ -303,7 +303,7 @@ pub fn run(a: Args) -> Result<()> {
         if let Some((r, secs)) = &done.aggregation {
             print!("{}", aggregation::describe(r, &built.mdp, *secs));
         }
-        print!("{}", crate::front::describe(&done.front.front));
+        print!("{}", etp_pipeline::front::describe(&done.front.front));
         println!("  computed in {:.3} s", done.front.seconds);
         if built.mdp.policy_only() {
             let policy = a

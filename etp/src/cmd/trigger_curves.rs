@@ -5,13 +5,14 @@
 //! (RMSE of ‖x − x̂‖ and NEES/n over the slots) and the family's closed-form
 //! rate where it has one (`TriggerFamily::expected_rate`).
 
-use crate::input::{RadioArgs, load_scenario_with_radio, parse_family};
-use crate::progress;
-use crate::simulation::simulate_constant;
+use crate::input::load_scenario_with_radio;
 use anyhow::{Result, bail};
 use etp_figures::{FamilySeries, RatePoint};
+use etp_pipeline::progress;
+use etp_runtime::scenario_options::{RadioArgs, parse_family};
 use etp_shared::stats::Estimate;
 use etp_shared::trigger::TriggerFamily;
+use etp_synthesis::constant::simulate_constant;
 use serde_json::{Value, json};
 use std::path::PathBuf;
 
@@ -56,7 +57,7 @@ struct Measured {
 pub fn run(a: Args) -> Result<()> {
     let stem = a.out.clone();
     for p in [stem.with_extension("png"), stem.with_extension("svg")] {
-        crate::output::refuse_existing(&p, a.force)?;
+        etp_pipeline::output::refuse_existing(&p, a.force)?;
     }
     let mut families: Vec<TriggerFamily> = Vec::new();
     let given = if a.families.is_empty() {
@@ -139,7 +140,7 @@ pub fn run(a: Args) -> Result<()> {
             "scenario": base.name,
             "episodes": a.sim.episodes,
             "seed": a.sim.seed,
-            "radio": base.radio.describe(&crate::report::sensor_names(&base)),
+            "radio": base.radio.describe(&etp_synthesis::report::sensor_names(&base)),
             "families": results.iter().map(|(family, pts)| json!({
                 "trigger": family.name(),
                 "exact": family.exact(),
@@ -165,7 +166,8 @@ pub fn run(a: Args) -> Result<()> {
             base.name,
             a.sim.episodes,
             a.sim.seed,
-            base.radio.describe(&crate::report::sensor_names(&base))
+            base.radio
+                .describe(&etp_synthesis::report::sensor_names(&base))
         );
         println!(
             "{:<14} {:>7} {:>17} {:>8} {:>17} {:>15} {:>8}",

@@ -1,12 +1,12 @@
 //! `etp validate STRATEGY`: simulate a strategy in-process and compare with its
 //! prediction, like the paper's tables.
 
-use crate::predictions::{self, checks};
-use crate::progress;
 use crate::report::{radio_table, summary_table};
-use crate::vocab::channels_text;
 use anyhow::Result;
+use etp_pipeline::predictions::{self, checks};
+use etp_pipeline::progress;
 use etp_pipeline::validation::{comparison_json, failed_checks, plot_map};
+use etp_recording_tools::vocab::channels_text;
 use etp_shared::strategy::Strategy;
 use etp_synthesis::simulate::SimulationSummary;
 use etp_synthesis::validate::simulate_strategy;
@@ -45,10 +45,10 @@ pub struct Args {
     pub force: bool,
     /// Evaluate under this radio instead of the scenario's (a robustness study).
     #[command(flatten)]
-    pub radio: crate::input::RadioArgs,
+    pub radio: etp_runtime::scenario_options::RadioArgs,
     /// The strategy's trigger family, confirmed (another family is refused).
     #[command(flatten)]
-    pub trigger: crate::input::TriggerArgs,
+    pub trigger: etp_runtime::scenario_options::TriggerArgs,
 }
 
 use etp_runtime::strategy_arg::load_strategy;
@@ -66,7 +66,7 @@ pub fn run(a: Args) -> Result<()> {
         &strategy.policy,
         a.sim.episodes,
         a.sim.seed,
-        &crate::dist::work(|k| pb.inc(k)),
+        &etp_pipeline::exec::work(|k| pb.inc(k)),
     )?
     .summary();
     pb.finish_and_clear();
@@ -125,7 +125,7 @@ pub fn run(a: Args) -> Result<()> {
     if failed.is_empty() {
         Ok(())
     } else {
-        Err(crate::ExitWith {
+        Err(etp_runtime::shell::ExitWith {
             code: EXIT_CHECK_FAILS,
             message: format!(
                 "etp validate: {} check(s) FAIL: {} (the strategy's prediction against the simulation's interval joined with its own ±; its certified bounds against the simulation's interval; {}; {} episodes, seed {})",

@@ -1,7 +1,7 @@
 //! One job of a study — a scenario under one trigger family — done as the
 //! commands do it: `etp synthesize` (MDP and front, no Method 1 baseline),
 //! then per request `etp strategy DIR --min-target P [--max-collision C]`
-//! (the request loop and the strategy it stands by, [`crate::selection`])
+//! (the request loop and the strategy it stands by, [`etp_pipeline::selection`])
 //! and `etp validate STRATEGY --episodes N --seed S`. Every file goes into
 //! the job's folder (`DIR/cases/<job>/`: mdp.bin, front.json, scenario.toml,
 //! strategy-K.json, row-K.json), each written beside and renamed, the row
@@ -10,13 +10,13 @@
 use super::JobPlan;
 use super::spec::{Job, Request, Settings, Target};
 use super::table::{Finished, Row, Timing};
-use crate::front::write_front;
-use crate::mdp_build::{MdpRequest, build_mdp};
-use crate::output::write_new;
-use crate::predictions::checks;
-use crate::selection::{RequestSettings, meet_goal};
-use crate::synthesis_dir::Synthesis;
 use anyhow::{Context, Result};
+use etp_pipeline::front::write_front;
+use etp_pipeline::mdp_build::{MdpRequest, build_mdp};
+use etp_pipeline::output::write_new;
+use etp_pipeline::predictions::checks;
+use etp_pipeline::selection::{RequestSettings, meet_goal};
+use etp_pipeline::synthesis_dir::Synthesis;
 use etp_shared::strategy::Strategy;
 use etp_synthesis::predict::request::Goal;
 use etp_synthesis::validate::simulate_strategy;
@@ -124,12 +124,12 @@ fn kf_p_target(syn: &Synthesis, s: &Settings, kf: &mut Option<f64>) -> Result<f6
     if let Some(p) = *kf {
         return Ok(p);
     }
-    let p = crate::simulation::simulate_constant(
+    let p = etp_synthesis::constant::simulate_constant(
         &syn.scenario,
         0.0,
         s.kf_episodes,
         s.seed,
-        &crate::dist::work(|_| {}),
+        &etp_pipeline::exec::work(|_| {}),
     )?
     .p_target
     .value;
@@ -208,7 +208,7 @@ fn request(
         &strategy.policy,
         s.episodes,
         s.seed,
-        &crate::dist::work(|_| {}),
+        &etp_pipeline::exec::work(|_| {}),
     )?
     .summary();
     timing.validation_seconds = started.elapsed().as_secs_f64();
@@ -244,9 +244,9 @@ pub fn run_job(
     done: &mut dyn FnMut(&Finished),
 ) -> Result<()> {
     let dir = cases_dir.join(&job.id);
-    crate::output::output_folder(&dir)?;
+    etp_pipeline::output::output_folder(&dir)?;
     let threads = rayon::current_num_threads();
-    let rank = crate::dist::job().rank();
+    let rank = etp_pipeline::exec::job().rank();
     let fresh = || Timing {
         rank,
         threads,

@@ -4,10 +4,11 @@
 //! [`Spec`] whose jobs are numbered in the file's order; every error names
 //! the key.
 
-use crate::input::parse_family;
 use anyhow::{Context, Result, bail};
+use etp_runtime::scenario_arg::scenario_text_in;
+use etp_runtime::scenario_options::parse_family;
 use etp_shared::scenario::random::{AgentKind, random_scenario};
-use etp_shared::scenario::{Scenario, ScenarioText, builtin_text};
+use etp_shared::scenario::{Scenario, ScenarioText};
 use etp_shared::trigger::TriggerFamily;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -167,7 +168,7 @@ impl Spec {
             episodes: raw.episodes.unwrap_or(3000),
             aggregation_check: raw
                 .aggregation_check
-                .unwrap_or(crate::predictions::AGGREGATION_CHECK_EPISODES),
+                .unwrap_or(etp_pipeline::predictions::AGGREGATION_CHECK_EPISODES),
             kf_episodes: raw.kf_episodes.unwrap_or(3000),
         };
         if settings.samples == 0 {
@@ -230,18 +231,8 @@ impl Spec {
         for (i, s) in raw.scenarios.iter().enumerate() {
             let (source, own_text) = match s {
                 RawScenario::Named(name) => {
-                    let text = match builtin_text(name) {
-                        Some(t) => t.to_string(),
-                        None => {
-                            let p = base.join(name);
-                            std::fs::read_to_string(&p).with_context(|| {
-                                format!(
-                                    "scenarios[{i}]: `{name}` is not a built-in scenario and {} cannot be read",
-                                    p.display()
-                                )
-                            })?
-                        }
-                    };
+                    let text =
+                        scenario_text_in(base, name).with_context(|| format!("scenarios[{i}]"))?;
                     (name.clone(), text)
                 }
                 RawScenario::Random { random, seed } => {

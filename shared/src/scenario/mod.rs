@@ -37,10 +37,9 @@ pub enum ScenarioError {
     /// A field has a value the model cannot accept.
     #[error("scenario field `{field}`: {reason}")]
     Invalid { field: String, reason: String },
-    /// Neither a built-in name nor a readable file.
-    #[error(
-        "unknown built-in scenario `{0}` (built-ins: winding-2d, open-2d, superg-3d, inertia-2d, inertia-3d)"
-    )]
+    /// Not the name of a built-in scenario (the list is [`BUILTIN_NAMES`],
+    /// so that the message names every one).
+    #[error("unknown built-in scenario `{0}` (built-ins: {names})", names = BUILTIN_NAMES.join(", "))]
     UnknownBuiltin(String),
 }
 

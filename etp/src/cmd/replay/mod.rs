@@ -330,7 +330,7 @@ fn run_job(a: Job) -> Result<()> {
             ));
             let png = stem.with_extension("png");
             for p in [&png, &stem.with_extension("svg")] {
-                crate::output::refuse_existing(p, a.force)?;
+                etp_pipeline::output::refuse_existing(p, a.force)?;
             }
             let names = export::names(&c).0.sensors;
             etp_figures::report_plot(&figure::figure(&c, &names)?, &stem)?;
@@ -451,7 +451,7 @@ fn run_job(a: Job) -> Result<()> {
         );
     }
     if !unverifiable.is_empty() {
-        return Err(crate::ExitWith {
+        return Err(etp_runtime::shell::ExitWith {
             code: EXIT_MISSING_CHANNELS,
             message: format!(
                 "error: {}: nothing verified: the recording lacks {}",
@@ -470,7 +470,7 @@ fn run_job(a: Job) -> Result<()> {
 fn summary_exit(a: &Job, file: &Path, c: &Contents, s: &serde_json::Value) -> Result<()> {
     // A selection of channels leaves the identities' other side out.
     if !a.only && a.select.topics.is_empty() && s["identities_hold"] == json!(false) {
-        return Err(crate::ExitWith {
+        return Err(etp_runtime::shell::ExitWith {
             code: EXIT_IDENTITY,
             message: format!(
                 "error: {}: a count identity fails on the complete episodes: {}",
@@ -488,7 +488,7 @@ fn summary_exit(a: &Job, file: &Path, c: &Contents, s: &serde_json::Value) -> Re
         && let Some(missing) = s["missing_channels"].as_array().filter(|m| !m.is_empty())
     {
         let names: Vec<&str> = missing.iter().filter_map(|m| m.as_str()).collect();
-        return Err(crate::ExitWith {
+        return Err(etp_runtime::shell::ExitWith {
             code: EXIT_MISSING_CHANNELS,
             message: format!(
                 "warning: {}: the recording lacks the channels {}: the summary counts what it holds; \
@@ -505,7 +505,7 @@ fn summary_exit(a: &Job, file: &Path, c: &Contents, s: &serde_json::Value) -> Re
 /// Exit code 3 (with a warning) for an unfinished file, unless repaired.
 fn unfinished_exit(a: &Job, file: &Path, c: &Contents) -> Result<()> {
     if !c.finished && a.repair.is_none() && a.filter.is_none() {
-        return Err(crate::ExitWith {
+        return Err(etp_runtime::shell::ExitWith {
             code: EXIT_UNFINISHED,
             message: format!(
                 "warning: {} is unfinished (its recorder stopped before finishing it): \

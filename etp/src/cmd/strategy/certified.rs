@@ -3,10 +3,10 @@
 //! selection MDP before the request loop selects on it.
 
 use super::Args;
-use super::select::Synthesis;
-use crate::output::{refuse_existing, write_new};
-use crate::progress;
 use anyhow::{Context, Result, bail};
+use etp_pipeline::output::{refuse_existing, write_new};
+use etp_pipeline::progress;
+use etp_pipeline::synthesis_dir::Synthesis;
 use etp_synthesis::certify::intervals::interval_mdp;
 use etp_synthesis::certify::refine::{Refined, prepare, refine};
 use etp_synthesis::certify::select::certified_strategy;
@@ -14,8 +14,6 @@ use etp_synthesis::mdp::Mdp;
 use serde_json::{Value, json};
 use std::path::PathBuf;
 use std::time::Instant;
-
-pub use crate::selection::DEFAULT_LEVEL;
 
 /// `--refine-gap`: the selection MDP with samples added where the certified
 /// strategy's gap binds (written to DIR/mdp-refined.bin).
@@ -111,7 +109,7 @@ pub fn refine_selection(a: &Args, syn: &Synthesis, gap: f64, level: f64) -> Resu
                 c.certified.p_target_low,
             ))
         },
-        &crate::dist::work(|k| pb.inc(k)),
+        &etp_pipeline::exec::work(|k| pb.inc(k)),
     )
     .context("allocating samples")?;
     pb.finish_and_clear();

@@ -6,11 +6,11 @@
 //! rebuild, the aggregation check.
 
 use super::EvaluateArgs;
-use super::select::Synthesis;
-use crate::output::{refuse_existing, write_new};
-use crate::predictions;
-use crate::progress;
 use anyhow::{Context, Result, bail};
+use etp_pipeline::output::{refuse_existing, write_new};
+use etp_pipeline::predictions;
+use etp_pipeline::progress;
+use etp_pipeline::synthesis_dir::Synthesis;
 use etp_synthesis::abstraction;
 use serde_json::json;
 use std::time::Instant;

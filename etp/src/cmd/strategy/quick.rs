@@ -6,12 +6,12 @@
 //! pools (docs/MODEL.md §7.3) — are kept under `diagnostics` and printed as
 //! such. `etp strategy evaluate FILE DIR` predicts it later.
 
-use super::select::Synthesis;
-use super::{Args, Request, certified};
-use crate::output::{refuse_existing, write_new};
-use crate::predictions;
-use crate::selection::selection_diagnostics;
+use super::{Args, Request};
 use anyhow::{Context, Result};
+use etp_pipeline::output::{refuse_existing, write_new};
+use etp_pipeline::predictions;
+use etp_pipeline::selection::{DEFAULT_LEVEL, selection_diagnostics};
+use etp_pipeline::synthesis_dir::Synthesis;
 use etp_synthesis::certify::intervals::interval_mdp;
 use etp_synthesis::certify::select::certified_strategy;
 use etp_synthesis::pareto::optimal::{LpRequest, optimal_strategy};
@@ -26,7 +26,7 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
     refuse_existing(&syn.output, a.out.force)?;
     let cost = syn.cost();
     let mdp = &syn.mdp;
-    let level = a.confidence.unwrap_or(certified::DEFAULT_LEVEL);
+    let level = a.confidence.unwrap_or(DEFAULT_LEVEL);
     // The whole-MDP LP's objective, where the request is one (a cross-check
     // of the realised ω's exact value).
     let mut lp_objective = None;

@@ -3,12 +3,12 @@
 //! strategy kept from its own on-policy rebuilds.
 
 use super::{Args, EXIT_OUT_OF_REACH, Request, certified};
-use crate::output::{refuse_existing, write_new};
-use crate::predictions;
-use crate::progress;
-use crate::selection::standing_strategy;
-pub use crate::synthesis_dir::Synthesis;
 use anyhow::{Context, Result};
+use etp_pipeline::output::{refuse_existing, write_new};
+use etp_pipeline::predictions;
+use etp_pipeline::progress;
+use etp_pipeline::selection::{DEFAULT_LEVEL, standing_strategy};
+use etp_pipeline::synthesis_dir::Synthesis;
 use etp_shared::strategy::Strategy;
 use etp_synthesis::abstraction;
 use etp_synthesis::pareto::policy::{Objectives, RandomisedPolicy, as_randomised, evaluate};
@@ -22,7 +22,7 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
     let syn = Synthesis::load(dir, a.out.output.as_deref())?;
     refuse_existing(&syn.output, a.out.force)?;
     let cost = syn.cost();
-    let level = a.confidence.unwrap_or(certified::DEFAULT_LEVEL);
+    let level = a.confidence.unwrap_or(DEFAULT_LEVEL);
     let certified_selection = match request {
         Request::Goal(Goal::MinTarget { .. }) => a.confidence,
         _ => None,
@@ -105,7 +105,7 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
     }
     match outcome.verdict {
         Verdict::Met => Ok(()),
-        v => Err(crate::ExitWith {
+        v => Err(etp_runtime::shell::ExitWith {
             code: EXIT_OUT_OF_REACH,
             message: format!(
                 "etp strategy: the request is out of reach ({}): {}; wrote the closest strategy found to {} with its prediction",
