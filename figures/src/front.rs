@@ -22,12 +22,12 @@ impl super::Figure for FrontFigure<'_> {
     fn title(&self) -> Option<String> {
         Some(if self.0.predicted.is_empty() {
             format!(
-                "Pareto front of {} on its MDP (selection-time values): least expected energy for each P_tar, per bound on P_coll",
+                "Pareto front of {} on its MDP (selection-time values), per bound on P_coll",
                 self.0.scenario_name
             )
         } else {
             format!(
-                "Pareto front of {}: the strategies etp returns, predicted on their own beliefs, and the MDP's front",
+                "Pareto front of {}: etp's strategies as predicted, over the MDP's front",
                 self.0.scenario_name
             )
         })
