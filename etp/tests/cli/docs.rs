@@ -555,3 +555,95 @@ fn the_docs_checker_reads_the_notation_and_catches_a_refused_flag() {
     assert!(has_placeholder("etp replay recordings/w-<run-id>.mcap"));
     assert!(!has_placeholder("python3 x.py < in.txt > out.txt"));
 }
+
+/// The repository's files a text names: every `docs/…`, `benchmarks/…`,
+/// `schemas/…`, `scenarios/…` or `recordings/…` path with an extension.
+fn named_files(text: &str) -> Vec<String> {
+    const ROOTS: [&str; 5] = [
+        "docs/",
+        "benchmarks/",
+        "schemas/",
+        "scenarios/",
+        "recordings/",
+    ];
+    let path_char = |c: char| c.is_ascii_alphanumeric() || "_.-/".contains(c);
+    let mut out = Vec::new();
+    for (i, _) in text.char_indices() {
+        let rest = &text[i..];
+        // A path starts at a word boundary: not inside `target/docs/…`.
+        let boundary = text[..i].chars().last().is_none_or(|c| !path_char(c));
+        if !boundary || !ROOTS.iter().any(|r| rest.starts_with(r)) {
+            continue;
+        }
+        let end = rest.find(|c: char| !path_char(c)).unwrap_or(rest.len());
+        let path = rest[..end].trim_end_matches(['.', '/']);
+        let has_extension = path
+            .rsplit('/')
+            .next()
+            .is_some_and(|name| name.contains('.') && !name.ends_with('.'));
+        if has_extension {
+            out.push(path.to_string());
+        }
+    }
+    out
+}
+
+/// The Rust sources of the workspace (their comments cite docs too).
+fn rust_files(root: &Path, dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let Ok(kind) = e.file_type() else { continue };
+        if kind.is_dir() && !name.starts_with('.') && !SKIPPED_DIRS.contains(&name.as_str()) {
+            rust_files(root, &e.path(), out);
+        } else if kind.is_file() && name.ends_with(".rs") {
+            out.push(
+                e.path()
+                    .strip_prefix(root)
+                    .unwrap_or(&e.path())
+                    .to_path_buf(),
+            );
+        }
+    }
+}
+
+/// Every file a Markdown file or a Rust source of the repository names
+/// exists: neither docs nor comments cite a file the repository does not
+/// hold.
+#[test]
+fn every_file_the_docs_name_exists() {
+    let root = root();
+    let mut missing = Vec::new();
+    let mut files = markdown_files();
+    rust_files(&root, &root, &mut files);
+    for md in files {
+        let text = std::fs::read_to_string(root.join(&md)).expect("a readable text file");
+        for path in named_files(&text) {
+            // A user's own file in an example (`my-…`) or a name to fill
+            // in (`NAME`) is not the repository's.
+            let name = path.rsplit('/').next().unwrap_or_default();
+            let stem = name.split('.').next().unwrap_or_default();
+            let placeholder = name.starts_with("my-")
+                || (!stem.is_empty() && stem.chars().all(|c| c.is_ascii_uppercase()));
+            if !placeholder && !root.join(&path).exists() {
+                missing.push(format!("{}: {path}", md.display()));
+            }
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "files named but absent:\n{}",
+        missing.join("\n")
+    );
+}
+
+#[test]
+fn named_files_are_read_at_word_boundaries() {
+    assert_eq!(
+        named_files("see docs/MODEL.md §3, target/docs/x.md and `schemas/run.json`."),
+        ["docs/MODEL.md", "schemas/run.json"]
+    );
+    assert!(named_files("docs/ and recordings/README").is_empty());
+}
