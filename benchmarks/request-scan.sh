@@ -3,7 +3,8 @@
 # "The least energy that meets the request"). For a fresh random scenario:
 # synthesize; P = the full KF's simulated P_tar − DROP; the plain
 # `etp strategy DIR --min-target P`; then `etp strategy DIR --min-target a
-# --rounds 1` for STEPS asked levels a over [P − 0.01, P + 0.06], each the
+# --rounds 1` for STEPS asked levels a over [P − 0.01, min(P + 0.06, the
+# highest P_tar of the MDP)], each the
 # MDP's strategy for a predicted on its own rebuilds. Prints the plain
 # strategy's predicted energy against the cheapest scanned strategy whose
 # prediction meets P by the loop's own rule (P_tar + h/4 ≥ P).
@@ -25,8 +26,15 @@ echo "KF P_tar $KF, request P_tar ≥ $P"
 start=$(date +%s.%N)
 "$ETP" strategy "$OUT/syn" --min-target "$P" --aggregation-check 0 -o "$OUT/plain.json" --force --json > "$OUT/plain.out" || true
 end=$(date +%s.%N)
+# The scan's top: P + 0.06, or the highest P_tar the MDP reaches if lower
+# (a level past it is out of reach, not a strategy).
+TOP=$(python3 -c "
+import json
+f = json.load(open('$OUT/syn/front.json'))
+reach = max(v['objectives']['p_target'] for v in f['vertices'])
+print(round(min($P + 0.06, reach), 5))")
 for k in $(seq 0 $((STEPS - 1))); do
-  a=$(python3 -c "print(round($P - 0.01 + 0.07 * $k / ($STEPS - 1), 5))")
+  a=$(python3 -c "print(round($P - 0.01 + ($TOP - $P + 0.01) * $k / ($STEPS - 1), 5))")
   "$ETP" strategy "$OUT/syn" --min-target "$a" --rounds 1 --aggregation-check 0 \
     -o "$OUT/scan-$k.json" --force --json > "$OUT/scan-$k.out" || true
 done
