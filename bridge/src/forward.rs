@@ -65,10 +65,6 @@ pub enum Grant {
     /// the rest of the run (the sensor's downlink goes nowhere, its token
     /// and claims are ignored), so it cannot hold the run up again.
     Refused(String),
-    /// The sensor was cut as a dead link: a question of the run went
-    /// unanswered, or a gap in its messages was held, past the bound
-    /// ([`crate::answers`]). Nothing more goes down to it or comes up from it.
-    Cut(String),
 }
 
 /// Per remote sensor, its [`Grant`] (none until a host claimed it), shared by
@@ -183,7 +179,7 @@ impl Outbound {
         stalls: &Stalls,
         stop: &Arc<AtomicBool>,
         on_ready: impl FnOnce() + Send + 'static,
-        on_put: impl FnMut(ServiceId, &Header, &[u8]) + Send + 'static,
+        on_put: impl FnMut(ServiceId, &Header) + Send + 'static,
     ) -> std::thread::JoinHandle<Result<(), BridgeError>> {
         let (session, counters, stalls, stop) = (
             session.clone(),
@@ -200,7 +196,7 @@ impl Outbound {
 
     /// Forward until `stop` (or a termination request); `on_ready` is
     /// called once every port exists, `on_put` sees every message put
-    /// (service, header, bytes). Runs on its own thread: iceoryx2 ports stay on the
+    /// (service, header). Runs on its own thread: iceoryx2 ports stay on the
     /// thread that made them.
     ///
     /// A put blocks while a subscribed peer's queue is full (congestion
@@ -217,7 +213,7 @@ impl Outbound {
         stalls: &Stalls,
         stop: &AtomicBool,
         on_ready: impl FnOnce(),
-        mut on_put: impl FnMut(ServiceId, &Header, &[u8]),
+        mut on_put: impl FnMut(ServiceId, &Header),
     ) -> Result<(), BridgeError> {
         let node = wire::create_node(&self.run, node_name)?;
         let ports = Ports {
@@ -288,11 +284,6 @@ impl Outbound {
                                 note_dropped(stalls, sensor);
                                 continue;
                             }
-                            Some(Grant::Cut(_)) => {
-                                publishers.clear();
-                                towards.remove(&s);
-                                continue;
-                            }
                             // Not granted yet: nobody may read it (as a put
                             // with no subscriber).
                             None => continue,
@@ -320,7 +311,7 @@ impl Outbound {
                     }
                     self.waited(stalls, sensor, started, towards.get(&s).cloned());
                     count(counters, s, h, bytes.len());
-                    on_put(s, h, bytes);
+                    on_put(s, h);
                 }
             }
             // Down: probe the hosts that owe an answer.
@@ -346,7 +337,7 @@ impl Outbound {
             }
             if let Some(refused) = self.grants.lock().ok().map(|g| {
                 g.iter()
-                    .filter(|(_, g)| matches!(g, Grant::Refused(_) | Grant::Cut(_)))
+                    .filter(|(_, g)| matches!(g, Grant::Refused(_)))
                     .map(|(&i, _)| i)
                     .collect::<Vec<_>>()
             }) {
@@ -433,9 +424,6 @@ pub enum Incoming {
     /// [`crate::session::join_key`]; its payload is the host's Zenoh id),
     /// answered by the agent host's loop.
     Claim(zenoh::query::Query),
-    /// The agent host put a question to remote sensor `.0` at `.2`
-    /// ([`crate::answers`]).
-    Asked(usize, crate::answers::Question, Instant),
 }
 
 /// The inbound direction's local ports: one publisher and one wake-up
