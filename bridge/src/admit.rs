@@ -13,6 +13,7 @@ use etp_runtime::recording::Recorded;
 use etp_runtime::wire::catalogue::Process;
 use etp_runtime::wire::{Header, SENDER_AGENT, SENDER_COORDINATOR, ServiceId};
 use std::collections::{BTreeMap, BTreeSet};
+use std::time::{Duration, Instant};
 
 /// Why a message from the link was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -72,6 +73,26 @@ struct SensorOrder {
     /// The next sequence number to deliver (the hello is 1).
     next: u32,
     held: BTreeMap<u32, Admitted>,
+    /// Since when (as the caller's clock last told [`Admission::gaps`]) a
+    /// gap holds messages back.
+    gap_since: Option<Instant>,
+    /// Cut by the agent host (a dead link): nothing more is delivered.
+    cut: bool,
+}
+
+/// A gap in a sensor's sequence numbers that held its later messages back
+/// longer than the bound ([`Admission::gaps`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Gap {
+    pub sensor: usize,
+    /// The sequence number that never came.
+    pub missing: u32,
+    /// How many later messages it held back.
+    pub held: usize,
+    /// The first of them: its service and header.
+    pub first_held: (ServiceId, Header),
+    /// How long they waited.
+    pub waited: Duration,
 }
 
 /// The checks of one end of a link.
@@ -89,6 +110,8 @@ pub struct Admission {
     /// Towards the agent: the host each remote sensor was granted to at
     /// join (its Zenoh id), first claim wins.
     hosts: BTreeMap<usize, String>,
+    /// Messages of cut sensors dropped (held at the cut, or arrived later).
+    after_cut: u64,
 }
 
 /// The longest host identity a claim may carry (a Zenoh id is at most 32
@@ -110,7 +133,7 @@ impl Admission {
                             i,
                             SensorOrder {
                                 next: 1,
-                                held: BTreeMap::new(),
+                                ..SensorOrder::default()
                             },
                         )
                     })
@@ -119,6 +142,7 @@ impl Admission {
             refused: BTreeMap::new(),
             reordered: 0,
             hosts: BTreeMap::new(),
+            after_cut: 0,
         }
     }
 
@@ -132,6 +156,7 @@ impl Admission {
             refused: BTreeMap::new(),
             reordered: 0,
             hosts: BTreeMap::new(),
+            after_cut: 0,
         }
     }
 
@@ -178,6 +203,11 @@ impl Admission {
         let Some(o) = order.get_mut(&(h.sender as usize)) else {
             return Err(self.refuse(Refusal::WrongSender));
         };
+        if o.cut {
+            // A dead link's late traffic: not a refusal, not delivered.
+            self.after_cut += 1;
+            return Ok(Vec::new());
+        }
         if h.seq < o.next || o.held.contains_key(&h.seq) {
             return Err(self.refuse(Refusal::Duplicate));
         }
@@ -240,6 +270,50 @@ impl Admission {
         self.reordered
     }
 
+    /// Look at the gaps at `now` (the caller's clock; called at least every
+    /// few hundred milliseconds): the oldest gap that has held its sensor's
+    /// later messages for `bound` or longer. A gap's age counts from the
+    /// first call that saw it, so it is late by at most the calling period.
+    pub fn gaps(&mut self, now: Instant, bound: Duration) -> Option<Gap> {
+        let order = self.order.as_mut()?;
+        let mut oldest: Option<Gap> = None;
+        for (&sensor, o) in order.iter_mut() {
+            let first = o.held.first_key_value().map(|(_, m)| m);
+            let Some(first) = first.filter(|_| !o.cut) else {
+                o.gap_since = None;
+                continue;
+            };
+            let since = *o.gap_since.get_or_insert(now);
+            let waited = now.saturating_duration_since(since);
+            if waited >= bound && oldest.as_ref().is_none_or(|g| waited > g.waited) {
+                oldest = Some(Gap {
+                    sensor,
+                    missing: o.next,
+                    held: o.held.len(),
+                    first_held: (first.service, *first.message.header()),
+                    waited,
+                });
+            }
+        }
+        oldest
+    }
+
+    /// The agent host cut `sensor` (a dead link): what it held is dropped
+    /// and nothing of it is delivered from now on.
+    pub fn cut(&mut self, sensor: usize) {
+        if let Some(o) = self.order.as_mut().and_then(|m| m.get_mut(&sensor)) {
+            self.after_cut += o.held.len() as u64;
+            o.held.clear();
+            o.gap_since = None;
+            o.cut = true;
+        }
+    }
+
+    /// Messages of cut sensors dropped.
+    pub fn after_cut(&self) -> u64 {
+        self.after_cut
+    }
+
     /// Messages held for an earlier one that never came (per sensor).
     pub fn held(&self) -> BTreeMap<usize, usize> {
         self.order
@@ -299,6 +373,37 @@ mod tests {
         assert!(a.held().is_empty());
         assert!(a.refused().is_empty());
         assert_eq!(a.reordered(), 1);
+    }
+
+    /// The hang of an all-remote run (docs/MODEL.md, runtime): a message
+    /// that never arrives held its sensor's later ones for ever. Now a gap
+    /// is named once it held them for the bound, and a cut sensor's late
+    /// traffic is dropped, counted, and never delivered.
+    #[test]
+    fn a_gap_is_held_no_longer_than_the_bound_then_named() {
+        let bound = Duration::from_secs(5);
+        let t0 = Instant::now();
+        let mut a = Admission::towards_agent(TAG, &[0, 1]);
+        a.admit(measurement(1, 1)).expect("next");
+        assert_eq!(a.gaps(t0, bound), None);
+        // Sequence number 2 of sensor 1 is lost; 3 and 4 wait for it.
+        assert!(a.admit(measurement(1, 3)).expect("held").is_empty());
+        assert!(a.admit(measurement(1, 4)).expect("held").is_empty());
+        assert_eq!(a.gaps(t0, bound), None, "the gap is seen now");
+        assert_eq!(a.gaps(t0 + bound / 2, bound), None);
+        let g = a.gaps(t0 + bound, bound).expect("named at the bound");
+        assert_eq!(
+            (g.sensor, g.missing, g.held, g.first_held.1.seq, g.waited),
+            (1, 2, 2, 3, bound)
+        );
+        // A gap that closes in time is forgotten.
+        assert!(a.admit(measurement(0, 2)).expect("held").is_empty());
+        assert_eq!(seqs(&a.admit(measurement(0, 1)).expect("closes")), [1, 2]);
+        a.cut(1);
+        assert_eq!(a.gaps(t0 + bound * 9, bound), None);
+        assert!(a.admit(measurement(1, 2)).expect("dropped").is_empty());
+        assert_eq!(a.after_cut(), 3);
+        assert!(a.held().is_empty() && a.refused().is_empty());
     }
 
     #[test]

@@ -25,6 +25,7 @@
 //! killed host or a cut link like a dead local sensor, within the link lease.
 
 use crate::admit::{Admission, Admitted};
+use crate::answers::{Question, Questions};
 use crate::forward::{
     Counters, Grant, Grants, Heard, Inbound, Incoming, Outbound, Stalls, subscribe,
 };
@@ -115,7 +116,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         &session,
         &[data_keys(run.as_str(), false)],
         &format!("etp/{run}/alive/sensor/*"),
-        tx,
+        tx.clone(),
     )?;
     let counters = Counters::default();
     let stalls = Stalls::default();
@@ -126,6 +127,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         .remote
         .iter()
         .map(|&i| {
+            let asked = tx.clone();
             Outbound::new(&run, sensors, Direction::Down, &[i])
                 .to_grants(&grants, acl.is_some())
                 .probing(&heard)
@@ -136,7 +138,11 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                     &stalls,
                     &stop,
                     || {},
-                    |_, _| {},
+                    move |s, h, bytes| {
+                        if let Some(q) = question_of(s, h, bytes) {
+                            let _ = asked.send(Incoming::Asked(i, q, Instant::now()));
+                        }
+                    },
                 )
         })
         .collect();
@@ -153,6 +159,10 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let mut hellos: Vec<Admitted> = Vec::new();
     let mut admission = Admission::towards_agent(run.tag(), &info.remote);
     let mut said_hello = BTreeSet::new();
+    // Every wait of the run on a remote sensor is bounded: its open
+    // questions and the gaps in its messages (crate::answers).
+    let mut questions = Questions::new(a.host.lease());
+    let mut cut: BTreeSet<usize> = BTreeSet::new();
     let mut ready = false;
     let started = Instant::now();
     let timeout = a.host.join_wait();
@@ -200,21 +210,51 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         // A host refused for not reading (an outbound thread's verdict): its
         // sensors are dead links from now on, whether or not its token went.
         for i in refused_sensors(&grants) {
+            questions.forget(i);
             if proxies.remove(&i).is_some() {
                 tracing::warn!(sensor = %name(i), "remote sensor lost: its host was closed for not reading");
                 emit(&serde_json::json!({"event": "lost", "sensor": name(i),
                     "unix_ns": wire_now_ns()}));
             }
         }
+        if let Some(dead) = overdue(&mut questions, &mut admission, &cut) {
+            let i = dead.sensor;
+            cut.insert(i);
+            admission.cut(i);
+            questions.forget(i);
+            if let Ok(mut g) = grants.lock() {
+                let host = match g.get(&i) {
+                    Some(Grant::Host(h) | Grant::Refused(h) | Grant::Cut(h)) => h.clone(),
+                    None => String::new(),
+                };
+                g.insert(i, Grant::Cut(host));
+            }
+            proxies.remove(&i);
+            tracing::warn!(sensor = %name(i), "dead link: {}", dead.why);
+            let mut event = serde_json::json!({"event": "dead-link", "sensor": name(i),
+                "message": dead.message, "why": dead.why, "late_ms": dead.late.as_millis() as u64,
+                "bound_ms": dead.bound.as_millis() as u64, "unix_ns": wire_now_ns()});
+            if let Some(seq) = dead.missing {
+                event["missing_seq"] = serde_json::json!(seq);
+            }
+            emit(&event);
+            emit(
+                &serde_json::json!({"event": "lost", "sensor": name(i), "unix_ns": wire_now_ns()}),
+            );
+        }
         let wait = if hellos.is_empty() { 100 } else { 5 };
         match rx.recv_timeout(Duration::from_millis(wait)) {
             Ok(Incoming::Data { key, bytes }) => {
                 let admitted = inbound.receive(&mut admission, &key, &bytes);
+                let now = Instant::now();
+                for m in &admitted {
+                    questions.delivered(m.message.header().sender as usize, &m.message, now);
+                }
                 if !admitted.is_empty()
                     && let Ok(mut h) = heard.lock()
                 {
                     for m in &admitted {
-                        h.insert(m.message.header().sender as usize, Instant::now());
+                        h.insert(m.message.header().sender as usize, now);
                     }
                 }
                 for m in admitted {
@@ -230,8 +270,11 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                 let Some(i) = key.rsplit('/').next().and_then(|x| x.parse::<usize>().ok()) else {
                     continue;
                 };
-                if !remote.contains(&i) {
+                if !remote.contains(&i) || cut.contains(&i) {
                     continue;
+                }
+                if !alive {
+                    questions.forget(i);
                 }
                 if let Some(Grant::Refused(host)) = grant_of(&grants, i) {
                     if proxies.remove(&i).is_some() {
@@ -259,7 +302,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                     .unwrap_or_default();
                 let verdict = match parse_join_key(run.as_str(), q.key_expr().as_str()) {
                     Some((i, host)) => match grant_of(&grants, i) {
-                        Some(Grant::Refused(_)) => Err(None),
+                        Some(Grant::Refused(_) | Grant::Cut(_)) => Err(None),
                         Some(Grant::Host(h)) if h != host => {
                             Err(Some(admission.refuse(crate::admit::Refusal::DuplicateHost)))
                         }
@@ -280,8 +323,8 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                         Ok(())
                     }
                     Err(None) => {
-                        tracing::warn!(key = %key, zid, "refused a claim: its host was closed for not reading");
-                        Err("this host stopped reading and was closed: it is refused for the rest of the run (stalled)".to_string())
+                        tracing::warn!(key = %key, zid, "refused a claim of a sensor closed for the rest of the run");
+                        Err("this sensor is closed for the rest of the run (its host stopped reading, or its link was cut as dead)".to_string())
                     }
                     Err(Some(r)) => {
                         tracing::warn!(key = %key, zid, reason = r.name(), "refused a claim");
@@ -302,6 +345,13 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                 // carries every remote sensor's uplink.
                 let _ = answers.send((q, answer));
             }
+            // A sensor without a proxy is a dead link already (lost, cut or
+            // refused): nobody waits for its answer.
+            Ok(Incoming::Asked(i, q, at)) => {
+                if proxies.contains_key(&i) {
+                    questions.asked(i, q, at);
+                }
+            }
             Ok(Incoming::Hello(_)) | Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break Ok(()),
         }
@@ -317,6 +367,9 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         out = out.and(r);
     }
     crate::emit_refused(&admission, &info.sensors);
+    emit(&serde_json::json!({"event": "bound",
+        "wait_ms": questions.bound().wait().as_millis() as u64,
+        "slowest_answer_ms": questions.bound().slowest().as_millis() as u64}));
     crate::emit_handshakes();
     crate::emit_traffic(&counters, &stalls, &info.sensors);
     drop(proxies);
@@ -346,6 +399,83 @@ fn replier() -> (std::sync::mpsc::Sender<Answer>, std::thread::JoinHandle<()>) {
         }
     });
     (tx, t)
+}
+
+/// The question a downlink message asks its sensor (a closing threshold's
+/// kind is read from its bytes).
+fn question_of(s: ServiceId, h: &etp_runtime::wire::Header, bytes: &[u8]) -> Option<Question> {
+    let kind = match s {
+        ServiceId::Threshold(_) => {
+            match etp_runtime::recording::Encoding::Bincode.decode(&s.topic(), bytes) {
+                Ok(etp_runtime::recording::Recorded::Threshold(t)) => Some(t.kind),
+                _ => None,
+            }
+        }
+        _ => None,
+    };
+    Question::of_downlink(s, h, kind)
+}
+
+/// A remote sensor found a dead link by the bound on waits.
+struct DeadLink {
+    sensor: usize,
+    /// The message that never came, in words.
+    message: String,
+    why: String,
+    late: Duration,
+    bound: Duration,
+    /// A gap's missing sequence number.
+    missing: Option<u32>,
+}
+
+/// The oldest wait on a sensor (not cut yet) that passed the bound: an
+/// unanswered question, or a gap holding the sensor's later messages.
+fn overdue(
+    questions: &mut Questions,
+    admission: &mut Admission,
+    cut: &BTreeSet<usize>,
+) -> Option<DeadLink> {
+    let now = Instant::now();
+    let bound = questions.bound().wait();
+    if let Some(g) = admission
+        .gaps(now, bound)
+        .filter(|g| !cut.contains(&g.sensor))
+    {
+        let (s, h) = g.first_held;
+        return Some(DeadLink {
+            sensor: g.sensor,
+            message: format!("message {} (sequence number)", g.missing),
+            why: format!(
+                "its message with sequence number {} never came; {} later message(s) waited {} ms for it (the first: {} of episode {} leg {} step {})",
+                g.missing,
+                g.held,
+                g.waited.as_millis(),
+                s.topic(),
+                h.episode,
+                h.leg,
+                h.step
+            ),
+            late: g.waited,
+            bound,
+            missing: Some(g.missing),
+        });
+    }
+    let o = questions
+        .overdue(now)
+        .filter(|o| !cut.contains(&o.sensor))?;
+    Some(DeadLink {
+        sensor: o.sensor,
+        message: o.question.to_string(),
+        why: format!(
+            "its {} never came: waited {} ms (bound {} ms)",
+            o.question,
+            o.waited.as_millis(),
+            bound.as_millis()
+        ),
+        late: o.waited,
+        bound,
+        missing: None,
+    })
 }
 
 fn refused_sensors(grants: &Grants) -> Vec<usize> {

@@ -65,6 +65,10 @@ pub enum Grant {
     /// the rest of the run (the sensor's downlink goes nowhere, its token
     /// and claims are ignored), so it cannot hold the run up again.
     Refused(String),
+    /// The sensor was cut as a dead link: a question of the run went
+    /// unanswered, or a gap in its messages was held, past the bound
+    /// ([`crate::answers`]). Nothing more goes down to it or comes up from it.
+    Cut(String),
 }
 
 /// Per remote sensor, its [`Grant`] (none until a host claimed it), shared by
@@ -179,7 +183,7 @@ impl Outbound {
         stalls: &Stalls,
         stop: &Arc<AtomicBool>,
         on_ready: impl FnOnce() + Send + 'static,
-        on_put: impl FnMut(ServiceId, &Header) + Send + 'static,
+        on_put: impl FnMut(ServiceId, &Header, &[u8]) + Send + 'static,
     ) -> std::thread::JoinHandle<Result<(), BridgeError>> {
         let (session, counters, stalls, stop) = (
             session.clone(),
@@ -196,7 +200,7 @@ impl Outbound {
 
     /// Forward until `stop` (or a termination request); `on_ready` is
     /// called once every port exists, `on_put` sees every message put
-    /// (service, header). Runs on its own thread: iceoryx2 ports stay on the
+    /// (service, header, bytes). Runs on its own thread: iceoryx2 ports stay on the
     /// thread that made them.
     ///
     /// A put blocks while a subscribed peer's queue is full (congestion
@@ -213,7 +217,7 @@ impl Outbound {
         stalls: &Stalls,
         stop: &AtomicBool,
         on_ready: impl FnOnce(),
-        mut on_put: impl FnMut(ServiceId, &Header),
+        mut on_put: impl FnMut(ServiceId, &Header, &[u8]),
     ) -> Result<(), BridgeError> {
         let node = wire::create_node(&self.run, node_name)?;
         let ports = Ports {
@@ -284,6 +288,11 @@ impl Outbound {
                                 note_dropped(stalls, sensor);
                                 continue;
                             }
+                            Some(Grant::Cut(_)) => {
+                                publishers.clear();
+                                towards.remove(&s);
+                                continue;
+                            }
                             // Not granted yet: nobody may read it (as a put
                             // with no subscriber).
                             None => continue,
@@ -311,7 +320,7 @@ impl Outbound {
                     }
                     self.waited(stalls, sensor, started, towards.get(&s).cloned());
                     count(counters, s, h, bytes.len());
-                    on_put(s, h);
+                    on_put(s, h, bytes);
                 }
             }
             // Down: probe the hosts that owe an answer.
@@ -337,7 +346,7 @@ impl Outbound {
             }
             if let Some(refused) = self.grants.lock().ok().map(|g| {
                 g.iter()
-                    .filter(|(_, g)| matches!(g, Grant::Refused(_)))
+                    .filter(|(_, g)| matches!(g, Grant::Refused(_) | Grant::Cut(_)))
                     .map(|(&i, _)| i)
                     .collect::<Vec<_>>()
             }) {
@@ -424,6 +433,9 @@ pub enum Incoming {
     /// [`crate::session::join_key`]; its payload is the host's Zenoh id),
     /// answered by the agent host's loop.
     Claim(zenoh::query::Query),
+    /// The agent host put a question to remote sensor `.0` at `.2`
+    /// ([`crate::answers`]).
+    Asked(usize, crate::answers::Question, Instant),
 }
 
 /// The inbound direction's local ports: one publisher and one wake-up

@@ -31,6 +31,7 @@
 
 pub mod admit;
 pub mod agent_host;
+pub mod answers;
 pub mod forward;
 pub mod sensor_host;
 pub mod session;
@@ -81,7 +82,7 @@ pub fn emit_refused(admission: &admit::Admission, names: &[String]) {
         .collect();
     emit(
         &serde_json::json!({"event": "refused", "counts": counts, "held": held,
-        "reordered": admission.reordered()}),
+        "reordered": admission.reordered(), "dropped_after_cut": admission.after_cut()}),
     );
 }
 

@@ -225,7 +225,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         move || {
             let _ = ready_tx.send(());
         },
-        move |s, h| {
+        move |s, h, _| {
             if s == ServiceId::Hello {
                 let _ = hello_tx.send(Incoming::Hello(h.sender as usize));
             }
@@ -283,7 +283,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                 }
             }
             // Nobody queries a sensor host: it declares no queryable.
-            Ok(Incoming::Alive { alive: true, .. } | Incoming::Claim(_)) => {}
+            Ok(Incoming::Alive { alive: true, .. } | Incoming::Claim(_) | Incoming::Asked(..)) => {}
             Ok(Incoming::Alive { alive: false, .. }) => {
                 tracing::warn!("the agent host is gone: the local sensors stop");
                 emit(&serde_json::json!({"event": "agent-host-gone"}));

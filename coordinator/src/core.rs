@@ -288,6 +288,41 @@ impl<'a> CoordinatorCore<'a> {
         }
     }
 
+    /// The sensors of `missing` (whose ledgers did not come) are dead: each
+    /// one the agent never found dead (it was not awaited again after it
+    /// died: a link that lost every remote sensor at once, say) gets a fault
+    /// of its own, at the first episode whose ledger is missing, so its
+    /// missing ledgers are a named dead link and not a live sensor's.
+    pub fn dead_without_ledger(&mut self, missing: &[u32]) {
+        for &sensor in missing {
+            let name = self.sensor_name(sensor);
+            if self.faults.iter().any(|f| f.sensor == name) {
+                continue;
+            }
+            let Some(episode) = self
+                .records
+                .iter()
+                .find(|r| {
+                    r.legs.iter().any(|l| {
+                        l.sensor == sensor && !self.ledgers.contains_key(&(r.episode, l.leg))
+                    })
+                })
+                .map(|r| r.episode)
+            else {
+                continue;
+            };
+            tracing::warn!(episode, %name, "dead link: the sensor died before its ledger came");
+            self.faults.push(FaultRecord {
+                episode,
+                sensor: name,
+                detect_ms: 0.0,
+                wait_started_unix_ns: 0,
+                detected_unix_ns: 0,
+                dead_slots: 0,
+            });
+        }
+    }
+
     /// The sensors whose ledger of a recorded leg has not come (sorted, once
     /// each).
     pub fn missing_ledgers(&self) -> Vec<u32> {

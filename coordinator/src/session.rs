@@ -342,6 +342,7 @@ impl<'a> Coordinator<'a> {
                     wire::liveness(&cfg, &wire::sensor_node_name(*s as usize)) != Liveness::Alive
                 });
                 if all_dead {
+                    self.core.dead_without_ledger(&missing);
                     return Ok(());
                 }
             }

@@ -54,6 +54,32 @@ pub struct LinkReport {
     pub handshakes_refused: BTreeMap<String, u64>,
     /// The first refusals in words, with their peer.
     pub handshakes_named: Vec<String>,
+    /// Remote sensors the agent host cut as dead links because a wait on
+    /// them passed the link's bound: which sensor, which message, how late
+    /// (a fault of the run: exit 5 without `--allow-degraded`).
+    pub dead_links: Vec<DeadLink>,
+    /// Messages of cut sensors that came afterwards (dropped, not delivered).
+    pub dropped_after_cut: u64,
+    /// The bound on a wait at the end of the run (ms) and the slowest answer
+    /// a remote sensor gave (ms), from which it is derived.
+    pub wait_bound_ms: u64,
+    pub slowest_answer_ms: u64,
+}
+
+/// A remote sensor cut because a wait on it passed the bound.
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+pub struct DeadLink {
+    pub sensor: String,
+    /// The message that never came (`slot of episode 13 leg 1 step 87`).
+    pub message: String,
+    /// Why, in words.
+    pub why: String,
+    /// How long it was waited for, and the bound then (ms).
+    pub late_ms: u64,
+    pub bound_ms: u64,
+    /// A gap's missing sequence number.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub missing_seq: Option<u32>,
 }
 
 impl LinkReport {
@@ -114,6 +140,26 @@ impl LinkReport {
         };
         let refused: u64 = self.refused.values().sum();
         let held: u64 = self.held.values().sum();
+        let dead = self
+            .dead_links
+            .iter()
+            .map(|d| format!("dead link {}: {}", d.sensor, d.why))
+            .collect::<Vec<_>>()
+            .join("; ");
+        let others = self.refusals(refused, held, &list);
+        match (others, dead.is_empty()) {
+            (o, true) => o,
+            (None, false) => Some(dead),
+            (Some(o), false) => Some(format!("{dead}; {o}")),
+        }
+    }
+
+    fn refusals(
+        &self,
+        refused: u64,
+        held: u64,
+        list: &dyn Fn(&BTreeMap<String, u64>) -> String,
+    ) -> Option<String> {
         match (refused, held) {
             (0, 0) => None,
             (r, 0) => Some(format!(
@@ -248,12 +294,22 @@ impl Bridge {
                             serde_json::from_value(v["counts"].clone()).unwrap_or_default();
                         report.held = serde_json::from_value(v["held"].clone()).unwrap_or_default();
                         report.reordered = v["reordered"].as_u64().unwrap_or(0);
+                        report.dropped_after_cut = v["dropped_after_cut"].as_u64().unwrap_or(0);
                     }
                     Some("handshakes") => {
                         report.handshakes_refused =
                             serde_json::from_value(v["refused"].clone()).unwrap_or_default();
                         report.handshakes_named =
                             serde_json::from_value(v["named"].clone()).unwrap_or_default();
+                    }
+                    Some("dead-link") => {
+                        if let Ok(d) = serde_json::from_value(v.clone()) {
+                            report.dead_links.push(d);
+                        }
+                    }
+                    Some("bound") => {
+                        report.wait_bound_ms = v["wait_ms"].as_u64().unwrap_or(0);
+                        report.slowest_answer_ms = v["slowest_answer_ms"].as_u64().unwrap_or(0);
                     }
                     Some("stalled") => {
                         report.stalled =

@@ -127,6 +127,16 @@ pub fn verdict(
                 report.degraded
             ),
         ));
+    } else if !report.faults.is_empty() && !allow_degraded {
+        // A sensor that died between its slots and its ledger degraded no
+        // episode, but its ledger is missing: a dead link all the same.
+        v.push((
+            EXIT_DEGRADED,
+            format!(
+                "dead link: sensor(s) {} died before their ledger came (accept with --allow-degraded)",
+                dead.iter().copied().collect::<Vec<_>>().join(", ")
+            ),
+        ));
     }
     v
 }
@@ -330,6 +340,19 @@ mod tests {
     fn a_dead_sensor_degrades_and_is_accepted_only_on_request() {
         let r = report(vec![leg(0, 3, Some(3)), leg(1, 1, None)], true, Some("s1"));
         assert_eq!(codes(&verdict(&r, true, false)), vec![EXIT_DEGRADED]);
+        assert!(verdict(&r, true, true).is_empty());
+    }
+
+    /// A link that lost every remote sensor at once: the agent found one of
+    /// them dead, the coordinator the others by their missing ledgers. Each
+    /// is a named dead link (exit 5), accepted only on request, never an
+    /// accounting failure of a live sensor.
+    #[test]
+    fn a_sensor_dead_before_its_ledger_is_a_dead_link_even_with_nothing_degraded() {
+        let r = report(vec![leg(0, 3, Some(3)), leg(1, 2, None)], false, Some("s1"));
+        let v = verdict(&r, true, false);
+        assert_eq!(codes(&v), vec![EXIT_DEGRADED]);
+        assert!(v[0].1.contains("sensor(s) s1 died"), "{}", v[0].1);
         assert!(verdict(&r, true, true).is_empty());
     }
 

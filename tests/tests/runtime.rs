@@ -42,6 +42,10 @@ mod certs;
 #[path = "runtime/stalls.rs"]
 mod stalls;
 
+// A real network between the hosts: the fault proxy's matrix (issue 53).
+#[path = "runtime/network.rs"]
+mod network;
+
 #[path = "runtime/lossy.rs"]
 mod lossy;
 
