@@ -270,21 +270,35 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                 let Some(i) = key.rsplit('/').next().and_then(|x| x.parse::<usize>().ok()) else {
                     continue;
                 };
-                if !remote.contains(&i) || cut.contains(&i) {
+                if !remote.contains(&i) {
                     continue;
                 }
                 if !alive {
                     questions.forget(i);
                 }
-                if let Some(Grant::Refused(host)) = grant_of(&grants, i) {
-                    if proxies.remove(&i).is_some() {
-                        tracing::warn!(sensor = %name(i), host, "remote sensor lost: its host was closed for not reading");
-                        emit(&serde_json::json!({"event": "lost", "sensor": name(i),
-                            "unix_ns": wire_now_ns()}));
-                    } else if alive {
-                        tracing::warn!(sensor = %name(i), host, "a host refused for not reading is back: ignored");
+                // A sensor closed for the rest of the run (its host refused
+                // for not reading, or cut as a dead link, whichever came
+                // first) stays closed: a token back after Zenoh reconnected
+                // its host is named and ignored.
+                match grant_of(&grants, i) {
+                    Some(Grant::Refused(host)) => {
+                        if proxies.remove(&i).is_some() {
+                            tracing::warn!(sensor = %name(i), host, "remote sensor lost: its host was closed for not reading");
+                            emit(&serde_json::json!({"event": "lost", "sensor": name(i),
+                                "unix_ns": wire_now_ns()}));
+                        } else if alive {
+                            tracing::warn!(sensor = %name(i), host, "a host refused for not reading is back: ignored");
+                        }
+                        continue;
                     }
-                    continue;
+                    Some(Grant::Cut(host)) => {
+                        if alive {
+                            tracing::warn!(sensor = %name(i), host, "a sensor cut as a dead link is back: ignored");
+                        }
+                        continue;
+                    }
+                    _ if cut.contains(&i) => continue,
+                    _ => {}
                 }
                 if alive && !proxies.contains_key(&i) {
                     proxies.insert(i, wire::create_node(&run, &sensor_node_name(i))?);
