@@ -103,7 +103,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         .wait()
         .map_err(|e| BridgeError::Zenoh(format!("queryable: {e}")))?;
     let (tx, rx) = std::sync::mpsc::channel();
-    let (answers, replier) = replier();
+    let (answers, answerers) = answerers();
     let claims = tx.clone();
     let _claims = session
         .declare_queryable(join_keys(run.as_str()))
@@ -353,7 +353,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                         ))
                     }
                 };
-                // Answered by the replier thread: a reply waits while the
+                // Answered by the answerers: a reply waits while the
                 // querier's queue is full (a reply takes the query's
                 // congestion control, the querier's choice), and this loop
                 // carries every remote sensor's uplink.
@@ -372,7 +372,9 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     };
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
     drop(answers);
-    let _ = replier.join();
+    for t in answerers {
+        let _ = t.join();
+    }
     let mut out = Ok(());
     for t in outbound {
         let r = t
@@ -393,26 +395,46 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
 /// A claim's answer: granted, or refused with why.
 type Answer = (zenoh::query::Query, Result<(), String>);
 
-/// The thread that answers claims, off the agent host's loop: a reply (and
-/// the final response a dropped query sends) waits while the querier's
-/// queue is full, at most until Zenoh closes it
-/// ([`crate::session::STALLED_PEER_CLOSE`]), so a claim of a host that
-/// stopped reading holds up only other claims, never the run's uplink.
-fn replier() -> (std::sync::mpsc::Sender<Answer>, std::thread::JoinHandle<()>) {
+/// How many claims may be answered at once. A reply (and the final response
+/// a dropped query sends) waits while its querier's queue is full, at most
+/// until Zenoh closes that querier ([`crate::session::STALLED_PEER_CLOSE`]):
+/// a host that stopped reading holds one answerer per claim it sent in
+/// those seconds, and the others answer everyone else.
+const ANSWERERS: usize = 8;
+
+/// The threads that answer claims, off the agent host's loop (which carries
+/// every remote sensor's uplink): [`ANSWERERS`] of them take answers from
+/// one queue, so one reply to a stalled querier never holds up the rest.
+fn answerers() -> (
+    std::sync::mpsc::Sender<Answer>,
+    Vec<std::thread::JoinHandle<()>>,
+) {
     let (tx, rx) = std::sync::mpsc::channel::<Answer>();
-    let t = std::thread::spawn(move || {
-        for (q, answer) in rx {
-            let key = q.key_expr().clone();
-            let r = match answer {
-                Ok(()) => q.reply(key, "granted").wait(),
-                Err(why) => q.reply_err(why).wait(),
-            };
-            if let Err(e) = r {
-                tracing::debug!("a claim's answer was not sent: {e}");
-            }
-        }
-    });
-    (tx, t)
+    let rx = std::sync::Arc::new(std::sync::Mutex::new(rx));
+    let threads = (0..ANSWERERS)
+        .map(|_| {
+            let rx = std::sync::Arc::clone(&rx);
+            std::thread::spawn(move || {
+                loop {
+                    // The lock is held only to take the next answer.
+                    let next = match rx.lock() {
+                        Ok(rx) => rx.recv(),
+                        Err(_) => return,
+                    };
+                    let Ok((q, answer)) = next else { return };
+                    let key = q.key_expr().clone();
+                    let r = match answer {
+                        Ok(()) => q.reply(key, "granted").wait(),
+                        Err(why) => q.reply_err(why).wait(),
+                    };
+                    if let Err(e) = r {
+                        tracing::debug!("a claim's answer was not sent: {e}");
+                    }
+                }
+            })
+        })
+        .collect();
+    (tx, threads)
 }
 
 /// The question a downlink message asks its sensor (a closing threshold's
