@@ -37,14 +37,8 @@ pub struct Args {
     /// With every request: also P_coll ≤ C.
     #[arg(long, value_name = "C", value_parser = crate::input::probability)]
     pub max_collision: Option<f64>,
-    /// On-policy rebuilds of each prediction (as `etp strategy --replicates`).
-    #[arg(long, value_name = "R", default_value_t = etp_synthesis::predict::rebuild::DEFAULT_REPLICATES,
-          value_parser = clap::value_parser!(u32).range(2..=64))]
-    pub replicates: u32,
-    /// Rounds of the request loop at most (as `etp strategy --rounds`).
-    #[arg(long, value_name = "N", default_value_t = etp_synthesis::predict::request::DEFAULT_ROUNDS,
-          value_parser = clap::value_parser!(u32).range(1..=20))]
-    pub rounds: u32,
+    #[command(flatten)]
+    pub request_loop: super::strategy::RequestLoopArgs,
     /// Print the table as JSON.
     #[arg(long)]
     pub json: bool,
@@ -116,8 +110,8 @@ pub fn run(a: Args) -> Result<()> {
             let started = Instant::now();
             let make = |omega: &_, value| syn.strategy_of(&syn.mdp, omega, value, "compare");
             let settings = LoopSettings {
-                replicates: a.replicates,
-                max_rounds: a.rounds,
+                replicates: a.request_loop.rebuilds.replicates,
+                max_rounds: a.request_loop.rounds,
                 certified: None,
             };
             let o = syn.meet(&syn.mdp, goal, settings, LEVEL, &make, &pb)?;
@@ -203,7 +197,7 @@ pub fn run(a: Args) -> Result<()> {
             .collect();
         let v = json!({
             "scenario": scenario,
-            "replicates": a.replicates,
+            "replicates": a.request_loop.rebuilds.replicates,
             "requests": requests,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
@@ -211,7 +205,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     println!(
         "{scenario}: least energy per request, predicted on {} on-policy rebuilds (the request loop of `etp strategy`), ± 95 %",
-        a.replicates
+        a.request_loop.rebuilds.replicates
     );
     let width = labels
         .iter()

@@ -73,11 +73,9 @@ pub struct Args {
     #[arg(long, default_value_t = 3, requires = "refine_gap")]
     pub refine_rounds: u32,
     #[command(flatten)]
-    pub prediction: PredictionArgs,
-    /// Rounds of the request loop at most.
-    #[arg(long, value_name = "N", default_value_t = etp_synthesis::predict::request::DEFAULT_ROUNDS,
-          value_parser = clap::value_parser!(u32).range(1..=20))]
-    pub rounds: u32,
+    pub request_loop: RequestLoopArgs,
+    #[command(flatten)]
+    pub check: CheckArgs,
     /// Fast exploration: select on DIR's MDP and stop. Its values there
     /// (selection-time, certified, and cross-fitted when DIR was synthesized
     /// with --holdout-samples) are biased — the optimiser's
@@ -92,13 +90,30 @@ pub struct Args {
 
 /// How a strategy is predicted: its on-policy rebuilds.
 #[derive(Debug, Clone, Copy, clap::Args)]
-pub struct PredictionArgs {
+pub struct RebuildArgs {
     /// On-policy rebuilds of a prediction (seeds DIR's + 0 … R − 1): their
     /// mean cross-fitted value with a Student-t ± over their spread, which
     /// covers the rebuilds' whole Monte Carlo (docs/MODEL.md §7.3).
     #[arg(long, value_name = "R", default_value_t = etp_synthesis::predict::rebuild::DEFAULT_REPLICATES,
           value_parser = clap::value_parser!(u32).range(2..=64))]
     pub replicates: u32,
+}
+
+/// The request loop (`etp strategy`, `strategy front`, `compare`): each
+/// round's prediction, and how many rounds at most.
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct RequestLoopArgs {
+    #[command(flatten)]
+    pub rebuilds: RebuildArgs,
+    /// Rounds of the request loop at most.
+    #[arg(long, value_name = "N", default_value_t = etp_synthesis::predict::request::DEFAULT_ROUNDS,
+          value_parser = clap::value_parser!(u32).range(1..=20))]
+    pub rounds: u32,
+}
+
+/// The check stored beside a prediction.
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct CheckArgs {
     /// Episodes of the selection-time aggregation check: the strategy
     /// simulated in-process against its prediction (stored, printed,
     /// re-measured by `etp validate`); 0 = no check.
@@ -146,14 +161,8 @@ pub struct FrontArgs {
     /// default: one curve without a bound).
     #[arg(long, value_name = "C", value_delimiter = ',', value_parser = crate::input::probability)]
     pub max_collision: Vec<f64>,
-    /// On-policy rebuilds of each prediction (as `etp strategy --replicates`).
-    #[arg(long, value_name = "R", default_value_t = etp_synthesis::predict::rebuild::DEFAULT_REPLICATES,
-          value_parser = clap::value_parser!(u32).range(2..=64))]
-    pub replicates: u32,
-    /// Rounds of each request loop at most (as `etp strategy --rounds`).
-    #[arg(long, value_name = "N", default_value_t = etp_synthesis::predict::request::DEFAULT_ROUNDS,
-          value_parser = clap::value_parser!(u32).range(1..=20))]
-    pub rounds: u32,
+    #[command(flatten)]
+    pub request_loop: RequestLoopArgs,
     /// Print the curves as JSON (the files are still written).
     #[arg(long)]
     pub json: bool,
@@ -169,7 +178,9 @@ pub struct EvaluateArgs {
     #[arg(long, value_name = "LEVEL", default_value_t = DEFAULT_LEVEL, value_parser = level)]
     pub confidence: f64,
     #[command(flatten)]
-    pub prediction: PredictionArgs,
+    pub rebuilds: RebuildArgs,
+    #[command(flatten)]
+    pub check: CheckArgs,
     #[command(flatten)]
     pub out: OutArgs,
 }

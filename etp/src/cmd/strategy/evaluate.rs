@@ -43,7 +43,7 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
     let params = abstraction::params_of(&syn.mdp);
     let units = etp_synthesis::predict::rebuild::progress_units(&syn.scenario, &params);
     let pb = progress::bar(
-        units * u64::from(a.prediction.replicates),
+        units * u64::from(a.rebuilds.replicates),
         "rebuilds",
         a.out.json,
     );
@@ -51,7 +51,7 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
     // The rebuilds simulate the strategy under DIR's channel.
     strategy.policy.radio.clone_from(&syn.front.radio);
     let (on_policy, certified) =
-        syn.predict(&strategy, a.prediction.replicates, a.confidence, &pb)?;
+        syn.predict(&strategy, a.rebuilds.replicates, a.confidence, &pb)?;
     pb.finish_and_clear();
     let first = on_policy.first();
     on_policy.stand_by(&mut strategy, &certified, a.confidence);
@@ -64,9 +64,9 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
         a.dir.display()
     );
     strategy.predictions.aggregation = None;
-    if a.prediction.aggregation_check > 0 {
+    if a.check.aggregation_check > 0 {
         strategy.predictions.aggregation =
-            predictions::aggregation_check(&strategy, a.prediction.aggregation_check, a.out.json)?;
+            predictions::aggregation_check(&strategy, a.check.aggregation_check, a.out.json)?;
     }
     write_new(&syn.output, strategy.to_json().as_bytes(), a.out.force)?;
     let seconds = started.elapsed().as_secs_f64();

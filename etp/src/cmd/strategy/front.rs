@@ -22,8 +22,8 @@ pub fn run(a: &FrontArgs) -> Result<()> {
         a.max_collision.iter().copied().map(Some).collect()
     };
     let settings = RequestSettings {
-        replicates: a.replicates,
-        rounds: a.rounds,
+        replicates: a.request_loop.rebuilds.replicates,
+        rounds: a.request_loop.rounds,
         confidence: None,
         aggregation_check: 0,
     };

@@ -74,9 +74,9 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
     );
     let mut strategy = syn.strategy_of(mdp, &omega, value, &label);
     let unmatched = selection_diagnostics(&mut strategy, mdp, &omega, cost, level)?;
-    if a.prediction.aggregation_check > 0 {
+    if a.check.aggregation_check > 0 {
         strategy.predictions.aggregation =
-            predictions::aggregation_check(&strategy, a.prediction.aggregation_check, a.out.json)?;
+            predictions::aggregation_check(&strategy, a.check.aggregation_check, a.out.json)?;
     }
     write_new(&syn.output, strategy.to_json().as_bytes(), a.out.force)?;
     if a.out.json {

@@ -45,8 +45,8 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
             mdp,
             goal,
             LoopSettings {
-                replicates: a.prediction.replicates,
-                max_rounds: a.rounds,
+                replicates: a.request_loop.rebuilds.replicates,
+                max_rounds: a.request_loop.rounds,
                 certified: certified_selection,
             },
             level,
@@ -60,9 +60,9 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
             let omega = as_randomised(mdp, &syn.front.vertices[v].policy);
             let value = evaluate(mdp, &omega, cost);
             let strategy = make(&omega, value);
-            pb.inc_length(u64::from(a.prediction.replicates) * units);
+            pb.inc_length(u64::from(a.request_loop.rebuilds.replicates) * units);
             let (on_policy, certified) =
-                syn.predict(&strategy, a.prediction.replicates, level, &pb)?;
+                syn.predict(&strategy, a.request_loop.rebuilds.replicates, level, &pb)?;
             Outcome {
                 omega,
                 selection_time: value,
@@ -83,7 +83,7 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
         &outcome,
         &outcome.certified,
         level,
-        a.prediction.aggregation_check,
+        a.check.aggregation_check,
         a.out.json,
     )?;
     write_new(&syn.output, strategy.to_json().as_bytes(), a.out.force)?;
