@@ -88,6 +88,7 @@
 
 pub mod config;
 pub mod figure;
+mod interrupts;
 pub mod link;
 mod live;
 pub mod prepare;
@@ -124,7 +125,8 @@ removed or replaced during the run, or the target changed by another writer: the
 is then kept at FILE.<run-id>.partial) — never waived by --allow-degraded; 5 an episode ran \
 with a dead link, or the link to remote sensors refused a message (garbage, forged, out of \
 place), without --allow-degraded; 130 interrupted (Ctrl-C/SIGTERM: the report \
-covers the complete episodes); 1 an error before any report (nothing recorded, no file \
+covers the complete episodes; before the first episode, no report and nothing left: no \
+process, no recording); 1 an error before any report (nothing recorded, no file \
 touched). --allow-degraded excuses exactly a dead sensor's legs without a ledger: what the \
 agent received on them is reported apart (received_without_ledger).";
 
@@ -284,6 +286,11 @@ pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         None => RunId::generate(),
     };
     live::check(a)?;
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("starting the tokio runtime")?;
+    let mut interrupts = interrupts::Interrupts::listen(&rt)?;
     // `--record PATH` is claimed before any work (an existing file is
     // refused without --force); `--record-default` once its name is known.
     let mut target = match &a.record {
@@ -323,19 +330,15 @@ pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
             return Err(e);
         }
     };
-    let rt = match tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .context("starting the tokio runtime")
-    {
-        Ok(rt) => rt,
-        Err(e) => {
-            dir.remove();
-            return Err(e);
-        }
-    };
+    if let Some(name) = interrupts.pending(&rt) {
+        dir.remove();
+        return Err(interrupts::before_any_episode(
+            name,
+            "while the run prepared",
+        ));
+    }
     if let Some(v) = &view
-        && let Err(e) = live::wait(a, v, &rt)
+        && let Err(e) = live::wait(a, v, &rt, &mut interrupts)
     {
         dir.remove();
         return Err(e);
@@ -365,6 +368,7 @@ pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         None => None,
     };
     let outcome = rt.block_on(supervise::supervise(
+        &mut interrupts,
         &plan,
         Duration::from_secs_f64(a.deadline()),
         target.as_ref().map(|t| t.partial.as_path()),

@@ -6,12 +6,11 @@
 //! run without `--live`.
 
 use super::Args;
-use anyhow::{Context, Result, bail};
+use super::interrupts::Interrupts;
+use anyhow::{Result, bail};
 use etp_live::LiveView;
-use etp_runtime::shell::ExitWith;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
-use tokio::signal::unix::{SignalKind, signal};
 
 /// The feed socket's name in the run's folder.
 const FEED: &str = "live.sock";
@@ -65,17 +64,17 @@ pub fn start(a: &Args, plan: &super::prepare::Plan, dir: &Path) -> Result<Option
 /// SIGTERM while waiting ends the command with exit 130 before any process
 /// started, and the caller cleans up as for any other refusal (the run's
 /// folder is removed, no recording is claimed on disk).
-pub fn wait(a: &Args, live: &Live, rt: &tokio::runtime::Runtime) -> Result<()> {
+pub fn wait(
+    a: &Args,
+    live: &Live,
+    rt: &tokio::runtime::Runtime,
+    interrupts: &mut Interrupts,
+) -> Result<()> {
     if !a.live_wait {
         return Ok(());
     }
     let deadline = Instant::now() + Duration::from_secs_f64(a.deadline());
     rt.block_on(async {
-        // Listeners made once, before the line that invites a client (and
-        // a Ctrl-C): a signal that arrives between two polls is kept for
-        // the next `recv`.
-        let mut int = signal(SignalKind::interrupt()).context("listening for Ctrl-C")?;
-        let mut term = signal(SignalKind::terminate()).context("listening for SIGTERM")?;
         eprintln!("etp: --live-wait: the episodes start once a Foxglove client subscribes");
         loop {
             if live.view.wait_for_subscriber(Duration::ZERO) {
@@ -91,18 +90,13 @@ pub fn wait(a: &Args, live: &Live, rt: &tokio::runtime::Runtime) -> Result<()> {
                 );
             }
             let name = tokio::select! {
-                _ = int.recv() => "SIGINT",
-                _ = term.recv() => "SIGTERM",
+                name = interrupts.next() => name,
                 () = tokio::time::sleep(Duration::from_millis(50)) => continue,
             };
-            return Err(ExitWith {
-                code: super::EXIT_INTERRUPTED,
-                message: format!(
-                    "etp run: interrupted ({name}) during --live-wait, before any episode: \
-                     nothing ran"
-                ),
-            }
-            .into());
+            return Err(super::interrupts::before_any_episode(
+                name,
+                "during --live-wait",
+            ));
         }
     })
 }

@@ -215,7 +215,11 @@ pub fn remote_indices(plan: &Plan, names: &[String]) -> Result<Vec<usize>> {
 }
 
 /// Start the bridge and wait until every remote sensor joined.
-pub async fn start(plan: &Plan, spec: &RemoteSpec) -> Result<Bridge> {
+pub async fn start(
+    plan: &Plan,
+    spec: &RemoteSpec,
+    interrupts: &mut super::interrupts::Interrupts,
+) -> Result<Bridge> {
     let info = SessionInfo {
         run_id: plan.run_id.to_string(),
         scenario_toml: std::fs::read_to_string(&plan.scenario_path)
@@ -258,7 +262,18 @@ pub async fn start(plan: &Plan, spec: &RemoteSpec) -> Result<Bridge> {
         spec.listen
     );
     loop {
-        match lines.next_line().await.context("reading the bridge")? {
+        let line = tokio::select! {
+            l = lines.next_line() => l.context("reading the bridge")?,
+            name = interrupts.next() => {
+                // The bridge has run nothing yet: stopped and reaped here.
+                let _ = child.kill().await;
+                return Err(super::interrupts::before_any_episode(
+                    name,
+                    "while waiting for the remote sensors to join",
+                ));
+            }
+        };
+        match line {
             Some(l) => {
                 let v: serde_json::Value = serde_json::from_str(&l).unwrap_or_default();
                 if v["event"] == "ready" {

@@ -1,5 +1,6 @@
 //! Spawning and supervising the run's processes with tokio.
 
+use super::interrupts::Interrupts;
 use super::prepare::Plan;
 use super::process::{ProcessExit, sibling_binary, signal, spawn, status_text};
 use anyhow::{Context, Result, anyhow};
@@ -31,6 +32,7 @@ pub struct Supervised {
 }
 
 pub async fn supervise(
+    interrupts: &mut Interrupts,
     plan: &Plan,
     deadline: Duration,
     record: Option<&Path>,
@@ -47,7 +49,16 @@ pub async fn supervise(
     };
     // Then the bridge of the remote sensors: it returns once they joined.
     let bridge = match remote {
-        Some(spec) => Some(super::remote::start(plan, spec).await?),
+        Some(spec) => match super::remote::start(plan, spec, interrupts).await {
+            Ok(b) => Some(b),
+            Err(e) => {
+                // Nothing ran: the recording, if any, is abandoned.
+                if let Some(r) = recorder {
+                    let _ = r.stop().await;
+                }
+                return Err(e);
+            }
+        },
         None => None,
     };
     let run = plan.run_id.as_str().to_string();
@@ -127,19 +138,12 @@ pub async fn supervise(
     });
 
     let mut failure: Option<String> = None;
-    let mut interrupted = false;
-    let mut sigterm = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
-        .context("installing the SIGTERM handler")?;
+    let mut interrupted: Option<&'static str> = None;
     let coord_status = tokio::select! {
         st = coordinator.wait() => Some(st.context("waiting for the coordinator")?),
-        name = async {
-            tokio::select! {
-                _ = tokio::signal::ctrl_c() => "SIGINT",
-                _ = sigterm.recv() => "SIGTERM",
-            }
-        } => {
+        name = interrupts.next() => {
             failure = Some(format!("interrupted ({name})"));
-            interrupted = true;
+            interrupted = Some(name);
             tracing::warn!("{name}: stopping the run after the complete episodes");
             // SIGTERM = Ctrl-C: the coordinator stops the episodes, collects
             // the ledgers of the complete ones and still reports.
@@ -211,6 +215,16 @@ pub async fn supervise(
         .map_err(|_| anyhow!("coordinator output not closed"))?
         .context("reading coordinator output")?
         .context("reading coordinator output")?;
+    if let Some(name) = interrupted
+        && out.trim().is_empty()
+    {
+        // The coordinator was stopped before it could report (a signal in
+        // its first moments ends it): no episode ran.
+        return Err(super::interrupts::before_any_episode(
+            name,
+            "while the run's processes started",
+        ));
+    }
     if let Some(f) = failure
         && out.trim().is_empty()
     {
@@ -230,7 +244,7 @@ pub async fn supervise(
         processes,
         wall_seconds: started.elapsed().as_secs_f64(),
         recording,
-        interrupted,
+        interrupted: interrupted.is_some(),
         link,
     })
 }

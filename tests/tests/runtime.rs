@@ -64,6 +64,9 @@ mod live;
 // and with a remote sensor (issue 52 item 4).
 #[path = "runtime/interrupts.rs"]
 mod interrupts;
+// An interrupt before the first episode leaves nothing.
+#[path = "runtime/early_interrupts.rs"]
+mod early_interrupts;
 
 const DELTA: &str = "1.4986";
 
