@@ -6,6 +6,8 @@
 //!   `run(args) -> anyhow::Result<()>`.
 //! * [`input`] — resolving a `SCENARIO` argument (built-in name or path)
 //!   and its options.
+//! * [`prediction_args`] — how a strategy is predicted and how many rounds
+//!   the request loop runs: the options of every command that predicts.
 //! * [`dist`] — the ranks of an MPI job (feature `mpi`): MPI started and
 //!   its executor installed into `etp_pipeline::exec`; rank 0 writes.
 //! * [`report`] — a simulation summary's tables.
@@ -28,6 +30,7 @@ pub mod cli;
 pub mod cmd;
 pub mod dist;
 pub mod input;
+pub mod prediction_args;
 pub mod processes;
 pub mod report;
 pub mod study;

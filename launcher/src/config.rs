@@ -18,6 +18,7 @@
 
 use super::Args;
 use anyhow::{Context, Result, bail};
+use etp_runtime::scenario_arg::ScenarioSource;
 use std::path::{Path, PathBuf};
 
 /// Defaults of the flags that have one.
@@ -118,12 +119,9 @@ pub fn read(path: &Path) -> Result<RunConfig> {
     rel(&mut c.strategy);
     rel(&mut c.record);
     // A scenario that is not a built-in name is a path, relative to the file.
-    if let Some(s) = &c.scenario
-        && etp_shared::scenario::builtin_text(s).is_none()
-        && Path::new(s).is_relative()
-    {
-        c.scenario = Some(base.join(s).display().to_string());
-    }
+    c.scenario = c
+        .scenario
+        .map(|s| ScenarioSource::parse(&s).in_folder(base).to_arg());
     Ok(c)
 }
 
@@ -197,11 +195,11 @@ pub fn stored(c: &RunConfig) -> Result<String> {
     };
     abs(&mut c.strategy)?;
     abs(&mut c.record)?;
-    if let Some(s) = &c.scenario
-        && etp_shared::scenario::builtin_text(s).is_none()
-    {
-        let p = std::path::absolute(s).with_context(|| format!("making {s} absolute"))?;
-        c.scenario = Some(p.display().to_string());
+    if let Some(s) = c.scenario.take() {
+        let source = ScenarioSource::parse(&s)
+            .absolute()
+            .with_context(|| format!("making {s} absolute"))?;
+        c.scenario = Some(source.to_arg());
     }
     toml::to_string(&c).context("writing the run's configuration")
 }

@@ -33,6 +33,74 @@ pub enum ScenarioArgError {
     },
 }
 
+/// What a `SCENARIO` argument names, decided once: a built-in scenario or
+/// a file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ScenarioSource {
+    /// One of [`BUILTIN_NAMES`].
+    Builtin(String),
+    /// A TOML file (not yet checked to exist).
+    File(PathBuf),
+}
+
+impl ScenarioSource {
+    /// A built-in name is a built-in; anything else is a path.
+    pub fn parse(arg: &str) -> Self {
+        if builtin_text(arg).is_some() {
+            Self::Builtin(arg.to_string())
+        } else {
+            Self::File(PathBuf::from(arg))
+        }
+    }
+
+    /// As written in a file in folder `base` (a run file, a study): a
+    /// relative path is relative to `base`; a built-in stays a name.
+    pub fn in_folder(self, base: &Path) -> Self {
+        match self {
+            Self::File(p) => Self::File(base.join(p)),
+            b => b,
+        }
+    }
+
+    /// With an absolute path (a file's path made absolute against the
+    /// current folder; a built-in stays a name).
+    pub fn absolute(self) -> std::io::Result<Self> {
+        match self {
+            Self::File(p) => Ok(Self::File(std::path::absolute(p)?)),
+            b => Ok(b),
+        }
+    }
+
+    /// The argument that names it again (for a run file, a process's
+    /// command line).
+    pub fn to_arg(&self) -> String {
+        match self {
+            Self::Builtin(name) => name.clone(),
+            Self::File(p) => p.display().to_string(),
+        }
+    }
+
+    /// The TOML text: a built-in's embedded text, else the file's.
+    pub fn text(&self) -> Result<String, ScenarioArgError> {
+        match self {
+            Self::Builtin(name) => builtin_text(name)
+                .map(str::to_string)
+                .ok_or_else(|| ScenarioArgError::NotFound { arg: name.clone() }),
+            Self::File(path) => {
+                if !path.exists() {
+                    return Err(ScenarioArgError::NotFound {
+                        arg: path.display().to_string(),
+                    });
+                }
+                std::fs::read_to_string(path).map_err(|source| ScenarioArgError::Read {
+                    path: path.clone(),
+                    source,
+                })
+            }
+        }
+    }
+}
+
 /// The TOML text of a `SCENARIO` argument, not parsed: a built-in's
 /// embedded text, else the file's (written into outputs as given, and
 /// edited as text by the trigger and radio options before parsing).
@@ -43,16 +111,7 @@ pub fn scenario_text(arg: &str) -> Result<String, ScenarioArgError> {
 /// [`scenario_text`] of an argument written in a file (a study): a path is
 /// relative to `base`, the file's folder; a built-in name stays a name.
 pub fn scenario_text_in(base: &Path, arg: &str) -> Result<String, ScenarioArgError> {
-    if let Some(text) = builtin_text(arg) {
-        return Ok(text.to_string());
-    }
-    let path = base.join(arg);
-    if !path.exists() {
-        return Err(ScenarioArgError::NotFound {
-            arg: path.display().to_string(),
-        });
-    }
-    std::fs::read_to_string(&path).map_err(|source| ScenarioArgError::Read { path, source })
+    ScenarioSource::parse(arg).in_folder(base).text()
 }
 
 /// The scenario of a `SCENARIO` argument: a built-in name or a TOML path.
@@ -106,6 +165,27 @@ mod tests {
         let mut builtins: Vec<String> = BUILTIN_NAMES.iter().map(|s| s.to_string()).collect();
         builtins.sort();
         assert_eq!(builtins, files, "BUILTIN_NAMES against scenarios/*.toml");
+    }
+
+    #[test]
+    fn a_source_is_a_built_in_or_a_path_relative_to_its_file() {
+        let b = ScenarioSource::parse("open-2d");
+        assert_eq!(b, ScenarioSource::Builtin("open-2d".into()));
+        assert_eq!(b.clone().in_folder(Path::new("/runs")), b);
+        assert_eq!(b.clone().absolute().expect("absolute"), b);
+        let f = ScenarioSource::parse("my.toml").in_folder(Path::new("/runs"));
+        assert_eq!(f, ScenarioSource::File(PathBuf::from("/runs/my.toml")));
+        assert_eq!(f.to_arg(), "/runs/my.toml");
+        // An absolute path stays itself in any folder.
+        let a = ScenarioSource::parse("/abs/s.toml").in_folder(Path::new("/runs"));
+        assert_eq!(a.to_arg(), "/abs/s.toml");
+        assert!(
+            ScenarioSource::parse("rel.toml")
+                .absolute()
+                .expect("absolute")
+                .to_arg()
+                .starts_with('/')
+        );
     }
 
     #[test]

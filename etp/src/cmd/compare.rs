@@ -38,7 +38,7 @@ pub struct Args {
     #[arg(long, value_name = "C", value_parser = crate::input::probability)]
     pub max_collision: Option<f64>,
     #[command(flatten)]
-    pub request_loop: super::strategy::RequestLoopArgs,
+    pub request_loop: crate::prediction_args::RequestLoopArgs,
     /// Print the table as JSON.
     #[arg(long)]
     pub json: bool,
