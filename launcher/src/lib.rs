@@ -371,10 +371,12 @@ pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         &mut interrupts,
         &plan,
         Duration::from_secs_f64(a.deadline()),
-        target.as_ref().map(|t| t.partial.as_path()),
         a.slot_deadline,
-        remote.as_ref(),
-        view.as_ref().map(|v| v.feed.as_path()),
+        supervise::Attached {
+            record: target.as_ref().map(|t| t.partial.as_path()),
+            remote: remote.as_ref(),
+            live_feed: view.as_ref().map(|v| v.feed.as_path()),
+        },
         a.json,
     ));
     if let Some(v) = view {

@@ -31,16 +31,30 @@ pub struct Supervised {
     pub link: Option<super::remote::LinkReport>,
 }
 
+/// What a run has besides its processes: where it records, its remote
+/// sensors, its live view.
+pub struct Attached<'a> {
+    /// The recording's partial file (`--record`).
+    pub record: Option<&'a Path>,
+    /// `--listen`/`--remote`.
+    pub remote: Option<&'a super::remote::RemoteSpec>,
+    /// The live view's feed socket (`--live`).
+    pub live_feed: Option<&'a Path>,
+}
+
 pub async fn supervise(
     interrupts: &mut Interrupts,
     plan: &Plan,
     deadline: Duration,
-    record: Option<&Path>,
     slot_deadline_ms: Option<u64>,
-    remote: Option<&super::remote::RemoteSpec>,
-    live_feed: Option<&Path>,
+    attached: Attached<'_>,
     quiet: bool,
 ) -> Result<Supervised> {
+    let Attached {
+        record,
+        remote,
+        live_feed,
+    } = attached;
     let started = Instant::now();
     // The recorder first: every subscriber exists before anything is sent.
     let recorder = match record {

@@ -57,6 +57,16 @@ fn wait_until_it_listens(pid: u32) {
     }
 }
 
+/// `etp run` on winding-2d with `extra`, recorded to a file of its own.
+fn recorded_run(id: &str, extra: &[&str]) -> (EtpRun, std::path::PathBuf) {
+    let file = std::env::temp_dir().join(format!("etp-test-{id}.mcap"));
+    let record = file.display().to_string();
+    let mut args = vec!["--scenario", "winding-2d", "--delta", "1.4986"];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--record", &record]);
+    (EtpRun::spawn(id, &args), file)
+}
+
 #[test]
 fn an_interrupt_before_any_episode_ends_the_run_with_130_and_leaves_nothing() {
     let _serial = serial();
@@ -75,20 +85,7 @@ fn an_interrupt_before_any_episode_ends_the_run_with_130_and_leaves_nothing() {
     .enumerate()
     {
         let id = unique_run_id(&format!("early{k}"));
-        let file = std::env::temp_dir().join(format!("etp-test-{id}.mcap"));
-        let run = EtpRun::spawn(
-            &id,
-            &[
-                "--scenario",
-                "winding-2d",
-                "--delta",
-                "1.4986",
-                "--episodes",
-                "100000",
-                "--record",
-                &file.display().to_string(),
-            ],
-        );
+        let (run, file) = recorded_run(&id, &["--episodes", "100000"]);
         wait_until_it_listens(run.pid());
         std::thread::sleep(Duration::from_millis(ms));
         kill(sig, &run.pid().to_string());
@@ -119,23 +116,17 @@ fn an_interrupt_before_any_episode_ends_the_run_with_130_and_leaves_nothing() {
         .expect("a free port")
         .port();
     let id = unique_run_id("earlyjoin");
-    let file = std::env::temp_dir().join(format!("etp-test-{id}.mcap"));
-    let run = EtpRun::spawn(
+    let listen = format!("tcp/127.0.0.1:{port}");
+    let (run, file) = recorded_run(
         &id,
         &[
-            "--scenario",
-            "winding-2d",
-            "--delta",
-            "1.4986",
             "--episodes",
             "100",
             "--listen",
-            &format!("tcp/127.0.0.1:{port}"),
+            &listen,
             "--insecure",
             "--remote",
             "s1",
-            "--record",
-            &file.display().to_string(),
         ],
     );
     // The session is written just before the bridge starts and the run
