@@ -116,19 +116,11 @@ pub fn scenario_text_in(base: &Path, arg: &str) -> Result<String, ScenarioArgErr
 
 /// The scenario of a `SCENARIO` argument: a built-in name or a TOML path.
 pub fn load_scenario(arg: &str) -> Result<Scenario, ScenarioArgError> {
-    let text = scenario_text(arg)?;
-    Scenario::from_toml(&text).map_err(|source| {
-        if builtin_text(arg).is_some() {
-            ScenarioArgError::Builtin {
-                name: arg.to_string(),
-                source,
-            }
-        } else {
-            ScenarioArgError::Invalid {
-                path: PathBuf::from(arg),
-                source,
-            }
-        }
+    let source = ScenarioSource::parse(arg);
+    let text = source.text()?;
+    Scenario::from_toml(&text).map_err(|e| match source {
+        ScenarioSource::Builtin(name) => ScenarioArgError::Builtin { name, source: e },
+        ScenarioSource::File(path) => ScenarioArgError::Invalid { path, source: e },
     })
 }
 
