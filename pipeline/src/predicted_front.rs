@@ -7,6 +7,7 @@ use crate::output::{output_folder, write_new};
 use crate::selection::{DEFAULT_LEVEL, RequestSettings, goal_label, standing_strategy};
 use crate::synthesis_dir::Synthesis;
 use anyhow::{Context, Result};
+use etp_shared::strategy::{CertifiedPrediction, Strategy};
 use etp_synthesis::abstraction;
 use etp_synthesis::pareto::{PredictedFront, PredictedPoint};
 use etp_synthesis::predict::front::predicted_front;
@@ -111,6 +112,39 @@ pub fn compute(
     }
     pb.finish_and_clear();
     Ok(curves)
+}
+
+/// The point of `syn`'s stored predicted front for the request P_tar ≥
+/// `min_target` (P_coll ≤ `bound`) made with the same loop settings
+/// (`replicates`, `max_rounds`), with its strategy file's certified bounds:
+/// what the request loop returns for that request, read instead of run
+/// again. `None` when `front.json` holds no such point, or its strategy file
+/// is missing, unsealed, of another scenario or disagrees with the point (the
+/// caller runs the loop then).
+pub fn stored_point(
+    syn: &Synthesis,
+    bound: Option<f64>,
+    replicates: u32,
+    max_rounds: u32,
+    min_target: f64,
+) -> Option<(PredictedPoint, CertifiedPrediction)> {
+    let curve = syn.front.predicted.iter().find(|c| {
+        c.max_collision == bound && c.replicates == replicates && c.max_rounds == max_rounds
+    })?;
+    let k = curve
+        .points
+        .iter()
+        .position(|p| p.min_target == min_target)?;
+    let point = &curve.points[k];
+    let text = std::fs::read_to_string(strategy_file(&syn.dir, bound, k)).ok()?;
+    let strategy = Strategy::from_sealed_json(&text).ok()?;
+    let predicted = strategy.predictions.predicted.as_ref()?;
+    let agrees = strategy.policy.scenario_hash == syn.mdp.scenario_hash
+        && predicted.p_target == point.predicted.p_target
+        && predicted.p_collision == point.predicted.p_collision
+        && predicted.energy_mean == point.predicted.energy;
+    let certified = strategy.predictions.certified?;
+    agrees.then(|| (point.clone(), certified))
 }
 
 /// Store `curves` in `syn`'s `front.json` (replacing the curves of the same

@@ -6,8 +6,10 @@
 //! (`predict::request::meet_request`), the strategy's mean over its own
 //! on-policy rebuilds with a Student-t ± — not the biased selection-time
 //! value of the MDP it was picked on. A request the loop cannot meet for a
-//! family is reported out of reach, with how close it came. Nothing is
-//! written.
+//! family is reported out of reach, with how close it came. A request that
+//! is a point of a directory's predicted front (`etp strategy front`, stored
+//! in its `front.json` with the same loop settings) is read from there: the
+//! same numbers, not computed twice. Nothing is written.
 
 use anyhow::{Result, bail};
 use etp_pipeline::progress;
@@ -54,6 +56,8 @@ struct Row {
     certified: etp_synthesis::certify::robust::Certified,
     rounds: usize,
     seconds: f64,
+    /// Read from the directory's predicted front, or computed here.
+    from_front: bool,
 }
 
 impl Row {
@@ -108,6 +112,10 @@ pub fn run(a: Args) -> Result<()> {
         let mut rows = Vec::new();
         for (syn, _) in &syns {
             let started = Instant::now();
+            if let Some(row) = stored_row(syn, &a, min_target, started) {
+                rows.push(row);
+                continue;
+            }
             let make = |omega: &_, value| syn.strategy_of(&syn.mdp, omega, value, "compare");
             let settings = LoopSettings {
                 replicates: a.request_loop.rebuilds.replicates,
@@ -122,6 +130,7 @@ pub fn run(a: Args) -> Result<()> {
                 certified: o.certified,
                 rounds: o.rounds.len(),
                 seconds: started.elapsed().as_secs_f64(),
+                from_front: false,
             });
         }
         table.push(rows);
@@ -187,6 +196,14 @@ pub fn run(a: Args) -> Result<()> {
                         let q = ratio_of(rows, i);
                         m.insert("ratio".into(), json!(q.map(|q| q.value)));
                         m.insert("ratio_ci95".into(), json!(q.map(|q| q.ci95)));
+                        m.insert(
+                            "source".into(),
+                            json!(if r.from_front {
+                                "front.json"
+                            } else {
+                                "request loop"
+                            }),
+                        );
                         m.insert("rounds".into(), json!(r.rounds));
                         m.insert("seconds".into(), json!(r.seconds));
                         Value::Object(m)
@@ -229,7 +246,7 @@ pub fn run(a: Args) -> Result<()> {
                 _ => "OUT OF REACH".into(),
             };
             println!(
-                "  {:<width$}  {:>11.2} ± {:<6.2}  {:>17}  {:>8.4} ± {:.4}  {:>8.4} ± {:.4}  {:>12.2}",
+                "  {:<width$}  {:>11.2} ± {:<6.2}  {:>17}  {:>8.4} ± {:.4}  {:>8.4} ± {:.4}  {:>12.2}{}",
                 labels[i],
                 r.predicted.energy,
                 r.ci95.energy,
@@ -239,8 +256,43 @@ pub fn run(a: Args) -> Result<()> {
                 r.predicted.p_collision,
                 r.ci95.p_collision,
                 r.certified.energy_high,
+                if r.from_front { "  *" } else { "" },
             );
         }
     }
+    if table.iter().flatten().any(|r| r.from_front) {
+        println!(
+            "\n  * a point of the directory's predicted front (front.json), read, not recomputed"
+        );
+    }
     Ok(())
+}
+
+/// The row of `syn` for the request P_tar ≥ `min_target` when it is a point
+/// of its stored predicted front made with the same loop settings and
+/// certified at [`LEVEL`].
+fn stored_row(syn: &Synthesis, a: &Args, min_target: f64, started: Instant) -> Option<Row> {
+    let (point, certified) = etp_pipeline::predicted_front::stored_point(
+        syn,
+        a.max_collision,
+        a.request_loop.rebuilds.replicates,
+        a.request_loop.rounds,
+        min_target,
+    )?;
+    if certified.confidence != LEVEL {
+        return None;
+    }
+    Some(Row {
+        verdict: Verdict::from_name(&point.verdict)?,
+        predicted: point.predicted,
+        ci95: point.predicted_ci95,
+        certified: etp_synthesis::certify::robust::Certified {
+            p_target_low: certified.p_target_low,
+            p_collision_high: certified.p_collision_high,
+            energy_high: certified.energy_high,
+        },
+        rounds: point.rounds,
+        seconds: started.elapsed().as_secs_f64(),
+        from_front: true,
+    })
 }

@@ -169,6 +169,37 @@ fn predicted_front_points_are_what_strategy_returns() {
         f(&p["predicted"]["energy"]),
         "{sel}\n{p}"
     );
+    // `etp compare` reads the point from front.json: the same numbers and
+    // certified bounds as the strategy the loop returns, not computed again.
+    let cmp = ok_json(&[
+        "compare",
+        s(&out),
+        "--min-target",
+        &request.to_string(),
+        "--json",
+    ]);
+    let row = &cmp["requests"][0]["rows"][0];
+    assert_eq!(row["source"], "front.json", "{cmp}");
+    assert_eq!(row["verdict"], sel["verdict"], "{cmp}\n{sel}");
+    for (k, q) in [
+        ("energy", "energy_mean"),
+        ("p_target", "p_target"),
+        ("p_collision", "p_collision"),
+    ] {
+        assert_eq!(f(&row[k]), f(&sel["predicted"][q]), "{k}: {cmp}\n{sel}");
+        assert_eq!(
+            f(&row[format!("{k}_ci95").as_str()]),
+            f(&sel["predicted_ci95"][q]),
+            "{k}: {cmp}\n{sel}"
+        );
+    }
+    for k in ["p_target_low", "p_collision_high", "energy_high"] {
+        assert_eq!(
+            f(&row["certified"][k]),
+            f(&sel["certified"][k]),
+            "{k}: {cmp}\n{sel}"
+        );
+    }
     // The answer is the cheapest round that met.
     let rounds = sel["diagnostics"]["rounds"].as_array().expect("rounds");
     let kept = sel["diagnostics"]["kept_round"]

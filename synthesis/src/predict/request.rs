@@ -588,4 +588,11 @@ impl Verdict {
             Self::RoundsSpent => "rounds-spent",
         }
     }
+
+    /// The verdict of a name in `--json` (and `front.json`).
+    pub fn from_name(name: &str) -> Option<Self> {
+        [Self::Met, Self::OutOfReach, Self::RoundsSpent]
+            .into_iter()
+            .find(|v| v.name() == name)
+    }
 }
