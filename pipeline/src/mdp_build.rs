@@ -11,6 +11,7 @@ use crate::output::write_new;
 use crate::progress;
 use anyhow::{Context, Result, bail};
 use etp_shared::scenario::Scenario;
+use etp_synthesis::abstraction::split::SplitSettings;
 use etp_synthesis::abstraction::{self, AbstractionParams};
 use etp_synthesis::mdp::{MDP_FILE, Mdp};
 use serde::Serialize;
@@ -30,7 +31,7 @@ pub struct MdpRequest {
     /// Lump indistinguishable states at this level (docs/MODEL.md §7.3).
     pub merge: Option<f64>,
     /// Adaptive splitting of the regions the aggregation test flags.
-    pub split: split::SplitArgs,
+    pub split: SplitSettings,
     /// Draw the pools on this strategy's policy (docs/MODEL.md §7.3).
     pub pool_policy: Option<PathBuf>,
     /// With `pool_policy`: simulate every threshold at every state.
@@ -53,7 +54,7 @@ impl MdpRequest {
             out: None,
             force: false,
             merge: None,
-            split: split::SplitArgs::default(),
+            split: SplitSettings::default(),
             pool_policy: None,
             all_actions: false,
             quiet: false,
@@ -137,7 +138,7 @@ pub fn build_mdp(r: MdpRequest) -> Result<BuiltMdp> {
     let pool_policy = match &pool_policy {
         None => None,
         Some(path) => {
-            if split.split_budget > 0 {
+            if split.budget > 0 {
                 bail!(
                     "--pool-policy and --split-budget: choose one (the policy's strategy carries its own splits)"
                 );

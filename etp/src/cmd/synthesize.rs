@@ -7,7 +7,7 @@
 
 use anyhow::{Result, bail};
 use etp_pipeline::aggregation;
-use etp_pipeline::mdp_build::split::{self, SplitArgs};
+use etp_pipeline::mdp_build::split;
 use etp_pipeline::mdp_build::{MdpReport, MdpRequest};
 use etp_pipeline::synthesize::{
     DEFAULT_AGGREGATION_ALPHA, DEFAULT_AGGREGATION_EPISODES, SynthesisRequest, scenario_under,
@@ -16,6 +16,7 @@ use etp_pipeline::synthesize::{
 use etp_runtime::scenario_options::{RadioArgs, TriggerArgs};
 use etp_shared::discretization::BinCounts;
 use etp_shared::scenario::Scenario;
+use etp_synthesis::abstraction::split::SplitSettings;
 use etp_synthesis::abstraction::{
     self, AbstractionParams, DEFAULT_LOOKAHEAD, DEFAULT_POOL_PER_REGION, DEFAULT_REST_BINS,
     DEFAULT_SAMPLES, Descriptor, default_kf_params,
@@ -214,6 +215,37 @@ pub fn params(a: &Args, s: &Scenario) -> Result<AbstractionParams> {
     })
 }
 
+/// The splitting options (docs/MODEL.md §7.3): the command line of
+/// [`SplitSettings`].
+#[derive(Debug, Clone, clap::Args)]
+pub struct SplitArgs {
+    /// Adaptive splitting: split at most N regions that the aggregation test
+    /// flags (at the flagged covariance feature's median) and re-estimate the
+    /// MDP, round by round (0: off; each split adds at most one state).
+    #[arg(long, value_name = "N", default_value_t = SplitSettings::default().budget)]
+    pub split_budget: u32,
+    /// Adaptive splitting: at most R rounds (each one re-runs the Monte Carlo).
+    #[arg(long, value_name = "R", default_value_t = SplitSettings::default().rounds)]
+    pub split_rounds: u32,
+    /// Adaptive splitting: random-δ episodes per round for the test.
+    #[arg(long, value_name = "N", default_value_t = SplitSettings::default().episodes)]
+    pub split_episodes: u64,
+    /// Adaptive splitting: false discovery rate of a round's tests.
+    #[arg(long, value_name = "ALPHA", default_value_t = SplitSettings::default().alpha)]
+    pub split_alpha: f64,
+}
+
+impl SplitArgs {
+    fn settings(&self) -> SplitSettings {
+        SplitSettings {
+            budget: self.split_budget,
+            rounds: self.split_rounds,
+            episodes: self.split_episodes,
+            alpha: self.split_alpha,
+        }
+    }
+}
+
 impl Args {
     /// The MDP step's request: the scenario of the command line (its text
     /// under `--trigger`, then the radio options) and its parameters.
@@ -225,7 +257,7 @@ impl Args {
             out: self.out.clone(),
             force: self.force,
             merge: self.merge,
-            split: self.split.clone(),
+            split: self.split.settings(),
             pool_policy: self.pool_policy.clone(),
             all_actions: self.all_actions,
             quiet: self.json,

@@ -1,7 +1,7 @@
-//! Adaptive splitting in `etp synthesize` (`--split-budget`, `--split-rounds`,
-//! `--split-episodes`, `--split-alpha`; docs/MODEL.md §7.3 and
-//! `etp_synthesis::abstraction::split`): regions the aggregation test flags
-//! are split and the MDP re-estimated, round by round.
+//! Adaptive splitting in `etp synthesize` (its `SplitSettings`: `--split-budget`,
+//! `--split-rounds`, `--split-episodes`, `--split-alpha`; docs/MODEL.md §7.3
+//! and `etp_synthesis::abstraction::split`): regions the aggregation test
+//! flags are split and the MDP re-estimated, round by round.
 
 use crate::progress;
 use anyhow::{Context, Result, bail};
@@ -12,36 +12,6 @@ use etp_synthesis::mdp::{Mdp, Method};
 use serde::Serialize;
 use std::fmt::Write;
 use std::time::Instant;
-
-/// The splitting options of `etp synthesize`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct SplitArgs {
-    /// Adaptive splitting: split at most N regions that the aggregation test
-    /// flags (at the flagged covariance feature's median) and re-estimate the
-    /// MDP, round by round (0: off; each split adds at most one state).
-    #[arg(long, value_name = "N", default_value_t = 0)]
-    pub split_budget: u32,
-    /// Adaptive splitting: at most R rounds (each one re-runs the Monte Carlo).
-    #[arg(long, value_name = "R", default_value_t = 2)]
-    pub split_rounds: u32,
-    /// Adaptive splitting: random-δ episodes per round for the test.
-    #[arg(long, value_name = "N", default_value_t = 20_000)]
-    pub split_episodes: u64,
-    /// Adaptive splitting: false discovery rate of a round's tests.
-    #[arg(long, value_name = "ALPHA", default_value_t = 0.05)]
-    pub split_alpha: f64,
-}
-
-impl Default for SplitArgs {
-    fn default() -> Self {
-        Self {
-            split_budget: 0,
-            split_rounds: 2,
-            split_episodes: 20_000,
-            split_alpha: 0.05,
-        }
-    }
-}
 
 /// One round in the report: what the library found, and its wall time.
 #[derive(Debug, Clone, Serialize)]
@@ -70,17 +40,17 @@ pub struct SplitSummary {
 }
 
 /// Refuse impossible settings before any work.
-pub fn check(a: &SplitArgs, method: Method) -> Result<()> {
-    if a.split_budget == 0 {
+pub fn check(a: &SplitSettings, method: Method) -> Result<()> {
+    if a.budget == 0 {
         return Ok(());
     }
     if method != Method::Discretized {
         bail!("--split-budget applies to --method discretized only (Method 1 has no regions)");
     }
-    if !(a.split_alpha > 0.0 && a.split_alpha < 1.0) {
-        bail!("--split-alpha must lie in (0, 1) (got {})", a.split_alpha);
+    if !(a.alpha > 0.0 && a.alpha < 1.0) {
+        bail!("--split-alpha must lie in (0, 1) (got {})", a.alpha);
     }
-    if a.split_episodes == 0 || a.split_rounds == 0 {
+    if a.episodes == 0 || a.rounds == 0 {
         bail!("--split-episodes and --split-rounds must be at least 1 with --split-budget");
     }
     Ok(())
@@ -92,20 +62,14 @@ pub fn apply(
     params: &AbstractionParams,
     first: Mdp,
     first_build_seconds: f64,
-    a: &SplitArgs,
+    a: &SplitSettings,
     quiet: bool,
 ) -> Result<(Mdp, Option<SplitSummary>)> {
-    if a.split_budget == 0 || first.method != Method::Discretized {
+    if a.budget == 0 || first.method != Method::Discretized {
         return Ok((first, None));
     }
-    let settings = SplitSettings {
-        budget: a.split_budget,
-        rounds: a.split_rounds,
-        episodes: a.split_episodes,
-        alpha: a.split_alpha,
-    };
-    let per_round = a.split_episodes + abstraction::progress_total(scenario, params);
-    let pb = progress::bar(per_round * u64::from(a.split_rounds), "splitting", quiet);
+    let per_round = a.episodes + abstraction::progress_total(scenario, params);
+    let pb = progress::bar(per_round * u64::from(a.rounds), "splitting", quiet);
     let (states_before, per_dp_before) = (first.states.len(), first.states_per_decision_point());
     let started = Instant::now();
     let mut last = Instant::now();
@@ -114,7 +78,7 @@ pub fn apply(
         scenario,
         params,
         first,
-        &settings,
+        a,
         &crate::exec::work(|k| pb.inc(k)),
         &mut |r| {
             rounds.push(TimedRound {
@@ -129,9 +93,9 @@ pub fn apply(
     mdp.check()
         .context("the split MDP failed its own consistency check (a bug)")?;
     let summary = SplitSummary {
-        budget: a.split_budget,
-        alpha: a.split_alpha,
-        episodes_per_round: a.split_episodes,
+        budget: a.budget,
+        alpha: a.alpha,
+        episodes_per_round: a.episodes,
         states_before,
         states_after: mdp.states.len(),
         states_per_decision_point_before: per_dp_before,

@@ -56,6 +56,19 @@ pub struct SplitSettings {
     pub alpha: f64,
 }
 
+impl Default for SplitSettings {
+    /// Off (budget 0); two rounds of 20 000 episodes at a 5 % false discovery
+    /// rate once a budget is given.
+    fn default() -> Self {
+        Self {
+            budget: 0,
+            rounds: 2,
+            episodes: 20_000,
+            alpha: 0.05,
+        }
+    }
+}
+
 /// What one round found and did.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RoundReport {
