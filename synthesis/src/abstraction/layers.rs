@@ -15,10 +15,9 @@
 //! ```
 
 use super::bounds::{arrival_range, bins_from, magnitude_range, workspace_ranges};
+use super::layer_steps::{LayerRun, Regions, Totals, next_pool, simulate_layer, tally_layer};
 use super::on_policy::{PoolPolicy, next_reach, offered_choices, on_policy_weights, state_key};
-use super::pool::{bottom_k, weighted_pool};
-use super::segments::{CHUNK, ExtraTask, Particle, Task, run_task, tasks_of};
-use super::tally::{ChoiceTally, ChunkTally};
+use super::segments::Particle;
 use super::{AbstractionError, AbstractionParams, Descriptor, RangeRule, resolve_descriptor};
 use crate::mdp::{KfConvergenceParams, Mdp, Method, State};
 use etp_shared::discretization::{
@@ -29,18 +28,17 @@ use etp_shared::etkf::{Matrix, Threshold};
 use etp_shared::linalg::to_dynamic;
 use etp_shared::scenario::Scenario;
 use rayon::prelude::*;
-use std::collections::BTreeMap;
 
 /// A state of the current layer: its region and its pool particles (drawn
 /// in proportion to `cumulative` where an on-policy pool kept weights).
-struct LayerState<const N: usize> {
-    region: Region,
-    particles: Vec<Particle<N>>,
-    cumulative: Option<Vec<f64>>,
+pub(super) struct LayerState<const N: usize> {
+    pub(super) region: Region,
+    pub(super) particles: Vec<Particle<N>>,
+    pub(super) cumulative: Option<Vec<f64>>,
 }
 
 /// How beliefs are mapped to states at a decision point.
-enum Classifier {
+pub(super) enum Classifier {
     /// Method 2: covariance regions (at decision point `dp`, refined by the
     /// splits of that decision point, if any).
     Bins {
@@ -53,7 +51,7 @@ enum Classifier {
 }
 
 impl Classifier {
-    fn classify<const N: usize>(&self, cov: &Matrix<N, N>) -> Region {
+    pub(super) fn classify<const N: usize>(&self, cov: &Matrix<N, N>) -> Region {
         match self {
             Self::Bins { bins, dp, splits } => {
                 let cov = to_dynamic(cov);
@@ -116,12 +114,131 @@ pub(super) fn build<const N: usize>(
     progress: &dyn crate::exec::Work,
 ) -> Result<Mdp, AbstractionError> {
     let deltas = &scenario.deltas;
-    let samples = params.samples;
-    let holdout = params.holdout_samples;
-    let cap = params.pool_per_region as usize;
-    // P_KF per sensor, once (the Riccati iteration is not free).
-    // Only the sensors serving a leg are needed; computed in parallel.
-    let p_kf: Vec<Matrix<N, N>> = (0..cs.filters.len())
+    let p_kf = steady_state_posteriors(cs);
+    let (workspace, lambda) = workspace_and_range(scenario, cs, params, &p_kf);
+    let binning = Binning {
+        params,
+        given,
+        workspace: workspace.as_ref(),
+    };
+    let legs = cs.legs.len();
+    let mut classifier = binning.classifier(0, &mut std::iter::once(cs.initial.cov), lambda);
+    let mut dp_bins: Vec<DecisionPointBins> = Vec::with_capacity(legs);
+    let mut layer = vec![LayerState {
+        region: classifier.classify(&cs.initial.cov),
+        particles: vec![Particle {
+            belief: cs.initial,
+            x: None,
+        }],
+        cumulative: None,
+    }];
+    let mut states: Vec<State> = Vec::new();
+    let mut totals = Totals::default();
+    let policy = given.and_then(|g| g.policy);
+    // With a pool policy: the probability that it brings a belief to each
+    // state of the current layer (under this build's own transitions).
+    let mut reach: Vec<f64> = vec![1.0];
+
+    for dp in 0..legs {
+        if let Classifier::Bins { bins, .. } = &classifier {
+            dp_bins.push(bins.clone());
+        }
+        if layer.is_empty() {
+            // Every segment collided before this decision point.
+            progress
+                .progress(deltas.len() as u64 * u64::from(params.samples + params.holdout_samples));
+            classifier = binning.classifier::<N>(dp + 1, &mut std::iter::empty(), lambda);
+            continue;
+        }
+        let last = dp + 1 == legs;
+        // ω of the pool policy at each state, and the (state, action)
+        // pairs simulated: all, or with `policy_only` the policy's own.
+        let omegas = policy.map(|omega| layer_omegas(omega, dp, &layer));
+        let policy_only = given.is_some_and(|g| g.policy_only);
+        let offered = offered_choices(layer.len(), deltas.len(), omegas.as_deref(), policy_only);
+        let run = LayerRun {
+            cs,
+            seed: params.seed,
+            dp,
+            last,
+            layer: &layer,
+            modes: leg_modes(deltas, kf, &p_kf, cs.legs[dp].sensor),
+            keys: layer
+                .iter()
+                .enumerate()
+                .map(|(i, ls)| state_key(i, &ls.region, policy.is_some()))
+                .collect(),
+        };
+        let sim = simulate_layer(&run, params, &offered, extra, states.len(), progress)?;
+
+        // The next layer's bins and the region of every arrival.
+        let next_classifier = if last {
+            None
+        } else {
+            let range = match (&workspace, params.range) {
+                // Given bins carry their own range.
+                _ if given.is_some() => lambda,
+                (Some(w), RangeRule::Arrivals) => {
+                    arrival_range(&sim.main, w, lambda.0, progress)?.unwrap_or(lambda)
+                }
+                _ => lambda,
+            };
+            let mut covs = sim
+                .main
+                .iter()
+                .flat_map(|r| r.arrivals.iter().map(|a| a.belief.cov));
+            Some(binning.classifier(dp + 1, &mut covs, range))
+        };
+        let next_offset = states.len() + layer.len();
+        let regions = Regions::of(next_classifier.as_ref(), &sim, next_offset, progress)?;
+        let cost = cs.filters[cs.legs[dp].sensor].cost();
+        tally_layer(
+            &mut states,
+            &mut totals,
+            dp,
+            &layer,
+            &offered,
+            &sim,
+            &regions,
+            params,
+            // A leg lasts at most k_max steps, one transmission each.
+            (cost, f64::from(cs.k_max) * cost),
+        );
+
+        // The next pool: a bottom-k reservoir per region; with a pool policy,
+        // weighted by the policy's mass of the arrival's (state, action).
+        let weights = omegas.as_ref().map(|omegas| {
+            let w = on_policy_weights(&offered, omegas, &reach);
+            reach = next_reach(
+                &states[states.len() - layer.len()..],
+                &w,
+                next_offset,
+                regions.index.len(),
+            );
+            w
+        });
+        let carry = given.is_some_and(|g| g.carry_state);
+        layer = next_pool(
+            &sim.main,
+            regions,
+            weights.as_deref(),
+            params,
+            carry,
+            next_offset,
+        );
+        if let Some(c) = next_classifier {
+            classifier = c;
+        }
+    }
+    Ok(assemble(
+        scenario, params, kf, given, dp_bins, states, totals,
+    ))
+}
+
+/// P_KF per sensor, once (the Riccati iteration is not free). Only the
+/// sensors serving a leg are needed; computed in parallel.
+fn steady_state_posteriors<const N: usize>(cs: &CompiledScenario<N>) -> Vec<Matrix<N, N>> {
+    (0..cs.filters.len())
         .into_par_iter()
         .map(|s| {
             if cs.legs.iter().any(|l| l.sensor == s) {
@@ -130,7 +247,18 @@ pub(super) fn build<const N: usize>(
                 Matrix::<N, N>::zeros()
             }
         })
-        .collect();
+        .collect()
+}
+
+/// The workspace marginal of the descriptor (None: per-axis bins) and the
+/// eigenvalue range (λ_lo, λ_hi) the bins cover.
+fn workspace_and_range<const N: usize>(
+    scenario: &Scenario,
+    cs: &CompiledScenario<N>,
+    params: &AbstractionParams,
+    p_kf: &[Matrix<N, N>],
+) -> (Option<WorkspaceMarginal>, (f64, f64)) {
+    let deltas = &scenario.deltas;
     let descriptor = resolve_descriptor(scenario, params.descriptor);
     let workspace = match (descriptor, &scenario.workspace) {
         (Descriptor::WorkspaceMarginal, c) => {
@@ -146,7 +274,7 @@ pub(super) fn build<const N: usize>(
             let (range, rest) = workspace_ranges(
                 cs,
                 deltas,
-                &p_kf,
+                p_kf,
                 &|m| probe.marginal(&to_dynamic(m)),
                 &|m| probe.rest(&to_dynamic(m)),
             );
@@ -159,332 +287,97 @@ pub(super) fn build<const N: usize>(
     };
     let range = match &workspace {
         Some((r, _)) => *r,
-        None => magnitude_range(cs, deltas, &p_kf),
+        None => magnitude_range(cs, deltas, p_kf),
     };
-    let workspace = workspace.map(|(_, w)| w);
-    let lambda = (range.lambda_lo, range.lambda_hi);
-    let legs = cs.legs.len();
+    (
+        workspace.map(|(_, w)| w),
+        (range.lambda_lo, range.lambda_hi),
+    )
+}
 
-    // The classifier of decision point `dp`: given bins (with their splits),
-    // else bins from the covariances that arrived there.
-    let classifier_for = |dp: usize,
-                          covs: &mut dyn Iterator<Item = Matrix<N, N>>,
-                          lambda: (f64, f64)| match params.method {
-        Method::Discretized => match given.and_then(|g| Some((g, g.bins.decision_points.get(dp)?)))
-        {
-            Some((g, b)) => Classifier::Bins {
-                bins: b.clone(),
-                dp,
-                splits: g
-                    .splits
-                    .iter()
-                    .filter(|s| s.decision_point as usize == dp)
-                    .cloned()
-                    .collect(),
-            },
-            None => Classifier::Bins {
-                bins: bins_from(params, lambda, workspace.as_ref(), covs),
-                dp,
-                splits: Vec::new(),
-            },
-        },
-        Method::KfConvergence => Classifier::Single,
-    };
-    let mut classifier = classifier_for(0, &mut std::iter::once(cs.initial.cov), lambda);
-    let mut dp_bins: Vec<DecisionPointBins> = Vec::with_capacity(legs);
-    let mut layer = vec![LayerState {
-        region: classifier.classify(&cs.initial.cov),
-        particles: vec![Particle {
-            belief: cs.initial,
-            x: None,
-        }],
-        cumulative: None,
-    }];
-    let mut states: Vec<State> = Vec::new();
-    let (mut total_segments, mut total_steps) = (0u64, 0u64);
-    let policy = given.and_then(|g| g.policy);
-    // With a pool policy: the probability that it brings a belief to each
-    // state of the current layer (under this build's own transitions).
-    let mut reach: Vec<f64> = vec![1.0];
+/// How each decision point's classifier is made.
+struct Binning<'a> {
+    params: &'a AbstractionParams,
+    given: Option<&'a Given<'a>>,
+    workspace: Option<&'a WorkspaceMarginal>,
+}
 
-    for dp in 0..legs {
-        if let Classifier::Bins { bins, .. } = &classifier {
-            dp_bins.push(bins.clone());
-        }
-        if layer.is_empty() {
-            // Every segment collided before this decision point.
-            progress.progress(deltas.len() as u64 * u64::from(samples + holdout));
-            classifier = classifier_for(dp + 1, &mut std::iter::empty(), lambda);
-            continue;
-        }
-        let last = dp + 1 == legs;
-        let cost = cs.filters[cs.legs[dp].sensor].cost();
-        // A leg lasts at most k_max steps, one transmission each.
-        let cost_range = f64::from(cs.k_max) * cost;
-        let modes: Vec<LegMode<N>> = deltas
-            .iter()
-            .map(|&d| {
-                let threshold = Threshold::new(d);
-                match kf {
-                    None => LegMode::EventTriggered(threshold),
-                    Some(k) => LegMode::KfConvergence {
-                        threshold,
-                        eps_kf: k.eps_kf,
-                        eps_p: k.eps_p,
-                        p_kf: p_kf[cs.legs[dp].sensor],
-                    },
-                }
-            })
-            .collect();
-        // ω of the pool policy at each state, and the (state, action)
-        // pairs simulated: all, or with `policy_only` the policy's own.
-        let omegas = policy.map(|omega| layer_omegas(omega, dp, &layer));
-        let policy_only = given.is_some_and(|g| g.policy_only);
-        let offered = offered_choices(layer.len(), deltas.len(), omegas.as_deref(), policy_only);
-        let keys: Vec<u64> = layer
-            .iter()
-            .enumerate()
-            .map(|(i, ls)| state_key(i, &ls.region, policy.is_some()))
-            .collect();
-        // Main and held-out segments in one parallel pass (the held-out ones
-        // start from the same pool particles, with their own stream).
-        let mut tasks = tasks_of(&offered, samples, false);
-        let n_main = tasks.len();
-        tasks.extend(tasks_of(&offered, holdout, true));
-        // One chunk of segments of (state, action) from the state's pool.
-        let run = |t: Task| {
-            run_task(
-                cs,
-                dp,
-                last,
-                &layer[t.state].particles,
-                layer[t.state].cumulative.as_deref(),
-                &modes[t.action],
-                params.seed,
-                keys[t.state],
-                t,
-            )
-        };
-        // A decision point is worth |Δ| · M units (`progress_total`), spread
-        // over the offered choices: segment position g of C · M maps to
-        // unit g · |Δ| / C.
-        let (units, n_choices) = (deltas.len() as u64, offered.len().max(1) as u64);
-        // Through the executor: on several ranks each simulates a contiguous
-        // slice of the tasks and every rank receives all results (exec.rs).
-        let task_units = |i: usize| {
-            let t = tasks[i];
-            let m = u64::from(if t.holdout { holdout } else { samples });
-            let g = t.choice as u64 * m;
-            let unit = |pos: u64| pos * units / n_choices;
-            unit(g + u64::from(t.hi)) - unit(g + u64::from(t.lo))
-        };
-        let mut results: Vec<ChunkTally<N>> =
-            crate::exec::map(progress, tasks.len(), |i| run(tasks[i]), task_units)?;
-        let held: Vec<ChunkTally<N>> = results.split_off(n_main);
-        // Extra segments of sample allocation for this layer's states.
-        let extra_tasks: Vec<ExtraTask> = (0..layer.len())
-            .flat_map(|state| {
-                let global = states.len() + state;
-                (0..deltas.len()).flat_map(move |action| {
-                    let e = extra
-                        .get(global)
-                        .and_then(|v| v.get(action))
-                        .copied()
-                        .unwrap_or(0);
-                    (0..e.div_ceil(CHUNK)).map(move |c| ExtraTask {
-                        state,
-                        action,
-                        lo: samples + c * CHUNK,
-                        hi: samples + ((c + 1) * CHUNK).min(e),
-                    })
-                })
-            })
-            .collect();
-        let extra_task = |i: usize| {
-            let t = extra_tasks[i];
-            run(Task {
-                state: t.state,
-                action: t.action,
-                choice: 0,
-                lo: t.lo,
-                hi: t.hi,
-                holdout: false,
-            })
-        };
-        let extra_results: Vec<ChunkTally<N>> =
-            crate::exec::map(progress, extra_tasks.len(), extra_task, |_| 0)?;
-
-        // The next layer's bins and the region of every arrival.
-        let next_classifier = if last {
-            None
-        } else {
-            let range = match (&workspace, params.range) {
-                // Given bins carry their own range.
-                _ if given.is_some() => lambda,
-                (Some(w), RangeRule::Arrivals) => {
-                    arrival_range(&results, w, lambda.0, progress)?.unwrap_or(lambda)
-                }
-                _ => lambda,
-            };
-            let mut covs = results
-                .iter()
-                .flat_map(|r| r.arrivals.iter().map(|a| a.belief.cov));
-            Some(classifier_for(dp + 1, &mut covs, range))
-        };
-        // Each chunk's arrivals classified into the next decision point's
-        // regions (none after the last leg); through the executor, so that
-        // on several ranks each classifies a slice (an eigen-decomposition
-        // per arrival: several per cent of a synthesis, serial if every rank
-        // did them all).
-        let regions_of = |chunks: &[ChunkTally<N>]| -> Result<Vec<Vec<Region>>, AbstractionError> {
-            Ok(match &next_classifier {
-                Some(c) => crate::exec::map(
-                    progress,
-                    chunks.len(),
-                    |i| {
-                        chunks[i]
-                            .arrivals
+impl Binning<'_> {
+    /// The classifier of decision point `dp`: given bins (with their
+    /// splits), else bins from the covariances that arrived there.
+    fn classifier<const N: usize>(
+        &self,
+        dp: usize,
+        covs: &mut dyn Iterator<Item = Matrix<N, N>>,
+        lambda: (f64, f64),
+    ) -> Classifier {
+        match self.params.method {
+            Method::Discretized => {
+                match self
+                    .given
+                    .and_then(|g| Some((g, g.bins.decision_points.get(dp)?)))
+                {
+                    Some((g, b)) => Classifier::Bins {
+                        bins: b.clone(),
+                        dp,
+                        splits: g
+                            .splits
                             .iter()
-                            .map(|a| c.classify(&a.belief.cov))
-                            .collect()
+                            .filter(|s| s.decision_point as usize == dp)
+                            .cloned()
+                            .collect(),
                     },
-                    |_| 0,
-                )?,
-                None => Vec::new(),
-            })
-        };
-        let arrival_regions = regions_of(&results)?;
-        let mut region_index: BTreeMap<&Region, u32> = BTreeMap::new();
-        for r in arrival_regions.iter().flatten() {
-            region_index.insert(r, 0);
-        }
-        let next_offset = states.len() + layer.len();
-        for (k, v) in region_index.values_mut().enumerate() {
-            *v = u32::try_from(next_offset + k).map_err(|_| AbstractionError::TooManyStates)?;
-        }
-
-        // The held-out arrivals' regions (same bins; a region the main sample
-        // did not reach has no state and is counted as unmatched).
-        let held_regions = regions_of(&held)?;
-
-        let extra_regions = regions_of(&extra_results)?;
-
-        // Transitions and costs per (state, action), chunks merged in order.
-        // The state index of arrival `j` of a segment whose arrivals fell in
-        // `regions` (None: a region without a state).
-        let region_of = |regions: Option<&Vec<Region>>, j: usize| {
-            regions
-                .and_then(|rs| rs.get(j))
-                .and_then(|reg| region_index.get(reg))
-                .copied()
-        };
-        let per_choice = samples.div_ceil(CHUNK) as usize;
-        let per_holdout = holdout.div_ceil(CHUNK) as usize;
-        // `offered` is in state order: each state takes the next run of it.
-        let mut next_choice = 0;
-        for (s, ls) in layer.iter().enumerate() {
-            let mut choices = Vec::with_capacity(deltas.len());
-            while let Some(&(_, a)) = offered.get(next_choice).filter(|(st, _)| *st == s) {
-                let c = next_choice;
-                next_choice += 1;
-                let mut tally = ChoiceTally::default();
-                let first = c * per_choice;
-                for (k, r) in results[first..first + per_choice].iter().enumerate() {
-                    let regions = arrival_regions.get(first + k);
-                    // Every main-sample arrival's region has a state.
-                    tally.add(r, |j| Some(region_of(regions, j).unwrap_or(u32::MAX)));
-                }
-                for (k, (t, r)) in extra_tasks.iter().zip(&extra_results).enumerate() {
-                    if t.state == s && t.action == a {
-                        let regions = extra_regions.get(k);
-                        tally.add(r, |j| region_of(regions, j));
-                    }
-                }
-                total_segments += u64::from(tally.sums.samples);
-                total_steps += tally.sums.steps;
-                // `a` < |Δ| ≤ u16::MAX, checked by the caller.
-                let mut choice = tally.into_choice(a as u16, cost, cost_range);
-                if holdout > 0 {
-                    let mut h = ChoiceTally::default();
-                    let first = c * per_holdout;
-                    for (k, r) in held[first..first + per_holdout].iter().enumerate() {
-                        let regions = held_regions.get(first + k);
-                        h.add(r, |j| region_of(regions, j));
-                    }
-                    total_segments += u64::from(h.sums.samples);
-                    total_steps += h.sums.steps;
-                    choice.holdout = Some(h.into_holdout(cost));
-                }
-                choices.push(choice);
-            }
-            states.push(State {
-                decision_point: dp as u32,
-                region: ls.region.clone(),
-                merged: Vec::new(),
-                choices,
-            });
-        }
-
-        // The next pool: a bottom-k reservoir per region; with a pool policy,
-        // weighted by the policy's mass of the arrival's (state, action).
-        let weights = omegas.as_ref().map(|omegas| {
-            let w = on_policy_weights(&offered, omegas, &reach);
-            reach = next_reach(
-                &states[states.len() - layer.len()..],
-                &w,
-                next_offset,
-                region_index.len(),
-            );
-            w
-        });
-        let carry = given.is_some_and(|g| g.carry_state);
-        // (reservoir key, the policy's mass of its source, particle).
-        type Bucket<const N: usize> = Vec<(u64, f64, Particle<N>)>;
-        let mut buckets: Vec<Bucket<N>> = vec![Vec::new(); region_index.len()];
-        for (i, (r, regions)) in results.iter().zip(&arrival_regions).enumerate() {
-            // Chunks are in (offered choice, chunk) order.
-            let w = weights.as_ref().map_or(1.0, |w| w[i / per_choice]);
-            for (a, reg) in r.arrivals.iter().zip(regions) {
-                if let Some(&j) = region_index.get(reg) {
-                    let p = Particle {
-                        belief: a.belief,
-                        x: carry.then_some(a.x),
-                    };
-                    buckets[j as usize - next_offset].push((a.key, w, p));
+                    None => Classifier::Bins {
+                        bins: bins_from(self.params, lambda, self.workspace, covs),
+                        dp,
+                        splits: Vec::new(),
+                    },
                 }
             }
-        }
-        let regions: Vec<Region> = region_index.keys().map(|r| (*r).clone()).collect();
-        drop(region_index);
-        let on_policy = weights.is_some();
-        layer = regions
-            .into_iter()
-            .zip(buckets)
-            .map(|(region, items)| {
-                let (particles, cumulative) = if on_policy {
-                    let pool = weighted_pool(items, cap);
-                    (pool.particles, pool.cumulative)
-                } else {
-                    let keyed = items.into_iter().map(|(k, _, p)| (k, p)).collect();
-                    (bottom_k(keyed, cap), None)
-                };
-                LayerState {
-                    region,
-                    particles,
-                    cumulative,
-                }
-            })
-            .collect();
-        if let Some(c) = next_classifier {
-            classifier = c;
+            Method::KfConvergence => Classifier::Single,
         }
     }
+}
 
-    Ok(Mdp {
+/// The leg mode of each threshold of Δ on the leg served by `sensor`.
+fn leg_modes<const N: usize>(
+    deltas: &[f64],
+    kf: Option<KfConvergenceParams>,
+    p_kf: &[Matrix<N, N>],
+    sensor: usize,
+) -> Vec<LegMode<N>> {
+    deltas
+        .iter()
+        .map(|&d| {
+            let threshold = Threshold::new(d);
+            match kf {
+                None => LegMode::EventTriggered(threshold),
+                Some(k) => LegMode::KfConvergence {
+                    threshold,
+                    eps_kf: k.eps_kf,
+                    eps_p: k.eps_p,
+                    p_kf: p_kf[sensor],
+                },
+            }
+        })
+        .collect()
+}
+
+/// The MDP of the built layers.
+fn assemble(
+    scenario: &Scenario,
+    params: &AbstractionParams,
+    kf: Option<KfConvergenceParams>,
+    given: Option<&Given<'_>>,
+    dp_bins: Vec<DecisionPointBins>,
+    states: Vec<State>,
+    totals: Totals,
+) -> Mdp {
+    Mdp {
         scenario_name: scenario.name.clone(),
         scenario_hash: scenario.content_hash.clone(),
         method: params.method,
-        deltas: deltas.clone(),
+        deltas: scenario.deltas.clone(),
         discretization: match params.method {
             Method::Discretized => Some(Discretization {
                 decision_points: dp_bins,
@@ -494,8 +387,8 @@ pub(super) fn build<const N: usize>(
         kf_convergence: kf,
         states,
         initial: 0,
-        samples_per_choice: samples,
-        holdout_samples: holdout,
+        samples_per_choice: params.samples,
+        holdout_samples: params.holdout_samples,
         looks: 1,
         build: crate::mdp::BuildSettings {
             magnitude_bins: params.bins.magnitude,
@@ -515,10 +408,10 @@ pub(super) fn build<const N: usize>(
             merge_alpha: 0.0,
         },
         seed: params.seed,
-        total_segments,
-        total_steps,
+        total_segments: totals.segments,
+        total_steps: totals.steps,
         splits: given.map(|g| g.splits.to_vec()).unwrap_or_default(),
-    })
+    }
 }
 
 #[cfg(test)]

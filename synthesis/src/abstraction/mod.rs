@@ -24,6 +24,7 @@
 
 pub mod aggregation;
 mod bounds;
+mod layer_steps;
 mod layers;
 mod merge;
 mod on_policy;
