@@ -27,6 +27,9 @@ mod foxglove;
 #[path = "runtime/layering.rs"]
 mod layering;
 
+#[path = "runtime/code_shape.rs"]
+mod code_shape;
+
 #[path = "runtime/faults.rs"]
 mod faults;
 

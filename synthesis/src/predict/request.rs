@@ -31,18 +31,19 @@
 //! the other rebuilds are made only for a strategy that may be kept.
 
 use super::PredictError;
-use super::rebuild::{OnPolicy, Replica, predict, rebuild_one};
+use super::rebuild::OnPolicy;
 use crate::abstraction::AbstractionParams;
 use crate::certify::intervals::interval_mdp;
 use crate::certify::robust::Certified;
 use crate::mdp::{CostModel, Mdp};
-use crate::pareto::policy::{Objectives, RandomisedPolicy, evaluate};
-use asking::{Candidate, Move, edge, most_transmitting, moved, select, slack};
+use crate::pareto::policy::{Objectives, RandomisedPolicy};
+use asking::most_transmitting;
 use etp_shared::scenario::Scenario;
-use etp_shared::stats::Z95;
 use etp_shared::strategy::Strategy;
+use rounds::{Judged, NextAsk, RequestLoop, improving, keep_better, next_ask};
 
 mod asking;
+mod rounds;
 
 /// Rounds of the loop by default.
 pub const DEFAULT_ROUNDS: u32 = 8;
@@ -223,34 +224,6 @@ pub struct Outcome {
     pub verdict: Verdict,
 }
 
-/// A round and what the loop keeps of it while it may be the answer.
-struct Judged {
-    index: usize,
-    slack: f64,
-    candidate: Candidate,
-    strategy: Strategy,
-    replicas: Vec<Replica>,
-}
-
-/// Which way the MDP's selection-time energy goes when the answer improves:
-/// down for least energy, up for the highest P_tar within a budget.
-fn improving(goal: Goal) -> f64 {
-    match goal {
-        Goal::MinTarget { .. } => -1.0,
-        Goal::MaxEnergy { .. } => 1.0,
-    }
-}
-
-/// Whether the round `new` (meeting the request) is a better answer than
-/// the kept round `old`: cheaper, or a higher P_tar within the budget, by
-/// their predictions.
-fn better(goal: Goal, new: &Objectives, old: &Objectives) -> bool {
-    match goal {
-        Goal::MinTarget { .. } => new.energy < old.energy,
-        Goal::MaxEnergy { .. } => new.p_target > old.p_target,
-    }
-}
-
 /// Run the loop on the selection MDP `mdp` (its settings and seed are the
 /// rebuilds'). `make` packages a policy on `mdp` with its exact value as a
 /// strategy file (scenario text and channel included); `progress` counts
@@ -268,87 +241,21 @@ pub fn meet_request(
     plan: &dyn Fn(u32),
     progress: &dyn crate::exec::Work,
 ) -> Result<Outcome, PredictError> {
-    let level = settings.certified.unwrap_or(report_level);
-    // A strategy's prediction on `settings.replicates` rebuilds, those in
-    // `done` (drawn already) kept.
-    let rebuilt = |strategy: &Strategy, done: Vec<Replica>| {
-        predict(
-            scenario,
-            params,
-            &strategy.policy,
-            settings.replicates,
-            cost,
-            done,
-            progress,
-        )
-    };
-    let selection_im = match settings.certified {
-        Some(l) => Some(interval_mdp(mdp, l, cost)?),
-        None => None,
-    };
-    // One round: the candidate's first rebuild, and the others unless it
-    // misses clearly.
-    let judge = |asked: Asked,
-                 candidate: Candidate,
-                 index: usize|
-     -> Result<(Round, Judged), PredictError> {
-        let strategy = make(&candidate.omega, candidate.selection_time);
-        plan(1);
-        let first = rebuild_one(scenario, params, &strategy.policy, 0, cost, progress)?;
-        // Certified selection judges a round by the bounds of its first
-        // rebuild; otherwise only the kept strategy is certified, at the end.
-        let cert_for_goal = match settings.certified {
-            Some(l) => Some(first.certify(l, cost)?),
+    let lp = RequestLoop {
+        mdp,
+        cost,
+        scenario,
+        params,
+        goal,
+        settings,
+        make,
+        plan,
+        progress,
+        selection_im: match settings.certified {
+            Some(l) => Some(interval_mdp(mdp, l, cost)?),
             None => None,
-        };
-        // One rebuild's ±: the held-out half-width widened by √1.5 (the
-        // variance it misses, docs/MODEL.md §7.3).
-        let one = first.prediction();
-        let one_ci = first.crossfit.as_ref().map_or(Objectives::default(), |c| {
-            let w = Z95 * 1.5_f64.sqrt();
-            Objectives {
-                p_target: w * c.standard_error.p_target,
-                p_collision: w * c.standard_error.p_collision,
-                energy: w * c.standard_error.energy,
-            }
-        });
-        let clear_ci = Objectives {
-            p_target: CLEAR_MISS * one_ci.p_target,
-            p_collision: CLEAR_MISS * one_ci.p_collision,
-            energy: CLEAR_MISS * one_ci.energy,
-        };
-        let clear_miss = slack(goal, &one, &clear_ci, cert_for_goal.as_ref()) < 0.0;
-        let (q, h, replicas, rebuilds) = if clear_miss {
-            (one, one_ci, vec![first], 1)
-        } else {
-            plan(settings.replicates.saturating_sub(1));
-            let all = rebuilt(&strategy, vec![first])?;
-            let (q, h) = (all.combined.mean, all.combined.ci95);
-            (q, h, all.replicas, settings.replicates)
-        };
-        let s = slack(goal, &q, &h, cert_for_goal.as_ref());
-        let round = Round {
-            asked,
-            selection_time: candidate.selection_time,
-            predicted: q,
-            ci95: h,
-            rebuilds,
-            certified: cert_for_goal,
-            meets: s >= 0.0,
-            most_transmitting: false,
-        };
-        Ok((
-            round,
-            Judged {
-                index,
-                slack: s,
-                candidate,
-                strategy,
-                replicas,
-            },
-        ))
+        },
     };
-    let sign = improving(goal);
     let mut asked = Asked::of(goal);
     let mut rounds: Vec<Round> = Vec::new();
     // The answer so far: the best meeting round, else the closest one.
@@ -358,36 +265,13 @@ pub fn meet_request(
     let mut must_beat: Option<f64> = None;
     let mut verdict = Verdict::RoundsSpent;
     for _ in 0..settings.max_rounds.max(1) {
-        let candidate = match select(mdp, cost, asked, selection_im.as_ref())? {
-            Ok(c) => c,
-            Err(infeasible) => {
-                // The request is infeasible on the MDP: ask for the most it
-                // offers between the last request and it — or, for the
-                // user's own request, from the loosest one. (The MDP may be
-                // pessimistic for the strategy at its edge: its rebuild
-                // judges.)
-                let first_round = rounds.is_empty();
-                match edge(
-                    mdp,
-                    cost,
-                    rounds.last().map(|r| r.asked),
-                    asked,
-                    selection_im.as_ref(),
-                )? {
-                    None if first_round => return Err(infeasible),
-                    Some((at, c, from)) if first_round || at.distance(from) > 1e-6 => {
-                        asked = at;
-                        c
-                    }
-                    _ => {
-                        verdict = Verdict::OutOfReach;
-                        break;
-                    }
-                }
-            }
+        let Some((at, candidate)) = lp.candidate(asked, &rounds)? else {
+            verdict = Verdict::OutOfReach;
+            break;
         };
+        asked = at;
         let e = candidate.selection_time.energy;
-        if must_beat.is_some_and(|m| sign * (e - m) <= BRACKET_TOLERANCE * m.abs())
+        if must_beat.is_some_and(|m| improving(goal) * (e - m) <= BRACKET_TOLERANCE * m.abs())
             || rounds
                 .iter()
                 .any(|r| r.selection_time == candidate.selection_time)
@@ -396,85 +280,23 @@ pub fn meet_request(
             verdict = Verdict::OutOfReach;
             break;
         }
-        let (round, judged) = judge(asked, candidate, rounds.len())?;
-        let meets = round.meets;
+        let (round, judged) = lp.judge(asked, candidate, rounds.len())?;
         rounds.push(round);
-        let replace = match &best {
-            None => true,
-            Some(b) if rounds[b.index].meets => {
-                meets
-                    && better(
-                        goal,
-                        &rounds[judged.index].predicted,
-                        &rounds[b.index].predicted,
-                    )
-            }
-            Some(b) => meets || judged.slack > b.slack,
-        };
-        if replace {
-            best = Some(judged);
-        }
+        keep_better(goal, &rounds, &mut best, judged);
         let Some(b) = best.as_ref() else { break };
-        let kept = &rounds[b.index];
-        if kept.meets {
-            // Bracket the edge of meeting: the kept round and the closest
-            // round beyond it (cheaper on the MDP, or richer within the
-            // budget) that missed.
-            let m = kept.selection_time.energy;
-            let beyond = rounds
-                .iter()
-                .filter(|r| !r.meets && sign * (r.selection_time.energy - m) > 0.0)
-                .min_by(|a, b| {
-                    (a.selection_time.energy - m)
-                        .abs()
-                        .total_cmp(&(b.selection_time.energy - m).abs())
-                });
-            match beyond {
-                Some(x) => {
-                    let gap = (x.selection_time.energy - m).abs();
-                    if gap <= BRACKET_TOLERANCE * m.abs().max(x.selection_time.energy.abs()) {
-                        break;
-                    }
-                    // Regula falsi on the slacks, kept off the ends.
-                    let sx = slack(goal, &x.predicted, &x.ci95, x.certified.as_ref());
-                    let lambda = (sx / (sx - b.slack)).clamp(BRACKET_STEP, 1.0 - BRACKET_STEP);
-                    asked = x.asked.towards(kept.asked, lambda);
-                    must_beat = None;
-                }
-                None => {
-                    // Every round met: aim at the edge past the kept one.
-                    let next = moved(
-                        goal,
-                        kept.asked,
-                        &kept.predicted,
-                        &kept.ci95,
-                        kept.certified.as_ref(),
-                        Move::Aim,
-                    );
-                    if next.distance(kept.asked) <= 1e-9 {
-                        break;
-                    }
-                    asked = next;
-                    must_beat = Some(m);
-                }
+        match next_ask(goal, &rounds, b) {
+            NextAsk::At {
+                asked: a,
+                must_beat: m,
+            } => {
+                asked = a;
+                must_beat = m;
             }
-        } else {
-            let last = &rounds[rounds.len() - 1];
-            let next = moved(
-                goal,
-                last.asked,
-                &last.predicted,
-                &last.ci95,
-                last.certified.as_ref(),
-                Move::Tighten,
-            );
-            if next.distance(last.asked) <= 1e-9 {
-                // Nothing left to move (a bound already at its limit).
+            NextAsk::Done => break,
+            NextAsk::OutOfReach => {
                 verdict = Verdict::OutOfReach;
                 break;
             }
-            asked = next;
-            must_beat = None;
         }
     }
     if best.as_ref().is_some_and(|b| rounds[b.index].meets) {
@@ -489,70 +311,16 @@ pub fn meet_request(
         && matches!(goal, Goal::MinTarget { .. })
         && let omega = most_transmitting(mdp)
         && best.as_ref().is_none_or(|b| b.candidate.omega != omega)
+        && lp.most_transmitting_round(omega, asked, &mut rounds, &mut best)?
     {
-        let selection_time = evaluate(mdp, &omega, cost);
-        let strategy = make(&omega, selection_time);
-        plan(settings.replicates);
-        let all = rebuilt(&strategy, Vec::new())?;
-        let cert_for_goal = match (settings.certified, all.replicas.first()) {
-            (Some(l), Some(first)) => Some(first.certify(l, cost)?),
-            _ => None,
-        };
-        let (q, h) = (all.combined.mean, all.combined.ci95);
-        let s = slack(goal, &q, &h, cert_for_goal.as_ref());
-        let meets = s >= 0.0;
-        rounds.push(Round {
-            asked,
-            selection_time,
-            predicted: q,
-            ci95: h,
-            rebuilds: settings.replicates,
-            certified: cert_for_goal,
-            meets,
-            most_transmitting: true,
-        });
-        if best.as_ref().is_none_or(|b| s > b.slack || meets) {
-            best = Some(Judged {
-                index: rounds.len() - 1,
-                slack: s,
-                candidate: Candidate {
-                    omega,
-                    selection_time,
-                },
-                strategy,
-                replicas: all.replicas,
-            });
-        }
-        if meets {
-            verdict = Verdict::Met;
-        }
+        verdict = Verdict::Met;
     }
-    let Some(Judged {
-        index: kept,
-        candidate,
-        strategy,
-        replicas,
-        ..
-    }) = best
-    else {
-        return Err(PredictError::Inconsistent(
-            "the request loop ended without a round (a bug)".into(),
-        ));
-    };
-    let missing = settings.replicates.saturating_sub(replicas.len() as u32);
-    plan(missing);
-    let on_policy = rebuilt(&strategy, replicas)?;
-    let certified = on_policy.certify_first(level, cost)?;
-    Ok(Outcome {
-        omega: candidate.omega,
-        selection_time: candidate.selection_time,
-        strategy,
-        on_policy,
-        certified,
+    lp.finish(
+        best,
         rounds,
-        kept,
         verdict,
-    })
+        settings.certified.unwrap_or(report_level),
+    )
 }
 
 impl Round {

@@ -1,0 +1,215 @@
+//! The shape of the code (ARCHITECTURE.md, "Invariants"): clap is the
+//! command lines' API, not the libraries'; no library function is longer
+//! than a reader can hold. Each names what is still to be moved, and that
+//! list only shrinks.
+
+use std::path::{Path, PathBuf};
+
+/// The workspace root.
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("the workspace root")
+}
+
+/// The workspace's member folders.
+fn members() -> Vec<String> {
+    let workspace: toml::Table =
+        toml::from_str(&std::fs::read_to_string(root().join("Cargo.toml")).expect("Cargo.toml"))
+            .expect("the workspace manifest parses");
+    workspace["workspace"]["members"]
+        .as_array()
+        .expect("workspace.members")
+        .iter()
+        .map(|m| m.as_str().expect("a member path").to_string())
+        .collect()
+}
+
+/// The workspace members whose `Cargo.toml` names `clap` among its normal
+/// dependencies.
+fn members_declaring_clap() -> Vec<String> {
+    let mut with_clap = Vec::new();
+    for m in members() {
+        let manifest: toml::Table = toml::from_str(
+            &std::fs::read_to_string(root().join(&m).join("Cargo.toml"))
+                .expect("a member manifest"),
+        )
+        .expect("a member manifest parses");
+        let declares = manifest
+            .get("dependencies")
+            .and_then(|d| d.as_table())
+            .is_some_and(|d| d.contains_key("clap"));
+        if declares {
+            with_clap.push(m);
+        }
+    }
+    with_clap
+}
+
+/// clap is the command line's, not the libraries' API (ARCHITECTURE.md): it
+/// is a dependency of `etp` and of the process mains only. The crates still
+/// to be moved off it are named here, and each must still need it — the
+/// list only shrinks.
+#[test]
+fn clap_is_a_dependency_of_the_command_lines_only() {
+    const COMMAND_LINES: [&str; 5] = ["etp", "agent", "sensor-node", "coordinator", "recorder"];
+    // Library crates that still take clap structs: runtime (the process
+    // shell and `scenario_options`), launcher (`Args`, the link options),
+    // bridge (the hosts' options), recording-tools (two `ValueEnum`s) and the
+    // Python package (which builds an argv for `launcher::Args`).
+    const STILL_TO_MOVE: [&str; 5] = ["runtime", "launcher", "bridge", "recording-tools", "python"];
+    let with_clap = members_declaring_clap();
+    for m in &with_clap {
+        assert!(
+            COMMAND_LINES.contains(&m.as_str()) || STILL_TO_MOVE.contains(&m.as_str()),
+            "the library crate {m} depends on clap: take a typed request and leave the \
+             parsing to `etp` or the process main"
+        );
+    }
+    for m in STILL_TO_MOVE {
+        assert!(
+            with_clap.iter().any(|c| c == m),
+            "{m} no longer depends on clap: remove it from STILL_TO_MOVE"
+        );
+    }
+    for library in ["shared", "synthesis", "pipeline", "figures", "live"] {
+        assert!(
+            !with_clap.iter().any(|c| c == library),
+            "{library}: {with_clap:?}"
+        );
+    }
+}
+
+/// Longest a library function may be, in lines from its `fn` to its closing
+/// brace.
+const MAX_FUNCTION_LINES: usize = 150;
+
+/// The functions of a rustfmt-formatted file with their length in lines:
+/// from a line opening `fn NAME` to the first line after it that closes at
+/// the same indentation. Test modules (`tests.rs`, `*_tests.rs`, `tests/`)
+/// are not library code.
+fn function_lengths(text: &str) -> Vec<(String, usize)> {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out = Vec::new();
+    for (i, line) in lines.iter().enumerate() {
+        let trimmed = line.trim_start();
+        let indent = &line[..line.len() - trimmed.len()];
+        let mut rest = trimmed;
+        for prefix in [
+            "pub(crate) ",
+            "pub(super) ",
+            "pub ",
+            "const ",
+            "async ",
+            "unsafe ",
+        ] {
+            rest = rest.strip_prefix(prefix).unwrap_or(rest);
+        }
+        let Some(sig) = rest.strip_prefix("fn ") else {
+            continue;
+        };
+        let name: String = sig
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        // A declaration without a body (a trait's) ends with `;` before `{`.
+        let close = format!("{indent}}}");
+        let end = lines[i..].iter().position(|l| {
+            l.starts_with(&close) || (l.trim_end().ends_with(';') && !l.contains('{'))
+        });
+        if let Some(n) = end.filter(|&n| lines[i + n].starts_with(&close)) {
+            out.push((name, n + 1));
+        }
+    }
+    out
+}
+
+/// Every function of the workspace's library code (all members but the
+/// `etp` command line and the tests) longer than [`MAX_FUNCTION_LINES`], as
+/// `path::name` with its length.
+fn long_library_functions() -> Vec<(String, usize)> {
+    let mut long = Vec::new();
+    for m in members() {
+        if m == "etp" || m == "tests" {
+            continue;
+        }
+        let src = root().join(&m).join("src");
+        let mut dirs: Vec<PathBuf> = vec![src.clone()];
+        while let Some(d) = dirs.pop() {
+            for e in std::fs::read_dir(&d).expect("a readable source folder") {
+                let p = e.expect("a folder entry").path();
+                let name = p
+                    .file_name()
+                    .map(|n| n.to_string_lossy().to_string())
+                    .unwrap_or_default();
+                if p.is_dir() {
+                    if name != "tests" {
+                        dirs.push(p);
+                    }
+                } else if name.ends_with(".rs")
+                    && name != "tests.rs"
+                    && !name.ends_with("_tests.rs")
+                {
+                    let text = std::fs::read_to_string(&p).expect("readable source");
+                    let rel = p
+                        .strip_prefix(root())
+                        .expect("under the root")
+                        .to_string_lossy()
+                        .to_string();
+                    for (f, n) in function_lengths(&text) {
+                        if n > MAX_FUNCTION_LINES {
+                            long.push((format!("{rel}::{f}"), n));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    long.sort();
+    long
+}
+
+/// No library function over 150 lines: a long one is split along the phases
+/// its comments name. The ones still to split are named here, and each must
+/// still be long — the list only shrinks.
+#[test]
+fn no_library_function_is_longer_than_150_lines() {
+    const STILL_TO_SPLIT: [&str; 12] = [
+        "bridge/src/agent_host.rs::run",
+        "bridge/src/forward.rs::run",
+        "bridge/src/sensor_host.rs::run",
+        "launcher/src/prepare.rs::prepare",
+        "launcher/src/report.rs::print",
+        "launcher/src/supervise.rs::supervise",
+        "recorder/src/lib.rs::run",
+        "recording-tools/src/summary.rs::summarize_tally",
+        "runtime/src/recording/verify.rs::rerun",
+        "shared/src/episode.rs::run_leg_with",
+        "shared/src/scenario/random.rs::random_scenario_toml",
+        "shared/src/scenario/validate.rs::validate",
+    ];
+    let long = long_library_functions();
+    for (f, n) in &long {
+        assert!(
+            STILL_TO_SPLIT.contains(&f.as_str()),
+            "{f} is {n} lines (at most {MAX_FUNCTION_LINES}): split it along its phases"
+        );
+    }
+    for f in STILL_TO_SPLIT {
+        assert!(
+            long.iter().any(|(l, _)| l == f),
+            "{f} is no longer over {MAX_FUNCTION_LINES} lines (or gone): remove it from STILL_TO_SPLIT"
+        );
+    }
+}
+
+/// The scan measures what it claims: a body, a nested closing brace and a
+/// trait declaration without a body.
+#[test]
+fn the_function_scan_counts_from_fn_to_its_closing_brace() {
+    let text = "pub fn a() {\n    if x {\n    }\n}\n\ntrait T {\n    fn b(&self);\n    fn c(&self) {\n        1\n    }\n}\n";
+    assert_eq!(
+        function_lengths(text),
+        vec![("a".to_string(), 4), ("c".to_string(), 3)]
+    );
+}
