@@ -1,6 +1,7 @@
 //! Tests of the layered build: carried true states and the on-policy reach.
 
 use super::*;
+use crate::abstraction::segments::{Task, run_task};
 use etp_shared::etkf::Vector;
 
 #[test]

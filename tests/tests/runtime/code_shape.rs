@@ -80,6 +80,11 @@ fn clap_is_a_dependency_of_the_command_lines_only() {
     }
 }
 
+/// The code of a line: what precedes a `//` comment.
+fn code_of(line: &str) -> &str {
+    line.split("//").next().unwrap_or("")
+}
+
 /// Longest a library function may be, in lines from its `fn` to its closing
 /// brace.
 const MAX_FUNCTION_LINES: usize = 150;
@@ -112,13 +117,28 @@ fn function_lengths(text: &str) -> Vec<(String, usize)> {
             .chars()
             .take_while(|c| c.is_alphanumeric() || *c == '_')
             .collect();
-        // A declaration without a body (a trait's) ends with `;` before `{`.
+        // The signature runs to the line that opens the body; a declaration
+        // without a body (a trait's) ends with `;` first; a one-line
+        // function closes on its own line.
         let close = format!("{indent}}}");
-        let end = lines[i..].iter().position(|l| {
-            l.starts_with(&close) || (l.trim_end().ends_with(';') && !l.contains('{'))
-        });
-        if let Some(n) = end.filter(|&n| lines[i + n].starts_with(&close)) {
-            out.push((name, n + 1));
+        let Some(open) = lines[i..].iter().position(|l| {
+            let t = code_of(l).trim_end();
+            t.ends_with('{') || t.ends_with(';') || t.ends_with('}')
+        }) else {
+            continue;
+        };
+        let opening = code_of(lines[i + open]).trim_end();
+        if !opening.ends_with('{') {
+            if opening.ends_with('}') {
+                out.push((name, open + 1));
+            }
+            continue;
+        }
+        if let Some(n) = lines[i + open + 1..]
+            .iter()
+            .position(|l| l.starts_with(&close))
+        {
+            out.push((name, open + n + 2));
         }
     }
     out
@@ -174,10 +194,12 @@ fn long_library_functions() -> Vec<(String, usize)> {
 /// still be long — the list only shrinks.
 #[test]
 fn no_library_function_is_longer_than_150_lines() {
-    const STILL_TO_SPLIT: [&str; 12] = [
+    const STILL_TO_SPLIT: [&str; 14] = [
         "bridge/src/agent_host.rs::run",
         "bridge/src/forward.rs::run",
         "bridge/src/sensor_host.rs::run",
+        "figures/src/front.rs::draw_front",
+        "figures/src/map.rs::draw_map",
         "launcher/src/prepare.rs::prepare",
         "launcher/src/report.rs::print",
         "launcher/src/supervise.rs::supervise",
@@ -189,12 +211,16 @@ fn no_library_function_is_longer_than_150_lines() {
         "shared/src/scenario/validate.rs::validate",
     ];
     let long = long_library_functions();
-    for (f, n) in &long {
-        assert!(
-            STILL_TO_SPLIT.contains(&f.as_str()),
-            "{f} is {n} lines (at most {MAX_FUNCTION_LINES}): split it along its phases"
-        );
-    }
+    let unexpected: Vec<String> = long
+        .iter()
+        .filter(|(f, _)| !STILL_TO_SPLIT.contains(&f.as_str()))
+        .map(|(f, n)| format!("{f}: {n} lines"))
+        .collect();
+    assert!(
+        unexpected.is_empty(),
+        "library functions over {MAX_FUNCTION_LINES} lines: split each along its phases:\n{}",
+        unexpected.join("\n")
+    );
     for f in STILL_TO_SPLIT {
         assert!(
             long.iter().any(|(l, _)| l == f),
@@ -203,13 +229,18 @@ fn no_library_function_is_longer_than_150_lines() {
     }
 }
 
-/// The scan measures what it claims: a body, a nested closing brace and a
-/// trait declaration without a body.
+/// The scan measures what it claims: a multi-line signature, a body with
+/// statements and nested braces, a trait declaration without a body, a
+/// comment holding a brace and a one-line function.
 #[test]
 fn the_function_scan_counts_from_fn_to_its_closing_brace() {
-    let text = "pub fn a() {\n    if x {\n    }\n}\n\ntrait T {\n    fn b(&self);\n    fn c(&self) {\n        1\n    }\n}\n";
+    let text = "pub fn a(\n    x: u8,\n) -> u8 {\n    let y = x;\n    if y > 0 {\n        y\n    } else {\n        0\n    }\n}\n\ntrait T {\n    fn b(&self);\n    fn c(&self) {\n        let z = 1; // {\n    }\n    fn d(&self) -> u8 { 1 }\n}\n";
     assert_eq!(
         function_lengths(text),
-        vec![("a".to_string(), 4), ("c".to_string(), 3)]
+        vec![
+            ("a".to_string(), 10),
+            ("c".to_string(), 3),
+            ("d".to_string(), 1)
+        ]
     );
 }
