@@ -26,7 +26,6 @@
 //!   built-ins.
 
 use super::{Scenario, ScenarioError};
-use crate::gaussian::delta_for_rate;
 use crate::rng::stream_rng;
 use rand::{Rng, RngExt};
 use std::fmt::Write;
@@ -474,14 +473,73 @@ pub fn random_scenario_toml<R: Rng + ?Sized>(kind: AgentKind, name: &str, rng: &
     let last = &points[legs];
     let target_min: Vec<f64> = last.iter().map(|c| r3(c - g.target)).collect();
     let target_max: Vec<f64> = last.iter().map(|c| r3(c + g.target)).collect();
+    let obstacles = draw_obstacles(rng, &points, &steps, &g, (&target_min, &target_max));
+    let serving = draw_serving(rng, legs);
+    let sensors = serving.last().map_or(0, |&s| s + 1);
 
-    // obstacles: gates on 1–3 long legs, walls beyond most corners, a dock
+    // the agent
+    let mut o = String::new();
+    let agent = if kind.double() {
+        format!("{}-D double integrator (n = {n})", d)
+    } else {
+        format!("{}-D single integrator (n = {n})", d)
+    };
+    let _ = writeln!(o, "name = \"{name}\"");
+    let _ = writeln!(
+        o,
+        "description = \"random scenario (etp scenario random): {agent}, {legs} legs, {sensors} sensors with rotated anisotropic R, {} gate(s), {} wall(s) beyond corners\"",
+        obstacles.gates, obstacles.walls
+    );
+    let _ = writeln!(o, "dim = {n}\n\n[model]");
+    write_model_and_controller(&mut o, rng, kind, &points[0]);
+    write_sensors(&mut o, rng, kind, &points, &serving);
+    for i in 0..legs {
+        let _ = writeln!(
+            o,
+            "\n[[leg]]\nto = {}\nsensor = \"s{}\"",
+            fmt_vec(&points[i + 1]),
+            serving[i]
+        );
+    }
+    let _ = writeln!(
+        o,
+        "\n[target]\nmin = {}\nmax = {}",
+        fmt_vec(&target_min),
+        fmt_vec(&target_max)
+    );
+    for b in &obstacles.blocks {
+        let _ = writeln!(
+            o,
+            "\n[[obstacle]]\nname = \"{}\"\nmin = {}\nmax = {}",
+            b.name,
+            fmt_vec(&b.min),
+            fmt_vec(&b.max)
+        );
+    }
+    write_triggering(&mut o, d);
+    o
+}
+
+/// The obstacles of a route, and how many gates and walls they are.
+struct Obstacles {
+    blocks: Vec<Block>,
+    gates: usize,
+    walls: usize,
+}
+
+/// Gates on 1–3 long legs, walls beyond most corners, a dock; each kept
+/// only if it keeps the route and the target clear.
+fn draw_obstacles<R: Rng + ?Sized>(
+    rng: &mut R,
+    points: &[Vec<f64>],
+    steps: &[Step],
+    g: &Geometry,
+    target: (&[f64], &[f64]),
+) -> Obstacles {
+    let legs = steps.len();
     let mut blocks: Vec<Block> = Vec::new();
     let accept = |candidate: Vec<Block>, blocks: &mut Vec<Block>| {
-        if candidate
-            .iter()
-            .all(|b| keeps_clear(b, &points, &g, (&target_min, &target_max)))
-        {
+        if candidate.iter().all(|b| keeps_clear(b, points, g, target)) {
             blocks.extend(candidate);
             true
         } else {
@@ -500,11 +558,11 @@ pub fn random_scenario_toml<R: Rng + ?Sized>(kind: AgentKind, name: &str, rng: &
         let cand = gate(
             &format!("gate{}", gate_count + 1),
             leg,
-            &points,
+            points,
             steps[leg],
             t,
             half,
-            &g,
+            g,
         );
         if accept(cand, &mut blocks) {
             gate_count += 1;
@@ -528,11 +586,19 @@ pub fn random_scenario_toml<R: Rng + ?Sized>(kind: AgentKind, name: &str, rng: &
             walls += 1;
             format!("wall{walls}")
         };
-        let w = corner_wall(label, &points[leg + 1], steps[leg], next, offset, &g);
+        let w = corner_wall(label, &points[leg + 1], steps[leg], next, offset, g);
         accept(vec![w], &mut blocks);
     }
+    Obstacles {
+        blocks,
+        gates: gate_count,
+        walls,
+    }
+}
 
-    // sensors: 3–7, each serving a contiguous run of legs
+/// The sensor serving each leg: 3–7 sensors, each serving a contiguous run
+/// of legs, numbered in route order.
+fn draw_serving<R: Rng + ?Sized>(rng: &mut R, legs: usize) -> Vec<usize> {
     let sensors = rng.random_range(3..=7usize.min(legs));
     let mut cuts: Vec<usize> = Vec::new();
     while cuts.len() < sensors - 1 {
@@ -542,179 +608,9 @@ pub fn random_scenario_toml<R: Rng + ?Sized>(kind: AgentKind, name: &str, rng: &
         }
     }
     cuts.sort_unstable();
-    let serving: Vec<usize> = (0..legs)
+    (0..legs)
         .map(|i| cuts.iter().filter(|&&c| c <= i).count())
-        .collect();
-
-    // the agent
-    let tau = 0.1;
-    let mut o = String::new();
-    let agent = if kind.double() {
-        format!("{}-D double integrator (n = {n})", d)
-    } else {
-        format!("{}-D single integrator (n = {n})", d)
-    };
-    let _ = writeln!(o, "name = \"{name}\"");
-    let _ = writeln!(
-        o,
-        "description = \"random scenario (etp scenario random): {agent}, {legs} legs, {sensors} sensors with rotated anisotropic R, {gate_count} gate(s), {walls} wall(s) beyond corners\""
-    );
-    let _ = writeln!(o, "dim = {n}\n\n[model]");
-    let eye = |k: usize| diag(&vec![1.0; k]);
-    let mut lqr = None;
-    let mut gain = None;
-    let (u_max, eps_x, k_max);
-    if kind.double() {
-        let mut f = eye(n);
-        let mut gm = vec![vec![0.0; d]; n];
-        let mut c = vec![vec![0.0; n]; d];
-        for k in 0..d {
-            f[k][d + k] = tau;
-            gm[k][k] = tau * tau / 2.0;
-            gm[d + k][k] = tau;
-            c[k][k] = 1.0;
-        }
-        let qv = (rng.random_range(0.6e-3..1.2e-3_f64) * 1e6).round() / 1e6;
-        let q: Vec<f64> = (0..n).map(|k| if k < d { 1e-6 } else { qv }).collect();
-        let p0: Vec<f64> = (0..n).map(|k| if k < d { 0.0009 } else { 0.001 }).collect();
-        let mut x0 = points[0].clone();
-        x0.extend(std::iter::repeat_n(0.0, d));
-        let _ = writeln!(
-            o,
-            "# x = (position, velocity), tau = {tau}: F = [[I, tau I], [0, I]], G = [[tau^2/2 I], [tau I]]"
-        );
-        let _ = writeln!(
-            o,
-            "F = {}\nG = {}\nC = {}",
-            fmt_mat(&f),
-            fmt_mat(&gm),
-            fmt_mat(&c)
-        );
-        let _ = writeln!(
-            o,
-            "Q = {}\nx0 = {}\nP0 = {}",
-            fmt_mat(&diag(&q)),
-            fmt_vec(&x0),
-            fmt_mat(&diag(&p0))
-        );
-        if rng.random_bool(0.7) {
-            let wv = r3(rng.random_range(0.2..0.5));
-            let wu = r3(rng.random_range(0.3..1.0));
-            let state: Vec<f64> = (0..n).map(|k| if k < d { 1.0 } else { wv }).collect();
-            lqr = Some((diag(&state), diag(&vec![wu; d])));
-        } else {
-            // a PD gain: natural frequency ω, damping ζ (stable for τ ω ≪ 1)
-            let omega = rng.random_range(1.0..1.4);
-            let zeta = rng.random_range(0.7..0.9);
-            let (kp, kd) = (r3(omega * omega), r3(2.0 * zeta * omega));
-            let mut k = vec![vec![0.0; n]; d];
-            for (a, row) in k.iter_mut().enumerate() {
-                row[a] = kp;
-                row[d + a] = kd;
-            }
-            gain = Some(k);
-        }
-        (u_max, eps_x, k_max) = (1.0, 0.1, 120);
-    } else {
-        let q = r3(rng.random_range(0.06..0.075));
-        let q2 = (q * q * 1e6).round() / 1e6;
-        let _ = writeln!(o, "F = {}\nG = {}", fmt_mat(&eye(n)), fmt_mat(&eye(n)));
-        let _ = writeln!(
-            o,
-            "Q = {}\nx0 = {}\nP0 = {}",
-            fmt_mat(&diag(&vec![q2; n])),
-            fmt_vec(&points[0]),
-            fmt_mat(&diag(&vec![0.0009; n]))
-        );
-        (u_max, eps_x, k_max) = (0.05, 0.05, 200);
-    }
-    let _ = writeln!(
-        o,
-        "\n[controller]\nu_max = {u_max:?}\neps_x = {eps_x:?}\nk_max = {k_max}"
-    );
-    if let Some(k) = &gain {
-        let _ = writeln!(o, "K = {}", fmt_mat(k));
-    }
-    if let Some((state, input)) = &lqr {
-        let _ = writeln!(
-            o,
-            "\n[controller.lqr]\nstate = {}\ninput = {}",
-            fmt_mat(state),
-            fmt_mat(input)
-        );
-    }
-
-    for s in 0..sensors {
-        let served: Vec<usize> = (0..legs).filter(|&i| serving[i] == s).collect();
-        let mut centre = vec![0.0; d];
-        for &i in &served {
-            for (k, c) in centre.iter_mut().enumerate() {
-                *c += 0.5 * (points[i][k] + points[i + 1][k]) / served.len() as f64;
-            }
-        }
-        let position: Vec<f64> = centre
-            .iter()
-            .map(|c| r3(c + rng.random_range(-0.6..0.6)))
-            .collect();
-        let mut h = vec![vec![0.0; n]; d];
-        for (k, row) in h.iter_mut().enumerate() {
-            row[k] = 1.0;
-        }
-        let r = random_r(rng, d);
-        let _ = writeln!(
-            o,
-            "\n[[sensor]]\nname = \"s{s}\"\nposition = {}\nH = {}\nR = {}\ncost = 1.0",
-            fmt_vec(&position),
-            fmt_mat(&h),
-            fmt_mat(&r)
-        );
-    }
-    for i in 0..legs {
-        let _ = writeln!(
-            o,
-            "\n[[leg]]\nto = {}\nsensor = \"s{}\"",
-            fmt_vec(&points[i + 1]),
-            serving[i]
-        );
-    }
-    let _ = writeln!(
-        o,
-        "\n[target]\nmin = {}\nmax = {}",
-        fmt_vec(&target_min),
-        fmt_vec(&target_max)
-    );
-    for b in &blocks {
-        let _ = writeln!(
-            o,
-            "\n[[obstacle]]\nname = \"{}\"\nmin = {}\nmax = {}",
-            b.name,
-            fmt_vec(&b.min),
-            fmt_vec(&b.max)
-        );
-    }
-    let rates: &[f64] = if d == 3 {
-        &[1.0, 0.65, 0.5, 0.25, 0.1, 0.05]
-    } else {
-        &[1.0, 0.5, 0.25, 0.1, 0.05]
-    };
-    let deltas: Vec<f64> = rates
-        .iter()
-        .map(|&r| {
-            if r >= 1.0 {
-                0.0
-            } else {
-                (delta_for_rate(r, d) * 1e4).round() / 1e4
-            }
-        })
-        .collect();
-    let rate_list: Vec<String> = rates.iter().map(|r| format!("{r}")).collect();
-    let _ = writeln!(
-        o,
-        "\n[triggering]\n# expected trigger rates 1 - (2 Phi(delta) - 1)^{d}: {}\ndeltas = {}",
-        rate_list.join(", "),
-        fmt_vec(&deltas)
-    );
-    o
+        .collect()
 }
 
 /// The scenario of `seed` for agent kind `kind`: its TOML text (named
@@ -730,3 +626,7 @@ pub fn random_scenario(kind: AgentKind, seed: u64) -> Result<(String, Scenario),
 #[cfg(test)]
 #[path = "random_tests.rs"]
 mod tests;
+
+#[path = "random_model.rs"]
+mod model;
+use model::{write_model_and_controller, write_sensors, write_triggering};
