@@ -521,17 +521,20 @@ fn a_file_that_is_not_an_etp_recording_is_refused_by_name() {
     let dir = Scratch::new("replay-foreign");
     let fox = dir.path("fox.mcap");
     ok_json(&["replay", "foxglove", s(&fixture()), s(&fox), "--json"]);
+    let tables = dir.path("tables");
     for args in [
         vec!["replay", s(&fox)],
         vec!["replay", "summary", s(&fox), "--json"],
         vec!["replay", "verify", s(&fox)],
         vec!["replay", "plot", s(&fox)],
+        vec!["replay", "export", s(&fox), s(&tables)],
     ] {
         let (rc, out, err) = code(&args);
         assert_eq!(rc, Some(1), "{args:?}: {err}");
         assert!(err.contains("is not an etp recording"), "{args:?}: {err}");
         assert!(out.is_empty(), "{args:?}: {out}");
     }
+    assert!(!tables.exists(), "export wrote tables of a foreign file");
     let (rc, _, err) = code(&["replay", "info", s(&fox)]);
     assert_eq!(rc, Some(0), "{err}");
 }

@@ -694,9 +694,7 @@ fn verify_detects_tampering(file: &Path) {
 
 /// `verify` counts a step once its slot is re-run: the step a collision
 /// ends has none, so steps = measurements + silent slots, and with the
-/// episodes' own steps: steps = Σ outcome steps − collisions. (It counted
-/// the collision step too: "13802 steps: 2555 measurements, 11246 silent
-/// slots".)
+/// episodes' own steps: steps = Σ outcome steps − collisions.
 #[test]
 fn verify_steps_add_up_when_an_episode_collides() {
     let _serial = serial();
