@@ -1,7 +1,7 @@
 //! The command-line interface (clap derive). Each variant's arguments are a
 //! struct owned by its command module.
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 
 /// etpareto: Pareto-optimal event-triggered estimation strategies, computed and run.
 #[derive(Debug, Parser)]
@@ -113,8 +113,38 @@ pub enum Command {
     Replay(crate::cmd::replay::Args),
     /// Run one process of a run (used by `etp run` when the process binaries
     /// are not installed beside `etp`).
+    ///
+    /// `etp process NAME --help`: that process's own options.
     #[command(hide = true, disable_help_flag = true)]
     Process(crate::cmd::process::Args),
+}
+
+/// The interface as clap builds it, every option that takes a value
+/// accepting one that starts with `-`-and-a-digit: `--episodes -1` is then
+/// refused as an invalid value of `--episodes` (exit 2), not as an unknown
+/// argument `-1` with a tip to write `-- -1`.
+pub fn command() -> clap::Command {
+    negative_values(Cli::command())
+}
+
+fn negative_values(c: clap::Command) -> clap::Command {
+    c.mut_args(|a| {
+        if a.get_action().takes_values() {
+            a.allow_negative_numbers(true)
+        } else {
+            a
+        }
+    })
+    .mut_subcommands(negative_values)
+}
+
+/// Parse the process's command line with [`command`]; clap's usage error
+/// (exit 2) or help (exit 0) ends the process.
+pub fn parse() -> Cli {
+    use clap::FromArgMatches;
+    let mut c = command();
+    let m = c.get_matches_mut();
+    Cli::from_arg_matches(&m).unwrap_or_else(|e| e.format(&mut c).exit())
 }
 
 #[cfg(test)]
@@ -123,7 +153,6 @@ mod tests {
     /// duplicate flags) on every subcommand; release builds skip them.
     #[test]
     fn the_interface_is_consistent() {
-        use clap::CommandFactory;
-        super::Cli::command().debug_assert();
+        super::command().debug_assert();
     }
 }

@@ -1,10 +1,8 @@
 //! `etp`: parse the command line, hand over to the library.
 
-use clap::Parser;
-
 fn main() -> std::process::ExitCode {
     restore_default_sigpipe();
-    etp::run(etp::cli::Cli::parse())
+    etp::run(etp::cli::parse())
 }
 
 /// The Rust runtime ignores SIGPIPE, so `etp replay FILE | head` would panic

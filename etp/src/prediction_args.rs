@@ -9,7 +9,7 @@ use etp_pipeline::predictions::AGGREGATION_CHECK_EPISODES;
 pub struct RebuildArgs {
     /// On-policy rebuilds of a prediction (seeds DIR's + 0 … R − 1): their
     /// mean cross-fitted value with a Student-t ± over their spread, which
-    /// covers the rebuilds' whole Monte Carlo (docs/MODEL.md §7.3).
+    /// covers the rebuilds' whole Monte Carlo (docs/MODEL.md §7.3); R in 2..=64.
     #[arg(long, value_name = "R", default_value_t = etp_synthesis::predict::rebuild::DEFAULT_REPLICATES,
           value_parser = clap::value_parser!(u32).range(2..=64))]
     pub replicates: u32,
@@ -21,7 +21,7 @@ pub struct RebuildArgs {
 pub struct RequestLoopArgs {
     #[command(flatten)]
     pub rebuilds: RebuildArgs,
-    /// Rounds of the request loop at most.
+    /// Rounds of the request loop at most (1..=20).
     #[arg(long, value_name = "N", default_value_t = etp_synthesis::predict::request::DEFAULT_ROUNDS,
           value_parser = clap::value_parser!(u32).range(1..=20))]
     pub rounds: u32,

@@ -245,10 +245,11 @@ pub fn claim(spec: &Spec, dir: &Path) -> Result<()> {
     let mine = spec.canonical()?;
     match std::fs::read_to_string(&path) {
         Ok(theirs) if theirs == mine => Ok(()),
-        Ok(_) => bail!(
-            "{} holds the study of another SPEC (its spec.json differs): give another -o, or \
-             move it away to start over",
-            dir.display()
+        Ok(theirs) => bail!(
+            "{} holds the study of another SPEC (its spec.json differs: {}): give another -o, \
+             or move it away to start over",
+            dir.display(),
+            differences(&theirs, &mine)
         ),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
             etp_pipeline::output::write_new(&path, mine.as_bytes(), false)
@@ -257,9 +258,79 @@ pub fn claim(spec: &Spec, dir: &Path) -> Result<()> {
     }
 }
 
+/// Where two SPECs as stored (`spec.json`) differ, each place with the
+/// stored value and this SPEC's (the first few; a SPEC's `name` defaults
+/// to its file name, so a renamed file shows as `name`).
+fn differences(stored: &str, mine: &str) -> String {
+    const SHOWN: usize = 6;
+    let (Ok(a), Ok(b)) = (
+        serde_json::from_str::<serde_json::Value>(stored),
+        serde_json::from_str::<serde_json::Value>(mine),
+    ) else {
+        return "the stored spec.json is not JSON".into();
+    };
+    let mut found = Vec::new();
+    diff_values("", &a, &b, &mut found);
+    let n = found.len();
+    let mut text = found.into_iter().take(SHOWN).collect::<Vec<_>>().join("; ");
+    if n > SHOWN {
+        text.push_str(&format!("; … {n} differences in all"));
+    }
+    text
+}
+
+/// Push `path: stored → this SPEC` for every leaf where `a` and `b` differ.
+fn diff_values(path: &str, a: &serde_json::Value, b: &serde_json::Value, out: &mut Vec<String>) {
+    use serde_json::Value;
+    let at = |k: &str| {
+        if path.is_empty() {
+            k.to_string()
+        } else {
+            format!("{path}.{k}")
+        }
+    };
+    match (a, b) {
+        (Value::Object(x), Value::Object(y)) => {
+            let keys: std::collections::BTreeSet<&String> = x.keys().chain(y.keys()).collect();
+            for k in keys {
+                let none = Value::Null;
+                diff_values(
+                    &at(k),
+                    x.get(k).unwrap_or(&none),
+                    y.get(k).unwrap_or(&none),
+                    out,
+                );
+            }
+        }
+        (Value::Array(x), Value::Array(y)) if x.len() == y.len() => {
+            for (i, (p, q)) in x.iter().zip(y).enumerate() {
+                diff_values(&format!("{path}[{i}]"), p, q, out);
+            }
+        }
+        _ if a != b => out.push(format!(
+            "{} {a} in the folder, {b} in this SPEC",
+            if path.is_empty() { "the SPEC" } else { path }
+        )),
+        _ => {}
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::hand_out;
+
+    #[test]
+    fn the_differences_of_two_specs_are_named_with_both_values() {
+        let d = super::differences(
+            r#"{"name": "a", "settings": {"samples": 100, "seed": 1}, "jobs": [1, 2]}"#,
+            r#"{"name": "b", "settings": {"samples": 200, "seed": 1}, "jobs": [1, 2, 3]}"#,
+        );
+        assert_eq!(
+            d,
+            "jobs [1,2] in the folder, [1,2,3] in this SPEC; name \"a\" in the folder, \
+             \"b\" in this SPEC; settings.samples 100 in the folder, 200 in this SPEC"
+        );
+    }
 
     #[test]
     fn jobs_are_handed_out_when_that_keeps_more_ranks_busy_than_sharing() {

@@ -147,8 +147,8 @@ pub struct Args {
     /// The constant threshold δ (one of the scenario's Δ) for a constant-δ run.
     #[arg(long, requires = "scenario")]
     pub delta: Option<f64>,
-    /// Number of episodes [default: 100].
-    #[arg(long)]
+    /// Number of episodes (at least 1) [default: 100].
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     pub episodes: Option<u64>,
     /// Seed: the same seed gives the same episodes [default: 0].
     #[arg(long)]
@@ -228,7 +228,8 @@ pub struct Args {
     #[command(flatten)]
     pub link: link::LinkArgs,
     /// Serve the run live to Foxglove (the Foxglove SDK's WebSocket server, `foxglove.sdk.v1`)
-    /// at ADDR:PORT [default: 127.0.0.1:8765; port 0: any free port]: the
+    /// at ADDR:PORT (an IP address or a host name such as `localhost`)
+    /// [default: 127.0.0.1:8765; port 0: any free port]: the
     /// map, the true state, the estimate with its 3σ ellipse, each sensor's
     /// transmissions and threshold, each episode's outcome, rates and
     /// energy vs predicted (layout: docs/foxglove-live-layout.json). The view
@@ -239,7 +240,8 @@ pub struct Args {
         long,
         value_name = "ADDR:PORT",
         num_args = 0..=1,
-        default_missing_value = etp_live::DEFAULT_ADDR
+        default_missing_value = etp_live::DEFAULT_ADDR,
+        value_parser = live::parse_addr
     )]
     pub live: Option<std::net::SocketAddr>,
     /// With --live: start the episodes only once a Foxglove client has
@@ -294,7 +296,12 @@ pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     // `--record PATH` is claimed before any work (an existing file is
     // refused without --force); `--record-default` once its name is known.
     let mut target = match &a.record {
-        Some(p) => Some(record::Target::claim(p, a.force, run_id.as_str())?),
+        Some(p) => {
+            // A folder the user named must exist (`--record-default`'s
+            // `recordings/` is made when missing).
+            etp_recording_tools::files::existing_folder_of(p, "--record")?;
+            Some(record::Target::claim(p, a.force, run_id.as_str())?)
+        }
         None => None,
     };
     let stale_dirs = rundir::remove_stale();

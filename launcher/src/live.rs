@@ -15,6 +15,35 @@ use std::time::{Duration, Instant};
 /// The feed socket's name in the run's folder.
 const FEED: &str = "live.sock";
 
+/// `--live ADDR:PORT`: an IP address, or a host name resolved here
+/// (`localhost` is the IPv4 loopback, as the default `127.0.0.1` is; of a
+/// name with several addresses the first IPv4 one). The error clap prints
+/// after the option's name.
+pub fn parse_addr(s: &str) -> std::result::Result<std::net::SocketAddr, String> {
+    use std::net::{SocketAddr, ToSocketAddrs};
+    if let Ok(a) = s.parse::<SocketAddr>() {
+        return Ok(a);
+    }
+    let (host, port) = s
+        .rsplit_once(':')
+        .ok_or_else(|| format!("`{s}` is not ADDR:PORT (e.g. localhost:8765)"))?;
+    let port: u16 = port
+        .parse()
+        .map_err(|_| format!("`{port}` is not a port number (0..=65535)"))?;
+    if host.eq_ignore_ascii_case("localhost") {
+        return Ok(SocketAddr::from((std::net::Ipv4Addr::LOCALHOST, port)));
+    }
+    let all: Vec<SocketAddr> = (host, port)
+        .to_socket_addrs()
+        .map_err(|e| format!("cannot resolve `{host}`: {e}"))?
+        .collect();
+    all.iter()
+        .find(|a| a.is_ipv4())
+        .or(all.first())
+        .copied()
+        .ok_or_else(|| format!("`{host}` resolves to no address"))
+}
+
 /// `--live` refused before any work when its address is not loopback and
 /// `--insecure` was not given.
 pub fn check(a: &Args) -> Result<()> {

@@ -92,14 +92,19 @@ pub struct Target {
 }
 
 impl Target {
-    /// Claim `path` for run `run_id` (before anything of the run starts): an
-    /// existing file is refused unless `force`, and nothing is removed.
+    /// Claim `path` for run `run_id` (before anything of the run starts): a
+    /// folder is refused by name, with or without `force`; an existing file
+    /// is refused unless `force`, and nothing is removed.
     pub fn claim(path: &Path, force: bool, run_id: &str) -> Result<Self> {
+        if path.is_dir() {
+            bail!(
+                "--record {}: is a folder; name the recording file (e.g. {})",
+                path.display(),
+                path.join("run.mcap").display()
+            );
+        }
         etp_recording_tools::files::refuse_existing(path, force)?;
         let before = file_id(path).with_context(|| format!("--record {}", path.display()))?;
-        if before.is_some() && path.is_dir() {
-            bail!("--record {}: is a directory", path.display());
-        }
         let name = path
             .file_name()
             .with_context(|| format!("--record {}: not a file name", path.display()))?;

@@ -28,6 +28,19 @@ pub fn plot_map(
             .and_then(|s| s.to_str())
             .unwrap_or("strategy")
     ));
+    plot_map_to(scenario, strategy, &stem, episodes, seed, force)
+}
+
+/// [`plot_map`] to `STEM.png` and `STEM.svg` (`etp validate --plot -o STEM`).
+pub fn plot_map_to(
+    scenario: &etp_shared::scenario::Scenario,
+    strategy: &Strategy,
+    stem: &Path,
+    episodes: u64,
+    seed: u64,
+    force: bool,
+) -> anyhow::Result<Vec<PathBuf>> {
+    let stem = stem.to_path_buf();
     let paths = vec![stem.with_extension("png"), stem.with_extension("svg")];
     for p in &paths {
         crate::output::refuse_existing(p, force)?;

@@ -165,6 +165,7 @@ pub fn export_streaming(
             source.display()
         );
     }
+    crate::refuse_foreign(source, &c)?;
     recording::check_metadata(&c)?;
     selection.prepare(&mut c)?;
     let e = export_with(&c, source, dir, format, force, |row| {

@@ -21,6 +21,28 @@ pub fn refuse_existing(path: &Path, force: bool) -> Result<()> {
     Ok(())
 }
 
+/// The folder of an output file the user named (`option`: how, e.g.
+/// `--record`) must exist: a mistyped path is refused by name, never
+/// created silently. An empty parent is the working folder.
+pub fn existing_folder_of(path: &Path, option: &str) -> Result<()> {
+    let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) else {
+        return Ok(());
+    };
+    match std::fs::metadata(parent) {
+        Ok(m) if m.is_dir() => Ok(()),
+        Ok(_) => bail!(
+            "{option} {}: {} is not a folder",
+            path.display(),
+            parent.display()
+        ),
+        Err(_) => bail!(
+            "{option} {}: the folder {} does not exist (create it first)",
+            path.display(),
+            parent.display()
+        ),
+    }
+}
+
 /// THE rule of a folder a command writes its outputs into: created if
 /// missing; a symbolic link, a folder of another user or one every user may
 /// write is refused by name, never written into

@@ -1,7 +1,8 @@
 //! `--info`: what `ros2 bag info` / `mcap info` show, for an etp recording:
 //! size, profile and writer, whether it is finished, start, end and duration
-//! of the messages, chunk compression, schemas, messages per channel, the
-//! metadata records and the run they describe.
+//! of the messages, chunk compression, schemas, per channel its messages,
+//! their rate and payload bytes, the metadata records and the run they
+//! describe.
 
 use etp_runtime::recording::{self, Contents, Layout};
 use serde_json::{Value, json};
@@ -20,6 +21,16 @@ pub fn info(file: &Path, bytes: u64, c: &Contents, layout: &Layout) -> Value {
     let start = c.messages.iter().map(|m| m.log_time).min();
     let end = c.messages.iter().map(|m| m.log_time).max();
     let counts = c.counts();
+    let mut bytes_of = std::collections::BTreeMap::<&str, u64>::new();
+    for m in &c.messages {
+        *bytes_of.entry(m.topic.as_str()).or_default() += m.data.len() as u64;
+    }
+    // As `mcap info`: a channel's messages over the file's span (null for
+    // a span of zero, one message or none).
+    let span_s = match (start, end) {
+        (Some(s), Some(e)) if e > s => Some((e - s) as f64 * 1e-9),
+        _ => None,
+    };
     let channels: Vec<Value> = c
         .channels
         .iter()
@@ -30,6 +41,8 @@ pub fn info(file: &Path, bytes: u64, c: &Contents, layout: &Layout) -> Value {
                 "schema_encoding": c.schemas.get(schema),
                 "message_encoding": c.encodings.get(topic),
                 "messages": counts.get(topic).copied().unwrap_or(0),
+                "rate_hz": span_s.map(|d| counts.get(topic).copied().unwrap_or(0) as f64 / d),
+                "bytes": bytes_of.get(topic.as_str()).copied().unwrap_or(0),
             })
         })
         .collect();
@@ -154,11 +167,16 @@ fn write_info(out: &mut String, v: &Value) -> std::fmt::Result {
     writeln!(out, "channels:")?;
     if let Some(a) = v["channels"].as_array() {
         for c in a {
+            let rate = c["rate_hz"]
+                .as_f64()
+                .map_or("–".into(), |r| format!("{r:.2}"));
             writeln!(
                 out,
-                "  {:<22} {:>9} msgs  {} ({}, {})",
+                "  {:<22} {:>9} msgs ({:>9} Hz) {:>11} B  {} ({}, {})",
                 s(&c["topic"]),
                 s(&c["messages"]),
+                rate,
+                s(&c["bytes"]),
                 s(&c["schema"]),
                 s(&c["schema_encoding"]),
                 s(&c["message_encoding"])

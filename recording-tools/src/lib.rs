@@ -89,6 +89,27 @@ pub fn load_bytes(path: &Path) -> Result<(Contents, Vec<u8>)> {
     Ok((c, buf))
 }
 
+/// Refuse a file none of whose channels etp writes
+/// ([`export::is_etp_channel`]: a Foxglove copy by
+/// `etp replay foxglove`, another program's MCAP file): its summary would
+/// be an empty run. A file without channels yet (an etp recording cut
+/// before its first channel) passes: it is unfinished, not foreign.
+pub fn refuse_foreign(file: &Path, c: &Contents) -> Result<()> {
+    if c.channels.is_empty() || c.channels.keys().any(|t| export::is_etp_channel(c, t)) {
+        return Ok(());
+    }
+    let seen: std::collections::BTreeSet<&str> = c.encodings.values().map(String::as_str).collect();
+    bail!(
+        "{} is not an etp recording: none of its {} channels is one etp records \
+         (their encodings: {}; a Foxglove copy, or another program's file); \
+         `etp replay info {}` describes any MCAP file",
+        file.display(),
+        c.channels.len(),
+        seen.into_iter().collect::<Vec<_>>().join(", "),
+        file.display()
+    )
+}
+
 /// Refuse an output path that exists (unless `force`) or is the input.
 pub fn check_output(input: &Path, out: &Path, force: bool) -> Result<()> {
     if out == input
@@ -101,5 +122,6 @@ pub fn check_output(input: &Path, out: &Path, force: bool) -> Result<()> {
             out.display()
         );
     }
+    files::existing_folder_of(out, "output")?;
     files::refuse_existing(out, force)
 }

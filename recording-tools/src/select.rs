@@ -69,6 +69,8 @@ pub fn parse_offset(s: &str) -> Result<f64, String> {
 pub struct Selection {
     /// Topics (`outcome`, `sensor/0/truth`); `*` matches any text (`sensor/*/handover`).
     pub topics: Vec<String>,
+    /// Topics (patterns as `topics`) left out, after `topics`.
+    pub exclude_topics: Vec<String>,
     pub episodes: Option<Episodes>,
     pub start: Option<f64>,
     pub end: Option<f64>,
@@ -93,6 +95,7 @@ impl Selection {
     /// True when nothing is filtered.
     pub fn is_all(&self) -> bool {
         self.topics.is_empty()
+            && self.exclude_topics.is_empty()
             && self.episodes.is_none()
             && self.start.is_none()
             && self.end.is_none()
@@ -122,18 +125,25 @@ impl Selection {
         {
             bail!("--end {e} s is not after --start {s} s");
         }
-        for p in &self.topics {
-            if !c.channels.keys().any(|t| glob(p, t)) {
-                bail!(
-                    "--topics: `{p}` matches no channel of the recording (channels: {})",
-                    c.channels.keys().cloned().collect::<Vec<_>>().join(" ")
-                );
+        for (option, patterns) in [
+            ("--topics", &self.topics),
+            ("--exclude-topics", &self.exclude_topics),
+        ] {
+            for p in patterns {
+                if !c.channels.keys().any(|t| glob(p, t)) {
+                    bail!(
+                        "{option}: `{p}` matches no channel of the recording (channels: {})",
+                        c.channels.keys().cloned().collect::<Vec<_>>().join(" ")
+                    );
+                }
             }
         }
         if !self.topics.is_empty() {
             c.channels
                 .retain(|t, _| self.topics.iter().any(|p| glob(p, t)));
         }
+        c.channels
+            .retain(|t, _| !self.exclude_topics.iter().any(|p| glob(p, t)));
         Ok(())
     }
 

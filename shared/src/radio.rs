@@ -326,6 +326,25 @@ impl Radio {
                 )
             })
             .collect::<Result<Vec<_>, _>>()?;
+        // Retries and bursts act on lost attempts only: on a channel that
+        // loses none they would change nothing but the run's labels (and,
+        // under `etp run`, where its prediction comes from).
+        if links.iter().all(|l| l.loss == 0.0) {
+            for (given, field) in [
+                (o.retries.map(|r| r.to_string()), fields.retries),
+                (o.burst.map(|b| b.to_string()), fields.burst),
+            ] {
+                if let Some(v) = given {
+                    return Err(refuse(
+                        field,
+                        format!(
+                            "{field} {v} does nothing: no link loses an attempt (loss 0); \
+                             give --loss P (> 0) with it"
+                        ),
+                    ));
+                }
+            }
+        }
         Ok(Self {
             estimator: o.estimator.unwrap_or(self.estimator),
             links,

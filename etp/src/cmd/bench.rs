@@ -18,8 +18,8 @@ pub struct Args {
     /// Scenario to measure on.
     #[arg(default_value = "winding-2d")]
     pub scenario: String,
-    /// Episodes per measurement.
-    #[arg(long, default_value_t = 4000)]
+    /// Episodes per measurement (at least 1).
+    #[arg(long, default_value_t = 4000, value_parser = clap::value_parser!(u64).range(1..))]
     pub episodes: u64,
     /// Timed repetitions per row; the row reports their median rate and
     /// range (this machine is shared: one run can lose a third to a neighbour).

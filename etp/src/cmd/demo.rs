@@ -33,11 +33,11 @@ pub struct Args {
     /// Monte Carlo segments per state-action of the synthesis.
     #[arg(long, default_value_t = etp_synthesis::abstraction::DEFAULT_SAMPLES)]
     pub samples: u32,
-    /// In-process validation episodes.
-    #[arg(long, default_value_t = 3000)]
+    /// In-process validation episodes (at least 1).
+    #[arg(long, default_value_t = 3000, value_parser = clap::value_parser!(u64).range(1..))]
     pub validate_episodes: u64,
-    /// Multi-process episodes.
-    #[arg(long, default_value_t = 200)]
+    /// Multi-process episodes (at least 1).
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..))]
     pub run_episodes: u64,
     /// Seed of everything.
     #[arg(long, default_value_t = 0)]
@@ -46,13 +46,18 @@ pub struct Args {
     /// front --points`; 0: none, the MDP's front alone).
     #[arg(long, value_name = "K", default_value_t = DEMO_FRONT_POINTS)]
     pub front_points: usize,
-    /// Output folder (default `out/demo-<scenario>-<seed>-<time>`; never reused).
+    /// Output folder of everything the demo writes, the run's recording
+    /// (`run.mcap`) included (default `out/demo-<scenario>-<seed>-<time>`;
+    /// never reused).
     #[arg(short = 'o', long = "out")]
     pub out: Option<PathBuf>,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
 }
+
+/// The multi-process run's recording, in the demo's folder.
+const RECORDING: &str = "run.mcap";
 
 /// Requests of the demo's predicted front by default (`etp strategy front`
 /// has 6).
@@ -247,8 +252,9 @@ pub fn run(a: Args) -> Result<()> {
         episode_details: false,
         predict_episodes: Some(a.validate_episodes),
         clone_sensors: None,
-        record: None,
-        record_default: true,
+        // Every output of the demo in its folder, the recording too.
+        record: Some(dir.join(RECORDING)),
+        record_default: false,
         force: false,
         allow_degraded: false,
         slot_deadline: None,

@@ -11,6 +11,8 @@ use std::process::ExitCode;
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// `etp-agent`, `etp-sensor-node`, `etp-coordinator` or `etp-recorder`.
+    /// (`--help` in its place prints this; after it, the process's own.)
+    #[arg(allow_hyphen_values = true)]
     pub name: String,
     /// The process's own arguments.
     #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
@@ -18,5 +20,17 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> ExitCode {
+    // Every argument after NAME is the process's own (its `--help` too), so
+    // clap's help flag is off here: `etp process --help` is answered by hand.
+    if matches!(a.name.as_str(), "--help" | "-h") {
+        let mut cli = crate::cli::command();
+        return match cli
+            .find_subcommand_mut("process")
+            .map(|c| c.print_long_help())
+        {
+            Some(Ok(())) => ExitCode::SUCCESS,
+            _ => ExitCode::FAILURE,
+        };
+    }
     crate::processes::run(&a.name, a.args)
 }

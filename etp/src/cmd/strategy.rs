@@ -44,13 +44,15 @@ pub struct Args {
     /// Output directory of `etp synthesize` (holds mdp.bin and front.json).
     #[arg(required = true)]
     pub dir: Option<PathBuf>,
-    /// Least energy with P_tar ≥ P.
+    /// Least energy with P_tar ≥ P (P in [0, 1]).
     #[arg(long, value_name = "P", value_parser = crate::input::probability)]
     pub min_target: Option<f64>,
-    /// With --min-target: also P_coll ≤ C.
+    /// With --min-target: also P_coll ≤ C (C in [0, 1]).
     #[arg(long, value_name = "C", requires = "min_target", value_parser = crate::input::probability)]
     pub max_collision: Option<f64>,
-    /// Highest P_tar with expected energy ≤ E.
+    /// Highest P_tar with expected energy per episode ≤ E (E ≥ 0, in the
+    /// scenario's energy unit: the sum of the transmission costs `c_m` of an
+    /// episode, docs/MODEL.md §6).
     #[arg(long, value_name = "E", value_parser = energy)]
     pub max_energy: Option<f64>,
     /// Vertex K of the front (0 = least energy; see front.json), predicted
@@ -119,8 +121,8 @@ pub enum Verb {
 pub struct FrontArgs {
     /// Output directory of `etp synthesize` (its front.json gains the curves).
     pub dir: PathBuf,
-    /// Requests per curve, evenly spaced over the MDP's P_tar range (both
-    /// ends included).
+    /// Requests per curve (2..=64), evenly spaced over the MDP's P_tar range
+    /// (both ends included).
     #[arg(long, value_name = "K", default_value_t = etp_synthesis::predict::front::DEFAULT_POINTS,
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(2..=64))]
     pub points: usize,

@@ -5,7 +5,7 @@ use crate::report::{radio_table, summary_table};
 use anyhow::Result;
 use etp_pipeline::predictions::{self, checks};
 use etp_pipeline::progress;
-use etp_pipeline::validation::{comparison_json, failed_checks, plot_map};
+use etp_pipeline::validation::{comparison_json, failed_checks, plot_map, plot_map_to};
 use etp_recording_tools::vocab::channels_text;
 use etp_shared::strategy::Strategy;
 use etp_synthesis::simulate::SimulationSummary;
@@ -34,11 +34,16 @@ pub struct Args {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
-    /// Also draw the map with sampled trajectories (PNG + SVG next to the strategy).
+    /// Also draw the map with sampled trajectories (PNG + SVG next to the
+    /// strategy: `<STRATEGY without .json>-map`, or `-o STEM`).
     #[arg(long)]
     pub plot: bool,
-    /// Trajectories on the map.
-    #[arg(long, default_value_t = 40)]
+    /// With --plot: the figure's file stem, writes STEM.png and STEM.svg
+    /// (its folder must exist).
+    #[arg(short = 'o', long = "out", value_name = "STEM", requires = "plot")]
+    pub out: Option<PathBuf>,
+    /// Trajectories on the map (with --plot).
+    #[arg(long, default_value_t = 40, requires = "plot")]
     pub plot_episodes: u64,
     /// Overwrite map plots that exist.
     #[arg(long)]
@@ -71,7 +76,19 @@ pub fn run(a: Args) -> Result<()> {
     .summary();
     pb.finish_and_clear();
     crate::report::ensure_finite(&sum)?;
-    let plot_paths = if a.plot {
+    if let Some(stem) = &a.out {
+        etp_recording_tools::files::existing_folder_of(stem, "-o")?;
+    }
+    let plot_paths = if let (true, Some(stem)) = (a.plot, &a.out) {
+        plot_map_to(
+            &scenario,
+            &strategy,
+            stem,
+            a.plot_episodes,
+            a.sim.seed,
+            a.force,
+        )?
+    } else if a.plot {
         plot_map(
             &scenario,
             &strategy,

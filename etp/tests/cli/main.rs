@@ -29,6 +29,7 @@ mod storm;
 mod study;
 mod synthesize;
 mod trigger;
+mod usage;
 mod workable;
 
 use serde_json::Value;

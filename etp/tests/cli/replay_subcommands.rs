@@ -432,3 +432,134 @@ fn every_replay_command_of_the_readmes_runs() {
     }
     assert!(ran >= 20, "only {ran} commands found");
 }
+
+/// `replay info` gives per channel its messages, their rate over the file's
+/// span and their payload bytes (as `mcap info`).
+#[test]
+fn info_gives_each_channels_rate_and_bytes() {
+    let v = ok_json(&["replay", "info", s(&fixture()), "--json"]);
+    let span = v["duration_s"].as_f64().expect("span");
+    assert!(span > 0.0, "{v}");
+    let channels = v["channels"].as_array().expect("channels");
+    let mut bytes = 0;
+    for c in channels {
+        let n = c["messages"].as_u64().expect("messages");
+        let rate = c["rate_hz"].as_f64().expect("rate");
+        assert!(
+            (rate - n as f64 / span).abs() <= 1e-9 * rate.max(1.0),
+            "{c}"
+        );
+        let b = c["bytes"].as_u64().expect("bytes");
+        assert_eq!(n == 0, b == 0, "{c}");
+        bytes += b;
+    }
+    assert!(
+        bytes > 0 && bytes < v["bytes"].as_u64().expect("file size") * 20,
+        "{v}"
+    );
+    let out = etp(&["replay", "info", s(&fixture())]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let outcome = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("outcome "))
+        .expect("the outcome channel's line");
+    assert!(
+        outcome.contains("Hz") && outcome.contains(" B "),
+        "{outcome}"
+    );
+}
+
+/// `filter --exclude-topics` leaves those channels out (and names a
+/// pattern that matches none); the copy is refused nothing else.
+#[test]
+fn filter_excludes_topics() {
+    let dir = Scratch::new("replay-exclude");
+    let out = dir.path("no-truth.mcap");
+    ok_json(&[
+        "replay",
+        "filter",
+        s(&fixture()),
+        s(&out),
+        "--exclude-topics",
+        "sensor/*/truth,control",
+        "--json",
+    ]);
+    let before = ok_json(&["replay", "info", s(&fixture()), "--json"]);
+    let after = ok_json(&["replay", "info", s(&out), "--json"]);
+    let topics = |v: &Value| -> Vec<String> {
+        v["channels"]
+            .as_array()
+            .expect("channels")
+            .iter()
+            .map(|c| c["topic"].as_str().expect("topic").to_string())
+            .collect()
+    };
+    let kept: Vec<String> = topics(&before)
+        .into_iter()
+        .filter(|t| t != "control" && !(t.starts_with("sensor/") && t.ends_with("/truth")))
+        .collect();
+    assert!(kept.len() < topics(&before).len(), "{before}");
+    assert_eq!(topics(&after), kept);
+    fails_with(
+        &[
+            "replay",
+            "filter",
+            s(&fixture()),
+            s(&dir.path("x.mcap")),
+            "--exclude-topics",
+            "nosuch",
+        ],
+        &["--exclude-topics", "`nosuch` matches no channel"],
+    );
+}
+
+/// A copy that is not an etp recording (the Foxglove copy) is refused by
+/// the tools that need etp's channels, by name and with exit 1, never
+/// summarised as a run of 0 episodes; `info` and `cat` still read it.
+#[test]
+fn a_file_that_is_not_an_etp_recording_is_refused_by_name() {
+    let dir = Scratch::new("replay-foreign");
+    let fox = dir.path("fox.mcap");
+    ok_json(&["replay", "foxglove", s(&fixture()), s(&fox), "--json"]);
+    let tables = dir.path("tables");
+    for args in [
+        vec!["replay", s(&fox)],
+        vec!["replay", "summary", s(&fox), "--json"],
+        vec!["replay", "verify", s(&fox)],
+        vec!["replay", "plot", s(&fox)],
+        vec!["replay", "export", s(&fox), s(&tables)],
+    ] {
+        let (rc, out, err) = code(&args);
+        assert_eq!(rc, Some(1), "{args:?}: {err}");
+        assert!(err.contains("is not an etp recording"), "{args:?}: {err}");
+        assert!(out.is_empty(), "{args:?}: {out}");
+    }
+    assert!(!tables.exists(), "export wrote tables of a foreign file");
+    let (rc, _, err) = code(&["replay", "info", s(&fox)]);
+    assert_eq!(rc, Some(0), "{err}");
+}
+
+/// `replay plot -o STEM` writes STEM.png and STEM.svg; an output into a
+/// folder that does not exist is refused by name, never made.
+#[test]
+fn outputs_go_where_the_user_said_into_folders_that_exist() {
+    let dir = Scratch::new("replay-out");
+    let stem = dir.path("figure");
+    ok_json(&["replay", "plot", s(&fixture()), "-o", s(&stem), "--json"]);
+    assert!(dir.path("figure.png").is_file() && dir.path("figure.svg").is_file());
+    let missing = dir.path("no/such");
+    for args in [
+        vec!["replay", "plot", s(&fixture()), "-o"],
+        vec!["replay", "filter", s(&fixture())],
+        vec!["replay", "repair", s(&fixture())],
+        vec!["replay", "foxglove", s(&fixture())],
+    ] {
+        let target = missing.join("out.mcap");
+        let mut args = args.clone();
+        args.push(s(&target));
+        let (rc, _, err) = code(&args);
+        assert_eq!(rc, Some(1), "{args:?}: {err}");
+        assert!(err.contains("does not exist"), "{args:?}: {err}");
+        assert!(!dir.path("no").exists(), "{args:?} made the folder");
+    }
+}

@@ -227,8 +227,8 @@ fn the_pipeline_commands_json_match_their_strict_described_schemas() {
         "1",
         "--json",
     ]);
-    // The demo records into `recordings/` of its working directory: the
-    // scratch folder, not the crate's.
+    // Run in the scratch folder: were the demo to write outside `-o`
+    // (`recordings/` of its working folder), it would show there.
     let demo_out = Command::new(env!("CARGO_BIN_EXE_etp"))
         .args([
             "demo",
@@ -256,6 +256,18 @@ fn the_pipeline_commands_json_match_their_strict_described_schemas() {
         String::from_utf8_lossy(&demo_out.stderr)
     );
     let demo: Value = serde_json::from_slice(&demo_out.stdout).expect("demo prints one JSON value");
+    // Every output where `-o` said, the recording too.
+    let recording = PathBuf::from(
+        demo["multi_process"]["recording"]["path"]
+            .as_str()
+            .expect("the demo's recording"),
+    );
+    assert_eq!(recording, dir.path("demo").join("run.mcap"), "{demo}");
+    assert!(recording.is_file());
+    assert!(
+        !dir.path("recordings").exists(),
+        "the demo wrote outside its -o folder"
+    );
     let docs = [
         ("check", &check),
         ("synthesize", &synthesize),

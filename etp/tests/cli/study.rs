@@ -199,12 +199,59 @@ fn a_killed_study_resumes_from_its_finished_cases() {
     std::fs::write(&other, SPEC.replace("samples = 300", "samples = 301")).expect("spec");
     fails_with(
         &["study", s(&other), "-o", s(&cut)],
-        &["holds the study of another SPEC"],
+        &[
+            "holds the study of another SPEC",
+            "settings.samples 300 in the folder, 301 in this SPEC",
+        ],
     );
     assert_eq!(
         read(&cut.join("study.json")),
         read(&whole.join("study.json"))
     );
+}
+
+/// A SPEC file renamed (its `name` defaults to the file's) cannot resume
+/// the study of the old name: the refusal says that the name is what differs.
+#[test]
+fn resuming_under_a_renamed_spec_names_what_differs() {
+    let dir = Scratch::new("study-renamed");
+    let spec = dir.path("first.toml");
+    std::fs::write(&spec, SPEC).expect("spec");
+    let out = dir.path("study");
+    // The folder is claimed (spec.json written) before any case starts:
+    // stop the study there.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_etp"))
+        .args(["study", s(&spec), "-o", s(&out)])
+        .env("RAYON_NUM_THREADS", "1")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("etp study starts");
+    let claimed = out.join("spec.json");
+    let started = Instant::now();
+    while !claimed.exists() {
+        if let Ok(Some(status)) = child.try_wait() {
+            panic!("the study ended ({status}) before it claimed its folder");
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(600),
+            "no spec.json after 600 s"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.kill().expect("kill -9");
+    child.wait().expect("reaped");
+    let stored = std::fs::read(&claimed).expect("spec.json");
+    let renamed = dir.path("second.toml");
+    std::fs::rename(&spec, &renamed).expect("rename");
+    fails_with(
+        &["study", s(&renamed), "-o", s(&out)],
+        &[
+            "holds the study of another SPEC",
+            r#"name "first" in the folder, "second" in this SPEC"#,
+        ],
+    );
+    assert_eq!(std::fs::read(&claimed).expect("spec.json"), stored);
 }
 
 #[test]

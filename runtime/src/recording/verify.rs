@@ -82,7 +82,8 @@ pub struct VerifyReport {
     pub handovers_checked: u64,
     /// Recorded decision-point beliefs reproduced bit for bit.
     pub waypoints_checked: u64,
-    /// Plant steps re-run.
+    /// Plant steps re-run through their slot (`explicit_updates +
+    /// implicit_updates`; the step a collision ends has no slot).
     pub steps: u64,
     /// Explicit updates (recorded measurements) and implicit updates (silent slots).
     pub explicit_updates: u64,
@@ -392,7 +393,6 @@ fn rerun<const N: usize>(
             // slot), prediction; then the slot as recorded.
             let begun = core.begin(c, &mut world);
             k = core.step();
-            rep.steps += 1;
             let open = match begun {
                 Begun::Slot(open) => open,
                 Begun::Collided(()) => {
@@ -533,6 +533,10 @@ fn rerun<const N: usize>(
             slot_in_leg += 1;
             rep.attempts_redrawn += u64::from(slot.attempts);
             rep.lost_redrawn += u64::from(slot.attempts - u32::from(redrawn.1));
+            // A step counts once its slot is re-run: the step a collision
+            // ends has no slot (nor has one cut by the end of the file), so
+            // steps = measurements + silent slots.
+            rep.steps += 1;
             match y {
                 Some(_) => rep.explicit_updates += 1,
                 None => rep.implicit_updates += 1,

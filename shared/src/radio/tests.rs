@@ -275,6 +275,43 @@ fn overrides_replace_every_link_and_are_checked() {
         ..RadioOverride::default()
     };
     assert_eq!(radio.overridden(&bad).expect_err("burst").field, "--burst");
+    // Retries or bursts on a channel that loses nothing are refused by name.
+    for (o, field) in [
+        (
+            RadioOverride {
+                retries: Some(1000),
+                ..RadioOverride::default()
+            },
+            "--retries",
+        ),
+        (
+            RadioOverride {
+                loss: Some(0.0),
+                burst: Some(3.0),
+                ..RadioOverride::default()
+            },
+            "--burst",
+        ),
+    ] {
+        let e = Radio::ideal(2).overridden(&o).expect_err("does nothing");
+        assert_eq!(e.field, field);
+        assert!(e.reason.contains("--loss"), "{e}");
+    }
+    let lossy = Radio::ideal(2)
+        .overridden(&RadioOverride {
+            loss: Some(0.2),
+            ..RadioOverride::default()
+        })
+        .expect("lossy");
+    assert!(
+        lossy
+            .overridden(&RadioOverride {
+                retries: Some(2),
+                ..RadioOverride::default()
+            })
+            .is_ok(),
+        "retries on the scenario's own lossy channel"
+    );
     let names = ["a".to_string(), "b".to_string()];
     assert_eq!(Radio::ideal(2).describe(&names), "ideal");
     assert!(

@@ -115,9 +115,11 @@ impl Action {
             },
             Action::Plot {
                 file,
+                out,
                 write: WriteArgs { force, json },
             } => Job {
                 plot: true,
+                plot_out: out,
                 force,
                 json,
                 only: true,
@@ -153,6 +155,8 @@ pub struct Job {
     pub info: bool,
     pub select: SelectArgs,
     pub plot: bool,
+    /// `plot -o STEM`.
+    pub plot_out: Option<PathBuf>,
     /// Overwrite output files that exist.
     pub force: bool,
     /// `filter FILE OUT`.
@@ -174,6 +178,7 @@ impl Job {
     pub(super) fn selection(&self) -> select::Selection {
         select::Selection {
             topics: self.select.topics.clone(),
+            exclude_topics: self.select.exclude_topics.clone(),
             episodes: self.select.episodes,
             start: self.select.start,
             end: self.select.end,

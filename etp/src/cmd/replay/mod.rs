@@ -7,7 +7,8 @@
 //! parsed into the one [`Job`] that runs it.
 //!
 //! Exit codes (README "Exit codes"): 0 a complete file whose identities
-//! hold; 1 an error, a damaged file (only `repair` reads it) or a failed
+//! hold; 1 an error, a damaged file (only `repair` reads it), a file that
+//! is not an etp recording (only `info`, `cat` and `repair` read it) or a failed
 //! verification; 3 an unfinished file (cut by a crash or a copy: every
 //! complete record is summarised); 4 a count identity fails on the complete
 //! episodes (`measurement` messages ≠ ledger transmissions, or ≠ received
@@ -17,7 +18,8 @@
 
 use anyhow::{Context, Result, bail};
 use etp_recording_tools::{
-    check_output, export, figure, foxglove, info, load_bytes, publish, repair, select, summary,
+    check_output, export, figure, foxglove, info, load_bytes, publish, refuse_foreign, repair,
+    select, summary,
 };
 use etp_runtime::recording::{self, Contents};
 use etp_runtime::wire::RunId;
@@ -33,8 +35,7 @@ use output::{emit, is_broken_pipe, render_verify};
 #[command(
     args_conflicts_with_subcommands = true,
     subcommand_negates_reqs = true,
-    after_help = "Without a subcommand, `etp replay FILE` prints the summary (as `etp replay \
-                  summary FILE`)."
+    after_help = EXIT_CODES
 )]
 pub struct Args {
     #[command(subcommand)]
@@ -56,13 +57,17 @@ pub struct Plain {
     pub select: SelectArgs,
 }
 
-/// `--topics`, `--episodes`, `--start`, `--end`.
+/// `--topics`, `--exclude-topics`, `--episodes`, `--start`, `--end`.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct SelectArgs {
     /// Only these channels (comma-separated topics; `*` matches any text,
     /// e.g. `outcome,sensor/*/handover`).
     #[arg(long, value_delimiter = ',', value_name = "TOPICS")]
     pub topics: Vec<String>,
+    /// Leave out these channels (comma-separated topics; `*` matches any
+    /// text, e.g. `sensor/*/truth`); applied after `--topics`.
+    #[arg(long, value_delimiter = ',', value_name = "TOPICS")]
+    pub exclude_topics: Vec<String>,
     /// Only these episodes (`header.episode`, 0-based): `A..B` (B excluded),
     /// `A..=B`, `A..`, `..B` or `N`.
     #[arg(long, value_parser = select::parse_episodes, value_name = "RANGE")]
@@ -87,13 +92,24 @@ pub struct WriteArgs {
     pub json: bool,
 }
 
+/// `etp replay --help`'s last words (README "Exit codes").
+const EXIT_CODES: &str = "Without a subcommand, `etp replay FILE` prints the summary (as `etp \
+replay summary FILE`). Exit codes: 0 a complete recording whose count identities hold; 3 an \
+unfinished recording (every complete record summarised; `repair` writes a finished copy); 4 a \
+count identity fails on the complete episodes; 5 the file lacks channels a count or a check \
+needs (a copy filtered by topic); 1 an error: an unreadable or damaged file, a file that is \
+not an etp recording (only `info`, `cat` and `repair` read it), an output that exists without \
+--force or whose folder does not exist, or `verify` found a difference; 2 a bad command line.";
+
 /// One recording tool.
 #[derive(Debug, clap::Subcommand)]
 pub enum Action {
     /// The run's summary: complete episodes, outcomes, per-sensor
     /// transmissions beside ledgers and received, energy vs prediction.
     Summary {
+        /// An MCAP recording (`etp run --record`).
         file: PathBuf,
+        /// Print one JSON object.
         #[arg(long)]
         json: bool,
         #[command(flatten)]
@@ -102,7 +118,9 @@ pub enum Action {
     /// What the file holds (size, compression, time span, schemas, messages
     /// per channel, metadata), like `mcap info`.
     Info {
+        /// An MCAP recording (`etp run --record`).
         file: PathBuf,
+        /// Print one JSON object.
         #[arg(long)]
         json: bool,
         #[command(flatten)]
@@ -111,6 +129,7 @@ pub enum Action {
     /// Every (selected) message decoded, one JSON object per line, in
     /// log-time order, like `mcap cat --json`.
     Cat {
+        /// An MCAP recording (`etp run --record`).
         file: PathBuf,
         #[command(flatten)]
         select: SelectArgs,
@@ -118,8 +137,12 @@ pub enum Action {
     /// One table per channel into DIR (decoded, typed columns, codes as
     /// names; `DIR/tables.json` describes them).
     Export {
+        /// An MCAP recording (`etp run --record`).
         file: PathBuf,
+        /// The folder of the tables (created if missing; a table that exists is
+        /// replaced only with --force).
         dir: PathBuf,
+        /// The tables' format: `csv` or `jsonl` (one JSON object per line).
         #[arg(long, value_enum, default_value = "csv")]
         format: export::Format,
         #[command(flatten)]
@@ -130,7 +153,9 @@ pub enum Action {
     /// Write the selected messages (all metadata kept) to a new, finished
     /// recording OUT, like `mcap filter`.
     Filter {
+        /// An MCAP recording (`etp run --record`).
         file: PathBuf,
+        /// The new recording (MCAP); its folder must exist.
         out: PathBuf,
         #[command(flatten)]
         write: WriteArgs,
@@ -141,20 +166,25 @@ pub enum Action {
     /// slots; every recorded belief must be reproduced bit for bit (exit 1 if
     /// not).
     Verify {
+        /// An MCAP recording (`etp run --record`).
         file: PathBuf,
+        /// Print one JSON object.
         #[arg(long)]
         json: bool,
     },
     /// Write a finished copy (summary, indexes, footer) of an unfinished or
     /// damaged file: every complete record before the cut or the damage.
     Repair {
+        /// An MCAP recording (`etp run --record`).
         file: PathBuf,
+        /// The finished copy (MCAP); its folder must exist.
         out: PathBuf,
         #[command(flatten)]
         write: WriteArgs,
     },
     /// Re-publish the recorded traffic on iceoryx2 (like `ros2 bag play`).
     Publish {
+        /// An MCAP recording (`etp run --record`).
         file: PathBuf,
         /// 1 = recorded timing, 2 = twice as fast, `inf` = as fast as the
         /// subscribers take it.
@@ -166,6 +196,7 @@ pub enum Action {
         /// Repeat: `--loop` until interrupted, `--loop N` N times in all.
         #[arg(long = "loop", value_name = "N", num_args = 0..=1, default_missing_value = "0")]
         repeat: Option<u64>,
+        /// Print one JSON object.
         #[arg(long)]
         json: bool,
         #[command(flatten)]
@@ -174,7 +205,9 @@ pub enum Action {
     /// Write a copy Foxglove draws (map, agent with 3σ ellipse, paths,
     /// transmissions, outcomes) to OUT; `--episodes` cuts it.
     Foxglove {
+        /// An MCAP recording (`etp run --record`).
         file: PathBuf,
+        /// The Foxglove copy (MCAP, JSON messages); its folder must exist.
         out: PathBuf,
         /// `step` (10 ms per plant step) or `recorded` (recorder time stamps).
         #[arg(long, value_enum, default_value = "step")]
@@ -186,9 +219,15 @@ pub enum Action {
         write: WriteArgs,
     },
     /// Draw measured vs predicted (per-sensor energy per episode, outcomes,
-    /// 95 % intervals) to `<FILE without .mcap>-replay.png` and `.svg`.
+    /// 95 % intervals) to `<FILE without .mcap>-replay.png` and `.svg`, or
+    /// to `-o STEM`.
     Plot {
+        /// An MCAP recording (`etp run --record`).
         file: PathBuf,
+        /// Figure file stem: writes STEM.png and STEM.svg (its folder must
+        /// exist) [default: `<FILE without .mcap>-replay`].
+        #[arg(short = 'o', long = "out", value_name = "STEM")]
+        out: Option<PathBuf>,
         #[command(flatten)]
         write: WriteArgs,
     },
@@ -247,6 +286,7 @@ fn run_job(a: Job) -> Result<()> {
         && recording::ends_finished(&file).unwrap_or(false)
         && let Some((s, c)) = summary::summarize_file(&file)?
     {
+        refuse_foreign(&file, &c)?;
         if let Err(e) = recording::check_metadata(&c) {
             bail!(
                 "{} is damaged: {e}; `etp replay repair {} OUT` copies its records anyway",
@@ -285,6 +325,10 @@ fn run_job(a: Job) -> Result<()> {
         }
         eprintln!("warning: {e}; the repaired copy keeps this metadata");
     }
+    // `info` and `cat` read any MCAP file; `repair` copies any file's records.
+    if !(a.info || a.cat) && a.repair.is_none() {
+        refuse_foreign(&file, &c)?;
+    }
     selection.apply(&mut c)?;
     if a.info {
         let v = info::info(&file, buf.len() as u64, &c, &recording::layout(&buf));
@@ -322,12 +366,18 @@ fn run_job(a: Job) -> Result<()> {
     let s = summary::summarize(&c)?;
     let plotted = match a.plot {
         true => {
-            let stem = file.with_extension("").with_file_name(format!(
-                "{}-replay",
-                file.file_stem()
-                    .and_then(|x| x.to_str())
-                    .unwrap_or("recording")
-            ));
+            let stem = match &a.plot_out {
+                Some(stem) => {
+                    etp_recording_tools::files::existing_folder_of(stem, "-o")?;
+                    stem.clone()
+                }
+                None => file.with_extension("").with_file_name(format!(
+                    "{}-replay",
+                    file.file_stem()
+                        .and_then(|x| x.to_str())
+                        .unwrap_or("recording")
+                )),
+            };
             let png = stem.with_extension("png");
             for p in [&png, &stem.with_extension("svg")] {
                 etp_pipeline::output::refuse_existing(p, a.force)?;
@@ -469,7 +519,11 @@ fn run_job(a: Job) -> Result<()> {
 /// `--topics` selection, which asked for it), 3 for an unfinished file.
 fn summary_exit(a: &Job, file: &Path, c: &Contents, s: &serde_json::Value) -> Result<()> {
     // A selection of channels leaves the identities' other side out.
-    if !a.only && a.select.topics.is_empty() && s["identities_hold"] == json!(false) {
+    if !a.only
+        && a.select.topics.is_empty()
+        && a.select.exclude_topics.is_empty()
+        && s["identities_hold"] == json!(false)
+    {
         return Err(etp_runtime::shell::ExitWith {
             code: EXIT_IDENTITY,
             message: format!(
@@ -485,6 +539,7 @@ fn summary_exit(a: &Job, file: &Path, c: &Contents, s: &serde_json::Value) -> Re
     if !a.only
         && c.finished
         && a.select.topics.is_empty()
+        && a.select.exclude_topics.is_empty()
         && let Some(missing) = s["missing_channels"].as_array().filter(|m| !m.is_empty())
     {
         let names: Vec<&str> = missing.iter().filter_map(|m| m.as_str()).collect();
