@@ -42,4 +42,5 @@ def test_a_run_reports_like_the_cli_and_its_recording_reads_back(tmp_path):
 def test_a_bad_request_raises_the_cli_message():
     with pytest.raises(etpareto.RunError) as e:
         etpareto.run(scenario="open-2d", delta=1.0518, episodes=0, bin_dir=etp_bin().parent)
-    assert "--episodes must be at least 1" in str(e.value)
+    # The CLI's own refusal, naming the option and its range.
+    assert "'--episodes <EPISODES>': 0 is not in 1.." in str(e.value)
