@@ -225,7 +225,7 @@ pub enum Action {
         /// An MCAP recording (`etp run --record`).
         file: PathBuf,
         /// Figure file stem: writes STEM.png and STEM.svg (its folder must
-        /// exist) [default: `<FILE without .mcap>-replay`].
+        /// exist; default: `<FILE without .mcap>-replay`).
         #[arg(short = 'o', long = "out", value_name = "STEM")]
         out: Option<PathBuf>,
         #[command(flatten)]
