@@ -19,7 +19,7 @@
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use etp_runtime::recording::{self, Kind};
+use etp_runtime::recording::{self, Kind, observers};
 use etp_runtime::shell::{self, Done};
 use etp_runtime::wire::{self, Ports, RunId, ServiceId, Waiter, Wake};
 use mcap::records::{MessageHeader, Metadata};
@@ -161,6 +161,10 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
             .collect::<Result<Vec<_>, _>>()?,
     )?;
     w.flush().context("flushing the MCAP header")?;
+    // Announced before `ready`: a replay that starts after it waits until
+    // this recorder has attached to its publishers (`observers`).
+    observers::announce(&run).context("announcing the recorder in the run's folder")?;
+    let _announced = Announced(&run);
     {
         let mut out = std::io::stdout().lock();
         writeln!(out, "ready")
@@ -181,7 +185,21 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
     // publish` leaves the file before its first message, and the run's folder
     // that holds it may be gone by the time this recorder stops.
     let mut handed_over: Option<HandedOver> = None;
+    // The replay hand-over this recorder has attached for.
+    let mut attached_for: Option<observers::Token> = None;
     loop {
+        if let Some(token) = observers::handover_token(&run)
+            && attached_for != Some(token)
+        {
+            // Every publisher of the replay exists once its hand-over does.
+            for c in &channels {
+                c.drain
+                    .attach()
+                    .with_context(|| format!("attaching to the publishers of {}", c.topic))?;
+            }
+            observers::acknowledge(&run, token).context("acknowledging the replay's hand-over")?;
+            attached_for = Some(token);
+        }
         let mut got = 0usize;
         // Every queue emptied first (copies), then encoded and written:
         // protobuf encoding is slower than a copy, and a publisher that
@@ -270,6 +288,15 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
         "counts": counts,
         "bytes": bytes,
     }))
+}
+
+/// Withdraws the recorder's announcement however it stops.
+struct Announced<'a>(&'a RunId);
+
+impl Drop for Announced<'_> {
+    fn drop(&mut self) {
+        observers::withdraw(self.0);
+    }
 }
 
 /// Metadata records by name, as `etp replay publish` hands them over.

@@ -5,7 +5,10 @@
 //! (`wire::limits`), so a lagging subscriber makes the replay wait rather than
 //! lose messages. Subscribers (`etp-recorder --run-id ID`, a test, a tool)
 //! should exist before the replay starts: iceoryx2 delivers to the subscribers
-//! present at send time.
+//! present at send time. Before its first message the replay waits until
+//! every recorder of the run id has attached to its publishers
+//! (`recording::observers`), so a replay that ends within milliseconds
+//! leaves every message to the recorder.
 //!
 //! The recording's metadata records (scenario, strategy, run, prediction) are
 //! left in the run's folder (`recording::handover_path`) before the first
@@ -14,7 +17,7 @@
 //! original. `--loop` repeats the traffic (the time offsets restart).
 
 use anyhow::{Context, Result, bail};
-use etp_runtime::recording::{self, Contents, Recorded};
+use etp_runtime::recording::{self, Contents, Recorded, observers};
 use etp_runtime::wire::{self, Notifier, Ports, RunId, ServiceId};
 use etp_shared::scenario::Scenario;
 use std::collections::BTreeMap;
@@ -99,7 +102,17 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Res
             ),
         );
     }
-    hand_over_metadata(c, run)?;
+    let token = hand_over_metadata(c, run)?;
+    // Wake every reader, then wait until each recorder of this run id has
+    // attached to every publisher: a sample sent before then is lost if
+    // this replay ends first (`recording::observers`).
+    for n in wakes.values() {
+        n.notify()
+            .map_err(|e| anyhow::anyhow!("waking the readers: {e:?}"))?;
+    }
+    observers::await_attached(run, token, observers::ATTACH_LIMIT, || {
+        wire::termination_requested(&node)
+    })?;
     let t0 = order.first().map_or(0, |(t, _, _)| *t);
     let t_end = order.last().map_or(0, |(t, _, _)| *t);
     let start = Instant::now();
@@ -180,12 +193,13 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Res
 }
 
 /// Leave the recording's metadata for the run's recorder (see the module doc).
-fn hand_over_metadata(c: &Contents, run: &RunId) -> Result<()> {
+fn hand_over_metadata(c: &Contents, run: &RunId) -> Result<observers::Token> {
     let path = recording::handover_path(run);
     let text = serde_json::to_string(&c.metadata).context("encoding the metadata")?;
     // Written beside and renamed: a recorder reading it meanwhile sees the
     // whole file or none.
     let beside = path.with_extension("json.part");
     std::fs::write(&beside, text).with_context(|| format!("writing {}", beside.display()))?;
-    std::fs::rename(&beside, &path).with_context(|| format!("renaming to {}", path.display()))
+    std::fs::rename(&beside, &path).with_context(|| format!("renaming to {}", path.display()))?;
+    observers::handover_token(run).with_context(|| format!("{} vanished", path.display()))
 }

@@ -119,9 +119,10 @@ where
 
 /// iceoryx2 reports errors only: its warnings (no config file, the global
 /// config used while cleaning a dead node whose details are gone) are noise
-/// here, where every configuration is built in code.
+/// here, where every configuration is built in code. `IOX2_LOG_LEVEL`
+/// (iceoryx2's own variable: `debug`, `warn`, …) overrides it for a diagnosis.
 pub fn quiet_iceoryx2() {
-    iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
+    iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
 }
 
 /// Logging of a process: a `tracing` subscriber on stderr filtered by

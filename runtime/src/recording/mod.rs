@@ -30,6 +30,7 @@ use crate::wire::sensor_to_agent as s2a;
 
 mod integrity;
 mod layout;
+pub mod observers;
 pub mod ports;
 pub mod protobuf;
 mod read;

@@ -24,9 +24,20 @@ pub trait EncodedSubscriber {
         encoding: Encoding,
         out: &mut Vec<(Header, Vec<u8>)>,
     ) -> Result<(), RecordingError>;
+
+    /// Attach to every publisher of the service now (without receiving):
+    /// from then on, a publisher that ends leaves what it sent to this
+    /// subscriber (see `recording::observers`).
+    fn attach(&self) -> Result<(), RecordingError>;
 }
 
 impl<T: Message> EncodedSubscriber for crate::wire::Sub<T> {
+    fn attach(&self) -> Result<(), RecordingError> {
+        use iceoryx2::port::update_connections::UpdateConnections;
+        self.update_connections()
+            .map_err(|e| PortError::receive("subscriber", e).into())
+    }
+
     fn take(&self, out: &mut Vec<Recorded>) -> Result<(), RecordingError> {
         while let Some(s) = self
             .receive()

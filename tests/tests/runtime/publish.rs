@@ -183,3 +183,83 @@ fn a_copy_recorded_from_publish_without_meta_verifies() {
     }
     let _ = std::fs::remove_file(&fb);
 }
+
+/// A replay that ends before its recorder looks loses nothing: the recorder
+/// is paused (SIGSTOP) before the replay starts, so it cannot attach to the
+/// replay's publishers while they send. The replay waits at the attach
+/// barrier (`recording::observers`) until the recorder, resumed, has
+/// attached; the copy then has every message of every channel. Without the
+/// barrier the replay ends in milliseconds and the paused recorder's copy
+/// misses whole channels.
+#[test]
+fn a_replay_waits_for_a_paused_recorder_and_its_copy_misses_nothing() {
+    use std::io::{BufRead, BufReader};
+    use std::process::{Command, Stdio};
+    let _serial = serial();
+    let b = unique_run_id("pub-paused");
+    let fb = out_file(&b);
+    // One episode: every channel fits in its subscriber's buffer, so the
+    // replay never stalls on a full buffer and, unless it waits, ends at once.
+    let fixture = std::env::temp_dir().join(format!("etp-test-{b}-one-episode.mcap"));
+    replay(&[
+        "filter",
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../recordings/fixtures/open-2d-4-episodes.mcap")
+            .display()
+            .to_string(),
+        &fixture.display().to_string(),
+        "--episodes",
+        "0",
+    ]);
+    let mut rec = EtpRun::spawn_binary(
+        &b,
+        "etp-recorder",
+        &[
+            "--run-id",
+            &b,
+            "--scenario",
+            "open-2d",
+            "--out",
+            &fb.display().to_string(),
+        ],
+    );
+    let stdout = rec
+        .child
+        .as_mut()
+        .and_then(|c| c.stdout.take())
+        .expect("recorder stdout");
+    let mut ready = String::new();
+    BufReader::new(stdout)
+        .read_line(&mut ready)
+        .expect("recorder output");
+    assert_eq!(ready.trim(), "ready");
+    kill("-STOP", &rec.pid().to_string());
+    let mut publish = Command::new(etp_tests::bin_dir().join("etp"))
+        .args(["replay", "publish"])
+        .arg(&fixture)
+        .args(["--rate", "inf", "--run-id", &b, "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("etp replay publish");
+    // Long enough for the whole replay to end had it not waited.
+    std::thread::sleep(std::time::Duration::from_secs(2));
+    let waiting = publish.try_wait().expect("replay status").is_none();
+    kill("-CONT", &rec.pid().to_string());
+    let out = publish.wait_with_output().expect("replay output");
+    assert!(
+        out.status.success(),
+        "replay: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(waiting, "the replay ended while its recorder was paused");
+    kill("-TERM", &rec.pid().to_string());
+    let (ok, _, err) = rec.finish();
+    assert!(ok, "recorder: {err}");
+    let original = replay(&[&fixture.display().to_string()]);
+    let copy = replay(&[&fb.display().to_string()]);
+    assert_eq!(copy["counts"], original["counts"], "counts");
+    for f in [&fb, &fixture] {
+        let _ = std::fs::remove_file(f);
+    }
+}
