@@ -34,13 +34,13 @@ pub const DEFAULT_JOIN_TIMEOUT: f64 = 60.0;
 /// line wins); the others (what to run, the recording, the remote sensors
 /// and the two switches) have their own rules there.
 macro_rules! run_file_keys {
-    ($( $(#[doc = $doc:literal])* $key:ident : $ty:ty $(=> $($place:ident).+)? ,)*) => {
+    ($( $(#[$attr:meta])* $key:ident : $ty:ty $(=> $($place:ident).+)? ,)*) => {
         /// The keys of a run file (every one optional; unknown keys are refused).
         #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
         #[serde(deny_unknown_fields)]
         pub struct RunConfig {
             $(
-                $(#[doc = $doc])*
+                $(#[$attr])*
                 #[serde(skip_serializing_if = "Option::is_none")]
                 pub $key: Option<$ty>,
             )*
@@ -99,7 +99,9 @@ run_file_keys! {
     trigger: etp_shared::trigger::TriggerFamily => trigger.trigger,
     /// The live view (`--live ADDR:PORT`, `--live-wait`): how the run is
     /// watched, not what it computes, so never stored in a recording's
-    /// `etp.config` (a run again from it is not served live).
+    /// `etp.config` (a run again from it is not served live). Read as
+    /// `--live` reads it (`localhost:8765` too).
+    #[serde(default, deserialize_with = "crate::live::deserialize_addr")]
     live: std::net::SocketAddr => live,
     live_wait: bool,
 }
@@ -253,6 +255,13 @@ mod tests {
         assert_eq!(c.live_wait, Some(true));
         let e = toml::from_str::<RunConfig>("live = \"localhost\"").expect_err("no port");
         assert!(e.to_string().contains("live"), "{e}");
+        let c: RunConfig = toml::from_str("live = \"localhost:8765\"").expect("a host name");
+        assert_eq!(
+            c.live,
+            Some(std::net::SocketAddr::from(([127, 0, 0, 1], 8765)))
+        );
+        let text = toml::to_string(&c).expect("toml");
+        assert_eq!(toml::from_str::<RunConfig>(&text).expect("back"), c);
     }
 
     #[test]

@@ -204,9 +204,14 @@ pub struct Args {
     pub slot_deadline: Option<u64>,
     /// Draw measured vs predicted (per-sensor energy per episode, outcomes,
     /// 95 % intervals) to `<recording without .mcap>-report.png` and `.svg`
-    /// (with `--record`), else `run-<run-id>-report.png` here.
+    /// (with `--record`), else `run-<run-id>-report.png` here; `-o STEM`
+    /// chooses.
     #[arg(long)]
     pub plot: bool,
+    /// With --plot: the figure's file stem, writes STEM.png and STEM.svg
+    /// (its folder must exist).
+    #[arg(short = 'o', long = "out", value_name = "STEM", requires = "plot")]
+    pub plot_out: Option<PathBuf>,
     /// Across hosts: listen on this Zenoh endpoint (e.g. `tls/10.0.0.1:7447`
     /// with `--tls DIR`; `tcp/…` with `--insecure`) for sensor hosts (`etp
     /// sensor-host --connect …`). Scouting is off: only this endpoint is used.

@@ -44,6 +44,16 @@ pub fn parse_addr(s: &str) -> std::result::Result<std::net::SocketAddr, String> 
         .ok_or_else(|| format!("`{host}` resolves to no address"))
 }
 
+/// A run file's `live` key, read as `--live` is ([`parse_addr`]).
+pub fn deserialize_addr<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> std::result::Result<Option<std::net::SocketAddr>, D::Error> {
+    let text = <String as serde::Deserialize>::deserialize(d)?;
+    parse_addr(&text)
+        .map(Some)
+        .map_err(serde::de::Error::custom)
+}
+
 /// `--live` refused before any work when its address is not loopback and
 /// `--insecure` was not given.
 pub fn check(a: &Args) -> Result<()> {

@@ -16,7 +16,8 @@ pub struct RadioArgs {
     /// Probability that one transmission attempt is lost, in [0, 1) (0 = ideal radio).
     #[arg(long, value_name = "P", allow_negative_numbers = true)]
     pub loss: Option<f64>,
-    /// Further attempts in the same step after a lost one (acknowledged link).
+    /// Further attempts in the same step after a lost one (acknowledged
+    /// link), 0 to 1000; needs a loss (`--loss` or the scenario's).
     #[arg(long, value_name = "R", allow_negative_numbers = true)]
     pub retries: Option<i64>,
     /// Gilbert–Elliott channel with this mean burst length in steps (≥ 1).

@@ -259,6 +259,7 @@ pub fn run(a: Args) -> Result<()> {
         allow_degraded: false,
         slot_deadline: None,
         plot: false,
+        plot_out: None,
         listen: None,
         remote: Vec::new(),
         join_timeout: None,

@@ -9,6 +9,9 @@ use etp_launcher::Args;
 
 /// Where `--plot` writes (`{run}` = the run id, known once the run starts).
 fn plot_stem(a: &Args) -> PathBuf {
+    if let Some(stem) = &a.plot_out {
+        return stem.clone();
+    }
     match (&a.record, &a.run_id) {
         (Some(r), _) => r.with_extension("").with_file_name(format!(
             "{}-report",
@@ -27,6 +30,7 @@ pub fn run(a: Args) -> Result<()> {
 
     let stem = a.plot.then(|| plot_stem(&a));
     if let Some(stem) = &stem {
+        etp_recording_tools::files::existing_folder_of(stem, "-o")?;
         for p in [stem.with_extension("png"), stem.with_extension("svg")] {
             etp_pipeline::output::refuse_existing(&p, a.force)?;
         }

@@ -86,6 +86,7 @@ fn every_option_has_a_help_line_with_its_range() {
     }
     let run = help(&["run", "--help"]);
     assert!(run.contains("Number of episodes (at least 1)"), "{run}");
+    assert!(run.contains("link), 0 to 1000"), "--retries' range: {run}");
     for sub in ["filter", "repair", "foxglove", "export", "plot", "summary"] {
         let h = help(&["replay", sub, "--help"]);
         assert!(h.contains("An MCAP recording"), "replay {sub}: {h}");
@@ -271,5 +272,42 @@ fn validate_plot_goes_to_its_out_stem() {
     );
     assert!(!dir.path("no").exists());
     let (rc, err) = code(&["validate", s(&strategy), "-o", s(&stem)]);
+    assert_eq!(rc, Some(2), "{err}");
+}
+
+/// `run --plot -o STEM` draws the report where the user said (and nowhere
+/// else); a folder that does not exist is refused by name before any process
+/// starts; `-o` without `--plot` is a usage error.
+#[test]
+fn run_plot_goes_to_its_out_stem() {
+    let dir = Scratch::new("run-out");
+    let strategy = dir.path("s.json");
+    std::fs::copy(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/tests/fixtures/strategy-open-2d-predicted.json"),
+        &strategy,
+    )
+    .expect("fixture strategy");
+    let stem = dir.path("report");
+    let (rc, err) = code(&[
+        "run",
+        s(&strategy),
+        "--episodes",
+        "2",
+        "--plot",
+        "-o",
+        s(&stem),
+    ]);
+    assert!(matches!(rc, Some(0 | 6)), "{err}");
+    assert!(dir.path("report.png").is_file() && dir.path("report.svg").is_file());
+    let missing = dir.path("no/report");
+    let (rc, err) = code(&["run", s(&strategy), "--plot", "-o", s(&missing)]);
+    assert_eq!(rc, Some(1), "{err}");
+    assert!(
+        err.contains("-o") && err.contains("does not exist"),
+        "{err}"
+    );
+    assert!(!dir.path("no").exists());
+    let (rc, err) = code(&["run", s(&strategy), "-o", s(&stem)]);
     assert_eq!(rc, Some(2), "{err}");
 }
