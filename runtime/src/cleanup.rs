@@ -32,9 +32,17 @@ pub fn remove_run(run: &RunId) -> bool {
     true
 }
 
+/// How long a run's folder is left alone after its last change, live node
+/// or not: a run that is starting has its folder before its first node is
+/// alive (iceoryx2 creates the folder, then the node's token), and another
+/// run starting meanwhile must not sweep it away (its sensor then failed
+/// with `iceoryx2 node: InternalError`).
+pub const YOUNG: std::time::Duration = std::time::Duration::from_secs(60);
+
 /// Clean every stale run in the user's iceoryx2 folder ([`ROOT_FOLDER`] of
 /// `crate::folders`; nothing if it is not private) — runs with no live
-/// node; returns the ids removed. Runs with a live node are left alone.
+/// node whose folder is older than [`YOUNG`]; returns the ids removed. Runs
+/// with a live node are left alone.
 pub fn remove_stale_runs() -> Vec<String> {
     let mut removed = Vec::new();
     let Ok(base) = crate::folders::private(ROOT_FOLDER) else {
@@ -45,6 +53,15 @@ pub fn remove_stale_runs() -> Vec<String> {
     };
     for e in dir.filter_map(Result::ok) {
         let name = e.file_name().to_string_lossy().to_string();
+        let young = e
+            .metadata()
+            .and_then(|m| m.modified())
+            .ok()
+            .and_then(|t| t.elapsed().ok())
+            .is_none_or(|age| age < YOUNG);
+        if young {
+            continue;
+        }
         if let Ok(run) = RunId::from_folder(&name)
             && remove_run(&run)
         {
@@ -52,4 +69,35 @@ pub fn remove_stale_runs() -> Vec<String> {
         }
     }
     removed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A run's folder without a live node yet (a run that is starting) is
+    /// left to it; the same folder, once older than [`YOUNG`], is swept.
+    #[test]
+    fn a_starting_run_is_not_swept_and_an_old_dead_one_is() {
+        let run = RunId::generate();
+        let Ok(base) = crate::folders::private(ROOT_FOLDER) else {
+            panic!("the user's iceoryx2 folder is not private");
+        };
+        let dir = run.root_dir();
+        assert!(dir.starts_with(&base));
+        std::fs::create_dir_all(dir.join("nodes")).expect("a starting run's folder");
+        let folder = dir.file_name().map(|n| n.to_string_lossy().to_string());
+        let swept = |removed: Vec<String>| folder.as_ref().is_some_and(|f| removed.contains(f));
+        assert!(!swept(remove_stale_runs()), "a starting run was swept");
+        assert!(dir.is_dir());
+        std::fs::File::open(&dir)
+            .and_then(|d| {
+                d.set_modified(
+                    std::time::SystemTime::now() - YOUNG - std::time::Duration::from_secs(1),
+                )
+            })
+            .expect("mtime");
+        assert!(swept(remove_stale_runs()), "an old dead run was left");
+        assert!(!dir.exists());
+    }
 }

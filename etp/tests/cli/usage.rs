@@ -231,12 +231,8 @@ fn record_refuses_a_missing_folder_and_a_folder_by_name() {
     assert_eq!(std::fs::read_dir(&folder).expect("folder").count(), 0);
 }
 
-/// `validate --plot -o STEM` draws the map where the user said; a folder
-/// that does not exist is refused by name before any work; `-o` without
-/// `--plot` is a usage error.
-#[test]
-fn validate_plot_goes_to_its_out_stem() {
-    let dir = Scratch::new("validate-out");
+/// The open-2d strategy fixture, copied into `dir` as `s.json`.
+fn open_2d_strategy(dir: &Scratch) -> std::path::PathBuf {
     let strategy = dir.path("s.json");
     std::fs::copy(
         std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -244,6 +240,16 @@ fn validate_plot_goes_to_its_out_stem() {
         &strategy,
     )
     .expect("fixture strategy");
+    strategy
+}
+
+/// `validate --plot -o STEM` draws the map where the user said; a folder
+/// that does not exist is refused by name before any work; `-o` without
+/// `--plot` is a usage error.
+#[test]
+fn validate_plot_goes_to_its_out_stem() {
+    let dir = Scratch::new("validate-out");
+    let strategy = open_2d_strategy(&dir);
     let stem = dir.path("figure");
     let args = [
         "validate",
@@ -281,13 +287,7 @@ fn validate_plot_goes_to_its_out_stem() {
 #[test]
 fn run_plot_goes_to_its_out_stem() {
     let dir = Scratch::new("run-out");
-    let strategy = dir.path("s.json");
-    std::fs::copy(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../shared/tests/fixtures/strategy-open-2d-predicted.json"),
-        &strategy,
-    )
-    .expect("fixture strategy");
+    let strategy = open_2d_strategy(&dir);
     let stem = dir.path("report");
     let (rc, err) = code(&[
         "run",

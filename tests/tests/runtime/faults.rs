@@ -266,6 +266,15 @@ fn a_service_left_half_made_by_a_killed_process_does_not_hang_the_next_run() {
     f.set_modified(std::time::SystemTime::now() - Duration::from_secs(60))
         .expect("mtime");
     std::fs::set_permissions(&dynamic, std::fs::Permissions::from_mode(0o200)).expect("mode");
+    // A run's folder is swept only once older than `cleanup::YOUNG` (a
+    // starting run's is never taken): this one is made as old as that.
+    std::fs::File::open(run.root_dir())
+        .and_then(|d| {
+            d.set_modified(
+                std::time::SystemTime::now() - etp_runtime::cleanup::YOUNG - Duration::from_secs(1),
+            )
+        })
+        .expect("the killed run's folder's mtime");
     let next = unique_run_id("half-next");
     let r = spawn(&next, &winding("5", "2"));
     let pid = r.pid();

@@ -117,28 +117,20 @@ fn publish_replays_every_message_and_a_recorder_gets_the_same_file() {
     }
 }
 
-/// A recorder started by hand without `--meta` on the run id of a
-/// `etp replay publish` gets the recording's metadata from the replay
-/// (`recording::handover_path`): its copy names the run and scenario and
-/// passes `--verify`, like the original.
-#[test]
-fn a_copy_recorded_from_publish_without_meta_verifies() {
+/// An `etp-recorder` of run `run` (scenario open-2d, no `--meta`) writing
+/// `out`, once it has said `ready`.
+fn ready_recorder(run: &str, out: &Path) -> EtpRun {
     use std::io::{BufRead, BufReader};
-    let _serial = serial();
-    let fixture = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../recordings/fixtures/open-2d-4-episodes.mcap");
-    let b = unique_run_id("pub-nometa");
-    let fb = out_file(&b);
     let mut rec = EtpRun::spawn_binary(
-        &b,
+        run,
         "etp-recorder",
         &[
             "--run-id",
-            &b,
+            run,
             "--scenario",
             "open-2d",
             "--out",
-            &fb.display().to_string(),
+            &out.display().to_string(),
         ],
     );
     let stdout = rec
@@ -151,6 +143,21 @@ fn a_copy_recorded_from_publish_without_meta_verifies() {
         .read_line(&mut ready)
         .expect("recorder output");
     assert_eq!(ready.trim(), "ready");
+    rec
+}
+
+/// A recorder started by hand without `--meta` on the run id of a
+/// `etp replay publish` gets the recording's metadata from the replay
+/// (`recording::handover_path`): its copy names the run and scenario and
+/// passes `--verify`, like the original.
+#[test]
+fn a_copy_recorded_from_publish_without_meta_verifies() {
+    let _serial = serial();
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../recordings/fixtures/open-2d-4-episodes.mcap");
+    let b = unique_run_id("pub-nometa");
+    let fb = out_file(&b);
+    let rec = ready_recorder(&b, &fb);
     let p = replay(&[
         "publish",
         &fixture.display().to_string(),
@@ -193,7 +200,6 @@ fn a_copy_recorded_from_publish_without_meta_verifies() {
 /// misses whole channels.
 #[test]
 fn a_replay_waits_for_a_paused_recorder_and_its_copy_misses_nothing() {
-    use std::io::{BufRead, BufReader};
     use std::process::{Command, Stdio};
     let _serial = serial();
     let b = unique_run_id("pub-paused");
@@ -211,28 +217,7 @@ fn a_replay_waits_for_a_paused_recorder_and_its_copy_misses_nothing() {
         "--episodes",
         "0",
     ]);
-    let mut rec = EtpRun::spawn_binary(
-        &b,
-        "etp-recorder",
-        &[
-            "--run-id",
-            &b,
-            "--scenario",
-            "open-2d",
-            "--out",
-            &fb.display().to_string(),
-        ],
-    );
-    let stdout = rec
-        .child
-        .as_mut()
-        .and_then(|c| c.stdout.take())
-        .expect("recorder stdout");
-    let mut ready = String::new();
-    BufReader::new(stdout)
-        .read_line(&mut ready)
-        .expect("recorder output");
-    assert_eq!(ready.trim(), "ready");
+    let rec = ready_recorder(&b, &fb);
     kill("-STOP", &rec.pid().to_string());
     let mut publish = Command::new(etp_tests::bin_dir().join("etp"))
         .args(["replay", "publish"])
