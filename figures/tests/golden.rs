@@ -325,39 +325,33 @@ fn trajectories(scenario: &Scenario) -> Vec<Trajectory> {
         .collect()
 }
 
-#[test]
-fn map() {
-    let scenario = Scenario::builtin("winding-2d").expect("a built-in scenario");
+/// The map of built-in `scenario` as golden `kind`, each panel
+/// `panel_width` pixels wide, naming `words`.
+fn map_of(scenario: &str, kind: &str, panel_width: f64, words: &[&str]) {
+    let scenario = Scenario::builtin(scenario).expect("a built-in scenario");
     let tr = trajectories(&scenario);
-    let svg = golden("map", |stem| {
+    let svg = golden(kind, |stem| {
         etp_figures::map_plot(&scenario, &tr, stem).expect("drawn")
     });
-    assert_readable("map", &svg, 880.0);
-    assert_says(
-        "map",
-        &svg,
-        &[
-            "x1 (scenario units)",
-            "x2 (scenario units)",
-            "per slot",
-            "collision",
-        ],
-    );
+    assert_readable(kind, &svg, panel_width);
+    assert_says(kind, &svg, words);
+}
+
+#[test]
+fn map() {
+    let words = [
+        "x1 (scenario units)",
+        "x2 (scenario units)",
+        "per slot",
+        "collision",
+    ];
+    map_of("winding-2d", "map", 880.0, &words);
 }
 
 #[test]
 fn map_3d() {
-    let scenario = Scenario::builtin("superg-3d").expect("a built-in scenario");
-    let tr = trajectories(&scenario);
-    let svg = golden("map-3d", |stem| {
-        etp_figures::map_plot(&scenario, &tr, stem).expect("drawn")
-    });
-    assert_readable("map-3d", &svg, 800.0);
-    assert_says(
-        "map-3d",
-        &svg,
-        &["top view", "side view", "(scenario units)"],
-    );
+    let words = ["top view", "side view", "(scenario units)"];
+    map_of("superg-3d", "map-3d", 800.0, &words);
 }
 
 fn bar(name: &str, measured: f64, half: f64, predicted: f64) -> Bar {
