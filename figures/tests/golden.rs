@@ -144,22 +144,28 @@ fn assert_says(kind: &str, svg: &str, words: &[&str]) {
     }
 }
 
+/// Golden `kind` drawn by `draw`, readable with each panel `panel_width`
+/// pixels wide, naming `words`: its SVG.
+fn check(kind: &str, panel_width: f64, words: &[&str], draw: impl FnOnce(&Path)) -> String {
+    let svg = golden(kind, draw);
+    assert_readable(kind, &svg, panel_width);
+    assert_says(kind, &svg, words);
+    svg
+}
+
 #[test]
 fn front() {
     let text = include_str!("data/front-winding-2d.json");
     let front = serde_json::from_str(text).expect("the fixture is a front.json");
-    let svg = golden("front", |stem| {
-        etp_figures::front_plot(&front, stem).expect("drawn")
-    });
-    assert_readable("front", &svg, 880.0);
-    assert_says(
+    check(
         "front",
-        &svg,
+        880.0,
         &[
             "expected energy per episode (transmissions × cost)",
             "P_tar (probability",
             "δ = 1.0518",
         ],
+        |stem| etp_figures::front_plot(&front, stem).expect("drawn"),
     );
 }
 
@@ -212,17 +218,17 @@ fn fronts_panels() -> Vec<Panel> {
 #[test]
 fn fronts() {
     let panels = fronts_panels();
-    let svg = golden("fronts", |stem| {
-        etp_figures::fronts_plot("winding-2d", "trigger families", &panels, stem).expect("drawn")
-    });
-    assert_readable("fronts", &svg, 820.0);
-    assert_says(
+    check(
         "fronts",
-        &svg,
+        820.0,
         &[
             "P_tar (probability",
             "least energy per episode (attempts × cost)",
         ],
+        |stem| {
+            etp_figures::fronts_plot("winding-2d", "trigger families", &panels, stem)
+                .expect("drawn")
+        },
     );
 }
 
@@ -262,19 +268,16 @@ fn families() -> Vec<FamilySeries> {
 #[test]
 fn trigger_curves() {
     let series = families();
-    let svg = golden("trigger-curves", |stem| {
-        etp_figures::trigger_curves_plot("winding-2d", &series, stem).expect("drawn")
-    });
-    assert_readable("trigger-curves", &svg, 600.0);
-    assert_says(
+    let svg = check(
         "trigger-curves",
-        &svg,
+        600.0,
         &[
             "Note: variance sends at rate 1.0000 at every δ",
             "rate (transmissions per slot)",
             "RMSE ‖x − x̂‖ (scenario units)",
             "threshold δ (noise standard deviations)",
         ],
+        |stem| etp_figures::trigger_curves_plot("winding-2d", &series, stem).expect("drawn"),
     );
     // A family that is not degenerate gets no note.
     assert!(!svg.contains("Note: box"));
@@ -330,11 +333,9 @@ fn trajectories(scenario: &Scenario) -> Vec<Trajectory> {
 fn map_of(scenario: &str, kind: &str, panel_width: f64, words: &[&str]) {
     let scenario = Scenario::builtin(scenario).expect("a built-in scenario");
     let tr = trajectories(&scenario);
-    let svg = golden(kind, |stem| {
+    check(kind, panel_width, words, |stem| {
         etp_figures::map_plot(&scenario, &tr, stem).expect("drawn")
     });
-    assert_readable(kind, &svg, panel_width);
-    assert_says(kind, &svg, words);
 }
 
 #[test]
@@ -382,16 +383,13 @@ fn report() {
             bar("P_free", 0.04, 0.02, 0.03),
         ],
     };
-    let svg = golden("report", |stem| {
-        etp_figures::report_plot(&fig, stem).expect("drawn")
-    });
-    assert_readable("report", &svg, 720.0);
-    assert_says(
+    check(
         "report",
-        &svg,
+        720.0,
         &[
             "energy per episode (transmissions × cost), log scale",
             "probability (fraction of episodes)",
         ],
+        |stem| etp_figures::report_plot(&fig, stem).expect("drawn"),
     );
 }
