@@ -2,8 +2,12 @@
 //! frontier of the front's vertices within the bound, with the constant-δ
 //! baselines, the certified front and the Method 1 front; over them, where
 //! `front.json` holds it, the predicted front (the strategies etp returns,
-//! at their predictions with ±).
+//! at their predictions with ±). Each series has its own hue of the one
+//! palette; the references (baselines, certified front) are black; the δ
+//! labels and the legend are placed off the curves.
 
+use crate::labels::{self, Rect};
+use crate::style::{self, text};
 use crate::{Result, plot_error};
 use etp_synthesis::pareto::ParetoFront;
 use plotters::coord::Shift;
@@ -13,7 +17,7 @@ use std::path::Path;
 
 /// Write the front plot to `stem.png` and `stem.svg`.
 pub fn front_plot(front: &ParetoFront, stem: &Path) -> Result<()> {
-    super::png_and_svg(&FrontFigure(front), stem, (1000, 700))
+    super::png_and_svg(&FrontFigure(front), stem, (880, 660))
 }
 
 struct FrontFigure<'a>(&'a ParetoFront);
@@ -22,12 +26,12 @@ impl super::Figure for FrontFigure<'_> {
     fn title(&self) -> Option<String> {
         Some(if self.0.predicted.is_empty() {
             format!(
-                "Pareto front of {} on its MDP (selection-time values), per bound on P_coll",
+                "Pareto front of {} on its MDP (selection-time values)",
                 self.0.scenario_name
             )
         } else {
             format!(
-                "Pareto front of {}: etp's strategies as predicted, over the MDP's front",
+                "Pareto front of {}: etp's strategies as predicted",
                 self.0.scenario_name
             )
         })
@@ -36,82 +40,189 @@ impl super::Figure for FrontFigure<'_> {
     where
         DB::ErrorType: 'static,
     {
-        draw_front(area, self.0)
+        draw_front(area, self.0).map(|_| ())
     }
 }
 
+type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// What the front's panel put where, in pixels: the curves (polylines),
+/// the boxes of the δ labels and of the legend.
+#[derive(Debug, Default)]
+pub(crate) struct Placed {
+    pub(crate) lines: Vec<Vec<(i32, i32)>>,
+    pub(crate) labels: Vec<Rect>,
+    pub(crate) legend: Option<Rect>,
+}
+
 /// The front's panel in `area` (under the title).
-fn draw_front<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, front: &ParetoFront) -> Result<()>
+pub(crate) fn draw_front<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    front: &ParetoFront,
+) -> Result<Placed>
 where
     DB::ErrorType: 'static,
 {
     let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
-    let all: Vec<(f64, f64, f64)> = front
-        .vertices
+    let certified = certified_frontier(front);
+    let (e_max, y_lo) = ranges(front, &certified);
+    let mut chart = ChartBuilder::on(area)
+        .caption(
+            format!(
+                "{} vertices, certified to ε = {:.1e} (energy {:.1e}); curves: non-dominated in this plane",
+                front.vertices.len(),
+                front.epsilon,
+                front.epsilon_energy
+            ),
+            ("sans-serif", text::CAPTION),
+        )
+        .margin(20)
+        .x_label_area_size(60)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0.0..e_max, y_lo..1.005)
+        .map_err(e)?;
+    crate::draw_axes(
+        &mut chart,
+        "expected energy per episode (transmissions × cost)",
+        "P_tar (probability, reaching the target)",
+    )?;
+    let mut lines = draw_bounds(&mut chart, front)?;
+    let n_series = lines.len();
+    lines.extend(draw_references(&mut chart, front, &certified, n_series)?);
+    lines.extend(draw_predicted(&mut chart, front, n_series + 1)?);
+    let mut placed = Placed {
+        lines: lines
+            .iter()
+            .map(|l| l.iter().map(|p| chart.backend_coord(p)).collect())
+            .collect(),
+        ..Placed::default()
+    };
+    let ((px, py), (pw, ph)) = (
+        chart.plotting_area().get_base_pixel(),
+        chart.plotting_area().dim_in_pixel(),
+    );
+    let plot = Rect {
+        x0: px,
+        y0: py,
+        x1: px + pw as i32,
+        y1: py + ph as i32,
+    };
+    let mut marks = placed.lines.clone();
+    marks.extend(
+        front
+            .baselines
+            .iter()
+            .map(|b| vec![chart.backend_coord(&(b.objectives.energy, b.objectives.p_target))]),
+    );
+    let legend = legend_box(area, front, &marks, plot);
+    let baselines: Vec<_> = front
+        .baselines
         .iter()
-        .map(|v| &v.objectives)
-        .chain(front.baselines.iter().map(|b| &b.objectives))
-        .map(|o| (o.energy, o.p_target, o.p_collision))
-        .chain(front.predicted.iter().flat_map(|c| &c.points).map(|p| {
-            (
-                p.predicted.energy + p.predicted_ci95.energy,
-                p.predicted.p_target - p.predicted_ci95.p_target,
-                p.predicted.p_collision,
-            )
-        }))
+        .filter(|b| b.objectives.p_target >= y_lo)
         .collect();
-    // The certified front (docs/MODEL.md §4.1): its points non-dominated in
-    // the (energy, P_tar) plane.
-    let certified: Vec<(f64, f64)> = frontier_of(
+    let font: TextStyle = ("sans-serif", text::LABEL).into();
+    let names: Vec<String> = baselines
+        .iter()
+        .map(|b| format!("δ = {}", b.delta.unwrap_or(f64::NAN)))
+        .collect();
+    let at: Vec<(i32, i32)> = baselines
+        .iter()
+        .map(|b| chart.backend_coord(&(b.objectives.energy, b.objectives.p_target)))
+        .collect();
+    let sizes: Vec<(u32, u32)> = names
+        .iter()
+        .map(|n| {
+            area.estimate_text_size(n, &font)
+                .unwrap_or((120, text::LABEL))
+        })
+        .collect();
+    // The legend's box and the baselines' own triangles are curves to avoid too.
+    let mut avoid = placed.lines.clone();
+    avoid.extend(at.iter().map(|&p| vec![p]));
+    if let Some((_, r)) = legend {
+        avoid.extend(outline(r));
+    }
+    placed.labels = labels::place(&at, &sizes, &avoid, plot);
+    let root = chart.plotting_area().strip_coord_spec();
+    let base = root.get_base_pixel();
+    for (name, r) in names.iter().zip(&placed.labels) {
+        root.draw(&Text::new(
+            name.clone(),
+            (r.x0 - base.0, r.y0 - base.1),
+            font.clone(),
+        ))
+        .map_err(e)?;
+    }
+    if let Some((corner, r)) = legend {
+        crate::draw_legend(&mut chart, corner, 0.85)?;
+        placed.legend = Some(r);
+    }
+    Ok(placed)
+}
+
+/// The four edges of a box as polylines.
+fn outline(r: Rect) -> [Vec<(i32, i32)>; 2] {
+    [
+        vec![(r.x0, r.y0), (r.x1, r.y0), (r.x1, r.y1)],
+        vec![(r.x1, r.y1), (r.x0, r.y1), (r.x0, r.y0)],
+    ]
+}
+
+/// The certified front (docs/MODEL.md §4.1): its points non-dominated in
+/// the (energy, P_tar) plane.
+fn certified_frontier(front: &ParetoFront) -> Vec<(f64, f64)> {
+    frontier_of(
         front
             .certified
             .iter()
             .flat_map(|c| &c.points)
             .filter(|p| !p.dominated)
             .map(|p| (p.energy_high, p.p_target_low)),
-    );
-    let e_max = all
+    )
+}
+
+/// The energy axis' top and the P_tar axis' bottom: every vertex,
+/// baseline and predicted ± in view, the certified points down to 0.2
+/// below the nominal range.
+fn ranges(front: &ParetoFront, certified: &[(f64, f64)]) -> (f64, f64) {
+    let all: Vec<(f64, f64)> = front
+        .vertices
         .iter()
-        .map(|p| p.0)
-        .chain(certified.iter().map(|p| p.0))
-        .fold(1.0, f64::max)
-        * 1.12;
-    // The certified points' P_tar is shown down to 0.2 below the nominal range.
+        .map(|v| &v.objectives)
+        .chain(front.baselines.iter().map(|b| &b.objectives))
+        .map(|o| (o.energy, o.p_target))
+        .chain(front.predicted.iter().flat_map(|c| &c.points).map(|p| {
+            (
+                p.predicted.energy + p.predicted_ci95.energy,
+                p.predicted.p_target - p.predicted_ci95.p_target,
+            )
+        }))
+        .collect();
+    let e_max = all.iter().chain(certified).map(|p| p.0).fold(1.0, f64::max) * 1.12;
     let t_nominal = all.iter().map(|p| p.1).fold(1.0, f64::min);
     let t_min = certified
         .iter()
         .map(|p| p.1)
         .fold(t_nominal, f64::min)
         .max(t_nominal - 0.2);
-    let y_lo = (t_min - 0.02).max(0.0);
-    let bounds = collision_bounds(front);
-    let mut chart = ChartBuilder::on(area)
-        .caption(
-            format!(
-                "{} vertices of the 3-D front (P_tar, P_coll, energy), certified to ε = {:.1e} (energy {:.1e}); curves: its non-dominated vertices in the plane",
-                front.vertices.len(),
-                front.epsilon,
-                front.epsilon_energy
-            ),
-            ("sans-serif", 13),
-        )
-        .margin(20)
-        .x_label_area_size(50)
-        .y_label_area_size(70)
-        .build_cartesian_2d(0.0..e_max, y_lo..1.005)
-        .map_err(e)?;
-    crate::draw_axes(
-        &mut chart,
-        "expected energy per episode (transmissions × cost)",
-        "P_tar (probability of reaching the target)",
-        (15, 16),
-    )?;
-    // One curve per P_coll bound: the (energy, P_tar) frontier of the
-    // vertices whose P_coll is within the bound (only the non-dominated
-    // vertices in that plane; mixtures lie on the segments between them).
-    let n = bounds.len().max(2) as f64;
-    for (i, b) in bounds.iter().enumerate() {
-        let colour = sequential(i as f64 / (n - 1.0));
+    (e_max, (t_min - 0.02).max(0.0))
+}
+
+/// One curve per P_coll bound: the (energy, P_tar) frontier of the
+/// vertices whose P_coll is within the bound (only the non-dominated
+/// vertices in that plane; mixtures lie on the segments between them), in
+/// the palette's series styles; the curves drawn.
+fn draw_bounds<'a, DB: DrawingBackend + 'a>(
+    chart: &mut Chart<'a, DB>,
+    front: &ParetoFront,
+) -> Result<Vec<Vec<(f64, f64)>>>
+where
+    DB::ErrorType: 'static,
+{
+    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
+    let mut lines = Vec::new();
+    for (i, b) in collision_bounds(front).iter().enumerate() {
+        let look = style::series(i);
         let curve = frontier(
             front
                 .vertices
@@ -120,106 +231,152 @@ where
                 .filter(|o| o.p_collision <= *b + 1e-12),
         );
         let label = if *b >= 1.0 {
-            format!(
-                "MDP front, any P_coll ({} vertices; selection-time)",
-                curve.len()
-            )
+            format!("any P_coll ({} vertices)", curve.len())
         } else {
-            format!(
-                "MDP front, P_coll ≤ {b} ({} vertices; selection-time)",
-                curve.len()
-            )
+            format!("P_coll ≤ {b} ({} vertices)", curve.len())
         };
+        let sample = crate::draw_line(chart, &curve, look, 3)?;
         chart
-            .draw_series(LineSeries::new(curve.clone(), colour.stroke_width(2)))
+            .draw_series(curve.iter().map(|&p| Circle::new(p, 3, look.0.filled())))
             .map_err(e)?
             .label(label)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x - 12, y), (x + 12, y)], colour.stroke_width(3))
-            });
-        chart
-            .draw_series(curve.iter().map(|&p| Circle::new(p, 3, colour.filled())))
-            .map_err(e)?;
+            .legend(move |p| sample.at(p));
+        lines.push(curve);
     }
-    chart
-        .draw_series(front.baselines.iter().map(|b| {
-            let o = &b.objectives;
-            TriangleMarker::new((o.energy, o.p_target), 8, BLACK.stroke_width(2))
-        }))
-        .map_err(e)?
-        .label("constant δ baselines")
-        .legend(|(x, y)| TriangleMarker::new((x, y), 6, BLACK.stroke_width(2)));
-    chart
-        .draw_series(
-            front
-                .baselines
-                .iter()
-                .filter(|b| b.objectives.p_target >= y_lo)
-                .map(|b| {
-                    let o = &b.objectives;
-                    EmptyElement::at((o.energy, o.p_target))
-                        + Text::new(
-                            format!("δ = {}", b.delta.unwrap_or(f64::NAN)),
-                            (8, 4),
-                            ("sans-serif", 13),
-                        )
-                }),
-        )
-        .map_err(e)?;
-    if let Some(c) = &front.certified {
-        let purple = RGBColor(120, 0, 160);
-        chart
-            .draw_series(LineSeries::new(certified.clone(), purple.stroke_width(1)))
-            .map_err(e)?;
-        chart
-            .draw_series(certified.iter().filter(|p| p.1 >= y_lo).map(|&(x, y)| {
-                EmptyElement::at((x, y))
-                    + Rectangle::new([(-2, -2), (2, 2)], purple.stroke_width(1))
-            }))
-            .map_err(e)?
-            .label(format!(
-                "certified front ({:.0} %: upper energy, lower P_tar)",
-                100.0 * c.confidence
-            ))
-            .legend(move |(x, y)| {
-                Rectangle::new([(x - 3, y - 3), (x + 3, y + 3)], purple.stroke_width(2))
-            });
-    }
-    if let Some(m1) = &front.kf_convergence {
-        chart
-            .draw_series(
-                frontier(m1.vertices.iter().map(|v| &v.objectives))
-                    .into_iter()
-                    .map(|p| Cross::new(p, 5, RGBColor(0, 120, 0).stroke_width(2))),
-            )
-            .map_err(e)?
-            .label("Method 1 (KF convergence), any P_coll")
-            .legend(|(x, y)| Cross::new((x, y), 5, RGBColor(0, 120, 0).stroke_width(2)));
-    }
-    draw_predicted(&mut chart, front)?;
-    crate::draw_legend(&mut chart, SeriesLabelPosition::LowerRight, 14, 0.8)?;
-    Ok(())
+    Ok(lines)
 }
 
-/// The predicted front (docs/MODEL.md §7.5), over the MDP's: each point the
-/// strategy `etp strategy` returns for its request, at its prediction with
-/// its 95 % ± in energy and P_tar; a hollow marker where the request was out
-/// of reach (the point is the closest strategy found).
-fn draw_predicted<DB: DrawingBackend>(
-    chart: &mut ChartContext<'_, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+/// The baselines (black triangles), the certified front (black, dashed,
+/// hollow squares) and the Method 1 front (crosses of series `method1`);
+/// the curves drawn.
+fn draw_references<'a, DB: DrawingBackend + 'a>(
+    chart: &mut Chart<'a, DB>,
     front: &ParetoFront,
-) -> Result<()>
+    certified: &[(f64, f64)],
+    method1: usize,
+) -> Result<Vec<Vec<(f64, f64)>>>
 where
     DB::ErrorType: 'static,
 {
     let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
-    let styles = [
-        RGBColor(200, 30, 30),
-        RGBColor(230, 120, 0),
-        RGBColor(150, 0, 90),
-    ];
+    let mut lines = Vec::new();
+    chart
+        .draw_series(front.baselines.iter().map(|b| {
+            let o = &b.objectives;
+            TriangleMarker::new((o.energy, o.p_target), 9, BLACK.filled())
+        }))
+        .map_err(e)?
+        .label("constant δ")
+        .legend(|(x, y)| TriangleMarker::new((x, y), 8, BLACK.filled()));
+    if let Some(c) = &front.certified {
+        let sample = crate::draw_line(chart, certified, (BLACK, style::Line::Dashed(10, 6)), 2)?;
+        chart
+            .draw_series(certified.iter().map(|&(x, y)| {
+                EmptyElement::at((x, y)) + Rectangle::new([(-3, -3), (3, 3)], BLACK.stroke_width(1))
+            }))
+            .map_err(e)?
+            .label(format!(
+                "certified ({:.0} %: upper energy, lower P_tar)",
+                100.0 * c.confidence
+            ))
+            .legend(move |p| sample.at(p));
+        lines.push(certified.to_vec());
+    }
+    if let Some(m1) = &front.kf_convergence {
+        let colour = style::series(method1).0;
+        let points = frontier(m1.vertices.iter().map(|v| &v.objectives));
+        chart
+            .draw_series(
+                points
+                    .iter()
+                    .map(|&p| Cross::new(p, 6, colour.stroke_width(2))),
+            )
+            .map_err(e)?
+            .label("Method 1 (KF convergence), any P_coll")
+            .legend(move |(x, y)| Cross::new((x, y), 6, colour.stroke_width(2)));
+        lines.extend(points.into_iter().map(|p| vec![p]));
+    }
+    Ok(lines)
+}
+
+/// The legend's place and box: of the four corners of `plot`, then of
+/// every place on a 20-pixel grid inside it, the first whose box crosses
+/// the fewest curves and points.
+fn legend_box<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    front: &ParetoFront,
+    lines: &[Vec<(i32, i32)>],
+    plot: Rect,
+) -> Option<(SeriesLabelPosition, Rect)> {
+    let font: TextStyle = ("sans-serif", text::LEGEND).into();
+    let mut entries: Vec<String> = collision_bounds(front)
+        .iter()
+        .map(|b| format!("P_coll ≤ {b} (0000 vertices)"))
+        .collect();
+    entries.push("constant δ".into());
+    if front.certified.is_some() {
+        entries.push("certified (95 %: upper energy, lower P_tar)".into());
+    }
+    if front.kf_convergence.is_some() {
+        entries.push("Method 1 (KF convergence), any P_coll".into());
+    }
+    entries.extend(
+        front
+            .predicted
+            .iter()
+            .map(|_| "predicted front, P_coll ≤ 0.05: etp's strategies, ± 95 %".to_string()),
+    );
+    if front
+        .predicted
+        .iter()
+        .flat_map(|c| &c.points)
+        .any(|p| !p.met())
+    {
+        entries.push("hollow: out of reach (closest strategy found)".into());
+    }
+    // plotters' legend: the labels' lines, 30 pixels of samples, 10 of
+    // margin all round.
+    let width = entries
+        .iter()
+        .filter_map(|t| area.estimate_text_size(t, &font).ok())
+        .map(|s| s.0)
+        .max()? as i32
+        + 55;
+    let height = (entries.len() as i32) * (text::LEGEND as i32 * 5 / 4 + 1) + 22;
+    let (w, h) = (plot.x1 - plot.x0 - width, plot.y1 - plot.y0 - height);
+    let corners = [(w, h), (0, 0), (0, h), (w, 0)];
+    let grid = (0..=h.max(0) / 20).flat_map(|j| (0..=w.max(0) / 20).map(move |i| (20 * i, 20 * j)));
+    let boxed = |(x, y): (i32, i32)| Rect {
+        x0: plot.x0 + x,
+        y0: plot.y0 + y,
+        x1: plot.x0 + x + width,
+        y1: plot.y0 + y + height,
+    };
+    corners
+        .into_iter()
+        .chain(grid)
+        .min_by_key(|&at| lines.iter().filter(|l| boxed(at).hit_by_line(l)).count())
+        .map(|at| (SeriesLabelPosition::Coordinate(at.0, at.1), boxed(at)))
+}
+
+/// The predicted front (docs/MODEL.md §7.5), over the MDP's: each point the
+/// strategy `etp strategy` returns for its request, at its prediction with
+/// its 95 % ± in energy and P_tar, curve `k` in series `first + k`; a
+/// hollow marker where the request was out of reach (the point is the
+/// closest strategy found). The curves drawn.
+fn draw_predicted<'a, DB: DrawingBackend + 'a>(
+    chart: &mut Chart<'a, DB>,
+    front: &ParetoFront,
+    first: usize,
+) -> Result<Vec<Vec<(f64, f64)>>>
+where
+    DB::ErrorType: 'static,
+{
+    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
+    let mut lines = Vec::new();
     for (i, curve) in front.predicted.iter().enumerate() {
-        let colour = styles[i % styles.len()];
+        let look = style::series(first + i);
+        let colour = look.0;
         let at: Vec<(f64, f64)> = curve
             .points
             .iter()
@@ -227,37 +384,24 @@ where
             .collect();
         let label = match curve.max_collision {
             Some(c) => format!("predicted front, P_coll ≤ {c}: etp's strategies, ± 95 %"),
-            None => "predicted front: etp's strategies for requests across the range, ± 95 %"
-                .to_string(),
+            None => "predicted front: etp's strategies, ± 95 %".to_string(),
         };
         // A thin guide between the points: only the points are strategies.
+        crate::draw_line(chart, &at, look, 1)?;
         chart
-            .draw_series(LineSeries::new(at.clone(), colour.stroke_width(1)))
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
             .map_err(e)?
             .label(label)
             .legend(move |(x, y)| Circle::new((x, y), 6, colour.filled()));
         for p in &curve.points {
             let (x, y) = (p.predicted.energy, p.predicted.p_target);
             let (hx, hy) = (p.predicted_ci95.energy, p.predicted_ci95.p_target);
+            let bar = colour.stroke_width(2);
             chart
-                .draw_series([ErrorBar::new_vertical(
-                    x,
-                    y - hy,
-                    y,
-                    y + hy,
-                    colour.stroke_width(2),
-                    8,
-                )])
+                .draw_series([ErrorBar::new_vertical(x, y - hy, y, y + hy, bar, 8)])
                 .map_err(e)?;
             chart
-                .draw_series([ErrorBar::new_horizontal(
-                    y,
-                    x - hx,
-                    x,
-                    x + hx,
-                    colour.stroke_width(2),
-                    8,
-                )])
+                .draw_series([ErrorBar::new_horizontal(y, x - hx, x, x + hx, bar, 8)])
                 .map_err(e)?;
             let marker = if p.met() {
                 Circle::new((x, y), 6, colour.filled())
@@ -266,6 +410,7 @@ where
             };
             chart.draw_series([marker]).map_err(e)?;
         }
+        lines.push(at);
     }
     if front
         .predicted
@@ -273,14 +418,13 @@ where
         .flat_map(|c| &c.points)
         .any(|p| !p.met())
     {
-        let grey = RGBColor(200, 30, 30);
         chart
             .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
             .map_err(e)?
-            .label("hollow: request out of reach (closest strategy found)")
-            .legend(move |(x, y)| Circle::new((x, y), 7, grey.stroke_width(3)));
+            .label("hollow: out of reach (closest strategy found)")
+            .legend(move |(x, y)| Circle::new((x, y), 7, BLACK.stroke_width(3)));
     }
-    Ok(())
+    Ok(lines)
 }
 
 /// A few round bounds on P_coll spanning the front's vertices, then 1 (any).
@@ -336,19 +480,44 @@ fn frontier_of(points: impl Iterator<Item = (f64, f64)>) -> Vec<(f64, f64)> {
     out
 }
 
-/// Dark blue → teal → yellow (viridis-like) on [0, 1].
-fn sequential(t: f64) -> RGBColor {
-    let stops = [
-        (68.0, 1.0, 84.0),
-        (59.0, 82.0, 139.0),
-        (33.0, 145.0, 140.0),
-        (94.0, 201.0, 98.0),
-        (220.0, 190.0, 30.0),
-    ];
-    let t = t.clamp(0.0, 1.0) * (stops.len() - 1) as f64;
-    let i = (t.floor() as usize).min(stops.len() - 2);
-    let f = t - i as f64;
-    let (a, b) = (stops[i], stops[i + 1]);
-    let mix = |x: f64, y: f64| (x + (y - x) * f) as u8;
-    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The front of winding-2d (a small synthesis, thinned): its baselines'
+    /// δ labels sit beside curves at δ = 1.0518 and δ = 2.2365.
+    fn fixture() -> ParetoFront {
+        serde_json::from_str(include_str!("../tests/data/front-winding-2d.json"))
+            .expect("the fixture is a front.json")
+    }
+
+    fn placed(front: &ParetoFront) -> Placed {
+        crate::register_font();
+        let mut buf = vec![0u8; 880 * 660 * 3];
+        let root = BitMapBackend::with_buffer(&mut buf, (880, 660)).into_drawing_area();
+        draw_front(&root, front).expect("drawn")
+    }
+
+    #[test]
+    fn no_delta_label_crosses_a_curve_or_the_legend() {
+        let front = fixture();
+        let p = placed(&front);
+        assert_eq!(p.labels.len(), front.baselines.len());
+        assert!(p.lines.len() >= 4, "bound curves and the certified front");
+        let legend = p.legend.expect("a legend");
+        for (r, b) in p.labels.iter().zip(&front.baselines) {
+            for line in &p.lines {
+                assert!(!r.hit_by_line(line), "δ = {:?} at {r:?}", b.delta);
+            }
+            assert!(!r.overlaps(&legend), "δ = {:?} under the legend", b.delta);
+        }
+    }
+
+    #[test]
+    fn the_certified_front_is_not_in_a_bound_curve_colour() {
+        // Bound curves take the palette's series; the certified front is black.
+        for i in 0..collision_bounds(&fixture()).len() {
+            assert_ne!(style::series(i).0, BLACK);
+        }
+    }
 }

@@ -1,8 +1,10 @@
 //! The comparison figure of `etp fronts`: one curve per synthesis of one
 //! scenario (one radio channel or trigger family each), least expected
 //! energy per episode against P_tar, with each synthesis's certified curve
-//! dashed in the same colour; one panel per bound on P_coll.
+//! dashed in the same colour; one panel per bound on P_coll. Each synthesis
+//! has its series' hue (and line, past the palette's six hues).
 
+use crate::style::{self, text};
 use crate::{Result, plot_error};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -59,7 +61,7 @@ pub fn fronts_plot(scenario: &str, what: &str, panels: &[Panel], stem: &Path) ->
             panels,
         },
         stem,
-        (if n == 1 { 1000 } else { 820 * n }, 720),
+        (if n == 1 { 880 } else { 820 * n }, 720),
     )
 }
 
@@ -67,33 +69,6 @@ struct FrontsFigure<'a> {
     scenario: &'a str,
     what: &'a str,
     panels: &'a [Panel],
-}
-
-/// Distinct colours (Okabe–Ito, readable by colour-blind readers).
-pub(crate) const PALETTE: [RGBColor; 7] = [
-    RGBColor(0, 114, 178),
-    RGBColor(213, 94, 0),
-    RGBColor(0, 158, 115),
-    RGBColor(204, 121, 167),
-    RGBColor(230, 159, 0),
-    RGBColor(86, 180, 233),
-    RGBColor(0, 0, 0),
-];
-
-/// A polyline as dashes of about `dash` pixels' worth in data units: every
-/// other piece of each segment cut into `pieces`.
-pub(crate) fn dashes(points: &[(f64, f64)], pieces: usize) -> Vec<Vec<(f64, f64)>> {
-    let mut out = Vec::new();
-    for w in points.windows(2) {
-        let (a, b) = (w[0], w[1]);
-        for k in (0..pieces).step_by(2) {
-            let t0 = k as f64 / pieces as f64;
-            let t1 = (k + 1) as f64 / pieces as f64;
-            let at = |t: f64| (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
-            out.push(vec![at(t0), at(t1)]);
-        }
-    }
-    out
 }
 
 impl super::Figure for FrontsFigure<'_> {
@@ -140,39 +115,33 @@ impl super::Figure for FrontsFigure<'_> {
             };
             let mut chart = ChartBuilder::on(cell)
                 .caption(
-                    format!("{bound}; thin: the MDP's front (selection-time), dashed: certified at 95 %, thick with ±: predicted"),
-                    ("sans-serif", 13),
+                    format!("{bound}: solid MDP front, dashed certified (95 %), ± predicted"),
+                    ("sans-serif", text::CAPTION),
                 )
                 .margin(20)
-                .x_label_area_size(50)
-                .y_label_area_size(70)
+                .x_label_area_size(60)
+                .y_label_area_size(85)
                 .build_cartesian_2d((t_lo - pad)..(t_hi + pad).min(1.0 + pad), 0.0..e_hi * 1.08)
                 .map_err(e)?;
             crate::draw_axes(
                 &mut chart,
                 "P_tar (probability of reaching the target)",
-                "least expected energy per episode (attempts × cost)",
-                (15, 16),
+                "least energy per episode (attempts × cost)",
             )?;
             for (i, c) in panel.curves.iter().enumerate() {
-                let colour = PALETTE[i % PALETTE.len()];
+                let look = style::series(i);
+                let colour = look.0;
+                let sample = crate::draw_line(&mut chart, &c.points, look, 2)?;
                 chart
-                    .draw_series(LineSeries::new(c.points.clone(), colour.stroke_width(2)))
+                    .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
                     .map_err(e)?
                     .label(match (c.certified.is_empty(), c.predicted.is_empty()) {
-                        (true, true) => format!(
-                            "{} (none certified in this bound; no predicted front)",
-                            c.label
-                        ),
-                        (true, false) => format!("{} (none certified in this bound)", c.label),
-                        (false, true) => {
-                            format!("{} (no predicted front: etp strategy front)", c.label)
-                        }
+                        (true, true) => format!("{} (none certified; no predicted)", c.label),
+                        (true, false) => format!("{} (none certified)", c.label),
+                        (false, true) => format!("{} (no predicted front)", c.label),
                         (false, false) => c.label.clone(),
                     })
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x - 12, y), (x + 12, y)], colour.stroke_width(3))
-                    });
+                    .legend(move |p| sample.at(p));
                 chart
                     .draw_series(
                         c.certified
@@ -180,13 +149,12 @@ impl super::Figure for FrontsFigure<'_> {
                             .map(|&p| Circle::new(p, 3, colour.filled())),
                     )
                     .map_err(e)?;
-                chart
-                    .draw_series(
-                        dashes(&c.certified, 16)
-                            .into_iter()
-                            .map(|d| PathElement::new(d, colour.stroke_width(2))),
-                    )
-                    .map_err(e)?;
+                crate::draw_line(
+                    &mut chart,
+                    &c.certified,
+                    (colour, style::Line::Dashed(12, 8)),
+                    2,
+                )?;
                 let at: Vec<(f64, f64)> =
                     c.predicted.iter().map(|m| (m.p_target, m.energy)).collect();
                 chart
@@ -224,7 +192,7 @@ impl super::Figure for FrontsFigure<'_> {
                         .map_err(e)?;
                 }
             }
-            crate::draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, 14, 0.8)?;
+            crate::draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, 0.8)?;
         }
         Ok(())
     }

@@ -22,14 +22,21 @@
 //! figure's title (`Figure::title`) above its panels (`Figure::draw`), PNG
 //! and SVG from one drawing. The chart parts every figure shares are drawn
 //! once: `draw_axes` (descriptions and tick labels of two real axes) and
-//! `draw_legend` (the framed legend box). The font is
+//! `draw_legend` (the framed legend box). Their colours, line styles and
+//! text sizes are `style`'s: one palette of distinguishable hues, viridis
+//! for a continuous quantity, text readable with each panel printed a
+//! column wide. The font is
 //! embedded (DejaVu Sans, see `assets/`), so plots render the same on a
-//! machine without any installed fonts.
+//! machine without any installed fonts. Each figure kind has a golden image
+//! in `tests/golden/` that `tests/golden.rs` compares it with
+//! (`ETP_UPDATE_GOLDEN=1` rewrites them after a deliberate change).
 
 mod front;
 mod fronts;
+mod labels;
 mod map;
 mod report;
+mod style;
 mod trigger_curves;
 
 pub use front::front_plot;
@@ -68,7 +75,7 @@ pub(crate) fn plot_error<E: std::fmt::Debug>(e: E) -> FigureError {
     FigureError::Plot(format!("{e:?}"))
 }
 
-/// A white figure with its title (20 pt): the area left for the panels.
+/// A white figure with its title: the area left for the panels.
 fn titled_area<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     title: &str,
@@ -78,16 +85,16 @@ where
 {
     let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
     root.fill(&WHITE).map_err(e)?;
-    root.titled(title, ("sans-serif", 20)).map_err(e)
+    root.titled(title, ("sans-serif", style::text::TITLE))
+        .map_err(e)
 }
 
-/// The axes of a chart of two real axes: their descriptions, the tick
-/// labels `sizes.0` pt and the descriptions `sizes.1` pt.
+/// The axes of a chart of two real axes: their descriptions (each naming
+/// its unit) and tick labels.
 pub(crate) fn draw_axes<'a, DB: DrawingBackend + 'a>(
     chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
     x_desc: &str,
     y_desc: &str,
-    sizes: (u32, u32),
 ) -> Result<()>
 where
     DB::ErrorType: 'static,
@@ -96,18 +103,17 @@ where
         .configure_mesh()
         .x_desc(x_desc)
         .y_desc(y_desc)
-        .label_style(("sans-serif", sizes.0))
-        .axis_desc_style(("sans-serif", sizes.1))
+        .label_style(("sans-serif", style::text::TICK))
+        .axis_desc_style(("sans-serif", style::text::AXIS))
         .draw()
         .map_err(plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>)
 }
 
-/// The legend box of a chart: framed, on white of opacity `opacity`, its
-/// labels `font` pt, in the corner `at`.
+/// The legend box of a chart: framed, on white of opacity `opacity`, in
+/// the corner `at`.
 pub(crate) fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
     chart: &mut ChartContext<'a, DB, CT>,
     at: SeriesLabelPosition,
-    font: u32,
     opacity: f64,
 ) -> Result<()>
 where
@@ -117,7 +123,7 @@ where
         .configure_series_labels()
         .background_style(WHITE.mix(opacity))
         .border_style(BLACK)
-        .label_font(("sans-serif", font))
+        .label_font(("sans-serif", style::text::LEGEND))
         .position(at)
         .draw()
         .map_err(plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>)
@@ -202,11 +208,61 @@ fn write_figure(path: &Path, draw: impl FnOnce(&Path) -> Result<()>) -> Result<(
     })
 }
 
-/// Blue (low) → red (high) colour map on [0, 1].
-pub(crate) fn heat(t: f64) -> RGBColor {
-    let t = t.clamp(0.0, 1.0);
-    let r = (255.0 * t.min(0.5) * 2.0) as u8;
-    let b = (255.0 * (1.0 - t).min(0.5) * 2.0) as u8;
-    let g = (200.0 * (1.0 - (2.0 * t - 1.0).abs())) as u8;
-    RGBColor(r, g, b)
+/// A series' line through `points` in its `line` style, `width` pixels:
+/// what a legend entry of it shows is returned with it.
+pub(crate) fn draw_line<'a, DB: DrawingBackend + 'a>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    points: &[(f64, f64)],
+    (colour, line): (RGBColor, style::Line),
+    width: u32,
+) -> Result<LegendLine>
+where
+    DB::ErrorType: 'static,
+{
+    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
+    let st = colour.stroke_width(width);
+    match line {
+        style::Line::Solid => chart
+            .draw_series(LineSeries::new(points.iter().copied(), st))
+            .map_err(e)?,
+        style::Line::Dashed(dash, gap) => chart
+            .draw_series(DashedLineSeries::new(
+                points.iter().copied(),
+                dash as i32,
+                gap as i32,
+                st,
+            ))
+            .map_err(e)?,
+    };
+    Ok(LegendLine {
+        colour,
+        line,
+        width,
+    })
+}
+
+/// A legend entry's sample of a line: a short stroke in the line's style.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct LegendLine {
+    colour: RGBColor,
+    line: style::Line,
+    width: u32,
+}
+
+impl LegendLine {
+    /// The sample centred at `(x, y)`: 28 pixels of the line, in two
+    /// pieces with a gap when it is dashed.
+    pub(crate) fn at<'a, DB: DrawingBackend + 'a>(
+        self,
+        (x, y): (i32, i32),
+    ) -> impl IntoDynElement<'a, DB, (i32, i32)> {
+        let gap = match self.line {
+            style::Line::Solid => 0,
+            style::Line::Dashed(_, g) => (g as i32).clamp(2, 6),
+        };
+        let st = self.colour.stroke_width(self.width + 1);
+        EmptyElement::at((x, y))
+            + PathElement::new(vec![(-14, 0), (-gap / 2, 0)], st)
+            + PathElement::new(vec![(gap - gap / 2, 0), (14, 0)], st)
+    }
 }

@@ -1,8 +1,11 @@
 //! The map figure: obstacles, target, route, named sensors and sampled
-//! trajectories coloured by γ̄(δ) with a colour bar, equal aspect; for d ≥ 3
-//! two projections.
+//! trajectories coloured by γ̄(δ) (viridis) with a colour bar, equal
+//! aspect; for d ≥ 3 two projections. The colour bar and the legend stand
+//! beside the panels, so that nothing covers the map; the markers
+//! (collision, obstacle, target, route, sensors) are in colours the colour
+//! map never takes.
 
-use super::heat;
+use crate::style::{COLLISION, OBSTACLE, colormap, text};
 use crate::{Result, plot_error};
 use etp_shared::episode::Outcome;
 use etp_shared::scenario::Scenario;
@@ -11,15 +14,18 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
 
+/// Width of the strip beside the panels: colour bar and legend.
+const STRIP: u32 = 250;
+
 /// Write the map plot to `stem.png` and `stem.svg`. The map is drawn in the
 /// workspace (MODEL.md §7: `q = C x`, d coordinates): d ≤ 2 in one panel; d ≥ 3
 /// in two projections side by side, top view (q₁, q₂) and side view (q₁, q₃),
 /// each named in its caption.
 pub fn map_plot(scenario: &Scenario, trajectories: &[Trajectory], stem: &Path) -> Result<()> {
     let size = if scenario.workspace_dim() >= 3 {
-        (1800, 800)
+        (1850, 800)
     } else {
-        (1200, 900)
+        (1130, 820)
     };
     super::png_and_svg(&MapFigure(scenario, trajectories), stem, size)
 }
@@ -35,97 +41,67 @@ impl super::Figure for MapFigure<'_> {
     where
         DB::ErrorType: 'static,
     {
-        draw_maps(root, self.0, self.1)
+        draw_maps(root, self.0, self.1).map(|_| ())
     }
 }
 
-fn draw_maps<DB: DrawingBackend>(
+/// The panels and the strip beside them; the pixel centres of the
+/// obstacles as drawn (panel by panel), each of which a reader must see.
+pub(crate) fn draw_maps<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     scenario: &Scenario,
     trajectories: &[Trajectory],
-) -> Result<()>
+) -> Result<Vec<(i32, i32)>>
 where
     DB::ErrorType: 'static,
 {
-    let title = format!(
-        "{} — {} sampled episodes coloured by the expected transmission rate γ̄(δ) of the threshold in force",
-        scenario.name,
-        trajectories.len()
-    );
     let (w, _) = root.dim_in_pixel();
-    let (root, bar) = root.split_horizontally(w.saturating_sub(110));
-    colour_bar(&bar, "γ̄(δ)")?;
-    let root = &root;
+    let (root, strip) = root.split_horizontally(w.saturating_sub(STRIP));
+    side_strip(&strip)?;
+    let n = trajectories.len();
     if scenario.workspace_dim() >= 3 {
         let panels = root.split_evenly((1, 2));
-        draw_map(
+        let mut centres = draw_map(
             &panels[0],
             scenario,
             trajectories,
             (0, 1),
-            &format!(
-                "{} — top view: projection onto (q₁, q₂), q₃ dropped",
-                scenario.name
-            ),
+            &format!("{}: top view (q₁, q₂), q₃ dropped", scenario.name),
         )?;
-        draw_map(
+        centres.extend(draw_map(
             &panels[1],
             scenario,
             trajectories,
             (0, 2),
-            &format!(
-                "side view: (q₁, q₃), q₂ dropped — {} episodes, colour γ̄(δ) blue 0 → red 1",
-                trajectories.len()
-            ),
-        )?;
-        Ok(())
+            &format!("side view (q₁, q₃), q₂ dropped; {n} episodes"),
+        )?);
+        Ok(centres)
     } else {
-        draw_map(root, scenario, trajectories, (0, 1), &title)
+        let title = format!("{}: {n} sampled episodes, coloured by γ̄(δ)", scenario.name);
+        draw_map(&root, scenario, trajectories, (0, 1), &title)
     }
 }
 
-/// One panel: the projection of the workspace onto coordinates `axes`.
-fn draw_map<DB: DrawingBackend>(
-    root: &DrawingArea<DB, Shift>,
-    scenario: &Scenario,
-    trajectories: &[Trajectory],
-    axes: (usize, usize),
-    caption: &str,
-) -> Result<()>
-where
-    DB::ErrorType: 'static,
-{
-    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
-    let (a, b) = axes;
+/// The plotted range of the projection onto `(a, b)`: the route and the
+/// obstacles with a margin, widened on one axis so that one unit is as
+/// long on both axes in a plotting area of `pw` × `ph` pixels.
+fn view(scenario: &Scenario, (a, b): (usize, usize), (pw, ph): (f64, f64)) -> [(f64, f64); 2] {
     let at = |v: &[f64], i: usize| v.get(i).copied().unwrap_or(0.0);
     let pt = |v: &[f64]| (at(v, a), at(v, b));
-    let start = scenario.route_start.as_slice();
-    let mut pts: Vec<(f64, f64)> = vec![pt(start)];
-    for l in &scenario.legs {
-        pts.push(pt(l.to.as_slice()));
-    }
+    let mut pts: Vec<(f64, f64)> = vec![pt(scenario.route_start.as_slice())];
+    pts.extend(scenario.legs.iter().map(|l| pt(l.to.as_slice())));
     for o in &scenario.obstacles {
         pts.extend([pt(&o.bounds.min), pt(&o.bounds.max)]);
     }
-    let (x0, x1) = (
-        pts.iter().map(|p| p.0).fold(f64::INFINITY, f64::min),
-        pts.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max),
-    );
-    let (y0, y1) = (
-        pts.iter().map(|p| p.1).fold(f64::INFINITY, f64::min),
-        pts.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max),
-    );
+    let lo_hi = |f: fn(&(f64, f64)) -> f64| {
+        pts.iter()
+            .map(f)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                (l.min(v), h.max(v))
+            })
+    };
+    let ((x0, x1), (y0, y1)) = (lo_hi(|p| p.0), lo_hi(|p| p.1));
     let pad = 0.05 * (x1 - x0).max(y1 - y0).max(1e-3);
-    let lines: Vec<&str> = caption.lines().collect();
-    let area = root
-        .titled(&lines.join(" — "), ("sans-serif", 17))
-        .map_err(e)?;
-    // Equal aspect: one unit is as long on both axes. The plotting area is
-    // the titled area less the margins and label areas set below.
-    let (margin, x_label, y_label) = (15u32, 40u32, 50u32);
-    let (aw, ah) = area.dim_in_pixel();
-    let pw = f64::from(aw.saturating_sub(2 * margin + y_label).max(1));
-    let ph = f64::from(ah.saturating_sub(2 * margin + x_label).max(1));
     let (mut xr, mut yr) = ((x0 - pad, x1 + pad), (y0 - pad, y1 + pad));
     let (dx, dy) = (xr.1 - xr.0, yr.1 - yr.0);
     if dx / pw > dy / ph {
@@ -135,6 +111,35 @@ where
         let grow = (dy * pw / ph - dx) / 2.0;
         xr = (xr.0 - grow, xr.1 + grow);
     }
+    [xr, yr]
+}
+
+/// One panel: the projection of the workspace onto coordinates `axes`;
+/// the pixel centres of its obstacles.
+fn draw_map<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    scenario: &Scenario,
+    trajectories: &[Trajectory],
+    axes: (usize, usize),
+    caption: &str,
+) -> Result<Vec<(i32, i32)>>
+where
+    DB::ErrorType: 'static,
+{
+    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
+    let (a, b) = axes;
+    let at = |v: &[f64], i: usize| v.get(i).copied().unwrap_or(0.0);
+    let pt = |v: &[f64]| (at(v, a), at(v, b));
+    let area = root
+        .titled(caption, ("sans-serif", text::CAPTION))
+        .map_err(e)?;
+    // Equal aspect: one unit is as long on both axes. The plotting area is
+    // the titled area less the margins and label areas set below.
+    let (margin, x_label, y_label) = (15u32, 60u32, 75u32);
+    let (aw, ah) = area.dim_in_pixel();
+    let pw = f64::from(aw.saturating_sub(2 * margin + y_label).max(1));
+    let ph = f64::from(ah.saturating_sub(2 * margin + x_label).max(1));
+    let [xr, yr] = view(scenario, axes, (pw, ph));
     let mut chart = ChartBuilder::on(&area)
         .margin(margin)
         .x_label_area_size(x_label)
@@ -143,23 +148,17 @@ where
         .map_err(e)?;
     let name = |i: usize| {
         if scenario.workspace.is_some() {
-            format!("q{} (workspace C x)", i + 1)
+            format!("q{} = (C x){} (scenario units)", i + 1, i + 1)
         } else {
-            format!("x{}", i + 1)
+            format!("x{} (scenario units)", i + 1)
         }
     };
-    chart
-        .configure_mesh()
-        .x_desc(name(a))
-        .y_desc(name(b))
-        .label_style(("sans-serif", 14))
-        .draw()
-        .map_err(e)?;
+    crate::draw_axes(&mut chart, &name(a), &name(b))?;
     // Projected boxes overlap in 3-D: translucent so the ones behind show.
     let obstacle_style = if scenario.workspace_dim() >= 3 {
-        RGBColor(90, 90, 90).mix(0.35).filled()
+        OBSTACLE.mix(0.35).filled()
     } else {
-        RGBColor(90, 90, 90).filled()
+        OBSTACLE.filled()
     };
     chart
         .draw_series(
@@ -168,105 +167,89 @@ where
                 .iter()
                 .map(|o| Rectangle::new([pt(&o.bounds.min), pt(&o.bounds.max)], obstacle_style)),
         )
-        .map_err(e)?
-        .label("obstacle")
-        .legend(move |(x, y)| Rectangle::new([(x - 6, y - 5), (x + 6, y + 5)], obstacle_style));
+        .map_err(e)?;
+    for tr in trajectories {
+        chart
+            .draw_series(tr.points.windows(2).map(|w| {
+                PathElement::new(
+                    vec![pt(&w[0].x), pt(&w[1].x)],
+                    colormap(w[1].expected_rate).stroke_width(2),
+                )
+            }))
+            .map_err(e)?;
+    }
+    // Collisions over every trajectory: a white-edged red cross.
+    let ends = trajectories
+        .iter()
+        .filter(|t| t.outcome == Outcome::Collision)
+        .filter_map(|t| t.points.last())
+        .map(|p| pt(&p.x));
+    for end in ends {
+        chart
+            .draw_series([
+                Cross::new(end, 8, WHITE.stroke_width(6)),
+                Cross::new(end, 8, COLLISION.stroke_width(3)),
+            ])
+            .map_err(e)?;
+    }
+    // The target over the trajectories, as an outline.
     let t = &scenario.target;
     chart
         .draw_series(std::iter::once(Rectangle::new(
             [pt(&t.min), pt(&t.max)],
-            RGBColor(0, 170, 0).filled(),
-        )))
-        .map_err(e)?
-        .label("target")
-        .legend(|(x, y)| {
-            Rectangle::new(
-                [(x - 6, y - 5), (x + 6, y + 5)],
-                RGBColor(0, 170, 0).filled(),
-            )
-        });
-    chart
-        .draw_series(std::iter::empty::<PathElement<(f64, f64)>>())
-        .map_err(e)?
-        .label("sampled trajectory (colour: γ̄(δ))")
-        .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], heat(0.2).stroke_width(2)));
-    chart
-        .draw_series(std::iter::empty::<Cross<(f64, f64), i32>>())
-        .map_err(e)?
-        .label("collision")
-        .legend(|(x, y)| Cross::new((x, y), 5, RED.stroke_width(2)));
-    for tr in trajectories {
-        for w in tr.points.windows(2) {
-            chart
-                .draw_series(std::iter::once(PathElement::new(
-                    vec![pt(&w[0].x), pt(&w[1].x)],
-                    heat(w[1].expected_rate).stroke_width(1),
-                )))
-                .map_err(e)?;
-        }
-        if tr.outcome == Outcome::Collision
-            && let Some(last) = tr.points.last()
-        {
-            chart
-                .draw_series(std::iter::once(Cross::new(
-                    pt(&last.x),
-                    6,
-                    RED.stroke_width(2),
-                )))
-                .map_err(e)?;
-        }
-    }
-    // The target on top of the trajectories, as an outline.
-    chart
-        .draw_series(std::iter::once(Rectangle::new(
-            [pt(&t.min), pt(&t.max)],
-            RGBColor(0, 140, 0).stroke_width(3),
+            BLACK.stroke_width(3),
         )))
         .map_err(e)?;
-    let mut route = vec![pt(start)];
+    let mut route = vec![pt(scenario.route_start.as_slice())];
     route.extend(scenario.legs.iter().map(|l| pt(l.to.as_slice())));
     chart
-        .draw_series(route.iter().map(|&p| Circle::new(p, 4, BLACK.filled())))
-        .map_err(e)?
-        .label("waypoint")
-        .legend(|(x, y)| Circle::new((x, y), 4, BLACK.filled()));
-    let purple = RGBColor(128, 0, 128);
-    chart
-        .draw_series(
-            scenario
-                .sensors
-                .iter()
-                .map(|s| TriangleMarker::new(pt(s.position.as_slice()), 8, purple.filled())),
-        )
-        .map_err(e)?
-        .label("sensor")
-        .legend(move |(x, y)| TriangleMarker::new((x, y), 7, purple.filled()));
+        .draw_series(route.iter().map(|&p| Circle::new(p, 5, BLACK.filled())))
+        .map_err(e)?;
+    let label: TextStyle = ("sans-serif", text::LABEL).into();
     chart
         .draw_series(scenario.sensors.iter().map(|s| {
             // On a white patch, readable over the trajectories.
-            let w = 9 * s.name.chars().count() as i32 + 4;
+            let (w, h) = area
+                .estimate_text_size(&s.name, &label)
+                .unwrap_or((10 * s.name.len() as u32, text::LABEL));
             EmptyElement::at(pt(s.position.as_slice()))
-                + Rectangle::new([(6, -18), (6 + w, -1)], WHITE.mix(0.85).filled())
-                + Text::new(
-                    s.name.clone(),
-                    (8, -17),
-                    ("sans-serif", 14).into_font().color(&purple),
+                + TriangleMarker::new((0, 0), 9, WHITE.filled())
+                + TriangleMarker::new((0, 0), 9, BLACK.stroke_width(2))
+                + Rectangle::new(
+                    [(10, -(h as i32) - 6), (14 + w as i32, -2)],
+                    WHITE.mix(0.85).filled(),
                 )
+                + Text::new(s.name.clone(), (12, -(h as i32) - 4), label.clone())
         }))
         .map_err(e)?;
-    crate::draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, 13, 0.85)?;
-    Ok(())
+    Ok(scenario
+        .obstacles
+        .iter()
+        .map(|o| {
+            let (p, q) = (pt(&o.bounds.min), pt(&o.bounds.max));
+            chart.backend_coord(&((p.0 + q.0) / 2.0, (p.1 + q.1) / 2.0))
+        })
+        .collect())
 }
 
-/// A vertical colour bar of [`heat`] on [0, 1] with ticks, titled `what`.
-fn colour_bar<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, what: &str) -> Result<()>
+/// The strip beside the panels: the colour bar of γ̄(δ) with its unit, and
+/// under it the legend of the map's marks.
+fn side_strip<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>) -> Result<()>
 where
     DB::ErrorType: 'static,
 {
     let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
-    let (w, h) = area.dim_in_pixel();
-    let (top, bottom) = (80i32, h as i32 - 80);
-    let (left, right) = (20i32, 45i32.min(w as i32));
+    let (_, h) = area.dim_in_pixel();
+    let font = ("sans-serif", text::LEGEND);
+    for (k, line) in ["γ̄(δ): expected", "transmissions", "per slot"]
+        .iter()
+        .enumerate()
+    {
+        area.draw(&Text::new(line.to_string(), (12, 20 + 24 * k as i32), font))
+            .map_err(e)?;
+    }
+    let (top, bottom) = (100i32, (h as i32 / 2 + 60).max(160));
+    let (left, right) = (20i32, 50i32);
     let steps: i32 = 100;
     // Integer edges shared by neighbouring steps: no gaps.
     let edge = |k: i32| bottom - (bottom - top) * k / steps;
@@ -274,7 +257,7 @@ where
         let t = f64::from(k) / f64::from(steps);
         area.draw(&Rectangle::new(
             [(left, edge(k + 1)), (right, edge(k))],
-            heat(t).filled(),
+            colormap(t).filled(),
         ))
         .map_err(e)?;
     }
@@ -286,22 +269,97 @@ where
     for t in [0.0, 0.25, 0.5, 0.75, 1.0] {
         let y = bottom - ((bottom - top) as f64 * t) as i32;
         area.draw(&PathElement::new(
-            vec![(right, y), (right + 5, y)],
+            vec![(right, y), (right + 6, y)],
             BLACK.stroke_width(1),
         ))
         .map_err(e)?;
-        area.draw(&Text::new(
-            format!("{t}"),
-            (right + 8, y - 7),
-            ("sans-serif", 13),
-        ))
-        .map_err(e)?;
+        area.draw(&Text::new(format!("{t}"), (right + 10, y - 10), font))
+            .map_err(e)?;
     }
-    area.draw(&Text::new(
-        what.to_string(),
-        (left - 5, top - 30),
-        ("sans-serif", 15),
+    legend(area, bottom + 40)
+}
+
+/// The map's legend from `y` down, one mark per line.
+fn legend<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, y: i32) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
+    let font = ("sans-serif", text::LEGEND);
+    let step = 30;
+    let row = |k: i32| (30, y + step * k);
+    let rows = [
+        "trajectory",
+        "collision",
+        "obstacle",
+        "target",
+        "waypoint",
+        "sensor",
+    ];
+    for (k, what) in rows.iter().enumerate() {
+        let (x, y) = row(k as i32);
+        area.draw(&Text::new(what.to_string(), (x + 25, y - 11), font))
+            .map_err(e)?;
+    }
+    let (x, y0) = row(0);
+    area.draw(&PathElement::new(
+        vec![(x - 14, y0), (x, y0)],
+        colormap(0.2).stroke_width(3),
     ))
     .map_err(e)?;
+    area.draw(&PathElement::new(
+        vec![(x, y0), (x + 14, y0)],
+        colormap(0.8).stroke_width(3),
+    ))
+    .map_err(e)?;
+    area.draw(&Cross::new(row(1), 8, COLLISION.stroke_width(3)))
+        .map_err(e)?;
+    let (x, y) = row(2);
+    area.draw(&Rectangle::new(
+        [(x - 10, y - 8), (x + 10, y + 8)],
+        OBSTACLE.filled(),
+    ))
+    .map_err(e)?;
+    let (x, y) = row(3);
+    area.draw(&Rectangle::new(
+        [(x - 10, y - 8), (x + 10, y + 8)],
+        BLACK.stroke_width(3),
+    ))
+    .map_err(e)?;
+    area.draw(&Circle::new(row(4), 5, BLACK.filled()))
+        .map_err(e)?;
+    area.draw(&TriangleMarker::new(row(5), 9, BLACK.stroke_width(2)))
+        .map_err(e)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every obstacle of winding-2d shows at its centre (b4 was under the
+    /// legend when the legend stood in the map's corner).
+    #[test]
+    fn every_obstacle_is_visible() {
+        crate::register_font();
+        let scenario = Scenario::builtin("winding-2d").expect("built in");
+        let (w, h) = (1130u32, 820u32);
+        let mut buf = vec![0u8; (w * h * 3) as usize];
+        let centres = {
+            let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+            root.fill(&WHITE).expect("filled");
+            draw_maps(&root, &scenario, &[]).expect("drawn")
+        };
+        assert_eq!(centres.len(), scenario.obstacles.len());
+        for (i, &(x, y)) in centres.iter().enumerate() {
+            let at = 3 * (y as usize * w as usize + x as usize);
+            let px = &buf[at..at + 3];
+            assert_eq!(
+                px,
+                [OBSTACLE.0, OBSTACLE.1, OBSTACLE.2],
+                "obstacle {} covered at ({x}, {y})",
+                scenario.obstacles[i].name
+            );
+        }
+    }
 }

@@ -29,6 +29,11 @@ import matplotlib.pyplot as plt
 import pandas as pd
 from IPython.display import Image, display
 
+# Figures readable at a column's width: larger text, and the colour-blind
+# safe Okabe–Ito hues of etp's own figures.
+plt.rcParams.update({"font.size": 13, "axes.prop_cycle": plt.cycler(color=[
+    "#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9"])})
+
 import etpareto
 
 SCENARIO = "winding-2d"
@@ -62,14 +67,15 @@ print(f"{syn.report['mdp']['states']} states; Pareto front: {len(front.vertices)
 v = front.vertices.sort_values(["objectives_energy", "objectives_p_target"], ascending=[True, False])
 curve = v[v["objectives_p_target"] > v["objectives_p_target"].cummax().shift(fill_value=-1.0)]
 fig, ax = plt.subplots(figsize=(7, 4.5))
-ax.scatter(v["objectives_energy"], v["objectives_p_target"], s=4, c="lightsteelblue", label=f"all {len(v)} vertices")
-ax.plot(curve["objectives_energy"], curve["objectives_p_target"], "-", color="tab:blue", label="least energy per P_tar")
+ax.scatter(v["objectives_energy"], v["objectives_p_target"], s=6, c="#56B4E9", label=f"all {len(v)} vertices")
+ax.plot(curve["objectives_energy"], curve["objectives_p_target"], "-", color="#0072B2", lw=2, label="least energy per P_tar")
 b = front.baselines
 ax.plot(b["objectives_energy"], b["objectives_p_target"], "k^", ms=6, label="constant δ")
 for _, r in b.iterrows():
-    ax.annotate(f"δ = {r['delta']:.4g}", (r["objectives_energy"], r["objectives_p_target"]), textcoords="offset points", xytext=(5, -10), fontsize=8)
+    ax.annotate(f"δ = {r['delta']:.4g}", (r["objectives_energy"], r["objectives_p_target"]), textcoords="offset points", xytext=(6, -14),
+                bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.85))
 ax.axhline(MIN_TARGET, color="grey", lw=0.8, ls=":")
-ax.set_xlabel("expected energy per episode (transmissions × cost)"); ax.set_ylabel("P_tar")
+ax.set_xlabel("expected energy per episode (transmissions × cost)"); ax.set_ylabel("P_tar (probability)")
 ax.legend(loc="lower right"); ax.set_title(f"{SCENARIO}: Pareto front")
 plt.show()
 display(Image(filename=str(syn.dir / "front.png"), width=640))  # the figure `etp` draws, per bound on P_coll"""),
@@ -108,7 +114,11 @@ assert len(meas) == packets["transmissions"].sum(), "Σ ledgers = measurement me
 fig, ax = plt.subplots(figsize=(7, 3.5))
 for sender, df in meas.groupby("sender"):
     ax.plot((df["log_time_ns"] - meas["log_time_ns"].min()) / 1e9, range(1, len(df) + 1), label=str(sender))
-ax.set_xlabel("seconds into the run"); ax.set_ylabel("measurements sent"); ax.legend(title="sensor")
+ax.set_xlabel("seconds into the run (s)"); ax.set_ylabel("measurements sent (count)"); ax.legend(title="sensor")
+# One sensor sending ten times another's: a log axis keeps the small ones readable.
+sent = meas.groupby("sender").size()
+if sent.max() >= 10 * sent.min():
+    ax.set_yscale("log")
 plt.show()"""),
     new_markdown_cell("## 5. The same numbers as `etp demo`"),
     new_code_cell("""etp = os.environ.get("ETP_BIN")
