@@ -1,14 +1,12 @@
-//! `--export DIR [--format csv|jsonl]` and `--cat`: the recording's messages
-//! decoded into typed rows (`etp_runtime::recording::table`), readable with
+//! `--export DIR [--format csv|jsonl]` (and the rows of `crate::cat`): the
+//! recording's messages decoded into typed rows (`etp_runtime::recording::table`), readable with
 //! no etp code (pandas `read_csv` / `read_json(lines=True)`, polars, the
 //! Python csv and json modules).
 //!
 //! `--export` writes one file per channel, `DIR/<topic with / as ->.<ext>`
 //! (`outcome.csv`, `sensor-0-truth.csv`), rows in the channel's order, and
 //! `DIR/tables.json`: the source, the recording's metadata records and, per
-//! table, its topic, file, schema, row count and typed columns. `--cat`
-//! prints every message as one JSON object per line (`topic` first), in
-//! log-time order.
+//! table, its topic, file, schema, row count and typed columns.
 
 use anyhow::{Context, Result, bail};
 use etp_runtime::recording::table::{Cell, Column, Names, Table, csv_quote};
@@ -66,26 +64,7 @@ pub fn is_etp_channel(c: &Contents, topic: &str) -> bool {
             .is_none_or(|e| recording::Encoding::of(e).is_some())
 }
 
-/// A message of a channel etp did not write, as `cat` shows it: `json`
-/// payloads decoded (`message`), any other encoding named with its size.
-fn foreign_line(c: &Contents, m: &recording::RawMessage) -> Value {
-    let encoding = c.encodings.get(&m.topic).map_or("", String::as_str);
-    let decoded = (encoding == "json")
-        .then(|| serde_json::from_slice::<Value>(&m.data).ok())
-        .flatten();
-    match decoded {
-        Some(v) => json!({"topic": m.topic, "log_time_ns": m.log_time, "message": v}),
-        None => json!({
-            "topic": m.topic,
-            "log_time_ns": m.log_time,
-            "message_encoding": encoding,
-            "schema": c.channels.get(&m.topic),
-            "bytes": m.data.len(),
-        }),
-    }
-}
-
-fn tables(c: &Contents, dim: Option<usize>) -> Result<BTreeMap<String, Table>> {
+pub(crate) fn tables(c: &Contents, dim: Option<usize>) -> Result<BTreeMap<String, Table>> {
     let mut out = BTreeMap::new();
     for topic in c.channels.keys().filter(|t| is_etp_channel(c, t)) {
         let kind: Kind = recording::kind_of_topic(topic)
@@ -182,7 +161,11 @@ pub fn export_streaming(
 
 /// A message of an etp channel as its table's typed row: THE decoding of
 /// `export`, `cat` and [`Rows`].
-fn decoded_row(t: &Table, m: &recording::RawMessage, names: &Names) -> Result<Vec<Cell>> {
+pub(crate) fn decoded_row(
+    t: &Table,
+    m: &recording::RawMessage,
+    names: &Names,
+) -> Result<Vec<Cell>> {
     let rec = m
         .decode()
         .with_context(|| format!("message at log time {}", m.log_time))?;
@@ -346,32 +329,4 @@ fn codes() -> Value {
         "arrays": "one column per entry up to the scenario's dimension n: y_<i>, x_<i>, mean_<i>, cov_<row>_<col> (row-major)",
         "log_time_ns": "the recorder's time stamp (ns since the Unix epoch)",
     })
-}
-
-/// `--cat`: every message of `c` as one JSON line, in log-time order.
-pub fn cat(c: &Contents, out: &mut impl Write) -> Result<u64> {
-    let (names, dim) = names(c);
-    let tables = tables(c, dim)?;
-    let mut order: Vec<&recording::RawMessage> = c.messages.iter().collect();
-    order.sort_by_key(|m| m.log_time);
-    let mut n = 0u64;
-    for m in order {
-        let Some(t) = tables.get(&m.topic) else {
-            if !c.channels.contains_key(&m.topic) {
-                bail!("message on undeclared channel `{}`", m.topic);
-            }
-            writeln!(out, "{}", foreign_line(c, m))?;
-            n += 1;
-            continue;
-        };
-        let row = decoded_row(t, m, &names)?;
-        writeln!(
-            out,
-            "{}",
-            t.json_line(&[("topic", Value::from(m.topic.as_str()))], &row)
-        )?;
-        n += 1;
-    }
-    out.flush()?;
-    Ok(n)
 }

@@ -6,8 +6,9 @@
 //!   output that is the input or exists.
 //! * [`summary`] — the run's summary from the recording alone (episodes,
 //!   outcomes, per-sensor transmissions beside ledgers and received).
-//! * [`info`] — what a file holds (like `mcap info`); [`export`] — `cat`
-//!   (one JSON object per message) and the per-channel tables.
+//! * [`info`] — what a file holds (like `mcap info`); [`cat`] — one JSON
+//!   object per message (also shaped as `mcap cat --json`'s lines);
+//!   [`export`] — the per-channel tables.
 //! * [`select`] — the `--topics`/`--episodes`/`--start`/`--end` selection.
 //! * [`repair`] — a finished copy; [`foxglove`] — a copy Foxglove draws;
 //!   [`publish`] — the traffic back on iceoryx2 (like `ros2 bag play`).
@@ -16,6 +17,7 @@
 //! * [`vocab`] — THE JSON vocabulary shared by every command's `--json`.
 //! * [`files`] — the overwrite rule: `--force` or refuse; write beside, rename.
 
+pub mod cat;
 pub mod export;
 pub mod figure;
 pub mod files;

@@ -48,7 +48,7 @@ fn write_copy(c: &Contents, tmp: &std::path::Path, what: &str) -> Result<u64> {
                 channel_id: id,
                 sequence: *s,
                 log_time: m.log_time,
-                publish_time: m.log_time,
+                publish_time: m.publish_time,
             },
             &m.data,
         )?;
@@ -58,4 +58,38 @@ fn write_copy(c: &Contents, tmp: &std::path::Path, what: &str) -> Result<u64> {
         .with_context(|| format!("finishing the {what} copy"))?;
     drop(w);
     Ok(c.messages.len() as u64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_copy_keeps_each_messages_times_and_numbers_its_sequence() {
+        let mut c = Contents::default();
+        c.channels.insert("outcome".into(), "etp.Outcome".into());
+        for (i, (log, publish)) in [(30u64, 10u64), (50, 40)].into_iter().enumerate() {
+            c.messages.push(recording::RawMessage {
+                topic: "outcome".into(),
+                sequence: 9,
+                log_time: log,
+                publish_time: publish,
+                data: vec![u8::try_from(i).expect("small")],
+                encoding: Some(recording::Encoding::Protobuf),
+            });
+        }
+        let dir = std::env::temp_dir().join(format!("etp-copy-times-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("scratch folder");
+        let out = dir.join("copy.mcap");
+        assert_eq!(write_copy(&c, &out, "filter").expect("copy"), 2);
+        let back = recording::read_lenient("copy", &std::fs::read(&out).expect("read"))
+            .expect("the copy reads");
+        let times: Vec<(u32, u64, u64)> = back
+            .messages
+            .iter()
+            .map(|m| (m.sequence, m.log_time, m.publish_time))
+            .collect();
+        assert_eq!(times, [(0, 30, 10), (1, 50, 40)]);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

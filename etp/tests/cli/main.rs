@@ -19,6 +19,7 @@ mod pool_policy;
 mod radio;
 mod readme;
 mod replay;
+mod replay_cat;
 mod replay_subcommands;
 mod replay_tools;
 mod request_loop;

@@ -252,7 +252,9 @@ print(json.dumps({"messages": n, "metadata": meta}))
     assert_eq!(py["metadata"], serde_json::json!(names));
 }
 
-fn python(script: &str, file: &Path) -> Value {
+/// The JSON `script` prints, run by the test set-up's Python with `file`
+/// as its argument.
+pub(super) fn python(script: &str, file: &Path) -> Value {
     let out = Command::new(crate::pyenv::python())
         .args(["-c", script, s(file)])
         .output()

@@ -197,7 +197,9 @@ fn synthetic() -> Contents {
         c.channels.insert(topic.into(), String::new());
         c.messages.push(recording::RawMessage {
             topic: topic.into(),
+            sequence: 0,
             log_time: t,
+            publish_time: t,
             data,
             encoding: Some(recording::Encoding::Protobuf),
         });

@@ -43,7 +43,9 @@ impl Recording {
         let log_time = self.contents.messages.len() as u64;
         self.contents.messages.push(RawMessage {
             topic: topic.into(),
+            sequence: 0,
             log_time,
+            publish_time: log_time,
             data,
             encoding: Some(Encoding::Protobuf),
         });

@@ -8,7 +8,11 @@ use std::collections::BTreeMap;
 #[derive(Debug, Clone)]
 pub struct RawMessage {
     pub topic: String,
+    /// The message's per-channel `sequence`.
+    pub sequence: u32,
     pub log_time: u64,
+    /// Its `publish_time` (ns since the Unix epoch).
+    pub publish_time: u64,
     pub data: Vec<u8>,
     /// Its channel's encoding, `None` for one etp does not write.
     pub encoding: Option<super::Encoding>,
@@ -360,7 +364,9 @@ fn collect<E: From<RecordingError>>(
                 };
                 on_message(RawMessage {
                     topic: topic.clone(),
+                    sequence: header.sequence,
                     log_time: header.log_time,
+                    publish_time: header.publish_time,
                     data: data.into_owned(),
                     encoding: *encoding,
                 })?;

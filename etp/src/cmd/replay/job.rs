@@ -22,8 +22,9 @@ impl Action {
                 },
                 select,
             ),
-            Action::Cat { file, select } => sel(
+            Action::Cat { file, json, select } => sel(
                 Job {
+                    json,
                     cat: true,
                     ..on(file)
                 },

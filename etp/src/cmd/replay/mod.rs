@@ -18,7 +18,7 @@
 
 use anyhow::{Context, Result, bail};
 use etp_recording_tools::{
-    check_output, export, figure, foxglove, info, load_bytes, publish, refuse_foreign, repair,
+    cat, check_output, export, figure, foxglove, info, load_bytes, publish, refuse_foreign, repair,
     select, summary,
 };
 use etp_runtime::recording::{self, Contents};
@@ -127,10 +127,15 @@ pub enum Action {
         select: SelectArgs,
     },
     /// Every (selected) message decoded, one JSON object per line, in
-    /// log-time order, like `mcap cat --json`.
+    /// log-time order: its typed row (as `export --format jsonl`), or with
+    /// --json the line `mcap cat --json` prints.
     Cat {
         /// An MCAP recording (`etp run --record`).
         file: PathBuf,
+        /// Lines shaped as `mcap cat --json`'s: topic, sequence, log_time,
+        /// publish_time (seconds) and data (the protobuf message as JSON).
+        #[arg(long)]
+        json: bool,
         #[command(flatten)]
         select: SelectArgs,
     },
@@ -343,7 +348,12 @@ fn run_job(a: Job) -> Result<()> {
     drop(buf);
     if a.cat {
         let mut out = std::io::BufWriter::new(std::io::stdout().lock());
-        match export::cat(&c, &mut out) {
+        let shape = if a.json {
+            cat::Shape::Mcap
+        } else {
+            cat::Shape::Rows
+        };
+        match cat::cat(&c, &mut out, shape) {
             Err(e) if is_broken_pipe(&e) => return Ok(()),
             r => {
                 r.context("cat")?;
