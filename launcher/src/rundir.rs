@@ -120,14 +120,7 @@ pub fn remove_stale() -> Vec<String> {
             continue;
         }
         let name = e.file_name().to_string_lossy().to_string();
-        let young = || {
-            e.metadata()
-                .and_then(|m| m.modified())
-                .ok()
-                .and_then(|t| t.elapsed().ok())
-                .is_none_or(|age| age.as_secs() < 60)
-        };
-        if locked(&path) || (!path.join(LOCK).exists() && young()) {
+        if locked(&path) || (!path.join(LOCK).exists() && cleanup::young(&path)) {
             continue;
         }
         let iceoryx_clean = RunId::new(&name).map_or(true, |run| cleanup::remove_run(&run));

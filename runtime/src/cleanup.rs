@@ -39,6 +39,16 @@ pub fn remove_run(run: &RunId) -> bool {
 /// with `iceoryx2 node: InternalError`).
 pub const YOUNG: std::time::Duration = std::time::Duration::from_secs(60);
 
+/// Whether `path` changed less than [`YOUNG`] ago (or its age is unknown):
+/// a folder a run may still be setting up, left alone by every sweep.
+pub fn young(path: &std::path::Path) -> bool {
+    std::fs::symlink_metadata(path)
+        .and_then(|m| m.modified())
+        .ok()
+        .and_then(|t| t.elapsed().ok())
+        .is_none_or(|age| age < YOUNG)
+}
+
 /// Clean every stale run in the user's iceoryx2 folder ([`ROOT_FOLDER`] of
 /// `crate::folders`; nothing if it is not private) — runs with no live
 /// node whose folder is older than [`YOUNG`]; returns the ids removed. Runs
@@ -53,13 +63,7 @@ pub fn remove_stale_runs() -> Vec<String> {
     };
     for e in dir.filter_map(Result::ok) {
         let name = e.file_name().to_string_lossy().to_string();
-        let young = e
-            .metadata()
-            .and_then(|m| m.modified())
-            .ok()
-            .and_then(|t| t.elapsed().ok())
-            .is_none_or(|age| age < YOUNG);
-        if young {
+        if young(&e.path()) {
             continue;
         }
         if let Ok(run) = RunId::from_folder(&name)
