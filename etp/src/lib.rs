@@ -14,6 +14,8 @@
 //! * [`study`] — `etp study`: a SPEC's cases, resumable, scheduled across
 //!   MPI ranks; its tables.
 //! * [`processes`] — the run's processes `etp process NAME` plays.
+//! * [`run_args`] — `etp run`'s flags and their typed request for the
+//!   launcher (`--tls`/`--insecure` too, shared with `etp sensor-host`).
 //!
 //! The work is in libraries: the maths in `etp-shared` and `etp-synthesis`,
 //! the pipeline's steps in `etp-pipeline` (MDP, front, selection,
@@ -33,6 +35,7 @@ pub mod input;
 pub mod prediction_args;
 pub mod processes;
 pub mod report;
+pub mod run_args;
 pub mod study;
 
 use std::process::ExitCode;

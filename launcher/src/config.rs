@@ -16,8 +16,7 @@
 //! record = "open-2d.mcap"
 //! ```
 
-use super::Args;
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use etp_runtime::scenario_arg::ScenarioSource;
 use std::path::{Path, PathBuf};
 
@@ -28,13 +27,13 @@ pub const DEFAULT_DEADLINE: f64 = 3600.0;
 pub const DEFAULT_PREDICT_EPISODES: u64 = 2000;
 pub const DEFAULT_JOIN_TIMEOUT: f64 = 60.0;
 
-/// The keys of a run file, each written once: its type and, for a plain
-/// key, the place of its flag in [`Args`] (`=> place`). A plain key is
-/// copied to and from [`Args`] by [`of_args`] and [`resolve`] (the command
-/// line wins); the others (what to run, the recording, the remote sensors
-/// and the two switches) have their own rules there.
+/// The keys of a run file, each written once with its type. A key marked
+/// `=> plain` is merged by [`merge`] as given on the command line, else from
+/// the file; the others (what to run and the recording) have their own rule
+/// there. A switch given on the command line is `Some(true)`, so a plain
+/// switch is on when either side turns it on.
 macro_rules! run_file_keys {
-    ($( $(#[$attr:meta])* $key:ident : $ty:ty $(=> $($place:ident).+)? ,)*) => {
+    ($( $(#[$attr:meta])* $key:ident : $ty:ty $(=> $plain:ident)? ,)*) => {
         /// The keys of a run file (every one optional; unknown keys are refused).
         #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
         #[serde(deny_unknown_fields)]
@@ -46,64 +45,52 @@ macro_rules! run_file_keys {
             )*
         }
 
-        /// The plain keys of `a` (the others are left `None`).
-        fn plain_of_args(a: &Args) -> RunConfig {
-            let mut c = RunConfig::default();
-            $($( c.$key = copied(&a.$($place).+); )?)*
-            c
-        }
-
-        /// Each plain key the command line left open, from `c`.
-        fn merge_plain(a: &mut Args, c: &mut RunConfig) {
-            $($( a.$($place).+ = a.$($place).+.take().or(c.$key.take()); )?)*
+        /// Each plain key the command line left open, from the file.
+        fn merge_plain(cli: &mut RunConfig, file: &mut RunConfig) {
+            $($( let _ = stringify!($plain); cli.$key = cli.$key.take().or(file.$key.take()); )?)*
         }
     };
-}
-
-/// `x.clone()` for any option (a copy for the numbers).
-fn copied<T: Clone>(x: &Option<T>) -> Option<T> {
-    x.clone()
 }
 
 run_file_keys! {
     strategy: PathBuf,
     scenario: String,
     delta: f64,
-    episodes: u64 => episodes,
-    seed: u64 => seed,
-    deadline: f64 => deadline,
-    run_id: String => run_id,
-    predict_episodes: u64 => predict_episodes,
-    clone_sensors: usize => clone_sensors,
+    episodes: u64 => plain,
+    seed: u64 => plain,
+    deadline: f64 => plain,
+    run_id: String => plain,
+    predict_episodes: u64 => plain,
+    clone_sensors: usize => plain,
     record: PathBuf,
     record_default: bool,
-    allow_degraded: bool,
-    slot_deadline: u64 => slot_deadline,
+    allow_degraded: bool => plain,
+    slot_deadline: u64 => plain,
     /// Across hosts: the Zenoh endpoint to listen on, the sensors served
     /// from other hosts, how long to wait for them (`--listen`, `--remote`,
     /// `--join-timeout`).
-    listen: String => listen,
-    remote: Vec<String>,
-    join_timeout: f64 => join_timeout,
+    listen: String => plain,
+    remote: Vec<String> => plain,
+    join_timeout: f64 => plain,
     /// The link's protection: the key folder (`--tls`) or plain TCP
     /// (`--insecure`).
-    tls: PathBuf => link.tls,
-    insecure: bool,
+    tls: PathBuf => plain,
+    insecure: bool => plain,
     /// The radio options (`--loss`, `--retries`, `--burst`, `--estimator`,
     /// docs/MODEL.md §8), written into the run's scenario text.
-    loss: f64 => radio.loss,
-    retries: i64 => radio.retries,
-    burst: f64 => radio.burst,
-    estimator: String => radio.estimator,
+    loss: f64 => plain,
+    retries: i64 => plain,
+    burst: f64 => plain,
+    estimator: String => plain,
     /// The trigger family (`--trigger`, docs/MODEL.md §9).
-    trigger: etp_shared::trigger::TriggerFamily => trigger.trigger,
+    trigger: etp_shared::trigger::TriggerFamily => plain,
     /// The live view (`--live ADDR:PORT`, `--live-wait`): how the run is
     /// watched, not what it computes, so never stored in a recording's
     /// `etp.config` (a run again from it is not served live). Read as
     /// `--live` reads it (`localhost:8765` too).
     #[serde(default, deserialize_with = "crate::live::deserialize_addr")]
-    live: std::net::SocketAddr => live,
-    live_wait: bool,
+    live: std::net::SocketAddr => plain,
+    live_wait: bool => plain,
 }
 
 /// Read a run file (errors name the file and the key).
@@ -127,58 +114,26 @@ pub fn read(path: &Path) -> Result<RunConfig> {
     Ok(c)
 }
 
-/// Fill what the command line left open from `--config`, then the defaults.
-pub fn resolve(mut a: Args) -> Result<Args> {
-    if let Some(path) = a.config.clone() {
-        let mut c = read(&path)?;
-        if a.strategy.is_some() || a.scenario.is_some() {
-            // The command line names what to run: the file's choice is ignored whole.
-            if c.strategy.is_some() || c.scenario.is_some() || c.delta.is_some() {
-                tracing::info!("the command line's strategy/scenario overrides the run file's");
-            }
-        } else {
-            a.strategy = c.strategy.take();
-            a.scenario = c.scenario.take();
-            if a.delta.is_none() {
-                a.delta = c.delta;
-            }
+/// The command line's keys `cli` over the run file `file`: a key given on
+/// the command line wins; when the command line names what to run (a
+/// strategy or a scenario), the file's choice is ignored whole, and when it
+/// names a recording, so is the file's.
+pub fn merge(mut cli: RunConfig, mut file: RunConfig) -> RunConfig {
+    if cli.strategy.is_some() || cli.scenario.is_some() {
+        if file.strategy.is_some() || file.scenario.is_some() || file.delta.is_some() {
+            tracing::info!("the command line's strategy/scenario overrides the run file's");
         }
-        merge_plain(&mut a, &mut c);
-        a.allow_degraded |= c.allow_degraded.unwrap_or(false);
-        a.live_wait |= c.live_wait.unwrap_or(false);
-        if a.remote.is_empty() {
-            a.remote = c.remote.unwrap_or_default();
-        }
-        a.link.insecure |= c.insecure.unwrap_or(false);
-        if a.listen.is_some() == a.remote.is_empty() {
-            bail!(
-                "run file {}: `listen` and `remote` go together (sensors served from other hosts)",
-                path.display()
-            );
-        }
-        if a.record.is_none() && !a.record_default {
-            a.record = c.record;
-            a.record_default = c.record_default.unwrap_or(false);
-        }
-        if a.record.is_some() && a.record_default {
-            bail!(
-                "run file {}: `record` and `record_default` exclude each other",
-                path.display()
-            );
-        }
-        if a.delta.is_some() && a.scenario.is_none() {
-            bail!(
-                "run file {}: `delta` needs `scenario` (a constant-δ run)",
-                path.display()
-            );
-        }
+    } else {
+        cli.strategy = file.strategy.take();
+        cli.scenario = file.scenario.take();
+        cli.delta = cli.delta.or(file.delta);
     }
-    a.episodes.get_or_insert(DEFAULT_EPISODES);
-    a.seed.get_or_insert(DEFAULT_SEED);
-    a.deadline.get_or_insert(DEFAULT_DEADLINE);
-    a.predict_episodes.get_or_insert(DEFAULT_PREDICT_EPISODES);
-    a.join_timeout.get_or_insert(DEFAULT_JOIN_TIMEOUT);
-    Ok(a)
+    if cli.record.is_none() && !cli.record_default.unwrap_or(false) {
+        cli.record = file.record.take();
+        cli.record_default = file.record_default;
+    }
+    merge_plain(&mut cli, &mut file);
+    cli
 }
 
 /// The text of the `etp.config` record: the resolved run as a run file that
@@ -204,23 +159,6 @@ pub fn stored(c: &RunConfig) -> Result<String> {
         c.scenario = Some(source.to_arg());
     }
     toml::to_string(&c).context("writing the run's configuration")
-}
-
-/// The resolved run as a run file (the `etp.config` record).
-pub fn of_args(a: &Args, record: Option<&Path>) -> RunConfig {
-    RunConfig {
-        strategy: a.strategy.clone(),
-        scenario: a.scenario.clone(),
-        delta: a.delta,
-        record: record.map(Path::to_path_buf),
-        record_default: None,
-        allow_degraded: Some(a.allow_degraded),
-        remote: (!a.remote.is_empty()).then(|| a.remote.clone()),
-        insecure: a.link.insecure.then_some(true),
-        live: None,
-        live_wait: None,
-        ..plain_of_args(a)
-    }
 }
 
 #[cfg(test)]
@@ -294,12 +232,7 @@ mod tests {
     /// record of the run leaves them out.
     #[test]
     fn a_run_file_serves_live_and_its_record_does_not() {
-        use clap::Parser;
-        #[derive(clap::Parser)]
-        struct Cmd {
-            #[command(flatten)]
-            a: Args,
-        }
+        use crate::request::{LiveView, RunRequest};
         let dir = std::env::temp_dir().join(format!("etp-config-live-{}", std::process::id()));
         std::fs::create_dir(&dir).expect("a fresh folder");
         let file = dir.join("run.toml");
@@ -308,17 +241,46 @@ mod tests {
             "scenario = \"open-2d\"\ndelta = 1.0\nlive = \"127.0.0.1:0\"\nlive_wait = true\n",
         )
         .expect("run file");
-        let a = Cmd::try_parse_from(["run", "--config", &file.display().to_string()])
-            .expect("flags")
-            .a;
-        let a = resolve(a).expect("resolved");
+        let c = read(&file).expect("the run file");
         std::fs::remove_dir_all(&dir).expect("clean up");
+        let r = RunRequest::from_config(merge(RunConfig::default(), c)).expect("resolved");
         assert_eq!(
-            a.live,
-            Some(std::net::SocketAddr::from(([127, 0, 0, 1], 0)))
+            r.live,
+            Some(LiveView {
+                addr: std::net::SocketAddr::from(([127, 0, 0, 1], 0)),
+                wait_for_client: true
+            })
         );
-        assert!(a.live_wait);
-        let text = stored(&of_args(&a, None)).expect("stored");
+        let text = stored(&r.to_config(None)).expect("stored");
         assert!(!text.contains("live"), "{text}");
+    }
+
+    /// The command line wins key by key; naming what to run or a recording
+    /// there sets the file's choice aside whole.
+    #[test]
+    fn the_command_line_wins_over_the_run_file() {
+        let file = RunConfig {
+            strategy: Some("s.json".into()),
+            episodes: Some(50),
+            seed: Some(7),
+            record_default: Some(true),
+            allow_degraded: Some(true),
+            ..RunConfig::default()
+        };
+        let cli = RunConfig {
+            scenario: Some("open-2d".into()),
+            delta: Some(1.0518),
+            episodes: Some(3),
+            record: Some("r.mcap".into()),
+            ..RunConfig::default()
+        };
+        let m = merge(cli, file.clone());
+        assert_eq!(m.strategy, None);
+        assert_eq!(m.scenario.as_deref(), Some("open-2d"));
+        assert_eq!((m.episodes, m.seed), (Some(3), Some(7)));
+        assert_eq!((m.record_default, m.allow_degraded), (None, Some(true)));
+        let m = merge(RunConfig::default(), file);
+        assert_eq!(m.strategy, Some(PathBuf::from("s.json")));
+        assert_eq!(m.record_default, Some(true));
     }
 }

@@ -12,8 +12,10 @@
 //!
 //! A short tour:
 //!
-//! * [`Args`] — a run's request (`etp run`'s arguments); [`config`] its
-//!   launch file (`--config RUN.toml`, each key named once).
+//! * [`RunRequest`] — a run's request, typed and resolved ([`request`]:
+//!   what to run, the recording, remote sensors, the live view), built from
+//!   [`config::RunConfig`], the run file's keys (`--config RUN.toml`, each
+//!   key named once; `etp run`'s flags are written as the same keys).
 //! * [`execute_run`] — spawn, supervise and clean up one run: the
 //!   [`prepare::Plan`] and the [`supervise::Supervised`] outcome;
 //!   [`execute`] the same as the `--json` object with its problems.
@@ -28,8 +30,9 @@
 //!   [`EXIT_DEGRADED`], [`EXIT_INTERRUPTED`]).
 //! * [`report`] — the table and the `--json` object; [`figure`] the data of
 //!   `--plot`'s figure.
-//! * [`link`] — `--tls DIR` / `--insecure` of a run across hosts; the
-//!   bridge process for remote sensors and its report (`remote`).
+//! * [`request::LinkProtection`] — `--tls DIR` / `--insecure` of a run
+//!   across hosts; `remote` the bridge process for remote sensors and its
+//!   report.
 //! * `live` — `--live [ADDR:PORT]`: the Foxglove view (`etp-live`), bound
 //!   before any process starts, fed by the agent without ever waiting.
 //! * `record` — the recording's target (claimed before the run, replaced
@@ -89,21 +92,22 @@
 pub mod config;
 pub mod figure;
 mod interrupts;
-pub mod link;
 mod live;
 pub mod prepare;
 pub mod process;
 mod record;
 mod remote;
 pub mod report;
+pub mod request;
 mod rundir;
 pub mod supervise;
 mod verdict;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use etp_runtime::cleanup;
 use etp_runtime::wire::RunId;
-use std::path::PathBuf;
+pub use live::parse_addr as parse_live_addr;
+pub use request::{RecordTo, RunRequest, RunTarget};
 use std::time::Duration;
 pub use verdict::{exit_for, problems};
 
@@ -118,176 +122,8 @@ pub const EXIT_DEGRADED: u8 = 5;
 /// complete episodes.
 pub const EXIT_INTERRUPTED: u8 = 130;
 
-/// Exit codes (`etp run --help`; README "Exit codes").
-const EXIT_CODES: &str = "Exit codes: 0 a clean run; 4 an accounting identity fails (ledger \
-≠ received, a live sensor's ledger missing) or the recording failed (unfinished, its file \
-removed or replaced during the run, or the target changed by another writer: the recording \
-is then kept at FILE.<run-id>.partial) — never waived by --allow-degraded; 5 an episode ran \
-with a dead link, or the link to remote sensors refused a message (garbage, forged, out of \
-place), without --allow-degraded; 130 interrupted (Ctrl-C/SIGTERM: the report \
-covers the complete episodes; before the first episode, no report and nothing left: no \
-process, no recording); 1 an error before any report (nothing recorded, no file \
-touched). --allow-degraded excuses exactly a dead sensor's legs without a ledger: what the \
-agent received on them is reported apart (received_without_ledger).";
-
-#[derive(Debug, Clone, clap::Args)]
-#[command(after_help = EXIT_CODES)]
-pub struct Args {
-    /// A run file (TOML; keys are the long flags: `strategy` or `scenario` +
-    /// `delta`, `episodes`, `seed`, `record`, `slot_deadline`, …). Flags on
-    /// the command line win over the file. Stored in the recording (`etp.config`).
-    #[arg(long, value_name = "RUN.toml")]
-    pub config: Option<PathBuf>,
-    /// A strategy.json (from `etp strategy`). Omit it and give `--scenario` and
-    /// `--delta` to run a constant threshold.
-    pub strategy: Option<PathBuf>,
-    /// Scenario (built-in name or TOML path) for a constant-δ run.
-    #[arg(long)]
-    pub scenario: Option<String>,
-    /// The constant threshold δ (one of the scenario's Δ) for a constant-δ run.
-    #[arg(long, requires = "scenario")]
-    pub delta: Option<f64>,
-    /// Number of episodes (at least 1) [default: 100].
-    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
-    pub episodes: Option<u64>,
-    /// Seed: the same seed gives the same episodes [default: 0].
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Print one JSON object.
-    #[arg(long)]
-    pub json: bool,
-    /// The radio (docs/MODEL.md §8): each option given replaces the
-    /// strategy's own channel (or the scenario's) on every link; the run's
-    /// channel is written into the run's scenario text (every process and the
-    /// recording read that text).
-    #[command(flatten)]
-    pub radio: etp_runtime::scenario_options::RadioArgs,
-    /// The trigger family (docs/MODEL.md §9), written into the run's
-    /// scenario text; with a strategy it must be the strategy's own.
-    #[command(flatten)]
-    pub trigger: etp_runtime::scenario_options::TriggerArgs,
-    /// Kill everything and fail after this many seconds [default: 3600].
-    #[arg(long)]
-    pub deadline: Option<f64>,
-    /// Run id (default: generated). Names the services `etp/<run-id>/…`.
-    #[arg(long)]
-    pub run_id: Option<String>,
-    /// Include every episode (legs, ledgers, received counts) in the JSON.
-    #[arg(long)]
-    pub episode_details: bool,
-    /// In-process episodes used to predict each sensor's energy [default: 2000].
-    #[arg(long)]
-    pub predict_episodes: Option<u64>,
-    /// Benchmark: replace the sensors by K copies of the first one, legs
-    /// served round robin (same maths, K sensor processes).
-    #[arg(long)]
-    pub clone_sensors: Option<usize>,
-    /// Record every message of the run to this MCAP file (see `etp replay`).
-    #[arg(long, value_name = "FILE")]
-    pub record: Option<PathBuf>,
-    /// Record to the default file `recordings/<scenario>-<run-id>.mcap`.
-    #[arg(long, conflicts_with = "record")]
-    pub record_default: bool,
-    /// Replace the `--record` file if it exists — only once the run ran and
-    /// its recording finished, and only if no other writer touched the file
-    /// meanwhile (the run records beside it, to `<FILE>.<run-id>.partial`).
-    #[arg(long)]
-    pub force: bool,
-    /// Exit 0 even if some episodes ran with a dead link (a sensor died):
-    /// for fault-injection studies. Counts must still agree.
-    #[arg(long)]
-    pub allow_degraded: bool,
-    /// Real-time studies: a slot not closed within MS milliseconds counts as
-    /// a dead link (a fault) even if the sensor process lives. Default: a
-    /// live process is waited for, however slow or paused.
-    #[arg(long, value_name = "MS")]
-    pub slot_deadline: Option<u64>,
-    /// Draw measured vs predicted (per-sensor energy per episode, outcomes,
-    /// 95 % intervals) to `<recording without .mcap>-report.png` and `.svg`
-    /// (with `--record`), else `run-<run-id>-report.png` here; `-o STEM`
-    /// chooses.
-    #[arg(long)]
-    pub plot: bool,
-    /// With --plot: the figure's file stem, writes STEM.png and STEM.svg
-    /// (its folder must exist).
-    #[arg(short = 'o', long = "out", value_name = "STEM", requires = "plot")]
-    pub plot_out: Option<PathBuf>,
-    /// Across hosts: listen on this Zenoh endpoint (e.g. `tls/10.0.0.1:7447`
-    /// with `--tls DIR`; `tcp/…` with `--insecure`) for sensor hosts (`etp
-    /// sensor-host --connect …`). Scouting is off: only this endpoint is used.
-    #[arg(long, value_name = "ENDPOINT", requires = "remote")]
-    pub listen: Option<String>,
-    /// Sensors served from other hosts (names, comma-separated); the run
-    /// waits until they joined.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        requires = "listen",
-        value_name = "SENSORS"
-    )]
-    pub remote: Vec<String>,
-    /// Seconds to wait for the remote sensors to join [default: 60].
-    #[arg(long)]
-    pub join_timeout: Option<f64>,
-    /// The link's protection (with `--listen`).
-    #[command(flatten)]
-    pub link: link::LinkArgs,
-    /// Serve the run live to Foxglove (the Foxglove SDK's WebSocket server, `foxglove.sdk.v1`)
-    /// at ADDR:PORT (an IP address or a host name such as `localhost`)
-    /// [default: 127.0.0.1:8765; port 0: any free port]: the
-    /// map, the true state, the estimate with its 3σ ellipse, each sensor's
-    /// transmissions and threshold, each episode's outcome, rates and
-    /// energy vs predicted (layout: docs/foxglove-live-layout.json). The view
-    /// never slows or changes the run: it drops frames, not steps. It is
-    /// plain WebSocket, neither authenticated nor encrypted: an address
-    /// other than loopback is refused unless --insecure is given.
-    #[arg(
-        long,
-        value_name = "ADDR:PORT",
-        num_args = 0..=1,
-        default_missing_value = etp_live::DEFAULT_ADDR,
-        value_parser = live::parse_addr
-    )]
-    pub live: Option<std::net::SocketAddr>,
-    /// With --live: start the episodes only once a Foxglove client has
-    /// subscribed (waits at most --deadline). Changes only when the run
-    /// starts, not what it computes.
-    #[arg(long, requires = "live")]
-    pub live_wait: bool,
-}
-
-impl Args {
-    /// Episodes to run (after [`config::resolve`]).
-    pub fn episodes(&self) -> u64 {
-        self.episodes.unwrap_or(config::DEFAULT_EPISODES)
-    }
-    pub fn seed(&self) -> u64 {
-        self.seed.unwrap_or(config::DEFAULT_SEED)
-    }
-    pub fn deadline(&self) -> f64 {
-        self.deadline.unwrap_or(config::DEFAULT_DEADLINE)
-    }
-    pub fn join_timeout(&self) -> f64 {
-        self.join_timeout.unwrap_or(config::DEFAULT_JOIN_TIMEOUT)
-    }
-    pub fn predict_episodes(&self) -> u64 {
-        self.predict_episodes
-            .unwrap_or(config::DEFAULT_PREDICT_EPISODES)
-    }
-}
-
-/// Spawn, supervise and clean up one run (`a` resolved: see
-/// [`config::resolve`]); the report data.
-pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
-    if a.episodes() == 0 {
-        bail!("--episodes must be at least 1");
-    }
-    if !(a.deadline().is_finite() && a.deadline() > 0.0) {
-        bail!("--deadline must be a positive number of seconds");
-    }
-    if a.slot_deadline == Some(0) {
-        bail!("--slot-deadline must be at least 1 ms");
-    }
+/// Spawn, supervise and clean up one run; the report data.
+pub fn execute_run(a: &RunRequest) -> Result<(prepare::Plan, supervise::Supervised)> {
     let run_id = match &a.run_id {
         Some(id) => RunId::new(id)?,
         None => RunId::generate(),
@@ -301,13 +137,13 @@ pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     // `--record PATH` is claimed before any work (an existing file is
     // refused without --force); `--record-default` once its name is known.
     let mut target = match &a.record {
-        Some(p) => {
+        RecordTo::File(p) => {
             // A folder the user named must exist (`--record-default`'s
             // `recordings/` is made when missing).
             etp_recording_tools::files::existing_folder_of(p, "--record")?;
             Some(record::Target::claim(p, a.force, run_id.as_str())?)
         }
-        None => None,
+        RecordTo::DefaultFile | RecordTo::Nothing => None,
     };
     let stale_dirs = rundir::remove_stale();
     let stale = cleanup::remove_stale_runs();
@@ -316,14 +152,14 @@ pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     }
     let dir = rundir::RunDir::claim(&run_id)?;
     let prepared = prepare::prepare(a, &run_id, &dir.path).and_then(|mut p| {
-        if target.is_none() && a.record_default {
+        if a.record == RecordTo::DefaultFile {
             target = Some(record::Target::claim(
                 &record::default_path(&p),
                 a.force,
                 run_id.as_str(),
             )?);
         }
-        let c = config::of_args(a, target.as_ref().map(|t| t.path.as_path()));
+        let c = a.to_config(target.as_ref().map(|t| t.path.as_path()));
         p.config_toml = config::stored(&c)?;
         Ok(p)
     });
@@ -355,16 +191,16 @@ pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
         dir.remove();
         return Err(e);
     }
-    let remote = match &a.listen {
-        Some(listen) => match remote::remote_indices(&plan, &a.remote) {
+    let remote = match &a.remote {
+        Some(sensors) => match remote::remote_indices(&plan, &sensors.sensors) {
             Ok(r) => match a
                 .link
-                .bridge_args(listen, etp_runtime::link_keys::AGENT_HOST)
+                .bridge_args(&sensors.listen, etp_runtime::link_keys::AGENT_HOST)
             {
                 Ok(link) => Some(remote::RemoteSpec {
-                    listen: listen.clone(),
+                    listen: sensors.listen.clone(),
                     remote: r,
-                    join_timeout: a.join_timeout(),
+                    join_timeout: sensors.join_timeout,
                     link,
                 }),
                 Err(e) => {
@@ -382,7 +218,7 @@ pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     let outcome = rt.block_on(supervise::supervise(
         &mut interrupts,
         &plan,
-        Duration::from_secs_f64(a.deadline()),
+        Duration::from_secs_f64(a.deadline),
         a.slot_deadline,
         supervise::Attached {
             record: target.as_ref().map(|t| t.partial.as_path()),
@@ -419,10 +255,9 @@ pub fn execute_run(a: &Args) -> Result<(prepare::Plan, supervise::Supervised)> {
     Ok((plan, outcome))
 }
 
-/// A run's `--json` report object (used by `etp demo`) and its problems
-/// (pass them to [`exit_for`] once the report is shown).
-pub fn execute(a: &Args) -> Result<(serde_json::Value, Vec<(u8, String)>)> {
-    let a = &config::resolve(a.clone())?;
+/// A run's `--json` report object (used by `etp demo` and Python) and its
+/// problems (pass them to [`exit_for`] once the report is shown).
+pub fn execute(a: &RunRequest) -> Result<(serde_json::Value, Vec<(u8, String)>)> {
     let (plan, outcome) = execute_run(a)?;
     let problems = problems(a, &outcome);
     let mut v = report::json(a, &plan, &outcome);

@@ -5,7 +5,7 @@
 //! waiting for it (`etp_runtime::live`), so the run's outputs are those of a
 //! run without `--live`.
 
-use super::Args;
+use super::RunRequest;
 use super::interrupts::Interrupts;
 use anyhow::{Result, bail};
 use etp_live::LiveView;
@@ -56,11 +56,9 @@ pub fn deserialize_addr<'de, D: serde::Deserializer<'de>>(
 
 /// `--live` refused before any work when its address is not loopback and
 /// `--insecure` was not given.
-pub fn check(a: &Args) -> Result<()> {
-    if let Some(addr) = a.live {
-        etp_live::check_address(addr, a.link.insecure)?;
-    } else if a.live_wait {
-        bail!("--live-wait needs --live");
+pub fn check(a: &RunRequest) -> Result<()> {
+    if let Some(live) = a.live {
+        etp_live::check_address(live.addr, a.link.insecure)?;
     }
     Ok(())
 }
@@ -73,8 +71,8 @@ pub struct Live {
 
 /// Start the view: listen on `--live`'s address and on the feed socket in
 /// `dir`; the errors name `--live` and the address.
-pub fn start(a: &Args, plan: &super::prepare::Plan, dir: &Path) -> Result<Option<Live>> {
-    let Some(addr) = a.live else {
+pub fn start(a: &RunRequest, plan: &super::prepare::Plan, dir: &Path) -> Result<Option<Live>> {
+    let Some(addr) = a.live.map(|l| l.addr) else {
         return Ok(None);
     };
     let feed = dir.join(FEED);
@@ -104,15 +102,15 @@ pub fn start(a: &Args, plan: &super::prepare::Plan, dir: &Path) -> Result<Option
 /// started, and the caller cleans up as for any other refusal (the run's
 /// folder is removed, no recording is claimed on disk).
 pub fn wait(
-    a: &Args,
+    a: &RunRequest,
     live: &Live,
     rt: &tokio::runtime::Runtime,
     interrupts: &mut Interrupts,
 ) -> Result<()> {
-    if !a.live_wait {
+    let Some(view) = a.live.filter(|l| l.wait_for_client) else {
         return Ok(());
-    }
-    let deadline = Instant::now() + Duration::from_secs_f64(a.deadline());
+    };
+    let deadline = Instant::now() + Duration::from_secs_f64(a.deadline);
     rt.block_on(async {
         eprintln!("etp: --live-wait: the episodes start once a Foxglove client subscribes");
         loop {
@@ -123,9 +121,9 @@ pub fn wait(
                 bail!(
                     "--live-wait: no Foxglove client subscribed at ws://{}:{} within \
                      --deadline ({} s)",
-                    a.live.map_or_else(String::new, |x| x.ip().to_string()),
+                    view.addr.ip(),
                     live.view.port(),
-                    a.deadline()
+                    a.deadline
                 );
             }
             let name = tokio::select! {

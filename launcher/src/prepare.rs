@@ -1,6 +1,6 @@
 //! Everything decided before a process is spawned.
 
-use super::Args;
+use super::{RunRequest, RunTarget};
 use anyhow::{Context, Result, bail};
 use etp_runtime::scenario_arg::scenario_text;
 use etp_runtime::wire::RunId;
@@ -80,14 +80,14 @@ pub const MAX_SENSORS: usize = 64;
 
 /// Decide everything about a run; its files go into `dir` (the claimed run
 /// folder).
-pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> {
-    let (mut text, strategy_in) = match (&a.strategy, &a.scenario, a.delta) {
-        (Some(path), _, None) => {
+pub fn prepare(a: &RunRequest, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> {
+    let (mut text, strategy_in) = match &a.target {
+        RunTarget::Strategy { path, scenario } => {
             let s = std::fs::read_to_string(path)
                 .with_context(|| format!("reading {}", path.display()))?;
             let st = Strategy::from_sealed_json(&s)
                 .with_context(|| format!("loading strategy {}", path.display()))?;
-            let text = match (&a.scenario, &st.policy.scenario_toml) {
+            let text = match (scenario, &st.policy.scenario_toml) {
                 (Some(arg), _) => scenario_text(arg)?,
                 (None, Some(t)) => t.clone(),
                 (None, None) => scenario_text(&st.policy.scenario_name).with_context(|| {
@@ -100,13 +100,9 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
             };
             (text, Some(st))
         }
-        (None, Some(arg), Some(_)) => (scenario_text(arg)?, None),
-        (Some(_), _, Some(_)) => {
-            bail!("give either a strategy file or --scenario with --delta, not both")
-        }
-        _ => bail!("give a strategy.json, or --scenario NAME --delta D for a constant threshold"),
+        RunTarget::Constant { scenario, .. } => (scenario_text(scenario)?, None),
     };
-    if let Some(family) = a.trigger.trigger
+    if let Some(family) = a.trigger
         && strategy_in.is_some()
     {
         let own = ScenarioText::parse(text.clone()).context("scenario")?;
@@ -119,7 +115,10 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
             );
         }
     }
-    text = a.trigger.apply_to_text(text)?;
+    if let Some(family) = a.trigger {
+        let own = ScenarioText::parse(text).context("scenario")?;
+        text = own.with_trigger(family).context("--trigger")?.text;
+    }
     if let Some(k) = a.clone_sensors {
         if strategy_in.is_some() {
             bail!(
@@ -149,7 +148,7 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
     let run_radio = own
         .scenario
         .radio
-        .for_use(recorded, &a.radio.to_override())
+        .for_use(recorded, &a.radio)
         .context("radio options")?;
     let ScenarioText { text, scenario } =
         own.with_channel(&run_radio).context("the run's channel")?;
@@ -170,7 +169,10 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
             st
         }
         None => {
-            let delta = a.delta.unwrap_or(0.0);
+            let delta = match a.target {
+                RunTarget::Constant { delta, .. } => delta,
+                RunTarget::Strategy { .. } => 0.0,
+            };
             let index = scenario
                 .deltas
                 .iter()
@@ -189,19 +191,20 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
     // file carries it (`leg_energy`), else an in-process simulation of the
     // same strategy (which also predicts everything for a constant strategy
     // made here).
-    let predict_episodes = a.predict_episodes().max(1);
+    let predict_episodes = a.predict_episodes.max(1);
+    let from_file = matches!(a.target, RunTarget::Strategy { .. });
     // Under another channel than its own, the strategy file's predictions
     // (the MDP's, of its own channel) are not the run's: the in-process
     // simulation under the run's channel predicts instead.
     let (sensor_energy_per_episode, prediction_from) = match strategy.predictions.sensor_energy(&scenario) {
-        Some(e) if a.strategy.is_some() && !robustness => (
+        Some(e) if from_file && !robustness => (
             e,
             "the MDP: the strategy's expected energy per leg (strategy.json `leg_energy`: occupation measure × segment energy on its rebuilds, scaled to sum to `predicted`), summed over each sensor's legs".to_string(),
         ),
         _ => {
             let sim =
-                simulate_strategy(&scenario, &strategy.policy, predict_episodes, a.seed(), &|_: u64| {})?.summary();
-            if a.strategy.is_none() || robustness {
+                simulate_strategy(&scenario, &strategy.policy, predict_episodes, a.seed, &|_: u64| {})?.summary();
+            if !from_file || robustness {
                 let under = if robustness {
                     " under the run's channel"
                 } else {
@@ -220,7 +223,7 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
                 });
                 strategy.predictions.prediction_basis = format!(
                     "in-process simulation{under}, {predict_episodes} episodes (seed {})",
-                    a.seed()
+                    a.seed
                 );
                 strategy.provenance.label = format!(
                     "{} (prediction: in-process simulation{under}, {predict_episodes} episodes)",
@@ -236,7 +239,7 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
                     .collect(),
                 format!(
                     "in-process simulation of the same strategy: {predict_episodes} episodes, seed {} (--predict-episodes)",
-                    a.seed()
+                    a.seed
                 ),
             )
         }
@@ -252,8 +255,8 @@ pub fn prepare(a: &Args, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> 
         .with_context(|| format!("writing {}", strategy_path.display()))?;
     Ok(Plan {
         run_id: run_id.clone(),
-        seed: a.seed(),
-        episodes: a.episodes(),
+        seed: a.seed,
+        episodes: a.episodes,
         scenario,
         dir,
         scenario_path,

@@ -1,6 +1,6 @@
 //! The run report: table or JSON.
 
-use super::Args;
+use super::RunRequest;
 use super::prepare::Plan;
 use super::supervise::Supervised;
 use anyhow::Result;
@@ -68,7 +68,7 @@ fn prediction_check(e: &Outcomes, r: &etp_runtime::report::RunReport) -> Value {
 }
 
 /// The `--json` object (keys of issue 5, plus details).
-pub fn json(a: &Args, plan: &Plan, s: &Supervised) -> Value {
+pub fn json(a: &RunRequest, plan: &Plan, s: &Supervised) -> Value {
     let r = &s.report;
     let e = estimates(s);
     let traffic = expected_traffic(s);
@@ -164,7 +164,7 @@ fn sensor_names(plan: &Plan) -> Vec<String> {
         .collect()
 }
 
-pub fn print(a: &Args, plan: &Plan, s: &Supervised) -> Result<()> {
+pub fn print(a: &RunRequest, plan: &Plan, s: &Supervised) -> Result<()> {
     if a.json {
         println!("{}", serde_json::to_string_pretty(&json(a, plan, s))?);
         return Ok(());

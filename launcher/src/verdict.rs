@@ -3,7 +3,7 @@
 //! and an interrupt ([`problems`]), and the exit code of the first problem
 //! ([`exit_for`]).
 
-use super::{Args, EXIT_ACCOUNTING, EXIT_DEGRADED, EXIT_INTERRUPTED, supervise};
+use super::{EXIT_ACCOUNTING, EXIT_DEGRADED, EXIT_INTERRUPTED, supervise};
 use anyhow::Result;
 
 /// Why a completed run is not clean (empty: exit 0), checked leg by leg: a
@@ -142,7 +142,7 @@ pub fn verdict(
 }
 
 /// What is wrong with a finished run, most important first (empty: clean).
-pub fn problems(a: &Args, outcome: &supervise::Supervised) -> Vec<(u8, String)> {
+pub fn problems(a: &super::RunRequest, outcome: &supervise::Supervised) -> Vec<(u8, String)> {
     let recording_ok = outcome.recording.as_ref().is_none_or(|r| r.finished);
     let mut problems = verdict(&outcome.report, recording_ok, a.allow_degraded);
     if let Some(why) = outcome.recording.as_ref().and_then(|r| r.problem.clone()) {

@@ -538,37 +538,45 @@ def run(
     seed: Optional[int] = None,
     record: Optional[PathLike] = None,
     force: bool = False,
-    args: Sequence[str] = (),
+    config: Optional[PathLike] = None,
     bin_dir: Optional[PathLike] = None,
+    **keys: Any,
 ) -> RunReport:
     """A multi-process run — coordinator, agent, one process per sensor,
     recorder — like ``etp run STRATEGY`` (or ``etp run --scenario S --delta
     D``), through the launcher library; returns its report.
 
-    The keywords are ``etp run``'s flags (``record`` = ``--record FILE``);
-    ``args`` passes any other flag as on the command line. The processes'
-    binaries are looked up in ``bin_dir`` (or ``ETP_PROCESS_DIR``, or next to
-    ``etp`` on ``PATH``). Raises :class:`RunError` with ``etp run``'s message
-    when the run cannot start; a run that ran but is not clean returns its
-    report with ``.problems``.
+    Every keyword but ``force``, ``config`` and ``bin_dir`` is a key of a run
+    file (``etp run --config RUN.toml``; its names are ``etp run``'s long
+    flags with ``_``): ``record`` = ``--record FILE``, and e.g.
+    ``predict_episodes=500``, ``deadline=600``, ``loss=0.3``, ``retries=1``,
+    ``slot_deadline=50``, ``allow_degraded=True``, ``listen=...`` with
+    ``remote=["s0"]`` and ``tls=DIR``. An unknown key or a value of the wrong
+    type raises :class:`RunError` naming it. ``config`` reads a run file under
+    these keys (a keyword wins). The processes' binaries are looked up in
+    ``bin_dir`` (or ``ETP_PROCESS_DIR``, or next to ``etp`` on ``PATH``).
+    Raises :class:`RunError` with ``etp run``'s message when the run cannot
+    start; a run that ran but is not clean returns its report with
+    ``.problems``.
     """
-    argv: List[str] = []
+    given: Dict[str, Any] = {}
     if strategy is not None:
-        argv.append(os.fspath(strategy))
+        given["strategy"] = os.fspath(strategy)
     if scenario is not None:
-        argv += ["--scenario", scenario.source if isinstance(scenario, Scenario) else str(scenario)]
+        given["scenario"] = scenario.source if isinstance(scenario, Scenario) else str(scenario)
     if delta is not None:
-        argv += ["--delta", repr(float(delta))]
+        given["delta"] = float(delta)
     if episodes is not None:
-        argv += ["--episodes", str(int(episodes))]
+        given["episodes"] = int(episodes)
     if seed is not None:
-        argv += ["--seed", str(int(seed))]
+        given["seed"] = int(seed)
     if record is not None:
-        argv += ["--record", os.fspath(record)]
-    if force:
-        argv.append("--force")
-    argv += list(args)
+        given["record"] = os.fspath(record)
+    for key, value in keys.items():
+        given[key] = os.fspath(value) if isinstance(value, os.PathLike) else value
     os.environ["ETP_PROCESS_DIR"] = _process_dir(bin_dir)
-    text, problems = _native.run(argv)
+    text, problems = _native.run(
+        json.dumps(given), os.fspath(config) if config is not None else None, force
+    )
     return RunReport(json.loads(text), [(int(c), str(t)) for c, t in problems])
 

@@ -90,7 +90,7 @@ display(validation.table())
 display(Image(filename=str(validation.plots[0]), width=640))  # trajectories coloured by γ̄(δ)"""),
     new_markdown_cell("## 4. The multi-process run over iceoryx2, and its recording"),
     new_code_cell("""run = etpareto.run(strategy.path, episodes=RUN_EPISODES, seed=SEED, record=OUT / "run.mcap",
-                  args=["--predict-episodes", str(VALIDATE_EPISODES), "--deadline", "600"])
+                  predict_episodes=VALIDATE_EPISODES, deadline=600)
 print("clean run" if run.clean else f"problems: {run.problems}")
 mp = run.report
 table = pd.DataFrame(

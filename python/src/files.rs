@@ -7,7 +7,6 @@
 
 use crate::columns::{Column, Values, table_into_py};
 use crate::errors::{FileFormatError, RunError, anyhow_text, chain};
-use clap::Parser;
 use etp_synthesis::pareto::ParetoFront;
 use pyo3::prelude::*;
 use pyo3::types::PyList;
@@ -85,28 +84,56 @@ pub fn read_strategy<'py>(
     Ok((text, table_into_py(py, table)?))
 }
 
-/// `etp run`'s arguments, parsed by the launcher's own clap definition
-/// (the same flags, defaults and checks as the CLI).
-#[derive(Debug, Parser)]
-#[command(name = "etp run")]
-struct RunCommand {
-    #[command(flatten)]
-    args: etp_launcher::Args,
+/// A JSON object of run-file keys, read key by key so that a wrong type is
+/// named by its key (serde_json's own message gives a line and column only).
+fn run_keys(keys: &str) -> Result<etp_launcher::config::RunConfig, String> {
+    use serde_json::{Map, Value};
+    let object: Map<String, Value> =
+        serde_json::from_str(keys).map_err(|e| format!("run keys: {e}"))?;
+    for (key, value) in &object {
+        let one = Value::Object(Map::from_iter([(key.clone(), value.clone())]));
+        serde_json::from_value::<etp_launcher::config::RunConfig>(one)
+            .map_err(|e| format!("run key `{key}` = {value}: {e}"))?;
+    }
+    serde_json::from_value(Value::Object(object)).map_err(|e| format!("run keys: {e}"))
 }
 
-/// Run like `etp run ARGS… --json` through `etp_launcher::execute`: the
-/// report's JSON text and the run's problems `(exit code, text)` (empty
-/// for a clean run). The run's processes are found in `ETP_PROCESS_DIR`
-/// (`etp_launcher::process::sibling_binary`; the Python side sets it).
-/// Raises `RunError` with `etp run`'s message for a run that could not
-/// start or finish.
+/// A run (`etp_launcher::execute`, as `etp run … --json`): `keys` is a
+/// JSON object of run-file keys (`etp run --config`'s, e.g. `{"scenario":
+/// "open-2d", "delta": 1.0518, "loss": 0.3}`; an unknown key or a wrong type
+/// is refused by name), over the run file `config` if given (a key in
+/// `keys` wins), checked by the same `RunRequest::from_config` as the
+/// command line. Returns the report's JSON text and the run's problems
+/// `(exit code, text)` (empty for a clean run). The run's processes are
+/// found in `ETP_PROCESS_DIR` (`etp_launcher::process::sibling_binary`; the
+/// Python side sets it). Raises `RunError` with the reason for a run that
+/// could not start or finish.
 #[pyfunction]
-pub fn run(py: Python<'_>, args: Vec<String>) -> PyResult<(String, Vec<(u8, String)>)> {
-    let argv = std::iter::once("etp run".to_string())
-        .chain(args)
-        .chain(std::iter::once("--json".to_string()));
-    let cmd = RunCommand::try_parse_from(argv).map_err(|e| RunError::new_err(e.to_string()))?;
-    let report = py.detach(|| etp_launcher::execute(&cmd.args));
+#[pyo3(signature = (keys, config=None, force=false))]
+pub fn run(
+    py: Python<'_>,
+    keys: &str,
+    config: Option<PathBuf>,
+    force: bool,
+) -> PyResult<(String, Vec<(u8, String)>)> {
+    use etp_launcher::config as run_file;
+    let given = run_keys(keys).map_err(RunError::new_err)?;
+    let request = match &config {
+        Some(path) => run_file::read(path)
+            .map(|file| run_file::merge(given, file))
+            .and_then(etp_launcher::RunRequest::from_config)
+            .map_err(|e| {
+                RunError::new_err(format!("run file {}: {}", path.display(), anyhow_text(&e)))
+            }),
+        None => etp_launcher::RunRequest::from_config(given)
+            .map_err(|e| RunError::new_err(anyhow_text(&e))),
+    }?;
+    let request = etp_launcher::RunRequest {
+        force,
+        json: true,
+        ..request
+    };
+    let report = py.detach(|| etp_launcher::execute(&request));
     let (v, problems) = report.map_err(|e| RunError::new_err(anyhow_text(&e)))?;
     let text = serde_json::to_string(&v).map_err(|e| RunError::new_err(e.to_string()))?;
     Ok((text, problems))

@@ -42,5 +42,26 @@ def test_a_run_reports_like_the_cli_and_its_recording_reads_back(tmp_path):
 def test_a_bad_request_raises_the_cli_message():
     with pytest.raises(etpareto.RunError) as e:
         etpareto.run(scenario="open-2d", delta=1.0518, episodes=0, bin_dir=etp_bin().parent)
-    # The CLI's own refusal, naming the option and its range.
-    assert "'--episodes <EPISODES>': 0 is not in 1.." in str(e.value)
+    # The launcher's own refusal (the same check as for a run file), naming
+    # the option and its range.
+    assert "--episodes must be at least 1" in str(e.value)
+
+
+def test_run_keys_are_a_run_files_keys_each_checked_by_name(tmp_path):
+    # Nothing runs: each request is refused before any process starts.
+    with pytest.raises(etpareto.RunError) as e:
+        etpareto.run(scenario="open-2d", delta=1.0518, episodez=3, bin_dir=etp_bin().parent)
+    assert "episodez" in str(e.value)
+    with pytest.raises(etpareto.RunError) as e:
+        etpareto.run(scenario="open-2d", delta=1.0518, loss="high", bin_dir=etp_bin().parent)
+    assert "`loss`" in str(e.value)
+    with pytest.raises(etpareto.RunError) as e:
+        etpareto.run(scenario="open-2d", delta=1.0518, listen="tls/127.0.0.1:7447",
+                     bin_dir=etp_bin().parent)
+    assert "`listen` and `remote` go together" in str(e.value)
+    # A run file under the keys: its own refusals name the file.
+    file = tmp_path / "run.toml"
+    file.write_text('scenario = "open-2d"\nestimator = "clever"\n')
+    with pytest.raises(etpareto.RunError) as e:
+        etpareto.run(delta=1.0518, config=file, bin_dir=etp_bin().parent)
+    assert str(file) in str(e.value) and "`clever`" in str(e.value)

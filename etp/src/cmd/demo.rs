@@ -239,35 +239,18 @@ pub fn run(a: Args) -> Result<()> {
             a.run_episodes
         ),
     );
-    let rargs = multiprocess::Args {
-        config: None,
-        strategy: Some(strategy_path.clone()),
-        scenario: None,
-        delta: None,
-        episodes: Some(a.run_episodes),
-        seed: Some(a.seed),
+    let rargs = multiprocess::RunRequest {
+        episodes: a.run_episodes,
+        seed: a.seed,
         json: true,
-        deadline: Some(600.0),
-        run_id: None,
-        episode_details: false,
-        predict_episodes: Some(a.validate_episodes),
-        clone_sensors: None,
+        deadline: 600.0,
+        predict_episodes: a.validate_episodes,
         // Every output of the demo in its folder, the recording too.
-        record: Some(dir.join(RECORDING)),
-        record_default: false,
-        force: false,
-        allow_degraded: false,
-        slot_deadline: None,
-        plot: false,
-        plot_out: None,
-        listen: None,
-        remote: Vec::new(),
-        join_timeout: None,
-        link: Default::default(),
-        live: None,
-        live_wait: false,
-        radio: Default::default(),
-        trigger: Default::default(),
+        record: multiprocess::RecordTo::File(dir.join(RECORDING)),
+        ..multiprocess::RunRequest::new(multiprocess::RunTarget::Strategy {
+            path: strategy_path.clone(),
+            scenario: None,
+        })
     };
     let (mp, problems) = multiprocess::execute(&rargs)?;
 

@@ -1,34 +1,32 @@
 //! `etp run`: run a strategy as processes ([`etp_launcher`]) and
 //! print the report; `--plot` draws it.
 
+use crate::run_args::RunArgs;
 use anyhow::Result;
-use etp_launcher::{config, exit_for, figure, problems, report};
+use etp_launcher::{RecordTo, RunRequest, exit_for, figure, problems, report};
 use std::path::PathBuf;
 
-use etp_launcher::Args;
-
 /// Where `--plot` writes (`{run}` = the run id, known once the run starts).
-fn plot_stem(a: &Args) -> PathBuf {
-    if let Some(stem) = &a.plot_out {
+fn plot_stem(a: &RunRequest, out: Option<&PathBuf>) -> PathBuf {
+    if let Some(stem) = out {
         return stem.clone();
     }
     match (&a.record, &a.run_id) {
-        (Some(r), _) => r.with_extension("").with_file_name(format!(
+        (RecordTo::File(r), _) => r.with_extension("").with_file_name(format!(
             "{}-report",
             r.file_stem().and_then(|x| x.to_str()).unwrap_or("run")
         )),
-        (None, Some(id)) => PathBuf::from(format!("run-{id}-report")),
-        (None, None) => PathBuf::from("run-{run}-report"),
+        (_, Some(id)) => PathBuf::from(format!("run-{id}-report")),
+        (_, None) => PathBuf::from("run-{run}-report"),
     }
 }
 
 /// Run, print the report; the exit code is 0 only for a clean run, else
 /// [`etp_launcher::EXIT_INTERRUPTED`], [`etp_launcher::EXIT_ACCOUNTING`]
 /// or [`etp_launcher::EXIT_DEGRADED`] (the report and stderr say why).
-pub fn run(a: Args) -> Result<()> {
-    let a = config::resolve(a)?;
-
-    let stem = a.plot.then(|| plot_stem(&a));
+pub fn run(args: RunArgs) -> Result<()> {
+    let a = args.request()?;
+    let stem = args.plot.then(|| plot_stem(&a, args.plot_out.as_ref()));
     if let Some(stem) = &stem {
         etp_recording_tools::files::existing_folder_of(stem, "-o")?;
         for p in [stem.with_extension("png"), stem.with_extension("svg")] {

@@ -31,7 +31,7 @@ pub struct Args {
     pub json: bool,
     /// The link's protection.
     #[command(flatten)]
-    pub link: etp_launcher::link::LinkArgs,
+    pub link: crate::run_args::LinkArgs,
     /// This host's name in the key folder (`etp certs init --sensor-host NAME`).
     #[arg(long, value_name = "NAME", requires = "tls", default_value = etp_runtime::link_keys::DEFAULT_SENSOR_HOST)]
     pub name: String,
@@ -87,7 +87,7 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
     for s in &a.sensors {
         args.extend(["--sensor".to_string(), s.clone()]);
     }
-    args.extend(a.link.bridge_args(&a.connect, &a.name)?);
+    args.extend(a.link.protection().bridge_args(&a.connect, &a.name)?);
     if a.link.tls.is_some() {
         args.extend(["--name".to_string(), a.name.clone()]);
     }
