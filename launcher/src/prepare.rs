@@ -78,9 +78,9 @@ fn clone_sensors(text: &str, k: usize) -> Result<String> {
 /// loads the machine before failing).
 pub const MAX_SENSORS: usize = 64;
 
-/// Decide everything about a run; its files go into `dir` (the claimed run
-/// folder).
-pub fn prepare(a: &RunRequest, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> {
+/// The run's scenario text (`--trigger` and `--clone-sensors` applied) and
+/// the strategy file it runs, if any.
+fn run_text(a: &RunRequest) -> Result<(String, Option<Strategy>)> {
     let (mut text, strategy_in) = match &a.target {
         RunTarget::Strategy { path, scenario } => {
             let s = std::fs::read_to_string(path)
@@ -127,6 +127,83 @@ pub fn prepare(a: &RunRequest, run_id: &RunId, dir: &std::path::Path) -> Result<
         }
         text = clone_sensors(&text, k)?;
     }
+    Ok((text, strategy_in))
+}
+
+/// Each sensor's predicted energy per episode and where it comes from; a
+/// constant strategy made here, or a strategy run under another channel
+/// than its own (`robustness`), gets its whole prediction from the
+/// in-process simulation.
+fn sensor_energy(
+    a: &RunRequest,
+    scenario: &Scenario,
+    strategy: &mut Strategy,
+    robustness: bool,
+) -> Result<(Vec<f64>, String)> {
+    // Per-sensor energy: the MDP's expected energy per leg when the strategy
+    // file carries it (`leg_energy`), else an in-process simulation of the
+    // same strategy (which also predicts everything for a constant strategy
+    // made here).
+    let predict_episodes = a.predict_episodes.max(1);
+    let from_file = matches!(a.target, RunTarget::Strategy { .. });
+    // Under another channel than its own, the strategy file's predictions
+    // (the MDP's, of its own channel) are not the run's: the in-process
+    // simulation under the run's channel predicts instead.
+    let (sensor_energy_per_episode, prediction_from) = match strategy.predictions.sensor_energy(scenario) {
+        Some(e) if from_file && !robustness => (
+            e,
+            "the MDP: the strategy's expected energy per leg (strategy.json `leg_energy`: occupation measure × segment energy on its rebuilds, scaled to sum to `predicted`), summed over each sensor's legs".to_string(),
+        ),
+        _ => {
+            let sim =
+                simulate_strategy(scenario, &strategy.policy, predict_episodes, a.seed, &|_: u64| {})?.summary();
+            if !from_file || robustness {
+                let under = if robustness {
+                    " under the run's channel"
+                } else {
+                    ""
+                };
+                strategy.predictions.predicted = Some(Prediction {
+                    p_target: sim.p_target.value,
+                    p_collision: sim.p_collision.value,
+                    p_free: sim.p_free.value,
+                    energy_mean: sim.energy_mean.value,
+                });
+                strategy.predictions.predicted_ci95 = Some(etp_shared::strategy::PredictionCi95 {
+                    p_target: sim.p_target.ci95,
+                    p_collision: sim.p_collision.ci95,
+                    energy_mean: sim.energy_mean.ci95,
+                });
+                strategy.predictions.prediction_basis = format!(
+                    "in-process simulation{under}, {predict_episodes} episodes (seed {})",
+                    a.seed
+                );
+                strategy.provenance.label = format!(
+                    "{} (prediction: in-process simulation{under}, {predict_episodes} episodes)",
+                    strategy.provenance.label
+                );
+            }
+            (
+                scenario
+                    .sensors
+                    .iter()
+                    .zip(&sim.sensors)
+                    .map(|(s, c)| s.cost * c.transmissions as f64 / predict_episodes as f64)
+                    .collect(),
+                format!(
+                    "in-process simulation of the same strategy: {predict_episodes} episodes, seed {} (--predict-episodes)",
+                    a.seed
+                ),
+            )
+        }
+    };
+    Ok((sensor_energy_per_episode, prediction_from))
+}
+
+/// Decide everything about a run; its files go into `dir` (the claimed run
+/// folder).
+pub fn prepare(a: &RunRequest, run_id: &RunId, dir: &std::path::Path) -> Result<Plan> {
+    let (text, strategy_in) = run_text(a)?;
     // The run's channel, by the one override rule (docs/MODEL.md §8.6): the
     // text's own, replaced by the channel the strategy was synthesized for,
     // then by the radio options (a robustness study). Every process and the
@@ -187,63 +264,9 @@ pub fn prepare(a: &RunRequest, run_id: &RunId, dir: &std::path::Path) -> Result<
             Strategy::constant(&scenario, index, None)
         }
     };
-    // Per-sensor energy: the MDP's expected energy per leg when the strategy
-    // file carries it (`leg_energy`), else an in-process simulation of the
-    // same strategy (which also predicts everything for a constant strategy
-    // made here).
     let predict_episodes = a.predict_episodes.max(1);
-    let from_file = matches!(a.target, RunTarget::Strategy { .. });
-    // Under another channel than its own, the strategy file's predictions
-    // (the MDP's, of its own channel) are not the run's: the in-process
-    // simulation under the run's channel predicts instead.
-    let (sensor_energy_per_episode, prediction_from) = match strategy.predictions.sensor_energy(&scenario) {
-        Some(e) if from_file && !robustness => (
-            e,
-            "the MDP: the strategy's expected energy per leg (strategy.json `leg_energy`: occupation measure × segment energy on its rebuilds, scaled to sum to `predicted`), summed over each sensor's legs".to_string(),
-        ),
-        _ => {
-            let sim =
-                simulate_strategy(&scenario, &strategy.policy, predict_episodes, a.seed, &|_: u64| {})?.summary();
-            if !from_file || robustness {
-                let under = if robustness {
-                    " under the run's channel"
-                } else {
-                    ""
-                };
-                strategy.predictions.predicted = Some(Prediction {
-                    p_target: sim.p_target.value,
-                    p_collision: sim.p_collision.value,
-                    p_free: sim.p_free.value,
-                    energy_mean: sim.energy_mean.value,
-                });
-                strategy.predictions.predicted_ci95 = Some(etp_shared::strategy::PredictionCi95 {
-                    p_target: sim.p_target.ci95,
-                    p_collision: sim.p_collision.ci95,
-                    energy_mean: sim.energy_mean.ci95,
-                });
-                strategy.predictions.prediction_basis = format!(
-                    "in-process simulation{under}, {predict_episodes} episodes (seed {})",
-                    a.seed
-                );
-                strategy.provenance.label = format!(
-                    "{} (prediction: in-process simulation{under}, {predict_episodes} episodes)",
-                    strategy.provenance.label
-                );
-            }
-            (
-                scenario
-                    .sensors
-                    .iter()
-                    .zip(&sim.sensors)
-                    .map(|(s, c)| s.cost * c.transmissions as f64 / predict_episodes as f64)
-                    .collect(),
-                format!(
-                    "in-process simulation of the same strategy: {predict_episodes} episodes, seed {} (--predict-episodes)",
-                    a.seed
-                ),
-            )
-        }
-    };
+    let (sensor_energy_per_episode, prediction_from) =
+        sensor_energy(a, &scenario, &mut strategy, robustness)?;
     strategy.policy.scenario_toml = Some(text.clone());
 
     let dir = dir.to_path_buf();
