@@ -169,6 +169,15 @@ pub fn print(a: &RunRequest, plan: &Plan, s: &Supervised) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&json(a, plan, s))?);
         return Ok(());
     }
+    print_outcomes(plan, s);
+    print_sensors(plan, s);
+    print_traffic(s);
+    print_faults(s);
+    Ok(())
+}
+
+/// The run line, the channel and the outcomes against the prediction.
+fn print_outcomes(plan: &Plan, s: &Supervised) {
     let r = &s.report;
     let e = estimates(s);
     println!(
@@ -237,6 +246,11 @@ pub fn print(a: &RunRequest, plan: &Plan, s: &Supervised) -> Result<()> {
             etp_recording_tools::vocab::prediction_check_text(&prediction_check(&e, r))
         );
     }
+}
+
+/// Each sensor's counts and predicted energy.
+fn print_sensors(plan: &Plan, s: &Supervised) {
+    let r = &s.report;
     println!(
         "  {:<8} {:>12} {:>10} {:>8} {:>10} {:>16}",
         "sensor", "transmitted", "delivered", "lost", "received", "predicted energy"
@@ -264,6 +278,11 @@ pub fn print(a: &RunRequest, plan: &Plan, s: &Supervised) -> Result<()> {
         "  predicted energy per sensor: {}",
         super::record::prediction_source(plan)
     );
+}
+
+/// What crossed each link, and what the handovers saved.
+fn print_traffic(s: &Supervised) {
+    let r = &s.report;
     let traffic = expected_traffic(s);
     println!(
         "  {:<8} {:>22} {:>22} {:>22} {:>22}",
@@ -294,6 +313,11 @@ pub fn print(a: &RunRequest, plan: &Plan, s: &Supervised) -> Result<()> {
         d["per_step_prior_bytes"],
         100.0 * d["saved_fraction"].as_f64().unwrap_or(0.0)
     );
+}
+
+/// Dead links, link faults, an abort, the recording and processes that did not exit 0.
+fn print_faults(s: &Supervised) {
+    let r = &s.report;
     if r.degraded > 0 {
         println!(
             "  DEGRADED: {} episode(s) ran with a dead link (prediction only on its slots)",
@@ -337,5 +361,4 @@ pub fn print(a: &RunRequest, plan: &Plan, s: &Supervised) -> Result<()> {
     for p in s.processes.iter().filter(|p| p.status != "exit 0") {
         println!("  process {} (pid {}): {}", p.name, p.pid, p.status);
     }
-    Ok(())
 }
