@@ -75,60 +75,12 @@ pub async fn supervise(
         },
         None => None,
     };
+    let Spawned {
+        children,
+        mut coordinator,
+        progress_file,
+    } = spawn_processes(plan, remote, slot_deadline_ms, live_feed)?;
     let run = plan.run_id.as_str().to_string();
-    let scenario = plan.scenario_path.display().to_string();
-    let common = |extra: &[String]| -> Vec<String> {
-        let mut v = vec![
-            "--run-id".to_string(),
-            run.clone(),
-            "--scenario".to_string(),
-            scenario.clone(),
-        ];
-        v.extend_from_slice(extra);
-        v
-    };
-    // Sensors and agent first: the coordinator waits for their hello.
-    let mut children: Vec<(String, Child)> = Vec::new();
-    let sensor_bin = sibling_binary("etp-sensor-node")?;
-    for (i, s) in plan.scenario.sensors.iter().enumerate() {
-        if remote.is_some_and(|r| r.remote.contains(&i)) {
-            continue;
-        }
-        let args = common(&[
-            "--sensor".into(),
-            s.name.clone(),
-            "--seed".into(),
-            plan.seed.to_string(),
-        ]);
-        children.push((
-            format!("sensor {}", s.name),
-            spawn(&sensor_bin, &args, false)?,
-        ));
-    }
-    let mut agent_extra = Vec::new();
-    if let Some(ms) = slot_deadline_ms {
-        agent_extra.extend(["--slot-deadline".to_string(), ms.to_string()]);
-    }
-    if let Some(feed) = live_feed {
-        agent_extra.extend(["--live-feed".to_string(), feed.display().to_string()]);
-    }
-    let agent_args = common(&agent_extra);
-    children.push((
-        "agent".into(),
-        spawn(&sibling_binary("etp-agent")?, &agent_args, false)?,
-    ));
-    let progress_file = plan.dir.join("progress");
-    let coord_args = common(&[
-        "--strategy".into(),
-        plan.strategy_path.display().to_string(),
-        "--episodes".into(),
-        plan.episodes.to_string(),
-        "--seed".into(),
-        plan.seed.to_string(),
-        "--progress".into(),
-        progress_file.display().to_string(),
-    ]);
-    let mut coordinator = spawn(&sibling_binary("etp-coordinator")?, &coord_args, true)?;
     // Episodes finished, from the coordinator's progress file.
     let pb = etp_runtime::progress::bar(plan.episodes, "run", quiet);
     let shown = pb.clone();
@@ -171,43 +123,7 @@ pub async fn supervise(
     };
     progress.abort();
     pb.finish_and_clear();
-    let mut processes = Vec::new();
-    match coord_status {
-        Some(st) => processes.push(ProcessExit {
-            name: "coordinator".into(),
-            pid: coord_pid,
-            status: status_text(&st),
-        }),
-        None => {
-            let _ = coordinator.kill().await;
-            processes.push(ProcessExit {
-                name: "coordinator".into(),
-                pid: coord_pid,
-                status: "killed by supervisor".into(),
-            });
-        }
-    }
-    // The others exit on the coordinator's stop. If it did not end cleanly,
-    // ask them to terminate now (they also notice its death by themselves).
-    if processes.first().is_none_or(|p| p.status != "exit 0") {
-        for (_, child) in &children {
-            if let Some(pid) = child.id() {
-                signal(pid, "-TERM");
-            }
-        }
-    }
-    let grace_end = tokio::time::Instant::now() + GRACE;
-    for (name, mut child) in children {
-        let pid = child.id().unwrap_or(0);
-        let status = match tokio::time::timeout_at(grace_end, child.wait()).await {
-            Ok(Ok(st)) => status_text(&st),
-            _ => {
-                let _ = child.kill().await;
-                "killed by supervisor".into()
-            }
-        };
-        processes.push(ProcessExit { name, pid, status });
-    }
+    let mut processes = reap(coordinator, coord_pid, coord_status, children).await;
     let link = match bridge {
         Some(b) => {
             let (exit, report) = b.stop().await;
@@ -268,4 +184,132 @@ fn summary(p: &[ProcessExit]) -> String {
         .map(|x| format!("{} {}", x.name, x.status))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// The run's local processes.
+struct Spawned {
+    /// The sensors' and the agent's, named.
+    children: Vec<(String, Child)>,
+    coordinator: Child,
+    /// Where the coordinator counts the episodes finished.
+    progress_file: std::path::PathBuf,
+}
+
+/// The run's local processes, spawned: each local sensor and the agent
+/// first (the coordinator waits for their hello), then the coordinator;
+/// with the coordinator's progress file.
+fn spawn_processes(
+    plan: &Plan,
+    remote: Option<&super::remote::RemoteSpec>,
+    slot_deadline_ms: Option<u64>,
+    live_feed: Option<&Path>,
+) -> Result<Spawned> {
+    let run = plan.run_id.as_str().to_string();
+    let scenario = plan.scenario_path.display().to_string();
+    let common = |extra: &[String]| -> Vec<String> {
+        let mut v = vec![
+            "--run-id".to_string(),
+            run.clone(),
+            "--scenario".to_string(),
+            scenario.clone(),
+        ];
+        v.extend_from_slice(extra);
+        v
+    };
+    // Sensors and agent first: the coordinator waits for their hello.
+    let mut children: Vec<(String, Child)> = Vec::new();
+    let sensor_bin = sibling_binary("etp-sensor-node")?;
+    for (i, s) in plan.scenario.sensors.iter().enumerate() {
+        if remote.is_some_and(|r| r.remote.contains(&i)) {
+            continue;
+        }
+        let args = common(&[
+            "--sensor".into(),
+            s.name.clone(),
+            "--seed".into(),
+            plan.seed.to_string(),
+        ]);
+        children.push((
+            format!("sensor {}", s.name),
+            spawn(&sensor_bin, &args, false)?,
+        ));
+    }
+    let mut agent_extra = Vec::new();
+    if let Some(ms) = slot_deadline_ms {
+        agent_extra.extend(["--slot-deadline".to_string(), ms.to_string()]);
+    }
+    if let Some(feed) = live_feed {
+        agent_extra.extend(["--live-feed".to_string(), feed.display().to_string()]);
+    }
+    let agent_args = common(&agent_extra);
+    children.push((
+        "agent".into(),
+        spawn(&sibling_binary("etp-agent")?, &agent_args, false)?,
+    ));
+    let progress_file = plan.dir.join("progress");
+    let coord_args = common(&[
+        "--strategy".into(),
+        plan.strategy_path.display().to_string(),
+        "--episodes".into(),
+        plan.episodes.to_string(),
+        "--seed".into(),
+        plan.seed.to_string(),
+        "--progress".into(),
+        progress_file.display().to_string(),
+    ]);
+    let coordinator = spawn(&sibling_binary("etp-coordinator")?, &coord_args, true)?;
+    Ok(Spawned {
+        children,
+        coordinator,
+        progress_file,
+    })
+}
+
+/// Every process's exit: the coordinator's (killed if it did not end),
+/// then the others', each within [`GRACE`] (asked to terminate first when
+/// the coordinator did not exit 0).
+async fn reap(
+    mut coordinator: Child,
+    coord_pid: u32,
+    coord_status: Option<std::process::ExitStatus>,
+    children: Vec<(String, Child)>,
+) -> Vec<ProcessExit> {
+    let mut processes = Vec::new();
+    match coord_status {
+        Some(st) => processes.push(ProcessExit {
+            name: "coordinator".into(),
+            pid: coord_pid,
+            status: status_text(&st),
+        }),
+        None => {
+            let _ = coordinator.kill().await;
+            processes.push(ProcessExit {
+                name: "coordinator".into(),
+                pid: coord_pid,
+                status: "killed by supervisor".into(),
+            });
+        }
+    }
+    // The others exit on the coordinator's stop. If it did not end cleanly,
+    // ask them to terminate now (they also notice its death by themselves).
+    if processes.first().is_none_or(|p| p.status != "exit 0") {
+        for (_, child) in &children {
+            if let Some(pid) = child.id() {
+                signal(pid, "-TERM");
+            }
+        }
+    }
+    let grace_end = tokio::time::Instant::now() + GRACE;
+    for (name, mut child) in children {
+        let pid = child.id().unwrap_or(0);
+        let status = match tokio::time::timeout_at(grace_end, child.wait()).await {
+            Ok(Ok(st)) => status_text(&st),
+            _ => {
+                let _ = child.kill().await;
+                "killed by supervisor".into()
+            }
+        };
+        processes.push(ProcessExit { name, pid, status });
+    }
+    processes
 }
