@@ -74,8 +74,12 @@ pub enum AgentError {
 #[derive(Debug, Clone, clap::Parser)]
 #[command(name = "etp-agent", version, about)]
 pub struct Args {
-    #[command(flatten)]
-    pub run: etp_runtime::shell::RunArgs,
+    /// Run id (services live under `etp/<run-id>/`).
+    #[arg(long)]
+    pub run_id: String,
+    /// Built-in scenario name or TOML path.
+    #[arg(long)]
+    pub scenario: String,
     /// Real-time studies: a slot not closed within MS milliseconds is a dead
     /// link even if the sensor process lives (reported as a fault). Default:
     /// a live sensor is waited for, however slow.
@@ -111,8 +115,8 @@ pub struct AgentStats {
 
 /// Run the agent until the coordinator says stop.
 pub fn run(args: &Args) -> Result<(Exit, AgentStats), AgentError> {
-    let run = RunId::new(&args.run.run_id)?;
-    let scenario = etp_runtime::load_scenario(&args.run.scenario)?;
+    let run = RunId::new(&args.run_id)?;
+    let scenario = etp_runtime::load_scenario(&args.scenario)?;
     let deadline = args.slot_deadline.map(Duration::from_millis);
     // A view that cannot be reached is no reason to stop the run.
     let live = args.live_feed.as_deref().and_then(|p| {
@@ -131,6 +135,9 @@ pub struct AgentProcess;
 impl shell::Process for AgentProcess {
     const NAME: &'static str = "etp-agent";
     type Args = Args;
+    fn parse(argv: Vec<std::ffi::OsString>) -> Self::Args {
+        clap::Parser::parse_from(argv)
+    }
     fn body(args: &Args) -> anyhow::Result<Done> {
         let _span = tracing::info_span!("agent").entered();
         let (exit, stats) = run(args)?;

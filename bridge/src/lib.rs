@@ -138,6 +138,9 @@ pub struct BridgeProcess;
 impl etp_runtime::shell::Process for BridgeProcess {
     const NAME: &'static str = "etp-bridge";
     type Args = Cli;
+    fn parse(argv: Vec<std::ffi::OsString>) -> Self::Args {
+        clap::Parser::parse_from(argv)
+    }
     fn body(cli: &Cli) -> anyhow::Result<etp_runtime::shell::Done> {
         match cli {
             Cli::AgentHost(a) => agent_host::run(a),

@@ -53,8 +53,12 @@ pub enum CoordinatorError {
 #[derive(Debug, Clone, clap::Parser)]
 #[command(name = "etp-coordinator", version, about)]
 pub struct Args {
-    #[command(flatten)]
-    pub run: etp_runtime::shell::RunArgs,
+    /// Run id (services live under `etp/<run-id>/`).
+    #[arg(long)]
+    pub run_id: String,
+    /// Built-in scenario name or TOML path (checked against the strategy's hash).
+    #[arg(long)]
+    pub scenario: String,
     /// Path of `strategy.json`.
     #[arg(long)]
     pub strategy: String,
@@ -75,8 +79,8 @@ pub struct Args {
 
 /// Run all episodes and return the report.
 pub fn run(args: &Args) -> Result<RunReport, CoordinatorError> {
-    let run = RunId::new(&args.run.run_id)?;
-    let scenario = etp_runtime::load_scenario(&args.run.scenario)?;
+    let run = RunId::new(&args.run_id)?;
+    let scenario = etp_runtime::load_scenario(&args.scenario)?;
     let text = std::fs::read_to_string(&args.strategy)
         .map_err(|e| CoordinatorError::Input(format!("reading strategy {}: {e}", args.strategy)))?;
     let strategy = Strategy::from_sealed_json(&text)
@@ -110,6 +114,9 @@ pub struct CoordinatorProcess;
 impl shell::Process for CoordinatorProcess {
     const NAME: &'static str = "etp-coordinator";
     type Args = Args;
+    fn parse(argv: Vec<std::ffi::OsString>) -> Self::Args {
+        clap::Parser::parse_from(argv)
+    }
     fn body(args: &Args) -> anyhow::Result<Done> {
         let _span = tracing::info_span!("coordinator").entered();
         let report = run(args).context("coordinator")?;

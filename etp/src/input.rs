@@ -1,9 +1,9 @@
 //! Resolving user input: scenario names and paths, and the radio and
-//! trigger options (`etp_runtime::scenario_options`, shared with the
+//! trigger options (`crate::scenario_flags`, shared with the
 //! multi-process launcher).
 
+use crate::scenario_flags::RadioArgs;
 use anyhow::{Context, Result, bail};
-use etp_runtime::scenario_options::RadioArgs;
 use etp_shared::scenario::{Scenario, ScenarioText};
 
 /// A command-line probability (`--min-target`, `--max-collision`): a

@@ -5,7 +5,8 @@
 //! * [`cmd`] — one module per subcommand, none importing another; each exposes
 //!   `run(args) -> anyhow::Result<()>`.
 //! * [`input`] — resolving a `SCENARIO` argument (built-in name or path)
-//!   and its options.
+//!   and its options; [`scenario_flags`] — those options' flags (radio,
+//!   trigger family).
 //! * [`prediction_args`] — how a strategy is predicted and how many rounds
 //!   the request loop runs: the options of every command that predicts.
 //! * [`dist`] — the ranks of an MPI job (feature `mpi`): MPI started and
@@ -36,6 +37,7 @@ pub mod prediction_args;
 pub mod processes;
 pub mod report;
 pub mod run_args;
+pub mod scenario_flags;
 pub mod study;
 
 use std::process::ExitCode;

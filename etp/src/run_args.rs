@@ -5,11 +5,11 @@
 //! the same path a run file alone and Python take. clap stays here; the
 //! launcher never sees a flag.
 
+use crate::scenario_flags::{RadioArgs, TriggerArgs};
 use anyhow::{Context, Result};
 use etp_launcher::RunRequest;
 use etp_launcher::config::{self, RunConfig};
 use etp_launcher::request::LinkProtection;
-use etp_runtime::scenario_options::{RadioArgs, TriggerArgs};
 use std::path::PathBuf;
 
 /// Exit codes (`etp run --help`; README "Exit codes").

@@ -11,8 +11,8 @@ use crate::mdp_build::{BuiltMdp, MdpRequest, build_mdp};
 use crate::output::{output_folder, refuse_existing, write_new};
 use anyhow::{Context, Result, bail};
 use etp_runtime::scenario_arg::scenario_text;
-use etp_runtime::scenario_options::TriggerArgs;
-use etp_shared::scenario::Scenario;
+use etp_shared::scenario::{Scenario, ScenarioText};
+use etp_shared::trigger::TriggerFamily;
 use etp_synthesis::abstraction::aggregation::AggregationReport;
 use etp_synthesis::abstraction::{self, default_kf_params};
 use etp_synthesis::mdp::Method;
@@ -23,20 +23,25 @@ pub const DEFAULT_AGGREGATION_EPISODES: u64 = 50_000;
 /// `etp synthesize`'s default `--aggregation-alpha`.
 pub const DEFAULT_AGGREGATION_ALPHA: f64 = 0.05;
 
-/// The scenario of `arg` (a built-in name or a path) under `trigger`, and
-/// its text under that family — what a synthesis writes as
-/// `DIR/scenario.toml`, so that the content hash is the family's. No
-/// family: the scenario as every process of a run loads it.
-pub fn scenario_under(arg: &str, trigger: &TriggerArgs) -> Result<(Scenario, String)> {
+/// The scenario of `arg` (a built-in name or a path) under the trigger
+/// family `trigger`, and its text under that family — what a synthesis
+/// writes as `DIR/scenario.toml`, so that the content hash is the family's.
+/// No family: the scenario as every process of a run loads it, and its own
+/// text.
+pub fn scenario_under(arg: &str, trigger: Option<TriggerFamily>) -> Result<(Scenario, String)> {
     // Loaded first: its error names a missing or unknown scenario as every
     // command does.
     let own = etp_runtime::load_scenario(arg)?;
-    let text = trigger.apply_to_text(scenario_text(arg)?)?;
-    let scenario = if trigger.trigger.is_none() {
-        own
-    } else {
-        Scenario::from_toml(&text).with_context(|| format!("scenario {arg}"))?
+    let text = scenario_text(arg)?;
+    let Some(family) = trigger else {
+        return Ok((own, text));
     };
+    let text = ScenarioText::parse(text)
+        .context("scenario")?
+        .with_trigger(family)
+        .context("--trigger")?
+        .text;
+    let scenario = Scenario::from_toml(&text).with_context(|| format!("scenario {arg}"))?;
     Ok((scenario, text))
 }
 

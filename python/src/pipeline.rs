@@ -14,8 +14,8 @@ use etp_pipeline::selection::{RequestSettings, meet_goal};
 use etp_pipeline::synthesis_dir::Synthesis;
 use etp_pipeline::synthesize::{SynthesisRequest, synthesize as synthesize_dir};
 use etp_pipeline::validation::{comparison_json, failed_checks, plot_map};
-use etp_runtime::scenario_options::{TriggerArgs, parse_family};
 use etp_shared::scenario::Scenario;
+use etp_shared::trigger::TriggerFamily;
 use etp_synthesis::predict::request::Goal;
 use etp_synthesis::validate::simulate_strategy;
 use pyo3::prelude::*;
@@ -90,10 +90,10 @@ fn source_of(obj: &Bound<'_, PyAny>) -> PyResult<String> {
 /// synthesize` writes into DIR/scenario.toml), by the CLI's own function.
 fn scenario_under(arg: &str, trigger: Option<&str>) -> PyResult<(Scenario, String)> {
     let family = trigger
-        .map(parse_family)
+        .map(TriggerFamily::parse)
         .transpose()
-        .map_err(ScenarioError::new_err)?;
-    etp_pipeline::synthesize::scenario_under(arg, &TriggerArgs { trigger: family })
+        .map_err(|e| ScenarioError::new_err(e.to_string()))?;
+    etp_pipeline::synthesize::scenario_under(arg, family)
         .map_err(|e| ScenarioError::new_err(anyhow_text(&e)))
 }
 

@@ -5,9 +5,9 @@
 
 use crate::columns::{Column, Values, table_into_py};
 use crate::errors::{EtpError, SimulationError, chain};
-use etp_runtime::scenario_options::{TriggerArgs, parse_family};
 use etp_shared::episode::Outcome;
 use etp_shared::scenario::Scenario;
+use etp_shared::trigger::TriggerFamily;
 use etp_synthesis::constant::{check_delta, constant_records, simulate_constant};
 use etp_synthesis::records::Records;
 use etp_synthesis::report::simulate_json;
@@ -140,10 +140,13 @@ pub fn simulate<'py>(
     }
     let family = trigger
         .as_deref()
-        .map(parse_family)
+        .map(TriggerFamily::parse)
         .transpose()
-        .map_err(SimulationError::new_err)?;
-    let s = TriggerArgs { trigger: family }.apply(crate::scenario::resolve(scenario)?);
+        .map_err(|e| SimulationError::new_err(e.to_string()))?;
+    let mut s = crate::scenario::resolve(scenario)?;
+    if let Some(family) = family {
+        s.trigger = family;
+    }
     let quiet = |_: u64| {};
     let (summary, recs) = py
         .detach(|| {

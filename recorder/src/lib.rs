@@ -336,6 +336,9 @@ pub struct RecorderProcess;
 impl shell::Process for RecorderProcess {
     const NAME: &'static str = "etp-recorder";
     type Args = Cli;
+    fn parse(argv: Vec<std::ffi::OsString>) -> Self::Args {
+        clap::Parser::parse_from(argv)
+    }
     fn body(cli: &Cli) -> anyhow::Result<Done> {
         let file = create_output(&cli.out)?;
         let mut ready = false;

@@ -18,7 +18,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Table file format.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Format {
     /// Comma-separated values with a header row (RFC 4180; empty cell = null).
     #[default]
@@ -27,7 +27,21 @@ pub enum Format {
     Jsonl,
 }
 
+impl std::str::FromStr for Format {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "csv" => Ok(Format::Csv),
+            "jsonl" => Ok(Format::Jsonl),
+            other => Err(format!("unknown table format `{other}`: csv or jsonl")),
+        }
+    }
+}
+
 impl Format {
+    /// Every format's name, as [`Format::from_str`] reads it.
+    pub const NAMES: [&'static str; 2] = ["csv", "jsonl"];
+
     fn ext(self) -> &'static str {
         match self {
             Format::Csv => "csv",

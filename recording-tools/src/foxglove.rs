@@ -74,7 +74,7 @@ pub struct FoxgloveStats {
 }
 
 /// Which times the copy carries.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Clock {
     /// Plant step k at 10 ms × k after its episode's start; the
@@ -83,6 +83,22 @@ pub enum Clock {
     Step,
     /// The recorder's `log_time`s.
     Recorded,
+}
+
+impl Clock {
+    /// Every clock's name, as [`Clock::from_str`] reads it.
+    pub const NAMES: [&'static str; 2] = ["step", "recorded"];
+}
+
+impl std::str::FromStr for Clock {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "step" => Ok(Clock::Step),
+            "recorded" => Ok(Clock::Recorded),
+            other => Err(format!("unknown clock `{other}`: step or recorded")),
+        }
+    }
 }
 
 /// One plant step on the step clock: 10 ms (100 steps per second).

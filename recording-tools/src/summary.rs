@@ -248,117 +248,24 @@ pub fn summarize(c: &Contents) -> Result<Value> {
 
 /// The summary object from the tally of `c`'s messages (see [`summarize`]).
 pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
-    let prediction: Option<Value> = c
-        .meta(recording::META_PREDICTION, "json")
-        .and_then(|t| serde_json::from_str(t).ok());
-    let names: Vec<String> = prediction
-        .as_ref()
-        .and_then(|p| p.get("sensors"))
-        .and_then(|s| serde_json::from_value(s.clone()).ok())
-        .unwrap_or_default();
-    let per_ep: Vec<f64> = prediction
-        .as_ref()
-        .and_then(|p| p.get("sensor_energy_per_episode"))
-        .and_then(|s| serde_json::from_value(s.clone()).ok())
-        .unwrap_or_default();
-    let mut sensors: BTreeMap<u32, SensorSummary> = BTreeMap::new();
-    let sensor = |sensors: &mut BTreeMap<u32, SensorSummary>, i: u32| {
-        sensor_entry(sensors, &names, i);
-    };
-    let mut counts = crate::OutcomeCounts::default();
-    let (mut steps, mut received, mut degraded) = (0u64, 0u64, 0u64);
-    let mut episodes = 0u64;
-    let mut energies: Vec<f64> = Vec::new();
-    let (mut partial, mut partial_messages, mut partial_measurements) = (Vec::new(), 0u64, 0u64);
+    let facts = RunFacts::read(c);
     let ledgers_recorded = c.channels.contains_key("ledger");
-    let scenario = c
-        .meta(recording::META_SCENARIO, "toml")
-        .and_then(|t| etp_shared::scenario::Scenario::from_toml(t).ok());
-    let cost_of_leg = |leg: u32| {
-        scenario.as_ref().map_or(0.0, |s| {
-            s.legs
-                .get(leg as usize)
-                .and_then(|l| s.sensors.get(l.sensor))
-                .map_or(0.0, |x| x.cost)
-        })
-    };
-    // The sensors the run found dead: each is named by the outcome of the
-    // episode its link died in (`dead_sensor`), the run's `faults`.
-    let dead: std::collections::BTreeSet<u32> = t
-        .eps
-        .values()
-        .filter_map(|e| e.outcome)
-        .map(|o| o.dead_sensor)
-        .filter(|s| *s != u32::MAX)
-        .collect();
-    let excused = |leg: u32| {
-        scenario.as_ref().is_some_and(|s| {
-            s.legs
-                .get(leg as usize)
-                .is_some_and(|l| dead.contains(&(l.sensor as u32)))
-        })
-    };
-    for (number, e) in t.eps {
-        let Some(o) = e.outcome.filter(|_| e.complete(ledgers_recorded, excused)) else {
-            partial.push(number);
-            partial_messages += e.messages;
-            partial_measurements += e.measurements.values().sum::<u64>();
-            continue;
-        };
-        episodes += 1;
-        steps += u64::from(o.steps);
-        received += u64::from(o.received);
-        let episode_degraded = e.degraded(ledgers_recorded);
-        degraded += u64::from(episode_degraded);
-        counts.add(&o);
-        for ((leg, i), n) in &e.measurements {
-            let s = sensor_entry(&mut sensors, &names, *i);
-            // A degraded episode's legs without a ledger (a dead sensor's
-            // open leg and its later ones) are excused, counted apart.
-            if ledgers_recorded && !e.ledgers.contains_key(leg) {
-                s.measurements_without_ledger += n;
-            } else {
-                s.measurements += n;
-            }
-        }
-        // The episode's energy as `etp run` sums it, leg by leg in order: a
-        // ledger's energy, or on a dead link's leg without one what the agent
-        // received there times the sensor's cost.
-        let mut energy = 0.0;
-        let legs = e
-            .ledgers
-            .keys()
-            .last()
-            .copied()
-            .unwrap_or(0)
-            .max(o.header.leg);
-        for leg in 0..=legs {
-            let Some(l) = e.ledgers.get(&leg) else {
-                if episode_degraded {
-                    energy += e.received_of(leg) as f64 * cost_of_leg(leg);
-                }
-                // `received`, as `etp run` reports it, covers the legs the
-                // ledgers cover: what came on an excused leg is apart.
-                if ledgers_recorded {
-                    received -= e.received_of(leg).min(received);
-                }
-                continue;
-            };
-            let i = l.header.sender;
-            let s = sensor_entry(&mut sensors, &names, i);
-            s.transmissions += u64::from(l.transmissions);
-            s.delivered += u64::from(l.delivered);
-            s.lost += u64::from(l.lost);
-            s.attempts_recorded += e.attempts.get(&(leg, i)).copied().unwrap_or(0);
-            s.energy += l.energy;
-            s.received += e.received_of(leg);
-            energy += l.energy;
-        }
-        energies.push(energy);
-    }
+    let Totals {
+        mut sensors,
+        counts,
+        steps,
+        received,
+        degraded,
+        episodes,
+        energies,
+        partial,
+        partial_messages,
+        partial_measurements,
+    } = tally_episodes(t.eps, ledgers_recorded, &facts);
+    let RunFacts { names, per_ep, .. } = facts;
     // Every sensor of the scenario, those that never sent anything included.
     for i in 0..names.len().max(per_ep.len()) {
-        sensor(&mut sensors, i as u32);
+        sensor_entry(&mut sensors, &names, i as u32);
     }
     for (i, s) in &mut sensors {
         s.predicted_energy = per_ep
@@ -463,6 +370,166 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
     }
     null_what_is_missing(&mut v, &has);
     Ok(v)
+}
+
+/// What the recording says of its run beside the messages: the sensors'
+/// names and predicted energy per episode (the prediction's metadata), and
+/// the scenario (each leg's sensor and its cost).
+struct RunFacts {
+    names: Vec<String>,
+    per_ep: Vec<f64>,
+    scenario: Option<etp_shared::scenario::Scenario>,
+}
+
+impl RunFacts {
+    fn read(c: &Contents) -> Self {
+        let prediction: Option<Value> = c
+            .meta(recording::META_PREDICTION, "json")
+            .and_then(|t| serde_json::from_str(t).ok());
+        let names: Vec<String> = prediction
+            .as_ref()
+            .and_then(|p| p.get("sensors"))
+            .and_then(|s| serde_json::from_value(s.clone()).ok())
+            .unwrap_or_default();
+        let per_ep: Vec<f64> = prediction
+            .as_ref()
+            .and_then(|p| p.get("sensor_energy_per_episode"))
+            .and_then(|s| serde_json::from_value(s.clone()).ok())
+            .unwrap_or_default();
+        let scenario = c
+            .meta(recording::META_SCENARIO, "toml")
+            .and_then(|t| etp_shared::scenario::Scenario::from_toml(t).ok());
+        Self {
+            names,
+            per_ep,
+            scenario,
+        }
+    }
+}
+
+/// The sums over the recording's complete episodes, and what the
+/// incomplete ones (`partial`) held.
+struct Totals {
+    sensors: BTreeMap<u32, SensorSummary>,
+    counts: crate::OutcomeCounts,
+    steps: u64,
+    received: u64,
+    degraded: u64,
+    episodes: u64,
+    energies: Vec<f64>,
+    partial: Vec<u64>,
+    partial_messages: u64,
+    partial_measurements: u64,
+}
+
+/// Each complete episode's outcome, measurements, ledgers and energy
+/// summed as `etp run` sums them; an episode that did not finish is
+/// `partial`.
+fn tally_episodes(
+    eps: BTreeMap<u64, EpisodeTally>,
+    ledgers_recorded: bool,
+    facts: &RunFacts,
+) -> Totals {
+    let (names, scenario) = (&facts.names, &facts.scenario);
+    let mut sensors: BTreeMap<u32, SensorSummary> = BTreeMap::new();
+    let mut counts = crate::OutcomeCounts::default();
+    let (mut steps, mut received, mut degraded) = (0u64, 0u64, 0u64);
+    let mut episodes = 0u64;
+    let mut energies: Vec<f64> = Vec::new();
+    let (mut partial, mut partial_messages, mut partial_measurements) = (Vec::new(), 0u64, 0u64);
+    let cost_of_leg = |leg: u32| {
+        scenario.as_ref().map_or(0.0, |s| {
+            s.legs
+                .get(leg as usize)
+                .and_then(|l| s.sensors.get(l.sensor))
+                .map_or(0.0, |x| x.cost)
+        })
+    };
+    // The sensors the run found dead: each is named by the outcome of the
+    // episode its link died in (`dead_sensor`), the run's `faults`.
+    let dead: std::collections::BTreeSet<u32> = eps
+        .values()
+        .filter_map(|e| e.outcome)
+        .map(|o| o.dead_sensor)
+        .filter(|s| *s != u32::MAX)
+        .collect();
+    let excused = |leg: u32| {
+        scenario.as_ref().is_some_and(|s| {
+            s.legs
+                .get(leg as usize)
+                .is_some_and(|l| dead.contains(&(l.sensor as u32)))
+        })
+    };
+    for (number, e) in eps {
+        let Some(o) = e.outcome.filter(|_| e.complete(ledgers_recorded, excused)) else {
+            partial.push(number);
+            partial_messages += e.messages;
+            partial_measurements += e.measurements.values().sum::<u64>();
+            continue;
+        };
+        episodes += 1;
+        steps += u64::from(o.steps);
+        received += u64::from(o.received);
+        let episode_degraded = e.degraded(ledgers_recorded);
+        degraded += u64::from(episode_degraded);
+        counts.add(&o);
+        for ((leg, i), n) in &e.measurements {
+            let s = sensor_entry(&mut sensors, names, *i);
+            // A degraded episode's legs without a ledger (a dead sensor's
+            // open leg and its later ones) are excused, counted apart.
+            if ledgers_recorded && !e.ledgers.contains_key(leg) {
+                s.measurements_without_ledger += n;
+            } else {
+                s.measurements += n;
+            }
+        }
+        // The episode's energy as `etp run` sums it, leg by leg in order: a
+        // ledger's energy, or on a dead link's leg without one what the agent
+        // received there times the sensor's cost.
+        let mut energy = 0.0;
+        let legs = e
+            .ledgers
+            .keys()
+            .last()
+            .copied()
+            .unwrap_or(0)
+            .max(o.header.leg);
+        for leg in 0..=legs {
+            let Some(l) = e.ledgers.get(&leg) else {
+                if episode_degraded {
+                    energy += e.received_of(leg) as f64 * cost_of_leg(leg);
+                }
+                // `received`, as `etp run` reports it, covers the legs the
+                // ledgers cover: what came on an excused leg is apart.
+                if ledgers_recorded {
+                    received -= e.received_of(leg).min(received);
+                }
+                continue;
+            };
+            let i = l.header.sender;
+            let s = sensor_entry(&mut sensors, names, i);
+            s.transmissions += u64::from(l.transmissions);
+            s.delivered += u64::from(l.delivered);
+            s.lost += u64::from(l.lost);
+            s.attempts_recorded += e.attempts.get(&(leg, i)).copied().unwrap_or(0);
+            s.energy += l.energy;
+            s.received += e.received_of(leg);
+            energy += l.energy;
+        }
+        energies.push(energy);
+    }
+    Totals {
+        sensors,
+        counts,
+        steps,
+        received,
+        degraded,
+        episodes,
+        energies,
+        partial,
+        partial_messages,
+        partial_measurements,
+    }
 }
 
 /// Null the counts whose channel the recording lacks (a filtered copy):

@@ -21,8 +21,7 @@
 //!   terminal, a plain line every few seconds otherwise, nothing with `--json`.
 //! * [`shell`] — the one process shell: argument parsing, logging, exit
 //!   codes ([`shell::main_with`]).
-//! * [`scenario_arg`] — a `SCENARIO` argument (built-in name or TOML path),
-//!   [`scenario_options`] the options that change it (radio, trigger family);
+//! * [`scenario_arg`] — a `SCENARIO` argument (built-in name or TOML path);
 //!   [`strategy_arg`] — a `STRATEGY` argument (sealed file and its scenario).
 //! * [`report`] — the coordinator's run report and a run's session info;
 //!   [`cleanup`] — removing what a run left in /dev/shm and its folder;
@@ -43,7 +42,6 @@ pub mod progress;
 pub mod recording;
 pub mod report;
 pub mod scenario_arg;
-pub mod scenario_options;
 pub mod shell;
 pub mod strategy_arg;
 pub mod wire;

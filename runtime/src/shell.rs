@@ -5,9 +5,10 @@
 //! — the one entry point of every process: `main` of its binary, and for
 //! the agent, coordinator, sensor node and recorder also `etp process
 //! <name>` (the bridge has only its binary: `etp` does not link Zenoh) —
-//! parses the arguments (help and usage errors exit 0 / 2, as clap
-//! does), sets up logging ([`init_logging`]: `tracing` on stderr, `RUST_LOG`,
-//! default `warn`), runs the process's body, and turns the result into the
+//! parses the arguments with the process's own parser (help and usage
+//! errors exit 0 / 2, as clap does), sets up logging ([`init_logging`]:
+//! `tracing` on stderr, `RUST_LOG`, default `warn`), runs the process's
+//! body, and turns the result into the
 //! exit code: a [`Done`] is 0 (its stdout line for the parent printed first),
 //! an error is 1 with one line `<name>: error: <cause: cause …>` on stderr.
 //! A closed stdout or stderr (the parent died) never panics.
@@ -18,23 +19,9 @@
 //! wake-up event, or over several (the recorder, the bridge) — returning
 //! the closed set of [`crate::wire::Wake`]s.
 
-use clap::Parser;
 use std::ffi::OsString;
 use std::io::Write;
 use std::process::ExitCode;
-
-/// The arguments every process that runs the scenario takes (agent,
-/// coordinator, sensor node): flattened into each one's `Args`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct RunArgs {
-    /// Run id (services live under `etp/<run-id>/`).
-    #[arg(long)]
-    pub run_id: String,
-    /// Built-in scenario name or TOML path (the coordinator checks it
-    /// against the strategy's hash).
-    #[arg(long)]
-    pub scenario: String,
-}
 
 /// How the body of a process ended well.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -56,8 +43,12 @@ pub enum Done {
 pub trait Process {
     /// The binary's name: the logs' and the error line's prefix.
     const NAME: &'static str;
-    /// Its command line.
-    type Args: clap::Parser;
+    /// Its command line, typed.
+    type Args;
+    /// Parse the command line `argv` (the first is the program name): the
+    /// process crate's own clap parser, which prints help or the usage
+    /// error and exits (0 or 2), as `main` would.
+    fn parse(argv: Vec<OsString>) -> Self::Args;
     /// The process's own work; its error (with its causes) is the process's
     /// last line on stderr.
     fn body(args: &Self::Args) -> anyhow::Result<Done>;
@@ -88,8 +79,7 @@ where
     I: IntoIterator<Item = T>,
     T: Into<OsString> + Clone,
 {
-    // Prints help or the usage error and exits (0 or 2), as `main` would.
-    let args = P::Args::parse_from(args);
+    let args = P::parse(args.into_iter().map(Into::into).collect());
     let name = P::NAME;
     init_logging(name);
     match P::body(&args) {
@@ -149,9 +139,8 @@ pub fn init_logging(process: &str) {
 mod tests {
     use super::*;
 
-    #[derive(Debug, clap::Parser)]
+    #[derive(Debug)]
     struct Args {
-        #[arg(long)]
         fail: bool,
     }
 
@@ -161,6 +150,11 @@ mod tests {
     impl Process for Probe {
         const NAME: &'static str = "t";
         type Args = Args;
+        fn parse(argv: Vec<OsString>) -> Args {
+            Args {
+                fail: argv.iter().any(|a| a == "--fail"),
+            }
+        }
         fn body(a: &Args) -> anyhow::Result<Done> {
             if a.fail {
                 Err(anyhow::anyhow!("asked to"))

@@ -60,8 +60,12 @@ pub enum SensorError {
 #[derive(Debug, Clone, clap::Parser)]
 #[command(name = "etp-sensor-node", version, about)]
 pub struct Args {
-    #[command(flatten)]
-    pub run: etp_runtime::shell::RunArgs,
+    /// Run id (services live under `etp/<run-id>/`).
+    #[arg(long)]
+    pub run_id: String,
+    /// Built-in scenario name or TOML path.
+    #[arg(long)]
+    pub scenario: String,
     /// Name of the sensor this process is.
     #[arg(long)]
     pub sensor: String,
@@ -83,8 +87,8 @@ pub enum Exit {
 
 /// Serve as sensor `args.sensor` until stopped.
 pub fn run(args: &Args) -> Result<(Exit, SensorStats), SensorError> {
-    let run = RunId::new(&args.run.run_id)?;
-    let scenario = etp_runtime::load_scenario(&args.run.scenario)?;
+    let run = RunId::new(&args.run_id)?;
+    let scenario = etp_runtime::load_scenario(&args.scenario)?;
     let index = scenario
         .sensors
         .iter()
@@ -105,6 +109,9 @@ pub struct SensorProcess;
 impl shell::Process for SensorProcess {
     const NAME: &'static str = "etp-sensor-node";
     type Args = Args;
+    fn parse(argv: Vec<std::ffi::OsString>) -> Self::Args {
+        clap::Parser::parse_from(argv)
+    }
     fn body(args: &Args) -> anyhow::Result<Done> {
         let _span = tracing::info_span!("sensor", name = %args.sensor).entered();
         let (exit, stats) = run(args).with_context(|| format!("sensor `{}`", args.sensor))?;

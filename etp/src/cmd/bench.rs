@@ -4,8 +4,8 @@
 //! synthesized MDPs and of a synthetic layered MDP of thousands of states.
 
 use crate::input::load_scenario_with_radio;
+use crate::scenario_flags::{RadioArgs, TriggerArgs};
 use anyhow::Result;
-use etp_runtime::scenario_options::{RadioArgs, TriggerArgs};
 use etp_synthesis::constant::simulate_constant;
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::optimal::{LpRequest, optimal_strategy};

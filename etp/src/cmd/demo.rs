@@ -4,6 +4,7 @@
 //! multi-process, packets per sensor, and where the plots and files are.
 
 use crate::input::load_scenario_with_radio;
+use crate::scenario_flags::RadioArgs;
 use anyhow::{Context, Result};
 use etp_launcher as multiprocess;
 use etp_pipeline::front::write_front;
@@ -11,7 +12,6 @@ use etp_pipeline::mdp_build::{MdpRequest, build_mdp};
 use etp_pipeline::output::write_new;
 use etp_pipeline::progress;
 use etp_runtime::scenario_arg::scenario_text;
-use etp_runtime::scenario_options::RadioArgs;
 use etp_shared::rng::mix64;
 use etp_shared::scenario::DEFAULT_SCENARIO;
 use etp_synthesis::mdp::MDP_FILE;

@@ -30,7 +30,7 @@ pub struct RadioTextArgs {
     /// A built-in scenario name or a TOML file without a `[radio]` of its own.
     pub scenario: String,
     #[command(flatten)]
-    pub radio: etp_runtime::scenario_options::RadioArgs,
+    pub radio: crate::scenario_flags::RadioArgs,
     /// Write the TOML here (refused if it exists, unless --force) instead of stdout.
     #[arg(short = 'o', long = "out")]
     pub out: Option<PathBuf>,

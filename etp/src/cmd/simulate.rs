@@ -2,9 +2,9 @@
 
 use crate::input::load_scenario_with_radio;
 use crate::report::{radio_table, summary_table};
+use crate::scenario_flags::{RadioArgs, TriggerArgs};
 use anyhow::Result;
 use etp_pipeline::progress;
-use etp_runtime::scenario_options::{RadioArgs, TriggerArgs};
 use etp_shared::trigger::TriggerFamily;
 use etp_synthesis::constant::{check_delta, simulate_constant};
 use etp_synthesis::report::sensor_names;

@@ -5,6 +5,7 @@
 //! the Pareto step and the aggregation check), given the typed request
 //! [`Args::request`] makes of the command line; [`run`] prints the report.
 
+use crate::scenario_flags::{RadioArgs, TriggerArgs};
 use anyhow::{Result, bail};
 use etp_pipeline::aggregation;
 use etp_pipeline::mdp_build::split;
@@ -13,7 +14,6 @@ use etp_pipeline::synthesize::{
     DEFAULT_AGGREGATION_ALPHA, DEFAULT_AGGREGATION_EPISODES, SynthesisRequest, scenario_under,
     synthesize,
 };
-use etp_runtime::scenario_options::{RadioArgs, TriggerArgs};
 use etp_shared::discretization::BinCounts;
 use etp_shared::scenario::Scenario;
 use etp_synthesis::abstraction::split::SplitSettings;
@@ -313,7 +313,7 @@ pub fn report_text(r: &MdpReport) -> String {
 /// The scenario of the command line: its text under `--trigger` (so that
 /// the content hash is the family's), then the radio options.
 fn load(a: &Args) -> Result<(Scenario, String)> {
-    let (s, text) = scenario_under(&a.scenario, &a.trigger)?;
+    let (s, text) = scenario_under(&a.scenario, a.trigger.trigger)?;
     Ok((a.radio.apply(s)?, text))
 }
 

@@ -6,10 +6,10 @@
 //! rate where it has one (`TriggerFamily::expected_rate`).
 
 use crate::input::load_scenario_with_radio;
+use crate::scenario_flags::{RadioArgs, parse_family};
 use anyhow::{Result, bail};
 use etp_figures::{FamilySeries, RatePoint};
 use etp_pipeline::progress;
-use etp_runtime::scenario_options::{RadioArgs, parse_family};
 use etp_shared::stats::Estimate;
 use etp_shared::trigger::TriggerFamily;
 use etp_synthesis::constant::simulate_constant;

@@ -50,10 +50,10 @@ pub struct Args {
     pub force: bool,
     /// Evaluate under this radio instead of the scenario's (a robustness study).
     #[command(flatten)]
-    pub radio: etp_runtime::scenario_options::RadioArgs,
+    pub radio: crate::scenario_flags::RadioArgs,
     /// The strategy's trigger family, confirmed (another family is refused).
     #[command(flatten)]
-    pub trigger: etp_runtime::scenario_options::TriggerArgs,
+    pub trigger: crate::scenario_flags::TriggerArgs,
 }
 
 use etp_runtime::strategy_arg::load_strategy;

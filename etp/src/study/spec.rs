@@ -4,9 +4,9 @@
 //! [`Spec`] whose jobs are numbered in the file's order; every error names
 //! the key.
 
+use crate::scenario_flags::parse_family;
 use anyhow::{Context, Result, bail};
 use etp_runtime::scenario_arg::scenario_text_in;
-use etp_runtime::scenario_options::parse_family;
 use etp_shared::scenario::random::{AgentKind, random_scenario};
 use etp_shared::scenario::{Scenario, ScenarioText};
 use etp_shared::trigger::TriggerFamily;

@@ -4,7 +4,7 @@
 //! reason, so a user can fix the file without reading code.
 
 use super::fields::{matrix, positive, spd, vector};
-use super::raw::{RawBox, RawRadio, RawScenario, RawSensor};
+use super::raw::{RawBox, RawController, RawObstacle, RawRadio, RawScenario, RawSensor};
 use super::{ControllerParams, Leg, MAX_DIM, Obstacle, Plant, Scenario, ScenarioError, Sensor};
 use super::{workable, workspace_gain};
 use crate::geometry::Aabb;
@@ -79,7 +79,62 @@ pub(crate) fn validate(mut raw: RawScenario) -> Result<Scenario> {
         None => plant.x0.clone(),
     };
 
-    let c = &raw.controller;
+    let controller = controller(&raw.controller)?;
+
+    let (sensors, by_name) = sensors(&raw.sensors, n, &point)?;
+
+    let obstacles = obstacles(&raw.obstacles, &point)?;
+
+    if let Some((j, o)) = obstacle_at(&obstacles, &route_start) {
+        return Err(ScenarioError::invalid(
+            "model.x0",
+            format!("the start lies inside obstacle[{j}] \"{}\"", o.name),
+        ));
+    }
+
+    let legs = legs(&raw, &by_name, &point, &obstacles)?;
+
+    let target = aabb("target", &raw.target, &point)?;
+
+    let deltas = deltas(&raw.triggering.deltas)?;
+
+    let radio = radio(raw.radio.as_ref(), &raw.sensors)?;
+
+    let mut warnings = workable::check(
+        &plant,
+        workspace.as_ref(),
+        &controller,
+        &sensors,
+        &legs,
+        &route_start,
+    )?;
+    if let Some(c) = &workspace {
+        warnings.extend(workspace_gain::rest_point_warnings(c, &plant.f, &legs));
+    }
+
+    Ok(Scenario {
+        name: raw.name,
+        description: raw.description,
+        dim: n,
+        plant,
+        controller,
+        sensors,
+        legs,
+        target,
+        obstacles,
+        deltas,
+        content_hash,
+        workspace,
+        gain,
+        route_start,
+        warnings,
+        radio,
+        trigger,
+    })
+}
+
+/// `[controller]`: u_max and eps_x positive, k_max a whole number of steps.
+fn controller(c: &RawController) -> Result<ControllerParams> {
     positive("controller.u_max", c.u_max)?;
     positive("controller.eps_x", c.eps_x)?;
     if c.k_max < 1 || c.k_max > i64::from(u32::MAX) {
@@ -88,21 +143,29 @@ pub(crate) fn validate(mut raw: RawScenario) -> Result<Scenario> {
             format!("must be a whole number of steps >= 1, got {}", c.k_max),
         ));
     }
-    let controller = ControllerParams {
+    Ok(ControllerParams {
         u_max: c.u_max,
         eps_x: c.eps_x,
         k_max: c.k_max as u32,
-    };
+    })
+}
 
-    if raw.sensors.is_empty() {
+/// The `[[sensor]]`s: named once each, m ≤ n rows of H, R positive
+/// definite, cost ≥ 0; and the index of each name.
+fn sensors(
+    raw: &[RawSensor],
+    n: usize,
+    point: &WorkspacePoint<'_>,
+) -> Result<(Vec<Sensor>, HashMap<String, usize>)> {
+    if raw.is_empty() {
         return Err(ScenarioError::invalid(
             "sensor",
             "no sensors: at least one [[sensor]] is needed",
         ));
     }
-    let mut sensors = Vec::with_capacity(raw.sensors.len());
+    let mut sensors = Vec::with_capacity(raw.len());
     let mut by_name = HashMap::new();
-    for (i, s) in raw.sensors.iter().enumerate() {
+    for (i, s) in raw.iter().enumerate() {
         let at = format!("sensor[{i}] \"{}\"", s.name);
         if s.name.trim().is_empty() {
             return Err(ScenarioError::invalid(
@@ -140,10 +203,12 @@ pub(crate) fn validate(mut raw: RawScenario) -> Result<Scenario> {
             cost,
         });
     }
+    Ok((sensors, by_name))
+}
 
-    let obstacles = raw
-        .obstacles
-        .iter()
+/// The `[[obstacle]]`s, each a box of workspace points.
+fn obstacles(raw: &[RawObstacle], point: &WorkspacePoint<'_>) -> Result<Vec<Obstacle>> {
+    raw.iter()
         .enumerate()
         .map(|(i, o)| {
             let name = o.name.clone().unwrap_or_else(|| format!("obstacle{i}"));
@@ -154,25 +219,21 @@ pub(crate) fn validate(mut raw: RawScenario) -> Result<Scenario> {
                     min: o.min.clone(),
                     max: o.max.clone(),
                 },
-                &point,
+                point,
             )?;
             Ok(Obstacle { name, bounds })
         })
-        .collect::<Result<Vec<_>>>()?;
+        .collect::<Result<Vec<_>>>()
+}
 
-    let inside = |p: &DVector<f64>| {
-        obstacles
-            .iter()
-            .enumerate()
-            .find(|(_, o)| o.bounds.contains(p.as_slice()))
-    };
-    if let Some((j, o)) = inside(&route_start) {
-        return Err(ScenarioError::invalid(
-            "model.x0",
-            format!("the start lies inside obstacle[{j}] \"{}\"", o.name),
-        ));
-    }
-
+/// The `[[leg]]`s: a non-empty route of waypoints outside every obstacle,
+/// each served by a known sensor.
+fn legs(
+    raw: &RawScenario,
+    by_name: &HashMap<String, usize>,
+    point: &WorkspacePoint<'_>,
+    obstacles: &[Obstacle],
+) -> Result<Vec<Leg>> {
     if raw.legs.is_empty() {
         return Err(ScenarioError::invalid(
             "leg",
@@ -196,7 +257,7 @@ pub(crate) fn validate(mut raw: RawScenario) -> Result<Scenario> {
                 ),
             )
         })?;
-        if let Some((j, o)) = inside(&to) {
+        if let Some((j, o)) = obstacle_at(obstacles, &to) {
             return Err(ScenarioError::invalid(
                 format!("leg[{i}].to"),
                 format!("the waypoint lies inside obstacle[{j}] \"{}\"", o.name),
@@ -204,13 +265,23 @@ pub(crate) fn validate(mut raw: RawScenario) -> Result<Scenario> {
         }
         legs.push(Leg { to, sensor });
     }
+    Ok(legs)
+}
 
-    let target = aabb("target", &raw.target, &point)?;
+/// The first obstacle holding the workspace point `p`, with its index.
+fn obstacle_at<'a>(obstacles: &'a [Obstacle], p: &DVector<f64>) -> Option<(usize, &'a Obstacle)> {
+    obstacles
+        .iter()
+        .enumerate()
+        .find(|(_, o)| o.bounds.contains(p.as_slice()))
+}
 
+/// `[triggering] deltas`: finite, ≥ 0, each once.
+fn deltas(raw: &[f64]) -> Result<Vec<f64>> {
     // `+ 0.0` turns a −0 into +0 and leaves every other value's bits: a
     // threshold or cost of −0 would otherwise reach the wire as −0, which
     // the recording's protobuf (proto3 drops zero scalars) cannot keep.
-    let deltas: Vec<f64> = raw.triggering.deltas.iter().map(|d| d + 0.0).collect();
+    let deltas: Vec<f64> = raw.iter().map(|d| d + 0.0).collect();
     if deltas.is_empty() {
         return Err(ScenarioError::invalid(
             "triggering.deltas",
@@ -231,40 +302,7 @@ pub(crate) fn validate(mut raw: RawScenario) -> Result<Scenario> {
             ));
         }
     }
-
-    let radio = radio(raw.radio.as_ref(), &raw.sensors)?;
-
-    let mut warnings = workable::check(
-        &plant,
-        workspace.as_ref(),
-        &controller,
-        &sensors,
-        &legs,
-        &route_start,
-    )?;
-    if let Some(c) = &workspace {
-        warnings.extend(workspace_gain::rest_point_warnings(c, &plant.f, &legs));
-    }
-
-    Ok(Scenario {
-        name: raw.name,
-        description: raw.description,
-        dim: n,
-        plant,
-        controller,
-        sensors,
-        legs,
-        target,
-        obstacles,
-        deltas,
-        content_hash,
-        workspace,
-        gain,
-        route_start,
-        warnings,
-        radio,
-        trigger,
-    })
+    Ok(deltas)
 }
 
 /// `[radio]` and the per-sensor `loss`/`retries`/`burst`, resolved to one

@@ -17,6 +17,7 @@
 //! goes through `emit`: a closed stdout never panics.
 
 use anyhow::{Context, Result, bail};
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use etp_recording_tools::{
     cat, check_output, export, figure, foxglove, info, load_bytes, publish, refuse_foreign, repair,
     select, summary,
@@ -148,7 +149,8 @@ pub enum Action {
         /// replaced only with --force).
         dir: PathBuf,
         /// The tables' format: `csv` or `jsonl` (one JSON object per line).
-        #[arg(long, value_enum, default_value = "csv")]
+        #[arg(long, default_value = "csv",
+              value_parser = PossibleValuesParser::new(export::Format::NAMES).try_map(|s| s.parse::<export::Format>()))]
         format: export::Format,
         #[command(flatten)]
         write: WriteArgs,
@@ -215,7 +217,8 @@ pub enum Action {
         /// The Foxglove copy (MCAP, JSON messages); its folder must exist.
         out: PathBuf,
         /// `step` (10 ms per plant step) or `recorded` (recorder time stamps).
-        #[arg(long, value_enum, default_value = "step")]
+        #[arg(long, default_value = "step",
+              value_parser = PossibleValuesParser::new(foxglove::Clock::NAMES).try_map(|s| s.parse::<foxglove::Clock>()))]
         clock: foxglove::Clock,
         /// Only these episodes (`A..B`, `A..=B`, `A..`, `..B` or `N`).
         #[arg(long, value_parser = select::parse_episodes, value_name = "RANGE")]

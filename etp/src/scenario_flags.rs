@@ -1,11 +1,13 @@
-//! The options that change a `SCENARIO` argument, for every command that
+//! The flags that change a `SCENARIO` argument, for every command that
 //! takes one (`etp simulate`, `synthesize`, `validate`, `run`, `bench`):
 //! the radio (`--loss`, `--retries`, `--burst`, `--estimator`,
-//! docs/MODEL.md §8) and the trigger family (`--trigger`, §9).
+//! docs/MODEL.md §8) and the trigger family (`--trigger`, §9). Parsed here
+//! and handed to the libraries as typed values (a [`RadioOverride`], an
+//! `Option<TriggerFamily>`).
 
 use anyhow::{Context, Result, bail};
 use etp_shared::radio::{Estimator, RadioOverride};
-use etp_shared::scenario::{Scenario, ScenarioText};
+use etp_shared::scenario::Scenario;
 use etp_shared::trigger::TriggerFamily;
 
 /// The radio options of `simulate`, `synthesize`, `validate` and `run`
@@ -65,16 +67,6 @@ pub fn parse_family(s: &str) -> std::result::Result<TriggerFamily, String> {
 }
 
 impl TriggerArgs {
-    /// The scenario `text` with the family written into it (the text itself
-    /// without the option or when it already says so).
-    pub fn apply_to_text(&self, text: String) -> Result<String> {
-        let Some(family) = self.trigger else {
-            return Ok(text);
-        };
-        let own = ScenarioText::parse(text).context("scenario")?;
-        Ok(own.with_trigger(family).context("--trigger")?.text)
-    }
-
     /// A strategy's family, confirmed: a strategy is made for its scenario's
     /// family (its thresholds and predictions mean nothing under another), so
     /// `--trigger` naming another is refused by name.
