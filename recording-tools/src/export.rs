@@ -39,7 +39,7 @@ impl std::str::FromStr for Format {
 }
 
 impl Format {
-    /// Every format's name, as [`Format::from_str`] reads it.
+    /// Every format's name, as its `FromStr` reads it.
     pub const NAMES: [&'static str; 2] = ["csv", "jsonl"];
 
     fn ext(self) -> &'static str {

@@ -86,7 +86,7 @@ pub enum Clock {
 }
 
 impl Clock {
-    /// Every clock's name, as [`Clock::from_str`] reads it.
+    /// Every clock's name, as its `FromStr` reads it.
     pub const NAMES: [&'static str; 2] = ["step", "recorded"];
 }
 
