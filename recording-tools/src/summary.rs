@@ -250,44 +250,38 @@ pub fn summarize(c: &Contents) -> Result<Value> {
 pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
     let facts = RunFacts::read(c);
     let ledgers_recorded = c.channels.contains_key("ledger");
-    let Totals {
-        mut sensors,
-        counts,
-        steps,
-        received,
-        degraded,
-        episodes,
-        energies,
-        partial,
-        partial_messages,
-        partial_measurements,
-    } = tally_episodes(t.eps, ledgers_recorded, &facts);
+    let mut totals = tally_episodes(t.eps, ledgers_recorded, &facts);
     let RunFacts { names, per_ep, .. } = facts;
     // Every sensor of the scenario, those that never sent anything included.
     for i in 0..names.len().max(per_ep.len()) {
-        sensor_entry(&mut sensors, &names, i as u32);
+        sensor_entry(&mut totals.sensors, &names, i as u32);
     }
-    for (i, s) in &mut sensors {
+    for (i, s) in &mut totals.sensors {
         s.predicted_energy = per_ep
             .get(*i as usize)
-            .map(|e| crate::vocab::round_energy(e * episodes as f64));
+            .map(|e| crate::vocab::round_energy(e * totals.episodes as f64));
         s.energy = crate::vocab::round_energy(s.energy);
     }
     let has = |t: &str| c.channels.contains_key(t);
-    let failures = identity_failures(&sensors, degraded, &has);
-    let measurements: u64 = sensors.values().map(|s| s.measurements).sum();
-    let ledgers: u64 = sensors.values().map(|s| s.transmissions).sum();
-    let delivered: u64 = sensors.values().map(|s| s.delivered).sum();
-    let lost: u64 = sensors.values().map(|s| s.lost).sum();
+    let failures = identity_failures(&totals.sensors, totals.degraded, &has);
+    let measurements: u64 = totals.sensors.values().map(|s| s.measurements).sum();
+    let ledgers: u64 = totals.sensors.values().map(|s| s.transmissions).sum();
+    let delivered: u64 = totals.sensors.values().map(|s| s.delivered).sum();
+    let lost: u64 = totals.sensors.values().map(|s| s.lost).sum();
     // What the recording lets us measure (`etp_shared::stats`, the same
     // function as `etp run`'s report: the same numbers on the same episodes).
     let missing = missing_channels(c);
     let outcome_recorded = has("outcome");
-    let proportion = |k: u64| outcome_recorded.then_some(Measured::Proportion { k, n: episodes });
+    let proportion = |k: u64| {
+        outcome_recorded.then_some(Measured::Proportion {
+            k,
+            n: totals.episodes,
+        })
+    };
     let measured = Outcomes {
-        p_target: proportion(counts.target),
-        p_collision: proportion(counts.collision),
-        energy: (outcome_recorded && ledgers_recorded).then(|| Measured::mean_of(&energies)),
+        p_target: proportion(totals.counts.target),
+        p_collision: proportion(totals.counts.collision),
+        energy: (outcome_recorded && ledgers_recorded).then(|| Measured::mean_of(&totals.energies)),
     };
     let mut unmeasured = Vec::new();
     if !outcome_recorded {
@@ -300,12 +294,12 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
             "the recording has no `ledger` channel".to_string(),
         ));
     }
-    let energy: f64 = sensors.values().map(|s| s.energy).sum();
+    let energy: f64 = totals.sensors.values().map(|s| s.energy).sum();
     let predicted_energy: Option<f64> = if per_ep.is_empty() {
         None
     } else {
         Some(crate::vocab::round_energy(
-            per_ep.iter().sum::<f64>() * episodes as f64,
+            per_ep.iter().sum::<f64>() * totals.episodes as f64,
         ))
     };
     let num = |k: &str| {
@@ -341,23 +335,23 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
         "truncated": c.truncated,
         "messages": t.messages,
         "counts": t.counts,
-        "episodes": episodes,
-        "degraded_episodes": degraded,
+        "episodes": totals.episodes,
+        "degraded_episodes": totals.degraded,
         "partial": {
-            "episodes": partial,
-            "messages": partial_messages,
-            "measurements": partial_measurements,
+            "episodes": totals.partial,
+            "messages": totals.partial_messages,
+            "measurements": totals.partial_measurements,
         },
-        "target": counts.target, "collision": counts.collision, "free": counts.free,
-        "steps": steps,
+        "target": totals.counts.target, "collision": totals.counts.collision, "free": totals.counts.free,
+        "steps": totals.steps,
         "measurements": measurements,
         "transmissions": ledgers,
         "delivered": delivered,
         "lost": lost,
-        "received": received,
+        "received": totals.received,
         "energy": crate::vocab::round_energy(energy),
         "predicted_energy": predicted_energy,
-        "sensors": sensors.values().collect::<Vec<_>>(),
+        "sensors": totals.sensors.values().collect::<Vec<_>>(),
         "identities_hold": failures.is_empty(),
         "identity_failures": failures,
         "missing_channels": missing,
@@ -365,7 +359,7 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
     if let Some(m) = v.as_object_mut() {
         m.extend(crate::vocab::outcome_fields(
             &measured,
-            proportion(counts.free),
+            proportion(totals.counts.free),
         ));
     }
     null_what_is_missing(&mut v, &has);
