@@ -45,6 +45,7 @@ pub use map::map_plot;
 pub use report::{Bar, RunFigure, report_plot, short_label};
 pub use trigger_curves::{FamilySeries, RatePoint, trigger_curves_plot};
 
+use etp_files::write::{WriteError, write_via_temp};
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::{CoordTranslate, Shift};
 use plotters::prelude::*;
@@ -168,7 +169,7 @@ where
 
 /// THE way every figure is written: `stem.png` and `stem.svg`, `size` pixels,
 /// each drawn into a temporary sibling and renamed into place
-/// (`etp_recording_tools::files::write_via_temp`: its folder checked, no
+/// (`etp_files::write::write_via_temp`: its folder checked, no
 /// planted link followed).
 pub(crate) fn png_and_svg(fig: &impl Figure, stem: &Path, size: (u32, u32)) -> Result<()> {
     register_font();
@@ -192,19 +193,27 @@ pub(crate) fn png_and_svg(fig: &impl Figure, stem: &Path, size: (u32, u32)) -> R
     })
 }
 
-/// One file of a figure through the workspace's one file writer, whose
-/// errors are `anyhow`'s: the drawing's own [`FigureError`] comes back as it
-/// was, a refusal of the file rule (its folder, a planted link, the rename)
-/// as [`FigureError::Write`].
+/// One file of a figure through the workspace's one file writer: the
+/// drawing's own [`FigureError`] comes back as it was, a refusal of the
+/// file rule (its folder, a planted link, the rename) as
+/// [`FigureError::Write`].
 fn write_figure(path: &Path, draw: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    etp_recording_tools::files::write_via_temp(path, |tmp| Ok(draw(tmp)?)).map_err(|e| {
-        match e.downcast::<FigureError>() {
-            Ok(f) => f,
-            Err(e) => FigureError::Write {
-                path: path.to_path_buf(),
-                source: e.into(),
-            },
+    /// What the writer's closure can fail with: the drawing or the file.
+    enum Failed {
+        Drawing(FigureError),
+        File(WriteError),
+    }
+    impl From<WriteError> for Failed {
+        fn from(e: WriteError) -> Self {
+            Failed::File(e)
         }
+    }
+    write_via_temp(path, |tmp| draw(tmp).map_err(Failed::Drawing)).map_err(|e| match e {
+        Failed::Drawing(f) => f,
+        Failed::File(e) => FigureError::Write {
+            path: path.to_path_buf(),
+            source: Box::new(e),
+        },
     })
 }
 

@@ -140,7 +140,7 @@ pub fn execute_run(a: &RunRequest) -> Result<(prepare::Plan, supervise::Supervis
         RecordTo::File(p) => {
             // A folder the user named must exist (`--record-default`'s
             // `recordings/` is made when missing).
-            etp_recording_tools::files::existing_folder_of(p, "--record")?;
+            etp_files::write::existing_folder_of(p, "--record")?;
             Some(record::Target::claim(p, a.force, run_id.as_str())?)
         }
         RecordTo::DefaultFile | RecordTo::Nothing => None,

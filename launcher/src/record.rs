@@ -103,7 +103,7 @@ impl Target {
                 path.join("run.mcap").display()
             );
         }
-        etp_recording_tools::files::refuse_existing(path, force)?;
+        etp_files::write::refuse_existing(path, force)?;
         let before = file_id(path).with_context(|| format!("--record {}", path.display()))?;
         let name = path
             .file_name()

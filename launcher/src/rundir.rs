@@ -1,5 +1,5 @@
 //! The run's folder (`<private>/run/<run-id>/` in the user's private folder
-//! of `etp_runtime::folders`: the scenario, strategy and recording metadata
+//! of `etp_files::folders`: the scenario, strategy and recording metadata
 //! its processes read), owned by exactly one live `etp run`.
 //!
 //! The owner holds an exclusive lock on `<folder>/owner.lock` for the whole
@@ -40,7 +40,7 @@ fn guard() -> Result<File> {
 /// Where every run of this user keeps its folder (created 0700 and checked:
 /// a planted link or a foreign folder is refused, never followed).
 pub fn base() -> Result<PathBuf> {
-    Ok(etp_runtime::folders::private("run")?)
+    Ok(etp_files::folders::private("run")?)
 }
 
 /// A claimed run folder; removed on [`RunDir::remove`] (or by the next start

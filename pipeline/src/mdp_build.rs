@@ -127,7 +127,7 @@ pub fn build_mdp(r: MdpRequest) -> Result<BuiltMdp> {
     } = r;
     let dir = out.unwrap_or_else(|| Path::new("out").join(&s.name));
     let path = dir.join(MDP_FILE);
-    crate::output::output_folder(&dir)?;
+    etp_files::write::output_folder(&dir)?;
     crate::output::refuse_existing(&path, force)?;
     if let Some(alpha) = merge
         && !(alpha > 0.0 && alpha < 1.0)

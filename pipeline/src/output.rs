@@ -5,25 +5,23 @@ use etp_synthesis::mdp::{MDP_FILE, Mdp};
 use etp_synthesis::pareto::{ParetoFront, compute_front};
 use std::path::Path;
 
-pub use etp_recording_tools::files::output_folder;
-
-/// `refuse_existing` of `etp_recording_tools::files` on rank 0 only: in an
+/// [`etp_files::write::refuse_existing`] on rank 0 only: in an
 /// MPI job rank 0 may already have written the file another rank checks.
 pub fn refuse_existing(path: &Path, force: bool) -> Result<()> {
     if !crate::exec::is_root() {
         return Ok(());
     }
-    etp_recording_tools::files::refuse_existing(path, force)
+    Ok(etp_files::write::refuse_existing(path, force)?)
 }
 
-/// `write_new` of `etp_recording_tools::files` (beside, then renamed) on
+/// [`etp_files::write::write_new`] (beside, then renamed) on
 /// rank 0 only: in an MPI job the other ranks hold the same bytes and write
 /// nothing.
 pub fn write_new(path: &Path, bytes: &[u8], force: bool) -> Result<()> {
     if !crate::exec::is_root() {
         return Ok(());
     }
-    etp_recording_tools::files::write_new(path, bytes, force)
+    Ok(etp_files::write::write_new(path, bytes, force)?)
 }
 
 /// `DIR/mdp.bin` and, if present, the scenario text `DIR/scenario.toml`.

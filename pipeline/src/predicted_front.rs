@@ -3,10 +3,11 @@
 //! reaches, under each P_coll bound asked; stored in `DIR/front.json`
 //! (`predicted`) and drawn as the main curve of `DIR/front.png`.
 
-use crate::output::{output_folder, write_new};
+use crate::output::write_new;
 use crate::selection::{DEFAULT_LEVEL, RequestSettings, goal_label, standing_strategy};
 use crate::synthesis_dir::Synthesis;
 use anyhow::{Context, Result};
+use etp_files::write::output_folder;
 use etp_shared::strategy::{CertifiedPrediction, Strategy};
 use etp_synthesis::abstraction;
 use etp_synthesis::pareto::{PredictedFront, PredictedPoint};

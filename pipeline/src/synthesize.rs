@@ -8,8 +8,9 @@
 use crate::aggregation;
 use crate::front::{FrontReport, write_front};
 use crate::mdp_build::{BuiltMdp, MdpRequest, build_mdp};
-use crate::output::{output_folder, refuse_existing, write_new};
+use crate::output::{refuse_existing, write_new};
 use anyhow::{Context, Result, bail};
+use etp_files::write::output_folder;
 use etp_runtime::scenario_arg::scenario_text;
 use etp_shared::scenario::{Scenario, ScenarioText};
 use etp_shared::trigger::TriggerFamily;

@@ -256,15 +256,15 @@ fn export_with(
         .map(|t| (t.as_str(), dir.join(table_file(t, format))))
         .collect();
     let manifest = dir.join("tables.json");
-    crate::files::output_folder(dir)?;
+    etp_files::write::output_folder(dir)?;
     for p in files.values().chain([&manifest]) {
-        crate::files::refuse_existing(p, force)?;
+        etp_files::write::refuse_existing(p, force)?;
     }
     let mut writers: BTreeMap<&str, (std::io::BufWriter<std::fs::File>, PathBuf, u64)> =
         BTreeMap::new();
     for (topic, path) in &files {
-        let tmp = crate::files::temp_sibling(path);
-        let f = crate::files::create_exclusive(&tmp)?;
+        let tmp = etp_files::write::temp_sibling(path);
+        let f = etp_files::write::create_exclusive(&tmp)?;
         let mut w = std::io::BufWriter::new(f);
         if let Some(h) = header_line(&tables[*topic].columns, format) {
             writeln!(w, "{h}").with_context(|| format!("writing {}", tmp.display()))?;
@@ -321,7 +321,7 @@ fn export_with(
         "codes": codes(),
         "tables": described,
     }))?;
-    crate::files::write_new(&manifest, format!("{text}\n").as_bytes(), force)?;
+    etp_files::write::write_new(&manifest, format!("{text}\n").as_bytes(), force)?;
     Ok(Exported {
         dir: dir.display().to_string(),
         format: format.ext(),

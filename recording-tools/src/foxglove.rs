@@ -387,7 +387,7 @@ pub fn write_foxglove(c: &Contents, out: &Path, clock: Clock) -> Result<Foxglove
             c.messages.iter().map(|m| m.log_time).min().unwrap_or(0),
         );
     }
-    let mut stats = crate::files::write_via_temp(out, |tmp| {
+    let mut stats = etp_files::write::write_via_temp(out, |tmp| {
         write_file(c, tmp, scenario.as_ref(), &names, &eps, clock)
     })?;
     stats.bytes = std::fs::metadata(out)

@@ -15,12 +15,10 @@
 //! * [`figure`] — measured against predicted, the data of the report figure
 //!   (drawn by `etp`'s plotters code).
 //! * [`vocab`] — THE JSON vocabulary shared by every command's `--json`.
-//! * [`files`] — the overwrite rule: `--force` or refuse; write beside, rename.
 
 pub mod cat;
 pub mod export;
 pub mod figure;
-pub mod files;
 pub mod foxglove;
 pub mod info;
 pub mod publish;
@@ -124,6 +122,6 @@ pub fn check_output(input: &Path, out: &Path, force: bool) -> Result<()> {
             out.display()
         );
     }
-    files::existing_folder_of(out, "output")?;
-    files::refuse_existing(out, force)
+    etp_files::write::existing_folder_of(out, "output")?;
+    Ok(etp_files::write::refuse_existing(out, force)?)
 }

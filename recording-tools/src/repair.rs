@@ -9,12 +9,12 @@ use std::collections::BTreeMap;
 
 /// Write a finished copy of a (possibly unfinished) recording.
 pub fn repair(c: &Contents, out: &std::path::Path) -> Result<u64> {
-    crate::files::write_via_temp(out, |tmp| write_copy(c, tmp, "--repair"))
+    etp_files::write::write_via_temp(out, |tmp| write_copy(c, tmp, "--repair"))
 }
 
 /// Write the (selected) messages of `c` to a new finished recording.
 pub fn filter(c: &Contents, out: &std::path::Path) -> Result<u64> {
-    crate::files::write_via_temp(out, |tmp| write_copy(c, tmp, "filter"))
+    etp_files::write::write_via_temp(out, |tmp| write_copy(c, tmp, "filter"))
 }
 
 fn write_copy(c: &Contents, tmp: &std::path::Path, what: &str) -> Result<u64> {

@@ -50,12 +50,12 @@ pub fn young(path: &std::path::Path) -> bool {
 }
 
 /// Clean every stale run in the user's iceoryx2 folder ([`ROOT_FOLDER`] of
-/// `crate::folders`; nothing if it is not private) — runs with no live
+/// `etp_files::folders`; nothing if it is not private) — runs with no live
 /// node whose folder is older than [`YOUNG`]; returns the ids removed. Runs
 /// with a live node are left alone.
 pub fn remove_stale_runs() -> Vec<String> {
     let mut removed = Vec::new();
-    let Ok(base) = crate::folders::private(ROOT_FOLDER) else {
+    let Ok(base) = etp_files::folders::private(ROOT_FOLDER) else {
         return removed;
     };
     let Ok(dir) = std::fs::read_dir(base) else {
@@ -84,7 +84,7 @@ mod tests {
     #[test]
     fn a_starting_run_is_not_swept_and_an_old_dead_one_is() {
         let run = RunId::generate();
-        let Ok(base) = crate::folders::private(ROOT_FOLDER) else {
+        let Ok(base) = etp_files::folders::private(ROOT_FOLDER) else {
             panic!("the user's iceoryx2 folder is not private");
         };
         let dir = run.root_dir();

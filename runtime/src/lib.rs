@@ -24,9 +24,8 @@
 //! * [`scenario_arg`] — a `SCENARIO` argument (built-in name or TOML path);
 //!   [`strategy_arg`] — a `STRATEGY` argument (sealed file and its scenario).
 //! * [`report`] — the coordinator's run report and a run's session info;
-//!   [`cleanup`] — removing what a run left in /dev/shm and its folder;
-//!   [`folders`] — the user's private folders (iceoryx2 roots, run folders),
-//!   created 0700 and checked without following links.
+//!   [`cleanup`] — removing what a run left in /dev/shm and its folder (in
+//!   the user's private folders of `etp_files::folders`).
 //! * [`link_keys`] — the key folder of an authenticated link (`--tls DIR`):
 //!   file names and the checks made before Zenoh reads it.
 //! * [`recording`] — the versioned MCAP recording: a sans-io reader
@@ -35,7 +34,6 @@
 //!   which runs the same episode stepper as simulation and the agent.
 
 pub mod cleanup;
-pub mod folders;
 pub mod link_keys;
 pub mod live;
 pub mod progress;

@@ -102,7 +102,7 @@ fn checked_file(path: &Path) -> Result<std::fs::Metadata, KeyFolderError> {
     if !m.file_type().is_file() {
         return Err(KeyFolderError::NotAFile(path.into()));
     }
-    let me = crate::folders::euid();
+    let me = etp_files::folders::euid();
     if m.uid() != me {
         return Err(KeyFolderError::Foreign(path.into(), m.uid(), me));
     }
@@ -269,7 +269,7 @@ mod tests {
         ));
         std::fs::set_permissions(&ca, std::fs::Permissions::from_mode(0o644)).expect("chmod");
         identity(&dir, "h1").expect("usable again");
-        if crate::folders::euid() == 0 {
+        if etp_files::folders::euid() == 0 {
             // As root (CI), a CA of user nobody's is refused.
             std::os::unix::fs::chown(&ca, Some(65534), None).expect("chown");
             assert!(matches!(

@@ -243,9 +243,9 @@ impl Drop for CpuHog {
     }
 }
 
-/// The run's folder (`<private>/run/<run-id>`, `etp_runtime::folders`).
+/// The run's folder (`<private>/run/<run-id>`, `etp_files::folders`).
 pub fn run_folder(run_id: &str) -> PathBuf {
-    etp_runtime::folders::base().join("run").join(run_id)
+    etp_files::folders::base().join("run").join(run_id)
 }
 
 /// No iceoryx2 file of the run is left in /dev/shm, nor its root folder.

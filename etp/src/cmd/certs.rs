@@ -100,8 +100,8 @@ fn init(a: InitArgs) -> Result<()> {
     if a.days == 0 || a.days > 3650 {
         bail!("--days must be between 1 and 3650, got {}", a.days);
     }
-    let me = etp_runtime::folders::euid();
-    etp_runtime::folders::check_ancestors(&a.dir, me)?;
+    let me = etp_files::folders::euid();
+    etp_files::folders::check_ancestors(&a.dir, me)?;
     if let Ok(m) = std::fs::symlink_metadata(&a.dir) {
         if !a.force {
             bail!(

@@ -85,7 +85,7 @@ pub fn run(a: Args) -> Result<()> {
             mix64(stamp) & 0xffff_ffff
         ))
     });
-    etp_pipeline::output::output_folder(&dir)?;
+    etp_files::write::output_folder(&dir)?;
     if dir.join(MDP_FILE).exists() {
         anyhow::bail!(
             "{} already holds a synthesis; choose another --out",

@@ -117,7 +117,7 @@ pub fn run(a: Args) -> Result<()> {
         .iter()
         .map(|(name, text)| (a.outdir.join(name), text.as_str()))
         .collect();
-    etp_pipeline::output::output_folder(&a.outdir)?;
+    etp_files::write::output_folder(&a.outdir)?;
     // All refused before any is written: no half-updated set of files.
     for (p, _) in &targets {
         etp_pipeline::output::refuse_existing(p, a.force)?;

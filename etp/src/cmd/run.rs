@@ -28,7 +28,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     let a = args.request()?;
     let stem = args.plot.then(|| plot_stem(&a, args.plot_out.as_ref()));
     if let Some(stem) = &stem {
-        etp_recording_tools::files::existing_folder_of(stem, "-o")?;
+        etp_files::write::existing_folder_of(stem, "-o")?;
         for p in [stem.with_extension("png"), stem.with_extension("svg")] {
             etp_pipeline::output::refuse_existing(&p, a.force)?;
         }

@@ -46,7 +46,7 @@ pub fn run(a: Args) -> Result<()> {
         .build()
         .context("starting the tokio runtime")?;
     let domain = format!("h{}", std::process::id());
-    let dir = etp_runtime::folders::private("sensor-host")?.join(&domain);
+    let dir = etp_files::folders::private("sensor-host")?.join(&domain);
     let r = rt.block_on(serve(&a, &domain, &dir));
     let _ = std::fs::remove_dir_all(&dir);
     let (summary, ok) = r?;

@@ -73,10 +73,10 @@ pub fn run(a: Args) -> Result<()> {
     let started = Instant::now();
     let spec = Spec::load(&a.spec)?;
     let dir = study::folder(&spec, a.out.as_deref());
-    etp_pipeline::output::output_folder(&dir)?;
+    etp_files::write::output_folder(&dir)?;
     study::claim(&spec, &dir)?;
     let cases_dir = dir.join("cases");
-    etp_pipeline::output::output_folder(&cases_dir)?;
+    etp_files::write::output_folder(&cases_dir)?;
     let job = etp_pipeline::exec::job();
     let (rank, ranks) = (job.rank(), job.ranks());
     // Rank 0 says what is finished and what is left: the others follow its

@@ -77,7 +77,7 @@ pub fn run(a: Args) -> Result<()> {
     pb.finish_and_clear();
     crate::report::ensure_finite(&sum)?;
     if let Some(stem) = &a.out {
-        etp_recording_tools::files::existing_folder_of(stem, "-o")?;
+        etp_files::write::existing_folder_of(stem, "-o")?;
     }
     let plot_paths = if let (true, Some(stem)) = (a.plot, &a.out) {
         plot_map_to(

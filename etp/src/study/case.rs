@@ -244,7 +244,7 @@ pub fn run_job(
     done: &mut dyn FnMut(&Finished),
 ) -> Result<()> {
     let dir = cases_dir.join(&job.id);
-    etp_pipeline::output::output_folder(&dir)?;
+    etp_files::write::output_folder(&dir)?;
     let threads = rayon::current_num_threads();
     let rank = etp_pipeline::exec::job().rank();
     let fresh = || Timing {

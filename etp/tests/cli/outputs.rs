@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 const NOBODY: u32 = 65534;
 
 fn is_root() -> bool {
-    etp_runtime::folders::euid() == 0
+    etp_files::folders::euid() == 0
 }
 
 fn fixture() -> PathBuf {

@@ -52,7 +52,7 @@ fn restrict_global_mgmt(run: &RunId) -> Result<(), WireError> {
     let Ok(entries) = std::fs::read_dir(SHM_DIR) else {
         return Ok(());
     };
-    let me = crate::folders::euid();
+    let me = etp_files::folders::euid();
     for e in entries.filter_map(Result::ok) {
         let name = e.file_name();
         let name = name.to_string_lossy();

@@ -7,7 +7,7 @@ use iceoryx2::config::Config;
 use iceoryx2::prelude::*;
 use std::path::PathBuf;
 
-/// Folder of the user's private base (`crate::folders`) under which every
+/// Folder of the user's private base (`etp_files::folders`) under which every
 /// run keeps its iceoryx2 root (`<base>/iox2/<run-id>/`).
 pub const ROOT_FOLDER: &str = "iox2";
 
@@ -107,7 +107,7 @@ impl RunId {
     /// The run's iceoryx2 root folder, in the user's private folder
     /// ([`config`] creates and checks that folder).
     pub fn root_dir(&self) -> PathBuf {
-        crate::folders::base()
+        etp_files::folders::base()
             .join(ROOT_FOLDER)
             .join(self.local_name())
     }
@@ -124,7 +124,7 @@ impl std::fmt::Display for RunId {
 /// lies in the user's private folder, created and checked here (a planted
 /// link or a folder of another user is refused, never followed).
 pub fn config(run: &RunId) -> Result<Config, WireError> {
-    crate::folders::private(ROOT_FOLDER).map_err(|e| WireError::Config(e.to_string()))?;
+    etp_files::folders::private(ROOT_FOLDER).map_err(|e| WireError::Config(e.to_string()))?;
     let mut cfg = Config::default();
     cfg.global.prefix = FileName::new(run.shm_prefix().as_bytes())
         .map_err(|e| WireError::Config(format!("prefix: {e:?}")))?;

@@ -27,8 +27,8 @@ fn members() -> Vec<String> {
 
 /// The workspace members whose `Cargo.toml` names `clap` among its normal
 /// dependencies.
-fn members_declaring_clap() -> Vec<String> {
-    let mut with_clap = Vec::new();
+fn members_declaring(dependency: &str) -> Vec<String> {
+    let mut with = Vec::new();
     for m in members() {
         let manifest: toml::Table = toml::from_str(
             &std::fs::read_to_string(root().join(&m).join("Cargo.toml"))
@@ -38,13 +38,25 @@ fn members_declaring_clap() -> Vec<String> {
         let declares = manifest
             .get("dependencies")
             .and_then(|d| d.as_table())
-            .is_some_and(|d| d.contains_key("clap"));
+            .is_some_and(|d| d.contains_key(dependency));
         if declares {
-            with_clap.push(m);
+            with.push(m);
         }
     }
-    with_clap
+    with
 }
+
+/// The members whose binaries are command lines: `etp` and the process
+/// crates (a binary and the library `etp process` plays it from), the
+/// bridge's two hosts included.
+const COMMAND_LINES: [&str; 6] = [
+    "etp",
+    "agent",
+    "sensor-node",
+    "coordinator",
+    "recorder",
+    "bridge",
+];
 
 /// clap is the command line's, not the libraries' API (ARCHITECTURE.md): it
 /// is a dependency of `etp` and of the process crates only, each of which
@@ -52,17 +64,7 @@ fn members_declaring_clap() -> Vec<String> {
 /// the process). Every other member takes typed requests.
 #[test]
 fn clap_is_a_dependency_of_the_command_lines_only() {
-    // The process crates (a binary and the library `etp process` plays it
-    // from) hold their own command lines, the bridge's two hosts included.
-    const COMMAND_LINES: [&str; 6] = [
-        "etp",
-        "agent",
-        "sensor-node",
-        "coordinator",
-        "recorder",
-        "bridge",
-    ];
-    let with_clap = members_declaring_clap();
+    let with_clap = members_declaring("clap");
     for m in &with_clap {
         assert!(
             COMMAND_LINES.contains(&m.as_str()),
@@ -72,6 +74,7 @@ fn clap_is_a_dependency_of_the_command_lines_only() {
     }
     for library in [
         "shared",
+        "files",
         "synthesis",
         "runtime",
         "pipeline",
@@ -84,6 +87,40 @@ fn clap_is_a_dependency_of_the_command_lines_only() {
         assert!(
             !with_clap.iter().any(|c| c == library),
             "{library}: {with_clap:?}"
+        );
+    }
+}
+
+/// Libraries return `thiserror` enums, so a caller (Python among them)
+/// can tell one failure from another; `anyhow` is for the binaries'
+/// mains. The members below still return `anyhow` and are typed one by
+/// one; each must still declare it (a member typed leaves the list).
+#[test]
+fn anyhow_is_a_dependency_of_the_binaries_and_of_the_libraries_still_to_type() {
+    const STILL_TO_TYPE: [&str; 5] = [
+        "runtime",
+        "recording-tools",
+        "pipeline",
+        "launcher",
+        "python",
+    ];
+    let with_anyhow = members_declaring("anyhow");
+    for m in &with_anyhow {
+        assert!(
+            COMMAND_LINES.contains(&m.as_str()) || STILL_TO_TYPE.contains(&m.as_str()),
+            "the library crate {m} depends on anyhow: return a thiserror enum"
+        );
+    }
+    for m in STILL_TO_TYPE {
+        assert!(
+            with_anyhow.iter().any(|w| w == m),
+            "{m} no longer declares anyhow: take it off STILL_TO_TYPE"
+        );
+    }
+    for typed in ["shared", "files", "synthesis", "figures", "live"] {
+        assert!(
+            !with_anyhow.iter().any(|w| w == typed),
+            "{typed}: {with_anyhow:?}"
         );
     }
 }

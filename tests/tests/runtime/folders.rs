@@ -1,4 +1,4 @@
-//! Private run folders (`etp_runtime::folders`): what another local user
+//! Private run folders (`etp_files::folders`): what another local user
 //! plants is refused, never followed or removed, and two users' runs share
 //! no folder.
 
@@ -42,7 +42,7 @@ fn etp_run(run_id: &str, as_nobody: bool, env: &[(&str, &Path)]) -> Command {
         .args(args)
         .env("HOME", "/tmp")
         .env_remove("XDG_RUNTIME_DIR")
-        .env_remove(etp_runtime::folders::RUNTIME_DIR_ENV);
+        .env_remove(etp_files::folders::RUNTIME_DIR_ENV);
         c
     } else {
         let mut c = Command::new(&etp);
@@ -57,7 +57,7 @@ fn etp_run(run_id: &str, as_nobody: bool, env: &[(&str, &Path)]) -> Command {
 }
 
 fn is_root() -> bool {
-    etp_runtime::folders::euid() == 0
+    etp_files::folders::euid() == 0
 }
 
 fn scratch(tag: &str) -> PathBuf {
@@ -88,7 +88,7 @@ fn a_planted_link_or_an_open_folder_as_the_private_folder_is_refused_never_follo
     std::fs::set_permissions(&open, std::fs::Permissions::from_mode(0o777)).expect("chmod");
     for (base, why) in [(&link, "symbolic link"), (&open, "group or others")] {
         let id = unique_run_id("plant");
-        let out = etp_run(&id, false, &[(etp_runtime::folders::RUNTIME_DIR_ENV, base)])
+        let out = etp_run(&id, false, &[(etp_files::folders::RUNTIME_DIR_ENV, base)])
             .output()
             .expect("etp run");
         assert!(
@@ -169,7 +169,7 @@ fn another_users_plants_are_never_followed_and_two_users_run_side_by_side() {
     let out = etp_run(
         &unique_run_id("foreign"),
         false,
-        &[(etp_runtime::folders::RUNTIME_DIR_ENV, &foreign)],
+        &[(etp_files::folders::RUNTIME_DIR_ENV, &foreign)],
     )
     .output()
     .expect("etp run");
@@ -182,7 +182,7 @@ fn another_users_plants_are_never_followed_and_two_users_run_side_by_side() {
     // Both users at once, each in its own private folder.
     let root_run = etp_run(&unique_run_id("root"), false, &[])
         .env_remove("XDG_RUNTIME_DIR")
-        .env_remove(etp_runtime::folders::RUNTIME_DIR_ENV)
+        .env_remove(etp_files::folders::RUNTIME_DIR_ENV)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -288,8 +288,8 @@ fn no_file_of_a_run_is_open_to_other_users() {
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
     let mut root_files = Vec::new();
-    let base = etp_runtime::folders::base();
-    etp_runtime::folders::check(&base, etp_runtime::folders::euid()).expect("private base");
+    let base = etp_files::folders::base();
+    etp_files::folders::check(&base, etp_files::folders::euid()).expect("private base");
     let mut stack = vec![run.root_dir()];
     while let Some(d) = stack.pop() {
         for e in std::fs::read_dir(&d)

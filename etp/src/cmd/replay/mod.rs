@@ -381,7 +381,7 @@ fn run_job(a: Job) -> Result<()> {
         true => {
             let stem = match &a.plot_out {
                 Some(stem) => {
-                    etp_recording_tools::files::existing_folder_of(stem, "-o")?;
+                    etp_files::write::existing_folder_of(stem, "-o")?;
                     stem.clone()
                 }
                 None => file.with_extension("").with_file_name(format!(
