@@ -251,9 +251,11 @@ pub fn claim(spec: &Spec, dir: &Path) -> Result<()> {
             dir.display(),
             differences(&theirs, &mine)
         ),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            etp_pipeline::output::write_new(&path, mine.as_bytes(), false)
-        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(etp_pipeline::output::write_new(
+            &path,
+            mine.as_bytes(),
+            false,
+        )?),
         Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
     }
 }

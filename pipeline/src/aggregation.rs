@@ -19,7 +19,7 @@ pub fn measure(
     episodes: u64,
     alpha: f64,
     json: bool,
-) -> anyhow::Result<Option<(AggregationReport, f64)>> {
+) -> crate::error::Result<Option<(AggregationReport, f64)>> {
     if episodes == 0 {
         return Ok(None);
     }

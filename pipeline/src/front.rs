@@ -1,8 +1,8 @@
 //! The Pareto step of `etp synthesize`: front.json, the front plot, and the
 //! scenario text beside the MDP (so strategies made from DIR are self-contained).
 
+use crate::error::{Context, Result};
 use crate::output::write_new;
-use anyhow::{Context, Result};
 use etp_shared::radio::Radio;
 use etp_synthesis::certify::front::{FRONT_CONFIDENCE, certified_front};
 use etp_synthesis::mdp::{CostModel, Mdp};
@@ -31,15 +31,16 @@ pub fn write_front(
     force: bool,
 ) -> Result<FrontReport> {
     let start = Instant::now();
-    let mut front = compute_front(mdp, CostModel::Counted).context("computing the Pareto front")?;
+    let mut front =
+        compute_front(mdp, CostModel::Counted).computing("computing the Pareto front")?;
     front.radio = radio.cloned();
     let seconds = start.elapsed().as_secs_f64();
     front.certified = Some(
         certified_front(mdp, &front, CostModel::Counted, FRONT_CONFIDENCE)
-            .context("certifying the front")?,
+            .computing("certifying the front")?,
     );
     if let Some(m1) = method1 {
-        let f1 = compute_front(m1, CostModel::Counted).context("computing the Method 1 front")?;
+        let f1 = compute_front(m1, CostModel::Counted).computing("computing the Method 1 front")?;
         front.kf_convergence = Some(Box::new(f1));
     }
     let json_path = dir.join("front.json");

@@ -23,9 +23,11 @@
 //!
 //! The maths is in `etp-shared` and `etp-synthesis` (pure: no I/O, no
 //! clock); this crate adds files, progress and the executor. Errors are
-//! `anyhow` with context, the same text `etp` prints after `error:`.
+//! [`error::Error`], one variant per kind of failure; with its causes
+//! joined by `: ` its text is what `etp` prints after `error:`.
 
 pub mod aggregation;
+pub mod error;
 pub mod exec;
 pub mod front;
 pub mod mdp_build;

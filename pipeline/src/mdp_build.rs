@@ -7,9 +7,9 @@
 
 pub mod split;
 
+use crate::error::{Context, Error, Result};
 use crate::output::write_new;
 use crate::progress;
-use anyhow::{Context, Result, bail};
 use etp_shared::scenario::Scenario;
 use etp_synthesis::abstraction::split::SplitSettings;
 use etp_synthesis::abstraction::{self, AbstractionParams};
@@ -132,26 +132,26 @@ pub fn build_mdp(r: MdpRequest) -> Result<BuiltMdp> {
     if let Some(alpha) = merge
         && !(alpha > 0.0 && alpha < 1.0)
     {
-        bail!("--merge: the level α must lie in (0, 1) (got {alpha})");
+        return Err(Error::request(format!(
+            "--merge: the level α must lie in (0, 1) (got {alpha})"
+        )));
     }
     split::check(&split, p.method)?;
     let pool_policy = match &pool_policy {
         None => None,
         Some(path) => {
             if split.budget > 0 {
-                bail!(
-                    "--pool-policy and --split-budget: choose one (the policy's strategy carries its own splits)"
-                );
+                return Err(Error::request(
+                    "--pool-policy and --split-budget: choose one (the policy's strategy carries its own splits)",
+                ));
             }
             let (st, _) = etp_runtime::strategy_arg::load_strategy(path)
-                .with_context(|| format!("--pool-policy {}", path.display()))?;
-            st.policy.check_scenario(&s).with_context(|| {
-                format!(
-                    "--pool-policy {}: not a strategy of {}",
-                    path.display(),
-                    s.name
-                )
-            })?;
+                .in_strategy(format!("--pool-policy {}", path.display()))?;
+            st.policy.check_scenario(&s).in_strategy(format!(
+                "--pool-policy {}: not a strategy of {}",
+                path.display(),
+                s.name
+            ))?;
             Some(st)
         }
     };
@@ -168,19 +168,19 @@ pub fn build_mdp(r: MdpRequest) -> Result<BuiltMdp> {
             &crate::exec::work(|k| pb.inc(k)),
         ),
     }
-    .context("building the abstraction")?;
+    .computing("building the abstraction")?;
     pb.finish_and_clear();
     mdp.check()
-        .context("the built MDP failed its own consistency check (a bug)")?;
+        .computing("the built MDP failed its own consistency check (a bug)")?;
     let first_seconds = started.elapsed().as_secs_f64();
     let (mdp, split) = split::apply(&s, &p, mdp, first_seconds, &split, quiet)?;
     let (mdp, merge) = match merge {
         None => (mdp, None),
         Some(alpha) => {
-            let (merged, r) = abstraction::merge_equivalent(&mdp, alpha).context("--merge")?;
+            let (merged, r) = abstraction::merge_equivalent(&mdp, alpha).computing("--merge")?;
             merged
                 .check()
-                .context("the merged MDP failed its own consistency check (a bug)")?;
+                .computing("the merged MDP failed its own consistency check (a bug)")?;
             let summary = MergeSummary {
                 alpha,
                 states_before: mdp.states.len(),

@@ -1,6 +1,6 @@
 //! Files on disk: refusing to overwrite, reading the synthesis directory.
 
-use anyhow::{Context, Result, bail};
+use crate::error::{Context, Error, Result, Words};
 use etp_synthesis::mdp::{MDP_FILE, Mdp};
 use etp_synthesis::pareto::{ParetoFront, compute_front};
 use std::path::Path;
@@ -27,26 +27,28 @@ pub fn write_new(path: &Path, bytes: &[u8], force: bool) -> Result<()> {
 /// `DIR/mdp.bin` and, if present, the scenario text `DIR/scenario.toml`.
 pub fn read_mdp(dir: &Path) -> Result<(Mdp, Option<String>)> {
     let path = dir.join(MDP_FILE);
-    let bytes = std::fs::read(&path)
-        .with_context(|| format!("reading {} (run `etp synthesize` first?)", path.display()))?;
-    let mdp = Mdp::decode(&bytes).with_context(|| format!("loading {}", path.display()))?;
+    let bytes = std::fs::read(&path).in_synthesis(format!(
+        "reading {} (run `etp synthesize` first?)",
+        path.display()
+    ))?;
+    let mdp = Mdp::decode(&bytes).in_synthesis(format!("loading {}", path.display()))?;
     let scenario_path = dir.join("scenario.toml");
     let text = match std::fs::read_to_string(&scenario_path) {
         Ok(t) => Some(t),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
-        Err(e) => return Err(e).with_context(|| format!("reading {}", scenario_path.display())),
+        Err(e) => return Err(e).in_synthesis(format!("reading {}", scenario_path.display())),
     };
     if let Some(t) = &text {
         let s = etp_shared::scenario::Scenario::from_toml(t)
-            .with_context(|| format!("scenario {}", scenario_path.display()))?;
+            .in_scenario(format!("scenario {}", scenario_path.display()))?;
         if s.content_hash != mdp.scenario_hash {
-            bail!(
+            return Err(Error::synthesis(format!(
                 "{} does not belong to {} (scenario hash {:.12}… vs {:.12}…)",
                 scenario_path.display(),
                 path.display(),
                 s.content_hash,
                 mdp.scenario_hash
-            );
+            )));
         }
     }
     Ok((mdp, text))
@@ -59,20 +61,20 @@ pub fn read_front(dir: &Path, mdp: &Mdp) -> Result<ParetoFront> {
     match std::fs::read_to_string(&path) {
         Ok(text) => {
             let f = ParetoFront::from_json(&text)
-                .map_err(anyhow::Error::msg)
-                .with_context(|| format!("loading {}", path.display()))?;
+                .map_err(Words)
+                .in_synthesis(format!("loading {}", path.display()))?;
             if f.scenario_hash != mdp.scenario_hash || f.mdp_states != mdp.states.len() {
-                bail!(
+                return Err(Error::synthesis(format!(
                     "{} was not computed from {}/mdp.bin",
                     path.display(),
                     dir.display()
-                );
+                )));
             }
             Ok(f)
         }
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            compute_front(mdp, Default::default()).context("computing the Pareto front")
+            compute_front(mdp, Default::default()).computing("computing the Pareto front")
         }
-        Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
+        Err(e) => Err(e).in_synthesis(format!("reading {}", path.display())),
     }
 }

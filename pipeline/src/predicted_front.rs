@@ -3,10 +3,10 @@
 //! reaches, under each P_coll bound asked; stored in `DIR/front.json`
 //! (`predicted`) and drawn as the main curve of `DIR/front.png`.
 
+use crate::error::{Context, Result};
 use crate::output::write_new;
 use crate::selection::{DEFAULT_LEVEL, RequestSettings, goal_label, standing_strategy};
 use crate::synthesis_dir::Synthesis;
-use anyhow::{Context, Result};
 use etp_files::write::output_folder;
 use etp_shared::strategy::{CertifiedPrediction, Strategy};
 use etp_synthesis::abstraction;
@@ -104,7 +104,7 @@ pub fn compute(
                 each(bound, p);
             },
         )
-        .with_context(|| match bound {
+        .computing(match bound {
             Some(c) => format!("the predicted front under P_coll ≤ {c}"),
             None => "the predicted front".to_string(),
         })?;

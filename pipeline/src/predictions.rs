@@ -6,8 +6,8 @@
 //! cross-fitted on the selection MDP — biased —, each rebuild, the rounds of
 //! the request loop).
 
+use crate::error::{Context, Result};
 use crate::progress;
-use anyhow::{Context, Result};
 use etp_shared::stats::verdict::{Check, Family, Measured, Outcomes, prediction_checks};
 use etp_shared::strategy::{
     AggregationCheck, CertifiedPrediction, Prediction, PredictionCi95, SimulatedValue, Strategy,
@@ -63,7 +63,7 @@ pub fn aggregation_check(
     let scenario = strategy
         .policy
         .scenario()
-        .context("the aggregation check needs the strategy's scenario")?;
+        .in_strategy("the aggregation check needs the strategy's scenario")?;
     let pb = progress::bar(episodes, "aggregation check", quiet);
     let sum = etp_synthesis::validate::simulate_strategy(
         &scenario,

@@ -5,9 +5,9 @@
 //! diagnostics, the rounds, the aggregation check. `etp strategy` and `etp
 //! study` write the same bytes through it.
 
+use crate::error::{Context, Result};
 use crate::predictions;
 use crate::synthesis_dir::Synthesis;
-use anyhow::{Context, Result};
 use etp_shared::strategy::{CertifiedPrediction, Strategy};
 use etp_synthesis::certify::crossfit::{CrossFit, crossfit};
 use etp_synthesis::certify::intervals::interval_mdp;
@@ -33,7 +33,7 @@ pub fn assess(
     cost: CostModel,
     level: f64,
 ) -> Result<Assessment> {
-    let im = interval_mdp(mdp, level, cost).context("building the interval MDP")?;
+    let im = interval_mdp(mdp, level, cost).computing("building the interval MDP")?;
     let c = certify(mdp, &im, policy);
     Ok(Assessment {
         crossfit: crossfit(mdp, policy, cost),

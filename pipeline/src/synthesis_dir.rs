@@ -2,8 +2,8 @@
 //! its MDP, front, scenario text and the scenario under the synthesis's
 //! channel, as `etp strategy` and `etp compare` select and predict on it.
 
+use crate::error::{Context, Error, Result};
 use crate::output::{read_front, read_mdp};
-use anyhow::{Context, Result, bail};
 use etp_shared::radio::RadioOverride;
 use etp_shared::scenario::{Scenario, ScenarioText, builtin_text};
 use etp_shared::strategy::Strategy;
@@ -34,13 +34,13 @@ impl Synthesis {
     pub fn load(dir: &Path, output: Option<&Path>) -> Result<Self> {
         let (mdp, scenario_text) = read_mdp(dir)?;
         if mdp.policy_only() {
-            bail!(
+            return Err(Error::synthesis(format!(
                 "{}: this MDP offers at its states only the thresholds of the strategy its pools \
                  were drawn on (`etp synthesize --pool-policy` without --all-actions), so its front \
                  is not the scenario's; predict that strategy with `etp strategy evaluate \
                  STRATEGY.json DIR` on the synthesis it came from",
                 dir.display()
-            );
+            )));
         }
         let front = read_front(dir, &mdp)?;
         Self::from_parts(dir, mdp, scenario_text, front, output)
@@ -57,29 +57,27 @@ impl Synthesis {
         output: Option<&Path>,
     ) -> Result<Self> {
         let mut scenario = match &scenario_text {
-            Some(t) => Scenario::from_toml(t).context("parsing DIR/scenario.toml")?,
-            None => Scenario::builtin(&mdp.scenario_name).with_context(|| {
-                format!(
-                    "{} has no scenario.toml and `{}` is not a built-in scenario",
-                    dir.display(),
-                    mdp.scenario_name
-                )
-            })?,
+            Some(t) => Scenario::from_toml(t).in_scenario("parsing DIR/scenario.toml")?,
+            None => Scenario::builtin(&mdp.scenario_name).in_scenario(format!(
+                "{} has no scenario.toml and `{}` is not a built-in scenario",
+                dir.display(),
+                mdp.scenario_name
+            ))?,
         };
         if scenario.content_hash != mdp.scenario_hash {
-            bail!(
+            return Err(Error::synthesis(format!(
                 "the scenario of {} is not its MDP's (hash {:.12}… vs {:.12}…)",
                 dir.display(),
                 scenario.content_hash,
                 mdp.scenario_hash
-            );
+            )));
         }
         // The channel the synthesis ran under: steps 1–2 of the one override
         // rule (docs/MODEL.md §8.6), as `Strategy::scenario` applies them.
         scenario.radio = scenario
             .radio
             .for_use(front.radio.as_ref(), &RadioOverride::default())
-            .with_context(|| format!("the channel recorded in {}", dir.display()))?;
+            .in_synthesis(format!("the channel recorded in {}", dir.display()))?;
         let output = output
             .map(Path::to_path_buf)
             .unwrap_or_else(|| dir.join("strategy.json"));
@@ -186,14 +184,14 @@ pub struct Identity {
 pub fn identity(dir: &Path, front: &ParetoFront, text: Option<&str>) -> Result<Identity> {
     let own = match text {
         Some(t) => ScenarioText::parse(t.to_string())
-            .with_context(|| format!("the scenario of {}", dir.display()))?,
+            .in_scenario(format!("the scenario of {}", dir.display()))?,
         None => {
             let name = &front.scenario_name;
-            let t = builtin_text(name).with_context(|| {
-                format!(
+            let t = builtin_text(name).ok_or_else(|| {
+                Error::scenario(format!(
                     "{} has no scenario.toml and `{name}` is not a built-in scenario",
                     dir.display()
-                )
+                ))
             })?;
             ScenarioText::parse(t.to_string())?
         }
@@ -209,11 +207,14 @@ pub fn identity(dir: &Path, front: &ParetoFront, text: Option<&str>) -> Result<I
         .scenario
         .radio
         .for_use(front.radio.as_ref(), &RadioOverride::default())
-        .with_context(|| format!("the radio of {}", dir.display()))?
+        .in_synthesis(format!("the radio of {}", dir.display()))?
         .describe(&names);
     let scenario_key = own
         .with_trigger(TriggerFamily::Box)
-        .with_context(|| format!("the scenario of {} without its family", dir.display()))?
+        .in_scenario(format!(
+            "the scenario of {} without its family",
+            dir.display()
+        ))?
         .scenario
         .content_hash;
     Ok(Identity {
@@ -228,12 +229,12 @@ pub fn check_one_scenario(items: &[(&Path, &str, &Identity)]) -> Result<()> {
     if let Some((d0, n0, first)) = items.first() {
         for (dir, name, id) in items {
             if id.scenario_key != first.scenario_key {
-                bail!(
+                return Err(Error::request(format!(
                     "{} is a synthesis of scenario `{name}`, {} of `{n0}`: compare syntheses of one \
                      scenario (the same scenario under different radios or trigger families)",
                     dir.display(),
                     d0.display(),
-                );
+                )));
             }
         }
     }

@@ -6,11 +6,11 @@
 //! `etp synthesize --json`'s object.
 
 use crate::aggregation;
+use crate::error::{Context, Error, Result};
 use crate::front::{FrontReport, write_front};
 use crate::mdp_build::{BuiltMdp, MdpRequest, build_mdp};
 use crate::output::{refuse_existing, write_new};
-use anyhow::{Context, Result, bail};
-use etp_files::write::output_folder;
+use etp_files::write::{WriteError, output_folder};
 use etp_runtime::scenario_arg::scenario_text;
 use etp_shared::scenario::{Scenario, ScenarioText};
 use etp_shared::trigger::TriggerFamily;
@@ -38,11 +38,11 @@ pub fn scenario_under(arg: &str, trigger: Option<TriggerFamily>) -> Result<(Scen
         return Ok((own, text));
     };
     let text = ScenarioText::parse(text)
-        .context("scenario")?
+        .in_scenario("scenario")?
         .with_trigger(family)
-        .context("--trigger")?
+        .in_scenario("--trigger")?
         .text;
-    let scenario = Scenario::from_toml(&text).with_context(|| format!("scenario {arg}"))?;
+    let scenario = Scenario::from_toml(&text).in_scenario(format!("scenario {arg}"))?;
     Ok((scenario, text))
 }
 
@@ -123,13 +123,13 @@ pub fn synthesize(r: SynthesisRequest) -> Result<Synthesized> {
     output_folder(&dir)?;
     refuse_existing(&front_path, r.mdp.force)?;
     if !(r.aggregation_alpha > 0.0 && r.aggregation_alpha < 1.0) {
-        bail!(
+        return Err(Error::request(format!(
             "--aggregation-alpha must lie in (0, 1) (got {})",
             r.aggregation_alpha
-        );
+        )));
     }
     // The channel is recorded when the options changed the scenario text's own.
-    let own_radio = Scenario::from_toml(&r.text).context("scenario")?.radio;
+    let own_radio = Scenario::from_toml(&r.text).in_scenario("scenario")?.radio;
     let params = r.mdp.params;
     let quiet = r.mdp.quiet;
     let force = r.mdp.force;
@@ -142,7 +142,7 @@ pub fn synthesize(r: SynthesisRequest) -> Result<Synthesized> {
         // The baseline is only drawn; it needs no cross-fitting.
         p.holdout_samples = 0;
         let m1 = abstraction::build(&built.scenario, &p, &crate::exec::work(|_| {}))
-            .context("building the Method 1 baseline")?;
+            .computing("building the Method 1 baseline")?;
         write_new(&dir.join("mdp-kf-convergence.bin"), &m1.encode(), true)?;
         Some(m1)
     } else {
@@ -209,10 +209,15 @@ fn set_aside_stale(dir: &Path) -> Result<Option<(PathBuf, Vec<String>)>> {
         stale = dir.join(format!("stale-{secs}-{k}"));
         k += 1;
     }
-    std::fs::create_dir(&stale).with_context(|| format!("creating {}", stale.display()))?;
+    std::fs::create_dir(&stale).map_err(|source| WriteError::Io {
+        what: format!("creating {}", stale.display()),
+        source,
+    })?;
     for n in &found {
-        std::fs::rename(dir.join(n), stale.join(n))
-            .with_context(|| format!("moving {} to {}", dir.join(n).display(), stale.display()))?;
+        std::fs::rename(dir.join(n), stale.join(n)).map_err(|source| WriteError::Io {
+            what: format!("moving {} to {}", dir.join(n).display(), stale.display()),
+            source,
+        })?;
     }
     Ok(Some((stale, found.iter().map(|n| n.to_string()).collect())))
 }

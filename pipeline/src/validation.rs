@@ -20,7 +20,7 @@ pub fn plot_map(
     episodes: u64,
     seed: u64,
     force: bool,
-) -> anyhow::Result<Vec<PathBuf>> {
+) -> crate::error::Result<Vec<PathBuf>> {
     let stem = strategy_path.with_extension("").with_file_name(format!(
         "{}-map",
         strategy_path
@@ -39,7 +39,7 @@ pub fn plot_map_to(
     episodes: u64,
     seed: u64,
     force: bool,
-) -> anyhow::Result<Vec<PathBuf>> {
+) -> crate::error::Result<Vec<PathBuf>> {
     let stem = stem.to_path_buf();
     let paths = vec![stem.with_extension("png"), stem.with_extension("svg")];
     for p in &paths {

@@ -24,7 +24,13 @@ command, not the command itself) and returns Python values:
   model checking, stormvogel and the like (needs ``pip install stormpy``).
 
 Errors are :class:`EtpError` subclasses whose message is the text ``etp``
-prints after ``error:`` for the same failure.
+prints after ``error:`` for the same failure, one class per kind of failure
+of the pipeline's steps: :class:`ScenarioError` (the scenario),
+:class:`SynthesisError` (a synthesis folder that cannot be used) and
+:class:`StrategyFileError` (both :class:`FileFormatError`),
+:class:`RequestError` (an option out of range), :class:`OutputError` (an
+output refused or its figure not drawn), :class:`ComputeError` (the
+abstraction, a linear program, a prediction).
 """
 
 from __future__ import annotations
@@ -41,23 +47,31 @@ import pandas as pd
 from . import _native
 from ._frames import frame
 from ._native import (
+    ComputeError,
     EtpError,
     FileFormatError,
+    OutputError,
     RecordingError,
+    RequestError,
     RunError,
     Scenario,
     ScenarioError,
     SimulationError,
+    StrategyFileError,
+    SynthesisError,
     builtin_scenarios,
 )
 
 __version__: str = _native.__version__
 
 __all__ = [
+    "ComputeError",
     "EtpError",
     "FileFormatError",
     "Front",
+    "OutputError",
     "RecordingError",
+    "RequestError",
     "RunError",
     "RunReport",
     "Scenario",
@@ -65,7 +79,9 @@ __all__ = [
     "Simulation",
     "SimulationError",
     "Strategy",
+    "StrategyFileError",
     "Synthesis",
+    "SynthesisError",
     "Validation",
     "builtin_scenarios",
     "load_scenario",
@@ -235,7 +251,8 @@ def to_stormpy(synthesis: Union["Synthesis", PathLike]) -> Any:
 
     stormpy is imported here only: without it, :class:`ImportError` says
     how to install it (``pip install stormpy``). Raises
-    :class:`FileFormatError` for a folder without a valid ``mdp.bin``.
+    :class:`SynthesisError` (a :class:`FileFormatError`) for a folder
+    without a valid ``mdp.bin``.
     """
     try:
         import stormpy
@@ -335,9 +352,10 @@ def synthesize(
     derived from it is moved to ``OUT/stale-…/``). ``progress`` is called
     as ``progress(stage, done, total)`` while it works.
 
-    Raises :class:`ScenarioError`, or :class:`EtpError` with ``etp
-    synthesize``'s message (e.g. an existing ``front.json`` without
-    ``force``), touching nothing.
+    Raises :class:`ScenarioError`, :class:`RequestError`, or
+    :class:`OutputError` (e.g. an existing ``front.json`` without
+    ``force``) with ``etp synthesize``'s message, touching nothing;
+    :class:`ComputeError` when the abstraction fails.
     """
     if not isinstance(scenario, Scenario):
         scenario = os.fspath(scenario)
@@ -381,8 +399,10 @@ def select_strategy(
     The returned :class:`Strategy` has ``.verdict`` (``"met"``, or why the
     request is out of reach — the CLI's exit 7: the closest strategy found
     is written and returned, its label says OUT OF REACH) and ``.rounds``.
-    Raises :class:`EtpError` with the command's message, ``ValueError`` for
-    an argument out of range.
+    Raises :class:`SynthesisError` (a folder without a usable synthesis),
+    :class:`OutputError` (an existing strategy file without ``force``) or
+    :class:`ComputeError` with the command's message, ``ValueError`` for an
+    argument out of range.
     """
     if isinstance(dir, Synthesis):
         dir = dir.dir

@@ -28,6 +28,25 @@ class FileFormatError(EtpError):
 class RunError(EtpError):
     """A multi-process run that could not start or finish."""
 
+class SynthesisError(FileFormatError):
+    """A synthesis folder that cannot be used: mdp.bin missing or not etp's, a front.json or
+    scenario.toml of another MDP."""
+
+class StrategyFileError(FileFormatError):
+    """A strategy file a step was given that cannot be read or is not of the scenario."""
+
+class RequestError(EtpError):
+    """A request a step cannot carry out as asked: an option out of range, two that exclude
+    each other."""
+
+class OutputError(EtpError):
+    """An output refused: it exists and force was not given, its folder is a link or another
+    user's, the file system refused, or its figure could not be drawn."""
+
+class ComputeError(EtpError):
+    """A computation failed: the abstraction, a linear program, a prediction from rebuilds,
+    the executor."""
+
 class Scenario:
     """A validated scenario (``etpareto.load_scenario``)."""
 

@@ -42,6 +42,40 @@ create_exception!(
     EtpError,
     "A multi-process run that could not start or finish."
 );
+create_exception!(
+    etpareto,
+    SynthesisError,
+    FileFormatError,
+    "A synthesis folder that cannot be used: mdp.bin missing or not etp's, a front.json or \
+     scenario.toml of another MDP."
+);
+create_exception!(
+    etpareto,
+    StrategyFileError,
+    FileFormatError,
+    "A strategy file a step was given that cannot be read or is not of the scenario."
+);
+create_exception!(
+    etpareto,
+    RequestError,
+    EtpError,
+    "A request a step cannot carry out as asked: an option out of range, two that exclude \
+     each other."
+);
+create_exception!(
+    etpareto,
+    OutputError,
+    EtpError,
+    "An output refused: it exists and force was not given, its folder is a link or another \
+     user's, the file system refused, or its figure could not be drawn."
+);
+create_exception!(
+    etpareto,
+    ComputeError,
+    EtpError,
+    "A computation failed: the abstraction, a linear program, a prediction from rebuilds, \
+     the executor."
+);
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
@@ -51,6 +85,11 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RecordingError", py.get_type::<RecordingError>())?;
     m.add("FileFormatError", py.get_type::<FileFormatError>())?;
     m.add("RunError", py.get_type::<RunError>())?;
+    m.add("SynthesisError", py.get_type::<SynthesisError>())?;
+    m.add("StrategyFileError", py.get_type::<StrategyFileError>())?;
+    m.add("RequestError", py.get_type::<RequestError>())?;
+    m.add("OutputError", py.get_type::<OutputError>())?;
+    m.add("ComputeError", py.get_type::<ComputeError>())?;
     Ok(())
 }
 
@@ -65,6 +104,24 @@ pub fn chain(e: &(dyn std::error::Error + 'static)) -> String {
         cause = c.source();
     }
     text
+}
+
+/// A pipeline step's error as the exception of its kind, with the text
+/// `etp` prints for it. The match is exhaustive: a new kind of failure in
+/// the pipeline gets its class here before it compiles.
+pub fn pipeline_error(e: etp_pipeline::error::Error) -> PyErr {
+    use etp_pipeline::error::Error as E;
+    let text = chain(&e);
+    match e {
+        E::Scenario { .. } | E::ScenarioArg(_) | E::InvalidScenario(_) => {
+            ScenarioError::new_err(text)
+        }
+        E::Synthesis { .. } => SynthesisError::new_err(text),
+        E::Strategy { .. } => StrategyFileError::new_err(text),
+        E::Request(_) => RequestError::new_err(text),
+        E::Output(_) | E::Figure(_) => OutputError::new_err(text),
+        E::Prediction(_) | E::Executor(_) | E::Compute { .. } => ComputeError::new_err(text),
+    }
 }
 
 /// An `anyhow` error as the CLI prints it.

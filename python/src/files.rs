@@ -6,7 +6,7 @@
 //! --json` prints.
 
 use crate::columns::{Column, Values, table_into_py};
-use crate::errors::{FileFormatError, RunError, anyhow_text, chain};
+use crate::errors::{FileFormatError, RunError, anyhow_text, chain, pipeline_error};
 use etp_synthesis::pareto::ParetoFront;
 use pyo3::prelude::*;
 use pyo3::types::PyList;
@@ -39,8 +39,7 @@ pub fn read_front(path: PathBuf) -> PyResult<String> {
 /// --format drn` writes to `model.drn` (energy: the counted cost).
 #[pyfunction]
 pub fn mdp_drn(dir: PathBuf) -> PyResult<String> {
-    let (mdp, _) = etp_pipeline::output::read_mdp(&dir)
-        .map_err(|e| FileFormatError::new_err(anyhow_text(&e)))?;
+    let (mdp, _) = etp_pipeline::output::read_mdp(&dir).map_err(pipeline_error)?;
     Ok(etp_synthesis::export::drn::export(
         &mdp,
         etp_synthesis::mdp::CostModel::Counted,

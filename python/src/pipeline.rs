@@ -6,7 +6,7 @@
 //! (`etp_pipeline::progress::current`) to the caller's progress callback.
 
 use crate::errors::{
-    EtpError, FileFormatError, ScenarioError, SimulationError, anyhow_text, chain,
+    EtpError, FileFormatError, ScenarioError, SimulationError, chain, pipeline_error,
 };
 use crate::scenario::PyScenario;
 use etp_pipeline::mdp_build::MdpRequest;
@@ -93,8 +93,7 @@ fn scenario_under(arg: &str, trigger: Option<&str>) -> PyResult<(Scenario, Strin
         .map(TriggerFamily::parse)
         .transpose()
         .map_err(|e| ScenarioError::new_err(e.to_string()))?;
-    etp_pipeline::synthesize::scenario_under(arg, family)
-        .map_err(|e| ScenarioError::new_err(anyhow_text(&e)))
+    etp_pipeline::synthesize::scenario_under(arg, family).map_err(pipeline_error)
 }
 
 /// Synthesize like `etp synthesize SCENARIO -o OUT --json` with these
@@ -133,8 +132,8 @@ pub fn synthesize(
     let mut request = SynthesisRequest::new(mdp, text);
     request.kf_baseline = kf_baseline;
     request.aggregation_episodes = aggregation_episodes;
-    let done = with_progress(py, progress, move || synthesize_dir(request))?
-        .map_err(|e| EtpError::new_err(anyhow_text(&e)))?;
+    let done =
+        with_progress(py, progress, move || synthesize_dir(request))?.map_err(pipeline_error)?;
     serde_json::to_string(&done.to_json()).map_err(|e| EtpError::new_err(e.to_string()))
 }
 
@@ -212,7 +211,7 @@ pub fn select_strategy(
         confidence,
         aggregation_check,
     };
-    let work = move || -> anyhow::Result<(String, String, usize)> {
+    let work = move || -> etp_pipeline::error::Result<(String, String, usize)> {
         let syn = Synthesis::load(&dir, output.as_deref())?;
         etp_pipeline::output::refuse_existing(&syn.output, force)?;
         let (outcome, strategy, _) = meet_goal(&syn, goal, &settings, true)?;
@@ -224,7 +223,7 @@ pub fn select_strategy(
             outcome.rounds.len(),
         ))
     };
-    with_progress(py, progress, work)?.map_err(|e| EtpError::new_err(anyhow_text(&e)))
+    with_progress(py, progress, work)?.map_err(pipeline_error)
 }
 
 /// Validate like `etp validate STRATEGY --episodes N --seed S --json
@@ -261,8 +260,7 @@ pub fn validate(
                 .and_then(|s| s.to_str())
                 .unwrap_or("strategy");
             let p = path.with_file_name(format!("{stem}-map.{ext}"));
-            etp_pipeline::output::refuse_existing(&p, force)
-                .map_err(|e| EtpError::new_err(anyhow_text(&e)))?;
+            etp_pipeline::output::refuse_existing(&p, force).map_err(pipeline_error)?;
         }
     }
     let work = || {
@@ -289,7 +287,7 @@ pub fn validate(
     let plots = match plot_episodes {
         Some(n) => py
             .detach(|| plot_map(&scenario, &strategy, &path, n, seed, force))
-            .map_err(|e| EtpError::new_err(anyhow_text(&e)))?,
+            .map_err(pipeline_error)?,
         None => Vec::new(),
     };
     Ok((text, failed, plots))

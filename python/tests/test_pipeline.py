@@ -58,8 +58,9 @@ def test_progress_sees_the_steps(pair):
 def test_an_existing_synthesis_is_refused_with_the_cli_message(pair):
     root, *_ = pair
     before = (root / "py" / "front.json").read_bytes()
-    with pytest.raises(etpareto.EtpError) as e:
+    with pytest.raises(etpareto.OutputError) as e:
         etpareto.synthesize("open-2d", root / "py", samples=100, seed=1)
+    assert isinstance(e.value, etpareto.EtpError)
     assert str(e.value) == etp_error("synthesize", "open-2d", *SYN, "-o", str(root / "py"))
     assert (root / "py" / "front.json").read_bytes() == before
 
@@ -110,3 +111,15 @@ def test_a_raising_callback_is_raised(tmp_path):
     with pytest.raises(RuntimeError, match="stop here"):
         etpareto.synthesize("open-2d", tmp_path / "x", samples=50, seed=2,
                             aggregation_episodes=0, kf_baseline=False, progress=boom)
+
+
+def test_each_kind_of_failure_raises_its_own_class(tmp_path):
+    # A folder without a synthesis: the folder's kind, a file-format error.
+    with pytest.raises(etpareto.SynthesisError, match="mdp.bin") as e:
+        etpareto.select_strategy(tmp_path, min_target=0.9)
+    assert isinstance(e.value, etpareto.FileFormatError)
+    # A scenario that names nothing: the scenario's kind, with the CLI's words.
+    with pytest.raises(etpareto.ScenarioError) as e:
+        etpareto.synthesize("no-such-scenario", tmp_path / "syn", samples=10)
+    assert str(e.value) == etp_error("synthesize", "no-such-scenario", "-o", str(tmp_path / "syn"))
+    assert not (tmp_path / "syn").exists()

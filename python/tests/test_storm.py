@@ -75,5 +75,6 @@ def test_without_stormpy_the_error_says_how_to_install_it(synthesis, monkeypatch
 
 
 def test_a_folder_without_an_mdp_is_a_file_format_error(tmp_path):
-    with pytest.raises(etpareto.FileFormatError, match="mdp.bin"):
+    with pytest.raises(etpareto.SynthesisError, match="mdp.bin") as e:
         etpareto.to_stormpy(tmp_path)
+    assert isinstance(e.value, etpareto.FileFormatError)

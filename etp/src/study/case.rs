@@ -55,7 +55,7 @@ fn synthesis(
     timing: &mut Timing,
 ) -> Result<Synthesis> {
     if synthesized {
-        return Synthesis::load(dir, None);
+        return Ok(Synthesis::load(dir, None)?);
     }
     let started = Instant::now();
     let mut request = MdpRequest::defaults(job.scenario.clone(), s.samples, s.seed);
@@ -65,7 +65,13 @@ fn synthesis(
     let built = build_mdp(request)?;
     let front = write_front(&built.dir, &built.mdp, None, &job.text, None, true)?;
     timing.synthesis_seconds = started.elapsed().as_secs_f64();
-    Synthesis::from_parts(dir, built.mdp, Some(job.text.clone()), front.front, None)
+    Ok(Synthesis::from_parts(
+        dir,
+        built.mdp,
+        Some(job.text.clone()),
+        front.front,
+        None,
+    )?)
 }
 
 fn base_row(job: &Job, syn: &Synthesis, s: &Settings) -> Row {

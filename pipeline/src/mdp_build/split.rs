@@ -3,8 +3,8 @@
 //! and `etp_synthesis::abstraction::split`): regions the aggregation test
 //! flags are split and the MDP re-estimated, round by round.
 
+use crate::error::{Context, Error, Result};
 use crate::progress;
-use anyhow::{Context, Result, bail};
 use etp_shared::scenario::Scenario;
 use etp_synthesis::abstraction::split::{RoundReport, SplitSettings, split_adaptively};
 use etp_synthesis::abstraction::{self, AbstractionParams};
@@ -45,13 +45,20 @@ pub fn check(a: &SplitSettings, method: Method) -> Result<()> {
         return Ok(());
     }
     if method != Method::Discretized {
-        bail!("--split-budget applies to --method discretized only (Method 1 has no regions)");
+        return Err(Error::request(
+            "--split-budget applies to --method discretized only (Method 1 has no regions)",
+        ));
     }
     if !(a.alpha > 0.0 && a.alpha < 1.0) {
-        bail!("--split-alpha must lie in (0, 1) (got {})", a.alpha);
+        return Err(Error::request(format!(
+            "--split-alpha must lie in (0, 1) (got {})",
+            a.alpha
+        )));
     }
     if a.episodes == 0 || a.rounds == 0 {
-        bail!("--split-episodes and --split-rounds must be at least 1 with --split-budget");
+        return Err(Error::request(
+            "--split-episodes and --split-rounds must be at least 1 with --split-budget",
+        ));
     }
     Ok(())
 }
@@ -88,10 +95,10 @@ pub fn apply(
             last = Instant::now();
         },
     )
-    .context("splitting regions")?;
+    .computing("splitting regions")?;
     pb.finish_and_clear();
     mdp.check()
-        .context("the split MDP failed its own consistency check (a bug)")?;
+        .computing("the split MDP failed its own consistency check (a bug)")?;
     let summary = SplitSummary {
         budget: a.budget,
         alpha: a.alpha,
