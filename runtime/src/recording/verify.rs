@@ -35,20 +35,20 @@
 //! does not hold. An episode cut by the end of an unfinished file is checked
 //! up to its last complete slot and counted as incomplete.
 
+mod slot;
+
 use super::{META_RUN, META_SCENARIO, Recorded, RecordingError, read::Contents};
 use crate::wire::agent_to_coordinator::{Outcome, Waypoint};
 use crate::wire::agent_to_sensor::{Handover, Truth};
 use crate::wire::coordinator_to_agent::Control;
 use crate::wire::coordinator_to_sensor::Threshold;
 use crate::wire::sensor_to_agent::{Measurement, Slot};
-use crate::wire::{WireMat, WireVec, belief_to_wire, vec_from_wire};
-use etp_shared::episode::{
-    AgentCore, Begun, CompiledScenario, RunSlot, SlotKey, SlotOutcome, World, belief_digest,
-};
+use crate::wire::{WireMat, WireVec, belief_to_wire};
+use etp_shared::episode::{AgentCore, Begun, CompiledScenario, SlotOutcome, World};
 use etp_shared::etkf::{Belief, Vector};
 use etp_shared::radio::LinkChannel;
-use etp_shared::rng::streams;
 use etp_shared::scenario::Scenario;
+use slot::{SlotAt, Stop};
 use std::collections::BTreeMap;
 
 /// Mismatches kept in the report (the count is always exact).
@@ -304,6 +304,20 @@ enum Ended {
     Cut,
 }
 
+/// The end of a leg at step `k` (`ends`: the estimator ends it there)
+/// against the step the record ends it at, if in the file: what differs.
+fn leg_end_differs(recorded_end: Option<u32>, ends: bool, k: u32) -> Option<String> {
+    match recorded_end {
+        Some(end) if ends && end != k => Some(format!(
+            "the estimator ends the leg here, the record at step {end}"
+        )),
+        Some(end) if !ends && end == k => {
+            Some("the record ends the leg here, the estimator does not".into())
+        }
+        _ => None,
+    }
+}
+
 fn rerun<const N: usize>(
     c: &CompiledScenario<N>,
     episode: u64,
@@ -395,176 +409,42 @@ fn rerun<const N: usize>(
             k = core.step();
             let open = match begun {
                 Begun::Slot(open) => open,
-                Begun::Collided(()) => {
-                    let at_leg = outcome.map_or(leg, |o| o.header.leg);
-                    return if at_leg == leg {
-                        Ok(Ended::Done)
-                    } else {
-                        Err(miss(
-                            leg,
-                            k,
-                            format!("collision recorded in leg {at_leg}"),
-                            0.0,
-                        ))
-                    };
-                }
+                // The re-run collides only at the recorded collision's step:
+                // the record must put it in this leg.
+                Begun::Collided(()) => match outcome.map_or(leg, |o| o.header.leg) {
+                    at_leg if at_leg == leg => return Ok(Ended::Done),
+                    at_leg => {
+                        let what = format!("collision recorded in leg {at_leg}");
+                        return Err(miss(leg, k, what, 0.0));
+                    }
+                },
             };
             let prior = *open.prior();
             sink(episode, k, N as u32, belief_to_wire(&prior));
-            let y = r.measurements.get(&k);
-            if let Some(m) = y
-                && m.header.sender as usize != sensor
-            {
-                return Err(miss(
-                    leg,
-                    k,
-                    format!(
-                        "measurement from sensor {}, the leg is served by {sensor}",
-                        m.header.sender
-                    ),
-                    0.0,
-                ));
-            }
-            let Some(slot) = r.slots.get(&k) else {
-                return missing(leg, k, "slot not closed in the record");
+            let at = SlotAt {
+                episode,
+                leg,
+                k,
+                sensor,
+                delta,
+                slot_in_leg,
+                prior: &prior,
+                reference: core.reference(),
             };
-            if slot.prior_digest != belief_digest(&prior) {
-                return Err(miss(
-                    leg,
-                    k,
-                    "the sensor's replica triggered on another prior (slot.prior_digest)".into(),
-                    0.0,
-                ));
-            }
-            rep.priors_checked += 1;
-            if slot.delivered == 1 && y.is_none() {
-                return missing(leg, k, "slot says delivered but no measurement is recorded");
-            }
-            if slot.delivered != 1 && y.is_some() {
-                return Err(miss(
-                    leg,
-                    k,
-                    format!(
-                        "slot says delivered = {} but a measurement is recorded",
-                        slot.delivered
-                    ),
-                    0.0,
-                ));
-            }
-            // The radio's draw of this slot's attempts, again.
-            let redrawn = if slot.attempts == 0 {
-                (0, false)
-            } else {
-                let Some(ctrl) = &r.control else {
-                    return missing(
-                        leg,
-                        k,
-                        "no control recorded (the run's seed, for the radio)",
-                    );
-                };
-                let channel = channels.entry(sensor).or_insert_with(|| {
-                    LinkChannel::of_episode(&c.radio, ctrl.seed, streams::AGENT, episode, sensor)
-                });
-                channel.advance_to(u64::from(k));
-                let t = channel.transmit();
-                (t.attempts, t.delivered)
+            let checked = match slot::check(c, r, &at, &mut channels, rep) {
+                Ok(checked) => checked,
+                Err(Stop::Mismatch(m)) => return Err(m),
+                Err(Stop::Missing(what)) => return missing(leg, k, what),
             };
-            if redrawn != (slot.attempts, slot.delivered == 1) {
-                return Err(miss(
-                    leg,
-                    k,
-                    format!(
-                        "the radio re-drawn gives {} attempt(s), delivered {}; the slot records {}, delivered {}",
-                        redrawn.0, redrawn.1, slot.attempts, slot.delivered
-                    ),
-                    0.0,
-                ));
-            }
-            // The sensor's decision, again from the recorded true state.
-            if let (Some(t), Some(ctrl)) = (r.truths.get(&k), &r.control) {
-                let x: Vector<N> = vec_from_wire(&t.x);
-                let key = SlotKey {
-                    seed: ctrl.seed,
-                    episode,
-                    step: k,
-                    sensor: sensor as u32,
-                };
-                let reference = core.reference();
-                let run_slot = RunSlot {
-                    prior: &prior,
-                    x: &x,
-                    delta,
-                    slot_in_leg,
-                    reference: reference.as_ref().map(|r| &r[..]),
-                    key,
-                };
-                let (sent, y_again) = c.redecide_slot(leg as usize, run_slot);
-                if sent != (slot.attempts > 0) {
-                    return Err(miss(
-                        leg,
-                        k,
-                        format!(
-                            "the sensor's decision re-drawn ({} trigger) {}; the slot records {} attempt(s)",
-                            c.trigger,
-                            if sent { "sends" } else { "stays silent" },
-                            slot.attempts
-                        ),
-                        0.0,
-                    ));
-                }
-                if let Some(m) = y {
-                    let worst = y_again
-                        .iter()
-                        .zip(m.y.iter())
-                        .filter(|(a, b)| a.to_bits() != b.to_bits())
-                        .map(|(a, b)| (a - b).abs())
-                        .reduce(f64::max);
-                    if let Some(d) = worst {
-                        return Err(miss(
-                            leg,
-                            k,
-                            "the measurement re-drawn from the recorded true state".into(),
-                            d,
-                        ));
-                    }
-                }
-                rep.decisions_checked += 1;
-            }
             slot_in_leg += 1;
-            rep.attempts_redrawn += u64::from(slot.attempts);
-            rep.lost_redrawn += u64::from(slot.attempts - u32::from(redrawn.1));
-            // A step counts once its slot is re-run: the step a collision
-            // ends has no slot (nor has one cut by the end of the file), so
-            // steps = measurements + silent slots.
-            rep.steps += 1;
-            match y {
-                Some(_) => rep.explicit_updates += 1,
-                None => rep.implicit_updates += 1,
-            }
-            let slot = match y {
+            let slot = match checked.measurement {
                 Some(m) => SlotOutcome::Transmitted(&m.y[..]),
                 None => SlotOutcome::Silent,
             };
             let ends = core.close(c, open, slot);
             belief = *core.posterior();
-            match recorded_end {
-                Some(end) if ends && end != k => {
-                    return Err(miss(
-                        leg,
-                        k,
-                        format!("the estimator ends the leg here, the record at step {end}"),
-                        0.0,
-                    ));
-                }
-                Some(end) if !ends && end == k => {
-                    return Err(miss(
-                        leg,
-                        k,
-                        "the record ends the leg here, the estimator does not".into(),
-                        0.0,
-                    ));
-                }
-                _ => {}
+            if let Some(what) = leg_end_differs(recorded_end, ends, k) {
+                return Err(miss(leg, k, what, 0.0));
             }
             if ends {
                 break;
