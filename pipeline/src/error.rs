@@ -141,18 +141,6 @@ pub struct Words(pub String);
 mod tests {
     use super::*;
 
-    /// The text of an error and its causes, as `etp` prints it.
-    fn chain(e: &(dyn std::error::Error + 'static)) -> String {
-        let mut text = e.to_string();
-        let mut cause = e.source();
-        while let Some(c) = cause {
-            text.push_str(": ");
-            text.push_str(&c.to_string());
-            cause = c.source();
-        }
-        text
-    }
-
     #[test]
     fn a_step_s_words_stand_over_their_cause() {
         let io: std::result::Result<(), _> = Err(std::io::Error::other("disk on fire"));
@@ -160,12 +148,22 @@ mod tests {
             .in_synthesis("reading out/mdp.bin")
             .expect_err("an error");
         assert!(matches!(e, Error::Synthesis { .. }));
-        assert_eq!(chain(&e), "reading out/mdp.bin: disk on fire");
+        // `etp` prints the words, then each cause after `: `.
+        assert_eq!(e.to_string(), "reading out/mdp.bin");
+        let cause = std::error::Error::source(&e).map(ToString::to_string);
+        assert_eq!(cause.as_deref(), Some("disk on fire"));
         let e = Error::request("--merge: the level α must lie in (0, 1) (got 2)");
-        assert_eq!(chain(&e), "--merge: the level α must lie in (0, 1) (got 2)");
-        let w: Result<()> = Err(WriteError::Exists("a.json".into()).into());
         assert_eq!(
-            chain(&w.expect_err("an error")),
+            e.to_string(),
+            "--merge: the level α must lie in (0, 1) (got 2)"
+        );
+        assert!(std::error::Error::source(&e).is_none());
+        // A refused output is the writer's own error, its text unchanged.
+        let w: Result<()> = Err(WriteError::Exists("a.json".into()).into());
+        let w = w.expect_err("an error");
+        assert!(matches!(w, Error::Output(WriteError::Exists(_))));
+        assert_eq!(
+            w.to_string(),
             "a.json already exists (use --force to overwrite)"
         );
     }
