@@ -159,8 +159,7 @@ mod tests {
         );
         assert!(std::error::Error::source(&e).is_none());
         // A refused output is the writer's own error, its text unchanged.
-        let w: Result<()> = Err(WriteError::Exists("a.json".into()).into());
-        let w = w.expect_err("an error");
+        let w = Error::from(WriteError::Exists("a.json".into()));
         assert!(matches!(w, Error::Output(WriteError::Exists(_))));
         assert_eq!(
             w.to_string(),
