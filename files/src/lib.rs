@@ -7,7 +7,7 @@
 //!   sensor-host domains), created 0700 and checked without following
 //!   links; the checks of a folder an output goes into
 //!   ([`folders::output_folder`], [`folders::check_ancestors`]).
-//! * [`write`] — the overwrite rule (`--force` or refuse) and the safe
+//! * [`write`](mod@write) — the overwrite rule (`--force` or refuse) and the safe
 //!   writer: an output is written to a sibling created exclusively and
 //!   renamed into place only once complete ([`write::write_via_temp`],
 //!   [`write::write_new`]). Its errors are [`write::WriteError`].
