@@ -27,7 +27,7 @@ use etp_pipeline::selection::DEFAULT_LEVEL;
 pub const EXIT_OUT_OF_REACH: u8 = 7;
 
 const EXIT_CODES: &str = "Exit codes: 0 the strategy was written and its prediction meets the \
-request (short of it by at most a quarter of its 95 % ±); 7 the request is out of reach: no round's prediction met it, the \
+request (each bound holds for the prediction itself); 7 the request is out of reach: no round's prediction met it, the \
 best strategy found was written with its prediction and the report says by how much it misses; \
 1 an error (nothing written); 2 a bad command line.";
 

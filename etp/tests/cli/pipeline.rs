@@ -68,9 +68,10 @@ fn pipeline_predicts_what_simulation_measures_and_refuses_bad_files() {
     // The default path: the request met by the prediction of its rebuilds.
     let sel = ok_json(&["strategy", s(&out), "--min-target", "0.95", "--json"]);
     assert_eq!(sel["verdict"], "met", "{sel}");
-    let short = 0.95 - sel["predicted"]["p_target"].as_f64().unwrap_or(0.0);
-    let half = sel["predicted_ci95"]["p_target"].as_f64().unwrap_or(0.0);
-    assert!(short <= 0.25 * half + 1e-12, "{sel}");
+    assert!(
+        sel["predicted"]["p_target"].as_f64().unwrap_or(0.0) >= 0.95,
+        "{sel}"
+    );
 
     // Validation in-process agrees with the prediction (fixed seed).
     let strategy = out.join("strategy.json");

@@ -82,11 +82,7 @@ fn the_plain_command_meets_a_request_the_selection_time_value_misses() {
         "round 0 is known to be biased here: {first}"
     );
     assert!(f(&rounds[1]["asked_p_target"]) > REQUEST, "{sel}");
-    let (p, half) = (
-        f(&sel["predicted"]["p_target"]),
-        f(&sel["predicted_ci95"]["p_target"]),
-    );
-    assert!(p >= REQUEST - 0.25 * half, "{sel}");
+    assert!(f(&sel["predicted"]["p_target"]) >= REQUEST, "{sel}");
 
     // Simulation (3000 episodes, validate's fixed seed) agrees: the loop's
     // strategy meets the request, the biased pick does not, and it costs

@@ -158,8 +158,8 @@ pub struct RequestRound {
     pub predicted: Prediction,
     pub predicted_ci95: PredictionCi95,
     pub rebuilds: u32,
-    /// The prediction meets the user's request (short of a bound by at
-    /// most a quarter of its 95 % half-width).
+    /// The prediction meets the user's request (each bound holds for the
+    /// prediction itself).
     pub meets: bool,
     /// This round's strategy was not selected for the asked request but is
     /// the policy that transmits most (the smallest δ at every state), tried

@@ -27,7 +27,7 @@
 //! whose prediction meets the request (for `--max-energy`, the highest
 //! P_tar within the budget), or, when none did, the one that came closest.
 //! A round's first rebuild decides alone when it misses clearly (by more
-//! than three of its own held-out half-widths, or by its certified bound):
+//! than [`CLEAR_MISS`] of its own half-width, or by its certified bound):
 //! the other rebuilds are made only for a strategy that may be kept.
 
 use super::PredictError;
@@ -48,18 +48,17 @@ mod rounds;
 /// Rounds of the loop by default.
 pub const DEFAULT_ROUNDS: u32 = 8;
 
-/// A first rebuild misses clearly when it is this many of its own held-out
-/// 95 % half-widths beyond the request (its ± misses about a third of the
-/// rebuild's variance, docs/MODEL.md §7.3: 3 is well beyond that).
-const CLEAR_MISS: f64 = 3.0;
+/// A first rebuild misses clearly when it is short of the request by more
+/// than this fraction of its own one-rebuild 95 % half-width (the held-out ±
+/// widened by √1.5, docs/MODEL.md §7.3): the other rebuilds would have to
+/// pull the round's mean up by more than that for it to meet.
+const CLEAR_MISS: f64 = 0.75;
 
-/// A prediction meets a bound when it is on the right side of it, or short
-/// of it by at most this fraction of its own 95 % half-width; a round that
-/// misses moves the request by its gap plus as much again, so that the next
-/// round's prediction lands inside. Not "within its ±": a prediction whose
-/// interval merely straddles the request (e.g. 0.9078 ± 0.0062 against
-/// 0.912) leaves about half the risk of missing it in the loop that runs
-/// (docs/MODEL.md §7.4).
+/// A round's request moves by its gap plus this fraction of the prediction's
+/// 95 % half-width, so that the next round's prediction lands inside the
+/// request by that much. A prediction meets a bound only when it is on the
+/// right side of it (docs/MODEL.md §7.4): a wider interval buys no room, so
+/// the loop cannot prefer a noisier prediction of a cheaper strategy.
 pub const TOLERANCE: f64 = 0.25;
 
 /// The search ends when the cheapest round that met and the closest round

@@ -145,14 +145,17 @@ pub(super) fn edge(
 }
 
 /// How far a prediction is from missing the request: ≥ 0 meets it (each
-/// bound within `TOLERANCE` of the half-width `h`); the least of its bounds'
-/// slacks (energy relative to the request).
-pub(super) fn slack(goal: Goal, q: &Objectives, h: &Objectives, cert: Option<&Certified>) -> f64 {
-    let h = Objectives {
-        p_target: TOLERANCE * h.p_target,
-        p_collision: TOLERANCE * h.p_collision,
-        energy: TOLERANCE * h.energy,
-    };
+/// bound on the right side of the request, or short of it by at most
+/// `allowance`); the least of its bounds' slacks (energy relative to the
+/// request). The loop's rule is `allowance` zero: the prediction itself meets
+/// the request, so a wider interval buys no room.
+pub(super) fn slack(
+    goal: Goal,
+    q: &Objectives,
+    allowance: &Objectives,
+    cert: Option<&Certified>,
+) -> f64 {
+    let h = allowance;
     match (goal, cert) {
         (
             Goal::MinTarget {

@@ -153,7 +153,7 @@ impl RequestLoop<'_> {
             let (q, h) = (all.combined.mean, all.combined.ci95);
             (q, h, all.replicas, settings.replicates)
         };
-        let s = slack(goal, &q, &h, cert_for_goal.as_ref());
+        let s = slack(goal, &q, &Objectives::default(), cert_for_goal.as_ref());
         let round = Round {
             asked,
             selection_time: candidate.selection_time,
@@ -196,7 +196,7 @@ impl RequestLoop<'_> {
             _ => None,
         };
         let (q, h) = (all.combined.mean, all.combined.ci95);
-        let s = slack(goal, &q, &h, cert_for_goal.as_ref());
+        let s = slack(goal, &q, &Objectives::default(), cert_for_goal.as_ref());
         let meets = s >= 0.0;
         rounds.push(Round {
             asked,
@@ -340,7 +340,12 @@ pub(super) fn next_ask(goal: Goal, rounds: &[Round], b: &Judged) -> NextAsk {
                 return NextAsk::Done;
             }
             // Regula falsi on the slacks, kept off the ends.
-            let sx = slack(goal, &x.predicted, &x.ci95, x.certified.as_ref());
+            let sx = slack(
+                goal,
+                &x.predicted,
+                &Objectives::default(),
+                x.certified.as_ref(),
+            );
             let lambda = (sx / (sx - b.slack)).clamp(BRACKET_STEP, 1.0 - BRACKET_STEP);
             NextAsk::At {
                 asked: x.asked.towards(kept.asked, lambda),
