@@ -138,6 +138,7 @@ impl shell::Process for AgentProcess {
     fn parse(argv: Vec<std::ffi::OsString>) -> Self::Args {
         clap::Parser::parse_from(argv)
     }
+    type Error = anyhow::Error;
     fn body(args: &Args) -> anyhow::Result<Done> {
         let _span = tracing::info_span!("agent").entered();
         let (exit, stats) = run(args)?;

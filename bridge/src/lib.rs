@@ -141,6 +141,7 @@ impl etp_runtime::shell::Process for BridgeProcess {
     fn parse(argv: Vec<std::ffi::OsString>) -> Self::Args {
         clap::Parser::parse_from(argv)
     }
+    type Error = anyhow::Error;
     fn body(cli: &Cli) -> anyhow::Result<etp_runtime::shell::Done> {
         match cli {
             Cli::AgentHost(a) => agent_host::run(a),

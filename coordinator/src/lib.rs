@@ -117,6 +117,7 @@ impl shell::Process for CoordinatorProcess {
     fn parse(argv: Vec<std::ffi::OsString>) -> Self::Args {
         clap::Parser::parse_from(argv)
     }
+    type Error = anyhow::Error;
     fn body(args: &Args) -> anyhow::Result<Done> {
         let _span = tracing::info_span!("coordinator").entered();
         let report = run(args).context("coordinator")?;

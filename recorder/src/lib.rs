@@ -339,6 +339,7 @@ impl shell::Process for RecorderProcess {
     fn parse(argv: Vec<std::ffi::OsString>) -> Self::Args {
         clap::Parser::parse_from(argv)
     }
+    type Error = anyhow::Error;
     fn body(cli: &Cli) -> anyhow::Result<Done> {
         let file = create_output(&cli.out)?;
         let mut ready = false;

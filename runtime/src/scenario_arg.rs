@@ -8,7 +8,8 @@ use etp_shared::scenario::{BUILTIN_NAMES, Scenario, ScenarioError, builtin_text}
 use std::path::{Path, PathBuf};
 
 /// Why a scenario argument could not be resolved (the cause is the
-/// `source`: `{:#}` of an `anyhow` error shows it after a colon).
+/// `source`: the binaries' `{:#}` of an `anyhow` error shows it after a
+/// colon).
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioArgError {
     #[error("built-in scenario `{name}`")]

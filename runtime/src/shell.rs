@@ -49,9 +49,12 @@ pub trait Process {
     /// process crate's own clap parser, which prints help or the usage
     /// error and exits (0 or 2), as `main` would.
     fn parse(argv: Vec<OsString>) -> Self::Args;
+    /// Why the body failed: shown with `{:#}`, which for an `anyhow` error
+    /// (the process crates') is the error and its causes after colons.
+    type Error: std::fmt::Display;
     /// The process's own work; its error (with its causes) is the process's
     /// last line on stderr.
-    fn body(args: &Self::Args) -> anyhow::Result<Done>;
+    fn body(args: &Self::Args) -> Result<Done, Self::Error>;
 }
 
 /// An outcome with its own exit code (documented by the command that uses
@@ -155,9 +158,10 @@ mod tests {
                 fail: argv.iter().any(|a| a == "--fail"),
             }
         }
-        fn body(a: &Args) -> anyhow::Result<Done> {
+        type Error = &'static str;
+        fn body(a: &Args) -> Result<Done, &'static str> {
             if a.fail {
-                Err(anyhow::anyhow!("asked to"))
+                Err("asked to")
             } else {
                 Ok(Done::Quiet)
             }

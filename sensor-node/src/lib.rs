@@ -112,6 +112,7 @@ impl shell::Process for SensorProcess {
     fn parse(argv: Vec<std::ffi::OsString>) -> Self::Args {
         clap::Parser::parse_from(argv)
     }
+    type Error = anyhow::Error;
     fn body(args: &Args) -> anyhow::Result<Done> {
         let _span = tracing::info_span!("sensor", name = %args.sensor).entered();
         let (exit, stats) = run(args).with_context(|| format!("sensor `{}`", args.sensor))?;
