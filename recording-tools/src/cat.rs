@@ -18,8 +18,8 @@
 //!   `schema` and size in `bytes` follow (`mcap cat --json` refuses such a
 //!   file).
 
+use crate::error::{Context, Error, Result};
 use crate::export::{decoded_row, names, tables};
-use anyhow::{Context, Result, bail};
 use etp_runtime::recording::{Contents, Encoding, RawMessage};
 use prost_reflect::{DynamicMessage, SerializeOptions};
 use serde_json::{Value, json};
@@ -44,7 +44,7 @@ pub fn cat(c: &Contents, out: &mut impl Write, shape: Shape) -> Result<u64> {
     let mut n = 0u64;
     for m in order {
         if !c.channels.contains_key(&m.topic) {
-            bail!("message on undeclared channel `{}`", m.topic);
+            return Err(Error::UndeclaredChannel(m.topic.clone()));
         }
         let line = match (shape, tables.get(&m.topic)) {
             (Shape::Rows, Some(t)) => {
@@ -58,10 +58,10 @@ pub fn cat(c: &Contents, out: &mut impl Write, shape: Shape) -> Result<u64> {
                 None => mcap_line(m, "null", Some(undecoded(c, m))),
             },
         };
-        writeln!(out, "{line}")?;
+        writeln!(out, "{line}").map_err(Error::Stream)?;
         n += 1;
     }
-    out.flush()?;
+    out.flush().map_err(Error::Stream)?;
     Ok(n)
 }
 
@@ -93,23 +93,19 @@ fn mcap_line(m: &RawMessage, data: &str, extra: Option<serde_json::Map<String, V
 /// of their numbers, as `protojson` writes them).
 fn protobuf_json(m: &RawMessage) -> Result<String> {
     let at = || format!("message at log time {} on `{}`", m.log_time, m.topic);
-    let payload = m.decode().with_context(at)?;
+    let payload = m.decode().at_message(at)?;
     let bytes = Encoding::Protobuf
         .encode_recorded(&payload)
-        .with_context(at)?;
-    let desc = payload
-        .kind()
-        .proto_descriptor()
-        .map_err(anyhow::Error::msg)
-        .with_context(at)?;
-    let msg = DynamicMessage::decode(desc, bytes.as_slice()).with_context(at)?;
+        .at_message(at)?;
+    let desc = payload.kind().proto_descriptor().at_message(at)?;
+    let msg = DynamicMessage::decode(desc, bytes.as_slice()).at_message(at)?;
     let mut text = Vec::new();
     msg.serialize_with_options(
         &mut serde_json::Serializer::new(&mut text),
         &SerializeOptions::new(),
     )
-    .with_context(at)?;
-    String::from_utf8(text).with_context(at)
+    .at_message(at)?;
+    String::from_utf8(text).at_message(at)
 }
 
 /// A `json` message of a channel etp did not write, parsed.

@@ -8,7 +8,7 @@
 //! `DIR/tables.json`: the source, the recording's metadata records and, per
 //! table, its topic, file, schema, row count and typed columns.
 
-use anyhow::{Context, Result, bail};
+use crate::error::{Context, Error, IoContext, Result, Words};
 use etp_runtime::recording::table::{Cell, Column, Names, Table, csv_quote};
 use etp_runtime::recording::{self, Contents, Kind};
 use etp_shared::scenario::Scenario;
@@ -81,11 +81,12 @@ pub fn is_etp_channel(c: &Contents, topic: &str) -> bool {
 pub(crate) fn tables(c: &Contents, dim: Option<usize>) -> Result<BTreeMap<String, Table>> {
     let mut out = BTreeMap::new();
     for topic in c.channels.keys().filter(|t| is_etp_channel(c, t)) {
-        let kind: Kind = recording::kind_of_topic(topic)
-            .with_context(|| format!("unknown channel `{topic}` in the recording"))?;
-        let t = Table::of(kind, dim)
-            .map_err(anyhow::Error::msg)
-            .with_context(|| format!("the table of `{topic}`"))?;
+        let kind: Kind =
+            recording::kind_of_topic(topic).ok_or_else(|| Error::UnknownChannel(topic.clone()))?;
+        let t = Table::of(kind, dim).map_err(|why| Error::Table {
+            topic: topic.clone(),
+            source: Words(why),
+        })?;
         out.insert(topic.clone(), t);
     }
     Ok(out)
@@ -151,12 +152,7 @@ pub fn export_streaming(
         Ok(())
     })?;
     if c.damaged {
-        bail!(
-            "{} is damaged: {} (`etp replay repair {} OUT` salvages the records before the damage)",
-            source.display(),
-            c.truncated.as_deref().unwrap_or("unreadable record"),
-            source.display()
-        );
+        return Err(damaged(source, &c));
     }
     crate::refuse_foreign(source, &c)?;
     recording::check_metadata(&c)?;
@@ -173,6 +169,18 @@ pub fn export_streaming(
     Ok((e, c))
 }
 
+/// The refusal of the damaged file `source` read into `c`.
+fn damaged(source: &Path, c: &Contents) -> Error {
+    Error::Damaged {
+        file: source.to_path_buf(),
+        why: c
+            .truncated
+            .as_deref()
+            .unwrap_or("unreadable record")
+            .to_string(),
+    }
+}
+
 /// A message of an etp channel as its table's typed row: THE decoding of
 /// `export`, `cat` and [`Rows`].
 pub(crate) fn decoded_row(
@@ -182,7 +190,7 @@ pub(crate) fn decoded_row(
 ) -> Result<Vec<Cell>> {
     let rec = m
         .decode()
-        .with_context(|| format!("message at log time {}", m.log_time))?;
+        .at_message(|| format!("message at log time {}", m.log_time))?;
     Ok(t.row(m.log_time, &rec, names))
 }
 
@@ -207,12 +215,7 @@ impl Rows {
     pub fn open(source: &Path) -> Result<Self> {
         let c = recording::stream_finished(source, |_| -> Result<()> { Ok(()) })?;
         if c.damaged {
-            bail!(
-                "{} is damaged: {} (`etp replay repair {} OUT` salvages the records before the damage)",
-                source.display(),
-                c.truncated.as_deref().unwrap_or("unreadable record"),
-                source.display()
-            );
+            return Err(damaged(source, &c));
         }
         recording::check_metadata(&c)?;
         let (names, dim) = names(&c);
@@ -233,7 +236,7 @@ impl Rows {
                 Some(t) => row(&m.topic, decoded_row(t, &m, &self.names)?),
                 // A channel etp did not write has no typed table.
                 None if self.contents.channels.contains_key(&m.topic) => Ok(()),
-                None => bail!("message on undeclared channel `{}`", m.topic),
+                None => Err(Error::UndeclaredChannel(m.topic.clone())),
             }
         })
         .map(|_| ())
@@ -267,7 +270,7 @@ fn export_with(
         let f = etp_files::write::create_exclusive(&tmp)?;
         let mut w = std::io::BufWriter::new(f);
         if let Some(h) = header_line(&tables[*topic].columns, format) {
-            writeln!(w, "{h}").with_context(|| format!("writing {}", tmp.display()))?;
+            writeln!(w, "{h}").doing(|| format!("writing {}", tmp.display()))?;
         }
         writers.insert(topic, (w, tmp, 0));
     }
@@ -279,11 +282,11 @@ fn export_with(
             if c.channels.contains_key(&m.topic) {
                 return Ok(());
             }
-            bail!("message on undeclared channel `{}`", m.topic);
+            return Err(Error::UndeclaredChannel(m.topic.clone()));
         };
         let row = decoded_row(t, m, &names)?;
         writeln!(w, "{}", row_line(t, &row, format))
-            .with_context(|| format!("writing {}", tmp.display()))?;
+            .doing(|| format!("writing {}", tmp.display()))?;
         *n += 1;
         Ok(())
     });
@@ -291,17 +294,14 @@ fn export_with(
     let mut bytes = 0u64;
     let mut described = Vec::new();
     for (topic, (mut w, tmp, n)) in writers {
-        let flushed = w
-            .flush()
-            .with_context(|| format!("writing {}", tmp.display()));
+        let flushed = w.flush().doing(|| format!("writing {}", tmp.display()));
         if result.is_err() || flushed.is_err() {
             let _ = std::fs::remove_file(&tmp);
             flushed?;
             continue;
         }
         let path = &files[topic];
-        std::fs::rename(&tmp, path)
-            .with_context(|| format!("moving {} into place", path.display()))?;
+        std::fs::rename(&tmp, path).doing(|| format!("moving {} into place", path.display()))?;
         bytes += std::fs::metadata(path).map_or(0, |m| m.len());
         rows += n;
         let t = &tables[topic];
@@ -314,14 +314,15 @@ fn export_with(
         }));
     }
     result?;
-    let text = serde_json::to_string_pretty(&json!({
+    // A JSON value's alternate form is `serde_json::to_string_pretty`'s text.
+    let text = json!({
         "source": source.display().to_string(),
         "format": format.ext(),
         "metadata": c.metadata,
         "codes": codes(),
         "tables": described,
-    }))?;
-    etp_files::write::write_new(&manifest, format!("{text}\n").as_bytes(), force)?;
+    });
+    etp_files::write::write_new(&manifest, format!("{text:#}\n").as_bytes(), force)?;
     Ok(Exported {
         dir: dir.display().to_string(),
         format: format.ext(),

@@ -2,7 +2,7 @@
 //! episode (from the sensors' ledgers) and outcomes, with 95 % intervals,
 //! beside the recorded prediction (`etp.prediction`, `etp.strategy`).
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use etp_runtime::recording::{self, Contents, Recorded};
 use etp_shared::stats::Z95;
 use etp_shared::stats::verdict::Measured;
@@ -81,7 +81,7 @@ pub fn figure(c: &Contents, names: &[String]) -> Result<RunFigure> {
     for m in &c.messages {
         match m
             .decode()
-            .with_context(|| format!("message at log time {}", m.log_time))?
+            .at_message(|| format!("message at log time {}", m.log_time))?
         {
             Recorded::Ledger(l) => {
                 *energy

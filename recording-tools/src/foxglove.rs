@@ -32,7 +32,7 @@ mod scene;
 #[cfg(test)]
 mod tests;
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Error, IoContext, Result};
 use etp_runtime::recording::{self, Contents, Recorded};
 use etp_runtime::wire::coordinator_to_agent::Control;
 use etp_runtime::wire::coordinator_to_sensor::Threshold;
@@ -188,7 +188,7 @@ fn gather(c: &Contents) -> Result<BTreeMap<u64, Episode>> {
     for m in &c.messages {
         let rec = m
             .decode()
-            .with_context(|| format!("{} message at log time {}", m.topic, m.log_time))?;
+            .at_message(|| format!("{} message at log time {}", m.topic, m.log_time))?;
         let t = m.log_time;
         let (header, rec) = match rec {
             Recorded::Control(x) if x.kind == Control::START => (x.header, Recorded::Control(x)),
@@ -262,7 +262,11 @@ fn name_of(names: &[String], i: u32) -> String {
 type Item = (u64, usize, Vec<u8>);
 
 fn json<T: serde::Serialize>(time: u64, topic: usize, m: &T) -> Result<Item> {
-    Ok((time, topic, serde_json::to_vec(m).context("encoding JSON")?))
+    let data = serde_json::to_vec(m).map_err(|source| Error::Json {
+        what: "encoding JSON".into(),
+        source,
+    })?;
+    Ok((time, topic, data))
 }
 
 const TOPICS: [(&str, &str); 5] = [
@@ -370,10 +374,10 @@ fn episode_items(
 /// sibling renamed into place, like `--repair`).
 pub fn write_foxglove(c: &Contents, out: &Path, clock: Clock) -> Result<FoxgloveStats> {
     let scenario = match c.meta(recording::META_SCENARIO, "toml") {
-        Some(text) => Some(
-            Scenario::from_toml(text)
-                .context("the recording's scenario (metadata etp.scenario)")?,
-        ),
+        Some(text) => Some(Scenario::from_toml(text).map_err(|source| Error::Scenario {
+            what: "the recording's scenario (metadata etp.scenario)".into(),
+            source,
+        })?),
         None => {
             eprintln!("warning: the recording holds no scenario: no map on {SCENE}");
             None
@@ -391,7 +395,7 @@ pub fn write_foxglove(c: &Contents, out: &Path, clock: Clock) -> Result<Foxglove
         write_file(c, tmp, scenario.as_ref(), &names, &eps, clock)
     })?;
     stats.bytes = std::fs::metadata(out)
-        .with_context(|| format!("reading the size of {}", out.display()))?
+        .doing(|| format!("reading the size of {}", out.display()))?
         .len();
     Ok(stats)
 }
@@ -516,9 +520,14 @@ fn write_file(
     });
     stats.episodes = done;
     stats.incomplete_episodes = cut;
-    w.finish().context("finishing the Foxglove copy")?;
+    w.finish().map_err(|source| Error::Mcap {
+        what: "finishing the Foxglove copy".into(),
+        source,
+    })?;
     let mut inner = w.into_inner();
-    inner.flush().context("flushing the Foxglove copy")?;
+    inner
+        .flush()
+        .doing(|| "flushing the Foxglove copy".into())?;
     drop(inner);
     Ok(stats)
 }

@@ -15,8 +15,11 @@
 //! * [`figure`] — measured against predicted, the data of the report figure
 //!   (drawn by `etp`'s plotters code).
 //! * [`vocab`] — THE JSON vocabulary shared by every command's `--json`.
+//! * [`Error`] — what every tool fails with, one variant per kind of
+//!   failure.
 
 pub mod cat;
+pub mod error;
 pub mod export;
 pub mod figure;
 pub mod foxglove;
@@ -27,7 +30,9 @@ pub mod select;
 pub mod summary;
 pub mod vocab;
 
-use anyhow::{Context, Result, bail};
+pub use error::{Error, Result};
+
+use error::IoContext;
 use etp_runtime::recording::{self, Contents};
 use std::path::Path;
 
@@ -59,15 +64,17 @@ pub fn copy_writer(
     profile: &str,
     what: &str,
 ) -> Result<mcap::Writer<std::io::BufWriter<std::fs::File>>> {
-    let file =
-        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+    let file = std::fs::File::create(path).doing(|| format!("creating {}", path.display()))?;
     let mut w = mcap::WriteOptions::new()
         .compression(Some(mcap::Compression::Zstd))
         .chunk_size(Some(1024 * 1024))
         .profile(profile)
         .library(format!("etp replay {what} {}", env!("CARGO_PKG_VERSION")))
         .create(std::io::BufWriter::new(file))
-        .context("starting the MCAP writer")?;
+        .map_err(|source| Error::Mcap {
+            what: "starting the MCAP writer".into(),
+            source,
+        })?;
     for (name, metadata) in &c.metadata {
         w.write_metadata(&mcap::records::Metadata {
             name: name.clone(),
@@ -84,7 +91,7 @@ pub fn load(path: &Path) -> Result<Contents> {
 
 /// Read a recording and the file's bytes.
 pub fn load_bytes(path: &Path) -> Result<(Contents, Vec<u8>)> {
-    let buf = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let buf = std::fs::read(path).doing(|| format!("reading {}", path.display()))?;
     let c = recording::read_lenient(&path.display().to_string(), &buf)?;
     Ok((c, buf))
 }
@@ -99,15 +106,11 @@ pub fn refuse_foreign(file: &Path, c: &Contents) -> Result<()> {
         return Ok(());
     }
     let seen: std::collections::BTreeSet<&str> = c.encodings.values().map(String::as_str).collect();
-    bail!(
-        "{} is not an etp recording: none of its {} channels is one etp records \
-         (their encodings: {}; a Foxglove copy, or another program's file); \
-         `etp replay info {}` describes any MCAP file",
-        file.display(),
-        c.channels.len(),
-        seen.into_iter().collect::<Vec<_>>().join(", "),
-        file.display()
-    )
+    Err(Error::Foreign {
+        file: file.to_path_buf(),
+        channels: c.channels.len(),
+        encodings: seen.into_iter().collect::<Vec<_>>().join(", "),
+    })
 }
 
 /// Refuse an output path that exists (unless `force`) or is the input.
@@ -117,11 +120,45 @@ pub fn check_output(input: &Path, out: &Path, force: bool) -> Result<()> {
             .ok()
             .is_some_and(|o| std::fs::canonicalize(input).ok() == Some(o))
     {
-        bail!(
-            "{} is the recording being read: choose another output",
-            out.display()
-        );
+        return Err(Error::OutputIsInput(out.to_path_buf()));
     }
     etp_files::write::existing_folder_of(out, "output")?;
     Ok(etp_files::write::refuse_existing(out, force)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The kinds and texts `etp replay` prints after `error: ` (`{:#}` of
+    /// anyhow: the words, then each cause after `: `).
+    #[test]
+    fn a_missing_input_and_an_output_onto_it_are_told_apart_by_kind_and_text() {
+        let dir = std::env::temp_dir().join(format!("etp-tools-errors-{}", std::process::id()));
+        let missing = dir.join("absent.mcap");
+        let e = load(&missing).expect_err("a missing file does not load");
+        assert!(
+            matches!(&e, Error::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound),
+            "{e:?}"
+        );
+        assert_eq!(
+            format!("{:#}", anyhow::Error::from(e)),
+            format!(
+                "reading {}: No such file or directory (os error 2)",
+                missing.display()
+            )
+        );
+        let e = check_output(&missing, &missing, false).expect_err("the input is no output");
+        assert!(
+            matches!(&e, Error::OutputIsInput(p) if *p == missing),
+            "{e:?}"
+        );
+        assert_eq!(
+            format!("{:#}", anyhow::Error::from(e)),
+            format!(
+                "{} is the recording being read: choose another output",
+                missing.display()
+            )
+        );
+    }
 }

@@ -16,7 +16,7 @@
 //! its copy when it finishes, so the copy summarises and `--verify`s like the
 //! original. `--loop` repeats the traffic (the time offsets restart).
 
-use anyhow::{Context, Result, bail};
+use crate::error::{Context, Error, IoContext, Result};
 use etp_runtime::recording::{self, Contents, Recorded, observers};
 use etp_runtime::wire::{self, Notifier, Ports, RunId, ServiceId};
 use etp_shared::scenario::Scenario;
@@ -59,14 +59,17 @@ pub struct Published {
 pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Result<Published> {
     let text = c
         .meta(recording::META_SCENARIO, "toml")
-        .context("the recording has no scenario (metadata `etp.scenario`)")?;
-    let scenario = Scenario::from_toml(text).context("the recorded scenario")?;
+        .ok_or(Error::NoScenario)?;
+    let scenario = Scenario::from_toml(text).map_err(|source| Error::Scenario {
+        what: "the recorded scenario".into(),
+        source,
+    })?;
     // Decode everything first: a damaged payload stops the replay before it starts.
     let mut order: Vec<(u64, &str, Recorded)> = Vec::with_capacity(c.messages.len());
     for m in &c.messages {
         let r = m
             .decode()
-            .with_context(|| format!("message at log time {}", m.log_time))?;
+            .at_message(|| format!("message at log time {}", m.log_time))?;
         order.push((m.log_time, m.topic.as_str(), r));
     }
     // The recorder drains channel by channel: restore the global time order
@@ -84,20 +87,21 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Res
     let mut wakes: BTreeMap<ServiceId, Notifier> = BTreeMap::new();
     for topic in c.channels.keys() {
         let s = recording::service_of_topic(topic)
-            .with_context(|| format!("unknown channel `{topic}` in the recording"))?;
+            .ok_or_else(|| Error::UnknownChannel(topic.clone()))?;
         let wake = s.reader_wake();
         if let std::collections::btree_map::Entry::Vacant(slot) = wakes.entry(wake) {
-            slot.insert(
-                ports
-                    .notifier(wake)
-                    .with_context(|| format!("opening the wake-up of `{topic}`"))?,
-            );
+            slot.insert(ports.notifier(wake).map_err(|source| Error::Port {
+                what: format!("opening the wake-up of `{topic}`"),
+                source,
+            })?);
         }
         senders.insert(
             topic.as_str(),
             (
-                recording::ports::decoded_publisher(&ports, s)
-                    .with_context(|| format!("opening `{topic}`"))?,
+                recording::ports::decoded_publisher(&ports, s).map_err(|source| Error::Port {
+                    what: format!("opening `{topic}`"),
+                    source,
+                })?,
                 wake,
             ),
         );
@@ -107,8 +111,10 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Res
     // attached to every publisher: a sample sent before then is lost if
     // this replay ends first (`recording::observers`).
     for n in wakes.values() {
-        n.notify()
-            .map_err(|e| anyhow::anyhow!("waking the readers: {e:?}"))?;
+        n.notify().map_err(|e| Error::Publish {
+            what: "waking the readers".into(),
+            detail: format!("{e:?}"),
+        })?;
     }
     observers::await_attached(run, token, observers::ATTACH_LIMIT, || {
         wire::termination_requested(&node)
@@ -128,28 +134,31 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Res
                 if forever {
                     break 'passes;
                 }
-                bail!("interrupted after {messages} messages");
+                return Err(Error::Interrupted { messages });
             }
             let due = Duration::try_from_secs_f64((t - t0) as f64 * 1e-9 / rate)
-                .with_context(|| format!("--rate {rate}: the replay would take forever"))?;
+                .map_err(|source| Error::Rate { rate, source })?;
             if let Some(wait) = due.checked_sub(pass_start.elapsed()) {
                 std::thread::sleep(wait);
             }
             let Some((sender, wake)) = senders.get(topic) else {
-                bail!("message on unknown channel `{topic}`");
+                return Err(Error::UnopenedChannel(topic.to_string()));
             };
             let notify = || -> Result<()> {
                 // As the live publisher did: readers (and the recorder) wake on it.
                 if let Some(n) = wakes.get(wake) {
-                    n.notify().map_err(|e| {
-                        anyhow::anyhow!("notifying the readers of `{topic}`: {e:?}")
+                    n.notify().map_err(|e| Error::Publish {
+                        what: format!("notifying the readers of `{topic}`"),
+                        detail: format!("{e:?}"),
                     })?;
                 }
                 Ok(())
             };
-            let mut reached = sender
-                .send(r.clone())
-                .with_context(|| format!("publishing on `{topic}`"))?;
+            let publishing = |source| Error::Send {
+                what: format!("publishing on `{topic}`"),
+                source,
+            };
+            let mut reached = sender.send(r.clone()).map_err(publishing)?;
             notify()?;
             // iceoryx2 returns 0 (a silent drop) when a subscriber's buffer
             // is full: on a channel that has a subscriber, wait for it to
@@ -157,9 +166,7 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Res
             let retry_until = Instant::now() + STALL_LIMIT;
             while reached == 0 && delivered.contains(topic) && Instant::now() < retry_until {
                 std::thread::sleep(Duration::from_micros(200));
-                reached = sender
-                    .send(r.clone())
-                    .with_context(|| format!("publishing on `{topic}`"))?;
+                reached = sender.send(r.clone()).map_err(publishing)?;
                 notify()?;
             }
             if reached > 0 {
@@ -171,7 +178,7 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Res
         }
         loops += 1;
         if order.is_empty() && forever {
-            bail!("--loop: nothing to publish");
+            return Err(Error::request("--loop: nothing to publish"));
         }
     }
     let wall_seconds = start.elapsed().as_secs_f64();
@@ -195,11 +202,14 @@ pub fn publish(c: &Contents, run: &RunId, rate: f64, repeat: Option<u64>) -> Res
 /// Leave the recording's metadata for the run's recorder (see the module doc).
 fn hand_over_metadata(c: &Contents, run: &RunId) -> Result<observers::Token> {
     let path = recording::handover_path(run);
-    let text = serde_json::to_string(&c.metadata).context("encoding the metadata")?;
+    let text = serde_json::to_string(&c.metadata).map_err(|source| Error::Json {
+        what: "encoding the metadata".into(),
+        source,
+    })?;
     // Written beside and renamed: a recorder reading it meanwhile sees the
     // whole file or none.
     let beside = path.with_extension("json.part");
-    std::fs::write(&beside, text).with_context(|| format!("writing {}", beside.display()))?;
-    std::fs::rename(&beside, &path).with_context(|| format!("renaming to {}", path.display()))?;
-    observers::handover_token(run).with_context(|| format!("{} vanished", path.display()))
+    std::fs::write(&beside, text).doing(|| format!("writing {}", beside.display()))?;
+    std::fs::rename(&beside, &path).doing(|| format!("renaming to {}", path.display()))?;
+    observers::handover_token(run).ok_or(Error::HandoverVanished(path))
 }

@@ -3,7 +3,7 @@
 //! `filter FILE OUT`: the same copy of a selection (`crate::select`), like
 //! `mcap filter`. Both keep every metadata record.
 
-use anyhow::{Context, Result, bail};
+use crate::error::{Error, Result};
 use etp_runtime::recording::{self, Contents};
 use std::collections::BTreeMap;
 
@@ -22,14 +22,15 @@ fn write_copy(c: &Contents, tmp: &std::path::Path, what: &str) -> Result<u64> {
     let mut ids: BTreeMap<&str, u16> = BTreeMap::new();
     for topic in c.channels.keys() {
         let Some(kind) = recording::kind_of_topic(topic) else {
-            bail!("unknown channel `{topic}` in the recording");
+            return Err(Error::UnknownChannel(topic.clone()));
         };
         // The copy keeps each channel's own encoding (a format-4 file stays
         // format 4: its metadata says so), with this etp's schema of it.
         let encoding = match c.encodings.get(topic) {
             None => recording::Encoding::Protobuf,
-            Some(e) => recording::Encoding::of(e).with_context(|| {
-                format!("channel `{topic}`: message encoding `{e}` is not one etp writes")
+            Some(e) => recording::Encoding::of(e).ok_or_else(|| Error::Encoding {
+                topic: topic.clone(),
+                encoding: e.clone(),
             })?,
         };
         let (name, schema_encoding, data) = encoding.schema(kind)?;
@@ -40,7 +41,7 @@ fn write_copy(c: &Contents, tmp: &std::path::Path, what: &str) -> Result<u64> {
     let mut seq: BTreeMap<u16, u32> = BTreeMap::new();
     for m in &c.messages {
         let Some(&id) = ids.get(m.topic.as_str()) else {
-            bail!("message on unknown channel `{}`", m.topic);
+            return Err(Error::UnopenedChannel(m.topic.clone()));
         };
         let s = seq.entry(id).or_default();
         w.write_to_known_channel(
@@ -54,8 +55,10 @@ fn write_copy(c: &Contents, tmp: &std::path::Path, what: &str) -> Result<u64> {
         )?;
         *s = s.wrapping_add(1);
     }
-    w.finish()
-        .with_context(|| format!("finishing the {what} copy"))?;
+    w.finish().map_err(|source| Error::Mcap {
+        what: format!("finishing the {what} copy"),
+        source,
+    })?;
     drop(w);
     Ok(c.messages.len() as u64)
 }

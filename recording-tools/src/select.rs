@@ -3,7 +3,7 @@
 //! `--start`/`--end` (seconds from the first message). The selection applies
 //! to the summary, `--export`, `--cat`, `--info` and `--publish`.
 
-use anyhow::{Context, Result, bail};
+use crate::error::{Context, Error, Result};
 use etp_runtime::recording::{self, Contents};
 
 /// `--episodes`: a range of `header.episode` (0-based): `A..B` (B excluded),
@@ -123,7 +123,9 @@ impl Selection {
         if let (Some(s), Some(e)) = (self.start, self.end)
             && e <= s
         {
-            bail!("--end {e} s is not after --start {s} s");
+            return Err(Error::request(format!(
+                "--end {e} s is not after --start {s} s"
+            )));
         }
         for (option, patterns) in [
             ("--topics", &self.topics),
@@ -131,10 +133,10 @@ impl Selection {
         ] {
             for p in patterns {
                 if !c.channels.keys().any(|t| glob(p, t)) {
-                    bail!(
+                    return Err(Error::request(format!(
                         "{option}: `{p}` matches no channel of the recording (channels: {})",
                         c.channels.keys().cloned().collect::<Vec<_>>().join(" ")
-                    );
+                    )));
                 }
             }
         }
@@ -160,7 +162,7 @@ impl Selection {
             Some(r) => {
                 let rec = m
                     .decode()
-                    .with_context(|| format!("message at log time {}", m.log_time))?;
+                    .at_message(|| format!("message at log time {}", m.log_time))?;
                 Ok(r.contains(rec.header().episode))
             }
             None => Ok(true),

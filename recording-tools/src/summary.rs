@@ -3,7 +3,7 @@
 //! the agent received; on a lossy radio the attempts recorded in `slot`
 //! beside the ledgers' attempts = delivered + lost), energy vs prediction.
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use etp_runtime::recording::{self, Contents, Recorded};
 use etp_shared::stats::verdict::{Measured, Outcomes};
 use etp_shared::strategy::Strategy;
@@ -130,7 +130,7 @@ impl Tally {
         }
         let rec = m
             .decode()
-            .with_context(|| format!("message at log time {}", m.log_time))?;
+            .at_message(|| format!("message at log time {}", m.log_time))?;
         let h = *rec.header();
         // `hello` and the like belong to no episode.
         if h.episode == u64::MAX {

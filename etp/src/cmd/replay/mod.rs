@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 mod job;
 mod output;
 pub use job::Job;
-use output::{emit, is_broken_pipe, render_verify};
+use output::{emit, render_verify};
 
 #[derive(Debug, clap::Args)]
 #[command(
@@ -357,7 +357,7 @@ fn run_job(a: Job) -> Result<()> {
             cat::Shape::Rows
         };
         match cat::cat(&c, &mut out, shape) {
-            Err(e) if is_broken_pipe(&e) => return Ok(()),
+            Err(e) if e.is_broken_pipe() => return Ok(()),
             r => {
                 r.context("cat")?;
             }

@@ -4,13 +4,6 @@
 use anyhow::{Context, Result};
 use etp_runtime::recording;
 
-pub(super) fn is_broken_pipe(e: &anyhow::Error) -> bool {
-    e.chain().any(|c| {
-        c.downcast_ref::<std::io::Error>()
-            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
-    })
-}
-
 /// Write `text` to stdout. A closed pipe (`etp replay F | head -1`) ends the
 /// output quietly; another write error is reported, never a panic.
 pub(super) fn emit(text: &str) -> Result<()> {
