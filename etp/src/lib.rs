@@ -84,7 +84,7 @@ fn run_command(command: cli::Command) -> (u8, bool) {
     };
     match result {
         Ok(()) => (0, false),
-        Err(e) => match e.downcast_ref::<ExitWith>() {
+        Err(e) => match exit_with(&e) {
             Some(x) => {
                 // Every rank reached the same outcome: rank 0 says it.
                 if etp_pipeline::exec::is_root() {
@@ -105,6 +105,16 @@ fn run_command(command: cli::Command) -> (u8, bool) {
             }
         },
     }
+}
+
+/// The outcome with its own exit code that `e` is, if it is one: an
+/// [`ExitWith`] of a command, or one the run returned inside its own error
+/// ([`etp_launcher::Error::Exit`]: an interrupt, a run that is not clean).
+fn exit_with(e: &anyhow::Error) -> Option<&ExitWith> {
+    e.downcast_ref::<ExitWith>().or_else(|| {
+        e.downcast_ref::<etp_launcher::Error>()
+            .and_then(etp_launcher::Error::exit_with)
+    })
 }
 
 fn init_tracing() {

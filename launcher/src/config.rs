@@ -16,7 +16,7 @@
 //! record = "open-2d.mcap"
 //! ```
 
-use anyhow::{Context, Result};
+use crate::error::{Context, IoContext, Result};
 use etp_runtime::scenario_arg::ScenarioSource;
 use std::path::{Path, PathBuf};
 
@@ -96,9 +96,9 @@ run_file_keys! {
 /// Read a run file (errors name the file and the key).
 pub fn read(path: &Path) -> Result<RunConfig> {
     let text = std::fs::read_to_string(path)
-        .with_context(|| format!("reading the run file {}", path.display()))?;
+        .doing(|| format!("reading the run file {}", path.display()))?;
     let mut c: RunConfig =
-        toml::from_str(&text).with_context(|| format!("run file {}", path.display()))?;
+        toml::from_str(&text).in_run_file(|| format!("run file {}", path.display()))?;
     let base = path.parent().unwrap_or(Path::new(""));
     let rel = |p: &mut Option<PathBuf>| {
         if let Some(x) = p.as_mut().filter(|x| x.is_relative()) {
@@ -145,8 +145,7 @@ pub fn stored(c: &RunConfig) -> Result<String> {
     c.run_id = None;
     let abs = |p: &mut Option<PathBuf>| -> Result<()> {
         if let Some(x) = p.as_mut() {
-            *x = std::path::absolute(&*x)
-                .with_context(|| format!("making {} absolute", x.display()))?;
+            *x = std::path::absolute(&*x).doing(|| format!("making {} absolute", x.display()))?;
         }
         Ok(())
     };
@@ -155,10 +154,10 @@ pub fn stored(c: &RunConfig) -> Result<String> {
     if let Some(s) = c.scenario.take() {
         let source = ScenarioSource::parse(&s)
             .absolute()
-            .with_context(|| format!("making {s} absolute"))?;
+            .doing(|| format!("making {s} absolute"))?;
         c.scenario = Some(source.to_arg());
     }
-    toml::to_string(&c).context("writing the run's configuration")
+    toml::to_string(&c).in_run_file(|| "writing the run's configuration")
 }
 
 #[cfg(test)]

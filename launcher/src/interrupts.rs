@@ -6,7 +6,7 @@
 //! folder and iceoryx2 files removed, no recording claimed). Once the
 //! episodes run, the supervisor stops them after the complete ones.
 
-use anyhow::{Context, Result};
+use crate::error::{Error, IoContext, Result};
 use etp_runtime::shell::ExitWith;
 use std::time::Duration;
 use tokio::signal::unix::{Signal, SignalKind, signal};
@@ -23,8 +23,8 @@ impl Interrupts {
     pub fn listen(rt: &tokio::runtime::Runtime) -> Result<Self> {
         let _in_rt = rt.enter();
         Ok(Self {
-            int: signal(SignalKind::interrupt()).context("listening for Ctrl-C")?,
-            term: signal(SignalKind::terminate()).context("listening for SIGTERM")?,
+            int: signal(SignalKind::interrupt()).setting_up("listening for Ctrl-C")?,
+            term: signal(SignalKind::terminate()).setting_up("listening for SIGTERM")?,
         })
     }
 
@@ -46,10 +46,9 @@ impl Interrupts {
 
 /// The error that ends the command (exit 130) when an interrupt came
 /// `during` a wait before the first episode.
-pub fn before_any_episode(name: &str, during: &str) -> anyhow::Error {
-    ExitWith {
+pub fn before_any_episode(name: &str, during: &str) -> Error {
+    Error::Exit(ExitWith {
         code: super::EXIT_INTERRUPTED,
         message: format!("etp run: interrupted ({name}) {during}, before any episode: nothing ran"),
-    }
-    .into()
+    })
 }

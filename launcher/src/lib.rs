@@ -30,6 +30,8 @@
 //!   [`EXIT_DEGRADED`], [`EXIT_INTERRUPTED`]).
 //! * [`report`] — the table and the `--json` object; [`figure`] the data of
 //!   `--plot`'s figure.
+//! * [`error`] — what a run fails with ([`Error`], one variant per kind of
+//!   failure); an outcome with its own exit code is [`Error::Exit`].
 //! * [`request::LinkProtection`] — `--tls DIR` / `--insecure` of a run
 //!   across hosts; `remote` the bridge process for remote sensors and its
 //!   report.
@@ -90,6 +92,7 @@
 //!   beside and exits 4. A run that fails before it ran removes its partial file.
 
 pub mod config;
+pub mod error;
 pub mod figure;
 mod interrupts;
 mod live;
@@ -103,7 +106,8 @@ mod rundir;
 pub mod supervise;
 mod verdict;
 
-use anyhow::{Context, Result};
+use error::IoContext;
+pub use error::{Error, Result};
 use etp_runtime::cleanup;
 use etp_runtime::wire::RunId;
 pub use live::parse_addr as parse_live_addr;
@@ -132,7 +136,7 @@ pub fn execute_run(a: &RunRequest) -> Result<(prepare::Plan, supervise::Supervis
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
-        .context("starting the tokio runtime")?;
+        .setting_up("starting the tokio runtime")?;
     let mut interrupts = interrupts::Interrupts::listen(&rt)?;
     // `--record PATH` is claimed before any work (an existing file is
     // refused without --force); `--record-default` once its name is known.

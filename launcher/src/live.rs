@@ -7,7 +7,7 @@
 
 use super::RunRequest;
 use super::interrupts::Interrupts;
-use anyhow::{Result, bail};
+use crate::error::{Error, Result};
 use etp_live::LiveView;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -118,13 +118,11 @@ pub fn wait(
                 return Ok(());
             }
             if Instant::now() >= deadline {
-                bail!(
-                    "--live-wait: no Foxglove client subscribed at ws://{}:{} within \
-                     --deadline ({} s)",
-                    view.addr.ip(),
-                    live.view.port(),
-                    a.deadline
-                );
+                return Err(Error::NoLiveClient {
+                    ip: view.addr.ip(),
+                    port: live.view.port(),
+                    deadline: a.deadline,
+                });
             }
             let name = tokio::select! {
                 name = interrupts.next() => name,

@@ -1,7 +1,7 @@
 //! Everything decided before a process is spawned.
 
 use super::{RunRequest, RunTarget};
-use anyhow::{Context, Result, bail};
+use crate::error::{Context, Error, IoContext, Result};
 use etp_runtime::scenario_arg::scenario_text;
 use etp_runtime::wire::RunId;
 use etp_shared::radio::{Radio, RadioOverride};
@@ -40,16 +40,18 @@ pub struct Plan {
 /// identical, so step rates with 1 and with 32 sensor processes compare.
 fn clone_sensors(text: &str, k: usize) -> Result<String> {
     if k == 0 || k > MAX_SENSORS {
-        bail!("--clone-sensors must be between 1 and {MAX_SENSORS}, got {k}");
+        return Err(Error::request(format!(
+            "--clone-sensors must be between 1 and {MAX_SENSORS}, got {k}"
+        )));
     }
     let mut v: toml::Table =
-        toml::from_str(text).context("parsing the scenario for --clone-sensors")?;
+        toml::from_str(text).in_scenario(|| "parsing the scenario for --clone-sensors")?;
     let first = v
         .get("sensor")
         .and_then(|s| s.as_array())
         .and_then(|a| a.first())
         .cloned()
-        .context("scenario has no sensor")?;
+        .ok_or_else(|| Error::scenario("scenario has no sensor"))?;
     let sensors: Vec<toml::Value> = (0..k)
         .map(|i| {
             let mut s = first.clone();
@@ -70,7 +72,7 @@ fn clone_sensors(text: &str, k: usize) -> Result<String> {
     if let Some(name) = v.get("name").and_then(|n| n.as_str()).map(str::to_string) {
         v.insert("name".into(), toml::Value::String(format!("{name}-x{k}")));
     }
-    toml::to_string(&v).context("writing the cloned scenario")
+    toml::to_string(&v).in_scenario(|| "writing the cloned scenario")
 }
 
 /// Most sensor processes a run may have (the service limits and the two
@@ -83,14 +85,14 @@ pub const MAX_SENSORS: usize = 64;
 fn run_text(a: &RunRequest) -> Result<(String, Option<Strategy>)> {
     let (mut text, strategy_in) = match &a.target {
         RunTarget::Strategy { path, scenario } => {
-            let s = std::fs::read_to_string(path)
-                .with_context(|| format!("reading {}", path.display()))?;
+            let s =
+                std::fs::read_to_string(path).doing(|| format!("reading {}", path.display()))?;
             let st = Strategy::from_sealed_json(&s)
-                .with_context(|| format!("loading strategy {}", path.display()))?;
+                .in_strategy(|| format!("loading strategy {}", path.display()))?;
             let text = match (scenario, &st.policy.scenario_toml) {
                 (Some(arg), _) => scenario_text(arg)?,
                 (None, Some(t)) => t.clone(),
-                (None, None) => scenario_text(&st.policy.scenario_name).with_context(|| {
+                (None, None) => scenario_text(&st.policy.scenario_name).in_strategy(|| {
                     format!(
                         "strategy {} names scenario `{}`",
                         path.display(),
@@ -105,25 +107,25 @@ fn run_text(a: &RunRequest) -> Result<(String, Option<Strategy>)> {
     if let Some(family) = a.trigger
         && strategy_in.is_some()
     {
-        let own = ScenarioText::parse(text.clone()).context("scenario")?;
+        let own = ScenarioText::parse(text.clone()).in_scenario(|| "scenario")?;
         if own.scenario.trigger != family {
-            bail!(
+            return Err(Error::request(format!(
                 "--trigger {family}: the strategy was made for trigger family `{}` (a strategy \
                  is tied to its scenario's hash); give --scenario with --delta to run another \
                  family",
                 own.scenario.trigger
-            );
+            )));
         }
     }
     if let Some(family) = a.trigger {
-        let own = ScenarioText::parse(text).context("scenario")?;
-        text = own.with_trigger(family).context("--trigger")?.text;
+        let own = ScenarioText::parse(text).in_scenario(|| "scenario")?;
+        text = own.with_trigger(family).in_scenario(|| "--trigger")?.text;
     }
     if let Some(k) = a.clone_sensors {
         if strategy_in.is_some() {
-            bail!(
-                "--clone-sensors works with --scenario/--delta only (a strategy is tied to its scenario's hash)"
-            );
+            return Err(Error::request(
+                "--clone-sensors works with --scenario/--delta only (a strategy is tied to its scenario's hash)",
+            ));
         }
         text = clone_sensors(&text, k)?;
     }
@@ -210,32 +212,33 @@ pub fn prepare(a: &RunRequest, run_id: &RunId, dir: &std::path::Path) -> Result<
     // recording read the channel from the run's copy of the scenario text,
     // so it is written there; the strategy is checked against its own text
     // first and then re-stamped with the run text's hash.
-    let own = ScenarioText::parse(text).context("scenario")?;
+    let own = ScenarioText::parse(text).in_scenario(|| "scenario")?;
     if let Some(st) = &strategy_in {
         st.policy
             .check_scenario(&own.scenario)
-            .context("strategy and scenario")?;
+            .in_strategy(|| "strategy and scenario")?;
     }
     let recorded = strategy_in.as_ref().and_then(|st| st.policy.radio.as_ref());
     let own_radio = own
         .scenario
         .radio
         .for_use(recorded, &RadioOverride::default())
-        .context("strategy")?;
+        .in_strategy(|| "strategy")?;
     let run_radio = own
         .scenario
         .radio
         .for_use(recorded, &a.radio)
-        .context("radio options")?;
-    let ScenarioText { text, scenario } =
-        own.with_channel(&run_radio).context("the run's channel")?;
+        .map_err(Error::Radio)?;
+    let ScenarioText { text, scenario } = own
+        .with_channel(&run_radio)
+        .in_scenario(|| "the run's channel")?;
     let radio_synthesized = strategy_in.as_ref().map(|_| own_radio.clone());
     let robustness = strategy_in.is_some() && run_radio != own_radio;
     if scenario.sensors.len() > MAX_SENSORS {
-        bail!(
+        return Err(Error::request(format!(
             "the scenario has {} sensors; a run supports at most {MAX_SENSORS} sensor processes",
             scenario.sensors.len()
-        );
+        )));
     }
     let mut strategy = match strategy_in {
         Some(mut st) => {
@@ -254,11 +257,11 @@ pub fn prepare(a: &RunRequest, run_id: &RunId, dir: &std::path::Path) -> Result<
                 .deltas
                 .iter()
                 .position(|d| (d - delta).abs() <= 1e-9 * d.abs().max(1.0))
-                .with_context(|| {
-                    format!(
+                .ok_or_else(|| {
+                    Error::request(format!(
                         "δ = {delta} is not one of the scenario's thresholds {:?}",
                         scenario.deltas
-                    )
+                    ))
                 })?;
             // Predicted below by an in-process simulation.
             Strategy::constant(&scenario, index, None)
@@ -273,9 +276,9 @@ pub fn prepare(a: &RunRequest, run_id: &RunId, dir: &std::path::Path) -> Result<
     let scenario_path = dir.join("scenario.toml");
     let strategy_path = dir.join("strategy.json");
     std::fs::write(&scenario_path, &text)
-        .with_context(|| format!("writing {}", scenario_path.display()))?;
+        .doing(|| format!("writing {}", scenario_path.display()))?;
     std::fs::write(&strategy_path, strategy.to_json())
-        .with_context(|| format!("writing {}", strategy_path.display()))?;
+        .doing(|| format!("writing {}", strategy_path.display()))?;
     Ok(Plan {
         run_id: run_id.clone(),
         seed: a.seed,

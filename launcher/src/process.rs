@@ -2,7 +2,7 @@
 //! (its own process group) and signalled, and how its end is described.
 //! Used by the supervisor and by the recorder's owner alike.
 
-use anyhow::{Context, Result, anyhow};
+use crate::error::{Context, Error, Result};
 use std::path::PathBuf;
 use std::process::Stdio;
 use tokio::process::{Child, Command};
@@ -80,14 +80,19 @@ pub fn sibling_binary(name: &str) -> Result<Launcher> {
                 prefix: vec!["process".into(), name.into()],
             });
         }
-        return Err(anyhow!(
+        return Err(Error::binary(format!(
             "neither `{name}` nor `etp` in {PROCESS_DIR_VAR}={} (build the workspace: \
              cargo build --release --workspace, and name its target/release)",
             dir.display()
-        ));
+        )));
     }
-    let exe = std::env::current_exe().context("locating the etp executable")?;
-    let dir = exe.parent().context("etp executable has no folder")?;
+    let exe = std::env::current_exe().map_err(|e| Error::Binary {
+        what: "locating the etp executable".into(),
+        source: Some(e),
+    })?;
+    let dir = exe
+        .parent()
+        .ok_or_else(|| Error::binary("etp executable has no folder"))?;
     // Test harnesses run from target/<profile>/deps: look one level up too.
     for d in [Some(dir), dir.parent()].into_iter().flatten() {
         let p = d.join(name);
@@ -104,10 +109,10 @@ pub fn sibling_binary(name: &str) -> Result<Launcher> {
             prefix: vec!["process".into(), name.into()],
         });
     }
-    Err(anyhow!(
+    Err(Error::binary(format!(
         "`{name}` not found next to {} (build the workspace: cargo build --release --workspace)",
         exe.display()
-    ))
+    )))
 }
 
 pub fn status_text(s: &std::process::ExitStatus) -> String {
@@ -145,7 +150,7 @@ pub fn spawn_env(
         .stderr(Stdio::inherit())
         .kill_on_drop(true);
     c.spawn()
-        .with_context(|| format!("spawning {}", bin.display()))
+        .in_process(|| format!("spawning {}", bin.display()))
 }
 
 /// Send a signal by pid with the system `kill` (keeps this crate free of unsafe).

@@ -28,7 +28,7 @@
 
 use super::prepare::Plan;
 use super::process::{ProcessExit, sibling_binary, signal, status_text};
-use anyhow::{Context, Result, anyhow, bail};
+use crate::error::{Context, Error, IoContext, Result};
 use etp_runtime::recording;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -97,26 +97,21 @@ impl Target {
     /// is refused unless `force`, and nothing is removed.
     pub fn claim(path: &Path, force: bool, run_id: &str) -> Result<Self> {
         if path.is_dir() {
-            bail!(
-                "--record {}: is a folder; name the recording file (e.g. {})",
-                path.display(),
-                path.join("run.mcap").display()
-            );
+            return Err(Error::RecordIsFolder(path.to_path_buf()));
         }
         etp_files::write::refuse_existing(path, force)?;
-        let before = file_id(path).with_context(|| format!("--record {}", path.display()))?;
+        let before = file_id(path).doing(|| format!("--record {}", path.display()))?;
         let name = path
             .file_name()
-            .with_context(|| format!("--record {}: not a file name", path.display()))?;
+            .ok_or_else(|| Error::RecordNotAFile(path.to_path_buf()))?;
         let partial = path.with_file_name(format!("{}.{run_id}.partial", name.to_string_lossy()));
         // Left by a killed run of the same id: its recording, never ours to
         // remove (so that [`Target::abandon`] removes only what this run made).
         if partial.symlink_metadata().is_ok() {
-            bail!(
-                "{} exists: the recording of an earlier run with id {run_id} that never \
-                 finished (see etp replay repair); move it away or use another run id",
-                partial.display()
-            );
+            return Err(Error::PartialExists {
+                partial,
+                run_id: run_id.to_string(),
+            });
         }
         Ok(Self {
             path: path.to_path_buf(),
@@ -223,9 +218,9 @@ pub fn default_path(plan: &Plan) -> PathBuf {
 /// The metadata records of a run's recording.
 fn metadata(plan: &Plan) -> Result<BTreeMap<String, BTreeMap<String, String>>> {
     let scenario = std::fs::read_to_string(&plan.scenario_path)
-        .with_context(|| format!("reading {}", plan.scenario_path.display()))?;
+        .doing(|| format!("reading {}", plan.scenario_path.display()))?;
     let strategy = std::fs::read_to_string(&plan.strategy_path)
-        .with_context(|| format!("reading {}", plan.strategy_path.display()))?;
+        .doing(|| format!("reading {}", plan.strategy_path.display()))?;
     let prediction = serde_json::json!({
         "sensor_energy_per_episode": plan.sensor_energy_per_episode,
         "sensors": plan.scenario.sensors.iter().map(|s| s.name.clone()).collect::<Vec<_>>(),
@@ -286,11 +281,11 @@ pub struct Recorder {
 /// Spawn the recorder and wait until it subscribed to every service.
 pub async fn start(plan: &Plan, out: &Path) -> Result<Recorder> {
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        std::fs::create_dir_all(dir).doing(|| format!("creating {}", dir.display()))?;
     }
     let meta = plan.dir.join("recording-meta.json");
     std::fs::write(&meta, serde_json::to_string(&metadata(plan)?)?)
-        .with_context(|| format!("writing {}", meta.display()))?;
+        .doing(|| format!("writing {}", meta.display()))?;
     let bin = sibling_binary("etp-recorder")?;
     let mut child = bin
         .command(&[
@@ -308,9 +303,14 @@ pub async fn start(plan: &Plan, out: &Path) -> Result<Recorder> {
         .stderr(Stdio::inherit())
         .kill_on_drop(true)
         .spawn()
-        .with_context(|| format!("spawning {}", bin.display()))?;
+        .in_process(|| format!("spawning {}", bin.display()))?;
     let pid = child.id().unwrap_or(0);
-    let mut stdout = BufReader::new(child.stdout.take().context("recorder stdout")?);
+    let mut stdout = BufReader::new(
+        child
+            .stdout
+            .take()
+            .ok_or_else(|| Error::process("recorder stdout"))?,
+    );
     let mut line = String::new();
     let ready = tokio::time::timeout(READY_TIMEOUT, stdout.read_line(&mut line)).await;
     if !matches!(ready, Ok(Ok(n)) if n > 0 && line.trim() == "ready") {
@@ -322,12 +322,12 @@ pub async fn start(plan: &Plan, out: &Path) -> Result<Recorder> {
                 None
             }
         };
-        bail!(
+        return Err(Error::process(format!(
             "cannot record to {}: the recorder did not start ({}; its error is above); \
              nothing of the run was started",
             out.display(),
             status.map_or_else(|| "killed".to_string(), |st| status_text(&st))
-        );
+        )));
     }
     // The recorder created `out` exclusively; remember which file that is.
     let file = file_id(out).ok().flatten();
@@ -384,7 +384,7 @@ impl Recorder {
             .and_then(|v| v.get("counts"))
             .map(|c| serde_json::from_value(c.clone()))
             .transpose()
-            .map_err(|e| anyhow!("recorder report: {e}"))?;
+            .map_err(|e| Error::process(format!("recorder report: {e}")))?;
         Ok((
             Recording {
                 path: self.path,

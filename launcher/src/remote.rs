@@ -7,7 +7,7 @@
 
 use super::prepare::Plan;
 use super::process::{ProcessExit, sibling_binary, signal, spawn, status_text};
-use anyhow::{Context, Result, bail};
+use crate::error::{Context, Error, IoContext, Result};
 use etp_runtime::report::{SessionInfo, Stall};
 use etp_runtime::wire::traffic::LinkTraffic;
 use std::collections::BTreeMap;
@@ -194,8 +194,8 @@ pub fn remote_indices(plan: &Plan, names: &[String]) -> Result<Vec<usize>> {
             .sensors
             .iter()
             .position(|s| &s.name == n)
-            .with_context(|| {
-                format!(
+            .ok_or_else(|| {
+                Error::request(format!(
                     "--remote: scenario `{}` has no sensor `{n}` (sensors: {})",
                     plan.scenario.name,
                     plan.scenario
@@ -204,10 +204,12 @@ pub fn remote_indices(plan: &Plan, names: &[String]) -> Result<Vec<usize>> {
                         .map(|s| s.name.as_str())
                         .collect::<Vec<_>>()
                         .join(", ")
-                )
+                ))
             })?;
         if v.contains(&i) {
-            bail!("--remote: sensor `{n}` named twice");
+            return Err(Error::request(format!(
+                "--remote: sensor `{n}` named twice"
+            )));
         }
         v.push(i);
     }
@@ -223,7 +225,7 @@ pub async fn start(
     let info = SessionInfo {
         run_id: plan.run_id.to_string(),
         scenario_toml: std::fs::read_to_string(&plan.scenario_path)
-            .with_context(|| format!("reading {}", plan.scenario_path.display()))?,
+            .doing(|| format!("reading {}", plan.scenario_path.display()))?,
         seed: plan.seed,
         sensors: plan
             .scenario
@@ -235,7 +237,7 @@ pub async fn start(
     };
     let path = plan.dir.join("session.json");
     std::fs::write(&path, serde_json::to_string(&info)?)
-        .with_context(|| format!("writing {}", path.display()))?;
+        .doing(|| format!("writing {}", path.display()))?;
     let bin = sibling_binary("etp-bridge")?;
     let mut args = vec![
         "agent-host".into(),
@@ -249,7 +251,13 @@ pub async fn start(
     args.extend(spec.link.iter().cloned());
     let mut child = spawn(&bin, &args, true)?;
     let pid = child.id().unwrap_or(0);
-    let mut lines = BufReader::new(child.stdout.take().context("bridge stdout")?).lines();
+    let mut lines = BufReader::new(
+        child
+            .stdout
+            .take()
+            .ok_or_else(|| Error::process("bridge stdout"))?,
+    )
+    .lines();
     eprintln!(
         "etp run: listening on {} for remote sensor(s) {} (run {}; on their host: etp sensor-host --connect {})",
         spec.listen,
@@ -263,7 +271,7 @@ pub async fn start(
     );
     loop {
         let line = tokio::select! {
-            l = lines.next_line() => l.context("reading the bridge")?,
+            l = lines.next_line() => l.in_process(|| "reading the bridge")?,
             name = interrupts.next() => {
                 // The bridge has run nothing yet: stopped and reaped here.
                 let _ = child.kill().await;
@@ -281,11 +289,11 @@ pub async fn start(
                 }
             }
             None => {
-                let st = child.wait().await.context("waiting for the bridge")?;
-                bail!(
+                let st = child.wait().await.in_process(|| "waiting for the bridge")?;
+                return Err(Error::process(format!(
                     "the remote sensors did not join ({}; the bridge's error is above)",
                     status_text(&st)
-                );
+                )));
             }
         }
     }

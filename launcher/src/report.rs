@@ -3,7 +3,7 @@
 use super::RunRequest;
 use super::prepare::Plan;
 use super::supervise::Supervised;
-use anyhow::Result;
+use crate::error::Result;
 use etp_runtime::wire::traffic::LinkTraffic;
 use etp_shared::stats::verdict::{Measured, Outcomes};
 use serde_json::{Value, json};

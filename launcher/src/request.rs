@@ -9,7 +9,7 @@
 //! and its errors name the key (which is also the flag's long name).
 
 use crate::config::{self, RunConfig};
-use anyhow::{Context, Result, bail};
+use crate::error::{Error, Result};
 use etp_runtime::link_keys;
 use etp_shared::radio::{Estimator, RadioOverride};
 use etp_shared::trigger::TriggerFamily;
@@ -163,26 +163,40 @@ impl RunRequest {
             (Some(path), scenario, None) => RunTarget::Strategy { path, scenario },
             (None, Some(scenario), Some(delta)) => RunTarget::Constant { scenario, delta },
             (Some(_), _, Some(_)) => {
-                bail!("give either a strategy file or --scenario with --delta, not both")
+                return Err(Error::request(
+                    "give either a strategy file or --scenario with --delta, not both",
+                ));
             }
-            (None, None, Some(_)) => bail!("`delta` needs `scenario` (a constant-δ run)"),
+            (None, None, Some(_)) => {
+                return Err(Error::request(
+                    "`delta` needs `scenario` (a constant-δ run)",
+                ));
+            }
             _ => {
-                bail!("give a strategy.json, or --scenario NAME --delta D for a constant threshold")
+                return Err(Error::request(
+                    "give a strategy.json, or --scenario NAME --delta D for a constant threshold",
+                ));
             }
         };
         let episodes = c.episodes.unwrap_or(config::DEFAULT_EPISODES);
         if episodes == 0 {
-            bail!("--episodes must be at least 1");
+            return Err(Error::request("--episodes must be at least 1"));
         }
         let deadline = c.deadline.unwrap_or(config::DEFAULT_DEADLINE);
         if !(deadline.is_finite() && deadline > 0.0) {
-            bail!("--deadline must be a positive number of seconds");
+            return Err(Error::request(
+                "--deadline must be a positive number of seconds",
+            ));
         }
         if c.slot_deadline == Some(0) {
-            bail!("--slot-deadline must be at least 1 ms");
+            return Err(Error::request("--slot-deadline must be at least 1 ms"));
         }
         let record = match (c.record, c.record_default.unwrap_or(false)) {
-            (Some(_), true) => bail!("`record` and `record_default` exclude each other"),
+            (Some(_), true) => {
+                return Err(Error::request(
+                    "`record` and `record_default` exclude each other",
+                ));
+            }
             (Some(p), false) => RecordTo::File(p),
             (None, true) => RecordTo::DefaultFile,
             (None, false) => RecordTo::Nothing,
@@ -194,12 +208,18 @@ impl RunRequest {
                 join_timeout: c.join_timeout.unwrap_or(config::DEFAULT_JOIN_TIMEOUT),
             }),
             (None, None) => None,
-            _ => bail!("`listen` and `remote` go together (sensors served from other hosts)"),
+            _ => {
+                return Err(Error::request(
+                    "`listen` and `remote` go together (sensors served from other hosts)",
+                ));
+            }
         };
         let estimator = match c.estimator.as_deref() {
             None => None,
-            Some(e) => Some(Estimator::parse(e).with_context(|| {
-                format!("--estimator `{e}`: the estimator is `aware` or `naive`")
+            Some(e) => Some(Estimator::parse(e).ok_or_else(|| {
+                Error::request(format!(
+                    "--estimator `{e}`: the estimator is `aware` or `naive`"
+                ))
             })?),
         };
         let live_wait = c.live_wait.unwrap_or(false);
@@ -208,7 +228,7 @@ impl RunRequest {
                 addr,
                 wait_for_client: live_wait,
             }),
-            None if live_wait => bail!("--live-wait needs --live"),
+            None if live_wait => return Err(Error::request("--live-wait needs --live")),
             None => None,
         };
         Ok(RunRequest {

@@ -14,7 +14,7 @@
 //! it. Both therefore run under one base-wide lock (`<base>/.guard`), held
 //! only for those few milliseconds.
 
-use anyhow::{Context, Result, bail};
+use crate::error::{Error, IoContext, Result};
 use etp_runtime::cleanup;
 use etp_runtime::wire::RunId;
 use std::fs::{File, OpenOptions, TryLockError};
@@ -31,9 +31,9 @@ fn guard() -> Result<File> {
         .truncate(false)
         .write(true)
         .open(base.join(GUARD))
-        .with_context(|| format!("creating {}", base.join(GUARD).display()))?;
+        .doing(|| format!("creating {}", base.join(GUARD).display()))?;
     g.lock()
-        .with_context(|| format!("locking {}", base.join(GUARD).display()))?;
+        .doing(|| format!("locking {}", base.join(GUARD).display()))?;
     Ok(g)
 }
 
@@ -73,24 +73,19 @@ impl RunDir {
     pub fn claim(run: &RunId) -> Result<Self> {
         let _guard = guard()?;
         let path = base()?.join(run.as_str());
-        std::fs::create_dir_all(&path).with_context(|| format!("creating {}", path.display()))?;
-        let lock =
-            open_lock(&path).with_context(|| format!("creating {}", path.join(LOCK).display()))?;
+        std::fs::create_dir_all(&path).doing(|| format!("creating {}", path.display()))?;
+        let lock = open_lock(&path).doing(|| format!("creating {}", path.join(LOCK).display()))?;
         match lock.try_lock() {
             Ok(()) => {}
-            Err(TryLockError::WouldBlock) => {
-                bail!("run id `{run}` is in use by another `etp run` (choose another --run-id)")
-            }
+            Err(TryLockError::WouldBlock) => return Err(Error::RunIdLocked(run.to_string())),
             Err(TryLockError::Error(e)) => {
-                return Err(e).with_context(|| format!("locking {}", path.join(LOCK).display()));
+                return Err(e).doing(|| format!("locking {}", path.join(LOCK).display()));
             }
         }
         // A recorder or a replay started by hand on this id also owns it.
         let cfg = etp_runtime::wire::config(run)?;
         if etp_runtime::wire::alive_nodes(&cfg) > 0 {
-            bail!(
-                "run id `{run}` is in use: iceoryx2 processes of that run are alive (choose another --run-id)"
-            );
+            return Err(Error::RunIdAlive(run.to_string()));
         }
         Ok(Self { path, _lock: lock })
     }
@@ -111,7 +106,7 @@ pub fn remove_stale() -> Vec<String> {
     let Ok(_guard) = guard() else {
         return removed;
     };
-    let Ok(dir) = base().and_then(|b| Ok(std::fs::read_dir(b)?)) else {
+    let Some(dir) = base().ok().and_then(|b| std::fs::read_dir(b).ok()) else {
         return removed;
     };
     for e in dir.filter_map(Result::ok) {

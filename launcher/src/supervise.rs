@@ -3,7 +3,7 @@
 use super::interrupts::Interrupts;
 use super::prepare::Plan;
 use super::process::{ProcessExit, sibling_binary, signal, spawn, status_text};
-use anyhow::{Context, Result, anyhow};
+use crate::error::{Context, Error, Result};
 use etp_runtime::report::RunReport;
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -97,7 +97,10 @@ pub async fn supervise(
         }
     });
     let coord_pid = coordinator.id().unwrap_or(0);
-    let mut stdout = coordinator.stdout.take().context("coordinator stdout")?;
+    let mut stdout = coordinator
+        .stdout
+        .take()
+        .ok_or_else(|| Error::process("coordinator stdout"))?;
     let reader = tokio::spawn(async move {
         let mut s = String::new();
         stdout.read_to_string(&mut s).await.map(|_| s)
@@ -106,7 +109,7 @@ pub async fn supervise(
     let mut failure: Option<String> = None;
     let mut interrupted: Option<&'static str> = None;
     let coord_status = tokio::select! {
-        st = coordinator.wait() => Some(st.context("waiting for the coordinator")?),
+        st = coordinator.wait() => Some(st.in_process(|| "waiting for the coordinator")?),
         name = interrupts.next() => {
             failure = Some(format!("interrupted ({name})"));
             interrupted = Some(name);
@@ -142,9 +145,9 @@ pub async fn supervise(
     };
     let out = tokio::time::timeout(GRACE, reader)
         .await
-        .map_err(|_| anyhow!("coordinator output not closed"))?
-        .context("reading coordinator output")?
-        .context("reading coordinator output")?;
+        .map_err(|_| Error::process("coordinator output not closed"))?
+        .in_process(|| "reading coordinator output")?
+        .in_process(|| "reading coordinator output")?;
     if let Some(name) = interrupted
         && out.trim().is_empty()
     {
@@ -158,16 +161,16 @@ pub async fn supervise(
     if let Some(f) = failure
         && out.trim().is_empty()
     {
-        return Err(anyhow!(
+        return Err(Error::process(format!(
             "run {run}: {f}; processes: {}",
             summary(&processes)
-        ));
+        )));
     }
     let report: RunReport = serde_json::from_str(out.trim()).map_err(|e| {
-        anyhow!(
+        Error::process(format!(
             "run {run}: the coordinator gave no report ({e}); processes: {}",
             summary(&processes)
-        )
+        ))
     })?;
     Ok(Supervised {
         report,

@@ -4,7 +4,7 @@
 //! ([`exit_for`]).
 
 use super::{EXIT_ACCOUNTING, EXIT_DEGRADED, EXIT_INTERRUPTED, supervise};
-use anyhow::Result;
+use crate::error::{Error, Result};
 
 /// Why a completed run is not clean (empty: exit 0), checked leg by leg: a
 /// ledger's attempts must equal its delivered + lost (docs/MODEL.md §8), and
@@ -178,15 +178,14 @@ pub fn problems(a: &super::RunRequest, outcome: &supervise::Supervised) -> Vec<(
 pub fn exit_for(problems: &[(u8, String)]) -> Result<()> {
     match problems.first() {
         None => Ok(()),
-        Some(&(code, _)) => Err(etp_runtime::shell::ExitWith {
+        Some(&(code, _)) => Err(Error::Exit(etp_runtime::shell::ExitWith {
             code,
             message: problems
                 .iter()
                 .map(|(_, why)| format!("etp run: {why}"))
                 .collect::<Vec<_>>()
                 .join("\n"),
-        }
-        .into()),
+        })),
     }
 }
 

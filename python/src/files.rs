@@ -122,10 +122,14 @@ pub fn run(
             .map(|file| run_file::merge(given, file))
             .and_then(etp_launcher::RunRequest::from_config)
             .map_err(|e| {
-                RunError::new_err(format!("run file {}: {}", path.display(), anyhow_text(&e)))
+                RunError::new_err(format!(
+                    "run file {}: {}",
+                    path.display(),
+                    anyhow_text(&e.into())
+                ))
             }),
         None => etp_launcher::RunRequest::from_config(given)
-            .map_err(|e| RunError::new_err(anyhow_text(&e))),
+            .map_err(|e| RunError::new_err(anyhow_text(&e.into()))),
     }?;
     let request = etp_launcher::RunRequest {
         force,
@@ -133,7 +137,7 @@ pub fn run(
         ..request
     };
     let report = py.detach(|| etp_launcher::execute(&request));
-    let (v, problems) = report.map_err(|e| RunError::new_err(anyhow_text(&e)))?;
+    let (v, problems) = report.map_err(|e| RunError::new_err(anyhow_text(&e.into())))?;
     let text = serde_json::to_string(&v).map_err(|e| RunError::new_err(e.to_string()))?;
     Ok((text, problems))
 }

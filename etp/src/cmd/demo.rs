@@ -278,7 +278,7 @@ pub fn run(a: Args) -> Result<()> {
     });
     if a.json {
         println!("{}", serde_json::to_string_pretty(&result)?);
-        return multiprocess::exit_for(&problems);
+        return Ok(multiprocess::exit_for(&problems)?);
     }
     println!(
         "\netp demo — {} — {}",
@@ -382,5 +382,5 @@ pub fn run(a: Args) -> Result<()> {
         println!("    recording      {r}  (etp replay {r})");
     }
     println!("  finished in {:.1} s", started.elapsed().as_secs_f64());
-    multiprocess::exit_for(&problems)
+    Ok(multiprocess::exit_for(&problems)?)
 }

@@ -43,5 +43,5 @@ pub fn run(args: RunArgs) -> Result<()> {
         etp_figures::report_plot(&figure::figure(&plan, &outcome), stem)?;
         eprintln!("wrote {} and .svg", stem.with_extension("png").display());
     }
-    exit_for(&problems(&a, &outcome))
+    Ok(exit_for(&problems(&a, &outcome))?)
 }
