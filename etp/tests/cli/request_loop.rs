@@ -83,6 +83,11 @@ fn the_plain_command_meets_a_request_the_selection_time_value_misses() {
     );
     assert!(f(&rounds[1]["asked_p_target"]) > REQUEST, "{sel}");
     assert!(f(&sel["predicted"]["p_target"]) >= REQUEST, "{sel}");
+    // A request the rounds meet is judged on R = 4 rebuilds a round at most.
+    assert!(
+        rounds.iter().all(|r| r["rebuilds"].as_u64() <= Some(4)),
+        "{sel}"
+    );
 
     // Simulation (3000 episodes, validate's fixed seed) agrees: the loop's
     // strategy meets the request, the biased pick does not, and it costs
@@ -109,6 +114,67 @@ fn the_plain_command_meets_a_request_the_selection_time_value_misses() {
         vq["p_target_ci95"]
     );
     assert!(f(&v["energy_mean"]) > f(&vq["energy_mean"]));
+}
+
+/// Past what the strategies reach (the full KF simulates 0.9683 ± 0.0011 on
+/// winding-2d), a request within the rebuilds' Monte Carlo of the top is not
+/// refused on R = 4 rebuilds: the closest rounds and the most-transmitting
+/// one get more (doubling, up to 16) while their interval reaches the
+/// request, and the written strategy carries the prediction of all of them.
+#[test]
+fn a_request_at_the_top_is_refined_before_it_is_out_of_reach() {
+    let dir = Scratch::new("request-refined");
+    let out = synthesize_w800(&dir, "2000");
+    let strategy = dir.path("top.json");
+    let request = 0.969;
+    let o = super::etp(&[
+        "strategy",
+        s(&out),
+        "--min-target",
+        &request.to_string(),
+        "--aggregation-check",
+        "0",
+        "-o",
+        s(&strategy),
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(7), "{err}");
+    let sel: serde_json::Value = serde_json::from_slice(&o.stdout).expect("the report");
+    let rounds = sel["diagnostics"]["rounds"].as_array().expect("rounds");
+    let refined: Vec<_> = rounds
+        .iter()
+        .filter(|r| r["rebuilds"].as_u64() > Some(4))
+        .collect();
+    // Two closest rounds and the most-transmitting one.
+    assert!(refined.len() >= 2, "{sel}");
+    for r in &rounds[..] {
+        let (q, h) = (
+            f(&r["predicted"]["p_target"]),
+            f(&r["predicted_ci95"]["p_target"]),
+        );
+        let n = r["rebuilds"].as_u64().unwrap_or(0);
+        assert!(q < request, "nothing met: {r}");
+        assert!(n <= 16, "{r}");
+        // A refined round stopped because its interval cleared the request
+        // or its rebuilds reached 4R.
+        if n > 4 {
+            assert!(q + h < request || n == 16, "{r}");
+        }
+    }
+    // The file carries the kept round's prediction and says on how many
+    // rebuilds it stands.
+    let kept = &rounds[sel["diagnostics"]["kept_round"].as_u64().expect("kept") as usize];
+    assert_eq!(
+        f(&sel["predicted"]["p_target"]),
+        f(&kept["predicted"]["p_target"]),
+        "{sel}"
+    );
+    let basis = sel["prediction_basis"].as_str().unwrap_or("");
+    assert!(
+        basis.contains(&format!("{} on-policy rebuilds", kept["rebuilds"])),
+        "{basis}"
+    );
 }
 
 /// The loop keeps the cheapest round that met, and a point of the predicted

@@ -70,6 +70,18 @@ pub const BRACKET_TOLERANCE: f64 = 0.01;
 /// of the bracket (regula falsi alone may creep along one end).
 const BRACKET_STEP: f64 = 0.2;
 
+/// When no round met the request, the [`REFINED_ROUNDS`] closest rounds and
+/// the most-transmitting round are predicted on up to this many times R
+/// rebuilds (doubling) while their prediction misses the request and its
+/// interval reaches it: at the top of the front a request within the
+/// rebuilds' Monte Carlo of what the full KF reaches is otherwise decided by
+/// that Monte Carlo, not by the strategy. Refinement happens only when no
+/// round met, so a request the rounds meet costs no more rebuilds.
+pub const REFINE_LIMIT: u32 = 4;
+
+/// How many of the closest rounds are refined when none met.
+pub const REFINED_ROUNDS: usize = 2;
+
 /// What the user asks for.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Goal {
@@ -259,6 +271,7 @@ pub fn meet_request(
     let mut rounds: Vec<Round> = Vec::new();
     // The answer so far: the best meeting round, else the closest one.
     let mut best: Option<Judged> = None;
+    let mut aside: Vec<Judged> = Vec::new();
     // While aiming past a meeting round: the selection-time energy a new
     // candidate must improve on by `BRACKET_TOLERANCE` to be worth rebuilds.
     let mut must_beat: Option<f64> = None;
@@ -281,7 +294,12 @@ pub fn meet_request(
         }
         let (round, judged) = lp.judge(asked, candidate, rounds.len())?;
         rounds.push(round);
-        keep_better(goal, &rounds, &mut best, judged);
+        if let Some(other) = keep_better(goal, &rounds, &mut best, judged) {
+            // The closest rounds that missed, for refinement if none meets.
+            aside.push(other);
+            aside.sort_by(|a, b| b.slack.total_cmp(&a.slack));
+            aside.truncate(REFINED_ROUNDS);
+        }
         let Some(b) = best.as_ref() else { break };
         match next_ask(goal, &rounds, b) {
             NextAsk::At {
@@ -298,7 +316,9 @@ pub fn meet_request(
             }
         }
     }
-    if best.as_ref().is_some_and(|b| rounds[b.index].meets) {
+    if best.as_ref().is_some_and(|b| rounds[b.index].meets)
+        || lp.refine_closest(&mut rounds, &mut best, aside)?
+    {
         verdict = Verdict::Met;
     }
     // The MDP is pessimistic at its P_tar edge (its pools hold other

@@ -5,7 +5,8 @@
 
 use super::asking::{Candidate, Move, edge, moved, select, slack};
 use super::{
-    Asked, BRACKET_STEP, BRACKET_TOLERANCE, CLEAR_MISS, Goal, LoopSettings, Outcome, Round, Verdict,
+    Asked, BRACKET_STEP, BRACKET_TOLERANCE, CLEAR_MISS, Goal, LoopSettings, Outcome, REFINE_LIMIT,
+    REFINED_ROUNDS, Round, Verdict,
 };
 use crate::abstraction::AbstractionParams;
 use crate::certify::intervals::IntervalMdp;
@@ -73,6 +74,83 @@ impl RequestLoop<'_> {
             done,
             self.progress,
         )
+    }
+
+    /// `all` with more rebuilds while its prediction misses the request
+    /// and its interval reaches it (the rebuilds' Monte Carlo alone may
+    /// decide): doubling, up to [`REFINE_LIMIT`] × R. Certified selection
+    /// judges on the first rebuild's bounds, which more rebuilds leave as
+    /// they are: `all` unchanged.
+    fn refined(&self, strategy: &Strategy, mut all: OnPolicy) -> Result<OnPolicy, PredictError> {
+        if self.settings.certified.is_some() {
+            return Ok(all);
+        }
+        let limit = REFINE_LIMIT * self.settings.replicates;
+        loop {
+            let (q, h) = (&all.combined.mean, &all.combined.ci95);
+            let n = all.replicas.len() as u32;
+            let meets = slack(self.goal, q, &Objectives::default(), None) >= 0.0;
+            let reaches = slack(self.goal, q, h, None) >= 0.0;
+            if meets || !reaches || n >= limit {
+                return Ok(all);
+            }
+            let more = (2 * n).min(limit);
+            (self.plan)(more - n);
+            all = predict(
+                self.scenario,
+                self.params,
+                &strategy.policy,
+                more,
+                self.cost,
+                all.replicas,
+                self.progress,
+            )?;
+        }
+    }
+
+    /// When no round met: the [`REFINED_ROUNDS`] closest rounds (`best`
+    /// and those set `aside`, by slack), each completed to R rebuilds and
+    /// [`Self::refined`], judged again (their records in `rounds` updated);
+    /// `best` becomes the first that now meets, else the closest. Whether
+    /// one meets.
+    pub(super) fn refine_closest(
+        &self,
+        rounds: &mut [Round],
+        best: &mut Option<Judged>,
+        aside: Vec<Judged>,
+    ) -> Result<bool, PredictError> {
+        if self.settings.certified.is_some() || best.is_none() {
+            return Ok(false);
+        }
+        let mut closest: Vec<Judged> = best.take().into_iter().chain(aside).collect();
+        closest.sort_by(|a, b| b.slack.total_cmp(&a.slack));
+        for j in closest.iter_mut().take(REFINED_ROUNDS) {
+            let missing = self
+                .settings
+                .replicates
+                .saturating_sub(j.replicas.len() as u32);
+            (self.plan)(missing);
+            let done = std::mem::take(&mut j.replicas);
+            let all = self.refined(&j.strategy, self.rebuilt(&j.strategy, done)?)?;
+            let (q, h) = (all.combined.mean, all.combined.ci95);
+            j.slack = slack(self.goal, &q, &Objectives::default(), None);
+            j.replicas = all.replicas;
+            let round = &mut rounds[j.index];
+            round.predicted = q;
+            round.ci95 = h;
+            round.rebuilds = j.replicas.len() as u32;
+            round.meets = j.slack >= 0.0;
+            if round.meets {
+                break;
+            }
+        }
+        let kept = closest.into_iter().max_by(|a, b| {
+            let (ra, rb) = (&rounds[a.index], &rounds[b.index]);
+            ra.meets.cmp(&rb.meets).then(a.slack.total_cmp(&b.slack))
+        });
+        let met = kept.as_ref().is_some_and(|k| rounds[k.index].meets);
+        *best = kept;
+        Ok(met)
     }
 
     /// The MDP's candidate for `asked` and the request it answers. When
@@ -176,9 +254,9 @@ impl RequestLoop<'_> {
         ))
     }
 
-    /// The most-transmitting policy `omega` predicted on its own rebuilds as
-    /// one more round (asked at `asked`), kept in `best` if it meets the
-    /// request or comes closer; whether it meets.
+    /// The most-transmitting policy `omega` predicted on its own rebuilds
+    /// ([`Self::refined`]) as one more round (asked at `asked`), kept in
+    /// `best` if it meets the request or comes closer; whether it meets.
     pub(super) fn most_transmitting_round(
         &self,
         omega: RandomisedPolicy,
@@ -190,7 +268,7 @@ impl RequestLoop<'_> {
         let selection_time = evaluate(self.mdp, &omega, cost);
         let strategy = (self.make)(&omega, selection_time);
         (self.plan)(settings.replicates);
-        let all = self.rebuilt(&strategy, Vec::new())?;
+        let all = self.refined(&strategy, self.rebuilt(&strategy, Vec::new())?)?;
         let cert_for_goal = match (settings.certified, all.replicas.first()) {
             (Some(l), Some(first)) => Some(first.certify(l, cost)?),
             _ => None,
@@ -203,7 +281,7 @@ impl RequestLoop<'_> {
             selection_time,
             predicted: q,
             ci95: h,
-            rebuilds: settings.replicates,
+            rebuilds: all.replicas.len() as u32,
             certified: cert_for_goal,
             meets,
             most_transmitting: true,
@@ -265,8 +343,13 @@ impl RequestLoop<'_> {
 
 /// Keep `judged` (the last of `rounds`) in `best` if it is the better
 /// answer: a meeting round that is better than a kept meeting one, else the
-/// one that meets or comes closer.
-pub(super) fn keep_better(goal: Goal, rounds: &[Round], best: &mut Option<Judged>, judged: Judged) {
+/// one that meets or comes closer. The round not kept is returned.
+pub(super) fn keep_better(
+    goal: Goal,
+    rounds: &[Round],
+    best: &mut Option<Judged>,
+    judged: Judged,
+) -> Option<Judged> {
     let meets = rounds[judged.index].meets;
     let replace = match best.as_ref() {
         None => true,
@@ -281,7 +364,9 @@ pub(super) fn keep_better(goal: Goal, rounds: &[Round], best: &mut Option<Judged
         Some(b) => meets || judged.slack > b.slack,
     };
     if replace {
-        *best = Some(judged);
+        best.replace(judged)
+    } else {
+        Some(judged)
     }
 }
 
