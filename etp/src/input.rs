@@ -22,7 +22,7 @@ pub fn probability(s: &str) -> std::result::Result<f64, String> {
 #[derive(Debug, Clone, clap::Args)]
 pub struct EpisodeArgs {
     /// Number of episodes (at least 1).
-    #[arg(long, default_value_t = 3000, value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, default_value_t = 3000, value_parser = crate::values::whole::<u64>(1, None))]
     pub episodes: u64,
     /// Seed of the random streams (same seed, same numbers, any thread count).
     #[arg(long, default_value_t = 0)]

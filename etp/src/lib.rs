@@ -15,6 +15,7 @@
 //! * [`study`] — `etp study`: a SPEC's cases, resumable, scheduled across
 //!   MPI ranks; its tables.
 //! * [`processes`] — the run's processes `etp process NAME` plays.
+//! * [`values`] — the ranges of option values, checked as clap parses.
 //! * [`run_args`] — `etp run`'s flags and their typed request for the
 //!   launcher (`--tls`/`--insecure` too, shared with `etp sensor-host`).
 //!
@@ -39,6 +40,7 @@ pub mod report;
 pub mod run_args;
 pub mod scenario_flags;
 pub mod study;
+pub mod values;
 
 use std::process::ExitCode;
 

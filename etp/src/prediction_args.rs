@@ -11,7 +11,7 @@ pub struct RebuildArgs {
     /// mean cross-fitted value with a Student-t ± over their spread, which
     /// covers the rebuilds' whole Monte Carlo (docs/MODEL.md §7.3); R in 2..=64.
     #[arg(long, value_name = "R", default_value_t = etp_synthesis::predict::rebuild::DEFAULT_REPLICATES,
-          value_parser = clap::value_parser!(u32).range(2..=64))]
+          value_parser = crate::values::whole::<u32>(2, Some(64)))]
     pub replicates: u32,
 }
 
@@ -23,7 +23,7 @@ pub struct RequestLoopArgs {
     pub rebuilds: RebuildArgs,
     /// Rounds of the request loop at most (1..=20).
     #[arg(long, value_name = "N", default_value_t = etp_synthesis::predict::request::DEFAULT_ROUNDS,
-          value_parser = clap::value_parser!(u32).range(1..=20))]
+          value_parser = crate::values::whole::<u32>(1, Some(20)))]
     pub rounds: u32,
 }
 

@@ -21,7 +21,8 @@ with a dead link, or the link to remote sensors refused a message (garbage, forg
 place), without --allow-degraded; 130 interrupted (Ctrl-C/SIGTERM: the report \
 covers the complete episodes; before the first episode, no report and nothing left: no \
 process, no recording); 1 an error before any report (nothing recorded, no file \
-touched). --allow-degraded excuses exactly a dead sensor's legs without a ledger: what the \
+touched); 2 a bad command line (a value out of its range: nothing starts). \
+--allow-degraded excuses exactly a dead sensor's legs without a ledger: what the \
 agent received on them is reported apart (received_without_ledger).";
 
 #[derive(Debug, Clone, clap::Args)]
@@ -39,10 +40,10 @@ pub struct RunArgs {
     #[arg(long)]
     pub scenario: Option<String>,
     /// The constant threshold δ (one of the scenario's Δ) for a constant-δ run.
-    #[arg(long, requires = "scenario")]
+    #[arg(long, requires = "scenario", value_parser = crate::values::non_negative)]
     pub delta: Option<f64>,
     /// Number of episodes (at least 1) [default: 100].
-    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, value_parser = crate::values::whole::<u64>(1, None))]
     pub episodes: Option<u64>,
     /// Seed: the same seed gives the same episodes [default: 0].
     #[arg(long)]
@@ -60,8 +61,8 @@ pub struct RunArgs {
     /// scenario text; with a strategy it must be the strategy's own.
     #[command(flatten)]
     pub trigger: TriggerArgs,
-    /// Kill everything and fail after this many seconds [default: 3600].
-    #[arg(long)]
+    /// Kill everything and fail after this many seconds (> 0) [default: 3600].
+    #[arg(long, value_name = "SECONDS", value_parser = crate::values::seconds)]
     pub deadline: Option<f64>,
     /// Run id (default: generated). Names the services `etp/<run-id>/…`.
     #[arg(long)]
@@ -69,12 +70,14 @@ pub struct RunArgs {
     /// Include every episode (legs, ledgers, received counts) in the JSON.
     #[arg(long)]
     pub episode_details: bool,
-    /// In-process episodes used to predict each sensor's energy [default: 2000].
-    #[arg(long)]
+    /// In-process episodes used to predict each sensor's energy (at least
+    /// 1) [default: 2000].
+    #[arg(long, value_name = "N", value_parser = crate::values::whole::<u64>(1, None))]
     pub predict_episodes: Option<u64>,
     /// Benchmark: replace the sensors by K copies of the first one, legs
-    /// served round robin (same maths, K sensor processes).
-    #[arg(long)]
+    /// served round robin (same maths, K sensor processes); K from 1 to 64.
+    #[arg(long, value_name = "K",
+          value_parser = crate::values::whole::<usize>(1, Some(etp_launcher::prepare::MAX_SENSORS as u64)))]
     pub clone_sensors: Option<usize>,
     /// Record every message of the run to this MCAP file (see `etp replay`).
     #[arg(long, value_name = "FILE")]
@@ -94,7 +97,7 @@ pub struct RunArgs {
     /// Real-time studies: a slot not closed within MS milliseconds counts as
     /// a dead link (a fault) even if the sensor process lives. Default: a
     /// live process is waited for, however slow or paused.
-    #[arg(long, value_name = "MS")]
+    #[arg(long, value_name = "MS", value_parser = crate::values::whole::<u64>(1, None))]
     pub slot_deadline: Option<u64>,
     /// Draw measured vs predicted (per-sensor energy per episode, outcomes,
     /// 95 % intervals) to `<recording without .mcap>-report.png` and `.svg`
@@ -120,8 +123,8 @@ pub struct RunArgs {
         value_name = "SENSORS"
     )]
     pub remote: Vec<String>,
-    /// Seconds to wait for the remote sensors to join [default: 60].
-    #[arg(long)]
+    /// Seconds to wait for the remote sensors to join (> 0) [default: 60].
+    #[arg(long, value_name = "SECONDS", value_parser = crate::values::seconds)]
     pub join_timeout: Option<f64>,
     /// The link's protection (with `--listen`).
     #[command(flatten)]

@@ -16,14 +16,15 @@ use etp_shared::trigger::TriggerFamily;
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct RadioArgs {
     /// Probability that one transmission attempt is lost, in [0, 1) (0 = ideal radio).
-    #[arg(long, value_name = "P", allow_negative_numbers = true)]
+    #[arg(long, value_name = "P", allow_negative_numbers = true, value_parser = crate::values::loss)]
     pub loss: Option<f64>,
     /// Further attempts in the same step after a lost one (acknowledged
     /// link), 0 to 1000; needs a loss (`--loss` or the scenario's).
-    #[arg(long, value_name = "R", allow_negative_numbers = true)]
+    #[arg(long, value_name = "R", allow_negative_numbers = true,
+          value_parser = crate::values::whole::<i64>(0, Some(etp_shared::radio::MAX_RETRIES as u64)))]
     pub retries: Option<i64>,
     /// Gilbert–Elliott channel with this mean burst length in steps (≥ 1).
-    #[arg(long, value_name = "B", allow_negative_numbers = true)]
+    #[arg(long, value_name = "B", allow_negative_numbers = true, value_parser = crate::values::burst)]
     pub burst: Option<f64>,
     /// The agent's silence update: `aware` (β_q, knows packets get lost) or `naive` (β).
     #[arg(long, value_parser = ["aware", "naive"])]

@@ -19,11 +19,11 @@ pub struct Args {
     #[arg(default_value = "winding-2d")]
     pub scenario: String,
     /// Episodes per measurement (at least 1).
-    #[arg(long, default_value_t = 4000, value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, default_value_t = 4000, value_parser = crate::values::whole::<u64>(1, None))]
     pub episodes: u64,
     /// Timed repetitions per row; the row reports their median rate and
     /// range (this machine is shared: one run can lose a third to a neighbour).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = crate::values::whole::<u32>(1, None))]
     pub repeats: u32,
     /// Print JSON.
     #[arg(long)]

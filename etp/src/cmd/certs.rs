@@ -49,8 +49,8 @@ pub struct InitArgs {
     /// [default: sensor-host].
     #[arg(long = "sensor-host", value_name = "NAME[=SENSORS]")]
     pub sensor_hosts: Vec<String>,
-    /// Days the certificates are valid.
-    #[arg(long, default_value_t = 365)]
+    /// Days the certificates are valid (1 to 3650).
+    #[arg(long, default_value_t = 365, value_parser = crate::values::whole::<u32>(1, Some(3650)))]
     pub days: u32,
     /// Replace an existing DIR (once the new one is complete).
     #[arg(long)]
@@ -97,9 +97,6 @@ fn init(a: InitArgs) -> Result<()> {
         }
     }
     let hosts: Vec<String> = map.keys().cloned().collect();
-    if a.days == 0 || a.days > 3650 {
-        bail!("--days must be between 1 and 3650, got {}", a.days);
-    }
     let me = etp_files::folders::euid();
     etp_files::folders::check_ancestors(&a.dir, me)?;
     if let Ok(m) = std::fs::symlink_metadata(&a.dir) {

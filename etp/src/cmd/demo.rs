@@ -27,24 +27,25 @@ pub struct Args {
     /// Scenario (built-in name or TOML path).
     #[arg(long, default_value = DEFAULT_SCENARIO)]
     pub scenario: String,
-    /// Required target probability of the demo's strategy.
-    #[arg(long, default_value_t = 0.95)]
+    /// Required target probability of the demo's strategy (P in [0, 1]).
+    #[arg(long, value_name = "P", default_value_t = 0.95, value_parser = crate::input::probability)]
     pub min_target: f64,
-    /// Monte Carlo segments per state-action of the synthesis.
-    #[arg(long, default_value_t = etp_synthesis::abstraction::DEFAULT_SAMPLES)]
+    /// Monte Carlo segments per state-action of the synthesis (at least 1).
+    #[arg(long, default_value_t = etp_synthesis::abstraction::DEFAULT_SAMPLES,
+          value_parser = crate::values::whole::<u32>(1, None))]
     pub samples: u32,
     /// In-process validation episodes (at least 1).
-    #[arg(long, default_value_t = 3000, value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, default_value_t = 3000, value_parser = crate::values::whole::<u64>(1, None))]
     pub validate_episodes: u64,
     /// Multi-process episodes (at least 1).
-    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, default_value_t = 200, value_parser = crate::values::whole::<u64>(1, None))]
     pub run_episodes: u64,
     /// Seed of everything.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Requests of the predicted front drawn in front.png (`etp strategy
-    /// front --points`; 0: none, the MDP's front alone).
-    #[arg(long, value_name = "K", default_value_t = DEMO_FRONT_POINTS)]
+    /// front --points`; 0: none, the MDP's front alone; else 2 to 64).
+    #[arg(long, value_name = "K", default_value_t = DEMO_FRONT_POINTS, value_parser = front_points)]
     pub front_points: usize,
     /// Output folder of everything the demo writes, the run's recording
     /// (`run.mcap`) included (default `out/demo-<scenario>-<seed>-<time>`;
@@ -62,6 +63,16 @@ const RECORDING: &str = "run.mcap";
 /// Requests of the demo's predicted front by default (`etp strategy front`
 /// has 6).
 const DEMO_FRONT_POINTS: usize = 4;
+
+/// `--front-points K`: 0 (no predicted front) or `etp strategy front
+/// --points`' range, refused before the demo's synthesis starts.
+fn front_points(s: &str) -> std::result::Result<usize, String> {
+    match s.trim() {
+        "0" => Ok(0),
+        _ => crate::values::whole::<usize>(2, Some(64))(s)
+            .map_err(|e| format!("{e} (or 0: no predicted front)")),
+    }
+}
 
 fn stage(quiet: bool, text: &str) {
     if !quiet {
@@ -171,9 +182,6 @@ pub fn run(a: Args) -> Result<()> {
     // The predicted front (docs/MODEL.md §7.5): what `etp strategy front
     // DIR --points DEMO_FRONT_POINTS` stores and draws over the MDP's front.
     let points = a.front_points;
-    if points == 1 {
-        anyhow::bail!("--front-points must be 0 (no predicted front) or at least 2, got 1");
-    }
     if points > 0 {
         stage(
             a.json,

@@ -8,7 +8,7 @@
 //! "One scenario" is the scenario without its trigger family: the family
 //! changes the content hash, nothing else does here.
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use etp_pipeline::output::{read_front, read_mdp};
 use etp_pipeline::synthesis_dir::{Identity, check_one_scenario, identity, labels};
 use etp_synthesis::pareto::ParetoFront;
@@ -24,10 +24,10 @@ pub struct Args {
     pub dirs: Vec<PathBuf>,
     /// Bounds on P_coll, one panel each (repeat the option or separate by
     /// commas; default: one panel without a bound).
-    #[arg(long, value_name = "P", value_delimiter = ',')]
+    #[arg(long, value_name = "P", value_delimiter = ',', value_parser = crate::input::probability)]
     pub max_collision: Vec<f64>,
-    /// Points per curve (P_tar targets, evenly spaced).
-    #[arg(long, default_value_t = 60)]
+    /// Points per curve (P_tar targets, evenly spaced; at least 2).
+    #[arg(long, value_name = "K", default_value_t = 60, value_parser = crate::values::whole::<usize>(2, None))]
     pub points: usize,
     /// Figure file stem: writes STEM.png and STEM.svg.
     #[arg(short = 'o', long = "out", default_value = "fronts")]
@@ -50,14 +50,6 @@ struct Source {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    for &c in &a.max_collision {
-        if !(0.0..=1.0).contains(&c) {
-            bail!("--max-collision must lie in [0, 1], got {c}");
-        }
-    }
-    if a.points < 2 {
-        bail!("--points must be at least 2, got {}", a.points);
-    }
     let stem = a.out.clone();
     for p in [stem.with_extension("png"), stem.with_extension("svg")] {
         etp_pipeline::output::refuse_existing(&p, a.force)?;

@@ -23,8 +23,8 @@ pub struct Args {
     /// Sensors to serve here (names; repeat; default: every remote sensor of the run).
     #[arg(long = "sensor", value_name = "NAME")]
     pub sensors: Vec<String>,
-    /// Seconds to wait for the agent host to answer.
-    #[arg(long, default_value_t = 60.0)]
+    /// Seconds to wait for the agent host to answer (> 0).
+    #[arg(long, value_name = "SECONDS", default_value_t = 60.0, value_parser = crate::values::seconds)]
     pub join_timeout: f64,
     /// Print one JSON object at the end.
     #[arg(long)]

@@ -15,7 +15,7 @@ pub struct Args {
     /// Built-in name (winding-2d, open-2d, superg-3d, inertia-2d, inertia-3d) or path to a scenario TOML.
     pub scenario: String,
     /// The constant threshold δ ≥ 0 used on every leg (0 = full Kalman filter).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::values::non_negative)]
     pub delta: f64,
     #[command(flatten)]
     pub sim: crate::input::EpisodeArgs,

@@ -124,7 +124,7 @@ pub struct FrontArgs {
     /// Requests per curve (2..=64), evenly spaced over the MDP's P_tar range
     /// (both ends included).
     #[arg(long, value_name = "K", default_value_t = etp_synthesis::predict::front::DEFAULT_POINTS,
-          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(2..=64))]
+          value_parser = crate::values::whole::<usize>(2, Some(64)))]
     pub points: usize,
     /// Bounds on P_coll, one curve each (repeat or separate by commas;
     /// default: one curve without a bound).

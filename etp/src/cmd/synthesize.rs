@@ -71,8 +71,8 @@ pub struct Args {
     /// Abstraction method.
     #[arg(long, value_enum, default_value_t = MethodArg::Discretized)]
     pub method: MethodArg,
-    /// Simulated segments per (state, action).
-    #[arg(long, default_value_t = DEFAULT_SAMPLES)]
+    /// Simulated segments per (state, action) (at least 1).
+    #[arg(long, default_value_t = DEFAULT_SAMPLES, value_parser = crate::values::whole::<u32>(1, None))]
     pub samples: u32,
     /// Held-out segments per (state, action) on the selection MDP (stream
     /// `HOLDOUT`, independent of the main samples; default 0). They only add

@@ -20,7 +20,8 @@ pub const EXIT_CHECK_FAILS: u8 = 6;
 /// Exit codes (`etp validate --help`).
 const EXIT_CODES: &str = "Exit codes: 0 every check holds; 6 a check FAILS (a prediction of the \
 strategy lies outside the simulation's interval; the report is printed first); 1 an \
-error (unreadable or edited strategy file: its `content_sha256` must match, bad arguments). \
+error (unreadable or edited strategy file: its `content_sha256` must match, an option the \
+strategy does not take); 2 a bad command line (a value out of its range: nothing runs). \
 The checks are one family at 95 % family-wise: each of the m checks at 1 − 0.05/m (Bonferroni), \
 so that an honest strategy passes them all 95 % of the time (docs/MODEL.md, Statistics).";
 

@@ -16,8 +16,9 @@ fn code(args: &[&str]) -> (Option<i32>, String) {
 }
 
 /// `--episodes 0` and `--episodes -1` are the same kind of error on every
-/// command: a bad value of the option named (exit 2), never an error of the
-/// command (1) nor an unknown argument `-1` with a tip to write `-- -1`.
+/// command: a bad value of the option named (exit 2) with the range it
+/// takes, never an error of the command (1) nor an unknown argument `-1`
+/// with a tip to write `-- -1`.
 #[test]
 fn a_bad_episode_count_is_a_usage_error_on_every_command() {
     let commands: [&[&str]; 6] = [
@@ -47,7 +48,141 @@ fn a_bad_episode_count_is_a_usage_error_on_every_command() {
                 "etp {args:?}: {err}"
             );
             assert!(!err.contains("-- -1"), "etp {args:?}: {err}");
+            assert!(err.contains("a whole number ≥ 1"), "etp {args:?}: {err}");
         }
+    }
+}
+
+/// A value outside its option's range is a usage error on every option
+/// that has one (exit 2, the option and its range named), refused before
+/// any work: not an error of the command (1) after a synthesis, a run file
+/// with `null` in it, or an empty output folder left behind.
+#[test]
+fn a_value_out_of_range_is_a_usage_error_naming_the_range() {
+    let dir = Scratch::new("value-ranges");
+    let out = dir.path("out");
+    let run = ["run", "--scenario", "open-2d", "--delta", "1.4986"];
+    let sim = ["simulate", "open-2d", "--delta", "1.4986"];
+    let cases: Vec<(Vec<&str>, &str, &str)> = vec![
+        (
+            vec!["synthesize", "open-2d", "-o", s(&out), "--samples", "0"],
+            "--samples",
+            "≥ 1",
+        ),
+        (
+            vec!["demo", "-o", s(&out), "--min-target", "2"],
+            "--min-target",
+            "[0, 1]",
+        ),
+        (
+            vec!["demo", "-o", s(&out), "--samples", "0"],
+            "--samples",
+            "≥ 1",
+        ),
+        (
+            vec!["demo", "-o", s(&out), "--front-points", "1"],
+            "--front-points",
+            "from 2 to 64",
+        ),
+        (
+            [&run[..], &["--predict-episodes", "0"]].concat(),
+            "--predict-episodes",
+            "≥ 1",
+        ),
+        (
+            [&run[..], &["--clone-sensors", "65"]].concat(),
+            "--clone-sensors",
+            "from 1 to 64",
+        ),
+        (
+            [&run[..], &["--deadline", "-1"]].concat(),
+            "--deadline",
+            "seconds > 0",
+        ),
+        (
+            [&run[..], &["--join-timeout", "0"]].concat(),
+            "--join-timeout",
+            "seconds > 0",
+        ),
+        (
+            [&run[..], &["--slot-deadline", "0"]].concat(),
+            "--slot-deadline",
+            "≥ 1",
+        ),
+        (
+            vec!["run", "--scenario", "open-2d", "--delta", "-1"],
+            "--delta",
+            "≥ 0",
+        ),
+        ([&sim[..], &["--loss", "1"]].concat(), "--loss", "[0, 1)"),
+        (
+            [&sim[..], &["--loss", "0.1", "--retries", "-1"]].concat(),
+            "--retries",
+            "from 0 to 1000",
+        ),
+        (
+            [&sim[..], &["--loss", "0.1", "--burst", "0.5"]].concat(),
+            "--burst",
+            "≥ 1",
+        ),
+        (
+            vec!["simulate", "open-2d", "--delta", "-1"],
+            "--delta",
+            "≥ 0",
+        ),
+        (
+            vec![
+                "strategy",
+                s(&out),
+                "--min-target",
+                "0.9",
+                "--replicates",
+                "-1",
+            ],
+            "--replicates",
+            "from 2 to 64",
+        ),
+        (
+            vec!["strategy", s(&out), "--min-target", "0.9", "--rounds", "21"],
+            "--rounds",
+            "from 1 to 20",
+        ),
+        (vec!["fronts", s(&out), "--points", "1"], "--points", "≥ 2"),
+        (
+            vec!["fronts", s(&out), "--max-collision", "2"],
+            "--max-collision",
+            "[0, 1]",
+        ),
+        (
+            vec!["certs", "init", s(&out), "--days", "0"],
+            "--days",
+            "from 1 to 3650",
+        ),
+        (
+            vec!["bench", "open-2d", "--repeats", "0"],
+            "--repeats",
+            "≥ 1",
+        ),
+        (
+            vec![
+                "sensor-host",
+                "--connect",
+                "tcp/127.0.0.1:9",
+                "--join-timeout",
+                "0",
+            ],
+            "--join-timeout",
+            "seconds > 0",
+        ),
+    ];
+    for (args, option, range) in cases {
+        let (rc, err) = code(&args);
+        assert_eq!(rc, Some(2), "etp {args:?}: {err}");
+        assert!(
+            err.contains(&format!("for '{option}")) && err.contains(range),
+            "etp {args:?} should name {option} and {range}: {err}"
+        );
+        assert!(!out.exists(), "etp {args:?} wrote {}", out.display());
     }
 }
 

@@ -219,7 +219,7 @@ fn a_run_id_in_use_is_refused_clearly_and_too_many_sensors_too() {
     let (ok, _, err) = many.finish();
     assert!(!ok);
     assert!(
-        err.contains("--clone-sensors must be between 1 and 64"),
+        err.contains("--clone-sensors") && err.contains("from 1 to 64"),
         "{err}"
     );
 }
