@@ -42,11 +42,14 @@ impl RadioArgs {
         }
     }
 
-    /// `scenario` under these settings (errors name the option).
-    pub fn apply(&self, scenario: Scenario) -> Result<Scenario> {
-        scenario
-            .with_radio_override(&self.to_override())
-            .context("radio options")
+    /// `scenario` under these settings (errors name the option, as
+    /// `etp run`'s do: the channel's own error, not a scenario field's).
+    pub fn apply(&self, mut scenario: Scenario) -> Result<Scenario> {
+        scenario.radio = scenario
+            .radio
+            .for_use(None, &self.to_override())
+            .context("radio options")?;
+        Ok(scenario)
     }
 }
 

@@ -258,6 +258,10 @@ fn retries_without_a_loss_are_refused_by_name() {
         ];
         sim.extend(extra);
         fails_with(&sim, &[extra[extra.len() - 2], "does nothing", "--loss"]);
+        // The option's name, not a scenario field's.
+        let (rc, err) = code(&sim);
+        assert_eq!(rc, Some(1), "{err}");
+        assert!(!err.contains("scenario field"), "{err}");
         let mut run = vec![
             "run",
             "--scenario",
