@@ -29,8 +29,13 @@ pub struct Args {
     /// Points per curve (P_tar targets, evenly spaced; at least 2).
     #[arg(long, value_name = "K", default_value_t = 60, value_parser = crate::values::whole::<usize>(2, None))]
     pub points: usize,
-    /// Figure file stem: writes STEM.png and STEM.svg.
-    #[arg(short = 'o', long = "out", default_value = "fronts")]
+    /// Figure file stem: writes STEM.png and STEM.svg (its folder must exist).
+    #[arg(
+        short = 'o',
+        long = "out",
+        value_name = "STEM",
+        default_value = "fronts"
+    )]
     pub out: PathBuf,
     /// Overwrite existing figure files.
     #[arg(long)]
@@ -51,6 +56,7 @@ struct Source {
 
 pub fn run(a: Args) -> Result<()> {
     let stem = a.out.clone();
+    etp_files::write::existing_folder_of(&stem, "-o")?;
     for p in [stem.with_extension("png"), stem.with_extension("svg")] {
         etp_pipeline::output::refuse_existing(&p, a.force)?;
     }

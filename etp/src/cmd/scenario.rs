@@ -31,7 +31,8 @@ pub struct RadioTextArgs {
     pub scenario: String,
     #[command(flatten)]
     pub radio: crate::scenario_flags::RadioArgs,
-    /// Write the TOML here (refused if it exists, unless --force) instead of stdout.
+    /// Write the TOML here (refused if it exists, unless --force; its folder
+    /// must exist) instead of stdout.
     #[arg(short = 'o', long = "out")]
     pub out: Option<PathBuf>,
     /// Overwrite an existing output file.
@@ -48,7 +49,8 @@ pub struct RandomArgs {
     /// Seed of the draw.
     #[arg(long)]
     pub seed: u64,
-    /// Write the TOML here (refused if it exists, unless --force) instead of stdout.
+    /// Write the TOML here (refused if it exists, unless --force; its folder
+    /// must exist) instead of stdout.
     #[arg(short = 'o', long = "out")]
     pub out: Option<PathBuf>,
     /// Overwrite an existing output file.
@@ -61,6 +63,9 @@ pub fn run(a: Args) -> Result<()> {
         ScenarioCommand::Random(r) => r,
         ScenarioCommand::Radio(r) => return radio(r),
     };
+    if let Some(path) = &r.out {
+        etp_files::write::existing_folder_of(path, "-o")?;
+    }
     let n: usize = r.dim_agent.parse().context("--dim-agent")?;
     let kind = AgentKind::from_dim(n).context("--dim-agent")?;
     let (text, s) = random_scenario(kind, r.seed)
@@ -88,6 +93,9 @@ fn radio(r: RadioTextArgs) -> Result<()> {
         anyhow::bail!(
             "give the channel: --loss P [--retries R] [--burst B] [--estimator aware|naive]"
         );
+    }
+    if let Some(path) = &r.out {
+        etp_files::write::existing_folder_of(path, "-o")?;
     }
     let text = etp_runtime::scenario_arg::scenario_text(&r.scenario)?;
     let out = crate::input::text_with_radio(&text, &r.radio)?;

@@ -93,7 +93,8 @@ pub struct Args {
 /// Where the strategy goes and how the report is printed.
 #[derive(Debug, Clone, clap::Args)]
 pub struct OutArgs {
-    /// Where to write the strategy (default DIR/strategy.json).
+    /// Where to write the strategy (default DIR/strategy.json; its folder
+    /// must exist).
     #[arg(short = 'o', long = "out", alias = "output")]
     pub output: Option<PathBuf>,
     /// Overwrite an existing output file.
@@ -102,6 +103,17 @@ pub struct OutArgs {
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
+}
+
+impl OutArgs {
+    /// A strategy file the user named goes into a folder that exists: a
+    /// mistyped `-o` is refused by name before any work, not created.
+    pub fn check_folder(&self) -> Result<()> {
+        if let Some(path) = &self.output {
+            etp_files::write::existing_folder_of(path, "-o")?;
+        }
+        Ok(())
+    }
 }
 
 #[derive(Debug, clap::Subcommand)]
@@ -194,6 +206,7 @@ pub fn run(a: Args) -> Result<()> {
         Some(Verb::Front(f)) => return front::run(f),
         None => {}
     }
+    a.out.check_folder()?;
     use etp_synthesis::predict::request::Goal;
     let request = match (a.min_target, a.max_energy, a.vertex) {
         (Some(min_target), None, None) => Request::Goal(Goal::MinTarget {

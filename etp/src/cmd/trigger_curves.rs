@@ -31,8 +31,13 @@ pub struct Args {
     pub sim: crate::input::EpisodeArgs,
     #[command(flatten)]
     pub radio: RadioArgs,
-    /// Figure file stem: writes STEM.png and STEM.svg.
-    #[arg(short = 'o', long = "out", default_value = "trigger-curves")]
+    /// Figure file stem: writes STEM.png and STEM.svg (its folder must exist).
+    #[arg(
+        short = 'o',
+        long = "out",
+        value_name = "STEM",
+        default_value = "trigger-curves"
+    )]
     pub out: PathBuf,
     /// Overwrite existing figure files.
     #[arg(long)]
@@ -56,6 +61,7 @@ struct Measured {
 
 pub fn run(a: Args) -> Result<()> {
     let stem = a.out.clone();
+    etp_files::write::existing_folder_of(&stem, "-o")?;
     for p in [stem.with_extension("png"), stem.with_extension("svg")] {
         etp_pipeline::output::refuse_existing(&p, a.force)?;
     }

@@ -370,6 +370,73 @@ fn record_refuses_a_missing_folder_and_a_folder_by_name() {
     assert_eq!(std::fs::read_dir(&folder).expect("folder").count(), 0);
 }
 
+/// Every file the user names with `-o` goes into a folder that exists: a
+/// missing one is refused by name before any work (exit 1), never made.
+#[test]
+fn every_named_output_file_needs_its_folder() {
+    let dir = Scratch::new("named-outputs");
+    let missing = dir.path("no");
+    let file = |name: &str| missing.join(name);
+    let (stem, json, toml) = (file("figure"), file("s.json"), file("s.toml"));
+    let synthesis = dir.path("synthesis");
+    let cases: [Vec<&str>; 6] = [
+        vec![
+            "trigger-curves",
+            "open-2d",
+            "--episodes",
+            "5",
+            "-o",
+            s(&stem),
+        ],
+        vec!["fronts", s(&synthesis), "-o", s(&stem)],
+        vec![
+            "strategy",
+            s(&synthesis),
+            "--min-target",
+            "0.9",
+            "-o",
+            s(&json),
+        ],
+        vec![
+            "strategy",
+            "evaluate",
+            s(&json),
+            s(&synthesis),
+            "-o",
+            s(&json),
+        ],
+        vec![
+            "scenario",
+            "random",
+            "--dim-agent",
+            "2",
+            "--seed",
+            "1",
+            "-o",
+            s(&toml),
+        ],
+        vec![
+            "scenario",
+            "radio",
+            "open-2d",
+            "--loss",
+            "0.1",
+            "-o",
+            s(&toml),
+        ],
+    ];
+    for args in cases {
+        let (rc, err) = code(&args);
+        assert_eq!(rc, Some(1), "etp {args:?}: {err}");
+        assert!(
+            err.contains("-o ")
+                && err.contains(&format!("the folder {} does not exist", missing.display())),
+            "etp {args:?}: {err}"
+        );
+        assert!(!missing.exists(), "etp {args:?} made the folder");
+    }
+}
+
 /// The open-2d strategy fixture, copied into `dir` as `s.json`.
 fn open_2d_strategy(dir: &Scratch) -> std::path::PathBuf {
     let strategy = dir.path("s.json");

@@ -16,6 +16,7 @@ use serde_json::json;
 use std::time::Instant;
 
 pub fn run(a: &EvaluateArgs) -> Result<()> {
+    a.out.check_folder()?;
     let syn = Synthesis::load(&a.dir, Some(a.out.output.as_deref().unwrap_or(&a.strategy)))?;
     let (mut strategy, _) = etp_runtime::strategy_arg::load_strategy(&a.strategy)
         .with_context(|| format!("etp strategy evaluate {}", a.strategy.display()))?;
