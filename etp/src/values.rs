@@ -45,6 +45,19 @@ pub fn non_negative(s: &str) -> Result<f64, String> {
     real(s, "a finite number ≥ 0", |v| v >= 0.0)
 }
 
+/// A finite number > 0 (a tolerance, a distance).
+pub fn positive(s: &str) -> Result<f64, String> {
+    real(s, "a finite number > 0", |v| v > 0.0)
+}
+
+/// A level or rate strictly between 0 and 1 (`--merge`, a false discovery
+/// rate).
+pub fn open_unit(s: &str) -> Result<f64, String> {
+    real(s, "a number in (0, 1), both ends excluded", |v| {
+        v > 0.0 && v < 1.0
+    })
+}
+
 /// A positive number of seconds (`--deadline`, `--join-timeout`).
 pub fn seconds(s: &str) -> Result<f64, String> {
     real(s, "a number of seconds > 0", |v| v > 0.0)
@@ -93,6 +106,8 @@ mod tests {
         assert!(burst("0.5").is_err_and(|e| e.contains("≥ 1")));
         assert!(seconds("0").is_err_and(|e| e.contains("> 0")));
         assert!(non_negative("nan").is_err());
+        assert!(open_unit("1").is_err() && open_unit("0").is_err() && open_unit("0.05").is_ok());
+        assert!(positive("0").is_err_and(|e| e.contains("> 0")));
         assert!(non_negative("-1").is_err_and(|e| e.contains("got -1")));
     }
 }

@@ -40,12 +40,13 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     pub synthetic_seed: u64,
     /// With --front: stopping tolerance of the front's enumeration on the
-    /// synthesized MDPs (scaled units; the certified ε is reported).
-    #[arg(long, default_value_t = etp_synthesis::pareto::enumerate::TOLERANCE)]
+    /// synthesized MDPs (scaled units, > 0; the certified ε is reported).
+    #[arg(long, default_value_t = etp_synthesis::pareto::enumerate::TOLERANCE,
+          value_parser = crate::values::positive)]
     pub tolerance: f64,
     /// With --front: the same for the synthetic MDP (its front has many more
     /// vertices; the certified ε is reported).
-    #[arg(long, default_value_t = SYNTHETIC_TOLERANCE)]
+    #[arg(long, default_value_t = SYNTHETIC_TOLERANCE, value_parser = crate::values::positive)]
     pub synthetic_tolerance: f64,
     /// Measure the simulator under this radio (docs/MODEL.md §8).
     #[command(flatten)]

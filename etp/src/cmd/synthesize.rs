@@ -86,18 +86,19 @@ pub struct Args {
     /// Seed of the random streams (same seed, same mdp.bin bytes, any thread count).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Log-uniform magnitude bins per eigenvalue (Method 2).
-    #[arg(long, default_value_t = BinCounts::default().magnitude)]
+    /// Log-uniform magnitude bins per eigenvalue (Method 2; at least 1).
+    #[arg(long, value_name = "K", default_value_t = BinCounts::default().magnitude, value_parser = crate::values::whole::<u16>(1, Some(u16::MAX as u64)))]
     pub magnitude_bins: u16,
-    /// Angle bins per eigenvector on [0, π/2] (Method 2; unused for repeated eigenvalues).
-    #[arg(long, default_value_t = BinCounts::default().angle)]
+    /// Angle bins per eigenvector on [0, π/2] (Method 2; unused for repeated
+    /// eigenvalues; at least 1).
+    #[arg(long, value_name = "K", default_value_t = BinCounts::default().angle, value_parser = crate::values::whole::<u16>(1, Some(u16::MAX as u64)))]
     pub angle_bins: u16,
     /// Method 2's belief descriptor.
     #[arg(long, value_enum, default_value_t = DescriptorArg::Auto)]
     pub descriptor: DescriptorArg,
     /// Coarse log-uniform bins of tr(Π P Π), the uncertainty the workspace map
-    /// does not see (`--descriptor workspace`).
-    #[arg(long, default_value_t = DEFAULT_REST_BINS)]
+    /// does not see (`--descriptor workspace`; at least 1).
+    #[arg(long, value_name = "K", default_value_t = DEFAULT_REST_BINS, value_parser = crate::values::whole::<u16>(1, Some(u16::MAX as u64)))]
     pub rest_bins: u16,
     /// Workspace descriptor: bin the workspace marginal predicted this many
     /// silent steps ahead, C F^h P F^hᵀ Cᵀ, so velocity uncertainty counts
@@ -107,16 +108,18 @@ pub struct Args {
     /// Workspace descriptor: where its magnitude bins lie.
     #[arg(long, value_enum, default_value_t = RangeArg::Arrivals)]
     pub range: RangeArg,
-    /// Pool particles kept per region and decision point.
-    #[arg(long, default_value_t = DEFAULT_POOL_PER_REGION)]
+    /// Pool particles kept per region and decision point (at least 1).
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_POOL_PER_REGION,
+          value_parser = crate::values::whole::<u32>(1, None))]
     pub pool: u32,
     /// Method 1: distance to the waypoint at which the full KF switches on
-    /// (default max(5·u_max, 2·eps_x)).
-    #[arg(long)]
+    /// in the workspace's length unit, > 0 (default max(5·u_max, 2·eps_x)).
+    #[arg(long, value_name = "D", value_parser = crate::values::positive)]
     pub eps_kf: Option<f64>,
     /// Method 1: covariance convergence tolerance ‖P − P_KF‖max
-    /// (default 1 % of the smallest ‖P_KF‖max over the sensors).
-    #[arg(long)]
+    /// in the state covariance's units, > 0 (default 1 % of the smallest
+    /// ‖P_KF‖max over the sensors).
+    #[arg(long, value_name = "TOL", value_parser = crate::values::positive)]
     pub eps_p: Option<f64>,
     /// Output directory (default `out/<scenario name>`).
     #[arg(short = 'o', long = "out", alias = "output")]
@@ -133,8 +136,8 @@ pub struct Args {
     /// Lump the states of each decision point that the samples cannot tell
     /// apart at level ALPHA: for every action a χ² test of their outcomes
     /// (successors by lump) and a z-test of their mean energies (docs/MODEL.md
-    /// §7.3). A smaller ALPHA lumps more. Off by default.
-    #[arg(long, value_name = "ALPHA")]
+    /// §7.3). ALPHA in (0, 1); a smaller ALPHA lumps more. Off by default.
+    #[arg(long, value_name = "ALPHA", value_parser = crate::values::open_unit)]
     pub merge: Option<f64>,
     /// The radio the segments are sampled with (docs/MODEL.md §8).
     #[command(flatten)]
@@ -148,8 +151,9 @@ pub struct Args {
     /// the region split at the median of a finer belief feature (0: off).
     #[arg(long, value_name = "N", default_value_t = DEFAULT_AGGREGATION_EPISODES)]
     pub aggregation_episodes: u64,
-    /// Aggregation check: false discovery rate of the flagged splits.
-    #[arg(long, value_name = "ALPHA", default_value_t = DEFAULT_AGGREGATION_ALPHA)]
+    /// Aggregation check: false discovery rate of the flagged splits, in (0, 1).
+    #[arg(long, value_name = "ALPHA", default_value_t = DEFAULT_AGGREGATION_ALPHA,
+          value_parser = crate::values::open_unit)]
     pub aggregation_alpha: f64,
     /// Adaptive splitting of the regions the aggregation test flags.
     #[command(flatten)]
@@ -224,14 +228,19 @@ pub struct SplitArgs {
     /// MDP, round by round (0: off; each split adds at most one state).
     #[arg(long, value_name = "N", default_value_t = SplitSettings::default().budget)]
     pub split_budget: u32,
-    /// Adaptive splitting: at most R rounds (each one re-runs the Monte Carlo).
-    #[arg(long, value_name = "R", default_value_t = SplitSettings::default().rounds)]
+    /// Adaptive splitting: at most R rounds (each one re-runs the Monte
+    /// Carlo; at least 1).
+    #[arg(long, value_name = "R", default_value_t = SplitSettings::default().rounds,
+          value_parser = crate::values::whole::<u32>(1, None))]
     pub split_rounds: u32,
-    /// Adaptive splitting: random-δ episodes per round for the test.
-    #[arg(long, value_name = "N", default_value_t = SplitSettings::default().episodes)]
+    /// Adaptive splitting: random-δ episodes per round for the test (at
+    /// least 1).
+    #[arg(long, value_name = "N", default_value_t = SplitSettings::default().episodes,
+          value_parser = crate::values::whole::<u64>(1, None))]
     pub split_episodes: u64,
-    /// Adaptive splitting: false discovery rate of a round's tests.
-    #[arg(long, value_name = "ALPHA", default_value_t = SplitSettings::default().alpha)]
+    /// Adaptive splitting: false discovery rate of a round's tests, in (0, 1).
+    #[arg(long, value_name = "ALPHA", default_value_t = SplitSettings::default().alpha,
+          value_parser = crate::values::open_unit)]
     pub split_alpha: f64,
 }
 

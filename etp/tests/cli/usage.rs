@@ -164,6 +164,76 @@ fn a_value_out_of_range_is_a_usage_error_naming_the_range() {
             "≥ 1",
         ),
         (
+            vec!["bench", "--front", "--tolerance", "-1"],
+            "--tolerance",
+            "> 0",
+        ),
+        (
+            vec![
+                "synthesize",
+                "open-2d",
+                "-o",
+                s(&out),
+                "--magnitude-bins",
+                "0",
+            ],
+            "--magnitude-bins",
+            "from 1 to 65535",
+        ),
+        (
+            vec!["synthesize", "open-2d", "-o", s(&out), "--pool", "0"],
+            "--pool",
+            "≥ 1",
+        ),
+        (
+            vec!["synthesize", "open-2d", "-o", s(&out), "--merge", "2"],
+            "--merge",
+            "(0, 1)",
+        ),
+        (
+            vec![
+                "synthesize",
+                "open-2d",
+                "-o",
+                s(&out),
+                "--aggregation-alpha",
+                "2",
+            ],
+            "--aggregation-alpha",
+            "(0, 1)",
+        ),
+        (
+            vec!["synthesize", "open-2d", "-o", s(&out), "--split-alpha", "0"],
+            "--split-alpha",
+            "(0, 1)",
+        ),
+        (
+            vec![
+                "synthesize",
+                "open-2d",
+                "-o",
+                s(&out),
+                "--split-rounds",
+                "0",
+            ],
+            "--split-rounds",
+            "≥ 1",
+        ),
+        (
+            vec![
+                "synthesize",
+                "open-2d",
+                "-o",
+                s(&out),
+                "--method",
+                "kf-convergence",
+                "--eps-kf",
+                "-1",
+            ],
+            "--eps-kf",
+            "> 0",
+        ),
+        (
             vec![
                 "sensor-host",
                 "--connect",
