@@ -85,6 +85,11 @@ pub struct VerifyReport {
     /// Plant steps re-run through their slot (`explicit_updates +
     /// implicit_updates`; the step a collision ends has no slot).
     pub steps: u64,
+    /// Steps a recorded collision ended: re-run up to the collision, which
+    /// comes before the step's slot, so they have none. `steps +
+    /// collision_steps` are the steps of the episodes re-run, as the
+    /// summary counts them.
+    pub collision_steps: u64,
     /// Explicit updates (recorded measurements) and implicit updates (silent slots).
     pub explicit_updates: u64,
     pub implicit_updates: u64,
@@ -412,7 +417,10 @@ fn rerun<const N: usize>(
                 // The re-run collides only at the recorded collision's step:
                 // the record must put it in this leg.
                 Begun::Collided(()) => match outcome.map_or(leg, |o| o.header.leg) {
-                    at_leg if at_leg == leg => return Ok(Ended::Done),
+                    at_leg if at_leg == leg => {
+                        rep.collision_steps += 1;
+                        return Ok(Ended::Done);
+                    }
                     at_leg => {
                         let what = format!("collision recorded in leg {at_leg}");
                         return Err(miss(leg, k, what, 0.0));

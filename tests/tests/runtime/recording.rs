@@ -694,7 +694,8 @@ fn verify_detects_tampering(file: &Path) {
 
 /// `verify` counts a step once its slot is re-run: the step a collision
 /// ends has none, so steps = measurements + silent slots, and with the
-/// episodes' own steps: steps = Σ outcome steps − collisions.
+/// episodes' own steps: steps = Σ outcome steps − collisions. The text
+/// names the collision steps, so that its numbers add up to the summary's.
 #[test]
 fn verify_steps_add_up_when_an_episode_collides() {
     let _serial = serial();
@@ -733,5 +734,18 @@ fn verify_steps_add_up_when_an_episode_collides() {
         "{v}"
     );
     assert_eq!(n("steps"), num(&r, "steps") as u64 - collisions, "{r}");
+    assert_eq!(n("collision_steps"), collisions, "{v}");
+    let out = Command::new(bin_dir().join("etp"))
+        .args(["replay", "verify", &file.display().to_string()])
+        .output()
+        .expect("etp replay verify");
+    let text = String::from_utf8_lossy(&out.stdout);
+    let said = format!(
+        "({} steps: {} with a measurement, {} silent, {collisions} ended by a collision",
+        num(&r, "steps"),
+        n("explicit_updates"),
+        n("implicit_updates")
+    );
+    assert!(text.contains(&said), "{said:?} not in {text}");
     let _ = std::fs::remove_file(&file);
 }

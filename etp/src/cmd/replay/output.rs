@@ -35,11 +35,13 @@ fn write_verify(out: &mut String, v: &recording::VerifyReport) -> std::fmt::Resu
     )?;
     writeln!(
         out,
-        "  {} episodes re-run ({} steps: {} measurements, {} silent slots); {} incomplete (end of file), {} degraded skipped",
+        "  {} episodes re-run ({} steps: {} with a measurement, {} silent, {} ended by a \
+         collision before its slot); {} incomplete (end of file), {} degraded skipped",
         v.episodes_checked,
-        v.steps,
+        v.steps + v.collision_steps,
         v.explicit_updates,
         v.implicit_updates,
+        v.collision_steps,
         v.episodes_incomplete,
         v.episodes_degraded_skipped
     )?;
