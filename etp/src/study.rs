@@ -247,9 +247,10 @@ pub fn claim(spec: &Spec, dir: &Path) -> Result<()> {
         Ok(theirs) if theirs == mine => Ok(()),
         Ok(theirs) => bail!(
             "{} holds the study of another SPEC (its spec.json differs: {}): give another -o, \
-             or move it away to start over",
+             or move it away to start over{}",
             dir.display(),
-            differences(&theirs, &mine)
+            differences(&theirs, &mine),
+            renamed_hint(&theirs, &spec.name)
         ),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(etp_pipeline::output::write_new(
             &path,
@@ -257,6 +258,21 @@ pub fn claim(spec: &Spec, dir: &Path) -> Result<()> {
             false,
         )?),
         Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
+    }
+}
+
+/// A SPEC file renamed changes the study's name (its file's stem by
+/// default): say how to keep the stored one and resume.
+fn renamed_hint(stored: &str, name: &str) -> String {
+    let stored_name = serde_json::from_str::<serde_json::Value>(stored)
+        .ok()
+        .and_then(|v| v.get("name").and_then(|n| n.as_str()).map(str::to_string));
+    match stored_name {
+        Some(old) if old != name => format!(
+            "; to resume it with this file, set name = \"{old}\" in it (a SPEC's name is its \
+             file's stem unless it sets one)"
+        ),
+        _ => String::new(),
     }
 }
 

@@ -16,8 +16,9 @@ seed = 9105 }] (names, paths relative to the SPEC, random draws); families = [\"
 \"stochastic\"] (default: each scenario's own); requests = [{ min_target = 0.9 }, { min_target = \
 \"kf-0.02\", max_collision = 0.05 }] (P_tar ≥ P, or the full Kalman filter's simulated P_tar minus \
 D; none: synthesis only); samples, seed, replicates, rounds, episodes (validation, 0: none), \
-aggregation_check, kf_episodes (defaults: those of etp synthesize, strategy and validate). \
-Exit codes: 0 every case is done and the tables are written (requests out of reach and failed \
+aggregation_check, kf_episodes (defaults: those of etp synthesize, strategy and validate); name \
+(default: the file's stem; the folder's default out/study-<name>). A folder holding another \
+SPEC's study is refused naming each key that differs. Exit codes: 0 every case is done and the tables are written (requests out of reach and failed \
 checks are results, in the table); 1 an error (finished cases are kept: run the same command \
 again to resume); 2 a bad command line.";
 

@@ -249,6 +249,7 @@ fn resuming_under_a_renamed_spec_names_what_differs() {
         &[
             "holds the study of another SPEC",
             r#"name "first" in the folder, "second" in this SPEC"#,
+            r#"set name = "first" in it"#,
         ],
     );
     assert_eq!(std::fs::read(&claimed).expect("spec.json"), stored);
