@@ -245,6 +245,15 @@ fn a_value_out_of_range_is_a_usage_error_naming_the_range() {
             "seconds > 0",
         ),
     ];
+    // `--loop 0` looped without end; `--loop` alone still means that.
+    let publish = ["replay", "publish", "r.mcap", "--loop"];
+    assert!(
+        etp::cli::command()
+            .try_get_matches_from([&["etp"][..], &publish[..]].concat())
+            .is_ok()
+    );
+    let mut cases = cases;
+    cases.push(([&publish[..], &["0"]].concat(), "--loop", "≥ 1"));
     for (args, option, range) in cases {
         let (rc, err) = code(&args);
         assert_eq!(rc, Some(2), "etp {args:?}: {err}");

@@ -200,8 +200,9 @@ pub enum Action {
         /// Run id (services `etp/<run-id>/…`); default: a fresh one.
         #[arg(long)]
         run_id: Option<String>,
-        /// Repeat: `--loop` until interrupted, `--loop N` N times in all.
-        #[arg(long = "loop", value_name = "N", num_args = 0..=1, default_missing_value = "0")]
+        /// Repeat: `--loop` until interrupted, `--loop N` N times in all (N ≥ 1).
+        #[arg(long = "loop", value_name = "N", num_args = 0..=1,
+              default_missing_value = UNTIL_INTERRUPTED, value_parser = loops)]
         repeat: Option<u64>,
         /// Print one JSON object.
         #[arg(long)]
@@ -250,6 +251,19 @@ pub const EXIT_IDENTITY: u8 = 4;
 /// check needs (a copy filtered by topic): what it holds is printed, what
 /// needs the missing channels is named and not checked.
 pub const EXIT_MISSING_CHANNELS: u8 = 5;
+
+/// `--loop` given without N (the publisher's 0: until interrupted).
+const UNTIL_INTERRUPTED: &str = "until-interrupted";
+
+/// `--loop [N]`: N ≥ 1 times in all, or without N until interrupted. A
+/// typed `--loop 0` is refused: it would have looped without end.
+fn loops(s: &str) -> Result<u64, String> {
+    if s == UNTIL_INTERRUPTED {
+        return Ok(0);
+    }
+    crate::values::whole::<u64>(1, None)(s)
+        .map_err(|e| format!("{e} (`--loop` alone: until interrupted)"))
+}
 
 pub fn run(a: Args) -> Result<()> {
     let job = match a.action {
