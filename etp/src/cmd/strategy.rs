@@ -59,17 +59,19 @@ pub struct Args {
     /// on its rebuilds (no loop: a vertex is not a request).
     #[arg(long, value_name = "K")]
     pub vertex: Option<usize>,
-    /// With --min-target: select on certified bounds at this level (e.g.
-    /// 0.95), in the request loop: a round meets the request when the
+    /// With --min-target: select on certified bounds at this level (in
+    /// (0, 1), e.g. 0.95), in the request loop: a round meets the request when the
     /// bounds certified on its first on-policy rebuild do. Without
     /// --min-target only the level of the reported bounds (default 0.95).
     #[arg(long, value_name = "LEVEL", value_parser = level)]
     pub confidence: Option<f64>,
     /// With --confidence and --min-target: first add samples to DIR's MDP on
     /// the certified strategy's support (doubling them, at most
-    /// --refine-rounds times) until its certified P_tar gap is ≤ G; writes
-    /// DIR/mdp-refined.bin, on which the loop selects.
-    #[arg(long, value_name = "G", requires_all = ["confidence", "min_target"])]
+    /// --refine-rounds times) until its certified P_tar gap is ≤ G (a
+    /// probability, G > 0); writes DIR/mdp-refined.bin, on which the loop
+    /// selects.
+    #[arg(long, value_name = "G", requires_all = ["confidence", "min_target"],
+          value_parser = crate::values::positive)]
     pub refine_gap: Option<f64>,
     /// Rounds of sample allocation at most (each re-runs the abstraction).
     #[arg(long, default_value_t = 3, requires = "refine_gap")]
@@ -155,7 +157,7 @@ pub struct EvaluateArgs {
     pub strategy: PathBuf,
     /// The synthesis whose settings and seed the rebuilds take.
     pub dir: PathBuf,
-    /// Level of the certified bounds.
+    /// Level of the certified bounds, in (0, 1).
     #[arg(long, value_name = "LEVEL", default_value_t = DEFAULT_LEVEL, value_parser = level)]
     pub confidence: f64,
     #[command(flatten)]

@@ -253,6 +253,19 @@ fn a_value_out_of_range_is_a_usage_error_naming_the_range() {
             .is_ok()
     );
     let mut cases = cases;
+    let refine = [
+        "strategy",
+        "x",
+        "--min-target",
+        "0.9",
+        "--confidence",
+        "0.95",
+    ];
+    cases.push((
+        [&refine[..], &["--refine-gap", "-0.01"]].concat(),
+        "--refine-gap",
+        "> 0",
+    ));
     cases.push(([&publish[..], &["0"]].concat(), "--loop", "≥ 1"));
     for (args, option, range) in cases {
         let (rc, err) = code(&args);
@@ -295,7 +308,14 @@ fn every_option_has_a_help_line_with_its_range() {
         String::from_utf8_lossy(&out.stdout).into_owned()
     };
     let strategy = help(&["strategy", "--help"]);
-    for needle in ["R in 2..=64", "(1..=20)", "energy unit", "P in [0, 1]"] {
+    for needle in [
+        "R in 2..=64",
+        "(1..=20)",
+        "energy unit",
+        "P in [0, 1]",
+        "level (in (0, 1)",
+        "(a probability, G > 0)",
+    ] {
         assert!(strategy.contains(needle), "lacks {needle:?}: {strategy}");
     }
     let run = help(&["run", "--help"]);
