@@ -15,6 +15,11 @@ pub enum WriteError {
     /// The output exists and `--force` was not given.
     #[error("{} already exists (use --force to overwrite)", .0.display())]
     Exists(PathBuf),
+    /// A folder stands where the output file goes: `--force` would not
+    /// replace it (a file is never renamed over a folder), so it is refused
+    /// as what it is, with or without `--force`.
+    #[error("{} is a folder; name the file to write (e.g. {})", .0.display(), .0.join("NAME").display())]
+    IsFolder(PathBuf),
     /// The folder of an output file the user named is missing or not a
     /// folder (`option`: how the file was named, e.g. `--record`).
     #[error("{option} {}: {}", path.display(), why_folder(parent, *missing))]
@@ -64,6 +69,9 @@ fn io(what: String) -> impl FnOnce(std::io::Error) -> WriteError {
 /// THE overwrite rule of every command: an existing `path` is replaced only
 /// with `--force`.
 pub fn refuse_existing(path: &Path, force: bool) -> Result<(), WriteError> {
+    if std::fs::metadata(path).is_ok_and(|m| m.is_dir()) {
+        return Err(WriteError::IsFolder(path.to_path_buf()));
+    }
     if path.exists() && !force {
         return Err(WriteError::Exists(path.to_path_buf()));
     }
@@ -199,6 +207,17 @@ mod tests {
             format!("{} already exists (use --force to overwrite)", f.display())
         );
         refuse_existing(&f, true).expect("--force");
+        for force in [false, true] {
+            let e = refuse_existing(&d, force).expect_err("a folder");
+            assert_eq!(
+                e.to_string(),
+                format!(
+                    "{} is a folder; name the file to write (e.g. {})",
+                    d.display(),
+                    d.join("NAME").display()
+                )
+            );
+        }
         let e = existing_folder_of(&d.join("nope/x.mcap"), "--record").expect_err("missing");
         assert_eq!(
             e.to_string(),

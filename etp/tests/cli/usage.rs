@@ -536,6 +536,49 @@ fn every_named_output_file_needs_its_folder() {
     }
 }
 
+/// A folder where an output file goes is refused as a folder at once, with
+/// or without `--force` (not "use --force", then "Is a directory" after
+/// the work), and left as it was.
+#[test]
+fn an_output_that_is_a_folder_is_refused_as_one() {
+    let dir = Scratch::new("output-folder");
+    let folder = dir.path("taken");
+    std::fs::create_dir(&folder).expect("folder");
+    let recording = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../recordings/fixtures/open-2d-4-episodes.mcap");
+    let cases: [Vec<&str>; 3] = [
+        vec![
+            "scenario",
+            "random",
+            "--dim-agent",
+            "2",
+            "--seed",
+            "1",
+            "-o",
+            s(&folder),
+        ],
+        vec!["replay", "filter", s(&recording), s(&folder)],
+        vec!["replay", "repair", s(&recording), s(&folder)],
+    ];
+    for case in cases {
+        for force in [false, true] {
+            let mut args = case.clone();
+            if force {
+                args.push("--force");
+            }
+            let (rc, err) = code(&args);
+            assert_eq!(rc, Some(1), "etp {args:?}: {err}");
+            assert!(
+                err.contains(&format!("{} is a folder", folder.display()))
+                    && !err.contains("use --force")
+                    && !err.contains("os error"),
+                "etp {args:?}: {err}"
+            );
+            assert_eq!(std::fs::read_dir(&folder).expect("folder").count(), 0);
+        }
+    }
+}
+
 /// The open-2d strategy fixture, copied into `dir` as `s.json`.
 fn open_2d_strategy(dir: &Scratch) -> std::path::PathBuf {
     let strategy = dir.path("s.json");
