@@ -66,16 +66,24 @@ where
     let e = plot_error::<plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>>;
     let certified = certified_frontier(front);
     let (e_max, y_lo) = ranges(front, &certified);
-    let mut chart = ChartBuilder::on(area)
-        .caption(
-            format!(
-                "{} vertices, certified to ε = {:.1e} (energy {:.1e}); curves: non-dominated in this plane",
-                front.vertices.len(),
-                front.epsilon,
-                front.epsilon_energy
-            ),
-            ("sans-serif", text::CAPTION),
+    // With the predicted front drawn, the caption says what the MDP's
+    // curves are: values at selection time, optimistic for the strategy
+    // that runs (docs/MODEL.md §7.5).
+    let caption = if front.predicted.is_empty() {
+        format!(
+            "{} vertices, certified to ε = {:.1e} (energy {:.1e}); curves: non-dominated in this plane",
+            front.vertices.len(),
+            front.epsilon,
+            front.epsilon_energy
         )
+    } else {
+        format!(
+            "MDP: {} vertices, values at selection time (optimistic for the strategy that runs)",
+            front.vertices.len()
+        )
+    };
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, ("sans-serif", text::CAPTION))
         .margin(20)
         .x_label_area_size(60)
         .y_label_area_size(80)
@@ -231,9 +239,9 @@ where
                 .filter(|o| o.p_collision <= *b + 1e-12),
         );
         let label = if *b >= 1.0 {
-            format!("any P_coll ({} vertices)", curve.len())
+            format!("MDP, any P_coll ({} vertices)", curve.len())
         } else {
-            format!("P_coll ≤ {b} ({} vertices)", curve.len())
+            format!("MDP, P_coll ≤ {b} ({} vertices)", curve.len())
         };
         let sample = crate::draw_line(chart, &curve, look, 3)?;
         chart
@@ -311,7 +319,7 @@ fn legend_box<DB: DrawingBackend>(
     let font: TextStyle = ("sans-serif", text::LEGEND).into();
     let mut entries: Vec<String> = collision_bounds(front)
         .iter()
-        .map(|b| format!("P_coll ≤ {b} (0000 vertices)"))
+        .map(|b| format!("MDP, P_coll ≤ {b} (0000 vertices)"))
         .collect();
     entries.push("constant δ".into());
     if front.certified.is_some() {
