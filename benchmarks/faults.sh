@@ -7,6 +7,9 @@
 # counts, then `etp replay verify` of each recording. About 5 min on 2 cores.
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
+# D leaves its unfinished recording beside d.mcap by design; a run id's
+# partial file from an earlier D would refuse the next one.
+rm -f "$OUT/d.mcap.faults-d.partial"
 lossy=(--scenario winding-2d --delta 1.4986 --episodes 300 --trigger stochastic --loss 0.3 --retries 1 --estimator aware --episode-details)
 hogs=()
 for _ in 1 2; do (while :; do :; done) & hogs+=($!); done
