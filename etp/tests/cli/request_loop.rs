@@ -33,6 +33,26 @@ fn synthesize_w800(dir: &Scratch, aggregation_episodes: &str) -> std::path::Path
     out
 }
 
+/// `etp strategy DIR --min-target P` into `strategy`, no aggregation check,
+/// `--json`.
+fn plain_strategy<'a>(
+    dir: &'a std::path::Path,
+    request: &'a str,
+    strategy: &'a std::path::Path,
+) -> Vec<&'a str> {
+    vec![
+        "strategy",
+        s(dir),
+        "--min-target",
+        request,
+        "--aggregation-check",
+        "0",
+        "-o",
+        s(strategy),
+        "--json",
+    ]
+}
+
 #[test]
 fn the_plain_command_meets_a_request_the_selection_time_value_misses() {
     let dir = Scratch::new("request-loop");
@@ -127,17 +147,7 @@ fn a_request_at_the_top_is_refined_before_it_is_out_of_reach() {
     let out = synthesize_w800(&dir, "2000");
     let strategy = dir.path("top.json");
     let request = 0.969;
-    let o = super::etp(&[
-        "strategy",
-        s(&out),
-        "--min-target",
-        &request.to_string(),
-        "--aggregation-check",
-        "0",
-        "-o",
-        s(&strategy),
-        "--json",
-    ]);
+    let o = super::etp(&plain_strategy(&out, &request.to_string(), &strategy));
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(7), "{err}");
     let sel: serde_json::Value = serde_json::from_slice(&o.stdout).expect("the report");
@@ -202,17 +212,7 @@ fn predicted_front_points_are_what_strategy_returns() {
     let p = &points[1];
     let request = f(&p["min_target"]);
     let strategy = dir.path("strategy.json");
-    let sel = ok_json(&[
-        "strategy",
-        s(&out),
-        "--min-target",
-        &request.to_string(),
-        "--aggregation-check",
-        "0",
-        "-o",
-        s(&strategy),
-        "--json",
-    ]);
+    let sel = ok_json(&plain_strategy(&out, &request.to_string(), &strategy));
     assert_eq!(sel["verdict"], p["verdict"], "{sel}\n{p}");
     for k in ["p_target", "p_collision"] {
         assert_eq!(
