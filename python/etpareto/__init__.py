@@ -31,6 +31,22 @@ of the pipeline's steps: :class:`ScenarioError` (the scenario),
 :class:`RequestError` (an option out of range), :class:`OutputError` (an
 output refused or its figure not drawn), :class:`ComputeError` (the
 abstraction, a linear program, a prediction).
+
+A run (:func:`run`) raises a :class:`RunError` subclass, by what a caller
+does about it: :class:`RunRequestError` (a key, a value or a run file
+refused), :class:`RunScenarioError` (the scenario),
+:class:`RunStrategyError` (the strategy file), :class:`RunOutputError` (a
+file or folder of the run refused), :class:`RunIdInUseError` (choose
+another ``run_id``), :class:`RunLinkError` (the key folder of a link across
+hosts), :class:`RunLiveError` (the live view), :class:`RunBinaryError` (the
+run's process binaries not found: ``bin_dir``), :class:`RunProcessError` (a
+process or iceoryx2 failed), :class:`RunExit` (an interrupt before any
+episode; its exit code in ``.code``). A recording (:func:`read_recording`)
+raises a :class:`RecordingError` subclass: :class:`RecordingUnreadableError`,
+:class:`RecordingDamagedError` and :class:`RecordingUnfinishedError` (both
+salvaged by ``etp replay repair``), :class:`RecordingNotEtpError` (not an
+etp recording), :class:`RecordingOutputError`, :class:`RecordingRequestError`,
+:class:`RecordingReplayError`.
 """
 
 from __future__ import annotations
@@ -51,9 +67,26 @@ from ._native import (
     EtpError,
     FileFormatError,
     OutputError,
+    RecordingDamagedError,
     RecordingError,
+    RecordingNotEtpError,
+    RecordingOutputError,
+    RecordingReplayError,
+    RecordingRequestError,
+    RecordingUnfinishedError,
+    RecordingUnreadableError,
     RequestError,
+    RunBinaryError,
     RunError,
+    RunExit,
+    RunIdInUseError,
+    RunLinkError,
+    RunLiveError,
+    RunOutputError,
+    RunProcessError,
+    RunRequestError,
+    RunScenarioError,
+    RunStrategyError,
     Scenario,
     ScenarioError,
     SimulationError,
@@ -70,10 +103,27 @@ __all__ = [
     "FileFormatError",
     "Front",
     "OutputError",
+    "RecordingDamagedError",
     "RecordingError",
+    "RecordingNotEtpError",
+    "RecordingOutputError",
+    "RecordingReplayError",
+    "RecordingRequestError",
+    "RecordingUnfinishedError",
+    "RecordingUnreadableError",
     "RequestError",
+    "RunBinaryError",
     "RunError",
+    "RunExit",
+    "RunIdInUseError",
+    "RunLinkError",
+    "RunLiveError",
+    "RunOutputError",
+    "RunProcessError",
     "RunReport",
+    "RunRequestError",
+    "RunScenarioError",
+    "RunStrategyError",
     "Scenario",
     "ScenarioError",
     "Simulation",
@@ -197,9 +247,12 @@ def read_recording(
     tables being built, never the file. ``with_metadata=True`` also returns
     the recording's metadata records (name → dict).
 
-    Raises :class:`RecordingError` with ``etp replay``'s message for a
-    file that is not MCAP, damaged, or unfinished (``etp replay repair``
-    writes a finished copy).
+    Raises the :class:`RecordingError` subclass of the failure with ``etp
+    replay``'s message: :class:`RecordingNotEtpError` for a file that is not
+    MCAP, :class:`RecordingDamagedError` for a damaged one,
+    :class:`RecordingUnfinishedError` for an unfinished one (``etp replay
+    repair`` writes a finished copy of either), :class:`RecordingUnreadableError`
+    for one the file system refuses or whose messages do not decode.
     """
     tables, metadata = _native.read_recording(os.fspath(path))
     frames = {topic: frame(cols) for topic, cols in tables.items()}
@@ -543,7 +596,7 @@ def _process_dir(bin_dir: Optional[PathLike]) -> str:
     etp = shutil.which("etp")
     if etp:
         return str(Path(etp).resolve().parent)
-    raise RunError(
+    raise RunBinaryError(
         "no folder of the run's processes: pass bin_dir= (e.g. target/release of a built "
         "workspace: cargo build --release --workspace) or set ETP_PROCESS_DIR"
     )
@@ -572,12 +625,14 @@ def run(
     ``predict_episodes=500``, ``deadline=600``, ``loss=0.3``, ``retries=1``,
     ``slot_deadline=50``, ``allow_degraded=True``, ``listen=...`` with
     ``remote=["s0"]`` and ``tls=DIR``. An unknown key or a value of the wrong
-    type raises :class:`RunError` naming it. ``config`` reads a run file under
-    these keys (a keyword wins). The processes' binaries are looked up in
-    ``bin_dir`` (or ``ETP_PROCESS_DIR``, or next to ``etp`` on ``PATH``).
-    Raises :class:`RunError` with ``etp run``'s message when the run cannot
-    start; a run that ran but is not clean returns its report with
-    ``.problems``.
+    type raises :class:`RunRequestError` naming it. ``config`` reads a run
+    file under these keys (a keyword wins). The processes' binaries are
+    looked up in ``bin_dir`` (or ``ETP_PROCESS_DIR``, or next to ``etp`` on
+    ``PATH``). When the run cannot start it raises the :class:`RunError`
+    subclass of the failure (see the module's docstring) with the message
+    ``etp run`` prints after ``error:``; an interrupt before any episode
+    raises :class:`RunExit` (``.code`` 130). A run that ran but is not clean
+    returns its report with ``.problems``.
     """
     given: Dict[str, Any] = {}
     if strategy is not None:

@@ -47,6 +47,83 @@ class ComputeError(EtpError):
     """A computation failed: the abstraction, a linear program, a prediction from rebuilds,
     the executor."""
 
+class RunRequestError(RunError):
+    """A run request refused as asked: an unknown key or a value of the wrong type, options
+    that exclude each other or go together, a number out of range, radio options the
+    channel refuses, a record path that is a folder or no file name, a run file that does
+    not read, an invalid run id."""
+
+class RunScenarioError(RunError):
+    """A run's scenario that cannot run: a name that is no built-in and no readable, valid
+    file, or a scenario refused by its own checks, the trigger, the channel or
+    clone_sensors."""
+
+class RunStrategyError(RunError):
+    """A strategy file the run cannot use: not etp's, edited since it was sealed, of another
+    scenario or channel."""
+
+class RunOutputError(RunError):
+    """A file of the run refused: an output that exists without force, a folder that is
+    missing, a link or another user's, the unfinished recording of an earlier run of the
+    same id in the way, the user's folder of runs not private, the file system refusing
+    to read, write, create or lock a file."""
+
+class RunIdInUseError(RunError):
+    """The run id is in use: another live run holds it, or processes of that run are alive
+    (choose another run_id)."""
+
+class RunLinkError(RunError):
+    """The link across hosts refused its protection: the key folder (tls) missing, not
+    private or of another host, an endpoint that does not fit tls or insecure."""
+
+class RunLiveError(RunError):
+    """The live view could not serve: an address that is not loopback without insecure, one
+    it cannot listen on, or no client subscribed within the deadline (live_wait)."""
+
+class RunBinaryError(RunError):
+    """A process binary of the run is not where it is looked for (bin_dir, ETP_PROCESS_DIR,
+    or next to etp on PATH)."""
+
+class RunProcessError(RunError):
+    """The run's machinery failed: a process that could not be spawned, did not start or
+    ended without what the run needs, iceoryx2 refusing the run's services, the runtime
+    not set up, the predicting simulation failing, a value not written as JSON."""
+
+class RunExit(RunError):
+    """A run that ended with an exit code of its own (``code``), the one ``etp run`` exits
+    with: 130 for SIGINT or SIGTERM before any episode; its message is the line ``etp
+    run`` prints."""
+
+    code: int
+
+class RecordingUnreadableError(RecordingError):
+    """A recording that cannot be read: the file system refused it, a message that does not
+    decode, a channel never declared or in an encoding etp does not write, metadata whose
+    hashes disagree, a recorded scenario that does not read."""
+
+class RecordingDamagedError(RecordingError):
+    """A finished recording with a damaged record (``etp replay repair`` salvages the records
+    before the damage)."""
+
+class RecordingUnfinishedError(RecordingError):
+    """A recording whose recorder stopped before finishing it (``etp replay repair`` writes a
+    finished copy)."""
+
+class RecordingNotEtpError(RecordingError):
+    """A file that is not an etp recording: not MCAP at all, or none of its channels etp's."""
+
+class RecordingOutputError(RecordingError):
+    """An output of a recording tool refused: it exists without force, it is the recording
+    being read, its folder is missing, a link or another user's, or writing it failed."""
+
+class RecordingRequestError(RecordingError):
+    """A selection or option the recording cannot satisfy as asked (an empty time window, a
+    topic pattern that matches no channel, a rate too slow)."""
+
+class RecordingReplayError(RecordingError):
+    """A replay that iceoryx2 refused, whose recorder did not attach, or that was
+    interrupted."""
+
 class Scenario:
     """A validated scenario (``etpareto.load_scenario``)."""
 

@@ -6,7 +6,9 @@
 //! --json` prints.
 
 use crate::columns::{Column, Values, table_into_py};
-use crate::errors::{FileFormatError, RunError, anyhow_text, chain, pipeline_error};
+use crate::errors::{
+    FileFormatError, RunRequestError, chain, launcher_error, launcher_error_under, pipeline_error,
+};
 use etp_synthesis::pareto::ParetoFront;
 use pyo3::prelude::*;
 use pyo3::types::PyList;
@@ -105,8 +107,9 @@ fn run_keys(keys: &str) -> Result<etp_launcher::config::RunConfig, String> {
 /// command line. Returns the report's JSON text and the run's problems
 /// `(exit code, text)` (empty for a clean run). The run's processes are
 /// found in `ETP_PROCESS_DIR` (`etp_launcher::process::sibling_binary`; the
-/// Python side sets it). Raises `RunError` with the reason for a run that
-/// could not start or finish.
+/// Python side sets it). A run that could not start or finish raises the
+/// `RunError` subclass of its kind (`errors::launcher_error`) with the text
+/// `etp run` prints after `error: `.
 #[pyfunction]
 #[pyo3(signature = (keys, config=None, force=false))]
 pub fn run(
@@ -116,20 +119,16 @@ pub fn run(
     force: bool,
 ) -> PyResult<(String, Vec<(u8, String)>)> {
     use etp_launcher::config as run_file;
-    let given = run_keys(keys).map_err(RunError::new_err)?;
+    let given = run_keys(keys).map_err(RunRequestError::new_err)?;
     let request = match &config {
-        Some(path) => run_file::read(path)
-            .map(|file| run_file::merge(given, file))
-            .and_then(etp_launcher::RunRequest::from_config)
-            .map_err(|e| {
-                RunError::new_err(format!(
-                    "run file {}: {}",
-                    path.display(),
-                    anyhow_text(&e.into())
-                ))
-            }),
-        None => etp_launcher::RunRequest::from_config(given)
-            .map_err(|e| RunError::new_err(anyhow_text(&e.into()))),
+        // As `etp run --config`: the file's own errors name it; a request
+        // refused over it gets `run file PATH: ` in front.
+        Some(path) => {
+            let file = run_file::read(path).map_err(launcher_error)?;
+            etp_launcher::RunRequest::from_config(run_file::merge(given, file))
+                .map_err(|e| launcher_error_under(&format!("run file {}", path.display()), e))
+        }
+        None => etp_launcher::RunRequest::from_config(given).map_err(launcher_error),
     }?;
     let request = etp_launcher::RunRequest {
         force,
@@ -137,7 +136,7 @@ pub fn run(
         ..request
     };
     let report = py.detach(|| etp_launcher::execute(&request));
-    let (v, problems) = report.map_err(|e| RunError::new_err(anyhow_text(&e.into())))?;
-    let text = serde_json::to_string(&v).map_err(|e| RunError::new_err(e.to_string()))?;
+    let (v, problems) = report.map_err(launcher_error)?;
+    let text = serde_json::to_string(&v).map_err(|e| launcher_error(e.into()))?;
     Ok((text, problems))
 }

@@ -60,14 +60,25 @@ def test_metadata_comes_with_the_tables():
 def test_a_file_that_is_not_mcap_raises_the_cli_message(tmp_path):
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(b"not an mcap file at all")
-    with pytest.raises(etpareto.RecordingError) as e:
+    with pytest.raises(etpareto.RecordingNotEtpError) as e:
         etpareto.read_recording(bad)
-    assert "bad.mcap" in str(e.value)
+    # Still a RecordingError, what older code catches.
+    assert isinstance(e.value, etpareto.RecordingError)
+    assert str(e.value) == etp_error("replay", "summary", str(bad))
+
+
+def test_a_missing_file_is_unreadable_not_unfinished(tmp_path):
+    missing = tmp_path / "missing.mcap"
+    with pytest.raises(etpareto.RecordingUnreadableError) as e:
+        etpareto.read_recording(missing)
+    assert isinstance(e.value, etpareto.RecordingError)
+    assert str(e.value) == etp_error("replay", "summary", str(missing))
 
 
 def test_a_cut_file_is_refused_with_the_repair_hint(tmp_path):
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(FIXTURE.read_bytes()[: FIXTURE.stat().st_size // 2])
-    with pytest.raises(etpareto.RecordingError) as e:
+    with pytest.raises(etpareto.RecordingUnfinishedError) as e:
         etpareto.read_recording(cut)
+    assert isinstance(e.value, etpareto.RecordingError)
     assert "unfinished" in str(e.value) and "etp replay repair" in str(e.value)

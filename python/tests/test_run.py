@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 import etpareto
-from conftest import REPO, etp_bin, etp_json
+from conftest import REPO, etp_bin, etp_error, etp_json
 from test_recording import check_against_cli
 
 
@@ -65,3 +65,60 @@ def test_run_keys_are_a_run_files_keys_each_checked_by_name(tmp_path):
     with pytest.raises(etpareto.RunError) as e:
         etpareto.run(delta=1.0518, config=file, bin_dir=etp_bin().parent)
     assert str(file) in str(e.value) and "`clever`" in str(e.value)
+
+
+def refused_like_the_cli(cls, cli_args, **request):
+    """A run Python refuses with exactly `cls` — still a RunError and an
+    EtpError, what older code catches — whose message is the text `etp run`
+    prints after `error: ` for the same request."""
+    with pytest.raises(etpareto.RunError) as e:
+        etpareto.run(bin_dir=etp_bin().parent, **request)
+    assert type(e.value) is cls, (type(e.value), str(e.value))
+    assert isinstance(e.value, etpareto.EtpError)
+    assert str(e.value) == etp_error("run", *cli_args)
+    return str(e.value)
+
+
+def test_each_kind_of_refused_run_raises_its_own_class_with_the_cli_message(tmp_path):
+    # Nothing runs: each request is refused before any process starts.
+    run = ("--scenario", "open-2d", "--delta", "1.0518")
+    file = tmp_path / "run.toml"
+    file.write_text('scenario = "open-2d"\ndelta = 1.0518\nepisodes = 0\n')
+    text = refused_like_the_cli(etpareto.RunRequestError, ["--config", str(file)], config=file)
+    assert text == f"run file {file}: --episodes must be at least 1"
+    refused_like_the_cli(etpareto.RunRequestError, [*run, "--record", str(tmp_path)],
+                         scenario="open-2d", delta=1.0518, record=tmp_path)
+    refused_like_the_cli(etpareto.RunRequestError, [*run, "--run-id", "Not An Id"],
+                         scenario="open-2d", delta=1.0518, run_id="Not An Id")
+    # A run file's own errors name it once (as `etp run --config` prints them).
+    bad = tmp_path / "bad.toml"
+    bad.write_text('scenario = "open-2d"\ndelta = 1.0518\nestimator = "clever"\n')
+    text = refused_like_the_cli(etpareto.RunRequestError, ["--config", str(bad)], config=bad)
+    assert text.count(str(bad)) == 1 and "`clever`" in text
+    missing = tmp_path / "missing.toml"
+    refused_like_the_cli(etpareto.RunOutputError, ["--config", str(missing)], config=missing)
+    refused_like_the_cli(etpareto.RunScenarioError,
+                         ["--scenario", "no-such-scenario", "--delta", "1.0518"],
+                         scenario="no-such-scenario", delta=1.0518)
+    strategy = tmp_path / "strategy.json"
+    strategy.write_text("{}\n")
+    refused_like_the_cli(etpareto.RunStrategyError, [str(strategy)], strategy=strategy)
+
+
+def test_run_binaries_not_found_raise_run_binary_error(tmp_path):
+    # An empty folder as the processes' folder: the run stops at the first
+    # process it would start.
+    with pytest.raises(etpareto.RunBinaryError) as e:
+        etpareto.run(scenario="open-2d", delta=1.0518, episodes=1, predict_episodes=1,
+                     bin_dir=tmp_path)
+    assert isinstance(e.value, etpareto.RunError)
+    assert f"ETP_PROCESS_DIR={tmp_path}" in str(e.value)
+
+
+def test_every_run_class_is_a_run_error():
+    classes = [etpareto.RunRequestError, etpareto.RunScenarioError, etpareto.RunStrategyError,
+               etpareto.RunOutputError, etpareto.RunIdInUseError, etpareto.RunLinkError,
+               etpareto.RunLiveError, etpareto.RunBinaryError, etpareto.RunProcessError,
+               etpareto.RunExit]
+    assert all(issubclass(c, etpareto.RunError) for c in classes)
+    assert len(set(classes)) == len(classes)

@@ -93,22 +93,15 @@ fn clap_is_a_dependency_of_the_command_lines_only() {
 
 /// Libraries return `thiserror` enums, so a caller (Python among them)
 /// can tell one failure from another; `anyhow` is for the binaries'
-/// mains. The members below still return `anyhow` and are typed one by
-/// one; each must still declare it (a member typed leaves the list).
+/// mains. The Python package's native module is typed too: each library
+/// error becomes the exception class of its kind.
 #[test]
-fn anyhow_is_a_dependency_of_the_binaries_and_of_the_libraries_still_to_type() {
-    const STILL_TO_TYPE: [&str; 1] = ["python"];
+fn anyhow_is_a_dependency_of_the_binaries_only() {
     let with_anyhow = members_declaring("anyhow");
     for m in &with_anyhow {
         assert!(
-            COMMAND_LINES.contains(&m.as_str()) || STILL_TO_TYPE.contains(&m.as_str()),
+            COMMAND_LINES.contains(&m.as_str()),
             "the library crate {m} depends on anyhow: return a thiserror enum"
-        );
-    }
-    for m in STILL_TO_TYPE {
-        assert!(
-            with_anyhow.iter().any(|w| w == m),
-            "{m} no longer declares anyhow: take it off STILL_TO_TYPE"
         );
     }
     for typed in [
@@ -121,6 +114,7 @@ fn anyhow_is_a_dependency_of_the_binaries_and_of_the_libraries_still_to_type() {
         "recording-tools",
         "runtime",
         "launcher",
+        "python",
     ] {
         assert!(
             !with_anyhow.iter().any(|w| w == typed),
