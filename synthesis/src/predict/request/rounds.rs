@@ -65,11 +65,21 @@ impl RequestLoop<'_> {
     /// A strategy's prediction on `settings.replicates` rebuilds, those in
     /// `done` (drawn already) kept.
     fn rebuilt(&self, strategy: &Strategy, done: Vec<Replica>) -> Result<OnPolicy, PredictError> {
+        self.rebuilt_to(strategy, self.settings.replicates, done)
+    }
+
+    /// A strategy's prediction on `n` rebuilds, those in `done` kept.
+    fn rebuilt_to(
+        &self,
+        strategy: &Strategy,
+        n: u32,
+        done: Vec<Replica>,
+    ) -> Result<OnPolicy, PredictError> {
         predict(
             self.scenario,
             self.params,
             &strategy.policy,
-            self.settings.replicates,
+            n,
             self.cost,
             done,
             self.progress,
@@ -96,15 +106,7 @@ impl RequestLoop<'_> {
             }
             let more = (2 * n).min(limit);
             (self.plan)(more - n);
-            all = predict(
-                self.scenario,
-                self.params,
-                &strategy.policy,
-                more,
-                self.cost,
-                all.replicas,
-                self.progress,
-            )?;
+            all = self.rebuilt_to(strategy, more, all.replicas)?;
         }
     }
 
