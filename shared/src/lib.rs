@@ -18,6 +18,9 @@
 //! * [`radio`] — the lossy, acknowledged radio of docs/MODEL.md §8: per-link
 //!   channels (independent or Gilbert–Elliott losses, retries), β_q(δ) for the
 //!   aware silence update, and each attempt's fate from its own stream.
+//! * [`drift`] — sequential tests (CUSUM, a false-alarm rate per run
+//!   derived, not tuned) of a run's attempts and triggers against the
+//!   channel and trigger it was synthesized for (docs/MODEL.md §11).
 //! * [`rng`] — reproducible per-episode random streams (`Xoshiro256++`).
 //! * [`stats`] — confidence intervals for means and proportions.
 //! * [`episode::agent_core`] — `AgentCore`, THE step of docs/MODEL.md §3/§7
@@ -51,6 +54,7 @@ pub mod controller;
 pub mod dense;
 pub mod discretization;
 pub mod dispatch;
+pub mod drift;
 pub mod episode;
 pub mod etkf;
 pub mod gaussian;
