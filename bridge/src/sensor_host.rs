@@ -183,6 +183,26 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     let scenario = a.dir.join("scenario.toml");
     std::fs::write(&scenario, &info.scenario_toml)
         .map_err(|e| BridgeError::Input(format!("writing {}: {e}", scenario.display())))?;
+    // The run's channel changes: checked here as the sensors will read them
+    // (what came over the link is not trusted), written beside the scenario.
+    let schedule = match &info.channel_schedule_toml {
+        None => None,
+        Some(text) => {
+            let path = a.dir.join("channel-schedule.toml");
+            let scenario = etp_shared::scenario::Scenario::from_toml(&info.scenario_toml)
+                .map_err(|e| BridgeError::Protocol(format!("the run's scenario: {e}")))?;
+            etp_shared::radio::schedule::ChannelSchedule::parse(
+                text,
+                "the run's channel schedule",
+                &scenario.radio,
+                &info.sensors,
+            )
+            .map_err(|e| BridgeError::Protocol(e.to_string()))?;
+            std::fs::write(&path, text)
+                .map_err(|e| BridgeError::Input(format!("writing {}: {e}", path.display())))?;
+            Some(path.display().to_string())
+        }
+    };
     let run = RunId::new(&info.run_id)?;
     let sensors = info.sensors.len();
     let node = wire::create_node(&run, "etp-bridge-in")?;
@@ -239,6 +259,7 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         "run_id": info.run_id,
         "seed": info.seed,
         "scenario": scenario.display().to_string(),
+        "channel_schedule": schedule,
         "sensors": served.iter().filter_map(|&i| info.sensors.get(i).cloned()).collect::<Vec<_>>(),
     }));
     let parent = std::os::unix::process::parent_id();

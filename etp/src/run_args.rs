@@ -61,6 +61,12 @@ pub struct RunArgs {
     /// scenario text; with a strategy it must be the strategy's own.
     #[command(flatten)]
     pub trigger: TriggerArgs,
+    /// Change sensors' links during the run (docs/MODEL.md §8.8): a TOML
+    /// file of `[[change]]` tables (`sensor`, `episode`, and any of `loss`,
+    /// `retries`, `burst`), applied on the sensor side; the agent's model and
+    /// the prediction keep the strategy's channel. Recorded with the run.
+    #[arg(long, value_name = "FILE")]
+    pub channel_schedule: Option<PathBuf>,
     /// Kill everything and fail after this many seconds (> 0) [default: 3600].
     #[arg(long, value_name = "SECONDS", value_parser = crate::values::seconds)]
     pub deadline: Option<f64>,
@@ -181,6 +187,7 @@ impl RunArgs {
             burst: self.radio.burst,
             estimator: self.radio.estimator.clone(),
             trigger: self.trigger.trigger,
+            channel_schedule: self.channel_schedule.clone(),
             live: self.live,
             live_wait: on(self.live_wait),
         }

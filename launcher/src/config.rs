@@ -84,6 +84,9 @@ run_file_keys! {
     estimator: String => plain,
     /// The trigger family (`--trigger`, docs/MODEL.md §9).
     trigger: etp_shared::trigger::TriggerFamily => plain,
+    /// Changes of sensors' links during the run (`--channel-schedule`,
+    /// docs/MODEL.md §8.8), applied on the sensor side.
+    channel_schedule: PathBuf => plain,
     /// The live view (`--live ADDR:PORT`, `--live-wait`): how the run is
     /// watched, not what it computes, so never stored in a recording's
     /// `etp.config` (a run again from it is not served live). Read as
@@ -107,6 +110,7 @@ pub fn read(path: &Path) -> Result<RunConfig> {
     };
     rel(&mut c.strategy);
     rel(&mut c.record);
+    rel(&mut c.channel_schedule);
     // A scenario that is not a built-in name is a path, relative to the file.
     c.scenario = c
         .scenario
@@ -151,6 +155,7 @@ pub fn stored(c: &RunConfig) -> Result<String> {
     };
     abs(&mut c.strategy)?;
     abs(&mut c.record)?;
+    abs(&mut c.channel_schedule)?;
     if let Some(s) = c.scenario.take() {
         let source = ScenarioSource::parse(&s)
             .absolute()

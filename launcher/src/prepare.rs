@@ -4,6 +4,7 @@ use super::{RunRequest, RunTarget};
 use crate::error::{Context, Error, IoContext, Result};
 use etp_runtime::scenario_arg::scenario_text;
 use etp_runtime::wire::RunId;
+use etp_shared::radio::schedule::ChannelSchedule;
 use etp_shared::radio::{Radio, RadioOverride};
 use etp_shared::scenario::{Scenario, ScenarioText};
 use etp_shared::strategy::{Prediction, Strategy};
@@ -33,6 +34,33 @@ pub struct Plan {
     /// The channel a strategy file was synthesized for (`None` for a
     /// constant threshold made here); the run's is `scenario.radio`.
     pub radio_synthesized: Option<Radio>,
+    /// Changes of sensors' links during the run (`--channel-schedule`), and
+    /// the run folder's copy the sensors read; empty and `None` without.
+    pub channel_schedule: ChannelSchedule,
+    pub channel_schedule_path: Option<PathBuf>,
+}
+
+/// The run's channel schedule (`--channel-schedule FILE`), checked against
+/// the run's channel and sensors, and its copy in the run folder `dir`
+/// (every key written out) for the sensor processes.
+fn channel_schedule(
+    a: &RunRequest,
+    scenario: &Scenario,
+    dir: &std::path::Path,
+) -> Result<(ChannelSchedule, Option<PathBuf>)> {
+    let Some(path) = &a.channel_schedule else {
+        return Ok((ChannelSchedule::default(), None));
+    };
+    let shown = format!("--channel-schedule {}", path.display());
+    let text =
+        std::fs::read_to_string(path).map_err(|e| Error::request(format!("{shown}: {e}")))?;
+    let names: Vec<String> = scenario.sensors.iter().map(|s| s.name.clone()).collect();
+    let schedule = ChannelSchedule::parse(&text, &shown, &scenario.radio, &names)
+        .map_err(|e| Error::request(e.to_string()))?;
+    let copy = dir.join("channel-schedule.toml");
+    std::fs::write(&copy, schedule.to_toml(&names))
+        .doing(|| format!("writing {}", copy.display()))?;
+    Ok((schedule, Some(copy)))
 }
 
 /// `--clone-sensors K`: K copies of the first sensor (named c0…), legs served
@@ -272,6 +300,7 @@ pub fn prepare(a: &RunRequest, run_id: &RunId, dir: &std::path::Path) -> Result<
         sensor_energy(a, &scenario, &mut strategy, robustness)?;
     strategy.policy.scenario_toml = Some(text.clone());
 
+    let (channel_schedule, channel_schedule_path) = channel_schedule(a, &scenario, dir)?;
     let dir = dir.to_path_buf();
     let scenario_path = dir.join("scenario.toml");
     let strategy_path = dir.join("strategy.json");
@@ -293,5 +322,7 @@ pub fn prepare(a: &RunRequest, run_id: &RunId, dir: &std::path::Path) -> Result<
         config_toml: String::new(),
         delta: etp_recording_tools::vocab::constant_delta(&strategy.policy),
         radio_synthesized,
+        channel_schedule,
+        channel_schedule_path,
     })
 }

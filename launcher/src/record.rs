@@ -260,7 +260,21 @@ fn metadata(plan: &Plan) -> Result<BTreeMap<String, BTreeMap<String, String>>> {
             recording::META_CONFIG.into(),
             one("toml", plan.config_toml.clone()),
         ),
-    ]))
+    ])
+    .into_iter()
+    .chain((!plan.channel_schedule.is_empty()).then(|| {
+        let names: Vec<String> = plan
+            .scenario
+            .sensors
+            .iter()
+            .map(|s| s.name.clone())
+            .collect();
+        (
+            recording::META_CHANNEL_SCHEDULE.to_string(),
+            one("toml", plan.channel_schedule.to_toml(&names)),
+        )
+    }))
+    .collect())
 }
 
 /// Where the per-sensor predicted energy comes from (report and recording).

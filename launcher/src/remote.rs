@@ -234,6 +234,11 @@ pub async fn start(
             .map(|s| s.name.clone())
             .collect(),
         remote: spec.remote.clone(),
+        channel_schedule_toml: plan
+            .channel_schedule_path
+            .as_ref()
+            .map(|p| std::fs::read_to_string(p).doing(|| format!("reading {}", p.display())))
+            .transpose()?,
     };
     let path = plan.dir.join("session.json");
     std::fs::write(&path, serde_json::to_string(&info)?)

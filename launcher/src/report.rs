@@ -143,6 +143,27 @@ pub fn json(a: &RunRequest, plan: &Plan, s: &Supervised) -> Value {
     {
         m.insert("link".into(), json!(link));
     }
+    if !plan.channel_schedule.is_empty()
+        && let Some(m) = v.as_object_mut()
+    {
+        let names = sensor_names(plan);
+        m.insert(
+            "channel_schedule".into(),
+            json!(
+                plan.channel_schedule
+                    .changes
+                    .iter()
+                    .map(|c| json!({
+                        "sensor": names.get(c.sensor),
+                        "episode": c.episode,
+                        "loss": c.link.loss,
+                        "retries": c.link.retries,
+                        "burst": c.link.burst,
+                    }))
+                    .collect::<Vec<_>>()
+            ),
+        );
+    }
     if let Some(rec) = &s.recording
         && let Some(m) = v.as_object_mut()
     {
@@ -204,6 +225,12 @@ fn print_outcomes(plan: &Plan, s: &Supervised) {
             None => format!("radio: {}", plan.scenario.radio.describe(&names)),
         }
     );
+    if !plan.channel_schedule.is_empty() {
+        println!(
+            "  channel schedule (the sensors' links; the prediction is the strategy's channel's): {}",
+            plan.channel_schedule.describe(&names)
+        );
+    }
     println!(
         "  {:<12} {:>10} {:<20}   {:>10}",
         "", "measured", "(95 % interval)", "predicted"

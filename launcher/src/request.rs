@@ -106,6 +106,9 @@ pub struct RunRequest {
     pub radio: RadioOverride,
     /// The trigger family over the scenario's own.
     pub trigger: Option<TriggerFamily>,
+    /// A file of changes of sensors' links during the run (docs/MODEL.md
+    /// §8.8), applied on the sensor side.
+    pub channel_schedule: Option<PathBuf>,
     /// Seconds after which everything is killed and the run fails.
     pub deadline: f64,
     /// Names the services `etp/<run-id>/…` (generated when `None`).
@@ -139,6 +142,7 @@ impl RunRequest {
             seed: config::DEFAULT_SEED,
             radio: RadioOverride::default(),
             trigger: None,
+            channel_schedule: None,
             deadline: config::DEFAULT_DEADLINE,
             run_id: None,
             predict_episodes: config::DEFAULT_PREDICT_EPISODES,
@@ -242,6 +246,7 @@ impl RunRequest {
                 estimator,
             },
             trigger: c.trigger,
+            channel_schedule: c.channel_schedule,
             deadline,
             run_id: c.run_id,
             predict_episodes: c
@@ -301,6 +306,7 @@ impl RunRequest {
             burst: r.burst,
             estimator: r.estimator.map(|e| e.name().to_string()),
             trigger: self.trigger,
+            channel_schedule: self.channel_schedule.clone(),
             live: None,
             live_wait: None,
         }

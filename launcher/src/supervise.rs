@@ -226,12 +226,16 @@ fn spawn_processes(
         if remote.is_some_and(|r| r.remote.contains(&i)) {
             continue;
         }
-        let args = common(&[
+        let mut extra = vec![
             "--sensor".into(),
             s.name.clone(),
             "--seed".into(),
             plan.seed.to_string(),
-        ]);
+        ];
+        if let Some(p) = &plan.channel_schedule_path {
+            extra.extend(["--channel-schedule".into(), p.display().to_string()]);
+        }
+        let args = common(&extra);
         children.push((
             format!("sensor {}", s.name),
             spawn(&sensor_bin, &args, false)?,

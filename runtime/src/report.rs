@@ -129,6 +129,10 @@ pub struct SessionInfo {
     pub sensors: Vec<String>,
     /// Indices of the sensors served from other hosts.
     pub remote: Vec<usize>,
+    /// The run's channel changes (`etp run --channel-schedule`, every key
+    /// written out), applied by the sensors wherever they run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub channel_schedule_toml: Option<String>,
 }
 
 /// Puts towards one remote sensor held up by a peer that stopped reading:

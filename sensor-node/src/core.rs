@@ -29,6 +29,7 @@ use etp_shared::episode::{
 };
 use etp_shared::etkf::{EtKalmanFilter, Vector};
 use etp_shared::radio::LinkChannel;
+use etp_shared::radio::schedule::ChannelSchedule;
 use etp_shared::rng::streams;
 use std::collections::VecDeque;
 
@@ -152,6 +153,8 @@ pub struct SensorCore<const N: usize, const M: usize> {
     open: Option<OpenLeg<N>>,
     /// This sensor's radio channel in the episode it last transmitted in.
     channel: Option<(u64, LinkChannel)>,
+    /// Changes of the channel during the run (`etp run --channel-schedule`).
+    schedule: ChannelSchedule,
     /// Deliveries not acknowledged yet: (episode, step, sequence), in order.
     unacked: VecDeque<(u64, u32, u32)>,
     /// The latest (episode, leg) closed here: a handover of it or of an
@@ -179,11 +182,20 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
             id,
             open: None,
             channel: None,
+            schedule: ChannelSchedule::default(),
             unacked: VecDeque::new(),
             closed: None,
             episode_count: (u64::MAX, 0),
             stats: SensorStats::default(),
         }
+    }
+
+    /// The run's channel changes: from a change's episode on, this sensor's
+    /// attempts meet its link (the scenario's channel stays the agent's
+    /// model; docs/MODEL.md §8.8).
+    pub fn with_schedule(mut self, schedule: ChannelSchedule) -> Self {
+        self.schedule = schedule;
+        self
     }
 
     /// A `threshold` message of this sensor's service.
@@ -309,6 +321,7 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
         // in-process leg loop serves it; noise and trigger draw keyed by
         // (seed, episode, step), so `replay verify` draws them again.
         let channel = &mut self.channel;
+        let schedule = &self.schedule;
         let key = SlotKey {
             seed,
             episode,
@@ -330,12 +343,13 @@ impl<const N: usize, const M: usize> SensorCore<N, M> {
             let channel = match channel {
                 Some((e, c)) if *e == episode => c,
                 slot => {
-                    let c = LinkChannel::of_episode(
-                        &scenario.radio,
+                    let sensor = self.id.index as usize;
+                    let c = LinkChannel::of_link(
+                        schedule.link(&scenario.radio, sensor, episode),
                         seed,
                         streams::AGENT,
                         episode,
-                        self.id.index as usize,
+                        sensor,
                     );
                     &mut slot.insert((episode, c)).1
                 }

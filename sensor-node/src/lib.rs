@@ -54,6 +54,8 @@ pub enum SensorError {
     Port(#[from] etp_runtime::wire::PortError),
     #[error("protocol error: {0}")]
     Protocol(String),
+    #[error("channel schedule {0}: {1}")]
+    Schedule(String, String),
 }
 
 /// One sensor of an etpareto run (spawned by `etp run`).
@@ -72,6 +74,10 @@ pub struct Args {
     /// Run seed (measurement noise comes from `streams::SENSOR`).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// The run's channel changes (`etp run --channel-schedule`, written
+    /// into the run's folder): applied to this sensor's attempts.
+    #[arg(long, value_name = "FILE")]
+    pub channel_schedule: Option<std::path::PathBuf>,
 }
 
 /// How a sensor node ended.
@@ -94,13 +100,25 @@ pub fn run(args: &Args) -> Result<(Exit, SensorStats), SensorError> {
         .iter()
         .position(|s| s.name == args.sensor)
         .ok_or_else(|| SensorError::UnknownSensor(args.sensor.clone(), scenario.name.clone()))?;
+    let schedule = match &args.channel_schedule {
+        None => ChannelSchedule::default(),
+        Some(path) => {
+            let shown = path.display().to_string();
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| SensorError::Schedule(shown.clone(), e.to_string()))?;
+            let names: Vec<String> = scenario.sensors.iter().map(|s| s.name.clone()).collect();
+            ChannelSchedule::parse(&text, &shown, &scenario.radio, &names)
+                .map_err(|e| SensorError::Schedule(shown, e.to_string()))?
+        }
+    };
     let m = scenario.sensors[index].dim();
     etp_shared::with_dim!(scenario.dim, N => {
-        etp_shared::with_dim!(m, M => node::serve::<N, M>(&run, &scenario, index, args.seed))
+        etp_shared::with_dim!(m, M => node::serve::<N, M>(&run, &scenario, index, args.seed, schedule))
     })
 }
 
 use anyhow::Context;
+use etp_shared::radio::schedule::ChannelSchedule;
 
 /// The sensor process, as the process shell runs it (`main` of the binary,
 /// and `etp process etp-sensor-node`).

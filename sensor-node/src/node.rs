@@ -59,6 +59,7 @@ pub(crate) fn serve<const N: usize, const M: usize>(
     scenario: &Scenario,
     index: usize,
     seed: u64,
+    schedule: etp_shared::radio::schedule::ChannelSchedule,
 ) -> Result<(Exit, SensorStats), SensorError> {
     let filter = EtKalmanFilter::<N, M>::new(&scenario.plant, &scenario.sensors[index]);
     let node = wire::create_node(run, &wire::sensor_node_name(index))?;
@@ -91,7 +92,8 @@ pub(crate) fn serve<const N: usize, const M: usize>(
             seed,
             tag: run.tag(),
         },
-    );
+    )
+    .with_schedule(schedule);
     // `say_hello` waited for the coordinator's subscriber: it was alive.
     let mut watchdog = Watchdog::new(COORDINATOR_NODE, true, LIST_EVERY);
     let mut pending = Pending::default();

@@ -10,6 +10,8 @@
 //! * [`LinkChannel`] / [`EpisodeChannels`] — the channel state of every link
 //!   during one episode, with its own random stream per (episode, link), and
 //!   [`EpisodeChannels::transmit`], the fate of one trigger's attempts.
+//! * [`schedule::ChannelSchedule`] — changes of links during a run, applied on
+//!   the sensor side (experiments on a channel that drifts).
 //!
 //! An ideal link (`loss = 0`) draws nothing and delivers the first attempt, so
 //! an ideal radio leaves every other random stream, and so every result, as it
@@ -19,6 +21,8 @@ use crate::gaussian;
 use crate::rng::{SimRng, link_rng, trigger_rng};
 use rand::RngExt;
 use serde::{Deserialize, Serialize};
+
+pub mod schedule;
 
 /// Most retries a link may be configured with (a link layer retrying more
 /// often within one step is not a radio anyone builds).
@@ -438,10 +442,14 @@ impl LinkChannel {
     /// ([`EpisodeChannels::new`]), the sensor process and `replay verify`
     /// (both with stream `AGENT`) all take their channel from here.
     pub fn of_episode(radio: &Radio, seed: u64, stream: u64, episode: u64, sensor: usize) -> Self {
-        Self::new(
-            radio.link(sensor),
-            link_rng(seed, stream, episode, sensor as u64),
-        )
+        Self::of_link(radio.link(sensor), seed, stream, episode, sensor)
+    }
+
+    /// [`Self::of_episode`] on `link` instead of the radio's: a scheduled
+    /// change ([`schedule::ChannelSchedule::link`]) draws from the same
+    /// stream.
+    pub fn of_link(link: Link, seed: u64, stream: u64, episode: u64, sensor: usize) -> Self {
+        Self::new(link, link_rng(seed, stream, episode, sensor as u64))
     }
 
     /// Advance the Gilbert–Elliott state through step `step` (no-op for

@@ -121,7 +121,7 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
     let mut children = Vec::new();
     for name in joined["sensors"].as_array().into_iter().flatten() {
         let name = name.as_str().unwrap_or_default().to_string();
-        let args = vec![
+        let mut args = vec![
             "--run-id".to_string(),
             run_id.clone(),
             "--scenario".into(),
@@ -131,6 +131,9 @@ async fn serve(a: &Args, domain: &str, dir: &std::path::Path) -> Result<(serde_j
             "--seed".into(),
             joined["seed"].as_u64().unwrap_or(0).to_string(),
         ];
+        if let Some(schedule) = joined["channel_schedule"].as_str() {
+            args.extend(["--channel-schedule".into(), schedule.to_string()]);
+        }
         children.push((
             format!("sensor {name}"),
             spawn_env(&sensor_bin, &args, false, &env)?,

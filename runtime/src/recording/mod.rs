@@ -20,7 +20,9 @@
 //!   id, seed, episodes, scenario name, scenario content hash
 //!   [`META_RUN_SCENARIO_HASH`]), [`META_SCENARIO`] (`toml`),
 //!   [`META_STRATEGY`] (`json`), [`META_PREDICTION`] (`json`: what the
-//!   strategy predicts, for "energy vs prediction").
+//!   strategy predicts, for "energy vs prediction"), [`META_CONFIG`]
+//!   (`toml`: the run file), [`META_CHANNEL_SCHEDULE`] (`toml`, only for a
+//!   run with channel changes).
 //! * `log_time`/`publish_time`: ns since the Unix epoch when the recorder took
 //!   the sample; `sequence`: per-channel count.
 
@@ -99,6 +101,10 @@ pub const META_PREDICTION: &str = "etp.prediction";
 /// The run's configuration (`toml`: the `etp run --config` file, or the
 /// flags of the run written as one).
 pub const META_CONFIG: &str = "etp.config";
+/// The run's channel changes (`toml`: `etp run --channel-schedule`, every
+/// key written out; docs/MODEL.md §8.8), when it had any: `replay verify`
+/// draws each sensor's attempts on the link in force.
+pub const META_CHANNEL_SCHEDULE: &str = "etp.channel_schedule";
 
 /// Where `etp replay publish` leaves the metadata of the recording it
 /// publishes, for a recorder of that run started without `--meta` (it

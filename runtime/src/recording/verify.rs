@@ -37,7 +37,9 @@
 
 mod slot;
 
-use super::{META_RUN, META_SCENARIO, Recorded, RecordingError, read::Contents};
+use super::{
+    META_CHANNEL_SCHEDULE, META_RUN, META_SCENARIO, Recorded, RecordingError, read::Contents,
+};
 use crate::wire::agent_to_coordinator::{Outcome, Waypoint};
 use crate::wire::agent_to_sensor::{Handover, Truth};
 use crate::wire::coordinator_to_agent::Control;
@@ -46,7 +48,7 @@ use crate::wire::sensor_to_agent::{Measurement, Slot};
 use crate::wire::{WireMat, WireVec, belief_to_wire};
 use etp_shared::episode::{AgentCore, Begun, CompiledScenario, SlotOutcome, World};
 use etp_shared::etkf::{Belief, Vector};
-use etp_shared::radio::LinkChannel;
+use etp_shared::radio::schedule::ChannelSchedule;
 use etp_shared::scenario::Scenario;
 use slot::{SlotAt, Stop};
 use std::collections::BTreeMap;
@@ -242,6 +244,15 @@ fn verify_with(c: &Contents, sink: &mut PriorSink<'_>) -> Result<VerifyReport, R
         .ok_or_else(|| RecordingError::Metadata(format!("no `{META_SCENARIO}` record")))?;
     let scenario = Scenario::from_toml(text)
         .map_err(|e| RecordingError::Metadata(format!("the recorded scenario: {e}")))?;
+    let schedule = match c.meta(META_CHANNEL_SCHEDULE, "toml") {
+        None => ChannelSchedule::default(),
+        Some(text) => {
+            let names: Vec<String> = scenario.sensors.iter().map(|s| s.name.clone()).collect();
+            ChannelSchedule::parse(text, META_CHANNEL_SCHEDULE, &scenario.radio, &names).map_err(
+                |e| RecordingError::Metadata(format!("the recorded channel schedule: {e}")),
+            )?
+        }
+    };
     let (episodes, horizon) = group(c)?;
     // Was the recording cut (recorder killed)? Then the episodes from the
     // horizon on (see `group`) may miss messages.
@@ -262,7 +273,7 @@ fn verify_with(c: &Contents, sink: &mut PriorSink<'_>) -> Result<VerifyReport, R
                 continue;
             }
             let may_be_cut = cut && *e >= horizon;
-            let ended = rerun(&compiled, *e, r, may_be_cut, &mut report, sink);
+            let ended = rerun(&compiled, &schedule, *e, r, may_be_cut, &mut report, sink);
             report.count(ended);
         }
     });
@@ -325,6 +336,7 @@ fn leg_end_differs(recorded_end: Option<u32>, ends: bool, k: u32) -> Option<Stri
 
 fn rerun<const N: usize>(
     c: &CompiledScenario<N>,
+    schedule: &ChannelSchedule,
     episode: u64,
     r: &EpisodeRecord,
     may_be_cut: bool,
@@ -357,7 +369,10 @@ fn rerun<const N: usize>(
     }
     let outcome = r.outcome;
     // Each sensor link's channel in this episode, made at its first attempt.
-    let mut channels: BTreeMap<usize, LinkChannel> = BTreeMap::new();
+    let mut channels = slot::Channels {
+        schedule,
+        made: BTreeMap::new(),
+    };
     let mut k: u32 = 0;
     let legs = c.legs.len() as u32;
     for leg in 0..legs {

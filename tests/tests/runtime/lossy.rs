@@ -125,3 +125,115 @@ fn a_lossy_run_counts_attempts_delivered_and_lost_and_replay_redraws_every_loss(
     let _ = std::fs::remove_file(&file);
     let _ = std::fs::remove_file(&scenario);
 }
+
+/// `etp run --channel-schedule`: the links change where the radio is, on the
+/// sensor side, from each change's episode on; the agent's model stays the
+/// scenario's (ideal) channel. Every count identity holds, the losses fall
+/// only on the changed sensors in their changed episodes, and `replay
+/// verify` re-draws every attempt on the link in force (the schedule is in
+/// the recording).
+#[test]
+fn a_channel_schedule_changes_links_mid_run_with_exact_counts_and_verify_redraws_them() {
+    let _serial = serial();
+    let id = unique_run_id("schedule");
+    let file = out_file(&id);
+    let schedule = std::env::temp_dir().join(format!("etp-test-{id}-schedule.toml"));
+    std::fs::write(
+        &schedule,
+        "[[change]]\nsensor = \"s1\"\nepisode = 5\nloss = 0.3\nretries = 1\n\n\
+         [[change]]\nsensor = \"s2\"\nepisode = 3\nloss = 0.5\n",
+    )
+    .expect("write schedule");
+    let (ok, out, err) = EtpRun::spawn(
+        &id,
+        &[
+            "--scenario",
+            "winding-2d",
+            "--delta",
+            DELTA,
+            "--episodes",
+            "10",
+            "--seed",
+            "4",
+            "--channel-schedule",
+            &schedule.display().to_string(),
+            "--record",
+            &file.display().to_string(),
+            "--episode-details",
+        ],
+    )
+    .finish();
+    assert!(ok, "etp run with a channel schedule failed: {err}");
+    let v: Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("bad JSON ({e}): {out}"));
+    assert_ledgers_match(&v, false);
+    assert_eq!(v["radio"], "ideal", "the agent's model: {v}");
+    assert_eq!(v["channel_schedule"][0]["sensor"], "s2", "{v}");
+    assert_eq!(v["channel_schedule"][1]["retries"], 1, "{v}");
+    let (attempts, delivered, lost) = (
+        sum(&v, "transmissions"),
+        sum(&v, "delivered"),
+        sum(&v, "lost"),
+    );
+    assert_eq!(attempts, delivered + lost);
+    assert_eq!(sum(&v, "received"), delivered);
+    // Per leg: a loss only where a change holds, and there plenty of them.
+    let mut changed = (0u64, 0u64);
+    for e in v["episode_results"].as_array().expect("episodes") {
+        let episode = e["episode"].as_u64().expect("episode");
+        for leg in e["legs"].as_array().expect("legs") {
+            let sensor = leg["sensor"].as_u64().expect("sensor");
+            let lossy = (sensor == 1 && episode >= 5) || (sensor == 2 && episode >= 3);
+            let (t, l) = (
+                leg["transmissions"].as_u64().expect("tx"),
+                leg["lost"].as_u64().expect("lost"),
+            );
+            assert_eq!(
+                t,
+                leg["delivered"].as_u64().expect("delivered") + l,
+                "{leg}"
+            );
+            if lossy {
+                changed = (changed.0 + t, changed.1 + l);
+            } else {
+                assert_eq!(
+                    l, 0,
+                    "episode {episode}: a loss on an unchanged link: {leg}"
+                );
+            }
+        }
+    }
+    assert!(
+        changed.0 > 200 && changed.1 * 5 > changed.0,
+        "changed links: {changed:?}"
+    );
+    let r = replay(&["verify", &file.display().to_string()]);
+    assert_eq!(r["identities_hold"].as_bool(), Some(true), "{r}");
+    let verify = &r["verify"];
+    assert_eq!(verify["passed"].as_bool(), Some(true), "{verify}");
+    assert_eq!(verify["attempts_redrawn"].as_u64(), Some(attempts));
+    assert_eq!(verify["lost_redrawn"].as_u64(), Some(lost));
+    // A schedule naming no sensor of the run is refused by its key, before
+    // anything runs.
+    std::fs::write(&schedule, "[[change]]\nsensor = \"s9\"\nepisode = 1\n").expect("write");
+    let (ok, _, err) = EtpRun::spawn(
+        &unique_run_id("schedule-bad"),
+        &[
+            "--scenario",
+            "winding-2d",
+            "--delta",
+            DELTA,
+            "--episodes",
+            "2",
+            "--channel-schedule",
+            &schedule.display().to_string(),
+        ],
+    )
+    .finish();
+    assert!(!ok);
+    assert!(
+        err.contains("change[0].sensor") && err.contains("s9"),
+        "{err}"
+    );
+    let _ = std::fs::remove_file(&file);
+    let _ = std::fs::remove_file(&schedule);
+}

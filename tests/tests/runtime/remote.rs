@@ -364,6 +364,18 @@ fn across_three_hosts(tag: &str, radio: Option<&str>) {
     };
     let scenario_file = dir.join("scenario.toml");
     std::fs::write(&scenario_file, &text).expect("scenario");
+    // The lossy run also changes remote s4's link for its last five
+    // episodes (`--channel-schedule`): the run's SessionInfo carries the
+    // schedule to s4's host, whose sensor draws on the changed link, and the
+    // agent host's recording re-draws it.
+    let schedule = radio.map(|_| {
+        std::fs::write(
+            dir.join("schedule.toml"),
+            "[[change]]\nsensor = \"s4\"\nepisode = 55\nloss = 0.9\n",
+        )
+        .expect("schedule");
+        format!("{NS_OUT}/schedule.toml")
+    });
     // The link is TLS with both ends authenticated (the default): one key
     // folder for all three hosts.
     certs_init(&dir.join("keys"), &["b", "c"]);
@@ -395,7 +407,15 @@ fn across_three_hosts(tag: &str, radio: Option<&str>) {
             "--json",
             "--join-timeout",
             "30",
-        ],
+        ]
+        .into_iter()
+        .chain(
+            schedule
+                .as_deref()
+                .into_iter()
+                .flat_map(|f| ["--channel-schedule", f]),
+        )
+        .collect::<Vec<_>>(),
     );
     let b = h.spawn_out(
         &h.sensors[0],
@@ -518,6 +538,23 @@ fn across_three_hosts(tag: &str, radio: Option<&str>) {
         radio.is_some(),
         "losses exactly on a lossy radio: {v}"
     );
+    if schedule.is_some() {
+        // s4's legs from episode 55 on lost attempts at its changed rate
+        // (loss 0.9 with one retry: about 90 % of attempts), not the run's.
+        let (mut t, mut l) = (0, 0);
+        for e in v["episode_results"].as_array().expect("episodes") {
+            for leg in e["legs"].as_array().expect("legs") {
+                if e["episode"].as_u64() >= Some(55) && leg["sensor"].as_u64() == Some(4) {
+                    t += leg["transmissions"].as_u64().expect("tx");
+                    l += leg["lost"].as_u64().expect("lost");
+                }
+            }
+        }
+        assert!(
+            t >= 20 && l * 10 >= t * 7,
+            "s4 after its change: {l} of {t} lost"
+        );
+    }
     // `measurements`: messages on the recorded channel; `transmissions`,
     // `delivered`, `lost`: the recorded ledgers; `received`: the agent's
     // counts in the outcomes.

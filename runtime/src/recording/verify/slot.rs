@@ -9,6 +9,7 @@ use crate::wire::vec_from_wire;
 use etp_shared::episode::{CompiledScenario, RunSlot, SlotKey, belief_digest};
 use etp_shared::etkf::{Belief, Vector};
 use etp_shared::radio::LinkChannel;
+use etp_shared::radio::schedule::ChannelSchedule;
 use etp_shared::rng::streams;
 use std::collections::BTreeMap;
 
@@ -42,6 +43,14 @@ pub(super) struct Checked<'r> {
     pub measurement: Option<&'r Measurement>,
 }
 
+/// Each sensor link's channel in one episode, made at its first attempt:
+/// the run's, or its scheduled change (the recording's
+/// `etp.channel_schedule`).
+pub(super) struct Channels<'s> {
+    pub schedule: &'s ChannelSchedule,
+    pub made: BTreeMap<usize, LinkChannel>,
+}
+
 /// The checks of `at` against the record `r`, in the agent's order; each
 /// check that holds is counted in `rep`, and the slot once all hold (its
 /// attempts, losses, step and kind of update). `channels`: each sensor link's
@@ -50,7 +59,7 @@ pub(super) fn check<'r, const N: usize>(
     c: &CompiledScenario<N>,
     r: &'r EpisodeRecord,
     at: &SlotAt<'_, N>,
-    channels: &mut BTreeMap<usize, LinkChannel>,
+    channels: &mut Channels<'_>,
     rep: &mut VerifyReport,
 ) -> Result<Checked<'r>, Stop> {
     let (leg, k, sensor) = (at.leg, at.k, at.sensor);
@@ -108,8 +117,15 @@ pub(super) fn check<'r, const N: usize>(
                 "no control recorded (the run's seed, for the radio)",
             ));
         };
-        let channel = channels.entry(sensor).or_insert_with(|| {
-            LinkChannel::of_episode(&c.radio, ctrl.seed, streams::AGENT, at.episode, sensor)
+        let schedule = channels.schedule;
+        let channel = channels.made.entry(sensor).or_insert_with(|| {
+            LinkChannel::of_link(
+                schedule.link(&c.radio, sensor, at.episode),
+                ctrl.seed,
+                streams::AGENT,
+                at.episode,
+                sensor,
+            )
         });
         channel.advance_to(u64::from(k));
         let t = channel.transmit();
