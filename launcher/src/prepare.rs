@@ -107,6 +107,8 @@ fn clone_sensors(text: &str, k: usize) -> Result<String> {
 /// cores of the reference machine are sized for 32; beyond 64 a run only
 /// loads the machine before failing).
 pub const MAX_SENSORS: usize = 64;
+// A recording's protobuf enums name every sensor a run can have.
+const _: () = assert!(MAX_SENSORS <= etp_runtime::wire::NAMED_SENSORS as usize);
 
 /// The run's scenario text (`--trigger` and `--clone-sensors` applied) and
 /// the strategy file it runs, if any.

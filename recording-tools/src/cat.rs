@@ -11,8 +11,10 @@
 //!   decimals (`1765000000.000000042`), `data` the message in the protobuf
 //!   JSON mapping of its schema (`protojson`: fields by their JSON name,
 //!   fields at their default value left out, 64-bit integers as strings).
-//!   An etp channel's message is its format-5 protobuf message (a format-4
-//!   file's bincode payload is decoded and encoded as that message first);
+//!   An etp channel's message is its protobuf message as its file's schema
+//!   has it (format 6: enums by name, arrays of the used length; format 5:
+//!   plain numbers, whole arrays); a format-4 file's bincode payload is
+//!   decoded and encoded as its format-6 message first;
 //!   another writer's `json` message is its own JSON. A message neither
 //!   decodes has `data: null`, and its channel's `message_encoding`,
 //!   `schema` and size in `bytes` follow (`mcap cat --json` refuses such a
@@ -94,10 +96,20 @@ fn mcap_line(m: &RawMessage, data: &str, extra: Option<serde_json::Map<String, V
 fn protobuf_json(m: &RawMessage) -> Result<String> {
     let at = || format!("message at log time {} on `{}`", m.log_time, m.topic);
     let payload = m.decode().at_message(at)?;
-    let bytes = Encoding::Protobuf
-        .encode_recorded(&payload)
+    // A protobuf channel's message in its own file's mapping (its schema);
+    // a format-4 payload as the recorder writes it now.
+    let encoding = match m.encoding {
+        Some(Encoding::Protobuf5) => Encoding::Protobuf5,
+        _ => Encoding::Protobuf,
+    };
+    let bytes = encoding.encode_recorded(&payload).at_message(at)?;
+    let mapping = encoding
+        .proto_mapping()
+        .unwrap_or(etp_runtime::recording::ProtoMapping::Typed);
+    let desc = payload
+        .kind()
+        .proto_descriptor_in(mapping)
         .at_message(at)?;
-    let desc = payload.kind().proto_descriptor().at_message(at)?;
     let msg = DynamicMessage::decode(desc, bytes.as_slice()).at_message(at)?;
     let mut text = Vec::new();
     msg.serialize_with_options(

@@ -24,14 +24,18 @@ fn write_copy(c: &Contents, tmp: &std::path::Path, what: &str) -> Result<u64> {
         let Some(kind) = recording::kind_of_topic(topic) else {
             return Err(Error::UnknownChannel(topic.clone()));
         };
-        // The copy keeps each channel's own encoding (a format-4 file stays
-        // format 4: its metadata says so), with this etp's schema of it.
-        let encoding = match c.encodings.get(topic) {
-            None => recording::Encoding::Protobuf,
-            Some(e) => recording::Encoding::of(e).ok_or_else(|| Error::Encoding {
-                topic: topic.clone(),
-                encoding: e.clone(),
-            })?,
+        // The copy keeps each channel's own encoding (a format-4 or
+        // format-5 file stays so: its metadata says so), with this etp's
+        // schema of it.
+        let encoding = match (c.encoding(topic), c.encodings.get(topic)) {
+            (Some(e), _) => e,
+            (None, None) => recording::Encoding::Protobuf,
+            (None, Some(e)) => {
+                return Err(Error::Encoding {
+                    topic: topic.clone(),
+                    encoding: e.clone(),
+                });
+            }
         };
         let (name, schema_encoding, data) = encoding.schema(kind)?;
         let schema = w.add_schema(&name, schema_encoding, &data)?;

@@ -21,27 +21,42 @@ pub const META_RUN_SCENARIO_HASH: &str = "scenario_hash";
 pub fn check_metadata(c: &Contents) -> Result<Option<Scenario>, RecordingError> {
     let bad = |m: String| Err(RecordingError::Metadata(m));
     if let Some(v) = c.meta(META_RUN, "format_version") {
-        let expected = match v {
-            super::FORMAT_VERSION => super::Encoding::Protobuf,
-            super::LEGACY_FORMAT_VERSION => super::Encoding::Bincode,
-            _ => {
-                return bad(format!(
-                    "format version {v}: this etp reads formats {} and {} (format 2 and older sent \
-                     the agent's prior every step; 3 a handover per leg and the sensor's replica \
-                     digest in `slot`; since 4 the radio's attempts, deliveries and losses in \
-                     `slot` and `ledger`; 5 the same messages in protobuf)",
-                    super::LEGACY_FORMAT_VERSION,
-                    super::FORMAT_VERSION
-                ));
-            }
+        use super::Encoding;
+        let Some(expected) = [Encoding::Protobuf, Encoding::Protobuf5, Encoding::Bincode]
+            .into_iter()
+            .find(|e| e.format_version() == v)
+        else {
+            return bad(format!(
+                "format version {v}: this etp reads formats {}, {} and {} (format 2 and older \
+                 sent the agent's prior every step; 3 a handover per leg and the sensor's \
+                 replica digest in `slot`; since 4 the radio's attempts, deliveries and losses \
+                 in `slot` and `ledger`; 5 the same messages in protobuf; 6 with enums and \
+                 arrays of the used length)",
+                super::LEGACY_FORMAT_VERSION,
+                super::PROTOBUF5_FORMAT_VERSION,
+                super::FORMAT_VERSION
+            ));
         };
         // Every etp channel is in its format's encoding (a file whose
-        // metadata and channels disagree was assembled by hand).
+        // metadata and channels disagree was assembled by hand): its
+        // `message_encoding`, and for protobuf its schema (format 5's
+        // descriptors or not).
         for (topic, encoding) in &c.encodings {
-            if super::kind_of_topic(topic).is_some() && encoding != expected.name() {
+            if super::kind_of_topic(topic).is_none() {
+                continue;
+            }
+            if encoding != expected.name() {
                 return bad(format!(
                     "format {v} has `{}` channels, but `{topic}` is `{encoding}`",
                     expected.name()
+                ));
+            }
+            if let Some(found) = c.encoding(topic)
+                && found != expected
+            {
+                return bad(format!(
+                    "format {v}, but the schema of `{topic}` is format {}'s",
+                    found.format_version()
                 ));
             }
         }
@@ -180,7 +195,8 @@ mod tests {
     #[test]
     fn the_format_version_names_the_channels_encoding() {
         use crate::recording::{
-            FORMAT_VERSION, LEGACY_FORMAT_VERSION, LEGACY_MESSAGE_ENCODING, MESSAGE_ENCODING,
+            Encoding, FORMAT_VERSION, LEGACY_FORMAT_VERSION, LEGACY_MESSAGE_ENCODING,
+            MESSAGE_ENCODING, PROTOBUF5_FORMAT_VERSION,
         };
         let file = |version: &str, encoding: &str| {
             let mut c = Contents::default();
@@ -202,11 +218,24 @@ mod tests {
             let err = check_metadata(&file(v, e)).expect_err("mixed").to_string();
             assert!(err.contains("`measurement`"), "{err}");
         }
-        let err = check_metadata(&file("6", MESSAGE_ENCODING))
+        // Format 5 and 6 share `protobuf`: the schema read tells them apart.
+        let mut five = file(PROTOBUF5_FORMAT_VERSION, MESSAGE_ENCODING);
+        five.etp_encodings
+            .insert("measurement".into(), Encoding::Protobuf5);
+        assert!(check_metadata(&five).is_ok());
+        let mut six_as_five = file(PROTOBUF5_FORMAT_VERSION, MESSAGE_ENCODING);
+        six_as_five
+            .etp_encodings
+            .insert("measurement".into(), Encoding::Protobuf);
+        let err = check_metadata(&six_as_five)
+            .expect_err("a format-6 schema in a format-5 file")
+            .to_string();
+        assert!(err.contains("format 6's"), "{err}");
+        let err = check_metadata(&file("7", MESSAGE_ENCODING))
             .expect_err("a newer format")
             .to_string();
         assert!(
-            err.contains("format version 6") && err.contains("formats 4 and 5"),
+            err.contains("format version 7") && err.contains("formats 4, 5 and 6"),
             "{err}"
         );
     }

@@ -4,11 +4,18 @@
 //!
 //! * One channel per publish-subscribe service; its topic is the service name
 //!   without the `etp/<run-id>/` prefix (`measurement`, `sensor/0/truth`, …).
-//! * Format 5 (written since issue 43): message encoding `protobuf`, schema
-//!   encoding `protobuf`, schema name `etp.<Kind>`, schema data a serialized
-//!   `FileDescriptorSet` built from the payload type (`wire::proto`), so any
-//!   MCAP tool decodes every channel (Foxglove, the `mcap` CLIs,
-//!   `mcap-protobuf-support`). [`protobuf`] is the codec.
+//! * Format 6 (what the recorder writes): message encoding `protobuf`,
+//!   schema encoding `protobuf`, schema name `etp.<Kind>`, schema data a
+//!   serialized `FileDescriptorSet` built from the payload type and the
+//!   catalogue's named fields (`wire::proto`, [`ProtoMapping::Typed`]), so
+//!   any MCAP tool decodes every channel (Foxglove, the `mcap` CLIs,
+//!   `mcap-protobuf-support`) and shows codes by name (`outcome: TARGET`,
+//!   `sender: AGENT`, `degraded: false`) and arrays of the used length
+//!   (`y` of a 2-D measurement: 2 values). [`protobuf`] is the codec.
+//! * Format 5 (still read): the same channels in [`ProtoMapping::Plain`]:
+//!   codes as plain integers, arrays written whole (6 values, 36 for a
+//!   matrix). A protobuf channel is read as format 5 when its schema data is
+//!   format 5's descriptor of its kind byte for byte ([`Encoding::of_channel`]).
 //! * Format 4 and older (still read): message encoding
 //!   [`LEGACY_MESSAGE_ENCODING`], bincode 2.0.1 through serde with
 //!   `config::legacy()` (fixed-width little-endian integers, the field order
@@ -24,7 +31,8 @@
 //!   (`toml`: the run file), [`META_CHANNEL_SCHEDULE`] (`toml`, only for a
 //!   run with channel changes).
 //! * `log_time`/`publish_time`: ns since the Unix epoch when the recorder took
-//!   the sample; `sequence`: per-channel count.
+//!   the sample; `sequence`: per-channel count. (The sender's own time is
+//!   not carried: see `recordings/README.md`, "Times".)
 
 use crate::wire::ServiceId;
 #[cfg(test)]
@@ -79,15 +87,19 @@ pub fn verify_missing_channels(c: &Contents) -> Vec<String> {
 /// lossy radio (docs/MODEL.md §8): `slot` carries the slot's `attempts` and
 /// `delivered`, `ledger` triggers, delivered and lost, and the agent's
 /// `sensor/<i>/ack` is recorded. 5: the same messages encoded as protobuf
-/// with `FileDescriptorSet` schemas (issue 43); format 4 is still read.
-pub const FORMAT_VERSION: &str = "5";
+/// with `FileDescriptorSet` schemas. 6: protobuf enums for codes and ids,
+/// `bool` flags, arrays cut to `dim` ([`ProtoMapping::Typed`]); formats 5
+/// and 4 are still read.
+pub const FORMAT_VERSION: &str = "6";
+/// The protobuf format of plain integers and whole arrays ([`Encoding::Protobuf5`]).
+pub const PROTOBUF5_FORMAT_VERSION: &str = "5";
 /// The last format whose channels are bincode ([`LEGACY_MESSAGE_ENCODING`]).
 pub const LEGACY_FORMAT_VERSION: &str = "4";
 /// MCAP profile string.
 pub const PROFILE: &str = "etpareto";
-/// Message encoding of every channel (format 5).
+/// Message encoding of every channel (formats 5 and 6).
 pub const MESSAGE_ENCODING: &str = "protobuf";
-/// Schema encoding of every schema (format 5).
+/// Schema encoding of every schema (formats 5 and 6).
 pub const SCHEMA_ENCODING: &str = "protobuf";
 /// Message encoding of format 4 and older (and of the bridge's link).
 pub const LEGACY_MESSAGE_ENCODING: &str = crate::wire::catalogue::PAYLOAD_ENCODING;
@@ -131,6 +143,7 @@ pub enum RecordingError {
     Port(#[from] crate::wire::PortError),
 }
 
+pub use crate::wire::proto::ProtoMapping;
 pub use crate::wire::{Kind, Recorded};
 
 /// The channel topic of a service (its name without `etp/<run-id>/`), and
@@ -152,15 +165,18 @@ pub fn kind_of_topic(topic: &str) -> Option<Kind> {
 /// How a channel's payloads are encoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Encoding {
-    /// `protobuf` (format 5): what the recorder writes.
+    /// `protobuf` in [`ProtoMapping::Typed`] (format 6): what the recorder writes.
     Protobuf,
+    /// `protobuf` in [`ProtoMapping::Plain`] (format 5).
+    Protobuf5,
     /// `bincode2-serde-legacy` (format 4 and older; the bridge's link).
     Bincode,
 }
 
 impl Encoding {
-    /// The encoding of a channel's `message_encoding`; `None` for one etp
-    /// does not write (a channel of another MCAP writer).
+    /// The encoding of a channel's `message_encoding` as this etp writes
+    /// it (`protobuf`: format 6); `None` for one etp does not write (a
+    /// channel of another MCAP writer).
     pub fn of(message_encoding: &str) -> Option<Self> {
         match message_encoding {
             MESSAGE_ENCODING => Some(Self::Protobuf),
@@ -169,25 +185,57 @@ impl Encoding {
         }
     }
 
+    /// The encoding of a channel of a file: as [`Encoding::of`], and a
+    /// `protobuf` channel whose schema data is format 5's descriptor of its
+    /// topic's kind, byte for byte, is [`Encoding::Protobuf5`] (both
+    /// formats name their schemas `etp.<Kind>`; format 5's descriptors are
+    /// built by the same code, in [`ProtoMapping::Plain`]).
+    pub fn of_channel(message_encoding: &str, topic: &str, schema_data: &[u8]) -> Option<Self> {
+        let encoding = Self::of(message_encoding)?;
+        let format5 = encoding == Self::Protobuf
+            && kind_of_topic(topic)
+                .and_then(|k| k.proto_schema_in(ProtoMapping::Plain).ok())
+                .is_some_and(|plain| plain == schema_data);
+        Some(if format5 { Self::Protobuf5 } else { encoding })
+    }
+
     /// The channel's `message_encoding`.
     pub fn name(self) -> &'static str {
         match self {
-            Self::Protobuf => MESSAGE_ENCODING,
+            Self::Protobuf | Self::Protobuf5 => MESSAGE_ENCODING,
             Self::Bincode => LEGACY_MESSAGE_ENCODING,
+        }
+    }
+
+    /// The recording format whose channels are in this encoding.
+    pub fn format_version(self) -> &'static str {
+        match self {
+            Self::Protobuf => FORMAT_VERSION,
+            Self::Protobuf5 => PROTOBUF5_FORMAT_VERSION,
+            Self::Bincode => LEGACY_FORMAT_VERSION,
+        }
+    }
+
+    /// The protobuf mapping of a protobuf encoding.
+    pub fn proto_mapping(self) -> Option<ProtoMapping> {
+        match self {
+            Self::Protobuf => Some(ProtoMapping::Typed),
+            Self::Protobuf5 => Some(ProtoMapping::Plain),
+            Self::Bincode => None,
         }
     }
 
     /// The schema encoding and data of a channel of `kind` in this encoding.
     pub fn schema(self, kind: Kind) -> Result<(String, &'static str, Vec<u8>), RecordingError> {
-        Ok(match self {
-            Self::Protobuf => (
+        Ok(match self.proto_mapping() {
+            Some(mapping) => (
                 kind.proto_name(),
                 SCHEMA_ENCODING,
-                kind.proto_schema()
+                kind.proto_schema_in(mapping)
                     .map_err(RecordingError::Encode)?
                     .to_vec(),
             ),
-            Self::Bincode => (
+            None => (
                 kind.schema_name().to_string(),
                 LEGACY_SCHEMA_ENCODING,
                 kind.schema_text().into_bytes(),
@@ -197,11 +245,10 @@ impl Encoding {
 
     /// Encode one payload.
     pub fn encode<T: crate::wire::Message>(self, payload: &T) -> Result<Vec<u8>, RecordingError> {
-        match self {
-            Self::Protobuf => {
-                protobuf::encode(payload).map_err(|e| RecordingError::Encode(e.to_string()))
-            }
-            Self::Bincode => bincode::serde::encode_to_vec(payload, cfg())
+        match self.proto_mapping() {
+            Some(mapping) => protobuf::encode(payload, mapping)
+                .map_err(|e| RecordingError::Encode(e.to_string())),
+            None => bincode::serde::encode_to_vec(payload, cfg())
                 .map_err(|e| RecordingError::Encode(e.to_string())),
         }
     }
@@ -227,9 +274,11 @@ impl Encoding {
         impl crate::wire::KindVisitor for Decode<'_> {
             type Out = Result<Recorded, RecordingError>;
             fn visit<T: crate::wire::Message>(self) -> Self::Out {
-                let r = match self.0 {
-                    Encoding::Protobuf => protobuf::decode::<T>(self.2).map_err(|e| e.to_string()),
-                    Encoding::Bincode => dec::<T>(self.2),
+                let r = match self.0.proto_mapping() {
+                    Some(mapping) => {
+                        protobuf::decode::<T>(self.2, mapping).map_err(|e| e.to_string())
+                    }
+                    None => dec::<T>(self.2),
                 };
                 r.map(T::into_recorded)
                     .map_err(|reason| RecordingError::Decode {
@@ -252,7 +301,7 @@ fn cfg() -> bincode::config::Configuration<
     bincode::config::legacy()
 }
 
-/// Encode one payload as the recorder writes it (format 5, protobuf).
+/// Encode one payload as the recorder writes it (format 6, protobuf).
 pub fn encode<T: crate::wire::Message>(payload: &T) -> Result<Vec<u8>, RecordingError> {
     Encoding::Protobuf.encode(payload)
 }
@@ -310,7 +359,7 @@ mod tests {
             sequence: 4,
             y: [0.25, -1.5, 0.0, 0.0, 0.0, 0.0],
         };
-        for enc in [Encoding::Protobuf, Encoding::Bincode] {
+        for enc in [Encoding::Protobuf, Encoding::Protobuf5, Encoding::Bincode] {
             let bytes = enc.encode(&m).expect("encode");
             if enc == Encoding::Bincode {
                 // Fixed-width legacy encoding: header (8+8+4·4) + 2·4 + 6·8 bytes.
@@ -330,12 +379,15 @@ mod tests {
                 enc.decode("measurement", &bytes[..bytes.len() - 1])
                     .is_err()
             );
-            // One format's bytes are not the other's.
-            let other = match enc {
-                Encoding::Protobuf => Encoding::Bincode,
-                Encoding::Bincode => Encoding::Protobuf,
-            };
-            assert!(other.decode("measurement", &bytes).is_err(), "{enc:?}");
+            // One format's bytes are no other's.
+            for other in [Encoding::Protobuf, Encoding::Protobuf5, Encoding::Bincode] {
+                if other != enc {
+                    assert!(
+                        other.decode("measurement", &bytes).is_err(),
+                        "{enc:?} as {other:?}"
+                    );
+                }
+            }
         }
         let bytes = encode(&m).expect("encode");
         assert!(matches!(

@@ -1,7 +1,14 @@
-//! The protobuf encoding of a payload (recording format 5): the payload's
-//! serde implementation fills a `prost_reflect::DynamicMessage` of the
-//! kind's descriptor (`wire::proto`), which prost encodes; decoding is the
-//! reverse, then the payload is encoded again and must give the same bytes.
+//! The protobuf encoding of a payload (recording formats 5 and 6, one
+//! [`ProtoMapping`] each): the payload's serde implementation fills a
+//! `prost_reflect::DynamicMessage` of the kind's descriptor (`wire::proto`),
+//! which prost encodes; decoding is the reverse, then the payload is encoded
+//! again and must give the same bytes.
+//!
+//! The descriptor decides each field's form: a `u32` whose field is an enum
+//! is written as that enum's number (the same 32 bits), one whose field is a
+//! `bool` as `false`/`true` (a flag other than 0 or 1 is refused); in
+//! [`ProtoMapping::Typed`] an array holds only its first `dim` entries per
+//! axis, the rest must be 0 (else refused) and are put back as 0 on reading.
 //!
 //! That last check makes the decoder exactly as strict as the old
 //! fixed-size one: protobuf itself accepts anything that parses (missing
@@ -11,6 +18,7 @@
 //! refused, and what is accepted round-trips bit for bit.
 
 use crate::wire::Message;
+pub use crate::wire::proto::ProtoMapping;
 use prost::Message as _;
 use prost_reflect::{DynamicMessage, Kind as PKind, MessageDescriptor, ReflectMessage, Value};
 use serde::ser::{self, Impossible, Serialize};
@@ -46,19 +54,25 @@ fn err<T>(m: impl Into<String>) -> Result<T, ProtoError> {
     Err(ProtoError(m.into()))
 }
 
-/// Encode a payload as its kind's protobuf message.
-pub fn encode<T: Message>(payload: &T) -> Result<Vec<u8>, ProtoError> {
-    let desc = T::KIND.proto_descriptor().map_err(ProtoError)?;
-    let msg = payload.serialize(MessageSer { desc })?;
+/// Encode a payload as its kind's protobuf message in `mapping`.
+pub fn encode<T: Message>(payload: &T, mapping: ProtoMapping) -> Result<Vec<u8>, ProtoError> {
+    let desc = T::KIND.proto_descriptor_in(mapping).map_err(ProtoError)?;
+    let msg = payload.serialize(MessageSer {
+        desc,
+        sized: mapping.sized_arrays(),
+    })?;
     Ok(msg.encode_to_vec())
 }
 
-/// Decode a payload written by [`encode`]; anything else is refused.
-pub fn decode<T: Message>(data: &[u8]) -> Result<T, ProtoError> {
-    let desc = T::KIND.proto_descriptor().map_err(ProtoError)?;
+/// Decode a payload written by [`encode`] in `mapping`; anything else is refused.
+pub fn decode<T: Message>(data: &[u8], mapping: ProtoMapping) -> Result<T, ProtoError> {
+    let desc = T::KIND.proto_descriptor_in(mapping).map_err(ProtoError)?;
     let msg = DynamicMessage::decode(desc, data).map_err(|e| ProtoError(e.to_string()))?;
-    let v = T::deserialize(MessageDe(&msg))?;
-    if encode(&v)? != data {
+    let v = T::deserialize(MessageDe {
+        msg: &msg,
+        sized: mapping.sized_arrays(),
+    })?;
+    if encode(&v, mapping)? != data {
         return err(
             "not the canonical encoding of its message (unknown, repeated or misordered \
              fields, or an array of the wrong length)",
@@ -69,24 +83,49 @@ pub fn decode<T: Message>(data: &[u8]) -> Result<T, ProtoError> {
 
 // ---- payload → DynamicMessage -------------------------------------------
 
-/// Serializes a struct into a message of `desc`.
+/// Serializes a struct into a message of `desc`; `sized`: arrays cut to `dim`.
 struct MessageSer {
     desc: MessageDescriptor,
+    sized: bool,
 }
 
 /// Serializes one field's value (a scalar, an array, or a nested struct
-/// when `nested` is its message type) into a `Value`.
+/// when `nested` is its message type) into a `Value`; an array keeps its
+/// first `used` entries per axis (all of them when `None`).
 struct ValueSer {
     nested: Option<MessageDescriptor>,
+    used: Option<usize>,
+    sized: bool,
 }
 
 struct StructSer {
     msg: DynamicMessage,
+    sized: bool,
+    /// The struct's `dim`, once serialized (it precedes every array).
+    dim: Option<usize>,
 }
 
-/// A fixed array's entries, nested arrays flattened (row-major).
+/// A fixed array's entries, nested arrays flattened (row-major), the first
+/// `used` per axis kept.
 struct ListSer {
     items: Vec<Value>,
+    used: Option<usize>,
+    /// Entries (rows, for a matrix) seen so far.
+    seen: usize,
+}
+
+/// +0 of any scalar (what an unused array entry must be).
+fn is_plus_zero(v: &Value) -> bool {
+    match v {
+        Value::F64(x) => x.to_bits() == 0,
+        Value::F32(x) => x.to_bits() == 0,
+        Value::U32(x) => *x == 0,
+        Value::U64(x) => *x == 0,
+        Value::I32(x) => *x == 0,
+        Value::I64(x) => *x == 0,
+        Value::Bool(b) => !b,
+        _ => false,
+    }
 }
 
 /// The generic `Serializer` methods no payload uses: refused.
@@ -136,6 +175,8 @@ impl ser::Serializer for MessageSer {
     fn serialize_struct(self, _: &'static str, _: usize) -> Result<StructSer, ProtoError> {
         Ok(StructSer {
             msg: DynamicMessage::new(self.desc),
+            sized: self.sized,
+            dim: None,
         })
     }
 
@@ -180,7 +221,11 @@ impl ser::SerializeStruct for StructSer {
     ) -> Result<(), ProtoError> {
         if key.starts_with('_') {
             // Padding has no field; a non-zero one could not be read back.
-            let v = value.serialize(ValueSer { nested: None })?;
+            let v = value.serialize(ValueSer {
+                nested: None,
+                used: None,
+                sized: self.sized,
+            })?;
             return match v {
                 Value::U32(0) | Value::U64(0) => Ok(()),
                 other => err(format!("padding field `{key}` is {other:?}, not 0")),
@@ -193,7 +238,36 @@ impl ser::SerializeStruct for StructSer {
             PKind::Message(m) => Some(m),
             _ => None,
         };
-        let v = value.serialize(ValueSer { nested })?;
+        let used = match (self.sized, field.is_list()) {
+            (true, true) => Some(self.dim.ok_or_else(|| {
+                ProtoError(format!(
+                    "array `{key}` before `{}`",
+                    crate::wire::proto::DIM_FIELD
+                ))
+            })?),
+            _ => None,
+        };
+        let v = value.serialize(ValueSer {
+            nested,
+            used,
+            sized: self.sized,
+        })?;
+        if key == crate::wire::proto::DIM_FIELD
+            && let Value::U32(d) = v
+        {
+            self.dim = usize::try_from(d).ok();
+        }
+        // The descriptor's form of a u32: an enum's number (the same 32
+        // bits) or a flag's bool.
+        let v = match (field.kind(), v) {
+            (PKind::Enum(_), Value::U32(x)) => Value::EnumNumber(i32::from_ne_bytes(x.to_ne_bytes())),
+            (PKind::Bool, Value::U32(0)) => Value::Bool(false),
+            (PKind::Bool, Value::U32(1)) => Value::Bool(true),
+            (PKind::Bool, Value::U32(x)) => {
+                return err(format!("flag `{key}` is {x}, neither 0 nor 1"));
+            }
+            (_, v) => v,
+        };
         // proto3 leaves a zero scalar out, and −0 == 0: it would come back
         // as +0. Refused rather than changed (no payload holds one).
         if matches!(v, Value::F64(x) if x == 0.0 && x.is_sign_negative())
@@ -252,12 +326,16 @@ impl ser::Serializer for ValueSer {
     fn serialize_tuple(self, len: usize) -> Result<ListSer, ProtoError> {
         Ok(ListSer {
             items: Vec::with_capacity(len),
+            used: self.used,
+            seen: 0,
         })
     }
     fn serialize_struct(self, _: &'static str, _: usize) -> Result<NestedSer, ProtoError> {
         match self.nested {
             Some(desc) => Ok(NestedSer(StructSer {
                 msg: DynamicMessage::new(desc),
+                sized: self.sized,
+                dim: None,
             })),
             None => err("a nested struct where the schema has no message"),
         }
@@ -305,7 +383,28 @@ impl ser::SerializeTuple for ListSer {
     type Ok = Value;
     type Error = ProtoError;
     fn serialize_element<V: ?Sized + Serialize>(&mut self, value: &V) -> Result<(), ProtoError> {
-        match value.serialize(ValueSer { nested: None })? {
+        let kept = self.used.is_none_or(|d| self.seen < d);
+        self.seen += 1;
+        let v = value.serialize(ValueSer {
+            nested: None,
+            used: self.used,
+            sized: false,
+        })?;
+        // Past `dim` nothing is written, so only +0 reads back the same.
+        let unused_ok = |v: &Value| match v {
+            Value::List(row) => row.iter().all(is_plus_zero),
+            v => is_plus_zero(v),
+        };
+        if !kept {
+            return match unused_ok(&v) {
+                true => Ok(()),
+                false => err(format!(
+                    "an array entry past dim {} is not 0",
+                    self.used.unwrap_or_default()
+                )),
+            };
+        }
+        match v {
             // A row of a matrix: its entries follow the previous row's.
             Value::List(row) => self.items.extend(row),
             Value::Message(_) => return err("an array of structs"),
@@ -314,6 +413,11 @@ impl ser::SerializeTuple for ListSer {
         Ok(())
     }
     fn end(self) -> Result<Value, ProtoError> {
+        if let Some(d) = self.used
+            && d > self.seen
+        {
+            return err(format!("dim {d} exceeds the array's {} entries", self.seen));
+        }
         Ok(Value::List(self.items))
     }
 }

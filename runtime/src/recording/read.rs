@@ -19,8 +19,8 @@ pub struct RawMessage {
 }
 
 impl RawMessage {
-    /// Decode the payload by its channel's encoding (format 5 protobuf, or
-    /// format 4 bincode).
+    /// Decode the payload by its channel's encoding (format 6 or 5
+    /// protobuf, or format 4 bincode).
     pub fn decode(&self) -> Result<super::Recorded, RecordingError> {
         match self.encoding {
             Some(e) => e.decode(&self.topic, &self.data),
@@ -43,6 +43,10 @@ pub struct Contents {
     /// Channel topic → message encoding (`bincode2-serde-legacy` in etp's
     /// own recordings; `json`, `protobuf`, … in other MCAP files).
     pub encodings: BTreeMap<String, String>,
+    /// Channel topic → its encoding as etp reads it (format 6 or 5
+    /// protobuf, told apart by the schema; bincode), for the channels etp
+    /// writes.
+    pub etp_encodings: BTreeMap<String, super::Encoding>,
     pub messages: Vec<RawMessage>,
     /// True when the file ends with a footer and the end magic.
     pub finished: bool,
@@ -62,6 +66,16 @@ impl Contents {
             *c.entry(m.topic.clone()).or_default() += 1;
         }
         c
+    }
+
+    /// The encoding etp reads a channel in: as read from the file, else
+    /// from its `message_encoding` alone (a `Contents` assembled by hand).
+    pub fn encoding(&self, topic: &str) -> Option<super::Encoding> {
+        self.etp_encodings.get(topic).copied().or_else(|| {
+            self.encodings
+                .get(topic)
+                .and_then(|e| super::Encoding::of(e))
+        })
     }
 
     /// A metadata value.
@@ -325,7 +339,7 @@ fn collect<E: From<RecordingError>>(
     mut on_message: impl FnMut(RawMessage) -> Result<(), E>,
 ) -> Result<bool, E> {
     use mcap::records::Record;
-    let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
+    let mut schemas: BTreeMap<u16, (String, Vec<u8>)> = BTreeMap::new();
     let mut topics: BTreeMap<u16, (String, Option<super::Encoding>)> = BTreeMap::new();
     let mut data_end = false;
     let mut footer = false;
@@ -340,17 +354,24 @@ fn collect<E: From<RecordingError>>(
             }
         };
         match rec {
-            Record::Schema { header, .. } => {
+            Record::Schema { header, data } => {
                 out.schemas
                     .insert(header.name.clone(), header.encoding.clone());
-                schemas.insert(header.id, header.name);
+                schemas.insert(header.id, (header.name, data.into_owned()));
             }
             Record::Channel(c) => {
-                let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                let (schema, schema_data) = schemas
+                    .get(&c.schema_id)
+                    .map(|(n, d)| (n.clone(), d.as_slice()))
+                    .unwrap_or_default();
                 out.channels.insert(c.topic.clone(), schema);
                 out.encodings
                     .insert(c.topic.clone(), c.message_encoding.clone());
-                let encoding = super::Encoding::of(&c.message_encoding);
+                let encoding =
+                    super::Encoding::of_channel(&c.message_encoding, &c.topic, schema_data);
+                if let Some(e) = encoding {
+                    out.etp_encodings.insert(c.topic.clone(), e);
+                }
                 topics.insert(c.id, (c.topic, encoding));
             }
             Record::Message { header, data } => {

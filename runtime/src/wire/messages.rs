@@ -22,6 +22,12 @@ pub type WireVec = [f64; MAX_DIM];
 /// arrays of 6 keep serde's derives usable (serde stops at arrays of 32).
 pub type WireMat = [[f64; MAX_DIM]; MAX_DIM];
 
+/// How many sensor indices a recording's protobuf enums name (`SENSOR_0` …
+/// `SENSOR_63`): every sensor a run can have (`etp_launcher`'s
+/// `MAX_SENSORS`, checked there); a larger index would still be recorded,
+/// shown as its number.
+pub const NAMED_SENSORS: u32 = 64;
+
 /// Sender id of the coordinator.
 pub const SENDER_COORDINATOR: u32 = 0xFFFF_0000;
 /// Sender id of the agent.
@@ -332,9 +338,18 @@ macro_rules! code_enum {
         pub enum $name { $( $variant, )* }
 
         impl $name {
+            /// Every variant, in declaration order.
+            pub const ALL: &'static [Self] = &[ $( Self::$variant, )* ];
+
             /// The value on the wire.
             pub const fn code(self) -> u32 {
                 match self { $( Self::$variant => $value, )* }
+            }
+
+            /// The variant's name as declared (`Start`, `Open`, `Target`):
+            /// a recording's protobuf enum value is this name upper-cased.
+            pub const fn variant_name(self) -> &'static str {
+                match self { $( Self::$variant => stringify!($variant), )* }
             }
         }
 

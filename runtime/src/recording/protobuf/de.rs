@@ -1,13 +1,18 @@
 //! A payload from a `DynamicMessage`: the payload's `Deserialize` reads its
-//! fields in order, each from the message field of its name (padding: 0),
-//! arrays from the flat repeated field in row-major order.
+//! fields in order, each from the message field of its name (padding: 0;
+//! an enum's number and a flag's bool as the `u32` they stand for), arrays
+//! from the flat repeated field in row-major order; with `sized`, the
+//! field holds the first `dim` entries per axis and the rest are 0.
 
 use super::{ProtoError, err};
 use prost_reflect::{DynamicMessage, ReflectMessage, Value};
 use serde::de::{self, DeserializeSeed, IntoDeserializer, SeqAccess, Visitor};
 
-/// Deserializes a struct from a message.
-pub(super) struct MessageDe<'a>(pub(super) &'a DynamicMessage);
+/// Deserializes a struct from a message; `sized`: arrays hold `dim` entries per axis.
+pub(super) struct MessageDe<'a> {
+    pub(super) msg: &'a DynamicMessage,
+    pub(super) sized: bool,
+}
 
 macro_rules! only_struct {
     ($($m:ident)*) => {
@@ -27,7 +32,8 @@ impl<'de> de::Deserializer<'de> for MessageDe<'_> {
         visitor: V,
     ) -> Result<V::Value, ProtoError> {
         visitor.visit_seq(Fields {
-            msg: self.0,
+            msg: self.msg,
+            sized: self.sized,
             fields,
             at: 0,
         })
@@ -80,6 +86,7 @@ impl<'de> de::Deserializer<'de> for MessageDe<'_> {
 /// (padding: 0).
 struct Fields<'a> {
     msg: &'a DynamicMessage,
+    sized: bool,
     fields: &'static [&'static str],
     at: usize,
 }
@@ -103,9 +110,21 @@ impl<'de> SeqAccess<'de> for Fields<'_> {
         };
         let value = self.msg.get_field(&field);
         let v = match value.as_ref() {
-            Value::Message(m) => seed.deserialize(MessageDe(m)),
+            Value::Message(m) => seed.deserialize(MessageDe {
+                msg: m,
+                sized: self.sized,
+            }),
             Value::List(items) => {
-                let mut flat = Flat { items, at: 0 };
+                let used = match self.sized {
+                    true => Some(self.dim()?),
+                    false => None,
+                };
+                let mut flat = Flat {
+                    items,
+                    at: 0,
+                    used,
+                    unused: false,
+                };
                 let v = seed.deserialize(&mut flat)?;
                 if flat.at != items.len() {
                     return err(format!(
@@ -119,6 +138,8 @@ impl<'de> SeqAccess<'de> for Fields<'_> {
             scalar => seed.deserialize(&mut Flat {
                 items: std::slice::from_ref(scalar),
                 at: 0,
+                used: None,
+                unused: false,
             }),
         };
         v.map_err(|e| ProtoError(format!("field `{name}`: {e}")))
@@ -126,11 +147,26 @@ impl<'de> SeqAccess<'de> for Fields<'_> {
     }
 }
 
+impl Fields<'_> {
+    /// The message's `dim`: how many entries per axis its arrays hold.
+    fn dim(&self) -> Result<usize, ProtoError> {
+        let dim = crate::wire::proto::DIM_FIELD;
+        match self.msg.get_field_by_name(dim).as_deref() {
+            Some(Value::U32(d)) => usize::try_from(*d).map_err(|e| ProtoError(e.to_string())),
+            _ => err(format!("an array in a message without `{dim}`")),
+        }
+    }
+}
+
 /// Scalars handed out in order: a scalar field (one value), or an array
-/// (nested arrays take their rows in turn from the same flat list).
+/// (nested arrays take their rows in turn from the same flat list); an
+/// array entry past `used` (per axis) is not in the list and reads as 0.
 struct Flat<'a> {
     items: &'a [Value],
     at: usize,
+    used: Option<usize>,
+    /// The entry being read is past `used`.
+    unused: bool,
 }
 
 impl Flat<'_> {
@@ -145,8 +181,11 @@ impl Flat<'_> {
 }
 
 macro_rules! scalar_de {
-    ($($m:ident => $visit:ident: $($pat:pat => $e:expr),+;)*) => {
+    ($($m:ident => $visit:ident($zero:expr): $($pat:pat => $e:expr),+;)*) => {
         $(fn $m<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, ProtoError> {
+            if self.unused {
+                return visitor.$visit($zero);
+            }
             match self.next()? {
                 $($pat => visitor.$visit($e),)+
                 other => err(format!("{other:?} where {} was expected", stringify!($visit))),
@@ -159,15 +198,18 @@ impl<'de> de::Deserializer<'de> for &mut Flat<'_> {
     type Error = ProtoError;
 
     scalar_de! {
-        deserialize_bool => visit_bool: Value::Bool(v) => *v;
-        deserialize_u8 => visit_u32: Value::U32(v) => *v;
-        deserialize_u16 => visit_u32: Value::U32(v) => *v;
-        deserialize_u32 => visit_u32: Value::U32(v) => *v;
-        deserialize_u64 => visit_u64: Value::U64(v) => *v;
-        deserialize_i32 => visit_i32: Value::I32(v) => *v;
-        deserialize_i64 => visit_i64: Value::I64(v) => *v;
-        deserialize_f32 => visit_f32: Value::F32(v) => *v;
-        deserialize_f64 => visit_f64: Value::F64(v) => *v;
+        deserialize_bool => visit_bool(false): Value::Bool(v) => *v;
+        deserialize_u8 => visit_u32(0): Value::U32(v) => *v;
+        deserialize_u16 => visit_u32(0): Value::U32(v) => *v;
+        deserialize_u32 => visit_u32(0):
+            Value::U32(v) => *v,
+            Value::EnumNumber(v) => u32::from_ne_bytes(v.to_ne_bytes()),
+            Value::Bool(v) => u32::from(*v);
+        deserialize_u64 => visit_u64(0): Value::U64(v) => *v;
+        deserialize_i32 => visit_i32(0): Value::I32(v) => *v;
+        deserialize_i64 => visit_i64(0): Value::I64(v) => *v;
+        deserialize_f32 => visit_f32(0.0): Value::F32(v) => *v;
+        deserialize_f64 => visit_f64(0.0): Value::F64(v) => *v;
     }
 
     fn deserialize_tuple<V: Visitor<'de>>(
@@ -175,7 +217,13 @@ impl<'de> de::Deserializer<'de> for &mut Flat<'_> {
         len: usize,
         visitor: V,
     ) -> Result<V::Value, ProtoError> {
-        visitor.visit_seq(Elements { flat: self, len })
+        let outer_unused = self.unused;
+        visitor.visit_seq(Elements {
+            flat: self,
+            len,
+            seen: 0,
+            outer_unused,
+        })
     }
 
     only_struct! {
@@ -225,10 +273,14 @@ impl<'de> de::Deserializer<'de> for &mut Flat<'_> {
     }
 }
 
-/// `len` elements of an array, from the shared flat list.
+/// `len` elements of an array, from the shared flat list (those past
+/// `used`, or inside an unused row, read as 0).
 struct Elements<'a, 'b> {
     flat: &'a mut Flat<'b>,
     len: usize,
+    seen: usize,
+    /// This whole array is an unused row.
+    outer_unused: bool,
 }
 
 impl<'de> SeqAccess<'de> for Elements<'_, '_> {
@@ -241,7 +293,11 @@ impl<'de> SeqAccess<'de> for Elements<'_, '_> {
             return Ok(None);
         }
         self.len -= 1;
-        seed.deserialize(&mut *self.flat).map(Some)
+        self.flat.unused = self.outer_unused || self.flat.used.is_some_and(|d| self.seen >= d);
+        self.seen += 1;
+        let v = seed.deserialize(&mut *self.flat);
+        self.flat.unused = self.outer_unused;
+        v.map(Some)
     }
     fn size_hint(&self) -> Option<usize> {
         Some(self.len)
