@@ -17,6 +17,8 @@ mod recording;
 // Recording format 5 read by other tools; the format-4 fixture (issue 43).
 #[path = "runtime/mcap_tools.rs"]
 mod mcap_tools;
+#[path = "runtime/mcap_tools_fixtures.rs"]
+mod mcap_tools_fixtures;
 
 #[path = "runtime/publish.rs"]
 mod publish;

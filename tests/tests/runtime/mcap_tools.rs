@@ -1,23 +1,26 @@
-//! Recording format 5 (issue 43): a new recording of a real `etp run
-//! --record` read by a reader that is not etp's — Foxglove's Python protobuf
-//! decoder (`mcap-protobuf-support`, pinned in `tests/src/pyenv.rs`) with
-//! the schemas the file carries — every message decoded, every value equal
-//! to etp's own decoding, counts equal to `etp replay summary`; `replay
-//! verify` bit for bit; and the format-4 fixture (bincode channels) still
-//! summarises, verifies, exports and repairs.
+//! Recording format 6: a new recording of a real `etp run --record` read by
+//! a reader that is not etp's — Foxglove's Python protobuf decoder
+//! (`mcap-protobuf-support`, pinned in `tests/src/pyenv.rs`) with the
+//! schemas the file carries — every message decoded, every value equal to
+//! etp's own decoding as format 6 maps it (codes by enum name, flags as
+//! bools, arrays of the used length), counts equal to `etp replay summary`;
+//! `replay verify` bit for bit. The older formats' fixtures:
+//! `mcap_tools_fixtures`.
 
 use super::recording::{out_file, python_json, read_finished, record, replay};
 use super::serial;
 use etp_runtime::recording;
+use etp_runtime::wire::Kind;
+use etp_runtime::wire::catalogue::{HEADER_NAMES, Named};
 use etp_tests::unique_run_id;
 use serde_json::{Map, Value};
 use std::collections::BTreeMap;
-use std::path::PathBuf;
 
 /// Every message of the file decoded by `mcap_protobuf.decoder` from the
 /// file's own `FileDescriptorSet` schemas; per topic, each message as
 /// `{field path: value or list}` (nested messages joined with `.`,
-/// repeated fields as lists), and each channel's encodings.
+/// repeated fields as lists, an enum as its number), the names of its enum
+/// values (`{path: name}`, from the schema), and each channel's encodings.
 const PY_DECODE: &str = r#"
 import sys, json, struct
 from mcap.reader import make_reader
@@ -27,19 +30,22 @@ def bits(x):
     # A double as its 64 bits: compared exactly, whatever parses the JSON.
     return struct.unpack("<Q", struct.pack("<d", x))[0] if isinstance(x, float) else x
 
-def flat(msg, prefix, out):
+def flat(msg, prefix, out, names):
     for f in msg.DESCRIPTOR.fields:
         v = getattr(msg, f.name)
         key = prefix + f.name
         if f.message_type is not None:
-            flat(v, key + ".", out)
+            flat(v, key + ".", out, names)
         elif f.is_repeated:
             out[key] = [bits(x) for x in v]
         else:
             out[key] = bits(v)
+            if f.enum_type is not None:
+                named = f.enum_type.values_by_number.get(v)
+                names[key] = named.name if named is not None else None
     return out
 
-out = {"channels": {}, "messages": {}}
+out = {"channels": {}, "messages": {}, "names": {}}
 with open(sys.argv[1], "rb") as fh:
     r = make_reader(fh, decoder_factories=[DecoderFactory()])
     s = r.get_summary()
@@ -47,8 +53,11 @@ with open(sys.argv[1], "rb") as fh:
         sc = s.schemas[c.schema_id]
         out["channels"][c.topic] = [c.message_encoding, sc.encoding, sc.name]
         out["messages"][c.topic] = []
+        out["names"][c.topic] = []
     for schema, channel, message, proto in r.iter_decoded_messages(log_time_order=False):
-        out["messages"][channel.topic].append(flat(proto, "", {}))
+        names = {}
+        out["messages"][channel.topic].append(flat(proto, "", {}, names))
+        out["names"][channel.topic].append(names)
 print(json.dumps(out))
 "#;
 
@@ -86,6 +95,37 @@ fn flatten(v: &Value, prefix: &str, out: &mut Map<String, Value>) {
     }
 }
 
+/// A payload (etp's decoding, `Recorded::to_json`) as format 6 records
+/// it, by the rules of `wire::proto` applied here rather than by its code:
+/// arrays cut to `dim` entries per axis, the catalogue's flags as bools, its
+/// codes and ids as protobuf's int32 enum numbers of their u32.
+fn as_recorded(kind: Kind, payload: &Value) -> Value {
+    let mut v = payload.clone();
+    let dim = v["dim"].as_u64().and_then(|d| usize::try_from(d).ok());
+    if let (Some(d), Value::Object(o)) = (dim, &mut v) {
+        for x in o.values_mut() {
+            if let Value::Array(a) = x {
+                a.truncate(d);
+                for row in a.iter_mut() {
+                    if let Value::Array(r) = row {
+                        r.truncate(d);
+                    }
+                }
+            }
+        }
+    }
+    for (path, named) in HEADER_NAMES.iter().chain(kind.named_fields()) {
+        if let Some(x) = v.pointer_mut(&format!("/{}", path.replace('.', "/"))) {
+            let code = x.as_u64().and_then(|c| u32::try_from(c).ok()).expect("a u32 code");
+            *x = match named {
+                Named::Flag => Value::Bool(code == 1),
+                _ => Value::from(i32::from_ne_bytes(code.to_ne_bytes())),
+            };
+        }
+    }
+    v
+}
+
 /// Per topic, the messages as sorted JSON texts (channels with several
 /// publishers interleave in the recorder's drain order).
 fn sorted(m: BTreeMap<String, Vec<Value>>) -> BTreeMap<String, Vec<String>> {
@@ -120,6 +160,7 @@ fn cat_json_like_the_rust_mcap_cli(file: &std::path::Path) -> BTreeMap<String, V
     let options = SerializeOptions::new()
         .skip_default_fields(false)
         .stringify_64_bit_integers(false)
+        .use_enum_numbers(true)
         .use_proto_field_name(true);
     for m in mcap::MessageStream::new(&bytes).expect("stream") {
         let m = m.expect("a message");
@@ -185,7 +226,7 @@ fn a_new_recording_decodes_in_foxgloves_protobuf_reader_value_for_value() {
         c.meta(recording::META_RUN, "format_version"),
         Some(recording::FORMAT_VERSION)
     );
-    assert_eq!(recording::FORMAT_VERSION, "5");
+    assert_eq!(recording::FORMAT_VERSION, "6");
     assert!(!c.encodings.is_empty());
     for (topic, e) in &c.encodings {
         assert_eq!(e, "protobuf", "{topic}");
@@ -197,11 +238,17 @@ fn a_new_recording_decodes_in_foxgloves_protobuf_reader_value_for_value() {
         );
     }
 
-    // etp's decoding of every message, flattened as the Python side does.
+    // etp's decoding of every message, as format 6 records it, flattened
+    // as the Python side does.
     let mut ours: BTreeMap<String, Vec<Value>> = BTreeMap::new();
     for m in &c.messages {
         let mut row = Map::new();
-        flatten(&m.decode().expect("decodes").to_json(), "", &mut row);
+        let payload = m.decode().expect("decodes");
+        flatten(
+            &as_recorded(payload.kind(), &payload.to_json()),
+            "",
+            &mut row,
+        );
         ours.entry(m.topic.clone())
             .or_default()
             .push(Value::Object(row));
@@ -224,6 +271,40 @@ fn a_new_recording_decodes_in_foxgloves_protobuf_reader_value_for_value() {
     assert_eq!(py_counts, counts, "Python decoder vs etp replay summary");
     assert!(counts["measurement"] > 50, "{counts:?}");
     assert_eq!(counts["outcome"], 6);
+    // What a Foxglove user reads: codes and ids by name, arrays as long as
+    // the data.
+    let names = &py["names"];
+    let name_of = |topic: &str, path: &str| -> Vec<String> {
+        names[topic]
+            .as_array()
+            .expect("names")
+            .iter()
+            .map(|n| n[path].as_str().unwrap_or("(unnamed)").to_string())
+            .collect()
+    };
+    for o in name_of("outcome", "outcome") {
+        assert!(["TARGET", "COLLISION", "FREE"].contains(&o.as_str()), "{o}");
+    }
+    assert!(name_of("outcome", "header.sender").iter().all(|s| s == "AGENT"));
+    assert!(name_of("outcome", "dead_sensor").iter().all(|s| s == "NONE"));
+    assert!(name_of("control", "header.sender").iter().all(|s| s == "COORDINATOR"));
+    assert!(name_of("control", "kind").iter().all(|s| s == "START" || s == "STOP"));
+    let senders = name_of("measurement", "header.sender");
+    assert!(senders.iter().all(|s| s.starts_with("SENSOR_")), "{senders:?}");
+    for m in theirs["measurement"].iter().chain(&theirs["waypoint"]) {
+        let dim = m["dim"].as_u64().expect("dim");
+        assert!(dim < 6, "{m}");
+        for (array, len) in [("y", dim), ("mean", dim), ("cov", dim * dim)] {
+            if let Some(a) = m.get(array) {
+                assert_eq!(a.as_array().map(Vec::len), Some(len as usize), "{array}: {m}");
+            }
+        }
+    }
+    assert!(
+        theirs["slot"].iter().all(|m| m["delivered"].is_boolean()),
+        "slot.delivered is a bool"
+    );
+
     // Value for value, doubles bit for bit.
     let ours = sorted(ours);
     assert_same("mcap_protobuf (Python)", &ours, theirs);
@@ -254,71 +335,8 @@ fn a_new_recording_decodes_in_foxgloves_protobuf_reader_value_for_value() {
     forged.data.extend_from_slice(&[0xF8, 0x01, 0x07]);
     let e = forged.decode().expect_err("forged").to_string();
     assert!(e.contains("measurement") && e.contains("canonical"), "{e}");
+
+    // Every tool reads it, as it reads the older formats' fixtures.
+    super::mcap_tools_fixtures::every_tool_reads(&file, recording::FORMAT_VERSION, 6);
     let _ = std::fs::remove_file(&file);
-}
-
-/// `etp replay ARGS` (a command without `--json`) must succeed.
-fn etp_replay(args: &[&str]) {
-    let out = std::process::Command::new(etp_tests::bin_dir().join("etp"))
-        .arg("replay")
-        .args(args)
-        .output()
-        .expect("etp replay");
-    assert!(
-        out.status.success(),
-        "etp replay {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-fn fixture() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../recordings/fixtures/open-2d-4-episodes.mcap")
-}
-
-#[test]
-fn the_format_4_fixture_still_summarises_verifies_exports_and_repairs() {
-    let path = fixture();
-    let c = read_finished(&path);
-    assert_eq!(
-        c.meta(recording::META_RUN, "format_version"),
-        Some(recording::LEGACY_FORMAT_VERSION)
-    );
-    for (topic, e) in &c.encodings {
-        assert_eq!(e, recording::LEGACY_MESSAGE_ENCODING, "{topic}");
-    }
-    let p = path.display().to_string();
-    let summary = replay(&["summary", &p]);
-    assert_eq!(summary["counts"]["outcome"].as_u64(), Some(4));
-    let v = replay(&["verify", &p]);
-    assert_eq!(
-        v["verify"]["passed"].as_bool(),
-        Some(true),
-        "{}",
-        v["verify"]
-    );
-    assert_eq!(v["verify"]["episodes_checked"].as_u64(), Some(4));
-    let info = replay(&["info", &p]);
-    assert!(info["channels"].as_array().is_some_and(|a| !a.is_empty()));
-
-    let dir = std::env::temp_dir().join(format!("etp-test-{}-old", unique_run_id("fx")));
-    let out = dir.join("export");
-    std::fs::create_dir_all(&dir).expect("dir");
-    etp_replay(&["export", &p, &out.display().to_string()]);
-    let outcome = std::fs::read_to_string(out.join("outcome.csv")).expect("outcome.csv");
-    assert_eq!(outcome.lines().count(), 5, "{outcome}");
-
-    // A repaired copy keeps format 4 (its metadata says so) and verifies.
-    let copy = dir.join("copy.mcap");
-    etp_replay(&["repair", &p, &copy.display().to_string()]);
-    let cc = read_finished(&copy);
-    assert_eq!(cc.encodings, c.encodings);
-    assert_eq!(cc.messages.len(), c.messages.len());
-    let v = replay(&["verify", &copy.display().to_string()]);
-    assert_eq!(
-        v["verify"]["passed"].as_bool(),
-        Some(true),
-        "{}",
-        v["verify"]
-    );
-    let _ = std::fs::remove_dir_all(&dir);
 }
