@@ -133,10 +133,19 @@ fn cat_json_lines_are_mcap_cat_json_lines_message_for_message() {
         .find(|v| v["topic"] == "outcome")
         .expect("an outcome");
     assert!(first["data"]["header"]["run"].is_string(), "{first}");
-    assert!(first["data"]["header"]["sender"].is_u64(), "{first}");
+    // Format 6: codes and ids by their enum names, as `mcap cat --json` shows them.
+    assert_eq!(first["data"]["header"]["sender"], "AGENT", "{first}");
+    assert!(
+        matches!(
+            first["data"]["outcome"].as_str(),
+            Some("TARGET" | "COLLISION" | "FREE")
+        ),
+        "{first}"
+    );
+    assert!(first["data"]["dead_sensor"] == "NONE", "{first}");
 }
 
-/// A format-4 file's payloads as their format-5 protobuf message: the
+/// A format-4 file's payloads as their format-6 protobuf message: the
 /// same line shape, the values of the typed rows.
 #[test]
 fn cat_json_reads_a_format_4_file_as_its_protobuf_messages() {
