@@ -106,10 +106,7 @@ fn protobuf_json(m: &RawMessage) -> Result<String> {
     let mapping = encoding
         .proto_mapping()
         .unwrap_or(etp_runtime::recording::ProtoMapping::Typed);
-    let desc = payload
-        .kind()
-        .proto_descriptor_in(mapping)
-        .at_message(at)?;
+    let desc = payload.kind().proto_descriptor_in(mapping).at_message(at)?;
     let msg = DynamicMessage::decode(desc, bytes.as_slice()).at_message(at)?;
     let mut text = Vec::new();
     msg.serialize_with_options(

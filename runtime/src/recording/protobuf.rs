@@ -260,7 +260,9 @@ impl ser::SerializeStruct for StructSer {
         // The descriptor's form of a u32: an enum's number (the same 32
         // bits) or a flag's bool.
         let v = match (field.kind(), v) {
-            (PKind::Enum(_), Value::U32(x)) => Value::EnumNumber(i32::from_ne_bytes(x.to_ne_bytes())),
+            (PKind::Enum(_), Value::U32(x)) => {
+                Value::EnumNumber(i32::from_ne_bytes(x.to_ne_bytes()))
+            }
             (PKind::Bool, Value::U32(0)) => Value::Bool(false),
             (PKind::Bool, Value::U32(1)) => Value::Bool(true),
             (PKind::Bool, Value::U32(x)) => {

@@ -209,8 +209,8 @@ fn enum_of(named: Named) -> Option<(&'static str, Vec<(String, i32)>)> {
             .map(|(n, c)| (n.to_uppercase(), i32::from_ne_bytes(c.to_ne_bytes())))
             .collect();
         // proto3: an enum's first value is 0.
-        let unspecified = (!all.iter().any(|(_, c)| *c == 0))
-            .then(|| (format!("{prefix}_UNSPECIFIED"), 0));
+        let unspecified =
+            (!all.iter().any(|(_, c)| *c == 0)).then(|| (format!("{prefix}_UNSPECIFIED"), 0));
         unspecified.into_iter().chain(all).collect()
     }
     let sensors = || (0..NAMED_SENSORS).map(move |i| (format!("SENSOR_{i}"), number(i)));
@@ -220,21 +220,27 @@ fn enum_of(named: Named) -> Option<(&'static str, Vec<(String, i32)>)> {
             "ControlKind",
             codes(
                 "CONTROL_KIND",
-                ControlKind::ALL.iter().map(|k| (k.variant_name(), k.code())),
+                ControlKind::ALL
+                    .iter()
+                    .map(|k| (k.variant_name(), k.code())),
             ),
         ),
         Named::ThresholdKind => (
             "ThresholdKind",
             codes(
                 "THRESHOLD_KIND",
-                ThresholdKind::ALL.iter().map(|k| (k.variant_name(), k.code())),
+                ThresholdKind::ALL
+                    .iter()
+                    .map(|k| (k.variant_name(), k.code())),
             ),
         ),
         Named::Outcome => (
             "OutcomeCode",
             codes(
                 "OUTCOME",
-                OutcomeCode::ALL.iter().map(|k| (k.variant_name(), k.code())),
+                OutcomeCode::ALL
+                    .iter()
+                    .map(|k| (k.variant_name(), k.code())),
             ),
         ),
         Named::Sensor => ("Sensor", sensors().collect()),
@@ -292,11 +298,7 @@ impl Shape<'_> {
                 ..Default::default()
             };
             let path = format!("{prefix}{}", f.name);
-            let named = self
-                .named
-                .iter()
-                .find(|(p, _)| *p == path)
-                .map(|(_, n)| *n);
+            let named = self.named.iter().find(|(p, _)| *p == path).map(|(_, n)| *n);
             match (&f.value, named) {
                 (Format::TypeName(inner), _) => {
                     let nested_full = format!("{full}.{inner}");
@@ -474,6 +476,9 @@ mod tests {
                 );
             }
         }
-        assert_eq!(enum_values(Kind::Outcome, ProtoMapping::Plain, "outcome"), None);
+        assert_eq!(
+            enum_values(Kind::Outcome, ProtoMapping::Plain, "outcome"),
+            None
+        );
     }
 }

@@ -116,7 +116,10 @@ fn as_recorded(kind: Kind, payload: &Value) -> Value {
     }
     for (path, named) in HEADER_NAMES.iter().chain(kind.named_fields()) {
         if let Some(x) = v.pointer_mut(&format!("/{}", path.replace('.', "/"))) {
-            let code = x.as_u64().and_then(|c| u32::try_from(c).ok()).expect("a u32 code");
+            let code = x
+                .as_u64()
+                .and_then(|c| u32::try_from(c).ok())
+                .expect("a u32 code");
             *x = match named {
                 Named::Flag => Value::Bool(code == 1),
                 _ => Value::from(i32::from_ne_bytes(code.to_ne_bytes())),
@@ -285,18 +288,41 @@ fn a_new_recording_decodes_in_foxgloves_protobuf_reader_value_for_value() {
     for o in name_of("outcome", "outcome") {
         assert!(["TARGET", "COLLISION", "FREE"].contains(&o.as_str()), "{o}");
     }
-    assert!(name_of("outcome", "header.sender").iter().all(|s| s == "AGENT"));
-    assert!(name_of("outcome", "dead_sensor").iter().all(|s| s == "NONE"));
-    assert!(name_of("control", "header.sender").iter().all(|s| s == "COORDINATOR"));
-    assert!(name_of("control", "kind").iter().all(|s| s == "START" || s == "STOP"));
+    assert!(
+        name_of("outcome", "header.sender")
+            .iter()
+            .all(|s| s == "AGENT")
+    );
+    assert!(
+        name_of("outcome", "dead_sensor")
+            .iter()
+            .all(|s| s == "NONE")
+    );
+    assert!(
+        name_of("control", "header.sender")
+            .iter()
+            .all(|s| s == "COORDINATOR")
+    );
+    assert!(
+        name_of("control", "kind")
+            .iter()
+            .all(|s| s == "START" || s == "STOP")
+    );
     let senders = name_of("measurement", "header.sender");
-    assert!(senders.iter().all(|s| s.starts_with("SENSOR_")), "{senders:?}");
+    assert!(
+        senders.iter().all(|s| s.starts_with("SENSOR_")),
+        "{senders:?}"
+    );
     for m in theirs["measurement"].iter().chain(&theirs["waypoint"]) {
         let dim = m["dim"].as_u64().expect("dim");
         assert!(dim < 6, "{m}");
         for (array, len) in [("y", dim), ("mean", dim), ("cov", dim * dim)] {
             if let Some(a) = m.get(array) {
-                assert_eq!(a.as_array().map(Vec::len), Some(len as usize), "{array}: {m}");
+                assert_eq!(
+                    a.as_array().map(Vec::len),
+                    Some(len as usize),
+                    "{array}: {m}"
+                );
             }
         }
     }

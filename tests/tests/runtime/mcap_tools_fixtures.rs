@@ -106,7 +106,13 @@ pub(super) fn every_tool_reads(file: &Path, version: &str, episodes: u64) {
     assert_eq!(cc.messages.len(), c.messages.len());
     verifies(&copy, episodes);
     let cut = dir.join("cut.mcap");
-    etp_replay(&["filter", &p, &cut.display().to_string(), "--episodes", "0..1"]);
+    etp_replay(&[
+        "filter",
+        &p,
+        &cut.display().to_string(),
+        "--episodes",
+        "0..1",
+    ]);
     let fc = read_finished(&cut);
     assert_eq!(fc.etp_encodings, c.etp_encodings);
     verifies(&cut, 1);

@@ -4,7 +4,8 @@
 use super::super::*;
 use super::header;
 use crate::wire::{
-    Header, SENDER_AGENT, agent_to_coordinator as a2c, agent_to_sensor as a2s, sensor_to_agent as s2a,
+    Header, SENDER_AGENT, agent_to_coordinator as a2c, agent_to_sensor as a2s,
+    sensor_to_agent as s2a,
 };
 
 const TYPED: ProtoMapping = ProtoMapping::Typed;
