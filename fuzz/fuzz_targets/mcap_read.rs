@@ -12,9 +12,14 @@ fuzz_target!(|data: &[u8]| {
     };
     for m in &c.messages {
         let _ = m.decode();
-        // Both encodings, whatever the channel says.
-        let _ = recording::Encoding::Protobuf.decode(&m.topic, &m.data);
-        let _ = recording::Encoding::Bincode.decode(&m.topic, &m.data);
+        // Every encoding, whatever the channel says.
+        for e in [
+            recording::Encoding::Protobuf,
+            recording::Encoding::Protobuf5,
+            recording::Encoding::Bincode,
+        ] {
+            let _ = e.decode(&m.topic, &m.data);
+        }
     }
     let _ = c.counts();
     let _ = recording::verify(&c);
