@@ -32,7 +32,7 @@
 //!   run with channel changes).
 //! * `log_time`/`publish_time`: ns since the Unix epoch when the recorder took
 //!   the sample; `sequence`: per-channel count. (The sender's own time is
-//!   not carried: see `recordings/README.md`, "Times".)
+//!   not carried: `recordings/README.md`, "times", says why.)
 
 use crate::wire::ServiceId;
 #[cfg(test)]
