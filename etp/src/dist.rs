@@ -4,14 +4,17 @@
 //!
 //! * [`start`] initialises MPI when the process was launched by a job
 //!   launcher (Open MPI's `OMPI_COMM_WORLD_SIZE`, PMI's `PMI_SIZE`, PMIx's
-//!   `PMIX_RANK`), and sets the executor every command hands to the
-//!   libraries' Monte Carlo through `etp_pipeline::exec::work`.
+//!   `PMIX_RANK`), and returns the executor every command hands to the
+//!   libraries: `etp_synthesis::exec::Executor` on this process's threads,
+//!   its units shared out over MPI's world (a `Ranks` transport).
 //! * Rank 0 alone writes files (`etp_pipeline::output` skips the others), prints to
 //!   stdout and draws progress; the other ranks compute the same things
 //!   and exchange their share of the segments and episodes.
 //! * [`finish`] ends the job: a normal end (exit code 0, or a command's own
 //!   documented code) finalises MPI; an error aborts the whole job
 //!   (`MPI_Abort`), so no rank waits forever for one that gave up.
+
+use etp_synthesis::exec::Executor;
 
 #[cfg(feature = "mpi")]
 #[path = "dist/mpi_exec.rs"]
@@ -30,23 +33,27 @@ pub struct Session {
     inner: Option<mpi_exec::Session>,
 }
 
-/// Start MPI if this process is one rank of a job (and the feature is on).
-pub fn start() -> anyhow::Result<Session> {
+/// Start MPI if this process is one rank of a job (and the feature is on):
+/// the session and the executor of every command (this process's threads
+/// on rayon's global pool, `RAYON_NUM_THREADS`; alone, or one rank of the
+/// job).
+pub fn start() -> anyhow::Result<(Session, Executor)> {
+    let threads = Executor::LOCAL;
     #[cfg(feature = "mpi")]
     {
         if !launched_by_mpi() {
-            return Ok(Session { inner: None });
+            return Ok((Session { inner: None }, threads));
         }
-        use etp_synthesis::exec::Executor;
-        let (session, exec) = mpi_exec::start()?;
-        if exec.rank() != 0 {
+        let (session, world) = mpi_exec::start()?;
+        if world.rank != 0 {
             mpi_exec::silence_stdout()?;
         }
-        // Set once, at start: `start` is called once, before any command.
-        etp_pipeline::exec::install(Box::new(exec)).map_err(anyhow::Error::msg)?;
-        Ok(Session {
-            inner: Some(session),
-        })
+        Ok((
+            Session {
+                inner: Some(session),
+            },
+            threads.on_ranks(std::sync::Arc::new(world)),
+        ))
     }
     #[cfg(not(feature = "mpi"))]
     {
@@ -55,7 +62,7 @@ pub fn start() -> anyhow::Result<Session> {
                 "launched by an MPI launcher, but etp was built without `--features mpi`"
             );
         }
-        Ok(Session {})
+        Ok((Session {}, threads))
     }
 }
 

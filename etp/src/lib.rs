@@ -3,14 +3,15 @@
 //! * [`cli`] — the clap definition of every subcommand (one place to read the
 //!   whole interface).
 //! * [`cmd`] — one module per subcommand, none importing another; each exposes
-//!   `run(args) -> anyhow::Result<()>`.
+//!   `run(args) -> anyhow::Result<()>` (with the executor, for a command
+//!   that computes).
 //! * [`input`] — resolving a `SCENARIO` argument (built-in name or path)
 //!   and its options; [`scenario_flags`] — those options' flags (radio,
 //!   trigger family).
 //! * [`prediction_args`] — how a strategy is predicted and how many rounds
 //!   the request loop runs: the options of every command that predicts.
 //! * [`dist`] — the ranks of an MPI job (feature `mpi`): MPI started and
-//!   its executor installed into `etp_pipeline::exec`; rank 0 writes.
+//!   the executor every command is handed built on its world; rank 0 writes.
 //! * [`report`] — a simulation summary's tables.
 //! * [`study`] — `etp study`: a SPEC's cases, resumable, scheduled across
 //!   MPI ranks; its tables.
@@ -45,6 +46,7 @@ pub mod values;
 use std::process::ExitCode;
 
 use etp_runtime::shell::ExitWith;
+use etp_synthesis::exec::Executor;
 
 /// Run a parsed command line; print any error chain to stderr.
 pub fn run(cli: cli::Cli) -> ExitCode {
@@ -53,21 +55,21 @@ pub fn run(cli: cli::Cli) -> ExitCode {
         return cmd::process::run(a);
     }
     init_tracing();
-    let session = match dist::start() {
+    let (session, exec) = match dist::start() {
         Ok(s) => s,
         Err(e) => {
             eprintln!("error: starting MPI: {e:#}");
             return ExitCode::FAILURE;
         }
     };
-    let (code, failed) = run_command(cli.command);
+    let (code, failed) = run_command(cli.command, &exec);
     dist::finish(session, code, failed)
 }
 
 /// Dispatch one subcommand: its exit code, and whether it failed (an
 /// error, as opposed to a command's own documented exit code).
-fn run_command(command: cli::Command) -> (u8, bool) {
-    let ranks = etp_pipeline::exec::job().ranks();
+fn run_command(command: cli::Command, exec: &Executor) -> (u8, bool) {
+    let ranks = exec.ranks();
     let shared = matches!(
         command,
         cli::Command::Synthesize(_)
@@ -82,24 +84,21 @@ fn run_command(command: cli::Command) -> (u8, bool) {
              (synthesize, strategy, validate, simulate and study share their work across ranks)"
         ))
     } else {
-        cmd::dispatch(command)
+        cmd::dispatch(command, exec)
     };
     match result {
         Ok(()) => (0, false),
         Err(e) => match exit_with(&e) {
             Some(x) => {
                 // Every rank reached the same outcome: rank 0 says it.
-                if etp_pipeline::exec::is_root() {
+                if exec.is_root() {
                     eprintln!("{}", x.message);
                 }
                 (x.code, false)
             }
             None => {
                 if ranks > 1 {
-                    eprintln!(
-                        "error (rank {} of {ranks}): {e:#}",
-                        etp_pipeline::exec::job().rank()
-                    );
+                    eprintln!("error (rank {} of {ranks}): {e:#}", exec.rank());
                 } else {
                     eprintln!("error: {e:#}");
                 }

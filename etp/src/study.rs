@@ -14,7 +14,7 @@
 //!   with enough jobs left ([`hand_out`]), whole jobs are handed to ranks
 //!   (largest first, each to the least loaded rank: a deterministic
 //!   schedule), each rank doing its own on its threads
-//!   ([`etp_pipeline::exec::alone`]) and writing its cases' files (the study folder
+//!   (`Executor::alone`) and writing its cases' files (the study folder
 //!   must be shared by the ranks, as on a cluster's file system); with
 //!   fewer, every rank works on each job in turn, its Monte Carlo shared out
 //!   as in `etp synthesize`. At the end the ranks' rows are gathered and
@@ -30,6 +30,7 @@ pub mod spec;
 pub mod table;
 
 use anyhow::{Context, Result, bail};
+use etp_synthesis::exec::Executor;
 use serde::{Deserialize, Serialize};
 use spec::Spec;
 use std::path::{Path, PathBuf};
@@ -238,9 +239,9 @@ pub fn folder(spec: &Spec, out: Option<&Path>) -> PathBuf {
         .unwrap_or_else(|| Path::new("out").join(format!("study-{}", spec.name)))
 }
 
-/// Refuse a DIR that holds another SPEC's study; otherwise (rank 0)
-/// record this one.
-pub fn claim(spec: &Spec, dir: &Path) -> Result<()> {
+/// Refuse a DIR that holds another SPEC's study; otherwise (rank 0 of
+/// `exec`) record this one.
+pub fn claim(spec: &Spec, dir: &Path, exec: &Executor) -> Result<()> {
     let path = dir.join("spec.json");
     let mine = spec.canonical()?;
     match std::fs::read_to_string(&path) {
@@ -253,6 +254,7 @@ pub fn claim(spec: &Spec, dir: &Path) -> Result<()> {
             renamed_hint(&theirs, &spec.name)
         ),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(etp_pipeline::output::write_new(
+            exec,
             &path,
             mine.as_bytes(),
             false,

@@ -6,26 +6,28 @@
 use crate::progress;
 use etp_shared::scenario::Scenario;
 use etp_synthesis::abstraction::aggregation::{self, AggregationReport};
+use etp_synthesis::exec::Executor;
 use etp_synthesis::mdp::Mdp;
 use std::fmt::Write;
 
 /// Flags listed in the text report (all of them are in `--json`).
 const SHOWN: usize = 12;
 
-/// Run the check on the job's ranks (`None` when `episodes` is 0 or the MDP has no regions).
+/// Run the check on `exec` (`None` when `episodes` is 0 or the MDP has no regions).
 pub fn measure(
     scenario: &Scenario,
     mdp: &Mdp,
     episodes: u64,
     alpha: f64,
     json: bool,
+    exec: &Executor,
 ) -> crate::error::Result<Option<(AggregationReport, f64)>> {
     if episodes == 0 {
         return Ok(None);
     }
-    let pb = progress::bar(episodes, "aggregation check", json);
+    let pb = progress::bar(exec, episodes, "aggregation check", json);
     let started = std::time::Instant::now();
-    let work = crate::exec::work(|k| pb.inc(k));
+    let work = exec.work(|k| pb.inc(k));
     let r = aggregation::measure(scenario, mdp, episodes, mdp.seed, alpha, &work)?;
     pb.finish_and_clear();
     Ok(r.map(|r| (r, started.elapsed().as_secs_f64())))

@@ -5,6 +5,7 @@ use crate::error::{Context, Result};
 use crate::output::write_new;
 use etp_shared::radio::Radio;
 use etp_synthesis::certify::front::{FRONT_CONFIDENCE, certified_front};
+use etp_synthesis::exec::Executor;
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::{ParetoFront, compute_front};
 use std::path::{Path, PathBuf};
@@ -29,6 +30,7 @@ pub fn write_front(
     scenario_text: &str,
     radio: Option<&Radio>,
     force: bool,
+    exec: &Executor,
 ) -> Result<FrontReport> {
     let start = Instant::now();
     let mut front =
@@ -44,11 +46,11 @@ pub fn write_front(
         front.kf_convergence = Some(Box::new(f1));
     }
     let json_path = dir.join("front.json");
-    write_new(&json_path, front.to_json().as_bytes(), force)?;
+    write_new(exec, &json_path, front.to_json().as_bytes(), force)?;
     let scenario_path = dir.join("scenario.toml");
-    write_new(&scenario_path, scenario_text.as_bytes(), true)?;
+    write_new(exec, &scenario_path, scenario_text.as_bytes(), true)?;
     let stem = dir.join("front");
-    if crate::exec::is_root() {
+    if exec.is_root() {
         etp_figures::front_plot(&front, &stem)?;
     }
     Ok(FrontReport {

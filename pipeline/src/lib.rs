@@ -17,18 +17,22 @@
 //!   the aggregation check, the checks against a simulation.
 //! * [`validation`] — `etp validate`'s JSON and failed checks.
 //! * [`output`] — files written beside and renamed, never over one unasked.
-//! * [`exec`] — the executor the Monte Carlo runs on (threads, or MPI ranks
-//!   `etp` installs); [`progress`] — the steps' bars, and the bar under way
-//!   for a caller that draws progress itself.
+//! * [`progress`] — the steps' bars, and the bar under way for a caller
+//!   that draws progress itself.
+//!
+//! Every step runs its Monte Carlo on the executor it is handed
+//! (`etp_synthesis::exec::Executor`: a thread pool and, under `etp`'s MPI
+//! feature, the ranks of a job), held by its typed request ([`mdp_build::MdpRequest`],
+//! [`synthesis_dir::Synthesis`]) or passed in; rank 0 alone writes files
+//! and draws progress. No step keeps an executor in a global.
 //!
 //! The maths is in `etp-shared` and `etp-synthesis` (pure: no I/O, no
-//! clock); this crate adds files, progress and the executor. Errors are
+//! clock); this crate adds files and progress. Errors are
 //! [`error::Error`], one variant per kind of failure; with its causes
 //! joined by `: ` its text is what `etp` prints after `error:`.
 
 pub mod aggregation;
 pub mod error;
-pub mod exec;
 pub mod front;
 pub mod mdp_build;
 pub mod output;

@@ -13,6 +13,7 @@ use crate::progress;
 use etp_shared::scenario::Scenario;
 use etp_synthesis::abstraction::split::SplitSettings;
 use etp_synthesis::abstraction::{self, AbstractionParams};
+use etp_synthesis::exec::Executor;
 use etp_synthesis::mdp::{MDP_FILE, Mdp};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -38,6 +39,8 @@ pub struct MdpRequest {
     pub all_actions: bool,
     /// No progress bar (`--json`).
     pub quiet: bool,
+    /// Where the Monte Carlo runs (threads and ranks); rank 0 writes.
+    pub exec: Executor,
 }
 
 impl MdpRequest {
@@ -58,6 +61,7 @@ impl MdpRequest {
             pool_policy: None,
             all_actions: false,
             quiet: false,
+            exec: Executor::LOCAL,
         }
     }
 }
@@ -124,11 +128,12 @@ pub fn build_mdp(r: MdpRequest) -> Result<BuiltMdp> {
         pool_policy,
         all_actions,
         quiet,
+        exec,
     } = r;
     let dir = out.unwrap_or_else(|| Path::new("out").join(&s.name));
     let path = dir.join(MDP_FILE);
     etp_files::write::output_folder(&dir)?;
-    crate::output::refuse_existing(&path, force)?;
+    crate::output::refuse_existing(&exec, &path, force)?;
     if let Some(alpha) = merge
         && !(alpha > 0.0 && alpha < 1.0)
     {
@@ -155,17 +160,22 @@ pub fn build_mdp(r: MdpRequest) -> Result<BuiltMdp> {
             Some(st)
         }
     };
-    let pb = progress::bar(abstraction::progress_total(&s, &p), "synthesize", quiet);
+    let pb = progress::bar(
+        &exec,
+        abstraction::progress_total(&s, &p),
+        "synthesize",
+        quiet,
+    );
     let started = Instant::now();
     let mdp = match &pool_policy {
-        None => abstraction::build(&s, &p, &crate::exec::work(|k| pb.inc(k))),
+        None => abstraction::build(&s, &p, &exec.work(|k| pb.inc(k))),
         Some(st) => abstraction::build_on_policy(
             &s,
             &p,
             &st.policy,
             true,
             !all_actions,
-            &crate::exec::work(|k| pb.inc(k)),
+            &exec.work(|k| pb.inc(k)),
         ),
     }
     .computing("building the abstraction")?;
@@ -173,7 +183,7 @@ pub fn build_mdp(r: MdpRequest) -> Result<BuiltMdp> {
     mdp.check()
         .computing("the built MDP failed its own consistency check (a bug)")?;
     let first_seconds = started.elapsed().as_secs_f64();
-    let (mdp, split) = split::apply(&s, &p, mdp, first_seconds, &split, quiet)?;
+    let (mdp, split) = split::apply(&s, &p, mdp, first_seconds, &split, quiet, &exec)?;
     let (mdp, merge) = match merge {
         None => (mdp, None),
         Some(alpha) => {
@@ -191,7 +201,7 @@ pub fn build_mdp(r: MdpRequest) -> Result<BuiltMdp> {
     };
     let seconds = started.elapsed().as_secs_f64();
     // Checked above; `force` here only covers a file that appeared meanwhile.
-    write_new(&path, &mdp.encode(), force)?;
+    write_new(&exec, &path, &mdp.encode(), force)?;
     let arrivals = arrivals_summary(&mdp);
     let report = MdpReport {
         scenario: s.name.clone(),
@@ -213,7 +223,7 @@ pub fn build_mdp(r: MdpRequest) -> Result<BuiltMdp> {
         segment_steps: mdp.total_steps,
         seconds,
         segment_steps_per_second: mdp.total_steps as f64 / seconds.max(1e-9),
-        threads: rayon::current_num_threads(),
+        threads: exec.threads(),
     };
     Ok(BuiltMdp {
         scenario: s,

@@ -1,24 +1,25 @@
 //! Files on disk: refusing to overwrite, reading the synthesis directory.
 
 use crate::error::{Context, Error, Result, Words};
+use etp_synthesis::exec::Executor;
 use etp_synthesis::mdp::{MDP_FILE, Mdp};
 use etp_synthesis::pareto::{ParetoFront, compute_front};
 use std::path::Path;
 
-/// [`etp_files::write::refuse_existing`] on rank 0 only: in an
+/// [`etp_files::write::refuse_existing`] on `exec`'s rank 0 only: in an
 /// MPI job rank 0 may already have written the file another rank checks.
-pub fn refuse_existing(path: &Path, force: bool) -> Result<()> {
-    if !crate::exec::is_root() {
+pub fn refuse_existing(exec: &Executor, path: &Path, force: bool) -> Result<()> {
+    if !exec.is_root() {
         return Ok(());
     }
     Ok(etp_files::write::refuse_existing(path, force)?)
 }
 
-/// [`etp_files::write::write_new`] (beside, then renamed) on
+/// [`etp_files::write::write_new`] (beside, then renamed) on `exec`'s
 /// rank 0 only: in an MPI job the other ranks hold the same bytes and write
 /// nothing.
-pub fn write_new(path: &Path, bytes: &[u8], force: bool) -> Result<()> {
-    if !crate::exec::is_root() {
+pub fn write_new(exec: &Executor, path: &Path, bytes: &[u8], force: bool) -> Result<()> {
+    if !exec.is_root() {
         return Ok(());
     }
     Ok(etp_files::write::write_new(path, bytes, force)?)

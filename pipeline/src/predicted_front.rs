@@ -43,12 +43,12 @@ pub fn compute(
     quiet: bool,
     each: &dyn Fn(Option<f64>, &PredictedPoint),
 ) -> Result<Vec<PredictedFront>> {
-    if crate::exec::is_root() {
+    if syn.exec.is_root() {
         output_folder(&syn.dir.join(STRATEGIES))?;
     }
     let params = abstraction::params_of(&syn.mdp);
     let units = rebuild::progress_units(&syn.scenario, &params);
-    let pb = crate::progress::bar(0, "predicted front: rebuilds", quiet);
+    let pb = crate::progress::bar(&syn.exec, 0, "predicted front: rebuilds", quiet);
     let mut curves = Vec::new();
     let level = s.confidence.unwrap_or(DEFAULT_LEVEL);
     for &bound in bounds {
@@ -80,7 +80,7 @@ pub fn compute(
             level,
             &|goal, omega, value| syn.strategy_of(&syn.mdp, omega, value, &goal_label(goal, None)),
             &|n| pb.inc_length(u64::from(n) * units),
-            &crate::exec::work(|u| pb.inc(u)),
+            &syn.exec.work(|u| pb.inc(u)),
             &mut |_, outcome, p| {
                 if written.is_ok() {
                     written = standing_strategy(
@@ -94,6 +94,7 @@ pub fn compute(
                     )
                     .and_then(|(strategy, _)| {
                         write_new(
+                            &syn.exec,
                             &strategy_file(&syn.dir, bound, k),
                             strategy.to_json().as_bytes(),
                             true,
@@ -164,9 +165,9 @@ pub fn store(syn: &mut Synthesis, curves: Vec<PredictedFront>) -> Result<Vec<Pat
             .total_cmp(&b.max_collision.unwrap_or(2.0))
     });
     let path = syn.dir.join("front.json");
-    write_new(&path, syn.front.to_json().as_bytes(), true)?;
+    write_new(&syn.exec, &path, syn.front.to_json().as_bytes(), true)?;
     let stem = syn.dir.join("front");
-    if crate::exec::is_root() {
+    if syn.exec.is_root() {
         etp_figures::front_plot(&syn.front, &stem)?;
     }
     Ok(vec![

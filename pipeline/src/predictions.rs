@@ -12,6 +12,7 @@ use etp_shared::stats::verdict::{Check, Family, Measured, Outcomes, prediction_c
 use etp_shared::strategy::{
     AggregationCheck, CertifiedPrediction, Prediction, PredictionCi95, SimulatedValue, Strategy,
 };
+use etp_synthesis::exec::Executor;
 use etp_synthesis::simulate::SimulationSummary;
 use serde_json::{Value, json};
 
@@ -59,18 +60,19 @@ pub fn aggregation_check(
     strategy: &Strategy,
     episodes: u64,
     quiet: bool,
+    exec: &Executor,
 ) -> Result<Option<AggregationCheck>> {
     let scenario = strategy
         .policy
         .scenario()
         .in_strategy("the aggregation check needs the strategy's scenario")?;
-    let pb = progress::bar(episodes, "aggregation check", quiet);
+    let pb = progress::bar(exec, episodes, "aggregation check", quiet);
     let sum = etp_synthesis::validate::simulate_strategy(
         &scenario,
         &strategy.policy,
         episodes,
         AGGREGATION_CHECK_SEED,
-        &crate::exec::work(|k| pb.inc(k)),
+        &exec.work(|k| pb.inc(k)),
     )?
     .summary();
     pb.finish_and_clear();

@@ -9,6 +9,7 @@
 
 pub use etp_runtime::progress::*;
 
+use etp_synthesis::exec::Executor;
 use indicatif::ProgressBar;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -17,10 +18,10 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 static WATCHERS: AtomicUsize = AtomicUsize::new(0);
 static CURRENT: Mutex<Option<ProgressBar>> = Mutex::new(None);
 
-/// [`etp_runtime::progress::bar`], quiet on every rank but 0; the step
-/// under way for [`current`] while someone [`watch`]es.
-pub fn bar(len: u64, message: &str, quiet: bool) -> ProgressBar {
-    let pb = etp_runtime::progress::bar(len, message, quiet || !crate::exec::is_root());
+/// [`etp_runtime::progress::bar`], quiet on every rank of `exec` but 0;
+/// the step under way for [`current`] while someone [`watch`]es.
+pub fn bar(exec: &Executor, len: u64, message: &str, quiet: bool) -> ProgressBar {
+    let pb = etp_runtime::progress::bar(len, message, quiet || !exec.is_root());
     if WATCHERS.load(Ordering::SeqCst) > 0
         && let Ok(mut c) = CURRENT.lock()
     {

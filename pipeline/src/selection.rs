@@ -121,7 +121,7 @@ pub fn standing_strategy(
     }
     if aggregation_check > 0 {
         strategy.predictions.aggregation =
-            predictions::aggregation_check(&strategy, aggregation_check, quiet)?;
+            predictions::aggregation_check(&strategy, aggregation_check, quiet, &syn.exec)?;
     }
     Ok((strategy, unmatched))
 }
@@ -171,7 +171,7 @@ pub fn meet_goal(
     let make = |omega: &RandomisedPolicy, value: etp_synthesis::pareto::policy::Objectives| {
         syn.strategy_of(&syn.mdp, omega, value, &label)
     };
-    let pb = crate::progress::bar(0, "rebuilds", quiet);
+    let pb = crate::progress::bar(&syn.exec, 0, "rebuilds", quiet);
     let outcome = syn.meet(
         &syn.mdp,
         goal,

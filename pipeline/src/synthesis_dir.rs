@@ -10,6 +10,7 @@ use etp_shared::strategy::Strategy;
 use etp_shared::trigger::TriggerFamily;
 use etp_synthesis::abstraction;
 use etp_synthesis::certify::robust::Certified;
+use etp_synthesis::exec::Executor;
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::ParetoFront;
 use etp_synthesis::pareto::policy::{Objectives, RandomisedPolicy};
@@ -28,10 +29,12 @@ pub struct Synthesis {
     /// The scenario under the synthesis's channel (what the rebuilds simulate).
     pub scenario: Scenario,
     pub output: PathBuf,
+    /// Where the rebuilds run (threads and ranks); rank 0 writes.
+    pub exec: Executor,
 }
 
 impl Synthesis {
-    pub fn load(dir: &Path, output: Option<&Path>) -> Result<Self> {
+    pub fn load(dir: &Path, output: Option<&Path>, exec: &Executor) -> Result<Self> {
         let (mdp, scenario_text) = read_mdp(dir)?;
         if mdp.policy_only() {
             return Err(Error::synthesis(format!(
@@ -43,7 +46,7 @@ impl Synthesis {
             )));
         }
         let front = read_front(dir, &mdp)?;
-        Self::from_parts(dir, mdp, scenario_text, front, output)
+        Self::from_parts(dir, mdp, scenario_text, front, output, exec)
     }
 
     /// A synthesis from its parts (read from DIR, or just built): its
@@ -55,6 +58,7 @@ impl Synthesis {
         scenario_text: Option<String>,
         front: ParetoFront,
         output: Option<&Path>,
+        exec: &Executor,
     ) -> Result<Self> {
         let mut scenario = match &scenario_text {
             Some(t) => Scenario::from_toml(t).in_scenario("parsing DIR/scenario.toml")?,
@@ -88,6 +92,7 @@ impl Synthesis {
             front,
             scenario,
             output,
+            exec: exec.clone(),
         })
     }
 
@@ -129,7 +134,7 @@ impl Synthesis {
             replicates,
             self.cost(),
             Vec::new(),
-            &crate::exec::work(|k| pb.inc(k)),
+            &self.exec.work(|k| pb.inc(k)),
         )?;
         let certified = on_policy.certify_first(level, self.cost())?;
         Ok((on_policy, certified))
@@ -160,7 +165,7 @@ impl Synthesis {
             level,
             make,
             &|n| pb.inc_length(u64::from(n) * units),
-            &crate::exec::work(|k| pb.inc(k)),
+            &self.exec.work(|k| pb.inc(k)),
         )?)
     }
 }

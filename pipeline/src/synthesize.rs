@@ -121,7 +121,7 @@ pub fn synthesize(r: SynthesisRequest) -> Result<Synthesized> {
     let dir = r.dir();
     let front_path = dir.join("front.json");
     output_folder(&dir)?;
-    refuse_existing(&front_path, r.mdp.force)?;
+    refuse_existing(&r.mdp.exec, &front_path, r.mdp.force)?;
     if !(r.aggregation_alpha > 0.0 && r.aggregation_alpha < 1.0) {
         return Err(Error::request(format!(
             "--aggregation-alpha must lie in (0, 1) (got {})",
@@ -133,6 +133,7 @@ pub fn synthesize(r: SynthesisRequest) -> Result<Synthesized> {
     let params = r.mdp.params;
     let quiet = r.mdp.quiet;
     let force = r.mdp.force;
+    let exec = r.mdp.exec.clone();
     let built = build_mdp(r.mdp)?;
     // Method 1 as a baseline beside Method 2 (cheap: one state per decision point).
     let method1 = if params.method == Method::Discretized && r.kf_baseline {
@@ -141,9 +142,14 @@ pub fn synthesize(r: SynthesisRequest) -> Result<Synthesized> {
         p.kf = Some(default_kf_params(&built.scenario));
         // The baseline is only drawn; it needs no cross-fitting.
         p.holdout_samples = 0;
-        let m1 = abstraction::build(&built.scenario, &p, &crate::exec::work(|_| {}))
+        let m1 = abstraction::build(&built.scenario, &p, &exec.work(|_| {}))
             .computing("building the Method 1 baseline")?;
-        write_new(&dir.join("mdp-kf-convergence.bin"), &m1.encode(), true)?;
+        write_new(
+            &exec,
+            &dir.join("mdp-kf-convergence.bin"),
+            &m1.encode(),
+            true,
+        )?;
         Some(m1)
     } else {
         None
@@ -157,10 +163,11 @@ pub fn synthesize(r: SynthesisRequest) -> Result<Synthesized> {
         &r.text,
         radio,
         force,
+        &exec,
     )?;
     // Only now that the new front is written: what was derived from the
     // old MDP would sit beside it as if derived from the new one.
-    let stale = if replaced && crate::exec::is_root() {
+    let stale = if replaced && exec.is_root() {
         set_aside_stale(&built.dir)?
     } else {
         None
@@ -171,6 +178,7 @@ pub fn synthesize(r: SynthesisRequest) -> Result<Synthesized> {
         r.aggregation_episodes,
         r.aggregation_alpha,
         quiet,
+        &exec,
     )?;
     Ok(Synthesized {
         built,

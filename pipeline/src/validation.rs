@@ -4,6 +4,7 @@
 
 use crate::predictions::{self, checks};
 use etp_shared::strategy::Strategy;
+use etp_synthesis::exec::Executor;
 use etp_synthesis::report::summary_json;
 use etp_synthesis::simulate::SimulationSummary;
 use serde_json::json;
@@ -20,6 +21,7 @@ pub fn plot_map(
     episodes: u64,
     seed: u64,
     force: bool,
+    exec: &Executor,
 ) -> crate::error::Result<Vec<PathBuf>> {
     let stem = strategy_path.with_extension("").with_file_name(format!(
         "{}-map",
@@ -28,7 +30,7 @@ pub fn plot_map(
             .and_then(|s| s.to_str())
             .unwrap_or("strategy")
     ));
-    plot_map_to(scenario, strategy, &stem, episodes, seed, force)
+    plot_map_to(scenario, strategy, &stem, episodes, seed, force, exec)
 }
 
 /// [`plot_map`] to `STEM.png` and `STEM.svg` (`etp validate --plot -o STEM`).
@@ -39,15 +41,16 @@ pub fn plot_map_to(
     episodes: u64,
     seed: u64,
     force: bool,
+    exec: &Executor,
 ) -> crate::error::Result<Vec<PathBuf>> {
     let stem = stem.to_path_buf();
     let paths = vec![stem.with_extension("png"), stem.with_extension("svg")];
     for p in &paths {
-        crate::output::refuse_existing(p, force)?;
+        crate::output::refuse_existing(exec, p, force)?;
     }
     let tr =
         etp_synthesis::validate::sample_trajectories(scenario, &strategy.policy, episodes, seed);
-    if crate::exec::is_root() {
+    if exec.is_root() {
         etp_figures::map_plot(scenario, &tr, &stem)?;
     }
     Ok(paths)

@@ -16,6 +16,7 @@ use etp_pipeline::synthesize::{SynthesisRequest, synthesize as synthesize_dir};
 use etp_pipeline::validation::{comparison_json, failed_checks, plot_map};
 use etp_shared::scenario::Scenario;
 use etp_shared::trigger::TriggerFamily;
+use etp_synthesis::exec::Executor;
 use etp_synthesis::predict::request::Goal;
 use etp_synthesis::validate::simulate_strategy;
 use pyo3::prelude::*;
@@ -212,11 +213,12 @@ pub fn select_strategy(
         aggregation_check,
     };
     let work = move || -> etp_pipeline::error::Result<(String, String, usize)> {
-        let syn = Synthesis::load(&dir, output.as_deref())?;
-        etp_pipeline::output::refuse_existing(&syn.output, force)?;
+        let exec = Executor::LOCAL;
+        let syn = Synthesis::load(&dir, output.as_deref(), &exec)?;
+        etp_pipeline::output::refuse_existing(&exec, &syn.output, force)?;
         let (outcome, strategy, _) = meet_goal(&syn, goal, &settings, true)?;
         let text = strategy.to_json();
-        etp_pipeline::output::write_new(&syn.output, text.as_bytes(), force)?;
+        etp_pipeline::output::write_new(&exec, &syn.output, text.as_bytes(), force)?;
         Ok((
             text,
             outcome.verdict.name().to_string(),
@@ -260,17 +262,19 @@ pub fn validate(
                 .and_then(|s| s.to_str())
                 .unwrap_or("strategy");
             let p = path.with_file_name(format!("{stem}-map.{ext}"));
-            etp_pipeline::output::refuse_existing(&p, force).map_err(pipeline_error)?;
+            etp_pipeline::output::refuse_existing(&Executor::LOCAL, &p, force)
+                .map_err(pipeline_error)?;
         }
     }
     let work = || {
-        let pb = etp_pipeline::progress::bar(episodes, "validate", true);
+        let exec = Executor::LOCAL;
+        let pb = etp_pipeline::progress::bar(&exec, episodes, "validate", true);
         let r = simulate_strategy(
             &scenario,
             &strategy.policy,
             episodes,
             seed,
-            &etp_pipeline::exec::work(|k| pb.inc(k)),
+            &exec.work(|k| pb.inc(k)),
         );
         pb.finish_and_clear();
         r
@@ -286,7 +290,17 @@ pub fn validate(
         .collect();
     let plots = match plot_episodes {
         Some(n) => py
-            .detach(|| plot_map(&scenario, &strategy, &path, n, seed, force))
+            .detach(|| {
+                plot_map(
+                    &scenario,
+                    &strategy,
+                    &path,
+                    n,
+                    seed,
+                    force,
+                    &Executor::LOCAL,
+                )
+            })
             .map_err(pipeline_error)?,
         None => Vec::new(),
     };

@@ -1,28 +1,33 @@
-//! Where the units of a Monte Carlo computation run: the threads of this
-//! process, or the ranks of a job (MPI, in the `etp` binary behind its `mpi`
-//! feature; this crate knows only the [`Executor`] trait and stays pure).
+//! How parallel work runs: the one [`Executor`] of a computation — the
+//! threads of this process (a rayon pool of a chosen size, or rayon's
+//! global pool) and the ranks of a job (MPI, in the `etp` binary behind its
+//! `mpi` feature; this crate knows only the [`Ranks`] trait and stays pure).
+//! An executor is a value, passed in or held by a typed request: no library
+//! keeps one in a global.
 //!
-//! A computation hands its `n` units to [`map`]: with one rank they are
-//! simulated on this process's threads, exactly as before; with R ranks,
-//! rank r simulates the contiguous slice [`slice()`]`(n, r, R)` (on its
-//! threads), encodes its results (bincode, exact for `f64`) and the executor
-//! all-gathers the bytes, so every rank decodes the same `n` results in unit
-//! order and continues identically. Every unit draws its randomness from its
-//! own keyed stream, so the results are the same bits for any number of
-//! ranks and threads.
+//! A computation hands its `n` units to [`map`], which runs them on the
+//! executor's pool: with one rank they are simulated on this process's
+//! threads; with R ranks, rank r simulates the contiguous slice
+//! [`slice()`]`(n, r, R)` (on its threads), encodes its results (bincode,
+//! exact for `f64`) and the ranks all-gather the bytes, so every rank
+//! decodes the same `n` results in unit order and continues identically.
+//! Every unit draws its randomness from its own keyed stream and results are
+//! kept in unit order, so they are the same bits for any number of ranks
+//! and threads.
 //!
 //! The executor reaches the engines through the progress argument they
 //! already take ([`Work`]): a plain `&|k| …` closure is a [`Work`] on
-//! [`Local`], and [`On`] pairs a closure with another executor. A code path
-//! that does not go through [`map`] simply computes everything on every
-//! rank — the same bits, only not shared out.
+//! [`Executor::LOCAL`], and [`Executor::work`] pairs a closure with an
+//! executor. A code path that does not go through [`map`] simply computes
+//! everything on every rank — the same bits, only not shared out.
 
 use rayon::prelude::*;
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 use std::ops::Range;
+use std::sync::Arc;
 
-/// Why the units of a computation could not be gathered.
+/// Why the units of a computation could not be run or gathered.
 #[derive(Debug, thiserror::Error)]
 pub enum ExecError {
     #[error("encoding the results of units {lo}..{hi}: {message}")]
@@ -43,13 +48,16 @@ pub enum ExecError {
     Parts { got: usize, want: usize },
     #[error("gathering the ranks' results: {0}")]
     Transport(String),
+    #[error("starting a pool of {threads} threads: {message}")]
+    Pool { threads: usize, message: String },
 }
 
-/// A set of ranks that run the same computation and exchange its results.
+/// A set of ranks that run the same computation and exchange its results
+/// (the transport under an [`Executor`]: [`Local`], or MPI's world).
 ///
-/// Contract: every rank calls [`Executor::all_gather`] the same number of
+/// Contract: every rank calls [`Ranks::all_gather`] the same number of
 /// times in the same order (they all run the same deterministic code).
-pub trait Executor: Sync {
+pub trait Ranks: Sync + Send {
     /// This process's index among the ranks.
     fn rank(&self) -> usize;
     /// The number of ranks (≥ 1).
@@ -62,7 +70,7 @@ pub trait Executor: Sync {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Local;
 
-impl Executor for Local {
+impl Ranks for Local {
     fn rank(&self) -> usize {
         0
     }
@@ -74,14 +82,130 @@ impl Executor for Local {
     }
 }
 
+/// Where a computation's units run: a thread pool and a set of ranks.
+/// Cloning shares both (an [`Arc`] each).
+#[derive(Clone, Default)]
+pub struct Executor {
+    /// The job's ranks; `None`: this process alone ([`Local`]).
+    ranks: Option<Arc<dyn Ranks>>,
+    /// The threads; `None`: rayon's global pool (`RAYON_NUM_THREADS`).
+    pool: Option<Arc<rayon::ThreadPool>>,
+}
+
+impl std::fmt::Debug for Executor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Executor")
+            .field("rank", &self.rank())
+            .field("ranks", &self.ranks())
+            .field("threads", &self.threads())
+            .finish()
+    }
+}
+
+impl Executor {
+    /// This process alone on rayon's global pool (what a plain progress
+    /// closure runs on).
+    pub const LOCAL: Executor = Executor {
+        ranks: None,
+        pool: None,
+    };
+
+    /// This process alone on a pool of its own of `threads` threads (0:
+    /// rayon's default, one per core).
+    pub fn with_threads(threads: usize) -> Result<Self, ExecError> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| ExecError::Pool {
+                threads,
+                message: e.to_string(),
+            })?;
+        Ok(Self {
+            ranks: None,
+            pool: Some(Arc::new(pool)),
+        })
+    }
+
+    /// The same threads, shared out across `ranks`.
+    pub fn on_ranks(self, ranks: Arc<dyn Ranks>) -> Self {
+        Self {
+            ranks: Some(ranks),
+            ..self
+        }
+    }
+
+    /// The same threads, this rank alone: its units all computed here, its
+    /// files written here (`etp study` hands whole cases to ranks).
+    pub fn alone(&self) -> Self {
+        Self {
+            ranks: None,
+            pool: self.pool.clone(),
+        }
+    }
+
+    /// The ranks' transport ([`Local`] when alone).
+    fn transport(&self) -> &dyn Ranks {
+        match &self.ranks {
+            Some(r) => r.as_ref(),
+            None => &Local,
+        }
+    }
+
+    /// This process's index among the ranks.
+    pub fn rank(&self) -> usize {
+        self.transport().rank()
+    }
+
+    /// The number of ranks (≥ 1).
+    pub fn ranks(&self) -> usize {
+        self.transport().ranks()
+    }
+
+    /// Whether this process writes the outputs and draws progress: rank 0.
+    pub fn is_root(&self) -> bool {
+        self.rank() == 0
+    }
+
+    /// The threads units run on here.
+    pub fn threads(&self) -> usize {
+        match &self.pool {
+            Some(p) => p.current_num_threads(),
+            None => rayon::current_num_threads(),
+        }
+    }
+
+    /// Every rank's bytes, in rank order (a collective operation: see
+    /// [`Ranks`]).
+    pub fn all_gather(&self, mine: Vec<u8>) -> Result<Vec<Vec<u8>>, ExecError> {
+        self.transport().all_gather(mine)
+    }
+
+    /// Run `f` on this executor's threads (its rayon calls use them).
+    pub fn install<T: Send>(&self, f: impl FnOnce() -> T + Send) -> T {
+        match &self.pool {
+            Some(p) => p.install(f),
+            None => f(),
+        }
+    }
+
+    /// A progress callback on this executor, for the engines'
+    /// `progress: &dyn Work` arguments.
+    pub fn work<F: Fn(u64) + Sync>(&self, progress: F) -> On<'_, F> {
+        On {
+            exec: self,
+            progress,
+        }
+    }
+}
+
 /// What a long computation is handed: where its progress goes, and on
 /// which executor its units run.
 pub trait Work: Sync {
     /// `units` more units of work finished.
     fn progress(&self, units: u64);
-    /// The executor of its units ([`Local`] unless given).
-    fn executor(&self) -> &dyn Executor {
-        &Local
+    /// The executor of its units ([`Executor::LOCAL`] unless given).
+    fn executor(&self) -> &Executor {
+        &Executor::LOCAL
     }
 }
 
@@ -91,17 +215,17 @@ impl<F: Fn(u64) + Sync> Work for F {
     }
 }
 
-/// A progress callback on a given executor.
+/// A progress callback on a given executor ([`Executor::work`]).
 pub struct On<'a, F> {
-    pub exec: &'a dyn Executor,
-    pub progress: F,
+    exec: &'a Executor,
+    progress: F,
 }
 
 impl<F: Fn(u64) + Sync> Work for On<'_, F> {
     fn progress(&self, units: u64) {
         (self.progress)(units)
     }
-    fn executor(&self) -> &dyn Executor {
+    fn executor(&self) -> &Executor {
         self.exec
     }
 }
@@ -137,11 +261,11 @@ where
         t
     };
     if ranks <= 1 {
-        return Ok((0..n).into_par_iter().map(run).collect());
+        return Ok(exec.install(|| (0..n).into_par_iter().map(run).collect()));
     }
     let rank = exec.rank();
     let own = slice(n, rank, ranks);
-    let mine: Vec<T> = own.clone().into_par_iter().map(run).collect();
+    let mine: Vec<T> = exec.install(|| own.clone().into_par_iter().map(run).collect());
     let bytes = bincode::serde::encode_to_vec(&mine, config()).map_err(|e| ExecError::Encode {
         lo: own.start,
         hi: own.end,
@@ -210,7 +334,7 @@ mod tests {
         parts: Mutex<Vec<Vec<u8>>>,
     }
 
-    impl Executor for Fake {
+    impl Ranks for Fake {
         fn rank(&self) -> usize {
             self.rank
         }
@@ -228,6 +352,20 @@ mod tests {
     }
 
     #[test]
+    fn units_come_back_in_order_on_a_pool_of_any_size() {
+        let f = |i: usize| (i as f64).sqrt().to_bits();
+        let want: Vec<u64> = (0..100).map(f).collect();
+        for threads in [1, 2, 3] {
+            let exec = Executor::with_threads(threads).expect("a pool");
+            assert_eq!(exec.threads(), threads);
+            assert_eq!(exec.install(rayon::current_num_threads), threads);
+            assert!(exec.is_root() && exec.alone().threads() == threads);
+            let got = map(&exec.work(|_| {}), 100, f, |_| 1).expect("maps");
+            assert_eq!(got, want, "{threads} threads");
+        }
+    }
+
+    #[test]
     fn every_rank_gets_every_unit_in_order() {
         let n = 37;
         let f = |i: usize| (i as f64 * 0.1).sin();
@@ -241,18 +379,17 @@ mod tests {
                 })
                 .collect();
             for rank in 0..ranks {
-                let exec = Fake {
-                    rank,
-                    ranks,
-                    parts: Mutex::new(parts.clone()),
-                };
+                let exec = Executor::with_threads(2)
+                    .expect("a pool")
+                    .on_ranks(Arc::new(Fake {
+                        rank,
+                        ranks,
+                        parts: Mutex::new(parts.clone()),
+                    }));
                 let count = std::sync::atomic::AtomicU64::new(0);
-                let work = On {
-                    exec: &exec,
-                    progress: |k| {
-                        count.fetch_add(k, std::sync::atomic::Ordering::Relaxed);
-                    },
-                };
+                let work = exec.work(|k| {
+                    count.fetch_add(k, std::sync::atomic::Ordering::Relaxed);
+                });
                 // The units this rank simulates itself: its slice, no more.
                 let ran = Mutex::new(Vec::new());
                 let g = |i: usize| {

@@ -25,8 +25,8 @@
 //! * [`export`] — the MDP for other model checkers: PRISM explicit files,
 //!   JANI and Storm's DRN, with the queries of its front.
 //! * [`synthetic`] — seeded synthetic layered MDPs for benchmarks at scale.
-//! * [`exec`] — where a computation's Monte Carlo units run: this process's
-//!   threads, or (through an [`exec::Executor`] passed in) the ranks of a job.
+//! * [`exec`] — how parallel work runs: the one [`exec::Executor`] (a rayon
+//!   pool and the ranks of a job), passed in, its units back in unit order.
 //!
 //! Pure maths: no I/O, no clock. Progress is reported through a callback so the
 //! front end can draw a bar.

@@ -7,6 +7,7 @@ use crate::input::load_scenario_with_radio;
 use crate::scenario_flags::{RadioArgs, TriggerArgs};
 use anyhow::Result;
 use etp_synthesis::constant::simulate_constant;
+use etp_synthesis::exec::Executor;
 use etp_synthesis::mdp::{CostModel, Mdp};
 use etp_synthesis::pareto::optimal::{LpRequest, optimal_strategy};
 use etp_synthesis::synthetic::{SyntheticParams, layered_mdp};
@@ -161,20 +162,20 @@ pub fn run(a: Args) -> Result<()> {
         .trigger
         .apply(load_scenario_with_radio(&a.scenario, &a.radio)?);
     let max_delta = s.deltas.iter().copied().fold(0.0, f64::max);
-    let threads = rayon::current_num_threads();
+    let threads = Executor::LOCAL.threads();
     let mut rows = Vec::new();
     for delta in [0.0, max_delta] {
         for t in [1, threads] {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build()?;
+            let exec = Executor::with_threads(t)?;
+            let work = exec.work(|_| {});
             // Warm-up run (page faults, caches), then the timed ones (the
             // same episodes each time: same seed).
-            pool.install(|| simulate_constant(&s, delta, a.episodes / 10 + 1, 1, &|_: u64| {}))?;
+            simulate_constant(&s, delta, a.episodes / 10 + 1, 1, &work)?;
             let mut secs = Vec::new();
             let mut steps = 0;
             for _ in 0..a.repeats.max(1) {
                 let start = Instant::now();
-                let sum =
-                    pool.install(|| simulate_constant(&s, delta, a.episodes, 2, &|_: u64| {}))?;
+                let sum = simulate_constant(&s, delta, a.episodes, 2, &work)?;
                 secs.push(start.elapsed().as_secs_f64());
                 steps = sum.total_steps;
             }

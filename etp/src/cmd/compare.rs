@@ -16,6 +16,7 @@ use etp_pipeline::progress;
 use etp_pipeline::synthesis_dir::{Identity, Synthesis, check_one_scenario, identity, labels};
 use etp_shared::stats::{Estimate, ratio};
 use etp_shared::trigger::TriggerFamily;
+use etp_synthesis::exec::Executor;
 use etp_synthesis::pareto::policy::Objectives;
 use etp_synthesis::predict::request::{Goal, LoopSettings, Verdict};
 use serde_json::{Value, json};
@@ -69,10 +70,10 @@ impl Row {
     }
 }
 
-pub fn run(a: Args) -> Result<()> {
+pub fn run(a: Args, exec: &Executor) -> Result<()> {
     let mut syns: Vec<(Synthesis, Identity)> = Vec::new();
     for dir in &a.dirs {
-        let syn = Synthesis::load(dir, None)?;
+        let syn = Synthesis::load(dir, None, exec)?;
         let id = identity(dir, &syn.front, syn.scenario_text.as_deref())?;
         syns.push((syn, id));
     }
@@ -102,7 +103,7 @@ pub fn run(a: Args) -> Result<()> {
              (`etp synthesize SCENARIO --trigger box -o DIR`)"
         );
     }
-    let pb = progress::bar(0, "compare", a.json);
+    let pb = progress::bar(exec, 0, "compare", a.json);
     let mut table: Vec<Vec<Row>> = Vec::new();
     for &min_target in &a.min_target {
         let goal = Goal::MinTarget {

@@ -14,6 +14,7 @@ use etp_pipeline::progress;
 use etp_runtime::scenario_arg::scenario_text;
 use etp_shared::rng::mix64;
 use etp_shared::scenario::DEFAULT_SCENARIO;
+use etp_synthesis::exec::Executor;
 use etp_synthesis::mdp::MDP_FILE;
 use etp_synthesis::pareto::to_strategy;
 use etp_synthesis::predict::request::{Goal, LoopSettings, Verdict, meet_request};
@@ -80,7 +81,7 @@ fn stage(quiet: bool, text: &str) {
     }
 }
 
-pub fn run(a: Args) -> Result<()> {
+pub fn run(a: Args, exec: &Executor) -> Result<()> {
     let started = Instant::now();
     let text = scenario_text(&a.scenario)?;
     let stamp = std::time::SystemTime::now()
@@ -118,8 +119,9 @@ pub fn run(a: Args) -> Result<()> {
     let mut request = MdpRequest::defaults(scenario.clone(), a.samples, a.seed);
     request.out = Some(dir.clone());
     request.quiet = a.json;
+    request.exec = exec.clone();
     let built = build_mdp(request)?;
-    let front = write_front(&built.dir, &built.mdp, None, &text, None, false)?;
+    let front = write_front(&built.dir, &built.mdp, None, &text, None, false, exec)?;
 
     // 2. Strategy.
     stage(
@@ -133,7 +135,7 @@ pub fn run(a: Args) -> Result<()> {
     // from the strategy's own rebuilds (docs/MODEL.md §7.4).
     let params = etp_synthesis::abstraction::params_of(&built.mdp);
     let units = etp_synthesis::predict::rebuild::progress_units(&built.scenario, &params);
-    let pb = progress::bar(0, "rebuilds", a.json);
+    let pb = progress::bar(exec, 0, "rebuilds", a.json);
     let label = format!("least energy with P_tar ≥ {}", a.min_target);
     let make = |omega: &etp_synthesis::pareto::policy::RandomisedPolicy,
                 value: etp_synthesis::pareto::policy::Objectives| {
@@ -158,7 +160,7 @@ pub fn run(a: Args) -> Result<()> {
         0.95,
         &make,
         &|n| pb.inc_length(u64::from(n) * units),
-        &|k| pb.inc(k),
+        &exec.work(|k| pb.inc(k)),
     )
     .context("the demo's strategy")?;
     pb.finish_and_clear();
@@ -177,7 +179,7 @@ pub fn run(a: Args) -> Result<()> {
         d.rounds = outcome.rounds.iter().map(|r| r.record()).collect();
     }
     let strategy_path = dir.join("strategy.json");
-    write_new(&strategy_path, strategy.to_json().as_bytes(), false)?;
+    write_new(exec, &strategy_path, strategy.to_json().as_bytes(), false)?;
 
     // The predicted front (docs/MODEL.md §7.5): what `etp strategy front
     // DIR --points DEMO_FRONT_POINTS` stores and draws over the MDP's front.
@@ -194,6 +196,7 @@ pub fn run(a: Args) -> Result<()> {
         Some(text.clone()),
         front.front.clone(),
         None,
+        exec,
     )?;
     let curves = if points == 0 {
         Vec::new()
@@ -222,13 +225,13 @@ pub fn run(a: Args) -> Result<()> {
             a.validate_episodes
         ),
     );
-    let pb = progress::bar(a.validate_episodes, "validate", a.json);
+    let pb = progress::bar(exec, a.validate_episodes, "validate", a.json);
     let sim = simulate_strategy(
         &built.scenario,
         &strategy.policy,
         a.validate_episodes,
         a.seed,
-        &|k| pb.inc(k),
+        &exec.work(|k| pb.inc(k)),
     )?
     .summary();
     pb.finish_and_clear();

@@ -120,10 +120,10 @@ pub fn run(a: Args) -> Result<()> {
     etp_files::write::output_folder(&a.outdir)?;
     // All refused before any is written: no half-updated set of files.
     for (p, _) in &targets {
-        etp_pipeline::output::refuse_existing(p, a.force)?;
+        etp_files::write::refuse_existing(p, a.force)?;
     }
     for (p, text) in &targets {
-        etp_pipeline::output::write_new(p, text.as_bytes(), true)?;
+        etp_files::write::write_new(p, text.as_bytes(), true)?;
     }
     let out = |name: &str| a.outdir.join(name).display().to_string();
     let load = match a.format {

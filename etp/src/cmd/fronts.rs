@@ -58,7 +58,7 @@ pub fn run(a: Args) -> Result<()> {
     let stem = a.out.clone();
     etp_files::write::existing_folder_of(&stem, "-o")?;
     for p in [stem.with_extension("png"), stem.with_extension("svg")] {
-        etp_pipeline::output::refuse_existing(&p, a.force)?;
+        etp_files::write::refuse_existing(&p, a.force)?;
     }
     let mut sources: Vec<Source> = Vec::new();
     for dir in &a.dirs {

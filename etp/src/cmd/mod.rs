@@ -25,27 +25,28 @@ pub mod trigger_curves;
 pub mod validate;
 
 use crate::cli::Command;
+use etp_synthesis::exec::Executor;
 
 /// Run one subcommand.
-pub fn dispatch(command: Command) -> anyhow::Result<()> {
+pub fn dispatch(command: Command, exec: &Executor) -> anyhow::Result<()> {
     match command {
         Command::Check(a) => check::run(a),
         Command::Scenario(a) => scenario::run(a),
-        Command::Demo(a) => demo::run(a),
-        Command::Simulate(a) => simulate::run(a),
+        Command::Demo(a) => demo::run(a, exec),
+        Command::Simulate(a) => simulate::run(a, exec),
         Command::Bench(a) => bench::run(a),
         Command::Run(a) => run::run(a),
         Command::SensorHost(a) => sensor_host::run(a),
         Command::Certs(a) => certs::run(a),
         Command::Replay(a) => replay::run(a),
-        Command::Synthesize(a) => synthesize::run(a),
+        Command::Synthesize(a) => synthesize::run(a, exec),
         Command::Export(a) => export::run(a),
         Command::Fronts(a) => fronts::run(a),
-        Command::Compare(a) => compare::run(a),
-        Command::TriggerCurves(a) => trigger_curves::run(a),
-        Command::Strategy(a) => strategy::run(a),
-        Command::Study(a) => study::run(a),
-        Command::Validate(a) => validate::run(a),
+        Command::Compare(a) => compare::run(a, exec),
+        Command::TriggerCurves(a) => trigger_curves::run(a, exec),
+        Command::Strategy(a) => strategy::run(a, exec),
+        Command::Study(a) => study::run(a, exec),
+        Command::Validate(a) => validate::run(a, exec),
         Command::Process(_) => anyhow::bail!("`etp process` is dispatched by etp::run"),
     }
 }

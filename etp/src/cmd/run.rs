@@ -30,7 +30,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     if let Some(stem) = &stem {
         etp_files::write::existing_folder_of(stem, "-o")?;
         for p in [stem.with_extension("png"), stem.with_extension("svg")] {
-            etp_pipeline::output::refuse_existing(&p, a.force)?;
+            etp_files::write::refuse_existing(&p, a.force)?;
         }
     }
     let (plan, outcome) = etp_launcher::execute_run(&a)?;

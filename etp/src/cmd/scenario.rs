@@ -73,7 +73,7 @@ pub fn run(a: Args) -> Result<()> {
     match &r.out {
         None => print!("{text}"),
         Some(path) => {
-            etp_pipeline::output::write_new(path, text.as_bytes(), r.force)?;
+            etp_files::write::write_new(path, text.as_bytes(), r.force)?;
             eprintln!(
                 "wrote {} ({}: n = {}, {} legs, {} sensors, {} obstacles)",
                 path.display(),
@@ -102,7 +102,7 @@ fn radio(r: RadioTextArgs) -> Result<()> {
     match &r.out {
         None => print!("{out}"),
         Some(path) => {
-            etp_pipeline::output::write_new(path, out.as_bytes(), r.force)?;
+            etp_files::write::write_new(path, out.as_bytes(), r.force)?;
             eprintln!("wrote {}", path.display());
         }
     }

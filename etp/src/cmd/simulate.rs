@@ -7,6 +7,7 @@ use anyhow::Result;
 use etp_pipeline::progress;
 use etp_shared::trigger::TriggerFamily;
 use etp_synthesis::constant::{check_delta, simulate_constant};
+use etp_synthesis::exec::Executor;
 use etp_synthesis::report::sensor_names;
 use etp_synthesis::report::simulate_json;
 
@@ -28,19 +29,19 @@ pub struct Args {
     pub trigger: TriggerArgs,
 }
 
-pub fn run(a: Args) -> Result<()> {
+pub fn run(a: Args, exec: &Executor) -> Result<()> {
     check_delta(a.delta)?;
     let s = a
         .trigger
         .apply(load_scenario_with_radio(&a.scenario, &a.radio)?);
-    let pb = progress::bar(a.sim.episodes, "simulate", a.json);
+    let pb = progress::bar(exec, a.sim.episodes, "simulate", a.json);
     let started = std::time::Instant::now();
     let sum = simulate_constant(
         &s,
         a.delta,
         a.sim.episodes,
         a.sim.seed,
-        &etp_pipeline::exec::work(|k| pb.inc(k)),
+        &exec.work(|k| pb.inc(k)),
     )?;
     pb.finish_and_clear();
     crate::report::ensure_finite(&sum)?;

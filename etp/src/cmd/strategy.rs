@@ -20,6 +20,7 @@ mod select;
 
 use crate::prediction_args::{CheckArgs, RebuildArgs, RequestLoopArgs};
 use etp_pipeline::selection::DEFAULT_LEVEL;
+use etp_synthesis::exec::Executor;
 
 /// `etp strategy` exits with this code when the request is out of reach:
 /// the best strategy the loop could stand behind was written and reported
@@ -202,10 +203,10 @@ impl Request {
     }
 }
 
-pub fn run(a: Args) -> Result<()> {
+pub fn run(a: Args, exec: &Executor) -> Result<()> {
     match &a.verb {
-        Some(Verb::Evaluate(e)) => return evaluate::run(e),
-        Some(Verb::Front(f)) => return front::run(f),
+        Some(Verb::Evaluate(e)) => return evaluate::run(e, exec),
+        Some(Verb::Front(f)) => return front::run(f, exec),
         None => {}
     }
     a.out.check_folder()?;
@@ -221,8 +222,8 @@ pub fn run(a: Args) -> Result<()> {
         _ => bail!("give exactly one of --min-target, --max-energy, --vertex"),
     };
     if a.quick {
-        quick::run(&a, request)
+        quick::run(&a, request, exec)
     } else {
-        select::run(&a, request)
+        select::run(&a, request, exec)
     }
 }

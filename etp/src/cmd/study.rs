@@ -8,6 +8,7 @@ use crate::study::{self, Plan, case, spec::Spec, table::Finished};
 use anyhow::{Context, Result};
 use etp_pipeline::output::write_new;
 use etp_pipeline::progress;
+use etp_synthesis::exec::Executor;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -70,16 +71,15 @@ fn line(f: &Finished, ranks: usize) -> String {
     s
 }
 
-pub fn run(a: Args) -> Result<()> {
+pub fn run(a: Args, exec: &Executor) -> Result<()> {
     let started = Instant::now();
     let spec = Spec::load(&a.spec)?;
     let dir = study::folder(&spec, a.out.as_deref());
     etp_files::write::output_folder(&dir)?;
-    study::claim(&spec, &dir)?;
+    study::claim(&spec, &dir, exec)?;
     let cases_dir = dir.join("cases");
     etp_files::write::output_folder(&cases_dir)?;
-    let job = etp_pipeline::exec::job();
-    let (rank, ranks) = (job.rank(), job.ranks());
+    let (rank, ranks) = (exec.rank(), exec.ranks());
     // Rank 0 says what is finished and what is left: the others follow its
     // plan (they may look at the folder after rank 0 has written to it).
     let (finished, plan) = if rank == 0 {
@@ -87,7 +87,7 @@ pub fn run(a: Args) -> Result<()> {
     } else {
         (Vec::new(), Plan::default())
     };
-    let said = job
+    let said = exec
         .all_gather(if rank == 0 {
             serde_json::to_vec(&plan)?
         } else {
@@ -121,8 +121,14 @@ pub fn run(a: Args) -> Result<()> {
         .filter(|(_, r)| **r == rank)
         .map(|(w, _)| w.pending.len())
         .sum();
-    let pb = progress::bar(mine_count as u64, "study", a.json);
+    let pb = progress::bar(exec, mine_count as u64, "study", a.json);
     let mut mine: Vec<Finished> = Vec::new();
+    // Whole jobs apart: this rank alone on its threads, writing its cases.
+    let alone = exec.alone();
+    let on = case::Placement {
+        exec: if apart { &alone } else { exec },
+        rank,
+    };
     for (w, r) in plan.work.iter().zip(&assign) {
         if *r != rank {
             continue;
@@ -142,26 +148,20 @@ pub fn run(a: Args) -> Result<()> {
             pb.inc(1);
             mine.push(f.clone());
         };
-        let mut work = || {
-            case::run_job(
-                job,
-                w,
-                &cases_dir,
-                &spec.requests,
-                &spec.settings,
-                &mut done,
-            )
-        };
-        if apart {
-            etp_pipeline::exec::alone(work)
-        } else {
-            work()
-        }?;
+        case::run_job(
+            job,
+            w,
+            &cases_dir,
+            &spec.requests,
+            &spec.settings,
+            &on,
+            &mut done,
+        )?;
     }
     pb.finish_and_clear();
     // Every rank's new rows to rank 0 (working together, rank 0 has them all).
     let send = if apart || rank == 0 { &mine[..] } else { &[] };
-    let parts = job
+    let parts = exec
         .all_gather(serde_json::to_vec(send)?)
         .context("gathering the study's rows")?;
     if rank != 0 {
@@ -175,13 +175,15 @@ pub fn run(a: Args) -> Result<()> {
     }
     let tables = study::tables(&spec, all)?;
     let json = study::study_json(&spec, &tables.rows)?;
-    write_new(&dir.join("study.json"), json.as_bytes(), true)?;
+    write_new(exec, &dir.join("study.json"), json.as_bytes(), true)?;
     write_new(
+        exec,
         &dir.join("study.csv"),
         study::table::csv(&tables.rows)?.as_bytes(),
         true,
     )?;
     write_new(
+        exec,
         &dir.join("timings.csv"),
         study::table::csv(&tables.timings)?.as_bytes(),
         true,

@@ -21,6 +21,7 @@ use etp_synthesis::abstraction::{
     self, AbstractionParams, DEFAULT_LOOKAHEAD, DEFAULT_POOL_PER_REGION, DEFAULT_REST_BINS,
     DEFAULT_SAMPLES, Descriptor, default_kf_params,
 };
+use etp_synthesis::exec::Executor;
 use etp_synthesis::mdp::{KfConvergenceParams, Method};
 use std::path::PathBuf;
 
@@ -257,8 +258,9 @@ impl SplitArgs {
 
 impl Args {
     /// The MDP step's request: the scenario of the command line (its text
-    /// under `--trigger`, then the radio options) and its parameters.
-    pub fn request(&self) -> Result<MdpRequest> {
+    /// under `--trigger`, then the radio options) and its parameters, run
+    /// on `exec`.
+    pub fn request(&self, exec: &Executor) -> Result<MdpRequest> {
         let (scenario, _) = load(self)?;
         Ok(MdpRequest {
             params: params(self, &scenario)?,
@@ -270,6 +272,7 @@ impl Args {
             pool_policy: self.pool_policy.clone(),
             all_actions: self.all_actions,
             quiet: self.json,
+            exec: exec.clone(),
         })
     }
 }
@@ -326,10 +329,10 @@ fn load(a: &Args) -> Result<(Scenario, String)> {
     Ok((a.radio.apply(s)?, text))
 }
 
-pub fn run(a: Args) -> Result<()> {
+pub fn run(a: Args, exec: &Executor) -> Result<()> {
     let (_, text) = load(&a)?;
     let request = SynthesisRequest {
-        mdp: a.request()?,
+        mdp: a.request(exec)?,
         text,
         kf_baseline: !a.no_kf_baseline,
         aggregation_episodes: a.aggregation_episodes,

@@ -13,6 +13,7 @@ use etp_pipeline::progress;
 use etp_shared::stats::Estimate;
 use etp_shared::trigger::TriggerFamily;
 use etp_synthesis::constant::simulate_constant;
+use etp_synthesis::exec::Executor;
 use serde_json::{Value, json};
 use std::path::PathBuf;
 
@@ -59,11 +60,11 @@ struct Measured {
     energy: Estimate,
 }
 
-pub fn run(a: Args) -> Result<()> {
+pub fn run(a: Args, exec: &Executor) -> Result<()> {
     let stem = a.out.clone();
     etp_files::write::existing_folder_of(&stem, "-o")?;
     for p in [stem.with_extension("png"), stem.with_extension("svg")] {
-        etp_pipeline::output::refuse_existing(&p, a.force)?;
+        etp_pipeline::output::refuse_existing(exec, &p, a.force)?;
     }
     let mut families: Vec<TriggerFamily> = Vec::new();
     let given = if a.families.is_empty() {
@@ -85,7 +86,7 @@ pub fn run(a: Args) -> Result<()> {
     let m = m.filter(|&m| base.sensors.iter().all(|s| s.dim() == m));
     let max_delta = base.deltas.iter().copied().fold(0.0, f64::max);
     let total = a.sim.episodes * (families.len() * base.deltas.len()) as u64;
-    let pb = progress::bar(total, "trigger-curves", a.json);
+    let pb = progress::bar(exec, total, "trigger-curves", a.json);
     let mut results: Vec<(TriggerFamily, Vec<Measured>)> = Vec::new();
     for &family in &families {
         let mut s = base.clone();
@@ -95,7 +96,13 @@ pub fn run(a: Args) -> Result<()> {
         let points = deltas
             .into_iter()
             .map(|delta| {
-                let sum = simulate_constant(&s, delta, a.sim.episodes, a.sim.seed, &|k| pb.inc(k))?;
+                let sum = simulate_constant(
+                    &s,
+                    delta,
+                    a.sim.episodes,
+                    a.sim.seed,
+                    &exec.work(|k| pb.inc(k)),
+                )?;
                 Ok(Measured {
                     delta,
                     rate: sum.trigger_rate,

@@ -58,21 +58,22 @@ pub struct Args {
 }
 
 use etp_runtime::strategy_arg::load_strategy;
+use etp_synthesis::exec::Executor;
 
-pub fn run(a: Args) -> Result<()> {
+pub fn run(a: Args, exec: &Executor) -> Result<()> {
     let (strategy, scenario) = load_strategy(&a.strategy)?;
     a.trigger.confirm(scenario.trigger)?;
     // The strategy's own channel unless the options say otherwise (a
     // robustness study); the report names both.
     let synthesized = scenario.radio.clone();
     let scenario = a.radio.apply(scenario)?;
-    let pb = progress::bar(a.sim.episodes, "validate", a.json);
+    let pb = progress::bar(exec, a.sim.episodes, "validate", a.json);
     let sum = simulate_strategy(
         &scenario,
         &strategy.policy,
         a.sim.episodes,
         a.sim.seed,
-        &etp_pipeline::exec::work(|k| pb.inc(k)),
+        &exec.work(|k| pb.inc(k)),
     )?
     .summary();
     pb.finish_and_clear();
@@ -88,6 +89,7 @@ pub fn run(a: Args) -> Result<()> {
             a.plot_episodes,
             a.sim.seed,
             a.force,
+            exec,
         )?
     } else if a.plot {
         plot_map(
@@ -97,6 +99,7 @@ pub fn run(a: Args) -> Result<()> {
             a.plot_episodes,
             a.sim.seed,
             a.force,
+            exec,
         )?
     } else {
         Vec::new()

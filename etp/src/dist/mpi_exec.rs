@@ -1,9 +1,10 @@
-//! The MPI executor (feature `mpi`): rsmpi over the system's MPI library.
-//! Each rank simulates its slice of a computation's units; the encoded
-//! results are all-gathered so every rank holds all of them.
+//! The ranks of MPI's world (feature `mpi`): rsmpi over the system's MPI
+//! library, the [`Ranks`] transport under `etp`'s executor. Each rank
+//! simulates its slice of a computation's units; the encoded results are
+//! all-gathered so every rank holds all of them.
 
 use anyhow::{Result, bail};
-use etp_synthesis::exec::{ExecError, Executor};
+use etp_synthesis::exec::{ExecError, Ranks};
 use mpi::Threading;
 use mpi::datatype::PartitionMut;
 use mpi::topology::SimpleCommunicator;
@@ -31,14 +32,14 @@ impl Session {
 
 /// The ranks of `MPI_COMM_WORLD`.
 #[derive(Debug, Clone, Copy)]
-pub struct MpiExecutor {
-    rank: usize,
+pub struct MpiWorld {
+    pub rank: usize,
     size: usize,
 }
 
 /// Initialise MPI. The collectives may be called from a rayon worker (a
 /// command run inside a thread pool), one at a time: `Serialized`.
-pub fn start() -> Result<(Session, MpiExecutor)> {
+pub fn start() -> Result<(Session, MpiWorld)> {
     let Some((universe, threading)) = mpi::initialize_with_threading(Threading::Serialized) else {
         bail!("MPI was already initialised");
     };
@@ -49,11 +50,11 @@ pub fn start() -> Result<(Session, MpiExecutor)> {
     }
     let world = universe.world();
     let (rank, size) = (world.rank(), world.size());
-    let exec = MpiExecutor {
+    let world_ranks = MpiWorld {
         rank: usize::try_from(rank)?,
         size: usize::try_from(size)?,
     };
-    Ok((Session { universe }, exec))
+    Ok((Session { universe }, world_ranks))
 }
 
 /// Ranks other than 0 print nothing on stdout (their results are rank 0's).
@@ -74,7 +75,7 @@ pub fn silence_stdout() -> Result<()> {
 /// within MPI's `int` counts.
 const ROUND_BYTES: usize = 1 << 30;
 
-impl Executor for MpiExecutor {
+impl Ranks for MpiWorld {
     fn rank(&self) -> usize {
         self.rank
     }

@@ -18,6 +18,7 @@ use etp_pipeline::predictions::checks;
 use etp_pipeline::selection::{RequestSettings, meet_goal};
 use etp_pipeline::synthesis_dir::Synthesis;
 use etp_shared::strategy::Strategy;
+use etp_synthesis::exec::Executor;
 use etp_synthesis::predict::request::Goal;
 use etp_synthesis::validate::simulate_strategy;
 use std::path::{Path, PathBuf};
@@ -53,17 +54,19 @@ fn synthesis(
     dir: &Path,
     s: &Settings,
     timing: &mut Timing,
+    exec: &Executor,
 ) -> Result<Synthesis> {
     if synthesized {
-        return Ok(Synthesis::load(dir, None)?);
+        return Ok(Synthesis::load(dir, None, exec)?);
     }
     let started = Instant::now();
     let mut request = MdpRequest::defaults(job.scenario.clone(), s.samples, s.seed);
     request.out = Some(dir.to_path_buf());
     request.force = true;
     request.quiet = true;
+    request.exec = exec.clone();
     let built = build_mdp(request)?;
-    let front = write_front(&built.dir, &built.mdp, None, &job.text, None, true)?;
+    let front = write_front(&built.dir, &built.mdp, None, &job.text, None, true, exec)?;
     timing.synthesis_seconds = started.elapsed().as_secs_f64();
     Ok(Synthesis::from_parts(
         dir,
@@ -71,6 +74,7 @@ fn synthesis(
         Some(job.text.clone()),
         front.front,
         None,
+        exec,
     )?)
 }
 
@@ -135,7 +139,7 @@ fn kf_p_target(syn: &Synthesis, s: &Settings, kf: &mut Option<f64>) -> Result<f6
         0.0,
         s.kf_episodes,
         s.seed,
-        &etp_pipeline::exec::work(|_| {}),
+        &syn.exec.work(|_| {}),
     )?
     .p_target
     .value;
@@ -179,7 +183,7 @@ fn request(
     let (outcome, strategy, _) = meet_goal(syn, goal, &settings, true)?;
     let file = format!("strategy-{k}.json");
     let path = syn.dir.join(&file);
-    write_new(&path, strategy.to_json().as_bytes(), true)?;
+    write_new(&syn.exec, &path, strategy.to_json().as_bytes(), true)?;
     timing.selection_seconds = started.elapsed().as_secs_f64();
     row.verdict = Some(outcome.verdict.name().to_string());
     row.rounds = Some(outcome.rounds.len());
@@ -214,7 +218,7 @@ fn request(
         &strategy.policy,
         s.episodes,
         s.seed,
-        &etp_pipeline::exec::work(|_| {}),
+        &syn.exec.work(|_| {}),
     )?
     .summary();
     timing.validation_seconds = started.elapsed().as_secs_f64();
@@ -239,6 +243,14 @@ fn request(
     Ok(row)
 }
 
+/// Where a job's cases run: the executor of their Monte Carlo and files
+/// (the job's ranks together, or this rank alone) and this process's rank
+/// in the job, which the timings record.
+pub struct Placement<'a> {
+    pub exec: &'a Executor,
+    pub rank: usize,
+}
+
 /// Do the cases of `job` that its `plan` names (request indices; `None`:
 /// the synthesis-only row), in order, calling `done` as each is written.
 pub fn run_job(
@@ -247,12 +259,13 @@ pub fn run_job(
     cases_dir: &Path,
     requests: &[Request],
     s: &Settings,
+    on: &Placement,
     done: &mut dyn FnMut(&Finished),
 ) -> Result<()> {
     let dir = cases_dir.join(&job.id);
     etp_files::write::output_folder(&dir)?;
-    let threads = rayon::current_num_threads();
-    let rank = etp_pipeline::exec::job().rank();
+    let (exec, rank) = (on.exec, on.rank);
+    let threads = exec.threads();
     let fresh = || Timing {
         rank,
         threads,
@@ -260,7 +273,7 @@ pub fn run_job(
     };
     let mut timing = fresh();
     let mut kf = None;
-    let syn = synthesis(job, plan.synthesized, &dir, s, &mut timing)
+    let syn = synthesis(job, plan.synthesized, &dir, s, &mut timing, exec)
         .with_context(|| format!("study case {}: the synthesis", job.id))?;
     for &k in &plan.pending {
         let row = match k {
@@ -277,7 +290,7 @@ pub fn run_job(
             row,
             timing: std::mem::replace(&mut timing, fresh()),
         };
-        write_new(&row_path(&dir, k), f.to_json()?.as_bytes(), true)?;
+        write_new(exec, &row_path(&dir, k), f.to_json()?.as_bytes(), true)?;
         done(&f);
     }
     Ok(())

@@ -8,6 +8,7 @@ use crate::progress;
 use etp_shared::scenario::Scenario;
 use etp_synthesis::abstraction::split::{RoundReport, SplitSettings, split_adaptively};
 use etp_synthesis::abstraction::{self, AbstractionParams};
+use etp_synthesis::exec::Executor;
 use etp_synthesis::mdp::{Mdp, Method};
 use serde::Serialize;
 use std::fmt::Write;
@@ -71,12 +72,13 @@ pub fn apply(
     first_build_seconds: f64,
     a: &SplitSettings,
     quiet: bool,
+    exec: &Executor,
 ) -> Result<(Mdp, Option<SplitSummary>)> {
     if a.budget == 0 || first.method != Method::Discretized {
         return Ok((first, None));
     }
     let per_round = a.episodes + abstraction::progress_total(scenario, params);
-    let pb = progress::bar(per_round * u64::from(a.rounds), "splitting", quiet);
+    let pb = progress::bar(exec, per_round * u64::from(a.rounds), "splitting", quiet);
     let (states_before, per_dp_before) = (first.states.len(), first.states_per_decision_point());
     let started = Instant::now();
     let mut last = Instant::now();
@@ -86,7 +88,7 @@ pub fn apply(
         params,
         first,
         a,
-        &crate::exec::work(|k| pb.inc(k)),
+        &exec.work(|k| pb.inc(k)),
         &mut |r| {
             rounds.push(TimedRound {
                 round: r.clone(),

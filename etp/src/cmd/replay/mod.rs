@@ -407,7 +407,7 @@ fn run_job(a: Job) -> Result<()> {
             };
             let png = stem.with_extension("png");
             for p in [&png, &stem.with_extension("svg")] {
-                etp_pipeline::output::refuse_existing(p, a.force)?;
+                etp_files::write::refuse_existing(p, a.force)?;
             }
             let names = export::names(&c).0.sensors;
             etp_figures::report_plot(&figure::figure(&c, &names)?, &stem)?;

@@ -87,14 +87,19 @@ pub fn refine_selection(a: &Args, syn: &Synthesis, gap: f64, level: f64) -> Resu
         );
     }
     let path = syn.dir.join("mdp-refined.bin");
-    refuse_existing(&path, a.out.force)?;
+    refuse_existing(&syn.exec, &path, a.out.force)?;
     let cost = syn.cost();
     let started = Instant::now();
     let prepared = prepare(mdp, a.refine_rounds);
     let mut p = etp_synthesis::abstraction::params_of(mdp);
     p.holdout_samples = 0;
     let units = etp_synthesis::abstraction::progress_total(&syn.scenario, &p);
-    let pb = progress::bar(units * u64::from(a.refine_rounds), "allocate", a.out.json);
+    let pb = progress::bar(
+        &syn.exec,
+        units * u64::from(a.refine_rounds),
+        "allocate",
+        a.out.json,
+    );
     let refined = refine(
         &syn.scenario,
         &prepared,
@@ -109,11 +114,11 @@ pub fn refine_selection(a: &Args, syn: &Synthesis, gap: f64, level: f64) -> Resu
                 c.certified.p_target_low,
             ))
         },
-        &etp_pipeline::exec::work(|k| pb.inc(k)),
+        &syn.exec.work(|k| pb.inc(k)),
     )
     .context("allocating samples")?;
     pb.finish_and_clear();
-    write_new(&path, &refined.mdp.encode(), a.out.force)?;
+    write_new(&syn.exec, &path, &refined.mdp.encode(), a.out.force)?;
     Ok(Refinement {
         mdp: refined.mdp.clone(),
         refined,

@@ -12,12 +12,17 @@ use etp_pipeline::predictions;
 use etp_pipeline::progress;
 use etp_pipeline::synthesis_dir::Synthesis;
 use etp_synthesis::abstraction;
+use etp_synthesis::exec::Executor;
 use serde_json::json;
 use std::time::Instant;
 
-pub fn run(a: &EvaluateArgs) -> Result<()> {
+pub fn run(a: &EvaluateArgs, exec: &Executor) -> Result<()> {
     a.out.check_folder()?;
-    let syn = Synthesis::load(&a.dir, Some(a.out.output.as_deref().unwrap_or(&a.strategy)))?;
+    let syn = Synthesis::load(
+        &a.dir,
+        Some(a.out.output.as_deref().unwrap_or(&a.strategy)),
+        exec,
+    )?;
     let (mut strategy, _) = etp_runtime::strategy_arg::load_strategy(&a.strategy)
         .with_context(|| format!("etp strategy evaluate {}", a.strategy.display()))?;
     if strategy.policy.scenario_hash != syn.mdp.scenario_hash
@@ -40,10 +45,11 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
             a.strategy.display()
         );
     }
-    refuse_existing(&syn.output, a.out.force)?;
+    refuse_existing(exec, &syn.output, a.out.force)?;
     let params = abstraction::params_of(&syn.mdp);
     let units = etp_synthesis::predict::rebuild::progress_units(&syn.scenario, &params);
     let pb = progress::bar(
+        exec,
         units * u64::from(a.rebuilds.replicates),
         "rebuilds",
         a.out.json,
@@ -67,9 +73,14 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
     strategy.predictions.aggregation = None;
     if a.check.aggregation_check > 0 {
         strategy.predictions.aggregation =
-            predictions::aggregation_check(&strategy, a.check.aggregation_check, a.out.json)?;
+            predictions::aggregation_check(&strategy, a.check.aggregation_check, a.out.json, exec)?;
     }
-    write_new(&syn.output, strategy.to_json().as_bytes(), a.out.force)?;
+    write_new(
+        exec,
+        &syn.output,
+        strategy.to_json().as_bytes(),
+        a.out.force,
+    )?;
     let seconds = started.elapsed().as_secs_f64();
     if a.out.json {
         let mut m = serde_json::Map::new();

@@ -10,12 +10,13 @@ use anyhow::Result;
 use etp_pipeline::predicted_front::{STRATEGIES, compute, store};
 use etp_pipeline::selection::RequestSettings;
 use etp_pipeline::synthesis_dir::Synthesis;
+use etp_synthesis::exec::Executor;
 use etp_synthesis::pareto::{PredictedFront, PredictedPoint};
 use serde_json::json;
 use std::time::Instant;
 
-pub fn run(a: &FrontArgs) -> Result<()> {
-    let mut syn = Synthesis::load(&a.dir, None)?;
+pub fn run(a: &FrontArgs, exec: &Executor) -> Result<()> {
+    let mut syn = Synthesis::load(&a.dir, None, exec)?;
     let bounds: Vec<Option<f64>> = if a.max_collision.is_empty() {
         vec![None]
     } else {

@@ -14,16 +14,17 @@ use etp_pipeline::selection::{DEFAULT_LEVEL, selection_diagnostics};
 use etp_pipeline::synthesis_dir::Synthesis;
 use etp_synthesis::certify::intervals::interval_mdp;
 use etp_synthesis::certify::select::certified_strategy;
+use etp_synthesis::exec::Executor;
 use etp_synthesis::pareto::optimal::{LpRequest, optimal_strategy};
 use etp_synthesis::pareto::policy::{as_randomised, evaluate};
 use etp_synthesis::pareto::select::{Request as FrontRequest, select};
 use etp_synthesis::predict::request::Goal;
 use serde_json::json;
 
-pub fn run(a: &Args, request: Request) -> Result<()> {
+pub fn run(a: &Args, request: Request, exec: &Executor) -> Result<()> {
     let dir = a.dir.as_deref().context("DIR is required")?;
-    let syn = Synthesis::load(dir, a.out.output.as_deref())?;
-    refuse_existing(&syn.output, a.out.force)?;
+    let syn = Synthesis::load(dir, a.out.output.as_deref(), exec)?;
+    refuse_existing(exec, &syn.output, a.out.force)?;
     let cost = syn.cost();
     let mdp = &syn.mdp;
     let level = a.confidence.unwrap_or(DEFAULT_LEVEL);
@@ -76,9 +77,14 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
     let unmatched = selection_diagnostics(&mut strategy, mdp, &omega, cost, level)?;
     if a.check.aggregation_check > 0 {
         strategy.predictions.aggregation =
-            predictions::aggregation_check(&strategy, a.check.aggregation_check, a.out.json)?;
+            predictions::aggregation_check(&strategy, a.check.aggregation_check, a.out.json, exec)?;
     }
-    write_new(&syn.output, strategy.to_json().as_bytes(), a.out.force)?;
+    write_new(
+        exec,
+        &syn.output,
+        strategy.to_json().as_bytes(),
+        a.out.force,
+    )?;
     if a.out.json {
         let mut m = serde_json::Map::new();
         m.insert("strategy".into(), json!(syn.output));

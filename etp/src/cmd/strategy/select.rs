@@ -11,16 +11,17 @@ use etp_pipeline::selection::{DEFAULT_LEVEL, standing_strategy};
 use etp_pipeline::synthesis_dir::Synthesis;
 use etp_shared::strategy::Strategy;
 use etp_synthesis::abstraction;
+use etp_synthesis::exec::Executor;
 use etp_synthesis::pareto::policy::{Objectives, RandomisedPolicy, as_randomised, evaluate};
 use etp_synthesis::pareto::select::{Request as FrontRequest, select};
 use etp_synthesis::predict::request::{Goal, LoopSettings, Outcome, Verdict};
 use serde_json::{Value, json};
 use std::time::Instant;
 
-pub fn run(a: &Args, request: Request) -> Result<()> {
+pub fn run(a: &Args, request: Request, exec: &Executor) -> Result<()> {
     let dir = a.dir.as_deref().context("DIR is required")?;
-    let syn = Synthesis::load(dir, a.out.output.as_deref())?;
-    refuse_existing(&syn.output, a.out.force)?;
+    let syn = Synthesis::load(dir, a.out.output.as_deref(), exec)?;
+    refuse_existing(exec, &syn.output, a.out.force)?;
     let cost = syn.cost();
     let level = a.confidence.unwrap_or(DEFAULT_LEVEL);
     let certified_selection = match request {
@@ -37,7 +38,7 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
     let mdp = refined.as_ref().map_or(&syn.mdp, |r| &r.mdp);
     let params = abstraction::params_of(&syn.mdp);
     let units = etp_synthesis::predict::rebuild::progress_units(&syn.scenario, &params);
-    let pb = progress::bar(0, "rebuilds", a.out.json);
+    let pb = progress::bar(exec, 0, "rebuilds", a.out.json);
     let make =
         |omega: &RandomisedPolicy, value: Objectives| syn.strategy_of(mdp, omega, value, &label);
     let outcome = match request {
@@ -86,7 +87,12 @@ pub fn run(a: &Args, request: Request) -> Result<()> {
         a.check.aggregation_check,
         a.out.json,
     )?;
-    write_new(&syn.output, strategy.to_json().as_bytes(), a.out.force)?;
+    write_new(
+        exec,
+        &syn.output,
+        strategy.to_json().as_bytes(),
+        a.out.force,
+    )?;
     let explanation = explanation(&syn, request);
     let report = Report {
         syn: &syn,
