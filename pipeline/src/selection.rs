@@ -153,11 +153,14 @@ impl Default for RequestSettings {
     }
 }
 
-/// The request loop on `syn`'s MDP for `goal` and the strategy it stands
-/// by (the bytes `etp strategy DIR --min-target P` writes for the same
-/// settings): the outcome, the file, the cross-fit's unmatched mass.
+/// The selection step: the request loop for `goal` on `mdp` (`syn`'s own,
+/// or a refinement of it: `etp strategy --refine-gap`) and the strategy it
+/// stands by (the bytes `etp strategy DIR --min-target P` writes for the
+/// same settings): the outcome, the file, the cross-fit's unmatched mass.
+/// `etp strategy`, `etp demo`, `etp study` and Python all select through it.
 pub fn meet_goal(
     syn: &Synthesis,
+    mdp: &Mdp,
     goal: Goal,
     s: &RequestSettings,
     quiet: bool,
@@ -169,11 +172,11 @@ pub fn meet_goal(
     };
     let label = goal_label(goal, certified);
     let make = |omega: &RandomisedPolicy, value: etp_synthesis::pareto::policy::Objectives| {
-        syn.strategy_of(&syn.mdp, omega, value, &label)
+        syn.strategy_of(mdp, omega, value, &label)
     };
     let pb = crate::progress::bar(&syn.exec, 0, "rebuilds", quiet);
     let outcome = syn.meet(
-        &syn.mdp,
+        mdp,
         goal,
         etp_synthesis::predict::request::LoopSettings {
             replicates: s.replicates,
@@ -187,7 +190,7 @@ pub fn meet_goal(
     pb.finish_and_clear();
     let (strategy, unmatched) = standing_strategy(
         syn,
-        &syn.mdp,
+        mdp,
         &outcome,
         &outcome.certified,
         level,

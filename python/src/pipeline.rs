@@ -216,7 +216,7 @@ pub fn select_strategy(
         let exec = Executor::LOCAL;
         let syn = Synthesis::load(&dir, output.as_deref(), &exec)?;
         etp_pipeline::output::refuse_existing(&exec, &syn.output, force)?;
-        let (outcome, strategy, _) = meet_goal(&syn, goal, &settings, true)?;
+        let (outcome, strategy, _) = meet_goal(&syn, &syn.mdp, goal, &settings, true)?;
         let text = strategy.to_json();
         etp_pipeline::output::write_new(&exec, &syn.output, text.as_bytes(), force)?;
         Ok((

@@ -11,13 +11,13 @@ use etp_pipeline::front::write_front;
 use etp_pipeline::mdp_build::{MdpRequest, build_mdp};
 use etp_pipeline::output::write_new;
 use etp_pipeline::progress;
+use etp_pipeline::selection::{RequestSettings, meet_goal};
 use etp_runtime::scenario_arg::scenario_text;
 use etp_shared::rng::mix64;
 use etp_shared::scenario::DEFAULT_SCENARIO;
 use etp_synthesis::exec::Executor;
 use etp_synthesis::mdp::MDP_FILE;
-use etp_synthesis::pareto::to_strategy;
-use etp_synthesis::predict::request::{Goal, LoopSettings, Verdict, meet_request};
+use etp_synthesis::predict::request::{Goal, Verdict};
 use etp_synthesis::validate::{sample_trajectories, simulate_strategy};
 use serde_json::{Value, json};
 use std::path::PathBuf;
@@ -131,52 +131,33 @@ pub fn run(a: Args, exec: &Executor) -> Result<()> {
             a.min_target
         ),
     );
-    // The default path of `etp strategy`: the request loop, the prediction
-    // from the strategy's own rebuilds (docs/MODEL.md §7.4).
-    let params = etp_synthesis::abstraction::params_of(&built.mdp);
-    let units = etp_synthesis::predict::rebuild::progress_units(&built.scenario, &params);
-    let pb = progress::bar(exec, 0, "rebuilds", a.json);
-    let label = format!("least energy with P_tar ≥ {}", a.min_target);
-    let make = |omega: &etp_synthesis::pareto::policy::RandomisedPolicy,
-                value: etp_synthesis::pareto::policy::Objectives| {
-        let mut s = to_strategy(&built.mdp, omega, label.clone(), value);
-        s.policy.scenario_toml = Some(text.clone());
-        s
+    // The selection step of `etp strategy DIR --min-target P
+    // --aggregation-check 0`: the request loop, the prediction from the
+    // strategy's own rebuilds (docs/MODEL.md §7.4), the file it stands by.
+    let mut syn = etp_pipeline::synthesis_dir::Synthesis::from_parts(
+        &built.dir,
+        built.mdp.clone(),
+        Some(text.clone()),
+        front.front.clone(),
+        None,
+        exec,
+    )?;
+    let goal = Goal::MinTarget {
+        min_target: a.min_target,
+        max_collision: None,
     };
-    let outcome = meet_request(
-        &built.mdp,
-        front.front.cost_model,
-        &built.scenario,
-        &params,
-        Goal::MinTarget {
-            min_target: a.min_target,
-            max_collision: None,
-        },
-        LoopSettings {
-            replicates: etp_synthesis::predict::rebuild::DEFAULT_REPLICATES,
-            max_rounds: etp_synthesis::predict::request::DEFAULT_ROUNDS,
-            certified: None,
-        },
-        0.95,
-        &make,
-        &|n| pb.inc_length(u64::from(n) * units),
-        &exec.work(|k| pb.inc(k)),
-    )
-    .context("the demo's strategy")?;
-    pb.finish_and_clear();
+    let settings = RequestSettings {
+        aggregation_check: 0,
+        ..RequestSettings::default()
+    };
+    let (outcome, strategy, _) =
+        meet_goal(&syn, &syn.mdp, goal, &settings, a.json).context("the demo's strategy")?;
     if outcome.verdict != Verdict::Met {
         anyhow::bail!(
             "the demo's request P_tar ≥ {} is out of reach on this synthesis ({})",
             a.min_target,
             outcome.verdict.name()
         );
-    }
-    let mut strategy = outcome.strategy.clone();
-    outcome
-        .on_policy
-        .stand_by(&mut strategy, &outcome.certified, 0.95);
-    if let Some(d) = strategy.predictions.diagnostics.as_mut() {
-        d.rounds = outcome.rounds.iter().map(|r| r.record()).collect();
     }
     let strategy_path = dir.join("strategy.json");
     write_new(exec, &strategy_path, strategy.to_json().as_bytes(), false)?;
@@ -190,14 +171,6 @@ pub fn run(a: Args, exec: &Executor) -> Result<()> {
             &format!("      the predicted front ({points} requests, each a request loop)…"),
         );
     }
-    let mut syn = etp_pipeline::synthesis_dir::Synthesis::from_parts(
-        &built.dir,
-        built.mdp.clone(),
-        Some(text.clone()),
-        front.front.clone(),
-        None,
-        exec,
-    )?;
     let curves = if points == 0 {
         Vec::new()
     } else {

@@ -180,7 +180,7 @@ fn request(
         confidence: None,
         aggregation_check: s.aggregation_check,
     };
-    let (outcome, strategy, _) = meet_goal(syn, goal, &settings, true)?;
+    let (outcome, strategy, _) = meet_goal(syn, &syn.mdp, goal, &settings, true)?;
     let file = format!("strategy-{k}.json");
     let path = syn.dir.join(&file);
     write_new(&syn.exec, &path, strategy.to_json().as_bytes(), true)?;

@@ -7,14 +7,15 @@ use anyhow::{Context, Result};
 use etp_pipeline::output::{refuse_existing, write_new};
 use etp_pipeline::predictions;
 use etp_pipeline::progress;
-use etp_pipeline::selection::{DEFAULT_LEVEL, standing_strategy};
+use etp_pipeline::selection::{DEFAULT_LEVEL, RequestSettings, meet_goal, standing_strategy};
 use etp_pipeline::synthesis_dir::Synthesis;
 use etp_shared::strategy::Strategy;
 use etp_synthesis::abstraction;
 use etp_synthesis::exec::Executor;
-use etp_synthesis::pareto::policy::{Objectives, RandomisedPolicy, as_randomised, evaluate};
+use etp_synthesis::mdp::Mdp;
+use etp_synthesis::pareto::policy::{as_randomised, evaluate};
 use etp_synthesis::pareto::select::{Request as FrontRequest, select};
-use etp_synthesis::predict::request::{Goal, LoopSettings, Outcome, Verdict};
+use etp_synthesis::predict::request::{Goal, Outcome, Verdict};
 use serde_json::{Value, json};
 use std::time::Instant;
 
@@ -22,7 +23,6 @@ pub fn run(a: &Args, request: Request, exec: &Executor) -> Result<()> {
     let dir = a.dir.as_deref().context("DIR is required")?;
     let syn = Synthesis::load(dir, a.out.output.as_deref(), exec)?;
     refuse_existing(exec, &syn.output, a.out.force)?;
-    let cost = syn.cost();
     let level = a.confidence.unwrap_or(DEFAULT_LEVEL);
     let certified_selection = match request {
         Request::Goal(Goal::MinTarget { .. }) => a.confidence,
@@ -36,57 +36,19 @@ pub fn run(a: &Args, request: Request, exec: &Executor) -> Result<()> {
         None => None,
     };
     let mdp = refined.as_ref().map_or(&syn.mdp, |r| &r.mdp);
-    let params = abstraction::params_of(&syn.mdp);
-    let units = etp_synthesis::predict::rebuild::progress_units(&syn.scenario, &params);
-    let pb = progress::bar(exec, 0, "rebuilds", a.out.json);
-    let make =
-        |omega: &RandomisedPolicy, value: Objectives| syn.strategy_of(mdp, omega, value, &label);
-    let outcome = match request {
-        Request::Goal(goal) => syn.meet(
-            mdp,
-            goal,
-            LoopSettings {
+    let (outcome, strategy, unmatched) = match request {
+        Request::Goal(goal) => {
+            let settings = RequestSettings {
                 replicates: a.request_loop.rebuilds.replicates,
-                max_rounds: a.request_loop.rounds,
-                certified: certified_selection,
-            },
-            level,
-            &make,
-            &pb,
-        )?,
-        Request::Vertex(k) => {
-            let selection =
-                select(&syn.front, FrontRequest::Vertex(k)).context("selecting a vertex")?;
-            let v = selection.weights[0].0;
-            let omega = as_randomised(mdp, &syn.front.vertices[v].policy);
-            let value = evaluate(mdp, &omega, cost);
-            let strategy = make(&omega, value);
-            pb.inc_length(u64::from(a.request_loop.rebuilds.replicates) * units);
-            let (on_policy, certified) =
-                syn.predict(&strategy, a.request_loop.rebuilds.replicates, level, &pb)?;
-            Outcome {
-                omega,
-                selection_time: value,
-                strategy,
-                on_policy,
-                certified,
-                rounds: Vec::new(),
-                kept: 0,
-                verdict: Verdict::Met,
-            }
+                rounds: a.request_loop.rounds,
+                confidence: a.confidence,
+                aggregation_check: a.check.aggregation_check,
+            };
+            meet_goal(&syn, mdp, goal, &settings, a.out.json)?
         }
+        Request::Vertex(k) => vertex(a, &syn, mdp, k, &label)?,
     };
-    pb.finish_and_clear();
     let seconds = started.elapsed().as_secs_f64();
-    let (strategy, unmatched) = standing_strategy(
-        &syn,
-        mdp,
-        &outcome,
-        &outcome.certified,
-        level,
-        a.check.aggregation_check,
-        a.out.json,
-    )?;
     write_new(
         exec,
         &syn.output,
@@ -122,6 +84,51 @@ pub fn run(a: &Args, request: Request, exec: &Executor) -> Result<()> {
         }
         .into()),
     }
+}
+
+/// `--vertex K`: the front's vertex K on `mdp`, predicted on its own
+/// rebuilds (no loop: a vertex is not a request), and the strategy it
+/// stands by.
+fn vertex(
+    a: &Args,
+    syn: &Synthesis,
+    mdp: &Mdp,
+    k: usize,
+    label: &str,
+) -> Result<(Outcome, Strategy, Option<f64>)> {
+    let level = a.confidence.unwrap_or(DEFAULT_LEVEL);
+    let params = abstraction::params_of(&syn.mdp);
+    let units = etp_synthesis::predict::rebuild::progress_units(&syn.scenario, &params);
+    let pb = progress::bar(&syn.exec, 0, "rebuilds", a.out.json);
+    let selection = select(&syn.front, FrontRequest::Vertex(k)).context("selecting a vertex")?;
+    let v = selection.weights[0].0;
+    let omega = as_randomised(mdp, &syn.front.vertices[v].policy);
+    let value = evaluate(mdp, &omega, syn.cost());
+    let strategy = syn.strategy_of(mdp, &omega, value, label);
+    pb.inc_length(u64::from(a.request_loop.rebuilds.replicates) * units);
+    let (on_policy, certified) =
+        syn.predict(&strategy, a.request_loop.rebuilds.replicates, level, &pb)?;
+    pb.finish_and_clear();
+    let outcome = Outcome {
+        omega,
+        selection_time: value,
+        strategy,
+        on_policy,
+        certified,
+        rounds: Vec::new(),
+        kept: 0,
+        verdict: Verdict::Met,
+    };
+    let (strategy, unmatched) = standing_strategy(
+        syn,
+        mdp,
+        &outcome,
+        &outcome.certified,
+        level,
+        a.check.aggregation_check,
+        a.out.json,
+    )?;
+    Ok((outcome, strategy, unmatched))
 }
 
 /// By how much the kept strategy's prediction misses the request.
