@@ -262,6 +262,8 @@ pub fn prepare(a: &RunRequest, run_id: &RunId, dir: &std::path::Path) -> Result<
     let ScenarioText { text, scenario } = own
         .with_channel(&run_radio)
         .in_scenario(|| "the run's channel")?;
+    // Refused before any work, like the radio options.
+    let (channel_schedule, channel_schedule_path) = channel_schedule(a, &scenario, dir)?;
     let radio_synthesized = strategy_in.as_ref().map(|_| own_radio.clone());
     let robustness = strategy_in.is_some() && run_radio != own_radio;
     if scenario.sensors.len() > MAX_SENSORS {
@@ -302,7 +304,6 @@ pub fn prepare(a: &RunRequest, run_id: &RunId, dir: &std::path::Path) -> Result<
         sensor_energy(a, &scenario, &mut strategy, robustness)?;
     strategy.policy.scenario_toml = Some(text.clone());
 
-    let (channel_schedule, channel_schedule_path) = channel_schedule(a, &scenario, dir)?;
     let dir = dir.to_path_buf();
     let scenario_path = dir.join("scenario.toml");
     let strategy_path = dir.join("strategy.json");

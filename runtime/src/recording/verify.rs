@@ -368,11 +368,7 @@ fn rerun<const N: usize>(
         return Err(miss(0, 0, "initial belief (control)".into(), d));
     }
     let outcome = r.outcome;
-    // Each sensor link's channel in this episode, made at its first attempt.
-    let mut channels = slot::Channels {
-        schedule,
-        made: BTreeMap::new(),
-    };
+    let mut channels = slot::Channels::new(schedule);
     let mut k: u32 = 0;
     let legs = c.legs.len() as u32;
     for leg in 0..legs {

@@ -51,6 +51,15 @@ pub(super) struct Channels<'s> {
     pub made: BTreeMap<usize, LinkChannel>,
 }
 
+impl<'s> Channels<'s> {
+    pub fn new(schedule: &'s ChannelSchedule) -> Self {
+        Self {
+            schedule,
+            made: BTreeMap::new(),
+        }
+    }
+}
+
 /// The checks of `at` against the record `r`, in the agent's order; each
 /// check that holds is counted in `rep`, and the slot once all hold (its
 /// attempts, losses, step and kind of update). `channels`: each sensor link's
