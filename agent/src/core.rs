@@ -205,6 +205,12 @@ impl<const N: usize> EpisodeCore<N> {
         Ok(())
     }
 
+    /// The threshold δ of the open leg's next slot (0 in its full-KF
+    /// phase): what the serving sensor triggers at.
+    pub fn slot_delta(&self) -> Option<f64> {
+        self.open.as_ref().map(|l| l.core.threshold().delta)
+    }
+
     fn open_mut(&mut self) -> Result<&mut OpenLeg<N>, AgentError> {
         let leg = self.leg;
         self.open

@@ -16,6 +16,9 @@
 //!   `waypoint`, waits for the coordinator's `threshold`, hands its belief
 //!   over to the leg's sensor (`handover`, once per leg) and serves each
 //!   slot the core asks for over IPC.
+//! * the channel monitor (`etp_shared::drift::Monitor`) — fed every closed
+//!   slot's attempts and delivery at the slot's δ; each flag it raises is
+//!   published as a `drift` message to the coordinator (docs/MODEL.md §11).
 //! * [`link`] — the ports of a slot: publish `truth`, wake the serving
 //!   sensor, take its `slot` (and `measurement`); the slot's prior digest
 //!   must equal the agent's prior (the sensor's replica is exact). A sensor that is
@@ -90,6 +93,14 @@ pub struct Args {
     /// the view has no room: the run is the same with and without it.
     #[arg(long, value_name = "SOCKET", hide = true)]
     pub live_feed: Option<std::path::PathBuf>,
+    /// Episodes of the run: the channel monitor's horizon (its threshold
+    /// grows with the log of the observations it may see).
+    #[arg(long, default_value_t = 100)]
+    pub episodes: u64,
+    /// The channel monitor's false-alarm probability for the whole run
+    /// (docs/MODEL.md §11).
+    #[arg(long, default_value_t = etp_shared::drift::DEFAULT_FALSE_ALARM)]
+    pub drift_false_alarm: f64,
 }
 
 /// How the agent ended.
@@ -124,7 +135,14 @@ pub fn run(args: &Args) -> Result<(Exit, AgentStats), AgentError> {
             .map_err(|e| tracing::warn!("live view feed {}: {e}; running without it", p.display()))
             .ok()
     });
-    etp_shared::with_dim!(scenario.dim, N => runtime::Agent::<N>::new(&run, &scenario, deadline, live)?.serve())
+    let monitor = etp_shared::drift::Monitor::new(
+        &scenario,
+        etp_shared::drift::MonitorConfig {
+            false_alarm: args.drift_false_alarm,
+            episodes: args.episodes,
+        },
+    );
+    etp_shared::with_dim!(scenario.dim, N => runtime::Agent::<N>::new(&run, &scenario, deadline, live, monitor)?.serve())
 }
 
 /// The agent process, as the process shell runs it

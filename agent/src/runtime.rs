@@ -17,14 +17,16 @@ use crate::link::Links;
 use crate::{AgentError, AgentStats, Exit, IDLE_CHECK, SLOT_CHECK};
 use etp_runtime::live::{LiveTap, SlotFrame, Totals};
 use etp_runtime::wire::PortError;
-use etp_runtime::wire::agent_to_coordinator::{Outcome, Waypoint};
+use etp_runtime::wire::agent_to_coordinator::{Drift, Outcome, Waypoint};
 use etp_runtime::wire::coordinator_to_agent::Control;
 use etp_runtime::wire::to_coordinator::Hello;
 use etp_runtime::wire::{
     self, AGENT_NODE, COORDINATOR_NODE, ControlKind, Liveness, Notifier, OutcomeCode, Ports, Pub,
     SENDER_AGENT, ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, belief_to_wire,
 };
+use etp_shared::drift::{Flag, Monitor};
 use etp_shared::episode::CompiledScenario;
+use etp_shared::radio::Transmission;
 use etp_shared::scenario::Scenario;
 use iceoryx2::prelude::*;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -62,6 +64,9 @@ pub struct Agent<const N: usize> {
     control: Sub<Control>,
     waypoint: Pub<Waypoint>,
     outcome: Pub<Outcome>,
+    drift: Pub<Drift>,
+    /// The channel monitor, fed every closed slot.
+    monitor: Monitor,
     coordinator_wake: Notifier,
     stats: AgentStats,
     /// `etp run --live`: the view's feed (never blocks, never fails the run).
@@ -80,6 +85,7 @@ impl<const N: usize> Agent<N> {
         scenario: &Scenario,
         slot_deadline: Option<Duration>,
         live: Option<LiveTap>,
+        monitor: Monitor,
     ) -> Result<Self, AgentError> {
         let node = wire::create_node(run, AGENT_NODE)?;
         let sensors = scenario.sensors.len();
@@ -93,6 +99,7 @@ impl<const N: usize> Agent<N> {
         let control = ports.subscriber::<Control>(ServiceId::Control)?;
         let waypoint = ports.publisher::<Waypoint>(ServiceId::Waypoint)?;
         let outcome = ports.publisher::<Outcome>(ServiceId::Outcome)?;
+        let drift = ports.publisher::<Drift>(ServiceId::Drift)?;
         let coordinator_wake = ports.notifier(ServiceId::CoordinatorWake)?;
         let mut stamp = Stamper::new(run, SENDER_AGENT);
         let hello = wire::say_hello(&ports, &coordinator_wake, &mut stamp)?;
@@ -107,6 +114,8 @@ impl<const N: usize> Agent<N> {
             control,
             waypoint,
             outcome,
+            drift,
+            monitor,
             coordinator_wake,
             stats: AgentStats::default(),
             live,
@@ -280,6 +289,7 @@ impl<const N: usize> Agent<N> {
     fn episode(&mut self, episode: u64, seed: u64) -> Result<Option<Exit>, AgentError> {
         tracing::debug!(episode, "episode start");
         let mut core = EpisodeCore::start(&self.c, episode, seed)?;
+        self.monitor.start_episode(episode);
         let tag = self.stamp.tag();
         loop {
             let point = core.decision_point();
@@ -331,6 +341,18 @@ impl<const N: usize> Agent<N> {
                 if self.live.is_some() {
                     self.feed_view(episode, delta, &core, &request, &result);
                 }
+                if let (SlotResult::Closed(y, _), Some(slot_delta)) = (&result, core.slot_delta()) {
+                    let t = Transmission {
+                        attempts: self.links.last_attempts,
+                        delivered: y.is_some(),
+                    };
+                    for flag in self
+                        .monitor
+                        .observe(request.sensor, request.step, slot_delta, t)
+                    {
+                        self.publish_flag(request.leg, flag)?;
+                    }
+                }
                 match core.close_slot(&self.c, request, result, fault)? {
                     AfterSlot::Continue => {}
                     AfterSlot::LegEnded => break,
@@ -374,6 +396,34 @@ impl<const N: usize> Agent<N> {
                 totals: Totals::default(),
             });
         }
+    }
+
+    /// Publish a flag of the monitor as a `drift` message (the coordinator
+    /// reads it with the next waypoint or outcome).
+    fn publish_flag(&mut self, leg: u32, f: Flag) -> Result<(), AgentError> {
+        tracing::info!(
+            episode = f.episode,
+            step = f.step,
+            sensor = f.sensor,
+            quantity = f.quantity.name(),
+            statistic = f.statistic,
+            threshold = f.threshold,
+            "channel drift flagged"
+        );
+        self.drift
+            .send_copy(Drift {
+                header: self.stamp.header(f.episode, leg, f.step),
+                sensor: f.sensor as u32,
+                quantity: f.quantity.code(),
+                alternative: f.alternative,
+                statistic: f.statistic,
+                threshold: f.threshold,
+                since_onset: f.since_onset,
+                observations: f.observations,
+                estimate: f.estimate.unwrap_or(-1.0),
+            })
+            .map_err(|e| PortError::send("drift", e))?;
+        Ok(())
     }
 
     /// Publish the episode's outcome.

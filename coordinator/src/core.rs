@@ -12,8 +12,10 @@
 //! priced at what the agent received, and degrades its episode).
 
 use crate::CoordinatorError;
-use etp_runtime::report::{EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals};
-use etp_runtime::wire::agent_to_coordinator::{Outcome, Waypoint};
+use etp_runtime::report::{
+    DriftRecord, EpisodeRecord, FaultRecord, LegRecord, RunReport, SensorTotals,
+};
+use etp_runtime::wire::agent_to_coordinator::{Drift, Outcome, Waypoint};
 use etp_runtime::wire::sensor_to_coordinator::Ledger;
 use etp_runtime::wire::{Header, OutcomeCode, SENDER_AGENT};
 use etp_shared::rng::{SimRng, stream_rng, streams};
@@ -108,6 +110,8 @@ pub struct CoordinatorCore<'a> {
     records: Vec<EpisodeRecord>,
     faults: Vec<FaultRecord>,
     ledgers: HashMap<(u64, u32), Ledger>,
+    /// The channel monitor's flags, as the agent raised them.
+    drift: Vec<DriftRecord>,
 }
 
 impl<'a> CoordinatorCore<'a> {
@@ -122,6 +126,7 @@ impl<'a> CoordinatorCore<'a> {
             running: None,
             records: Vec::new(),
             faults: Vec::new(),
+            drift: Vec::new(),
             ledgers: HashMap::new(),
         }
     }
@@ -152,6 +157,22 @@ impl<'a> CoordinatorCore<'a> {
                 .running
                 .as_ref()
                 .is_some_and(|r| r.episode == h.episode)
+    }
+
+    /// A `drift` message: kept if it is this run's and names a sensor and a
+    /// quantity this build knows (returned, for the adapter's log and its
+    /// `--on-drift`).
+    pub fn on_drift(&mut self, d: &Drift) -> Option<&DriftRecord> {
+        let sensors = &self.scenario.sensors;
+        if d.header.run != self.tag
+            || d.header.sender != SENDER_AGENT
+            || d.sensor as usize >= sensors.len()
+        {
+            return None;
+        }
+        let record = DriftRecord::from_wire(d, |i| sensors[i as usize].name.clone())?;
+        self.drift.push(record);
+        self.drift.last()
     }
 
     fn sensor_of(&self, leg: u32) -> Result<u32, CoordinatorError> {
@@ -418,6 +439,12 @@ impl<'a> CoordinatorCore<'a> {
             predicted_ci95: None,
             sensors,
             faults: std::mem::take(&mut self.faults),
+            // A flag of an episode that did not finish is not reported, as
+            // the episode is not (the recording's summary does the same).
+            drift: std::mem::take(&mut self.drift)
+                .into_iter()
+                .filter(|d| records.iter().any(|r| r.episode == d.episode))
+                .collect(),
             episode_results: records,
             aborted,
         }

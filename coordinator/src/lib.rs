@@ -75,6 +75,21 @@ pub struct Args {
     /// 100 ms and at the end; `etp run` draws its progress from it).
     #[arg(long, value_name = "FILE")]
     pub progress: Option<std::path::PathBuf>,
+    /// What a flag of the agent's channel monitor does: `warn` (reported)
+    /// or `stop` (the run ends after the flag's episode).
+    #[arg(long, value_enum, default_value_t = OnDrift::Warn)]
+    pub on_drift: OnDrift,
+}
+
+/// `--on-drift`: what the coordinator does with a flag of the channel
+/// monitor (docs/MODEL.md §11).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum OnDrift {
+    /// Report it; the run goes on.
+    #[default]
+    Warn,
+    /// Report it and end the run after the flag's episode.
+    Stop,
 }
 
 /// Run all episodes and return the report.
@@ -91,6 +106,7 @@ pub fn run(args: &Args) -> Result<RunReport, CoordinatorError> {
         .map_err(|e| CoordinatorError::Input(e.to_string()))?;
     let startup = Duration::from_secs_f64(args.startup_timeout.max(0.1));
     let mut c = session::Coordinator::new(&run, &scenario, &strategy.policy, args.seed)?;
+    c.on_drift(args.on_drift);
     if let Some(p) = &args.progress {
         c.report_progress_to(p.clone());
     }

@@ -6,7 +6,7 @@ use crate::CoordinatorError;
 use crate::core::{CoordinatorCore, LegAt, Opening, RollCall};
 use etp_runtime::report::RunReport;
 use etp_runtime::wire::PortError;
-use etp_runtime::wire::agent_to_coordinator::{Outcome, Waypoint};
+use etp_runtime::wire::agent_to_coordinator::{Drift, Outcome, Waypoint};
 use etp_runtime::wire::coordinator_to_agent::Control;
 use etp_runtime::wire::coordinator_to_sensor::Threshold;
 use etp_runtime::wire::sensor_to_coordinator::Ledger;
@@ -39,6 +39,11 @@ pub struct Coordinator<'a> {
     threshold: Vec<Pub<Threshold>>,
     waypoint: Sub<Waypoint>,
     outcome: Sub<Outcome>,
+    drift: Sub<Drift>,
+    /// `--on-drift`: what a flag of the channel monitor does.
+    on_drift: crate::OnDrift,
+    /// With `--on-drift stop`: the flag that ends the run after its episode.
+    stop_for_drift: Option<String>,
     ledger: Sub<Ledger>,
     hello: Sub<Hello>,
     agent_wake: Notifier,
@@ -73,6 +78,9 @@ impl<'a> Coordinator<'a> {
                 .collect::<Result<_, _>>()?,
             waypoint: ports.subscriber(ServiceId::Waypoint)?,
             outcome: ports.subscriber(ServiceId::Outcome)?,
+            drift: ports.subscriber(ServiceId::Drift)?,
+            on_drift: crate::OnDrift::Warn,
+            stop_for_drift: None,
             ledger: ports.subscriber(ServiceId::Ledger)?,
             hello: ports.subscriber(ServiceId::Hello)?,
             agent_wake: ports.notifier(ServiceId::AgentWake)?,
@@ -230,6 +238,12 @@ impl<'a> Coordinator<'a> {
                     let last = self.core.end_episode(&o)?;
                     self.close(last)?;
                     self.note_progress(self.core.finished(), episode + 1 == episodes);
+                    if let Some(why) = self.stop_for_drift.take()
+                        && episode + 1 < episodes
+                    {
+                        aborted = Some(why);
+                        break 'episodes;
+                    }
                     break;
                 }
                 if progressed || self.wait(IDLE_CHECK)? {
@@ -255,6 +269,11 @@ impl<'a> Coordinator<'a> {
         Ok(self
             .core
             .report(self.run.to_string(), episodes, seconds, aborted))
+    }
+
+    /// What a flag of the channel monitor does (`--on-drift`).
+    pub fn on_drift(&mut self, on_drift: crate::OnDrift) {
+        self.on_drift = on_drift;
     }
 
     /// Progress goes to FILE (see [`Coordinator::note_progress`]).
@@ -291,6 +310,25 @@ impl<'a> Coordinator<'a> {
     /// Drain waypoints (the core decides each), outcomes and ledgers;
     /// (anything decided, the episode's outcome if it came).
     fn take_episode_messages(&mut self) -> Result<(bool, Option<Outcome>), CoordinatorError> {
+        // Flags first: the agent sends a flag before the waypoint or outcome
+        // that follows its slot.
+        while let Some(s) = self
+            .drift
+            .receive()
+            .map_err(|e| PortError::receive("drift", e))?
+        {
+            let d: Drift = *s;
+            if let Some(r) = self.core.on_drift(&d) {
+                tracing::warn!("channel drift: {}", r.describe());
+                if self.on_drift == crate::OnDrift::Stop && self.stop_for_drift.is_none() {
+                    self.stop_for_drift = Some(format!(
+                        "stopped on channel drift (--on-drift stop) after episode {}: {}",
+                        r.episode,
+                        r.describe()
+                    ));
+                }
+            }
+        }
         let mut progressed = false;
         while let Some(s) = self
             .waypoint

@@ -96,7 +96,7 @@ pub enum Command {
     /// run to Foxglove, `--listen … --remote …` puts sensors on other hosts.
     ///
     /// More: docs/cli.md.
-    Run(crate::run_args::RunArgs),
+    Run(Box<crate::run_args::RunArgs>),
     /// Serve remote sensors of a run on this host (`etp run --listen … --remote …` on the agent host).
     ///
     /// Fetches the scenario and parameters from the agent host, starts the

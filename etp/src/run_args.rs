@@ -67,6 +67,16 @@ pub struct RunArgs {
     /// the prediction keep the strategy's channel. Recorded with the run.
     #[arg(long, value_name = "FILE")]
     pub channel_schedule: Option<PathBuf>,
+    /// The channel monitor's false-alarm probability for the whole run, in
+    /// (0, 1) (docs/MODEL.md §11: sequential tests of each sensor's losses
+    /// and triggers against the strategy's channel) [default: 0.01].
+    #[arg(long, value_name = "ALPHA", value_parser = crate::values::open_unit)]
+    pub drift_false_alarm: Option<f64>,
+    /// What a flag of the channel monitor does: `warn` reports it (the run
+    /// goes on), `stop` ends the run after the flag's episode [default:
+    /// warn].
+    #[arg(long, value_name = "WHAT", value_parser = ["warn", "stop"])]
+    pub on_drift: Option<String>,
     /// Kill everything and fail after this many seconds (> 0) [default: 3600].
     #[arg(long, value_name = "SECONDS", value_parser = crate::values::seconds)]
     pub deadline: Option<f64>,
@@ -188,6 +198,8 @@ impl RunArgs {
             estimator: self.radio.estimator.clone(),
             trigger: self.trigger.trigger,
             channel_schedule: self.channel_schedule.clone(),
+            drift_false_alarm: self.drift_false_alarm,
+            on_drift: self.on_drift.clone(),
             live: self.live,
             live_wait: on(self.live_wait),
         }

@@ -87,6 +87,11 @@ run_file_keys! {
     /// Changes of sensors' links during the run (`--channel-schedule`,
     /// docs/MODEL.md §8.8), applied on the sensor side.
     channel_schedule: PathBuf => plain,
+    /// The channel monitor (docs/MODEL.md §11): its false-alarm
+    /// probability for the run (`--drift-false-alarm`) and what a flag does
+    /// (`--on-drift warn|stop`).
+    drift_false_alarm: f64 => plain,
+    on_drift: String => plain,
     /// The live view (`--live ADDR:PORT`, `--live-wait`): how the run is
     /// watched, not what it computes, so never stored in a recording's
     /// `etp.config` (a run again from it is not served live). Read as

@@ -111,7 +111,7 @@ pub use error::{Error, Result};
 use etp_runtime::cleanup;
 use etp_runtime::wire::RunId;
 pub use live::parse_addr as parse_live_addr;
-pub use request::{RecordTo, RunRequest, RunTarget};
+pub use request::{DriftWatch, OnDrift, RecordTo, RunRequest, RunTarget};
 use std::time::Duration;
 pub use verdict::{exit_for, problems};
 
@@ -122,6 +122,10 @@ pub const EXIT_ACCOUNTING: u8 = 4;
 /// Exit code: an episode ran with a dead link (degraded), without
 /// `--allow-degraded`.
 pub const EXIT_DEGRADED: u8 = 5;
+/// Exit code: with `--on-drift stop`, the channel monitor flagged a drift
+/// and the run stopped after the flag's episode; the report covers the
+/// episodes run.
+pub const EXIT_DRIFT: u8 = 6;
 /// Exit code: SIGINT or SIGTERM stopped the run; the report covers the
 /// complete episodes.
 pub const EXIT_INTERRUPTED: u8 = 130;

@@ -38,6 +38,8 @@ pub struct Plan {
     /// the run folder's copy the sensors read; empty and `None` without.
     pub channel_schedule: ChannelSchedule,
     pub channel_schedule_path: Option<PathBuf>,
+    /// The channel monitor's false-alarm rate and what its flags do.
+    pub drift: crate::request::DriftWatch,
 }
 
 /// The run's channel schedule (`--channel-schedule FILE`), checked against
@@ -327,5 +329,6 @@ pub fn prepare(a: &RunRequest, run_id: &RunId, dir: &std::path::Path) -> Result<
         radio_synthesized,
         channel_schedule,
         channel_schedule_path,
+        drift: a.drift,
     })
 }

@@ -243,6 +243,12 @@ fn metadata(plan: &Plan) -> Result<BTreeMap<String, BTreeMap<String, String>>> {
                 ("run_id".into(), plan.run_id.to_string()),
                 ("seed".into(), plan.seed.to_string()),
                 ("episodes".into(), plan.episodes.to_string()),
+                // The channel monitor's rate: with the scenario and the
+                // episodes, what `replay verify` raises its flags again from.
+                (
+                    "drift_false_alarm".into(),
+                    plan.drift.false_alarm.to_string(),
+                ),
                 ("scenario_name".into(), plan.scenario.name.clone()),
                 (
                     recording::META_RUN_SCENARIO_HASH.into(),

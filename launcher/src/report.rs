@@ -122,6 +122,9 @@ pub fn json(a: &RunRequest, plan: &Plan, s: &Supervised) -> Value {
         "steps_per_second": if r.seconds > 0.0 { r.steps as f64 / r.seconds } else { 0.0 },
         "wall_seconds": s.wall_seconds,
         "aborted": r.aborted,
+        "drift_monitor": json!({"false_alarm": plan.drift.false_alarm,
+            "on_drift": plan.drift.on_drift.name()}),
+        "drift": r.drift,
         "downlink": downlink(s, &traffic),
     });
     if let Some(m) = v.as_object_mut() {
@@ -191,10 +194,29 @@ pub fn print(a: &RunRequest, plan: &Plan, s: &Supervised) -> Result<()> {
         return Ok(());
     }
     print_outcomes(plan, s);
+    print_drift(plan, s);
     print_sensors(plan, s);
     print_traffic(s);
     print_faults(s);
     Ok(())
+}
+
+/// The channel monitor's line, and one line per flag.
+fn print_drift(plan: &Plan, s: &Supervised) {
+    let r = &s.report;
+    let head = format!(
+        "  channel monitor (false alarm ≤ {} per run, --on-drift {})",
+        plan.drift.false_alarm,
+        plan.drift.on_drift.name()
+    );
+    if r.drift.is_empty() {
+        println!("{head}: no drift flagged");
+        return;
+    }
+    println!("{head}: DRIFT flagged {} time(s)", r.drift.len());
+    for d in &r.drift {
+        println!("    {}", d.describe());
+    }
 }
 
 /// The run line, the channel and the outcomes against the prediction.

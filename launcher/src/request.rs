@@ -95,6 +95,48 @@ pub struct LiveView {
     pub wait_for_client: bool,
 }
 
+/// What a flag of the channel monitor does (`--on-drift`, docs/MODEL.md §11).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum OnDrift {
+    /// Reported; the run goes on.
+    #[default]
+    Warn,
+    /// Reported; the run ends after the flag's episode.
+    Stop,
+}
+
+impl OnDrift {
+    /// `warn`, `stop` (the run file's and the coordinator's word).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Warn => "warn",
+            Self::Stop => "stop",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Self> {
+        [Self::Warn, Self::Stop].into_iter().find(|o| o.name() == s)
+    }
+}
+
+/// The run's channel monitor (docs/MODEL.md §11).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DriftWatch {
+    /// The probability that any flag is raised in a run on the synthesized
+    /// channel, in (0, 1).
+    pub false_alarm: f64,
+    pub on_drift: OnDrift,
+}
+
+impl Default for DriftWatch {
+    fn default() -> Self {
+        Self {
+            false_alarm: etp_shared::drift::DEFAULT_FALSE_ALARM,
+            on_drift: OnDrift::Warn,
+        }
+    }
+}
+
 /// One run, every value resolved (defaults filled in).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunRequest {
@@ -109,6 +151,8 @@ pub struct RunRequest {
     /// A file of changes of sensors' links during the run (docs/MODEL.md
     /// §8.8), applied on the sensor side.
     pub channel_schedule: Option<PathBuf>,
+    /// The channel monitor's false-alarm rate and what its flags do.
+    pub drift: DriftWatch,
     /// Seconds after which everything is killed and the run fails.
     pub deadline: f64,
     /// Names the services `etp/<run-id>/…` (generated when `None`).
@@ -143,6 +187,7 @@ impl RunRequest {
             radio: RadioOverride::default(),
             trigger: None,
             channel_schedule: None,
+            drift: DriftWatch::default(),
             deadline: config::DEFAULT_DEADLINE,
             run_id: None,
             predict_episodes: config::DEFAULT_PREDICT_EPISODES,
@@ -226,6 +271,22 @@ impl RunRequest {
                 ))
             })?),
         };
+        let drift = DriftWatch {
+            false_alarm: match c.drift_false_alarm {
+                None => etp_shared::drift::DEFAULT_FALSE_ALARM,
+                Some(a) if a > 0.0 && a < 1.0 => a,
+                Some(a) => {
+                    return Err(Error::request(format!(
+                        "--drift-false-alarm {a}: a probability per run, in (0, 1)"
+                    )));
+                }
+            },
+            on_drift: match c.on_drift.as_deref() {
+                None => OnDrift::Warn,
+                Some(o) => OnDrift::parse(o)
+                    .ok_or_else(|| Error::request(format!("--on-drift `{o}`: `warn` or `stop`")))?,
+            },
+        };
         let live_wait = c.live_wait.unwrap_or(false);
         let live = match c.live {
             Some(addr) => Some(LiveView {
@@ -247,6 +308,7 @@ impl RunRequest {
             },
             trigger: c.trigger,
             channel_schedule: c.channel_schedule,
+            drift,
             deadline,
             run_id: c.run_id,
             predict_episodes: c
@@ -307,6 +369,8 @@ impl RunRequest {
             estimator: r.estimator.map(|e| e.name().to_string()),
             trigger: self.trigger,
             channel_schedule: self.channel_schedule.clone(),
+            drift_false_alarm: Some(self.drift.false_alarm),
+            on_drift: Some(self.drift.on_drift.name().to_string()),
             live: None,
             live_wait: None,
         }

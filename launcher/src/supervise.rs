@@ -241,7 +241,14 @@ fn spawn_processes(
             spawn(&sensor_bin, &args, false)?,
         ));
     }
-    let mut agent_extra = Vec::new();
+    // The monitor's horizon is the run's episodes; its model, the run's
+    // scenario text (the channel the prediction is for).
+    let mut agent_extra = vec![
+        "--episodes".to_string(),
+        plan.episodes.to_string(),
+        "--drift-false-alarm".to_string(),
+        plan.drift.false_alarm.to_string(),
+    ];
     if let Some(ms) = slot_deadline_ms {
         agent_extra.extend(["--slot-deadline".to_string(), ms.to_string()]);
     }
@@ -263,6 +270,8 @@ fn spawn_processes(
         plan.seed.to_string(),
         "--progress".into(),
         progress_file.display().to_string(),
+        "--on-drift".into(),
+        plan.drift.on_drift.name().into(),
     ]);
     let coordinator = spawn(&sibling_binary("etp-coordinator")?, &coord_args, true)?;
     Ok(Spawned {

@@ -158,6 +158,20 @@ pub fn problems(a: &super::RunRequest, outcome: &supervise::Supervised) -> Vec<(
             format!("{why} (accept with --allow-degraded)"),
         ));
     }
+    if a.drift.on_drift == crate::OnDrift::Stop
+        && let Some(first) = outcome.report.drift.first()
+        && outcome.report.episodes < outcome.report.requested_episodes
+    {
+        problems.push((
+            crate::EXIT_DRIFT,
+            format!(
+                "stopped on channel drift (--on-drift stop) after {} of {} episodes: {}",
+                outcome.report.episodes,
+                outcome.report.requested_episodes,
+                first.describe()
+            ),
+        ));
+    }
     if outcome.interrupted {
         problems.insert(
             0,
@@ -276,6 +290,7 @@ mod tests {
                 legs,
             }],
             aborted: None,
+            drift: Vec::new(),
         }
     }
 

@@ -47,6 +47,8 @@ struct EpisodeTally {
     received: BTreeMap<u32, u64>,
     /// (Leg, sensor) → `measurement` messages.
     measurements: BTreeMap<(u32, u32), u64>,
+    /// The channel monitor's flags raised in the episode, in order.
+    drift: Vec<etp_runtime::wire::agent_to_coordinator::Drift>,
     messages: u64,
 }
 
@@ -152,6 +154,7 @@ impl Tally {
                 e.received.insert(h.leg - 1, u64::from(w.prev_received));
             }
             Recorded::Outcome(o) => e.outcome = Some(o),
+            Recorded::Drift(d) => e.drift.push(d),
             _ => {}
         }
         Ok(())
@@ -352,6 +355,7 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
         "energy": crate::vocab::round_energy(energy),
         "predicted_energy": predicted_energy,
         "sensors": totals.sensors.values().collect::<Vec<_>>(),
+        "drift": drift_records(&totals.drift, &names),
         "identities_hold": failures.is_empty(),
         "identity_failures": failures,
         "missing_channels": missing,
@@ -364,6 +368,24 @@ pub fn summarize_tally(c: &Contents, t: Tally) -> Result<Value> {
     }
     null_what_is_missing(&mut v, &has);
     Ok(v)
+}
+
+/// The recorded flags as `etp run --json` reports them (`drift[]`).
+fn drift_records(
+    flags: &[etp_runtime::wire::agent_to_coordinator::Drift],
+    names: &[String],
+) -> Vec<etp_runtime::report::DriftRecord> {
+    flags
+        .iter()
+        .filter_map(|d| {
+            etp_runtime::report::DriftRecord::from_wire(d, |i| {
+                names
+                    .get(i as usize)
+                    .cloned()
+                    .unwrap_or_else(|| format!("sensor {i}"))
+            })
+        })
+        .collect()
 }
 
 /// What the recording says of its run beside the messages: the sensors'
@@ -414,6 +436,8 @@ struct Totals {
     partial: Vec<u64>,
     partial_messages: u64,
     partial_measurements: u64,
+    /// The flags of the complete episodes (as `etp run` reports them).
+    drift: Vec<etp_runtime::wire::agent_to_coordinator::Drift>,
 }
 
 /// Each complete episode's outcome, measurements, ledgers and energy
@@ -430,6 +454,7 @@ fn tally_episodes(
     let (mut steps, mut received, mut degraded) = (0u64, 0u64, 0u64);
     let mut episodes = 0u64;
     let mut energies: Vec<f64> = Vec::new();
+    let mut drift = Vec::new();
     let (mut partial, mut partial_messages, mut partial_measurements) = (Vec::new(), 0u64, 0u64);
     let cost_of_leg = |leg: u32| {
         scenario.as_ref().map_or(0.0, |s| {
@@ -462,6 +487,7 @@ fn tally_episodes(
             continue;
         };
         episodes += 1;
+        drift.extend(e.drift.iter().copied());
         steps += u64::from(o.steps);
         received += u64::from(o.received);
         let episode_degraded = e.degraded(ledgers_recorded);
@@ -523,13 +549,16 @@ fn tally_episodes(
         partial,
         partial_messages,
         partial_measurements,
+        drift,
     }
 }
 
 /// Null the counts whose channel the recording lacks (a filtered copy):
 /// never a 0 that would read as measured.
 fn null_what_is_missing(v: &mut Value, has: &dyn Fn(&str) -> bool) {
-    let needs: [(&str, &[&str]); 4] = [
+    // `drift` needs its channel (older recordings have none) and the
+    // outcomes that say which episodes are complete.
+    let needs: [(&str, &[&str]); 5] = [
         (
             "outcome",
             &[
@@ -542,11 +571,13 @@ fn null_what_is_missing(v: &mut Value, has: &dyn Fn(&str) -> bool) {
                 "partial",
                 "degraded_episodes",
                 "predicted_energy",
+                "drift",
             ],
         ),
         ("ledger", &["transmissions", "delivered", "lost", "energy"]),
         ("measurement", &["measurements"]),
         ("waypoint", &[]),
+        ("drift", &["drift"]),
     ];
     let per_sensor: [(&str, &[&str]); 4] = [
         ("outcome", &["received", "predicted_energy"]),

@@ -57,6 +57,79 @@ pub struct FaultRecord {
     pub dead_slots: u32,
 }
 
+/// A flag of the agent's channel monitor (a `drift` message), as `run
+/// --json` and `replay summary --json` show it (docs/MODEL.md §11).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DriftRecord {
+    pub sensor: String,
+    /// `loss`, `more_triggers` or `fewer_triggers`.
+    pub quantity: String,
+    pub episode: u64,
+    /// Episode step k of the slot that raised it.
+    pub step: u32,
+    /// The CUSUM statistic; `None` (JSON null) when infinite: the slot
+    /// carried what the synthesized channel cannot produce.
+    pub statistic: Option<f64>,
+    pub threshold: f64,
+    /// The alternative the statistic tested against (loss per attempt, or
+    /// trigger probability per slot).
+    pub alternative: f64,
+    /// Observations from the estimated onset to the flag.
+    pub since_onset: u64,
+    pub observations: u64,
+    /// A loss flag's lost / attempts since the onset.
+    pub estimate: Option<f64>,
+}
+
+impl DriftRecord {
+    /// The record of a `drift` message; `None` for a quantity code this
+    /// build does not know. `sensor_name` names an index.
+    pub fn from_wire(
+        d: &crate::wire::agent_to_coordinator::Drift,
+        sensor_name: impl Fn(u32) -> String,
+    ) -> Option<Self> {
+        let quantity = crate::wire::DriftQuantity::try_from(d.quantity).ok()?;
+        Some(Self {
+            sensor: sensor_name(d.sensor),
+            quantity: quantity.name().to_string(),
+            episode: d.header.episode,
+            step: d.header.step,
+            statistic: d.statistic.is_finite().then_some(d.statistic),
+            threshold: d.threshold,
+            alternative: d.alternative,
+            since_onset: d.since_onset,
+            observations: d.observations,
+            estimate: (d.estimate >= 0.0).then_some(d.estimate),
+        })
+    }
+
+    /// One line: `s1 loss at episode 55 step 12: CUSUM 18.3 ≥ 17.1 (loss
+    /// 0.3 against the model; 40 observations since the onset, loss
+    /// measured 0.31)`.
+    pub fn describe(&self) -> String {
+        let stat = self
+            .statistic
+            .map_or_else(|| "∞".to_string(), |s| format!("{s:.2}"));
+        let what = match self.quantity.as_str() {
+            "loss" => format!("loss per attempt {:.3}", self.alternative),
+            _ => format!("trigger probability {:.3}", self.alternative),
+        };
+        let mut line = format!(
+            "{} {} at episode {} step {}: CUSUM {stat} ≥ {:.2} against {what}, {} observations since the onset",
+            self.sensor,
+            self.quantity.replace('_', " "),
+            self.episode,
+            self.step,
+            self.threshold,
+            self.since_onset
+        );
+        if let Some(e) = self.estimate {
+            line.push_str(&format!(", loss measured since then {e:.3}"));
+        }
+        line
+    }
+}
+
 /// Per-sensor totals over the run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SensorTotals {
@@ -115,6 +188,10 @@ pub struct RunReport {
     pub episode_results: Vec<EpisodeRecord>,
     /// Why the run stopped early, if it did.
     pub aborted: Option<String>,
+    /// The channel monitor's flags in the episodes reported, in the order
+    /// raised.
+    #[serde(default)]
+    pub drift: Vec<DriftRecord>,
 }
 
 /// What a sensor host needs to take part in a run across hosts (served by

@@ -26,11 +26,18 @@
 //!   filter (box sends 0.1–1 pt above it, docs/performance.md), which the
 //!   alternatives' spacing leaves room for.
 //!
+//! * [`Monitor`] — every sensor's tests of a run under one budget, each
+//!   (sensor, [`Quantity`]) [`Flag`] raised at most once; what the agent
+//!   runs on its slots and `replay verify` runs again.
+//!
 //! An observation the model cannot produce (a lost attempt on an ideal link,
 //! more attempts than the link allows) is infinite evidence: an alarm at
 //! once. Everything here is pure: the caller feeds what the run carried.
 
 use crate::radio::{Link, Transmission};
+
+mod monitor;
+pub use monitor::{Flag, Monitor, MonitorConfig, MonitorObserver, Quantity};
 
 /// The alternatives each test runs a CUSUM against, as fractions of the
 /// distance to certainty: a probability `p₀` of the bad event (a loss, a
@@ -38,6 +45,9 @@ use crate::radio::{Link, Transmission};
 /// `p₀ (1 − f)`). Three spacings cover small and large drifts; each is one
 /// of the `K` tests of the [`Budget`].
 pub const ALTERNATIVES: [f64; 3] = [0.125, 0.25, 0.5];
+
+/// The monitor's false-alarm probability per run unless asked otherwise.
+pub const DEFAULT_FALSE_ALARM: f64 = 0.01;
 
 /// Page's CUSUM of a log-likelihood ratio.
 #[derive(Debug, Clone, PartialEq)]

@@ -35,7 +35,7 @@ pub fn dispatch(command: Command, exec: &Executor) -> anyhow::Result<()> {
         Command::Demo(a) => demo::run(a, exec),
         Command::Simulate(a) => simulate::run(a, exec),
         Command::Bench(a) => bench::run(a),
-        Command::Run(a) => run::run(a),
+        Command::Run(a) => run::run(*a),
         Command::SensorHost(a) => sensor_host::run(a),
         Command::Certs(a) => certs::run(a),
         Command::Replay(a) => replay::run(a),

@@ -54,6 +54,22 @@ fn write_table(out: &mut String, file: &Path, c: &Contents, s: &Value) -> std::f
             p["episodes"], p["messages"], p["measurements"]
         )?;
     }
+    if let Some(flags) = s
+        .get("drift")
+        .and_then(|d| {
+            serde_json::from_value::<Vec<etp_runtime::report::DriftRecord>>(d.clone()).ok()
+        })
+        .filter(|f| !f.is_empty())
+    {
+        writeln!(
+            out,
+            "  channel monitor: DRIFT flagged {} time(s)",
+            flags.len()
+        )?;
+        for f in &flags {
+            writeln!(out, "    {}", f.describe())?;
+        }
+    }
     writeln!(
         out,
         "  transmissions: {} attempts in ledgers = {} delivered + {} lost · {} measurement messages · {} received by the agent",

@@ -13,7 +13,8 @@ use super::{Kind, Recorded};
 use crate::wire::catalogue::{HEADER_NAMES, Named};
 use crate::wire::schema::{Field, Scalar};
 use crate::wire::{
-    ControlKind, MAX_DIM, OutcomeCode, SENDER_AGENT, SENDER_COORDINATOR, ThresholdKind,
+    ControlKind, DriftQuantity, MAX_DIM, OutcomeCode, SENDER_AGENT, SENDER_COORDINATOR,
+    ThresholdKind,
 };
 use serde_json::Value;
 
@@ -277,6 +278,9 @@ fn cell(v: &Value, s: &Source, names: &Names) -> Cell {
         (Some(Named::Outcome), Some(c)) => {
             named_code(c, |c| OutcomeCode::try_from(c).ok().map(OutcomeCode::name))
         }
+        (Some(Named::DriftQuantity), Some(c)) => named_code(c, |c| {
+            DriftQuantity::try_from(c).ok().map(DriftQuantity::name)
+        }),
         (Some(Named::Sensor), Some(c)) => Cell::Text(names.sensor(c)),
         (Some(Named::SensorOrNone), Some(c)) if c == u64::from(u32::MAX) => Cell::Null,
         (Some(Named::SensorOrNone), Some(c)) => Cell::Text(names.sensor(c)),

@@ -30,17 +30,21 @@
 //! decision must be the slot's (sent iff it made attempts) and a delivered
 //! measurement must have the recorded bits.
 //!
+//! The channel monitor's flags (`drift`) are raised again from the recorded
+//! slots and must be the recorded ones, bit for bit (`drift`).
+//!
 //! Degraded episodes (a dead link) are skipped and counted: whether a late
 //! slot was taken as closed or dead depended on wall-clock timing the file
 //! does not hold. An episode cut by the end of an unfinished file is checked
 //! up to its last complete slot and counted as incomplete.
 
+mod drift;
 mod slot;
 
 use super::{
     META_CHANNEL_SCHEDULE, META_RUN, META_SCENARIO, Recorded, RecordingError, read::Contents,
 };
-use crate::wire::agent_to_coordinator::{Outcome, Waypoint};
+use crate::wire::agent_to_coordinator::{Drift, Outcome, Waypoint};
 use crate::wire::agent_to_sensor::{Handover, Truth};
 use crate::wire::coordinator_to_agent::Control;
 use crate::wire::coordinator_to_sensor::Threshold;
@@ -102,6 +106,10 @@ pub struct VerifyReport {
     /// Slots whose sensor decision (and delivered measurement) was re-drawn
     /// from the recorded true state and found as recorded.
     pub decisions_checked: u64,
+    /// The channel monitor's recorded flags raised again, bit for bit, by
+    /// the monitor fed the recorded slots (`None`: the recording does not
+    /// say the monitor's false-alarm rate, as recordings before it did not).
+    pub drift_flags_reproduced: Option<u64>,
     pub mismatch_count: u64,
     /// The first mismatches (at most 50), in episode order.
     pub mismatches: Vec<Mismatch>,
@@ -148,6 +156,8 @@ struct EpisodeRecord {
     /// Step → the true state the agent sent the serving sensor.
     truths: BTreeMap<u32, Truth>,
     outcome: Option<Outcome>,
+    /// The channel monitor's flags, in the order published.
+    drift: Vec<Drift>,
     /// Two messages of one kind for one step or leg.
     duplicate: Option<String>,
 }
@@ -194,6 +204,7 @@ fn group(c: &Contents) -> Result<(BTreeMap<u64, EpisodeRecord>, u64), RecordingE
             Recorded::Truth(x) => eps.entry(x.header.episode),
             Recorded::Waypoint(x) => eps.entry(x.header.episode),
             Recorded::Outcome(x) => eps.entry(x.header.episode),
+            Recorded::Drift(x) => eps.entry(x.header.episode),
             _ => continue,
         }
         .or_default();
@@ -209,6 +220,7 @@ fn group(c: &Contents) -> Result<(BTreeMap<u64, EpisodeRecord>, u64), RecordingE
             Recorded::Truth(x) => insert(&mut r.truths, x.header.step, x, dup, "truth"),
             Recorded::Waypoint(x) => insert(&mut r.waypoints, x.header.leg, x, dup, "waypoint"),
             Recorded::Outcome(x) => r.outcome = Some(x),
+            Recorded::Drift(x) => r.drift.push(x),
             _ => {}
         }
     }
@@ -277,6 +289,25 @@ fn verify_with(c: &Contents, sink: &mut PriorSink<'_>) -> Result<VerifyReport, R
             report.count(ended);
         }
     });
+    let false_alarm = c
+        .meta(META_RUN, "drift_false_alarm")
+        .and_then(|t| t.parse::<f64>().ok());
+    let requested = c
+        .meta(META_RUN, "episodes")
+        .and_then(|t| t.parse::<u64>().ok());
+    if let (Some(false_alarm), Some(requested)) = (false_alarm, requested) {
+        let config = etp_shared::drift::MonitorConfig {
+            false_alarm,
+            episodes: requested,
+        };
+        drift::check(
+            &scenario,
+            config,
+            &episodes,
+            cut.then_some(horizon),
+            &mut report,
+        );
+    }
     Ok(report)
 }
 

@@ -455,6 +455,16 @@ catalogue! {
         names: [],
         codes: "a process is ready (pid)",
     }
+    // Last of the recorded rows: a recording's channels keep the order
+    // they had before it.
+    Drift => a2c::Drift {
+        topic: "drift",
+        owner: Agent, reader: Coordinator,
+        // At most three flags per sensor in a run.
+        limits: OneToOne(64), link: Local, recorded: true, forward: Local,
+        names: ["sensor": Sensor, "quantity": DriftQuantity],
+        codes: "a flag of the agent's channel monitor (docs/MODEL.md 11) at header.step: quantity 1 = LOSS (attempts lost beyond the link's model), 2 = MORE_TRIGGERS, 3 = FEWER_TRIGGERS (than the family's rate at the slot's delta); alternative: the CUSUM's alternative (loss per attempt, trigger probability); statistic >= threshold (inf: an observation the model cannot produce); since_onset: observations from the estimated onset; estimate: lost/attempts since the onset, -1 = none",
+    }
     // A message that exists only in this crate's tests: it shows that one
     // row derives everything (see `tests::a_test_only_row_derives_everything`).
     #[cfg(test)]
@@ -507,6 +517,8 @@ pub enum Named {
     ThresholdKind,
     /// [`super::OutcomeCode`]: `target`, `collision`, `free`.
     Outcome,
+    /// [`super::DriftQuantity`]: `loss`, `more_triggers`, `fewer_triggers`.
+    DriftQuantity,
     /// A sensor index → the sensor's name.
     Sensor,
     /// A sensor index → its name; `u32::MAX` → none (null).

@@ -251,6 +251,37 @@ pub mod agent_to_coordinator {
         pub const COLLISION: u32 = 2;
         pub const FREE: u32 = 3;
     }
+
+    /// `drift`: the agent's monitor raised a flag (docs/MODEL.md §11): what
+    /// sensor `sensor` carried is not the channel or trigger the strategy
+    /// was synthesized for. `header.step` is the slot that raised it.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+    #[type_name("etp::Drift")]
+    pub struct Drift {
+        pub header: Header,
+        pub sensor: u32,
+        /// [`Drift::LOSS`], [`Drift::MORE_TRIGGERS`] or [`Drift::FEWER_TRIGGERS`].
+        pub quantity: u32,
+        /// The alternative whose CUSUM reached the threshold: a loss per
+        /// attempt, or a trigger probability per slot.
+        pub alternative: f64,
+        /// The CUSUM statistic (+∞: an observation the model cannot produce).
+        pub statistic: f64,
+        pub threshold: f64,
+        /// Observations from the estimated onset to the flag.
+        pub since_onset: u64,
+        /// Observations of this test so far in the run.
+        pub observations: u64,
+        /// A loss flag's lost / attempts since the onset; -1 for none.
+        pub estimate: f64,
+    }
+
+    impl Drift {
+        pub const LOSS: u32 = 1;
+        pub const MORE_TRIGGERS: u32 = 2;
+        pub const FEWER_TRIGGERS: u32 = 3;
+    }
 }
 
 /// Sensor → coordinator.
@@ -397,6 +428,32 @@ impl OutcomeCode {
     }
 }
 
+code_enum! {
+    /// `Drift::quantity` (the codes of `etp_shared::drift::Quantity`).
+    DriftQuantity {
+        Loss = agent_to_coordinator::Drift::LOSS,
+        MoreTriggers = agent_to_coordinator::Drift::MORE_TRIGGERS,
+        FewerTriggers = agent_to_coordinator::Drift::FEWER_TRIGGERS,
+    }
+}
+
+impl DriftQuantity {
+    /// The name used in reports (`loss`, `more_triggers`, `fewer_triggers`).
+    pub fn name(self) -> &'static str {
+        self.quantity().name()
+    }
+
+    /// The monitor's quantity of this code.
+    pub fn quantity(self) -> etp_shared::drift::Quantity {
+        use etp_shared::drift::Quantity;
+        match self {
+            Self::Loss => Quantity::Loss,
+            Self::MoreTriggers => Quantity::MoreTriggers,
+            Self::FewerTriggers => Quantity::FewerTriggers,
+        }
+    }
+}
+
 #[cfg(test)]
 mod code_tests {
     use super::*;
@@ -414,5 +471,8 @@ mod code_tests {
         assert_eq!(ControlKind::try_from(2), Ok(ControlKind::Stop));
         assert_eq!(OutcomeCode::try_from(3).map(OutcomeCode::name), Ok("free"));
         assert_eq!(OutcomeCode::try_from(9), Err(9));
+        for q in DriftQuantity::ALL {
+            assert_eq!(q.code(), q.quantity().code(), "{q:?}");
+        }
     }
 }

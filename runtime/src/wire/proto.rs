@@ -43,7 +43,8 @@
 
 use super::catalogue::{HEADER_NAMES, Kind, KindVisitor, Message, Named};
 use super::messages::{
-    ControlKind, NAMED_SENSORS, OutcomeCode, SENDER_AGENT, SENDER_COORDINATOR, ThresholdKind,
+    ControlKind, DriftQuantity, NAMED_SENSORS, OutcomeCode, SENDER_AGENT, SENDER_COORDINATOR,
+    ThresholdKind,
 };
 use prost::Message as _;
 use prost_reflect::{DescriptorPool, MessageDescriptor};
@@ -239,6 +240,15 @@ fn enum_of(named: Named) -> Option<(&'static str, Vec<(String, i32)>)> {
             codes(
                 "OUTCOME",
                 OutcomeCode::ALL
+                    .iter()
+                    .map(|k| (k.variant_name(), k.code())),
+            ),
+        ),
+        Named::DriftQuantity => (
+            "DriftQuantity",
+            codes(
+                "DRIFT_QUANTITY",
+                DriftQuantity::ALL
                     .iter()
                     .map(|k| (k.variant_name(), k.code())),
             ),

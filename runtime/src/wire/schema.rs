@@ -247,6 +247,7 @@ impl Named {
             Self::ControlKind => "start | stop",
             Self::ThresholdKind => "open | close | stop",
             Self::Outcome => "target | collision | free",
+            Self::DriftQuantity => "loss | more_triggers | fewer_triggers",
             Self::Sensor => "the sensor's name",
             Self::SensorOrNone => "the sensor's name, or null for none",
             Self::Sender => "the sensor's name, coordinator or agent",

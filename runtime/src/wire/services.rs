@@ -152,8 +152,8 @@ mod tests {
         ] {
             assert_eq!(ServiceId::from_topic(bad), None, "{bad}");
         }
-        // Eleven messages, and this crate's test-only probe.
-        assert_eq!(Kind::ALL.len(), 12);
+        // Twelve messages, and this crate's test-only probe.
+        assert_eq!(Kind::ALL.len(), 13);
     }
 
     /// Every row has every column, and the columns agree: a per-sensor
@@ -248,6 +248,7 @@ mod tests {
             S::Outcome,
             S::Ledger,
             S::Hello,
+            S::Drift,
             S::Threshold(0),
             S::Truth(0),
             S::Handover(0),

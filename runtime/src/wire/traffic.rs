@@ -133,7 +133,7 @@ mod tests {
             let classed = link_class(s).is_some();
             let link = !matches!(
                 s,
-                ServiceId::Control | ServiceId::Waypoint | ServiceId::Outcome
+                ServiceId::Control | ServiceId::Waypoint | ServiceId::Outcome | ServiceId::Drift
             );
             assert_eq!(classed, link, "{s:?}");
         }

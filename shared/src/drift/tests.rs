@@ -263,3 +263,179 @@ fn triggers_at_the_model_rate_rarely_alarm_and_a_doubled_rate_is_found() {
         );
     }
 }
+
+/// winding-2d at δ = 1.5 on every leg, every link `link`, family `family`.
+fn winding_with(link: Link, family: crate::trigger::TriggerFamily) -> crate::scenario::Scenario {
+    let mut s = crate::scenario::Scenario::builtin("winding-2d").expect("built-in");
+    for l in &mut s.radio.links {
+        *l = link;
+    }
+    s.trigger = family;
+    s
+}
+
+/// Runs of `episodes` episodes each on `s` with a fresh monitor per run at
+/// rate `alpha`: how many runs raised any flag.
+fn runs_flagged(s: &crate::scenario::Scenario, runs: u64, episodes: u64, alpha: f64) -> u64 {
+    use crate::episode::{CompiledScenario, LegMode};
+    use crate::etkf::Threshold;
+    use crate::rng::streams;
+    let c = CompiledScenario::<2>::new(s);
+    let config = MonitorConfig {
+        false_alarm: alpha,
+        episodes,
+    };
+    (0..runs)
+        .filter(|&run| {
+            let mut obs = MonitorObserver::new(s, config);
+            for e in 0..episodes {
+                let index = run * episodes + e;
+                obs.start_episode(e);
+                c.run_episode(
+                    |_, _, _| LegMode::EventTriggered(Threshold::new(1.5)),
+                    &mut stream_rng(41, streams::SIMULATE, index),
+                    &mut c.channels(41, streams::SIMULATE, index),
+                    &mut obs,
+                );
+            }
+            !obs.flags.is_empty()
+        })
+        .count() as u64
+}
+
+#[test]
+fn the_monitor_on_the_synthesized_channel_flags_within_its_rate() {
+    use crate::trigger::TriggerFamily;
+    // Loss and triggers at once: 9 tests per sensor share α.
+    let lossy = Link {
+        loss: 0.3,
+        retries: 1,
+        burst: None,
+    };
+    let (runs, alpha) = (1000, 0.05);
+    for (link, family) in [
+        (Link::default(), TriggerFamily::Box),
+        (Link::default(), TriggerFamily::Stochastic),
+        (lossy, TriggerFamily::Stochastic),
+        (lossy, TriggerFamily::Box),
+        (
+            Link {
+                burst: Some(3.0),
+                ..lossy
+            },
+            TriggerFamily::Stochastic,
+        ),
+    ] {
+        let s = winding_with(link, family);
+        let flagged = runs_flagged(&s, runs, 20, alpha);
+        assert!(
+            (flagged as f64) <= most_alarms(runs, alpha),
+            "{family:?} {link:?}: {flagged} of {runs} runs flagged at α = {alpha}"
+        );
+    }
+}
+
+#[test]
+fn the_monitor_flags_a_sensor_whose_link_is_not_the_model() {
+    use crate::trigger::TriggerFamily;
+    // The model says loss 0.1; the channel loses 0.5: the loss flag in
+    // every run, naming the sensor that serves, raised once.
+    let model = winding_with(
+        Link {
+            loss: 0.1,
+            retries: 1,
+            burst: None,
+        },
+        TriggerFamily::Stochastic,
+    );
+    let truth = winding_with(
+        Link {
+            loss: 0.5,
+            retries: 1,
+            burst: None,
+        },
+        TriggerFamily::Stochastic,
+    );
+    use crate::episode::{CompiledScenario, LegMode};
+    use crate::etkf::Threshold;
+    use crate::rng::streams;
+    let c = CompiledScenario::<2>::new(&truth);
+    let config = MonitorConfig {
+        false_alarm: 0.01,
+        episodes: 50,
+    };
+    for run in 0..10 {
+        let mut obs = MonitorObserver::new(&model, config);
+        for e in 0..50 {
+            obs.start_episode(e);
+            c.run_episode(
+                |_, _, _| LegMode::EventTriggered(Threshold::new(1.5)),
+                &mut stream_rng(43, streams::SIMULATE, run * 50 + e),
+                &mut c.channels(43, streams::SIMULATE, run * 50 + e),
+                &mut obs,
+            );
+        }
+        let loss: Vec<_> = obs
+            .flags
+            .iter()
+            .filter(|f| f.quantity == Quantity::Loss)
+            .collect();
+        assert!(
+            !loss.is_empty(),
+            "run {run}: loss 0.5 against 0.1 not flagged"
+        );
+        let mut sensors: Vec<_> = loss.iter().map(|f| f.sensor).collect();
+        sensors.dedup();
+        assert_eq!(sensors.len(), loss.len(), "a flag raised twice: {loss:?}");
+        for f in &loss {
+            assert!(f.statistic >= f.threshold);
+            let est = f.estimate.expect("a loss flag estimates the loss");
+            assert!(est > 0.2, "estimate {est} of a 0.5 loss");
+        }
+        assert!(
+            obs.flags.iter().all(|f| f.quantity == Quantity::Loss),
+            "triggers are the model's: {:?}",
+            obs.flags
+        );
+    }
+}
+
+#[test]
+fn a_loss_on_an_ideal_link_is_flagged_at_once_and_only_once() {
+    let s = winding_with(Link::default(), crate::trigger::TriggerFamily::Box);
+    let mut m = Monitor::new(
+        &s,
+        MonitorConfig {
+            false_alarm: 0.01,
+            episodes: 100,
+        },
+    );
+    m.start_episode(7);
+    let sent = Transmission {
+        attempts: 1,
+        delivered: true,
+    };
+    let lost = Transmission {
+        attempts: 1,
+        delivered: false,
+    };
+    assert!(m.observe(1, 3, 1.5, sent).is_empty());
+    let flags = m.observe(1, 4, 1.5, lost);
+    assert_eq!(flags.len(), 1, "{flags:?}");
+    let f = flags[0];
+    assert_eq!(
+        (f.sensor, f.quantity, f.episode, f.step),
+        (1, Quantity::Loss, 7, 4)
+    );
+    assert_eq!(f.statistic, f64::INFINITY);
+    assert!(m.observe(1, 5, 1.5, lost).is_empty(), "raised once");
+    assert!(m.observe(99, 5, 1.5, lost).is_empty(), "no such sensor");
+    // h = ln(N K / α): N = 100 episodes × legs × k_max, K = 3 per sensor (box
+    // has a model rate: 9).
+    let b = m.budget();
+    assert_eq!(b.tests, 9 * s.sensors.len() as u64);
+    assert_eq!(
+        b.horizon,
+        100 * s.legs.len() as u64 * u64::from(s.controller.k_max)
+    );
+}

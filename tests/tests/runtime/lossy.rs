@@ -212,6 +212,88 @@ fn a_channel_schedule_changes_links_mid_run_with_exact_counts_and_verify_redraws
     assert_eq!(verify["passed"].as_bool(), Some(true), "{verify}");
     assert_eq!(verify["attempts_redrawn"].as_u64(), Some(attempts));
     assert_eq!(verify["lost_redrawn"].as_u64(), Some(lost));
+    // The channel monitor's model is the run's ideal radio: a lost attempt
+    // is what it cannot produce, flagged at once (statistic ∞, JSON null):
+    // s2's loss (from episode 3) and s1's (from 5), each once. The losses,
+    // read as silence by the ideal estimator, may also make a changed
+    // sensor trigger more often than the model (docs/MODEL.md §11.1); an
+    // unchanged sensor is never flagged. The recording holds the same
+    // flags and verify raises them again.
+    let drift = v["drift"].as_array().expect("drift[]");
+    let flagged: Vec<(&str, &str, u64)> = drift
+        .iter()
+        .map(|d| {
+            (
+                d["sensor"].as_str().expect("sensor"),
+                d["quantity"].as_str().expect("quantity"),
+                d["episode"].as_u64().expect("episode"),
+            )
+        })
+        .collect();
+    let losses: Vec<_> = drift.iter().filter(|d| d["quantity"] == "loss").collect();
+    assert_eq!(losses.len(), 2, "{drift:?}");
+    for d in &losses {
+        assert!(d["statistic"].is_null(), "{d}");
+        assert!(d["estimate"].as_f64().is_some_and(|e| e > 0.0), "{d}");
+    }
+    for (sensor, quantity, episode) in &flagged {
+        let from = match *sensor {
+            "s1" => 5,
+            "s2" => 3,
+            _ => panic!("an unchanged sensor flagged {quantity}: {drift:?}"),
+        };
+        assert!(
+            *episode >= from,
+            "{sensor} {quantity} before its change: {drift:?}"
+        );
+        assert_ne!(*quantity, "fewer_triggers", "{drift:?}");
+    }
+    assert!(
+        flagged.iter().any(|f| f.0 == "s1" && f.1 == "loss"),
+        "{drift:?}"
+    );
+    assert!(
+        flagged.iter().any(|f| f.0 == "s2" && f.1 == "loss"),
+        "{drift:?}"
+    );
+    assert_eq!(r["drift"], v["drift"], "the recording's flags");
+    assert_eq!(
+        verify["drift_flags_reproduced"].as_u64(),
+        Some(drift.len() as u64),
+        "{verify}"
+    );
+    // `--on-drift stop`: the run ends after the first flag's episode, exit 6,
+    // its report covering the episodes run.
+    let (code, out, err) = EtpRun::spawn(
+        &unique_run_id("schedule-stop"),
+        &[
+            "--scenario",
+            "winding-2d",
+            "--delta",
+            DELTA,
+            "--episodes",
+            "10",
+            "--seed",
+            "4",
+            "--channel-schedule",
+            &schedule.display().to_string(),
+            "--on-drift",
+            "stop",
+        ],
+    )
+    .finish_code();
+    assert_eq!(code, Some(6), "{err}");
+    let stopped: Value =
+        serde_json::from_str(&out).unwrap_or_else(|e| panic!("bad JSON ({e}): {out}"));
+    let first = flagged.iter().map(|f| f.2).min().expect("a flag");
+    assert_eq!(stopped["episodes"].as_u64(), Some(first + 1), "{stopped}");
+    assert!(
+        stopped["aborted"]
+            .as_str()
+            .is_some_and(|a| a.contains("--on-drift stop")),
+        "{stopped}"
+    );
+    assert!(err.contains("stopped on channel drift"), "{err}");
     // A schedule naming no sensor of the run is refused by its key, before
     // anything runs.
     std::fs::write(&schedule, "[[change]]\nsensor = \"s9\"\nepisode = 1\n").expect("write");

@@ -55,6 +55,12 @@ fn write_verify(out: &mut String, v: &recording::VerifyReport) -> std::fmt::Resu
         "  sensor decisions: {} re-drawn from the recorded true states as recorded",
         v.decisions_checked
     )?;
+    if let Some(n) = v.drift_flags_reproduced {
+        writeln!(
+            out,
+            "  channel monitor: {n} drift flag(s) raised again from the recorded slots, bit for bit"
+        )?;
+    }
     for m in &v.mismatches {
         writeln!(
             out,
