@@ -13,8 +13,6 @@
 //! * [`dist`] — the ranks of an MPI job (feature `mpi`): MPI started and
 //!   the executor every command is handed built on its world; rank 0 writes.
 //! * [`report`] — a simulation summary's tables.
-//! * [`study`] — `etp study`: a SPEC's cases, resumable, scheduled across
-//!   MPI ranks; its tables.
 //! * [`processes`] — the run's processes `etp process NAME` plays.
 //! * [`values`] — the ranges of option values, checked as clap parses.
 //! * [`run_args`] — `etp run`'s flags and their typed request for the
@@ -22,7 +20,7 @@
 //!
 //! The work is in libraries: the maths in `etp-shared` and `etp-synthesis`,
 //! the pipeline's steps in `etp-pipeline` (MDP, front, selection,
-//! predictions, output files, progress; shared with the Python package),
+//! predictions, output files, progress, studies; shared with the Python package),
 //! the runtime in `etp-runtime`, the multi-process run in `etp-launcher`,
 //! the recording tools and the JSON vocabulary of simulate, validate, run
 //! and replay in `etp-recording-tools`, the figures in `etp-figures`. A
@@ -40,7 +38,6 @@ pub mod processes;
 pub mod report;
 pub mod run_args;
 pub mod scenario_flags;
-pub mod study;
 pub mod values;
 
 use std::process::ExitCode;

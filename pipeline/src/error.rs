@@ -1,8 +1,10 @@
 //! What a pipeline step fails with, typed: a caller tells a refused
 //! scenario from a synthesis folder it cannot use, a request it cannot
 //! carry out, an output it may not write and a computation that failed
-//! (Python raises a class per variant). The text, with its causes joined by
-//! `: `, is what `etp` prints after `error: `.
+//! (Python raises a class per variant). A study adds its own: a SPEC
+//! refused by key ([`SpecError`]) and what a study fails with
+//! ([`StudyError`]). The text, with its causes joined by `: `, is what
+//! `etp` prints after `error: `.
 
 use etp_figures::FigureError;
 use etp_files::write::WriteError;
@@ -10,6 +12,7 @@ use etp_runtime::scenario_arg::ScenarioArgError;
 use etp_shared::scenario::ScenarioError;
 use etp_synthesis::exec::ExecError;
 use etp_synthesis::predict::PredictError;
+use std::path::PathBuf;
 
 /// A cause carried under an error's own words.
 pub type Cause = Box<dyn std::error::Error + Send + Sync>;
@@ -129,6 +132,132 @@ impl<T, E: std::error::Error + Send + Sync + 'static> Context<T> for std::result
             what: what.into(),
             source: Some(Box::new(e)),
         })
+    }
+}
+
+/// Why a study's SPEC is refused: each error names the SPEC's key
+/// (`samples`, `requests[1].min_target`, `scenarios[0]`, …).
+#[derive(Debug, thiserror::Error)]
+pub enum SpecError {
+    /// Not TOML, an unknown key or a value of the wrong type (the parser's
+    /// message names the key and its line).
+    #[error(transparent)]
+    Toml(#[from] toml::de::Error),
+    /// The same for a SPEC given as JSON (the Python package's dict).
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+    /// A value out of its range or not of its form: `key: what`.
+    #[error("{key}: {what}")]
+    Value { key: String, what: String },
+    /// A scenario of `scenarios` that cannot be read, drawn or put under a
+    /// family: `scenarios[i]` (`… under FAMILY`) over the scenario's error.
+    #[error("{key}")]
+    Scenario {
+        key: String,
+        #[source]
+        source: Cause,
+    },
+}
+
+impl SpecError {
+    pub(crate) fn value(key: impl Into<String>, what: impl Into<String>) -> Self {
+        SpecError::Value {
+            key: key.into(),
+            what: what.into(),
+        }
+    }
+}
+
+/// Why a study failed. Finished cases stay on disk whatever the error: the
+/// same study started again resumes from them.
+#[derive(Debug, thiserror::Error)]
+pub enum StudyError {
+    /// The SPEC file could not be read.
+    #[error("reading study spec {}", path.display())]
+    ReadSpec {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The SPEC file refused, under its path.
+    #[error("study spec {}", path.display())]
+    SpecFile {
+        path: PathBuf,
+        #[source]
+        source: SpecError,
+    },
+    /// A SPEC given as a value refused.
+    #[error(transparent)]
+    Spec(#[from] SpecError),
+    /// The study's folder holds the study of another SPEC (each key that
+    /// differs named with both values).
+    #[error("{0}")]
+    AnotherSpec(String),
+    /// A file of the study's folder that cannot be read: its `spec.json`,
+    /// a finished case's row file (written whole, so edited since).
+    #[error("{what}")]
+    Folder {
+        what: String,
+        #[source]
+        source: Cause,
+    },
+    /// A case's step failed: `study case JOB: the synthesis`, `study case
+    /// JOB request K` over the step's error.
+    #[error("{what}")]
+    Case {
+        what: String,
+        #[source]
+        source: Error,
+    },
+    /// A step of the study itself failed: a file written, the executor.
+    #[error(transparent)]
+    Step(#[from] Error),
+    /// A folder of the study refused (a link, another user's, the file
+    /// system refused).
+    #[error(transparent)]
+    Output(#[from] WriteError),
+    /// The ranks of the job could not share the plan or gather the rows.
+    #[error("{what}")]
+    Ranks {
+        what: String,
+        #[source]
+        source: Cause,
+    },
+    /// A value of the study not written or read as JSON, with what it is.
+    #[error("{what}")]
+    Serde {
+        what: String,
+        #[source]
+        source: serde_json::Error,
+    },
+    /// A value of the study not written as JSON.
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+    /// A table not written as CSV.
+    #[error("{what}")]
+    Table {
+        what: String,
+        #[source]
+        source: Cause,
+    },
+    /// The study's own bookkeeping disagrees with itself (a bug).
+    #[error("{0}")]
+    Bug(String),
+}
+
+impl StudyError {
+    pub(crate) fn serde(what: impl Into<String>) -> impl FnOnce(serde_json::Error) -> Self {
+        let what = what.into();
+        move |source| StudyError::Serde { what, source }
+    }
+    pub(crate) fn ranks<E: std::error::Error + Send + Sync + 'static>(
+        what: impl Into<String>,
+    ) -> impl FnOnce(E) -> Self {
+        let what = what.into();
+        move |e| StudyError::Ranks {
+            what,
+            source: Box::new(e),
+        }
     }
 }
 

@@ -1,5 +1,5 @@
 //! etpareto's pipeline as a library: the steps `etp synthesize`, `etp
-//! strategy` and `etp validate` run, callable without the command line —
+//! strategy`, `etp validate` and `etp study` run, callable without the command line —
 //! by the `etp` binary's subcommands (which add arguments and printing) and
 //! by the Python package `etpareto` (`python/`).
 //!
@@ -16,6 +16,9 @@
 //! * [`predictions`] — a strategy file's predictions as reports show them,
 //!   the aggregation check, the checks against a simulation.
 //! * [`validation`] — `etp validate`'s JSON and failed checks.
+//! * [`study`] — `etp study`: a SPEC's cases (synthesis, strategy,
+//!   validation), resumable, shared out over the executor's ranks; its
+//!   tables ([`study::run`] from a typed [`study::StudyRequest`]).
 //! * [`output`] — files written beside and renamed, never over one unasked.
 //! * [`progress`] — the steps' bars, and the bar under way for a caller
 //!   that draws progress itself.
@@ -28,7 +31,8 @@
 //!
 //! The maths is in `etp-shared` and `etp-synthesis` (pure: no I/O, no
 //! clock); this crate adds files and progress. Errors are
-//! [`error::Error`], one variant per kind of failure; with its causes
+//! [`error::Error`], one variant per kind of failure (a study's:
+//! [`error::StudyError`], its SPEC's [`error::SpecError`]); with its causes
 //! joined by `: ` its text is what `etp` prints after `error:`.
 
 pub mod aggregation;
@@ -40,6 +44,7 @@ pub mod predicted_front;
 pub mod predictions;
 pub mod progress;
 pub mod selection;
+pub mod study;
 pub mod synthesis_dir;
 pub mod synthesize;
 pub mod validation;

@@ -2,14 +2,16 @@
 //! trigger family × request of the SPEC: synthesis, the strategy `etp
 //! strategy` stands by, its validation) and write `DIR/study.json`,
 //! `DIR/study.csv` and `DIR/timings.csv`; resumes a killed study on the
-//! same DIR; on MPI ranks, shares out the jobs (`crate::study`).
+//! same DIR; on MPI ranks, shares out the jobs. The study is
+//! `etp_pipeline::study::run`; this module parses, prints and sums up.
 
-use crate::study::{self, Plan, case, spec::Spec, table::Finished};
-use anyhow::{Context, Result};
-use etp_pipeline::output::write_new;
-use etp_pipeline::progress;
+use anyhow::Result;
+use etp_pipeline::study::spec::Spec;
+use etp_pipeline::study::table::Finished;
+use etp_pipeline::study::{Observer, StudyRequest};
 use etp_synthesis::exec::Executor;
-use std::path::PathBuf;
+use indicatif::ProgressBar;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 const SPEC_HELP: &str = "SPEC (TOML): scenarios = [\"winding-2d\", \"my.toml\", { random = 4, \
@@ -71,125 +73,42 @@ fn line(f: &Finished, ranks: usize) -> String {
     s
 }
 
-pub fn run(a: Args, exec: &Executor) -> Result<()> {
-    let started = Instant::now();
-    let spec = Spec::load(&a.spec)?;
-    let dir = study::folder(&spec, a.out.as_deref());
-    etp_files::write::output_folder(&dir)?;
-    study::claim(&spec, &dir, exec)?;
-    let cases_dir = dir.join("cases");
-    etp_files::write::output_folder(&cases_dir)?;
-    let (rank, ranks) = (exec.rank(), exec.ranks());
-    // Rank 0 says what is finished and what is left: the others follow its
-    // plan (they may look at the folder after rank 0 has written to it).
-    let (finished, plan) = if rank == 0 {
-        study::survey(&spec, &dir)?
-    } else {
-        (Vec::new(), Plan::default())
-    };
-    let said = exec
-        .all_gather(if rank == 0 {
-            serde_json::to_vec(&plan)?
-        } else {
-            Vec::new()
-        })
-        .context("sharing the study's plan")?;
-    let plan: Plan = serde_json::from_slice(said.first().map_or(&[][..], |p| &p[..]))
-        .context("the study's plan from rank 0")?;
-    let total = spec.jobs.len() * spec.rows_per_job();
-    if rank == 0 && !finished.is_empty() {
+/// What `etp study` says as the study goes, on stderr.
+struct Say;
+
+impl Observer for Say {
+    fn resuming(&mut self, spec: &Spec, dir: &Path, finished: usize, total: usize, left: usize) {
         eprintln!(
-            "study {}: resuming in {}: {} of {total} cases finished, {} left",
+            "study {}: resuming in {}: {finished} of {total} cases finished, {left} left",
             spec.name,
             dir.display(),
-            finished.len(),
-            plan.cases()
         );
     }
-    // Whole jobs to ranks when there are enough of them (`hand_out`); else
-    // every rank on each job.
-    let apart = study::hand_out(plan.work.len(), ranks);
-    let assign = if apart {
-        study::schedule(&spec, &plan, ranks)
-    } else {
-        vec![rank; plan.work.len()]
-    };
-    let mine_count: usize = plan
-        .work
-        .iter()
-        .zip(&assign)
-        .filter(|(_, r)| **r == rank)
-        .map(|(w, _)| w.pending.len())
-        .sum();
-    let pb = progress::bar(exec, mine_count as u64, "study", a.json);
-    let mut mine: Vec<Finished> = Vec::new();
-    // Whole jobs apart: this rank alone on its threads, writing its cases.
-    let alone = exec.alone();
-    let on = case::Placement {
-        exec: if apart { &alone } else { exec },
-        rank,
-    };
-    for (w, r) in plan.work.iter().zip(&assign) {
-        if *r != rank {
-            continue;
+
+    fn finished(&mut self, case: &Finished, ranks: usize, bar: &ProgressBar) {
+        let text = line(case, ranks);
+        if bar.is_hidden() {
+            eprintln!("study: {text}");
+        } else {
+            bar.println(text);
         }
-        let job = spec
-            .jobs
-            .get(w.job)
-            .context("rank 0's plan names a job the SPEC does not have")?;
-        pb.set_message(job.id.clone());
-        let mut done = |f: &Finished| {
-            let text = line(f, ranks);
-            if pb.is_hidden() {
-                eprintln!("study: {text}");
-            } else {
-                pb.println(text);
-            }
-            pb.inc(1);
-            mine.push(f.clone());
-        };
-        case::run_job(
-            job,
-            w,
-            &cases_dir,
-            &spec.requests,
-            &spec.settings,
-            &on,
-            &mut done,
-        )?;
     }
-    pb.finish_and_clear();
-    // Every rank's new rows to rank 0 (working together, rank 0 has them all).
-    let send = if apart || rank == 0 { &mine[..] } else { &[] };
-    let parts = exec
-        .all_gather(serde_json::to_vec(send)?)
-        .context("gathering the study's rows")?;
-    if rank != 0 {
+}
+
+pub fn run(a: Args, exec: &Executor) -> Result<()> {
+    let started = Instant::now();
+    let request = StudyRequest {
+        spec: Spec::load(&a.spec)?,
+        out: a.out,
+        quiet: a.json,
+    };
+    let Some(done) = etp_pipeline::study::run(&request, exec, &mut Say)? else {
         return Ok(());
-    }
-    let mut all = finished;
-    for (k, p) in parts.iter().enumerate() {
-        let rows: Vec<Finished> =
-            serde_json::from_slice(p).with_context(|| format!("the rows rank {k} sent"))?;
-        all.extend(rows);
-    }
-    let tables = study::tables(&spec, all)?;
-    let json = study::study_json(&spec, &tables.rows)?;
-    write_new(exec, &dir.join("study.json"), json.as_bytes(), true)?;
-    write_new(
-        exec,
-        &dir.join("study.csv"),
-        study::table::csv(&tables.rows)?.as_bytes(),
-        true,
-    )?;
-    write_new(
-        exec,
-        &dir.join("timings.csv"),
-        study::table::csv(&tables.timings)?.as_bytes(),
-        true,
-    )?;
+    };
+    let (spec, dir, tables) = (&request.spec, &done.dir, &done.tables);
+    let ranks = exec.ranks();
     if a.json {
-        print!("{json}");
+        print!("{}", done.json);
         return Ok(());
     }
     let rows = &tables.rows;

@@ -4,8 +4,7 @@
 //! [`Spec`] whose jobs are numbered in the file's order; every error names
 //! the key.
 
-use crate::scenario_flags::parse_family;
-use anyhow::{Context, Result, bail};
+use crate::error::{SpecError, StudyError};
 use etp_runtime::scenario_arg::scenario_text_in;
 use etp_shared::scenario::random::{AgentKind, random_scenario};
 use etp_shared::scenario::{Scenario, ScenarioText};
@@ -132,144 +131,217 @@ pub struct Spec {
     pub jobs: Vec<Job>,
 }
 
-fn probability(key: &str, v: f64) -> Result<f64> {
+fn probability(key: &str, v: f64) -> Result<f64, SpecError> {
     if (0.0..=1.0).contains(&v) {
         Ok(v)
     } else {
-        bail!("{key}: must be a probability in [0, 1], got {v}")
+        Err(SpecError::value(
+            key,
+            format!("must be a probability in [0, 1], got {v}"),
+        ))
     }
 }
 
-impl Spec {
-    /// Read and check the SPEC at `path`.
-    pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("reading study spec {}", path.display()))?;
-        let stem = path
-            .file_stem()
-            .map_or_else(|| "study".into(), |s| s.to_string_lossy().into_owned());
-        let base = path.parent().unwrap_or(Path::new("."));
-        Self::parse(&text, &stem, base).with_context(|| format!("study spec {}", path.display()))
-    }
-
-    /// Parse SPEC `text`; scenario paths relative to `base`.
-    pub fn parse(text: &str, default_name: &str, base: &Path) -> Result<Self> {
-        let raw: RawSpec = toml::from_str(text)?;
-        let d = etp_synthesis::predict::rebuild::DEFAULT_REPLICATES;
+impl Settings {
+    /// The settings a SPEC gives, the commands' defaults for the rest.
+    fn of(raw: &RawSpec) -> Result<Self, SpecError> {
         let settings = Settings {
             samples: raw
                 .samples
                 .unwrap_or(etp_synthesis::abstraction::DEFAULT_SAMPLES),
             seed: raw.seed.unwrap_or(0),
-            replicates: raw.replicates.unwrap_or(d),
+            replicates: raw
+                .replicates
+                .unwrap_or(etp_synthesis::predict::rebuild::DEFAULT_REPLICATES),
             rounds: raw
                 .rounds
                 .unwrap_or(etp_synthesis::predict::request::DEFAULT_ROUNDS),
             episodes: raw.episodes.unwrap_or(3000),
             aggregation_check: raw
                 .aggregation_check
-                .unwrap_or(etp_pipeline::predictions::AGGREGATION_CHECK_EPISODES),
+                .unwrap_or(crate::predictions::AGGREGATION_CHECK_EPISODES),
             kf_episodes: raw.kf_episodes.unwrap_or(3000),
         };
         if settings.samples == 0 {
-            bail!("samples: at least 1 segment per state-action");
+            return Err(SpecError::value(
+                "samples",
+                "at least 1 segment per state-action",
+            ));
         }
         if !(2..=64).contains(&settings.replicates) {
-            bail!(
-                "replicates: 2 to 64 rebuilds per prediction, got {}",
-                settings.replicates
-            );
+            return Err(SpecError::value(
+                "replicates",
+                format!(
+                    "2 to 64 rebuilds per prediction, got {}",
+                    settings.replicates
+                ),
+            ));
         }
         if !(1..=20).contains(&settings.rounds) {
-            bail!("rounds: 1 to 20, got {}", settings.rounds);
+            return Err(SpecError::value(
+                "rounds",
+                format!("1 to 20, got {}", settings.rounds),
+            ));
         }
         if settings.kf_episodes == 0 {
-            bail!("kf_episodes: at least 1");
+            return Err(SpecError::value("kf_episodes", "at least 1"));
         }
-        let mut requests = Vec::new();
-        for (k, r) in raw.requests.iter().enumerate() {
-            let key = format!("requests[{k}]");
-            let min_target = match &r.min_target {
-                RawTarget::Value(p) => {
-                    Target::Value(probability(&format!("{key}.min_target"), *p)?)
-                }
-                RawTarget::Relative(t) => {
-                    let d = t
-                        .strip_prefix("kf-")
-                        .and_then(|x| x.parse::<f64>().ok())
-                        .with_context(|| {
+        Ok(settings)
+    }
+}
+
+impl Request {
+    /// Request `k` of the SPEC, checked.
+    fn of(k: usize, r: &RawRequest) -> Result<Self, SpecError> {
+        let key = format!("requests[{k}]");
+        let min_target = match &r.min_target {
+            RawTarget::Value(p) => Target::Value(probability(&format!("{key}.min_target"), *p)?),
+            RawTarget::Relative(t) => {
+                let d = t
+                    .strip_prefix("kf-")
+                    .and_then(|x| x.parse::<f64>().ok())
+                    .ok_or_else(|| {
+                        SpecError::value(
+                            format!("{key}.min_target"),
                             format!(
-                                "{key}.min_target: a probability or \"kf-D\" (the full Kalman \
-                                 filter's P_tar minus D), got \"{t}\""
-                            )
-                        })?;
-                    Target::BelowKf(probability(&format!("{key}.min_target"), d)?)
-                }
-            };
-            let max_collision = r
-                .max_collision
-                .map(|c| probability(&format!("{key}.max_collision"), c))
-                .transpose()?;
-            requests.push(Request {
-                min_target,
-                max_collision,
-            });
+                                "a probability or \"kf-D\" (the full Kalman filter's P_tar \
+                                 minus D), got \"{t}\""
+                            ),
+                        )
+                    })?;
+                Target::BelowKf(probability(&format!("{key}.min_target"), d)?)
+            }
+        };
+        let max_collision = r
+            .max_collision
+            .map(|c| probability(&format!("{key}.max_collision"), c))
+            .transpose()?;
+        Ok(Request {
+            min_target,
+            max_collision,
+        })
+    }
+}
+
+/// `scenarios[i]`'s error under its key.
+fn at<E: std::error::Error + Send + Sync + 'static>(key: String) -> impl FnOnce(E) -> SpecError {
+    move |e| SpecError::Scenario {
+        key,
+        source: Box::new(e),
+    }
+}
+
+/// The jobs of scenario `i` of the SPEC (`s`), one per family (`None`:
+/// its own), numbered on from `first`.
+fn jobs_of(
+    (i, s): (usize, &RawScenario),
+    families: Option<&[TriggerFamily]>,
+    base: &Path,
+    first: usize,
+) -> Result<Vec<Job>, SpecError> {
+    let key = || format!("scenarios[{i}]");
+    let (source, own_text) = match s {
+        RawScenario::Named(name) => (
+            name.clone(),
+            scenario_text_in(base, name).map_err(at(key()))?,
+        ),
+        RawScenario::Random { random, seed } => {
+            let kind = AgentKind::from_dim(*random).map_err(at(key()))?;
+            let (text, _) = random_scenario(kind, *seed).map_err(at(key()))?;
+            (format!("random n={random} seed={seed}"), text)
         }
+    };
+    let own = ScenarioText::parse(own_text).map_err(at(key()))?;
+    // Each family as `etp synthesize --trigger FAMILY` writes it into the
+    // text; without `families`, the scenario's own text.
+    let texts: Vec<(TriggerFamily, String)> = match families {
+        None => vec![(own.scenario.trigger, own.text.clone())],
+        Some(fs) => fs
+            .iter()
+            .map(|&f| {
+                own.clone()
+                    .with_trigger(f)
+                    .map(|t| (f, t.text))
+                    .map_err(at(format!("scenarios[{i}] under {f}")))
+            })
+            .collect::<Result<_, _>>()?,
+    };
+    let mut jobs = Vec::new();
+    for (family, text) in texts {
+        let scenario = Scenario::from_toml(&text).map_err(at(key()))?;
+        jobs.push(Job {
+            id: format!(
+                "{:02}-{}-{}",
+                first + jobs.len(),
+                scenario.name,
+                family.name()
+            ),
+            source: source.clone(),
+            family,
+            scenario_hash: scenario.content_hash.clone(),
+            text,
+            scenario,
+        });
+    }
+    Ok(jobs)
+}
+
+impl Spec {
+    /// Read and check the SPEC file at `path` (its name defaults to the
+    /// file's stem, its scenario paths are relative to its folder).
+    pub fn load(path: &Path) -> Result<Self, StudyError> {
+        let text = std::fs::read_to_string(path).map_err(|source| StudyError::ReadSpec {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let stem = path
+            .file_stem()
+            .map_or_else(|| "study".into(), |s| s.to_string_lossy().into_owned());
+        let base = path.parent().unwrap_or(Path::new("."));
+        Self::parse(&text, &stem, base).map_err(|source| StudyError::SpecFile {
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+
+    /// Parse SPEC `text` (TOML); scenario paths relative to `base`.
+    pub fn parse(text: &str, default_name: &str, base: &Path) -> Result<Self, SpecError> {
+        Self::from_raw(toml::from_str(text)?, default_name, base)
+    }
+
+    /// Parse a SPEC written as JSON (the same keys and values as the TOML
+    /// file; the Python package's dict); scenario paths relative to `base`.
+    pub fn from_json(text: &str, default_name: &str, base: &Path) -> Result<Self, SpecError> {
+        Self::from_raw(serde_json::from_str(text)?, default_name, base)
+    }
+
+    fn from_raw(raw: RawSpec, default_name: &str, base: &Path) -> Result<Self, SpecError> {
+        let settings = Settings::of(&raw)?;
+        let requests = raw
+            .requests
+            .iter()
+            .enumerate()
+            .map(|(k, r)| Request::of(k, r))
+            .collect::<Result<_, _>>()?;
         let families: Option<Vec<TriggerFamily>> = raw
             .families
             .as_ref()
             .map(|fs| {
                 fs.iter()
-                    .map(|f| parse_family(f).map_err(|e| anyhow::anyhow!("families: {e}")))
-                    .collect::<Result<_>>()
+                    .map(|f| {
+                        TriggerFamily::parse(f)
+                            .map_err(|e| SpecError::value("families", e.to_string()))
+                    })
+                    .collect::<Result<_, _>>()
             })
             .transpose()?;
         if raw.scenarios.is_empty() {
-            bail!("scenarios: give at least one");
+            return Err(SpecError::value("scenarios", "give at least one"));
         }
         let mut jobs = Vec::new();
-        for (i, s) in raw.scenarios.iter().enumerate() {
-            let (source, own_text) = match s {
-                RawScenario::Named(name) => {
-                    let text =
-                        scenario_text_in(base, name).with_context(|| format!("scenarios[{i}]"))?;
-                    (name.clone(), text)
-                }
-                RawScenario::Random { random, seed } => {
-                    let kind =
-                        AgentKind::from_dim(*random).with_context(|| format!("scenarios[{i}]"))?;
-                    let (text, _) =
-                        random_scenario(kind, *seed).with_context(|| format!("scenarios[{i}]"))?;
-                    (format!("random n={random} seed={seed}"), text)
-                }
-            };
-            let own = ScenarioText::parse(own_text).with_context(|| format!("scenarios[{i}]"))?;
-            // Each family as `etp synthesize --trigger FAMILY` writes it into
-            // the text; without `families`, the scenario's own text.
-            let texts: Vec<(TriggerFamily, String)> = match &families {
-                None => vec![(own.scenario.trigger, own.text.clone())],
-                Some(fs) => fs
-                    .iter()
-                    .map(|&f| {
-                        own.clone()
-                            .with_trigger(f)
-                            .map(|t| (f, t.text))
-                            .with_context(|| format!("scenarios[{i}] under {f}"))
-                    })
-                    .collect::<Result<_>>()?,
-            };
-            for (family, text) in texts {
-                let scenario =
-                    Scenario::from_toml(&text).with_context(|| format!("scenarios[{i}]"))?;
-                jobs.push(Job {
-                    id: format!("{:02}-{}-{}", jobs.len(), scenario.name, family.name()),
-                    source: source.clone(),
-                    family,
-                    scenario_hash: scenario.content_hash.clone(),
-                    text,
-                    scenario,
-                });
-            }
+        for s in raw.scenarios.iter().enumerate() {
+            let more = jobs_of(s, families.as_deref(), base, jobs.len())?;
+            jobs.extend(more);
         }
         Ok(Self {
             name: raw.name.unwrap_or_else(|| default_name.to_string()),
@@ -281,8 +353,10 @@ impl Spec {
 
     /// The SPEC as stored beside the results (`DIR/spec.json`): what a
     /// resumed study must equal.
-    pub fn canonical(&self) -> Result<String> {
-        Ok(serde_json::to_string_pretty(self).context("the SPEC as JSON")? + "\n")
+    pub fn canonical(&self) -> Result<String, StudyError> {
+        let text =
+            serde_json::to_string_pretty(self).map_err(StudyError::serde("the SPEC as JSON"))?;
+        Ok(text + "\n")
     }
 
     /// The rows of a job: one per request, or one (the synthesis) when the
@@ -395,5 +469,50 @@ mod tests {
             .contains("sample")
         );
         assert!(err(r#"scenarios = [{ random = 5, seed = 1 }]"#).contains("scenarios[0]"));
+        assert!(matches!(
+            Spec::parse(r#"scenarios = ["no-such-scenario"]"#, "t", Path::new(".")),
+            Err(SpecError::Scenario { .. })
+        ));
+        assert!(matches!(
+            Spec::parse("scenarios = [\"winding-2d\"]\nrounds = 0", "t", Path::new(".")),
+            Err(SpecError::Value { key, .. }) if key == "rounds"
+        ));
+    }
+
+    #[test]
+    fn a_spec_as_json_is_the_spec_as_toml() {
+        let toml = Spec::parse(
+            r#"
+            scenarios = ["winding-2d", { random = 4, seed = 9105 }]
+            families = ["box"]
+            requests = [{ min_target = 0.9 }, { min_target = "kf-0.02", max_collision = 0.05 }]
+            samples = 100
+            "#,
+            "t",
+            Path::new("."),
+        )
+        .expect("TOML parses");
+        let json = Spec::from_json(
+            r#"{"scenarios": ["winding-2d", {"random": 4, "seed": 9105}], "families": ["box"],
+                "requests": [{"min_target": 0.9}, {"min_target": "kf-0.02", "max_collision": 0.05}],
+                "samples": 100}"#,
+            "t",
+            Path::new("."),
+        )
+        .expect("JSON parses");
+        assert_eq!(
+            toml.canonical().expect("canonical"),
+            json.canonical().expect("canonical")
+        );
+        let err = Spec::from_json(
+            r#"{"scenarios": ["winding-2d"], "sampels": 3}"#,
+            "t",
+            Path::new("."),
+        )
+        .expect_err("refused");
+        assert!(
+            matches!(err, SpecError::Json(_)) && err.to_string().contains("sampels"),
+            "{err}"
+        );
     }
 }

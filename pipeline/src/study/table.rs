@@ -4,8 +4,10 @@
 //! end. The tables hold no timing (`timings.csv` does), so the same SPEC
 //! gives the same bytes whatever the number of ranks and threads.
 
-use anyhow::{Context, Result};
+use crate::error::StudyError;
 use serde::{Deserialize, Serialize};
+
+type Result<T> = std::result::Result<T, StudyError>;
 
 /// One case's results. Probabilities as fractions, energy in the front's
 /// units (expected transmissions); `_ci95` the 95 % half-widths.
@@ -84,11 +86,13 @@ pub struct Finished {
 
 impl Finished {
     pub fn to_json(&self) -> Result<String> {
-        Ok(serde_json::to_string_pretty(self).context("a finished case as JSON")? + "\n")
+        let text = serde_json::to_string_pretty(self)
+            .map_err(StudyError::serde("a finished case as JSON"))?;
+        Ok(text + "\n")
     }
 
     pub fn from_json(text: &str) -> Result<Self> {
-        serde_json::from_str(text).context("a finished case's file")
+        serde_json::from_str(text).map_err(StudyError::serde("a finished case's file"))
     }
 }
 
@@ -97,8 +101,22 @@ impl Finished {
 pub fn csv<T: Serialize>(rows: &[T]) -> Result<String> {
     let mut w = csv::Writer::from_writer(Vec::new());
     for r in rows {
-        w.serialize(r).context("writing a CSV row")?;
+        w.serialize(r).map_err(table_error("writing a CSV row"))?;
     }
-    let bytes = w.into_inner().context("finishing the CSV table")?;
-    String::from_utf8(bytes).context("the CSV table is UTF-8")
+    // Flushing into memory cannot fail; its error is the writer's I/O error.
+    let bytes = w
+        .into_inner()
+        .map_err(|e| table_error("finishing the CSV table")(e.into_error()))?;
+    String::from_utf8(bytes).map_err(table_error("the CSV table is UTF-8"))
+}
+
+/// A CSV table's failure under `what`.
+fn table_error<E: std::error::Error + Send + Sync + 'static>(
+    what: &str,
+) -> impl FnOnce(E) -> StudyError {
+    let what = what.to_string();
+    move |e| StudyError::Table {
+        what,
+        source: Box::new(e),
+    }
 }

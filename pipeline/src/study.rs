@@ -1,24 +1,26 @@
-//! `etp study SPEC.toml`: a batch of cases — every scenario × trigger family
-//! × request of the SPEC ([`spec`]) — each synthesized, its strategy
-//! selected and predicted as `etp strategy` does, and validated as `etp
-//! validate` does ([`case`]); one JSON and one CSV table out ([`table`]).
+//! A study: a batch of cases — every scenario × trigger family × request
+//! of a SPEC ([`spec`]) — each synthesized, its strategy selected and
+//! predicted as `etp strategy` does, and validated as `etp validate` does
+//! ([`case`]); one JSON and one CSV table out ([`table`]). [`run`] is the
+//! whole study from a typed [`StudyRequest`] on an executor: what `etp
+//! study` and the Python package's `etpareto.study` call.
 //!
 //! * **Resumable.** A case is finished when its row file is on disk
 //!   (`DIR/cases/<job>/row-K.json`, written beside and renamed, after its
 //!   strategy); a study started again on the same DIR and SPEC does only
-//!   the rest (a DIR of another SPEC is refused by name: `DIR/spec.json`).
-//!   The tables are written at the end, beside and renamed: a killed study
-//!   leaves its finished cases and no table.
-//! * **Across ranks.** In an MPI job (`mpirun -n R etp study …`, feature
-//!   `mpi`) rank 0 reads what is finished and says what is left ([`Plan`]);
-//!   with enough jobs left ([`hand_out`]), whole jobs are handed to ranks
-//!   (largest first, each to the least loaded rank: a deterministic
-//!   schedule), each rank doing its own on its threads
-//!   (`Executor::alone`) and writing its cases' files (the study folder
-//!   must be shared by the ranks, as on a cluster's file system); with
-//!   fewer, every rank works on each job in turn, its Monte Carlo shared out
-//!   as in `etp synthesize`. At the end the ranks' rows are gathered and
-//!   rank 0 writes the tables.
+//!   the rest (a DIR of another SPEC is refused by name: `DIR/spec.json`,
+//!   [`claim`]). The tables are written at the end, beside and renamed: a
+//!   killed study leaves its finished cases and no table.
+//! * **Across ranks.** On an executor of several ranks (`mpirun -n R etp
+//!   study …`, `etp`'s feature `mpi`) rank 0 reads what is finished and
+//!   says what is left ([`Plan`]); with enough jobs left ([`hand_out`]),
+//!   whole jobs are handed to ranks (largest first, each to the least
+//!   loaded rank: a deterministic [`schedule`]), each rank doing its own on
+//!   its threads (`Executor::alone`) and writing its cases' files (the
+//!   study folder must be shared by the ranks, as on a cluster's file
+//!   system); with fewer, every rank works on each job in turn, its Monte
+//!   Carlo shared out as in `etp synthesize`. At the end the ranks' rows
+//!   are gathered and rank 0 writes the tables.
 //! * **Same bytes.** Every case is the same bits whoever computes it (the
 //!   streams are keyed by seed, not by rank or thread), and the tables hold
 //!   no timing (`timings.csv` does): the same SPEC gives the same
@@ -29,12 +31,16 @@ pub mod case;
 pub mod spec;
 pub mod table;
 
-use anyhow::{Context, Result, bail};
+use crate::error::StudyError;
+use crate::output::write_new;
 use etp_synthesis::exec::Executor;
+use indicatif::ProgressBar;
 use serde::{Deserialize, Serialize};
 use spec::Spec;
 use std::path::{Path, PathBuf};
 use table::{Finished, Row};
+
+type Result<T> = std::result::Result<T, StudyError>;
 
 /// What is left of one job.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -186,18 +192,17 @@ pub fn tables(spec: &Spec, mut all: Vec<Finished>) -> Result<Tables> {
     let want = spec.jobs.len() * spec.rows_per_job();
     for w in all.windows(2) {
         if index(&w[0]) == index(&w[1]) {
-            bail!(
+            return Err(StudyError::Bug(format!(
                 "case {} request {:?} finished twice (a bug)",
-                w[0].row.case,
-                w[0].row.request_index
-            );
+                w[0].row.case, w[0].row.request_index
+            )));
         }
     }
     if all.len() != want || all.iter().any(|f| index(f).0.is_none()) {
-        bail!(
+        return Err(StudyError::Bug(format!(
             "{} of the SPEC's {want} cases have a row (a bug: every case was scheduled)",
             all.len()
-        );
+        )));
     }
     let timings = all
         .iter()
@@ -233,6 +238,191 @@ pub fn study_json(spec: &Spec, rows: &[Row]) -> Result<String> {
     Ok(serde_json::to_string_pretty(&v)? + "\n")
 }
 
+/// A study to run: its SPEC, its folder, whether to draw progress.
+#[derive(Debug, Clone)]
+pub struct StudyRequest {
+    pub spec: Spec,
+    /// The study's folder (default `out/study-<name>`: [`folder`]); the
+    /// same folder resumes a study that did not finish.
+    pub out: Option<PathBuf>,
+    /// No progress bar (the bar still counts, for `progress::current`).
+    pub quiet: bool,
+}
+
+/// What a study says as it goes (`etp study` prints it); each method's
+/// default says nothing.
+pub trait Observer {
+    /// Rank 0 found `finished` of the study's `total` cases done in `dir`,
+    /// `left` still to do.
+    fn resuming(
+        &mut self,
+        _spec: &Spec,
+        _dir: &Path,
+        _finished: usize,
+        _total: usize,
+        _left: usize,
+    ) {
+    }
+    /// This rank finished a case (its row file is written) in a job of
+    /// `ranks` ranks; `bar` is the study's progress bar, to print above.
+    fn finished(&mut self, _case: &Finished, _ranks: usize, _bar: &ProgressBar) {}
+}
+
+/// An [`Observer`] that says nothing.
+pub struct Silent;
+
+impl Observer for Silent {}
+
+/// A finished study, as rank 0 has it: its folder, its tables and the
+/// text of `study.json` (what `etp study --json` prints).
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    pub dir: PathBuf,
+    pub tables: Tables,
+    pub json: String,
+}
+
+/// Run the study `request` asks on `exec`: claim its folder, do the cases
+/// not yet finished (this rank's share of them on an executor of several
+/// ranks), then on rank 0 write `study.json`, `study.csv` and
+/// `timings.csv`. The outcome on rank 0; `None` on the other ranks.
+pub fn run(
+    request: &StudyRequest,
+    exec: &Executor,
+    observer: &mut dyn Observer,
+) -> Result<Option<Outcome>> {
+    let spec = &request.spec;
+    let dir = folder(spec, request.out.as_deref());
+    etp_files::write::output_folder(&dir)?;
+    claim(spec, &dir, exec)?;
+    let cases_dir = dir.join("cases");
+    etp_files::write::output_folder(&cases_dir)?;
+    let (finished, plan) = share_plan(spec, &dir, exec)?;
+    if exec.rank() == 0 && !finished.is_empty() {
+        let total = spec.jobs.len() * spec.rows_per_job();
+        observer.resuming(spec, &dir, finished.len(), total, plan.cases());
+    }
+    let (apart, mine) = run_share(request, &plan, &cases_dir, exec, observer)?;
+    let Some(all) = gather(finished, &mine, apart, exec)? else {
+        return Ok(None);
+    };
+    let tables = tables(spec, all)?;
+    let json = study_json(spec, &tables.rows)?;
+    write_new(exec, &dir.join("study.json"), json.as_bytes(), true)?;
+    let csv = table::csv(&tables.rows)?;
+    write_new(exec, &dir.join("study.csv"), csv.as_bytes(), true)?;
+    let csv = table::csv(&tables.timings)?;
+    write_new(exec, &dir.join("timings.csv"), csv.as_bytes(), true)?;
+    Ok(Some(Outcome { dir, tables, json }))
+}
+
+/// What is finished and what is left: rank 0 looks, the others follow its
+/// plan (they may look at the folder after rank 0 has written to it).
+/// The finished cases are rank 0's alone.
+fn share_plan(spec: &Spec, dir: &Path, exec: &Executor) -> Result<(Vec<Finished>, Plan)> {
+    let rank = exec.rank();
+    let (finished, plan) = if rank == 0 {
+        survey(spec, dir)?
+    } else {
+        (Vec::new(), Plan::default())
+    };
+    let said = exec
+        .all_gather(if rank == 0 {
+            serde_json::to_vec(&plan)?
+        } else {
+            Vec::new()
+        })
+        .map_err(StudyError::ranks("sharing the study's plan"))?;
+    let plan: Plan = serde_json::from_slice(said.first().map_or(&[][..], |p| &p[..]))
+        .map_err(StudyError::ranks("the study's plan from rank 0"))?;
+    Ok((finished, plan))
+}
+
+/// This rank's share of `plan`, done: whole jobs to ranks when there are
+/// enough of them ([`hand_out`], then `true`), else every rank on each
+/// job. The cases this rank finished.
+fn run_share(
+    request: &StudyRequest,
+    plan: &Plan,
+    cases_dir: &Path,
+    exec: &Executor,
+    observer: &mut dyn Observer,
+) -> Result<(bool, Vec<Finished>)> {
+    let spec = &request.spec;
+    let (rank, ranks) = (exec.rank(), exec.ranks());
+    let apart = hand_out(plan.work.len(), ranks);
+    let assign = if apart {
+        schedule(spec, plan, ranks)
+    } else {
+        vec![rank; plan.work.len()]
+    };
+    let mine_count: usize = plan
+        .work
+        .iter()
+        .zip(&assign)
+        .filter(|(_, r)| **r == rank)
+        .map(|(w, _)| w.pending.len())
+        .sum();
+    let pb = crate::progress::bar(exec, mine_count as u64, "study", request.quiet);
+    let mut mine: Vec<Finished> = Vec::new();
+    // Whole jobs apart: this rank alone on its threads, writing its cases.
+    let alone = exec.alone();
+    let on = case::Placement {
+        exec: if apart { &alone } else { exec },
+        rank,
+    };
+    for (w, r) in plan.work.iter().zip(&assign) {
+        if *r != rank {
+            continue;
+        }
+        let job = spec.jobs.get(w.job).ok_or_else(|| {
+            StudyError::Bug("rank 0's plan names a job the SPEC does not have".into())
+        })?;
+        pb.set_message(job.id.clone());
+        let mut done = |f: &Finished| {
+            observer.finished(f, ranks, &pb);
+            pb.inc(1);
+            mine.push(f.clone());
+        };
+        case::run_job(
+            job,
+            w,
+            cases_dir,
+            &spec.requests,
+            &spec.settings,
+            &on,
+            &mut done,
+        )?;
+    }
+    pb.finish_and_clear();
+    Ok((apart, mine))
+}
+
+/// Every rank's new rows to rank 0 (working together, rank 0 has them
+/// all): with the cases finished before, every row on rank 0; `None` on
+/// the others.
+fn gather(
+    finished: Vec<Finished>,
+    mine: &[Finished],
+    apart: bool,
+    exec: &Executor,
+) -> Result<Option<Vec<Finished>>> {
+    let send = if apart || exec.rank() == 0 { mine } else { &[] };
+    let parts = exec
+        .all_gather(serde_json::to_vec(send)?)
+        .map_err(StudyError::ranks("gathering the study's rows"))?;
+    if exec.rank() != 0 {
+        return Ok(None);
+    }
+    let mut all = finished;
+    for (k, p) in parts.iter().enumerate() {
+        let rows: Vec<Finished> = serde_json::from_slice(p)
+            .map_err(StudyError::ranks(format!("the rows rank {k} sent")))?;
+        all.extend(rows);
+    }
+    Ok(Some(all))
+}
+
 /// The study's folder: `-o DIR`, else `out/study-<name>`.
 pub fn folder(spec: &Spec, out: Option<&Path>) -> PathBuf {
     out.map(Path::to_path_buf)
@@ -246,20 +436,20 @@ pub fn claim(spec: &Spec, dir: &Path, exec: &Executor) -> Result<()> {
     let mine = spec.canonical()?;
     match std::fs::read_to_string(&path) {
         Ok(theirs) if theirs == mine => Ok(()),
-        Ok(theirs) => bail!(
+        Ok(theirs) => Err(StudyError::AnotherSpec(format!(
             "{} holds the study of another SPEC (its spec.json differs: {}): give another -o, \
              or move it away to start over{}",
             dir.display(),
             differences(&theirs, &mine),
             renamed_hint(&theirs, &spec.name)
-        ),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(etp_pipeline::output::write_new(
-            exec,
-            &path,
-            mine.as_bytes(),
-            false,
-        )?),
-        Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
+        ))),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            Ok(write_new(exec, &path, mine.as_bytes(), false)?)
+        }
+        Err(e) => Err(StudyError::Folder {
+            what: format!("reading {}", path.display()),
+            source: Box::new(e),
+        }),
     }
 }
 

@@ -1,7 +1,7 @@
 //! One job of a study — a scenario under one trigger family — done as the
 //! commands do it: `etp synthesize` (MDP and front, no Method 1 baseline),
 //! then per request `etp strategy DIR --min-target P [--max-collision C]`
-//! (the request loop and the strategy it stands by, [`etp_pipeline::selection`])
+//! (the request loop and the strategy it stands by, [`crate::selection`])
 //! and `etp validate STRATEGY --episodes N --seed S`. Every file goes into
 //! the job's folder (`DIR/cases/<job>/`: mdp.bin, front.json, scenario.toml,
 //! strategy-K.json, row-K.json), each written beside and renamed, the row
@@ -10,13 +10,13 @@
 use super::JobPlan;
 use super::spec::{Job, Request, Settings, Target};
 use super::table::{Finished, Row, Timing};
-use anyhow::{Context, Result};
-use etp_pipeline::front::write_front;
-use etp_pipeline::mdp_build::{MdpRequest, build_mdp};
-use etp_pipeline::output::write_new;
-use etp_pipeline::predictions::checks;
-use etp_pipeline::selection::{RequestSettings, meet_goal};
-use etp_pipeline::synthesis_dir::Synthesis;
+use crate::error::{Context, Error, StudyError};
+use crate::front::write_front;
+use crate::mdp_build::{MdpRequest, build_mdp};
+use crate::output::write_new;
+use crate::predictions::checks;
+use crate::selection::{RequestSettings, meet_goal};
+use crate::synthesis_dir::Synthesis;
 use etp_shared::strategy::Strategy;
 use etp_synthesis::exec::Executor;
 use etp_synthesis::predict::request::Goal;
@@ -34,13 +34,17 @@ pub fn row_path(job_dir: &Path, k: Option<usize>) -> PathBuf {
 
 /// The finished case at `path`, if any (a file that does not parse is an
 /// error naming it: it was written whole, so it was edited).
-pub fn finished(path: &Path) -> Result<Option<Finished>> {
+pub fn finished(path: &Path) -> Result<Option<Finished>, StudyError> {
+    let folder = |what: String, e: Box<dyn std::error::Error + Send + Sync>| StudyError::Folder {
+        what,
+        source: e,
+    };
     match std::fs::read_to_string(path) {
         Ok(t) => Finished::from_json(&t)
             .map(Some)
-            .with_context(|| path.display().to_string()),
+            .map_err(|e| folder(path.display().to_string(), Box::new(e))),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-        Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
+        Err(e) => Err(folder(format!("reading {}", path.display()), Box::new(e))),
     }
 }
 
@@ -55,9 +59,9 @@ fn synthesis(
     s: &Settings,
     timing: &mut Timing,
     exec: &Executor,
-) -> Result<Synthesis> {
+) -> Result<Synthesis, Error> {
     if synthesized {
-        return Ok(Synthesis::load(dir, None, exec)?);
+        return Synthesis::load(dir, None, exec);
     }
     let started = Instant::now();
     let mut request = MdpRequest::defaults(job.scenario.clone(), s.samples, s.seed);
@@ -68,14 +72,14 @@ fn synthesis(
     let built = build_mdp(request)?;
     let front = write_front(&built.dir, &built.mdp, None, &job.text, None, true, exec)?;
     timing.synthesis_seconds = started.elapsed().as_secs_f64();
-    Ok(Synthesis::from_parts(
+    Synthesis::from_parts(
         dir,
         built.mdp,
         Some(job.text.clone()),
         front.front,
         None,
         exec,
-    )?)
+    )
 }
 
 fn base_row(job: &Job, syn: &Synthesis, s: &Settings) -> Row {
@@ -130,7 +134,7 @@ fn round4(x: f64) -> f64 {
 /// The full Kalman filter's simulated P_tar on the job's scenario (`etp
 /// simulate SCENARIO --delta 0 --episodes N --seed S`), once per job
 /// however many `kf-…` requests ask it.
-fn kf_p_target(syn: &Synthesis, s: &Settings, kf: &mut Option<f64>) -> Result<f64> {
+fn kf_p_target(syn: &Synthesis, s: &Settings, kf: &mut Option<f64>) -> Result<f64, Error> {
     if let Some(p) = *kf {
         return Ok(p);
     }
@@ -155,7 +159,7 @@ fn request(
     (k, r): (usize, &Request),
     kf: &mut Option<f64>,
     timing: &mut Timing,
-) -> Result<Row> {
+) -> Result<Row, Error> {
     let mut row = base_row(job, syn, s);
     row.request_index = Some(k);
     row.request = Some(r.describe());
@@ -208,11 +212,11 @@ fn request(
     // do not wait for rank 0's file).
     let started = Instant::now();
     let strategy = Strategy::from_sealed_json(&strategy.to_json())
-        .with_context(|| format!("{} read back", path.display()))?;
+        .in_strategy(format!("{} read back", path.display()))?;
     let scenario = strategy
         .policy
         .scenario()
-        .context("the strategy's scenario")?;
+        .in_strategy("the strategy's scenario")?;
     let sum = simulate_strategy(
         &scenario,
         &strategy.policy,
@@ -261,7 +265,7 @@ pub fn run_job(
     s: &Settings,
     on: &Placement,
     done: &mut dyn FnMut(&Finished),
-) -> Result<()> {
+) -> Result<(), StudyError> {
     let dir = cases_dir.join(&job.id);
     etp_files::write::output_folder(&dir)?;
     let (exec, rank) = (on.exec, on.rank);
@@ -273,17 +277,25 @@ pub fn run_job(
     };
     let mut timing = fresh();
     let mut kf = None;
-    let syn = synthesis(job, plan.synthesized, &dir, s, &mut timing, exec)
-        .with_context(|| format!("study case {}: the synthesis", job.id))?;
+    let syn = synthesis(job, plan.synthesized, &dir, s, &mut timing, exec).map_err(|source| {
+        StudyError::Case {
+            what: format!("study case {}: the synthesis", job.id),
+            source,
+        }
+    })?;
     for &k in &plan.pending {
         let row = match k {
             None => base_row(job, &syn, s),
             Some(k) => {
-                let r = requests
-                    .get(k)
-                    .with_context(|| format!("study case {}: no request {k} (a bug)", job.id))?;
-                request(job, &syn, s, (k, r), &mut kf, &mut timing)
-                    .with_context(|| format!("study case {} request {k}", job.id))?
+                let r = requests.get(k).ok_or_else(|| {
+                    StudyError::Bug(format!("study case {}: no request {k} (a bug)", job.id))
+                })?;
+                request(job, &syn, s, (k, r), &mut kf, &mut timing).map_err(|source| {
+                    StudyError::Case {
+                        what: format!("study case {} request {k}", job.id),
+                        source,
+                    }
+                })?
             }
         };
         let f = Finished {
