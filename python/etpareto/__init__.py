@@ -16,6 +16,9 @@ command, not the command itself) and returns Python values:
   loop and the strategy it stands by, with its prediction.
 * :func:`validate` — ``etp validate STRATEGY``: the strategy simulated
   against its prediction, the checks.
+* :func:`study` — ``etp study SPEC``: every scenario × trigger family ×
+  request of a SPEC (a file or a dict) synthesized, selected and validated;
+  its table, resumable on the same folder.
 * :func:`read_front`, :func:`read_strategy` — ``front.json`` and
   ``strategy.json`` as dicts and DataFrames.
 * :func:`run` — a multi-process run (``etp run``), its report as a dict.
@@ -28,7 +31,8 @@ prints after ``error:`` for the same failure, one class per kind of failure
 of the pipeline's steps: :class:`ScenarioError` (the scenario),
 :class:`SynthesisError` (a synthesis folder that cannot be used) and
 :class:`StrategyFileError` (both :class:`FileFormatError`),
-:class:`RequestError` (an option out of range), :class:`OutputError` (an
+:class:`RequestError` (an option out of range; a study's SPEC refused:
+:class:`StudySpecError`, naming the key), :class:`OutputError` (an
 output refused or its figure not drawn), :class:`ComputeError` (the
 abstraction, a linear program, a prediction).
 
@@ -91,6 +95,7 @@ from ._native import (
     ScenarioError,
     SimulationError,
     StrategyFileError,
+    StudySpecError,
     SynthesisError,
     builtin_scenarios,
 )
@@ -130,6 +135,7 @@ __all__ = [
     "SimulationError",
     "Strategy",
     "StrategyFileError",
+    "StudySpecError",
     "Synthesis",
     "SynthesisError",
     "Validation",
@@ -141,6 +147,7 @@ __all__ = [
     "run",
     "select_strategy",
     "simulate",
+    "study",
     "synthesize",
     "to_stormpy",
     "validate",
@@ -554,6 +561,46 @@ def validate(
         progress=progress,
     )
     return Validation(json.loads(text), list(failed), [Path(p) for p in plots])
+
+
+def study(
+    spec: Union[Dict[str, Any], PathLike],
+    out: Optional[PathLike] = None,
+    *,
+    progress: Optional[ProgressCallback] = None,
+) -> Dict[str, Any]:
+    """Run a study like ``etp study SPEC -o OUT --json``: every scenario ×
+    trigger family × request of the SPEC synthesized, its strategy selected
+    and predicted as ``etp strategy`` does and validated as ``etp validate``
+    does, through the same library (``etp-pipeline``). Returns the study's
+    table: the dict that command prints (``study.json``; ``["rows"]`` one
+    dict per case). The files go into ``out`` (default
+    ``out/study-<name>``): ``study.json``, ``study.csv``, ``timings.csv`` and
+    each case's under ``cases/``; a study stopped half-way resumes on the
+    same folder, and a folder of another SPEC is refused
+    (:class:`OutputError`, naming each key that differs).
+
+    ``spec`` is a SPEC file (TOML) or its keys as a dict, e.g.
+    ``{"scenarios": ["winding-2d"], "requests": [{"min_target": 0.9}],
+    "samples": 300, "episodes": 500}`` (scenario paths relative to the
+    working folder; ``name`` defaults to ``"study"``, a file's to its stem).
+    A refused SPEC raises :class:`StudySpecError` naming the key (a scenario
+    that cannot be used: :class:`ScenarioError`); a case's failing step
+    raises that step's class.
+    """
+    if isinstance(spec, dict):
+        text = _native.study(
+            spec_json=json.dumps(spec, default=os.fspath),
+            out=None if out is None else os.fspath(out),
+            progress=progress,
+        )
+    else:
+        text = _native.study(
+            spec_file=os.fspath(spec),
+            out=None if out is None else os.fspath(out),
+            progress=progress,
+        )
+    return json.loads(text)
 
 
 class RunReport:

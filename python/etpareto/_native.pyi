@@ -39,6 +39,10 @@ class RequestError(EtpError):
     """A request a step cannot carry out as asked: an option out of range, two that exclude
     each other."""
 
+class StudySpecError(RequestError):
+    """A study's SPEC refused: unreadable, not TOML, an unknown key, a value of the wrong type
+    or out of range; the message names the key."""
+
 class OutputError(EtpError):
     """An output refused: it exists and force was not given, its folder is a link or another
     user's, the file system refused, or its figure could not be drawn."""
@@ -201,3 +205,10 @@ def validate(
     progress: Optional[Callable[[str, int, int], None]] = None,
 ) -> Tuple[str, List[str], List[str]]:
     """(``etp validate … --json``'s text, the failing checks' names, the map figures written)."""
+def study(
+    spec_file: Optional[str] = None,
+    spec_json: Optional[str] = None,
+    out: Optional[str] = None,
+    progress: Optional[Callable[[str, int, int], None]] = None,
+) -> str:
+    """``etp study SPEC -o OUT --json``'s text (study.json); the study's files written into ``out``."""

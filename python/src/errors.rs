@@ -64,6 +64,13 @@ create_exception!(
 );
 create_exception!(
     etpareto,
+    StudySpecError,
+    RequestError,
+    "A study's SPEC refused: unreadable, not TOML, an unknown key, a value of the wrong type \
+     or out of range; the message names the key."
+);
+create_exception!(
+    etpareto,
     OutputError,
     EtpError,
     "An output refused: it exists and force was not given, its folder is a link or another \
@@ -228,6 +235,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         SynthesisError,
         StrategyFileError,
         RequestError,
+        StudySpecError,
         OutputError,
         ComputeError,
         RunRequestError,
@@ -268,8 +276,13 @@ pub fn chain(e: &(dyn std::error::Error + 'static)) -> String {
 /// `etp` prints for it. The match is exhaustive: a new kind of failure in
 /// the pipeline gets its class here before it compiles.
 pub fn pipeline_error(e: etp_pipeline::error::Error) -> PyErr {
-    use etp_pipeline::error::Error as E;
     let text = chain(&e);
+    pipeline_exception(&e, text)
+}
+
+/// The class of a pipeline step's error `e`, carrying `text`.
+fn pipeline_exception(e: &etp_pipeline::error::Error, text: String) -> PyErr {
+    use etp_pipeline::error::Error as E;
     match e {
         E::Scenario { .. } | E::ScenarioArg(_) | E::InvalidScenario(_) => {
             ScenarioError::new_err(text)
@@ -279,6 +292,30 @@ pub fn pipeline_error(e: etp_pipeline::error::Error) -> PyErr {
         E::Request(_) => RequestError::new_err(text),
         E::Output(_) | E::Figure(_) => OutputError::new_err(text),
         E::Prediction(_) | E::Executor(_) | E::Compute { .. } => ComputeError::new_err(text),
+    }
+}
+
+/// A study's error as the exception of its kind, with the text `etp
+/// study` prints for it: a SPEC refused is a `StudySpecError` (a scenario
+/// of it that cannot be used a `ScenarioError`), a case's step raises its
+/// step's class, a study folder of another SPEC an `OutputError`. The
+/// match is exhaustive: a new kind of failure of a study gets its class
+/// here before it compiles.
+pub fn study_error(e: etp_pipeline::error::StudyError) -> PyErr {
+    use etp_pipeline::error::{SpecError as S, StudyError as E};
+    let text = chain(&e);
+    match &e {
+        E::Spec(S::Scenario { .. })
+        | E::SpecFile {
+            source: S::Scenario { .. },
+            ..
+        } => ScenarioError::new_err(text),
+        E::ReadSpec { .. } | E::Spec(_) | E::SpecFile { .. } => StudySpecError::new_err(text),
+        E::AnotherSpec(_) | E::Output(_) | E::Folder { .. } => OutputError::new_err(text),
+        E::Case { source, .. } | E::Step(source) => pipeline_exception(source, text),
+        E::Ranks { .. } | E::Serde { .. } | E::Json(_) | E::Table { .. } | E::Bug(_) => {
+            ComputeError::new_err(text)
+        }
     }
 }
 

@@ -16,6 +16,8 @@
 //! * [`pipeline`] — `synthesize`, `select_strategy`, `validate`: the steps
 //!   of `etp synthesize`, `etp strategy`, `etp validate` through `etp-pipeline`,
 //!   with a progress callback.
+//! * [`study`] — `study`: `etp study`'s cases and tables through
+//!   `etp-pipeline`.
 //! * [`files`] — `front.json` and `strategy.json` read; `run`, a
 //!   multi-process run through `etp-launcher`.
 
@@ -26,6 +28,7 @@ mod pipeline;
 mod recording;
 mod scenario;
 mod simulate;
+mod study;
 
 use pyo3::prelude::*;
 
@@ -44,6 +47,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(pipeline::synthesize, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::select_strategy, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::validate, m)?)?;
+    m.add_function(wrap_pyfunction!(study::study, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -32,7 +32,7 @@ const POLL: Duration = Duration::from_millis(200);
 /// is raised when the work has finished (the work itself cannot be
 /// interrupted half-way: its files are written beside and renamed, so
 /// nothing half-done is left either way).
-fn with_progress<T: Send>(
+pub(crate) fn with_progress<T: Send>(
     py: Python<'_>,
     progress: Option<Py<PyAny>>,
     work: impl FnOnce() -> T + Send,
