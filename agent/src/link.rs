@@ -71,7 +71,7 @@ impl Links {
     ) -> Result<(), AgentError> {
         let (mean, cov) = belief_to_wire(belief);
         self.handover[sensor]
-            .send_copy(Handover {
+            .publish(Handover {
                 header,
                 dim: N as u32,
                 _pad: 0,
@@ -92,7 +92,7 @@ impl Links {
         x: &Vector<N>,
     ) -> Result<(), AgentError> {
         self.truth[sensor]
-            .send_copy(Truth {
+            .publish(Truth {
                 header,
                 dim: N as u32,
                 _pad: 0,
@@ -139,7 +139,7 @@ impl Links {
         }
         if let Some((_, sequence)) = m {
             self.ack[sensor as usize]
-                .send_copy(Ack {
+                .publish(Ack {
                     header: stamp.header(episode, leg, step),
                     sequence,
                     _pad: 0,

@@ -296,7 +296,7 @@ impl<const N: usize> Agent<N> {
             let (mean, cov) = belief_to_wire(&point.belief);
             let header = self.stamp.header(episode, point.leg, point.step);
             self.waypoint
-                .send_copy(Waypoint {
+                .publish(Waypoint {
                     header,
                     dim: N as u32,
                     prev_steps: point.prev.steps,
@@ -443,7 +443,7 @@ impl<const N: usize> Agent<N> {
             "episode end"
         );
         self.outcome
-            .send_copy(o)
+            .publish(o)
             .map_err(|e| PortError::send("outcome", e))?;
         self.notify_coordinator()?;
         if let Some(tap) = self.live.as_mut() {

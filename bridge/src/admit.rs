@@ -56,11 +56,13 @@ impl Refusal {
 /// steps of slack, and bounds what a forger can make the bridge hold).
 pub const WINDOW: u32 = 4096;
 
-/// A message that passed, with its size on the wire.
+/// A message that passed, with its sender's time (any number: it is only
+/// recorded, never checked or ordered by) and its size on the wire.
 #[derive(Debug, Clone)]
 pub struct Admitted {
     pub service: ServiceId,
     pub message: Recorded,
+    pub publish_time: etp_runtime::wire::stamp::PublishTime,
     pub bytes: usize,
 }
 
@@ -352,6 +354,7 @@ mod tests {
                 ..Default::default()
             }
             .into_recorded(),
+            publish_time: 0,
             bytes: 1,
         }
     }
@@ -438,6 +441,7 @@ mod tests {
                 ..Default::default()
             }
             .into_recorded(),
+            publish_time: 0,
             bytes: 1,
         };
         assert_eq!(a.admit(ledger).err(), Some(Refusal::WrongSender));
@@ -491,6 +495,7 @@ mod tests {
                 ..Default::default()
             }
             .into_recorded(),
+            publish_time: 0,
             bytes: 1,
         };
         assert_eq!(a.admit(handover(1, SENDER_AGENT)).expect("owner").len(), 1);

@@ -31,9 +31,10 @@ use crate::forward::{
 };
 use crate::session::{
     End, SESSION_KEY, SessionInfo, agent_host_alive_key, config, data_keys, join_keys,
-    parse_join_key,
+    other_protocol, parse_claim, parse_join_key,
 };
 use crate::{BridgeError, emit};
+use etp_runtime::wire::stamp::LINK_PROTOCOL;
 use etp_runtime::wire::to_coordinator::Hello;
 use etp_runtime::wire::traffic::Direction;
 use etp_runtime::wire::{
@@ -62,8 +63,10 @@ pub struct Args {
 pub fn run(a: &Args) -> Result<(), BridgeError> {
     let text = std::fs::read_to_string(&a.session)
         .map_err(|e| BridgeError::Input(format!("reading {}: {e}", a.session.display())))?;
-    let info: SessionInfo = serde_json::from_str(&text)
+    let mut info: SessionInfo = serde_json::from_str(&text)
         .map_err(|e| BridgeError::Input(format!("{}: {e}", a.session.display())))?;
+    // What this end puts on the link, whoever wrote the description.
+    info.link_protocol = LINK_PROTOCOL;
     let run = RunId::new(&info.run_id)?;
     let sensors = info.sensors.len();
     let name = |i: usize| {
@@ -310,10 +313,18 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                 }
             }
             Ok(Incoming::Claim(q)) => {
-                let zid = q
+                let payload = q
                     .payload()
                     .map(|p| String::from_utf8_lossy(&p.to_bytes()).into_owned())
                     .unwrap_or_default();
+                let (zid, protocol) = parse_claim(&payload);
+                let zid = zid.to_string();
+                if let Some(why) = other_protocol(Some(LINK_PROTOCOL), protocol) {
+                    // Its messages would not be read as it sent them.
+                    tracing::warn!(key = %q.key_expr(), zid, "refused a claim: {why}");
+                    let _ = answers.send((q, Err(why)));
+                    continue;
+                }
                 let verdict = match parse_join_key(run.as_str(), q.key_expr().as_str()) {
                     Some((i, host)) => match grant_of(&grants, i) {
                         Some(Grant::Refused(_) | Grant::Cut(_)) => Err(None),

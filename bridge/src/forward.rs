@@ -1,8 +1,9 @@
 //! The two directions of a bridge. Outbound: the iceoryx2 services a remote
 //! reader needs, drained on their readers' wake-up events in causal order
-//! and put on Zenoh in the link encoding (bincode, as format-4 recordings
-//! held payloads: fixed sizes for the traffic counts). Inbound: Zenoh samples decoded
-//! and published on the local iceoryx2 service, then its reader's wake-up
+//! and put on Zenoh in the link encoding (the sender's time, then the
+//! payload in bincode, as format-4 recordings held payloads: fixed sizes for
+//! the traffic counts; `wire::stamp::link_frame`). Inbound: Zenoh samples decoded
+//! and published on the local iceoryx2 service with their sender's time, then its reader's wake-up
 //! event notified, exactly as a local publisher would.
 //!
 //! Both count what they carry per sensor (`wire::traffic`): the link's
@@ -15,6 +16,7 @@ use etp_runtime::recording::{
     self,
     ports::{DecodedPublisher, EncodedSubscriber, decoded_publisher, encoded_subscriber},
 };
+use etp_runtime::wire::stamp::{link_frame, link_unframe};
 use etp_runtime::wire::traffic::{Direction, LinkTraffic};
 use etp_runtime::wire::{self, Header, Notifier, Ports, RunId, ServiceId, Waiter, Wake};
 use std::collections::BTreeMap;
@@ -200,7 +202,7 @@ impl Outbound {
 
     /// Forward until `stop` (or a termination request); `on_ready` is
     /// called once every port exists, `on_put` sees every message put
-    /// (service, header, bytes). Runs on its own thread: iceoryx2 ports stay on the
+    /// (service, header, payload bytes). Runs on its own thread: iceoryx2 ports stay on the
     /// thread that made them.
     ///
     /// A put blocks while a subscribed peer's queue is full (congestion
@@ -271,7 +273,7 @@ impl Outbound {
                 let s: ServiceId = *s;
                 batch.clear();
                 sub.drain(recording::Encoding::Bincode, &mut batch)?;
-                for (h, bytes) in &batch {
+                for (h, time, payload) in &batch {
                     let sensor = sensor_of(s, h);
                     let target = if self.down {
                         match self.grant(sensor) {
@@ -310,17 +312,19 @@ impl Outbound {
                         );
                         continue;
                     };
+                    let bytes = link_frame(*time, payload);
+                    let len = bytes.len();
                     let started = Instant::now();
                     publisher
-                        .put(bytes.clone())
+                        .put(bytes)
                         .wait()
                         .map_err(|e| BridgeError::Zenoh(format!("put {s:?}: {e}")))?;
                     if self.down {
                         last_put.insert(sensor, started);
                     }
                     self.waited(stalls, sensor, started, towards.get(&s).cloned());
-                    count(counters, s, h, bytes.len());
-                    on_put(s, h, bytes);
+                    count(counters, s, h, len);
+                    on_put(s, h, payload);
                 }
             }
             // Down: probe the hosts that owe an answer.
@@ -459,16 +463,18 @@ impl Inbound {
         Ok(Self { publishers, wakes })
     }
 
-    /// Decode a sample of `key` (not delivered yet); garbage, a key of no
+    /// Decode a sample of `key` (not delivered yet); garbage (too short for
+    /// the sender's time, or a payload that does not decode), a key of no
     /// service this end delivers, or an up key naming another sensor than
-    /// the message's sender, is refused.
+    /// the message's sender, is refused. The sender's time is any number.
     pub fn decode(&self, key: &str, bytes: &[u8]) -> Result<Admitted, Refusal> {
         let (key_sensor, topic) = parse_data_key(key).ok_or(Refusal::UnknownKey)?;
         let s = recording::service_of_topic(topic)
             .filter(|s| self.publishers.contains_key(s))
             .ok_or(Refusal::UnknownKey)?;
+        let (publish_time, payload) = link_unframe(bytes).ok_or(Refusal::Malformed)?;
         let message = recording::Encoding::Bincode
-            .decode(topic, bytes)
+            .decode(topic, payload)
             .map_err(|_| Refusal::Malformed)?;
         if let Some(i) = key_sensor
             && sensor_of(s, message.header()) != i
@@ -478,6 +484,7 @@ impl Inbound {
         Ok(Admitted {
             service: s,
             message,
+            publish_time,
             bytes: bytes.len(),
         })
     }
@@ -504,11 +511,13 @@ impl Inbound {
         })
     }
 
-    /// Publish a decoded payload on its service and wake its reader; counted.
+    /// Publish a decoded payload on its service, with its sender's time,
+    /// and wake its reader; counted.
     pub fn deliver(&self, m: Admitted, counters: &Counters) -> Result<(), BridgeError> {
         let Admitted {
             service: s,
             message: r,
+            publish_time,
             bytes,
         } = m;
         let h = *r.header();
@@ -516,7 +525,7 @@ impl Inbound {
             .publishers
             .get(&s)
             .ok_or_else(|| BridgeError::Protocol(format!("no publisher for {s:?}")))?;
-        publisher.send(r)?;
+        publisher.send_at(r, publish_time)?;
         if let Some(w) = self.wakes.get(&s.reader_wake()) {
             w.notify()
                 .map_err(|e| BridgeError::Wire(format!("notify {:?}: {e:?}", s.reader_wake())))?;

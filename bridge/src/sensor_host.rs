@@ -98,7 +98,7 @@ fn claim(
         loop {
             let replies = session
                 .get(&key)
-                .payload(zid.clone())
+                .payload(crate::session::claim_payload(&zid))
                 .timeout(Duration::from_millis(500))
                 .wait()
                 .map_err(|e| BridgeError::Zenoh(format!("query {key}: {e}")))?;
@@ -147,6 +147,12 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     .wait()
     .map_err(|e| BridgeError::Zenoh(format!("connecting to {}: {e}", a.connect)))?;
     let info = fetch(&session, a, a.host.join_wait())?;
+    if let Some(why) = crate::session::other_protocol(
+        Some(info.link_protocol),
+        Some(etp_runtime::wire::stamp::LINK_PROTOCOL),
+    ) {
+        return Err(BridgeError::Join(why));
+    }
     let served: Vec<usize> = if a.sensors.is_empty() {
         info.remote.clone()
     } else {

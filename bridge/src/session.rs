@@ -6,6 +6,7 @@ use crate::BridgeError;
 use etp_runtime::link_keys;
 pub use etp_runtime::report::SessionInfo;
 use etp_runtime::wire::ServiceId;
+use etp_runtime::wire::stamp::LINK_PROTOCOL;
 use std::time::Duration;
 
 /// Key of the agent host's queryable answering [`SessionInfo`] (the joiner
@@ -77,6 +78,36 @@ pub fn up_key(run: &str, sensor: usize, s: ServiceId) -> String {
 /// certificate's.
 pub fn join_key(run: &str, sensor: usize, host: &str) -> String {
     format!("etp/{run}/join/{sensor}/{host}")
+}
+
+/// A claim's payload: the claimant's Zenoh id and the link protocol it
+/// speaks, `<zid> link/<n>` ([`LINK_PROTOCOL`]).
+pub fn claim_payload(zid: &str) -> String {
+    format!("{zid} link/{LINK_PROTOCOL}")
+}
+
+/// The Zenoh id of a claim's payload and the link protocol it names: an
+/// etp whose link carried the payload alone sent the id alone (protocol
+/// 1); `None` for a protocol that is not a number.
+pub fn parse_claim(payload: &str) -> (&str, Option<u32>) {
+    match payload.split_once(' ') {
+        None => (payload, Some(1)),
+        Some((zid, rest)) => (zid, rest.strip_prefix("link/").and_then(|n| n.parse().ok())),
+    }
+}
+
+/// Why a sensor host and an agent host of different link protocols do not
+/// join (`None`: they speak the same), in words both ends' logs can show.
+pub fn other_protocol(agent_host: Option<u32>, sensor_host: Option<u32>) -> Option<String> {
+    let n = |p: Option<u32>| p.map_or_else(|| "?".to_string(), |n| n.to_string());
+    (agent_host != sensor_host).then(|| {
+        format!(
+            "the agent host speaks link protocol {}, the sensor host {} (since 2 every \
+             message carries its sender's time): run the same etp release on every host",
+            n(agent_host),
+            n(sensor_host)
+        )
+    })
 }
 
 /// Every join key of a run (the agent host's queryable).
@@ -414,6 +445,29 @@ pub fn config(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_claim_names_its_link_protocol_and_an_old_one_is_refused_in_words() {
+        let p = claim_payload("a1b2");
+        assert_eq!(parse_claim(&p), ("a1b2", Some(LINK_PROTOCOL)));
+        // An etp whose link carried the payload alone sent its id alone.
+        assert_eq!(parse_claim("a1b2"), ("a1b2", Some(1)));
+        assert_eq!(parse_claim("a1b2 link/x"), ("a1b2", None));
+        assert_eq!(
+            other_protocol(Some(LINK_PROTOCOL), Some(LINK_PROTOCOL)),
+            None
+        );
+        let why = other_protocol(Some(LINK_PROTOCOL), Some(1)).expect("refused");
+        assert!(
+            why.contains("link protocol 2, the sensor host 1") && why.contains("same etp release"),
+            "{why}"
+        );
+        assert!(other_protocol(Some(2), None).is_some());
+        // A description from an agent host before the field: protocol 1.
+        let old = r#"{"run_id":"r","scenario_toml":"","seed":1,"sensors":[],"remote":[]}"#;
+        let info: SessionInfo = serde_json::from_str(old).expect("an older description");
+        assert_eq!(info.link_protocol, 1);
+    }
 
     #[test]
     fn keys_name_the_run_direction_sender_and_topic() {

@@ -151,7 +151,7 @@ impl<'a> Coordinator<'a> {
     ) -> Result<(), CoordinatorError> {
         let header = self.stamp.header(episode, leg, 0);
         self.threshold[sensor as usize]
-            .send_copy(Threshold {
+            .publish(Threshold {
                 header,
                 kind,
                 sensor,
@@ -222,7 +222,7 @@ impl<'a> Coordinator<'a> {
             self.core.start_episode(episode);
             let header = self.stamp.header(episode, 0, 0);
             self.control
-                .send_copy(Control {
+                .publish(Control {
                     header,
                     kind: Control::START,
                     dim: self.scenario.dim as u32,
@@ -390,7 +390,7 @@ impl<'a> Coordinator<'a> {
     /// Tell the agent and every sensor to exit.
     fn stop(&mut self) -> Result<(), CoordinatorError> {
         let header = self.stamp.header(u64::MAX, 0, 0);
-        let _ = self.control.send_copy(Control {
+        let _ = self.control.publish(Control {
             header,
             kind: Control::STOP,
             ..Control::default()

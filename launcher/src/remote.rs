@@ -234,6 +234,7 @@ pub async fn start(
             .map(|s| s.name.clone())
             .collect(),
         remote: spec.remote.clone(),
+        link_protocol: etp_runtime::wire::stamp::LINK_PROTOCOL,
         channel_schedule_toml: plan
             .channel_schedule_path
             .as_ref()

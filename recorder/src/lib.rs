@@ -16,6 +16,9 @@
 //! last ~100 ms (`etp replay` calls such a file unfinished, exit 3, and
 //! `--repair` finishes it). Logs go to stderr through `tracing` (`RUST_LOG`,
 //! default `warn`; start, finish and counts at `info`).
+//! A message's `log_time` is when the recorder took it off its subscriber,
+//! its `publish_time` when its sender published it (the sample's user
+//! header, `etp_runtime::wire::stamp`).
 
 use anyhow::{Context, Result};
 use clap::Parser;
@@ -57,7 +60,7 @@ pub struct Cli {
 /// (a publication not followed by a wake-up would wait at most this long).
 const FLUSH_EVERY: Duration = Duration::from_millis(100);
 const CHUNK: u64 = 128 * 1024;
-/// What the recorder writes: format 5, every channel protobuf.
+/// What the recorder writes: the current format, every channel protobuf.
 const ENCODING: recording::Encoding = recording::Encoding::Protobuf;
 
 fn now_ns() -> u64 {
@@ -71,8 +74,9 @@ struct Channel {
     topic: String,
     drain: Box<dyn recording::ports::EncodedSubscriber>,
     count: u32,
-    /// What the last pass took from the queue, and when.
-    batch: Vec<recording::Recorded>,
+    /// What the last pass took from the queue (each with its sender's
+    /// time), and when.
+    batch: Vec<(wire::stamp::PublishTime, recording::Recorded)>,
     received_at: u64,
 }
 
@@ -213,7 +217,7 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
         }
         for c in &mut channels {
             let t = c.received_at;
-            for r in &c.batch {
+            for (sent, r) in &c.batch {
                 let data = ENCODING
                     .encode_recorded(r)
                     .with_context(|| format!("encoding a message of {}", c.topic))?;
@@ -222,7 +226,9 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
                         channel_id: c.id,
                         sequence: c.count,
                         log_time: t,
-                        publish_time: t,
+                        // The sender's clock: on another host it may be
+                        // ahead of this one; nothing is ordered by it.
+                        publish_time: *sent,
                     },
                     &data,
                 )
@@ -313,7 +319,7 @@ fn read_handed_over_metadata(run: &RunId) -> Result<HandedOver> {
     };
     let mut records: HandedOver =
         serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-    // The copy's channels are this recorder's (format 5), whatever the
+    // The copy's channels are this recorder's (the current format), whatever the
     // replayed file's format was.
     if let Some(run) = records.get_mut(recording::META_RUN)
         && run.contains_key("format_version")

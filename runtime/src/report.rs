@@ -210,6 +210,16 @@ pub struct SessionInfo {
     /// written out), applied by the sensors wherever they run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub channel_schedule_toml: Option<String>,
+    /// What the agent host puts on the link
+    /// ([`crate::wire::stamp::LINK_PROTOCOL`]); absent (1) from an etp
+    /// whose link carried the payload alone. A sensor host of another
+    /// version refuses to join.
+    #[serde(default = "link_protocol_1")]
+    pub link_protocol: u32,
+}
+
+fn link_protocol_1() -> u32 {
+    1
 }
 
 /// Puts towards one remote sensor held up by a peer that stopped reading:

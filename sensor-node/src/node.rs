@@ -29,12 +29,12 @@ struct SensorPorts {
     coordinator_wake: Notifier,
 }
 
-fn send<T: std::fmt::Debug + ZeroCopySend + Copy>(
+fn send<T: std::fmt::Debug + ZeroCopySend + Copy + 'static>(
     p: &Pub<T>,
     what: &'static str,
     v: T,
 ) -> Result<(), SensorError> {
-    p.send_copy(v)
+    p.publish(v)
         .map(|_| ())
         .map_err(|e| PortError::send(what, e).into())
 }

@@ -3,26 +3,29 @@
 //! that takes them decoded. The recorder (encoded subscribers), `etp replay
 //! --publish` (publishers) and the Zenoh bridge (both: what crosses a host
 //! boundary is a payload encoded as format-4 recordings held it, bincode,
-//! whose fixed sizes the traffic counts use) open their ports here.
+//! whose fixed sizes the traffic counts use, behind its sender's time) open
+//! their ports here. Every payload comes with its sender's time
+//! ([`PublishTime`], the sample's user header).
 
 use super::{Encoding, RecordingError};
+use crate::wire::stamp::{PublishTime, now_ns};
 use crate::wire::{
     Header, Kind, KindVisitor, Message, PortError, Ports, Recorded, ServiceId, WireError,
 };
 
 /// A subscriber of one service, whatever its payload type.
 pub trait EncodedSubscriber {
-    /// Append every waiting payload, decoded (a copy: cheap), so a reader
-    /// that encodes slowly (the recorder: protobuf) empties the service's
-    /// queue first and encodes afterwards.
-    fn take(&self, out: &mut Vec<Recorded>) -> Result<(), RecordingError>;
+    /// Append every waiting payload, decoded (a copy: cheap), with its
+    /// sender's time, so a reader that encodes slowly (the recorder:
+    /// protobuf) empties the service's queue first and encodes afterwards.
+    fn take(&self, out: &mut Vec<(PublishTime, Recorded)>) -> Result<(), RecordingError>;
 
-    /// Append every waiting payload, encoded in `encoding` (the recorder:
-    /// protobuf; the bridge's link: bincode), with its header.
+    /// Append every waiting payload, encoded in `encoding` (the bridge's
+    /// link: bincode), with its header and its sender's time.
     fn drain(
         &self,
         encoding: Encoding,
-        out: &mut Vec<(Header, Vec<u8>)>,
+        out: &mut Vec<(Header, PublishTime, Vec<u8>)>,
     ) -> Result<(), RecordingError>;
 
     /// Attach to every publisher of the service now (without receiving):
@@ -38,13 +41,13 @@ impl<T: Message> EncodedSubscriber for crate::wire::Sub<T> {
             .map_err(|e| PortError::receive("subscriber", e).into())
     }
 
-    fn take(&self, out: &mut Vec<Recorded>) -> Result<(), RecordingError> {
+    fn take(&self, out: &mut Vec<(PublishTime, Recorded)>) -> Result<(), RecordingError> {
         while let Some(s) = self
             .receive()
             .map_err(|e| PortError::receive("subscriber", e))?
         {
             let v: T = *s;
-            out.push(v.into_recorded());
+            out.push((*s.user_header(), v.into_recorded()));
         }
         Ok(())
     }
@@ -52,14 +55,14 @@ impl<T: Message> EncodedSubscriber for crate::wire::Sub<T> {
     fn drain(
         &self,
         encoding: Encoding,
-        out: &mut Vec<(Header, Vec<u8>)>,
+        out: &mut Vec<(Header, PublishTime, Vec<u8>)>,
     ) -> Result<(), RecordingError> {
         while let Some(s) = self
             .receive()
             .map_err(|e| PortError::receive("subscriber", e))?
         {
             let v: T = *s;
-            out.push((*v.header(), encoding.encode(&v)?));
+            out.push((*v.header(), *s.user_header(), encoding.encode(&v)?));
         }
         Ok(())
     }
@@ -67,19 +70,26 @@ impl<T: Message> EncodedSubscriber for crate::wire::Sub<T> {
 
 /// A publisher of one service, whatever its payload type.
 pub trait DecodedPublisher {
-    /// Send one decoded payload (of this service's kind); the number of
+    /// Send one decoded payload (of this service's kind) stamped with the
+    /// time now, as its sender (`etp replay publish`); the number of
     /// subscribers it reached.
-    fn send(&self, r: Recorded) -> Result<usize, RecordingError>;
+    fn send(&self, r: Recorded) -> Result<usize, RecordingError> {
+        self.send_at(r, now_ns())
+    }
+
+    /// Send one decoded payload stamped with `time`, when another host's
+    /// sender published it (the bridge).
+    fn send_at(&self, r: Recorded, time: PublishTime) -> Result<usize, RecordingError>;
 }
 
 impl<T: Message> DecodedPublisher for crate::wire::Pub<T> {
-    fn send(&self, r: Recorded) -> Result<usize, RecordingError> {
+    fn send_at(&self, r: Recorded, time: PublishTime) -> Result<usize, RecordingError> {
         let kind = r.kind();
         let v = T::from_recorded(r).ok_or_else(|| RecordingError::Decode {
             topic: format!("{:?}", T::KIND),
             reason: format!("a {kind:?} payload on a {:?} port", T::KIND),
         })?;
-        self.send_copy(v)
+        self.publish_at(v, time)
             .map_err(|e| PortError::send("publisher", e).into())
     }
 }

@@ -39,10 +39,7 @@ pub fn say_hello(
     };
     let timeout = HELLO_TIMEOUT;
     let factory = open_pubsub::<Hello>(ports.node, ports.run, ServiceId::Hello, ports.sensors)?;
-    let publisher = factory
-        .publisher_builder()
-        .create()
-        .map_err(|e| WireError::Port(ServiceId::Hello.name(ports.run), format!("{e:?}")))?;
+    let publisher = super::ports::publisher_of(&factory, ports.run, ServiceId::Hello)?;
     let needed = hello_readers(&config(ports.run)?);
     let start = std::time::Instant::now();
     while factory.dynamic_config().number_of_subscribers() < needed {
@@ -55,7 +52,7 @@ pub fn say_hello(
         std::thread::sleep(std::time::Duration::from_millis(5));
     }
     publisher
-        .send_copy(hello)
+        .publish(hello)
         .map_err(|e| WireError::Port(ServiceId::Hello.name(ports.run), format!("{e:?}")))?;
     // A subscriber can be counted above before the publisher's connection to
     // it exists; the hello then waits in the history (size 1) until the next
@@ -63,12 +60,9 @@ pub fn say_hello(
     // (seen under load: a coordinator missing three sensors' hellos). Update
     // the connections for a moment: a new connection gets the history, an
     // existing one gets nothing twice.
-    {
-        use iceoryx2::port::update_connections::UpdateConnections;
-        for _ in 0..30 {
-            let _ = publisher.update_connections();
-            std::thread::sleep(std::time::Duration::from_millis(10));
-        }
+    for _ in 0..30 {
+        let _ = publisher.update_connections();
+        std::thread::sleep(std::time::Duration::from_millis(10));
     }
     coordinator_wake.notify().map_err(|e| {
         WireError::Port(ServiceId::CoordinatorWake.name(ports.run), format!("{e:?}"))

@@ -12,7 +12,9 @@
 //! * [`run_id`] — [`RunId`] and the per-run iceoryx2 [`config`] (own shm
 //!   prefix and root folder).
 //! * [`limits`](mod@limits) — THE limits table used by [`open_pubsub`] / [`open_event`]
-//!   ([`ports`]: [`Ports`], [`PortError`]) in every process.
+//!   ([`ports`]: [`Ports`], [`PortError`]) in every process; [`stamp`] — the
+//!   sender's time every sample carries (its user header), written by the
+//!   one publish path [`Pub::publish`], and how the bridge's link carries it.
 //! * [`liveness`](mod@liveness) — node names, [`create_node`] and what the node list says
 //!   about a node; [`hello`] — how a process announces itself.
 //! * [`waiter`] — the one wait point of a process ([`Waiter`]), the
@@ -88,7 +90,8 @@
 //! one of a closed set of `Wake`s (notified, silence, terminate); interrupted
 //! waits are resumed inside it. What a silence means is decided by one
 //! `wire::Watchdog` (supervisor gone? peer dead in the node list?). Every
-//! message carries a header from one `wire::Stamper`. The sensor's decisions are
+//! message carries a header from one `wire::Stamper`, and the time it was
+//! published from `Pub::publish`. The sensor's decisions are
 //! a pure `SensorCore` (unit-tested) behind a thin adapter, and so are the
 //! agent's (`EpisodeCore`, over the one step `episode::AgentCore`) and the
 //! coordinator's (`CoordinatorCore`).
@@ -103,6 +106,7 @@ pub mod proto;
 pub mod run_id;
 pub mod schema;
 pub mod services;
+pub mod stamp;
 pub mod traffic;
 pub mod waiter;
 

@@ -4,8 +4,9 @@
 //! the ACK of each received measurement) and
 //! **simulation plumbing** that stands in for the physical world or drives
 //! the simulation (the true state, the slot clock, thresholds and their
-//! ledgers, hello). Sizes are those of the encoded payload (the recording's
-//! encoding, which is also what the Zenoh bridge carries).
+//! ledgers, hello). Sizes are those of a message as the Zenoh bridge
+//! carries it: its sender's time and its payload in the link encoding
+//! (`super::stamp::link_frame`).
 
 use super::{Kind, KindVisitor, Message, ServiceId};
 use serde::{Deserialize, Serialize};
@@ -20,9 +21,10 @@ pub fn link_class(s: ServiceId) -> Option<(Class, Direction)> {
     Some((row.link.class()?, row.forward.direction()?.0))
 }
 
-/// Bytes of one encoded payload of `kind` on the sensor link (fixed: every
-/// payload is a fixed-size struct and the link's bincode encoding uses
-/// fixed-width integers; a recording's protobuf is not fixed-size).
+/// Bytes of one message of `kind` on the sensor link: its sender's time
+/// ([`super::stamp::LINK_TIME_BYTES`]) and its payload (fixed: every payload
+/// is a fixed-size struct and the link's bincode encoding uses fixed-width
+/// integers; a recording's protobuf is not fixed-size).
 pub fn encoded_size(kind: Kind) -> usize {
     struct Size;
     impl KindVisitor for Size {
@@ -31,7 +33,7 @@ pub fn encoded_size(kind: Kind) -> usize {
             // A default payload encodes to the same length as any other.
             crate::recording::Encoding::Bincode
                 .encode(&T::default())
-                .map_or(0, |b| b.len())
+                .map_or(0, |b| super::stamp::LINK_TIME_BYTES + b.len())
         }
     }
     kind.visit(Size)
@@ -120,11 +122,11 @@ mod tests {
 
     #[test]
     fn sizes_are_those_of_the_encoded_structs() {
-        // Header 32 B; handover: dim, pad, 6 + 36 f64.
-        assert_eq!(encoded_size(Kind::Handover), 32 + 8 + 42 * 8);
+        // The sender's time 8 B, header 32 B; handover: dim, pad, 6 + 36 f64.
+        assert_eq!(encoded_size(Kind::Handover), 8 + 32 + 8 + 42 * 8);
         // Measurement: dim, sequence, 6 f64.
-        assert_eq!(encoded_size(Kind::Measurement), 32 + 8 + 48);
-        assert_eq!(encoded_size(Kind::Slot), 32 + 8 + 8);
+        assert_eq!(encoded_size(Kind::Measurement), 8 + 32 + 8 + 48);
+        assert_eq!(encoded_size(Kind::Slot), 8 + 32 + 8 + 8);
     }
 
     #[test]

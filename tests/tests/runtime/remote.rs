@@ -351,6 +351,34 @@ fn a_lossy_run_across_three_hosts_counts_exactly_and_verifies() {
     across_three_hosts("lossy", Some("[radio]\nloss = 0.3\nretries = 1\n"));
 }
 
+/// The remote sensors' (`remote`) messages in the agent host's recording
+/// carry their sender's time across the link: each `publish_time` at or
+/// before the recorder's `log_time` (the hosts here are network namespaces
+/// of one machine: one clock) and not the `log_time` again.
+fn sender_times_crossed_the_link(rec: &std::path::Path, remote: &[u32]) {
+    let buf = std::fs::read(rec).expect("recording");
+    let c = etp_runtime::recording::read_lenient("rec", &buf).expect("readable");
+    let mut delays: Vec<u64> = Vec::new();
+    for m in &c.messages {
+        assert!(m.publish_time <= m.log_time, "{} {}", m.topic, m.sequence);
+        if ["measurement", "slot", "ledger"].contains(&m.topic.as_str())
+            && remote.contains(&m.decode().expect("decodes").header().sender)
+        {
+            delays.push(m.log_time - m.publish_time);
+        }
+    }
+    assert!(delays.len() > 100, "{} remote messages", delays.len());
+    assert!(delays.iter().any(|&d| d > 0), "publish_time = log_time");
+    delays.sort_unstable();
+    let at = |p: usize| delays[(delays.len() * p / 100).min(delays.len() - 1)] / 1000;
+    eprintln!(
+        "remote sensors' messages, published → logged: p50 {} µs, p99 {} µs, max {} µs",
+        at(50),
+        at(99),
+        at(100)
+    );
+}
+
 fn across_three_hosts(tag: &str, radio: Option<&str>) {
     let _serial = serial();
     let Some(h) = hosts(tag, 2) else { return };
@@ -521,6 +549,7 @@ fn across_three_hosts(tag: &str, radio: Option<&str>) {
     assert!(out.status.success(), "{out:?}");
     let r: Value = serde_json::from_slice(&out.stdout).expect("JSON");
     assert_eq!(r["verify"]["episodes_checked"].as_u64(), Some(60), "{r}");
+    sender_times_crossed_the_link(&rec, &[1, 3, 4]);
     // Recorded on the agent host == the sensors' ledgers == agent received.
     let total = |k: &str| -> u64 {
         v["sensors"]
@@ -921,15 +950,17 @@ subs = [s.declare_subscriber(k, on) for k in [
     f"etp/{{run}}/down/rogue/sensor/1/**", f"etp/{{run}}/down/*/sensor/1/**"]]
 print("ready", flush=True)
 sys.stdin.readline()             # the run is under way
+# Every message on the link: its sender's time (any number), then the payload.
+TIME = struct.pack("<Q", 2**64 - 1)
 def measurement(tag, sender, seq):
     # header (run, episode, step, leg, sender, seq), dim, sequence, y[6]
-    return struct.pack("<QQIIIIII", tag, 0, 1, 0, sender, seq, 2, 1) + bytes(48)
+    return TIME + struct.pack("<QQIIIIII", tag, 0, 1, 0, sender, seq, 2, 1) + bytes(48)
 up = f"etp/{{run}}/up/1/measurement"
 s.put(up, bytes(7))                              # garbage
 s.put(up, measurement(tag, 3, 2))                # for s3, a local sensor, on s1's key
 def ledger(tag, sender, seq):
     # header, slots, triggers, transmissions, delivered, lost, pad, energy
-    return struct.pack("<QQIIIIIIIIIId", tag, 0, 1, 0, sender, seq, 50, 40, 1000, 1000, 0, 0, 1000.0)
+    return TIME + struct.pack("<QQIIIIIIIIIId", tag, 0, 1, 0, sender, seq, 50, 40, 1000, 1000, 0, 0, 1000.0)
 s.put(f"etp/{{run}}/up/1/ledger", ledger(tag, 1, 1))  # a forged ledger, seq 1 (s1's hello) again
 s.put(up, measurement(tag, 1, 0xFFFF0000))       # far ahead of s1
 s.put(up, measurement(tag ^ 1, 1, 2))            # another run's tag

@@ -594,14 +594,22 @@ while run is None and time.time() < end:
 if run is None:
     sys.exit("the session query was not answered: not connected?")
 claim = f"etp/{{run}}/join/1/b"
-granted = [r.ok is not None for r in s.get(claim, payload="python0", timeout=5)]
+# A claim as an etp of link protocol 1 made it (its Zenoh id alone) is
+# refused in words: its messages would lack their sender's time.
+old = [bytes(r.err.payload.to_bytes()).decode(errors="replace")
+       for r in s.get(claim, payload="python0", timeout=5) if r.ok is None]
+if not any("link protocol 2, the sensor host 1" in e for e in old):
+    sys.exit(f"a claim of link protocol 1 was not refused by name: {{old}}")
+granted = [r.ok is not None for r in s.get(claim, payload="python0 link/2", timeout=5)]
 if granted != [True]:
     sys.exit(f"s1 not granted: {{granted}}")
 sub = s.declare_subscriber(f"etp/{{run}}/down/b/sensor/1/**",
                            zenoh.handlers.Callback(on, indirect=False))
 token = s.liveliness().declare_token(f"etp/{{run}}/alive/sensor/1")
-# s1's hello: header (run, episode, step, leg, sender, seq), pid, pad
-s.put(f"etp/{{run}}/up/1/hello", struct.pack("<QQIIIIII", tag, 0, 0, 0, 1, 1, 4242, 0))
+# s1's hello: its sender's time (a forged one: any number is only
+# recorded), header (run, episode, step, leg, sender, seq), pid, pad
+s.put(f"etp/{{run}}/up/1/hello",
+      struct.pack("<QQQIIIIII", 2**64 - 1, tag, 0, 0, 0, 1, 1, 4242, 0))
 print("hello", file=out, flush=True)
 # stdin: "closed" (the agent host refused this peer: read again, so that
 # Zenoh sees the closed transport and reconnects), then "end".
@@ -623,7 +631,7 @@ threading.Thread(target=commands, daemon=True).start()
 claims, refused_at = [], None
 while not stop.is_set():
     try:
-        for r in s.get(claim, payload="python0", timeout=1):
+        for r in s.get(claim, payload="python0 link/2", timeout=1):
             claims.append("granted" if r.ok is not None
                           else bytes(r.err.payload.to_bytes()).decode(errors="replace"))
             events.append(f"{{now()}} claim: {{claims[-1]}}")
