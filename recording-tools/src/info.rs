@@ -1,7 +1,8 @@
 //! `--info`: what `ros2 bag info` / `mcap info` show, for an etp recording:
 //! size, profile and writer, whether it is finished, start, end and duration
 //! of the messages, chunk compression, schemas, per channel its messages,
-//! their rate and payload bytes, the metadata records and the run they
+//! their rate and payload bytes, the time from publish to record (`log_time`
+//! − `publish_time`, format 7), the metadata records and the run they
 //! describe.
 
 use etp_runtime::recording::{self, Contents, Layout};
@@ -22,8 +23,13 @@ pub fn info(file: &Path, bytes: u64, c: &Contents, layout: &Layout) -> Value {
     let end = c.messages.iter().map(|m| m.log_time).max();
     let counts = c.counts();
     let mut bytes_of = std::collections::BTreeMap::<&str, u64>::new();
+    let mut delays = std::collections::BTreeMap::<&str, Vec<i128>>::new();
     for m in &c.messages {
         *bytes_of.entry(m.topic.as_str()).or_default() += m.data.len() as u64;
+        delays
+            .entry(m.topic.as_str())
+            .or_default()
+            .push(i128::from(m.log_time) - i128::from(m.publish_time));
     }
     // As `mcap info`: a channel's messages over the file's span (null for
     // a span of zero, one message or none).
@@ -43,6 +49,7 @@ pub fn info(file: &Path, bytes: u64, c: &Contents, layout: &Layout) -> Value {
                 "messages": counts.get(topic).copied().unwrap_or(0),
                 "rate_hz": span_s.map(|d| counts.get(topic).copied().unwrap_or(0) as f64 / d),
                 "bytes": bytes_of.get(topic.as_str()).copied().unwrap_or(0),
+                "latency_us": delays.get_mut(topic.as_str()).and_then(|d| latency(d)),
             })
         })
         .collect();
@@ -84,6 +91,23 @@ pub fn info(file: &Path, bytes: u64, c: &Contents, layout: &Layout) -> Value {
         // Episodes are etp's: null in a file without its `outcome` channel.
         "episodes": c.channels.contains_key("outcome").then_some(outcomes),
     })
+}
+
+/// Percentiles of a channel's `log_time − publish_time` (µs: p50, p99, min,
+/// max); `None` when every message's two times are equal (formats 6 and
+/// older, or another writer's file: no sender's time). Negative for a
+/// sender whose clock is ahead of the recorder's (another host).
+fn latency(d: &mut [i128]) -> Option<Value> {
+    if d.iter().all(|&x| x == 0) {
+        return None;
+    }
+    d.sort_unstable();
+    // Nearest rank: the smallest value with at least p of them at or below it.
+    let at = |p: f64| {
+        let rank = (p * d.len() as f64).ceil() as usize;
+        d[rank.clamp(1, d.len()) - 1] as f64 * 1e-3
+    };
+    Some(json!({"p50": at(0.5), "p99": at(0.99), "min": at(0.0), "max": at(1.0)}))
 }
 
 /// The info object as text.
@@ -170,7 +194,7 @@ fn write_info(out: &mut String, v: &Value) -> std::fmt::Result {
             let rate = c["rate_hz"]
                 .as_f64()
                 .map_or("–".into(), |r| format!("{r:.2}"));
-            writeln!(
+            write!(
                 out,
                 "  {:<22} {:>9} msgs ({:>9} Hz) {:>11} B  {} ({}, {})",
                 s(&c["topic"]),
@@ -181,6 +205,11 @@ fn write_info(out: &mut String, v: &Value) -> std::fmt::Result {
                 s(&c["schema_encoding"]),
                 s(&c["message_encoding"])
             )?;
+            let l = &c["latency_us"];
+            if let (Some(p50), Some(p99)) = (l["p50"].as_f64(), l["p99"].as_f64()) {
+                write!(out, "  published → logged p50 {p50:.0} µs, p99 {p99:.0} µs")?;
+            }
+            writeln!(out)?;
         }
     }
     writeln!(out, "metadata:")?;
@@ -198,6 +227,24 @@ fn write_info(out: &mut String, v: &Value) -> std::fmt::Result {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn latency_is_null_without_sender_times_and_takes_any_time() {
+        assert_eq!(latency(&mut [0, 0, 0]), None);
+        let mut d: Vec<i128> = (1..=100).map(|us| us * 1000).collect();
+        let l = latency(&mut d).expect("times");
+        assert_eq!(l["p50"], 50.0);
+        assert_eq!(l["p99"], 99.0);
+        assert_eq!(
+            (l["min"].as_f64(), l["max"].as_f64()),
+            (Some(1.0), Some(100.0))
+        );
+        // A forged time from the network (u64::MAX) or a clock ahead of
+        // the recorder's: a negative delay, no overflow.
+        let mut d = [-i128::from(u64::MAX), 5_000];
+        let l = latency(&mut d).expect("times");
+        assert!(l["min"].as_f64().is_some_and(|m| m < -1e15), "{l}");
+    }
 
     #[test]
     fn rfc3339_of_known_instants() {

@@ -117,7 +117,7 @@ pub enum Action {
         select: SelectArgs,
     },
     /// What the file holds (size, compression, time span, schemas, messages
-    /// per channel, metadata), like `mcap info`.
+    /// per channel and their publish-to-record times, metadata), like `mcap info`.
     Info {
         /// An MCAP recording (`etp run --record`).
         file: PathBuf,
