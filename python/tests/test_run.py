@@ -33,8 +33,8 @@ def test_a_run_reports_like_the_cli_and_its_recording_reads_back(tmp_path):
     # The recording is this run's: its id in the file, one run tag (the
     # header's 64-bit hash of the id, a string) in every table.
     assert info["run_id"] == rep["run_id"]
-    # A new recording is format 6: every channel protobuf.
-    assert info["format_version"] == 6
+    # A new recording is format 7: every channel protobuf.
+    assert info["format_version"] == 7
     assert {c["message_encoding"] for c in info["channels"]} == {"protobuf"}
     tags = set().union(*(set(df["run"]) for df in tables.values()))
     assert len(tags) == 1 and next(iter(tags)).isdigit()

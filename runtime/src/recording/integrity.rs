@@ -24,16 +24,18 @@ pub fn check_metadata(c: &Contents) -> Result<Option<Scenario>, RecordingError> 
         use super::Encoding;
         let Some(expected) = [Encoding::Protobuf, Encoding::Protobuf5, Encoding::Bincode]
             .into_iter()
-            .find(|e| e.format_version() == v)
+            .find(|e| e.format_versions().contains(&v))
         else {
             return bad(format!(
-                "format version {v}: this etp reads formats {}, {} and {} (format 2 and older \
-                 sent the agent's prior every step; 3 a handover per leg and the sensor's \
+                "format version {v}: this etp reads formats {}, {}, {} and {} (format 2 and \
+                 older sent the agent's prior every step; 3 a handover per leg and the sensor's \
                  replica digest in `slot`; since 4 the radio's attempts, deliveries and losses \
                  in `slot` and `ledger`; 5 the same messages in protobuf; 6 with enums and \
-                 arrays of the used length)",
+                 arrays of the used length; 7 with each message's sender's time as its \
+                 publish_time)",
                 super::LEGACY_FORMAT_VERSION,
                 super::PROTOBUF5_FORMAT_VERSION,
+                super::PROTOBUF6_FORMAT_VERSION,
                 super::FORMAT_VERSION
             ));
         };
@@ -230,12 +232,17 @@ mod tests {
         let err = check_metadata(&six_as_five)
             .expect_err("a format-6 schema in a format-5 file")
             .to_string();
-        assert!(err.contains("format 6's"), "{err}");
-        let err = check_metadata(&file("7", MESSAGE_ENCODING))
+        assert!(err.contains("format 7's"), "{err}");
+        // Format 6's channels are format 7's.
+        let mut six = file(crate::recording::PROTOBUF6_FORMAT_VERSION, MESSAGE_ENCODING);
+        six.etp_encodings
+            .insert("measurement".into(), Encoding::Protobuf);
+        assert!(check_metadata(&six).is_ok());
+        let err = check_metadata(&file("8", MESSAGE_ENCODING))
             .expect_err("a newer format")
             .to_string();
         assert!(
-            err.contains("format version 7") && err.contains("formats 4, 5 and 6"),
+            err.contains("format version 8") && err.contains("formats 4, 5, 6 and 7"),
             "{err}"
         );
     }

@@ -4,7 +4,9 @@
 //!
 //! * One channel per publish-subscribe service; its topic is the service name
 //!   without the `etp/<run-id>/` prefix (`measurement`, `sensor/0/truth`, …).
-//! * Format 6 (what the recorder writes): message encoding `protobuf`,
+//! * Format 7 (what the recorder writes): format 6's channels, each
+//!   message's `publish_time` its sender's time (below).
+//! * Format 6 (still read, as format 7): message encoding `protobuf`,
 //!   schema encoding `protobuf`, schema name `etp.<Kind>`, schema data a
 //!   serialized `FileDescriptorSet` built from the payload type and the
 //!   catalogue's named fields (`wire::proto`, [`ProtoMapping::Typed`]), so
@@ -30,9 +32,13 @@
 //!   strategy predicts, for "energy vs prediction"), [`META_CONFIG`]
 //!   (`toml`: the run file), [`META_CHANNEL_SCHEDULE`] (`toml`, only for a
 //!   run with channel changes).
-//! * `log_time`/`publish_time`: ns since the Unix epoch when the recorder took
-//!   the sample; `sequence`: per-channel count. (The sender's own time is
-//!   not carried: `recordings/README.md`, "times", says why.)
+//! * `log_time`: ns since the Unix epoch when the recorder took the sample
+//!   off its subscriber; `publish_time` (format 7): when its sender
+//!   published it, by the sender's clock (the sample's user header,
+//!   `crate::wire::stamp`; a remote sensor's is its host's clock), in
+//!   formats 6 and older the `log_time` again; `sequence`: per-channel
+//!   count. Nothing is ordered by `publish_time` (`recordings/README.md`,
+//!   "times").
 
 use crate::wire::ServiceId;
 #[cfg(test)]
@@ -88,18 +94,23 @@ pub fn verify_missing_channels(c: &Contents) -> Vec<String> {
 /// `delivered`, `ledger` triggers, delivered and lost, and the agent's
 /// `sensor/<i>/ack` is recorded. 5: the same messages encoded as protobuf
 /// with `FileDescriptorSet` schemas. 6: protobuf enums for codes and ids,
-/// `bool` flags, arrays cut to `dim` ([`ProtoMapping::Typed`]); formats 5
+/// `bool` flags, arrays cut to `dim` ([`ProtoMapping::Typed`]). 7: the same
+/// channels, each message's `publish_time` the time its sender published it
+/// (6 and older: the recorder's receive time, as `log_time`); formats 6, 5
 /// and 4 are still read.
-pub const FORMAT_VERSION: &str = "6";
+pub const FORMAT_VERSION: &str = "7";
+/// The format of format 7's channels whose `publish_time` is the recorder's
+/// receive time ([`Encoding::Protobuf`] too).
+pub const PROTOBUF6_FORMAT_VERSION: &str = "6";
 /// The protobuf format of plain integers and whole arrays ([`Encoding::Protobuf5`]).
 pub const PROTOBUF5_FORMAT_VERSION: &str = "5";
 /// The last format whose channels are bincode ([`LEGACY_MESSAGE_ENCODING`]).
 pub const LEGACY_FORMAT_VERSION: &str = "4";
 /// MCAP profile string.
 pub const PROFILE: &str = "etpareto";
-/// Message encoding of every channel (formats 5 and 6).
+/// Message encoding of every channel (formats 5 to 7).
 pub const MESSAGE_ENCODING: &str = "protobuf";
-/// Schema encoding of every schema (formats 5 and 6).
+/// Schema encoding of every schema (formats 5 to 7).
 pub const SCHEMA_ENCODING: &str = "protobuf";
 /// Message encoding of format 4 and older (and of the bridge's link).
 pub const LEGACY_MESSAGE_ENCODING: &str = crate::wire::catalogue::PAYLOAD_ENCODING;
@@ -165,7 +176,8 @@ pub fn kind_of_topic(topic: &str) -> Option<Kind> {
 /// How a channel's payloads are encoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Encoding {
-    /// `protobuf` in [`ProtoMapping::Typed`] (format 6): what the recorder writes.
+    /// `protobuf` in [`ProtoMapping::Typed`] (formats 7 and 6): what the
+    /// recorder writes.
     Protobuf,
     /// `protobuf` in [`ProtoMapping::Plain`] (format 5).
     Protobuf5,
@@ -175,7 +187,7 @@ pub enum Encoding {
 
 impl Encoding {
     /// The encoding of a channel's `message_encoding` as this etp writes
-    /// it (`protobuf`: format 6); `None` for one etp does not write (a
+    /// it (`protobuf`: formats 7 and 6); `None` for one etp does not write (a
     /// channel of another MCAP writer).
     pub fn of(message_encoding: &str) -> Option<Self> {
         match message_encoding {
@@ -207,12 +219,22 @@ impl Encoding {
         }
     }
 
-    /// The recording format whose channels are in this encoding.
+    /// The newest recording format whose channels are in this encoding.
     pub fn format_version(self) -> &'static str {
         match self {
             Self::Protobuf => FORMAT_VERSION,
             Self::Protobuf5 => PROTOBUF5_FORMAT_VERSION,
             Self::Bincode => LEGACY_FORMAT_VERSION,
+        }
+    }
+
+    /// Every recording format whose channels are in this encoding (formats
+    /// 7 and 6 differ only in what `publish_time` is).
+    pub fn format_versions(self) -> &'static [&'static str] {
+        match self {
+            Self::Protobuf => &[FORMAT_VERSION, PROTOBUF6_FORMAT_VERSION],
+            Self::Protobuf5 => &[PROTOBUF5_FORMAT_VERSION],
+            Self::Bincode => &[LEGACY_FORMAT_VERSION],
         }
     }
 
@@ -301,7 +323,7 @@ fn cfg() -> bincode::config::Configuration<
     bincode::config::legacy()
 }
 
-/// Encode one payload as the recorder writes it (format 6, protobuf).
+/// Encode one payload as the recorder writes it (protobuf, [`ProtoMapping::Typed`]).
 pub fn encode<T: crate::wire::Message>(payload: &T) -> Result<Vec<u8>, RecordingError> {
     Encoding::Protobuf.encode(payload)
 }

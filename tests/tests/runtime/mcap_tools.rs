@@ -1,10 +1,11 @@
-//! Recording format 6: a new recording of a real `etp run --record` read by
+//! Recording format 7: a new recording of a real `etp run --record` read by
 //! a reader that is not etp's — Foxglove's Python protobuf decoder
 //! (`mcap-protobuf-support`, pinned in `tests/src/pyenv.rs`) with the
 //! schemas the file carries — every message decoded, every value equal to
 //! etp's own decoding as format 6 maps it (codes by enum name, flags as
 //! bools, arrays of the used length), counts equal to `etp replay summary`;
-//! `replay verify` bit for bit. The older formats' fixtures:
+//! `replay verify` bit for bit; each message's `publish_time` its sender's
+//! time, before the recorder's `log_time`. The older formats' fixtures:
 //! `mcap_tools_fixtures`.
 
 use super::recording::{out_file, python_json, read_finished, record, replay};
@@ -20,7 +21,8 @@ use std::collections::BTreeMap;
 /// file's own `FileDescriptorSet` schemas; per topic, each message as
 /// `{field path: value or list}` (nested messages joined with `.`,
 /// repeated fields as lists, an enum as its number), the names of its enum
-/// values (`{path: name}`, from the schema), and each channel's encodings.
+/// values (`{path: name}`, from the schema), each channel's encodings, and
+/// each message's `[log_time, publish_time]`.
 const PY_DECODE: &str = r#"
 import sys, json, struct
 from mcap.reader import make_reader
@@ -45,7 +47,7 @@ def flat(msg, prefix, out, names):
                 names[key] = named.name if named is not None else None
     return out
 
-out = {"channels": {}, "messages": {}, "names": {}}
+out = {"channels": {}, "messages": {}, "names": {}, "times": {}}
 with open(sys.argv[1], "rb") as fh:
     r = make_reader(fh, decoder_factories=[DecoderFactory()])
     s = r.get_summary()
@@ -54,10 +56,12 @@ with open(sys.argv[1], "rb") as fh:
         out["channels"][c.topic] = [c.message_encoding, sc.encoding, sc.name]
         out["messages"][c.topic] = []
         out["names"][c.topic] = []
+        out["times"][c.topic] = []
     for schema, channel, message, proto in r.iter_decoded_messages(log_time_order=False):
         names = {}
         out["messages"][channel.topic].append(flat(proto, "", {}, names))
         out["names"][channel.topic].append(names)
+        out["times"][channel.topic].append([message.log_time, message.publish_time])
 print(json.dumps(out))
 "#;
 
@@ -217,6 +221,41 @@ fn assert_same(
     }
 }
 
+/// Each message's `publish_time` as the Python reader reads it (`times`:
+/// per topic, `[log_time, publish_time]` in file order) is etp's reader's,
+/// and is the sender's: on one host at or before the recorder's `log_time`
+/// (one clock), not the `log_time` again, and within the run.
+fn publish_times_are_the_senders(c: &recording::Contents, times: &Value) {
+    let times: BTreeMap<String, Vec<(u64, u64)>> =
+        serde_json::from_value(times.clone()).expect("times");
+    let mut ours: BTreeMap<String, Vec<(u64, u64)>> = BTreeMap::new();
+    for m in &c.messages {
+        ours.entry(m.topic.clone())
+            .or_default()
+            .push((m.log_time, m.publish_time));
+    }
+    assert_eq!(ours, times, "etp's reader vs Python's mcap reader");
+    let all: Vec<(u64, u64)> = times.values().flatten().copied().collect();
+    assert!(all.len() > 100, "{}", all.len());
+    for &(log, publish) in &all {
+        assert!(publish <= log, "published at {publish}, logged at {log}");
+    }
+    assert!(
+        all.iter().any(|&(log, publish)| publish < log),
+        "every publish_time is its log_time"
+    );
+    let first_log = all.iter().map(|t| t.0).min().unwrap_or(0);
+    let last_log = all.iter().map(|t| t.0).max().unwrap_or(0);
+    // Published during the run: after the recorder was started (a few
+    // seconds before its first message at most), before its last.
+    for &(_, publish) in &all {
+        assert!(
+            publish + 60_000_000_000 > first_log && publish <= last_log,
+            "{publish} outside the run"
+        );
+    }
+}
+
 #[test]
 fn a_new_recording_decodes_in_foxgloves_protobuf_reader_value_for_value() {
     let _serial = serial();
@@ -229,7 +268,7 @@ fn a_new_recording_decodes_in_foxgloves_protobuf_reader_value_for_value() {
         c.meta(recording::META_RUN, "format_version"),
         Some(recording::FORMAT_VERSION)
     );
-    assert_eq!(recording::FORMAT_VERSION, "6");
+    assert_eq!(recording::FORMAT_VERSION, "7");
     assert!(!c.encodings.is_empty());
     for (topic, e) in &c.encodings {
         assert_eq!(e, "protobuf", "{topic}");
@@ -241,7 +280,7 @@ fn a_new_recording_decodes_in_foxgloves_protobuf_reader_value_for_value() {
         );
     }
 
-    // etp's decoding of every message, as format 6 records it, flattened
+    // etp's decoding of every message, as format 7 records it, flattened
     // as the Python side does.
     let mut ours: BTreeMap<String, Vec<Value>> = BTreeMap::new();
     for m in &c.messages {
@@ -263,6 +302,7 @@ fn a_new_recording_decodes_in_foxgloves_protobuf_reader_value_for_value() {
     }
     let theirs: BTreeMap<String, Vec<Value>> =
         serde_json::from_value(py["messages"].clone()).expect("messages");
+    publish_times_are_the_senders(&c, &py["times"]);
     // Counts: Python's decoder, etp's reader and `replay summary` agree.
     let summary = replay(&["summary", &file.display().to_string()]);
     let counts: BTreeMap<String, u64> =

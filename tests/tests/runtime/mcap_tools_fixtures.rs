@@ -1,7 +1,9 @@
 //! The committed recordings of the older formats — format 4 (bincode,
-//! `recordings/fixtures/open-2d-4-episodes.mcap`) and format 5 (protobuf
+//! `recordings/fixtures/open-2d-4-episodes.mcap`), format 5 (protobuf
 //! with plain integers and whole arrays,
-//! `recordings/fixtures/open-2d-2-episodes-format-5.mcap`) — read by every
+//! `recordings/fixtures/open-2d-2-episodes-format-5.mcap`) and format 6
+//! (format 7's channels, `publish_time` the recorder's receive time,
+//! `recordings/fixtures/open-2d-2-episodes-format-6.mcap`) — read by every
 //! tool as a new recording is: summary, verify, info, cat, export, repair,
 //! filter and the Foxglove copy; repair and filter keep the file's format.
 
@@ -36,7 +38,7 @@ fn fixture(name: &str) -> PathBuf {
 fn encoding_of(version: &str) -> Encoding {
     [Encoding::Protobuf, Encoding::Protobuf5, Encoding::Bincode]
         .into_iter()
-        .find(|e| e.format_version() == version)
+        .find(|e| e.format_versions().contains(&version))
         .unwrap_or_else(|| panic!("format {version}"))
 }
 
@@ -132,6 +134,18 @@ fn the_format_4_fixture_is_read_by_every_tool() {
         assert_eq!(e, recording::LEGACY_MESSAGE_ENCODING, "{topic}");
     }
     every_tool_reads(&path, recording::LEGACY_FORMAT_VERSION, 4);
+}
+
+#[test]
+fn the_format_6_fixture_is_read_by_every_tool_its_publish_times_the_log_times() {
+    let path = fixture("open-2d-2-episodes-format-6.mcap");
+    let c = read_finished(&path);
+    // Format 6 carried no sender's time: the recorder wrote its own twice.
+    assert!(!c.messages.is_empty());
+    for m in &c.messages {
+        assert_eq!(m.publish_time, m.log_time, "{} {}", m.topic, m.sequence);
+    }
+    every_tool_reads(&path, recording::PROTOBUF6_FORMAT_VERSION, 2);
 }
 
 #[test]
