@@ -411,7 +411,7 @@ impl<const N: usize> Agent<N> {
             "channel drift flagged"
         );
         self.drift
-            .send_copy(Drift {
+            .publish(Drift {
                 header: self.stamp.header(f.episode, leg, f.step),
                 sensor: f.sensor as u32,
                 quantity: f.quantity.code(),
