@@ -228,7 +228,10 @@ fn assert_same(
 fn publish_times_are_the_senders(c: &recording::Contents, times: &Value) {
     let times: BTreeMap<String, Vec<(u64, u64)>> =
         serde_json::from_value(times.clone()).expect("times");
-    let mut ours: BTreeMap<String, Vec<(u64, u64)>> = BTreeMap::new();
+    // Every channel, those without a message (a run with no `drift` flag)
+    // too, as the Python reader lists them.
+    let mut ours: BTreeMap<String, Vec<(u64, u64)>> =
+        c.channels.keys().map(|t| (t.clone(), Vec::new())).collect();
     for m in &c.messages {
         ours.entry(m.topic.clone())
             .or_default()
@@ -282,7 +285,10 @@ fn a_new_recording_decodes_in_foxgloves_protobuf_reader_value_for_value() {
 
     // etp's decoding of every message, as format 7 records it, flattened
     // as the Python side does.
-    let mut ours: BTreeMap<String, Vec<Value>> = BTreeMap::new();
+    // Every channel, those without a message (`drift` of a run that
+    // flagged nothing) too, as the other readers list them.
+    let mut ours: BTreeMap<String, Vec<Value>> =
+        c.channels.keys().map(|t| (t.clone(), Vec::new())).collect();
     for m in &c.messages {
         let mut row = Map::new();
         let payload = m.decode().expect("decodes");
