@@ -90,6 +90,44 @@ pub struct Opening {
     pub delta: f64,
 }
 
+/// One thing the coordinator does at a decision point, in
+/// [`Opening::sends`]' order.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Send {
+    /// A CLOSE of the leg on its sensor's `threshold` service.
+    Close(LegAt),
+    /// The OPEN of the leg on its sensor's `threshold` service.
+    Open(LegAt),
+    /// The sensor's wake-up event.
+    WakeSensor(u32),
+    /// The agent's wake-up event.
+    WakeAgent,
+}
+
+impl Opening {
+    /// The sends of this decision point, in order. Every `threshold` is
+    /// followed by its sensor's wake-up: the service has two readers (the
+    /// sensor and the agent) and iceoryx2 hands a sample to them one after
+    /// the other, so the agent can read the OPEN, hand over and send the
+    /// leg's first truth (waking the sensor) before the OPEN is in the
+    /// sensor's queue. The sensor then keeps that truth until its leg
+    /// opens, and only a wake-up after the OPEN makes it look again; the
+    /// agent waits for the slot meanwhile (docs/MODEL.md §3, "a wake-up
+    /// after every message a reader may wait for").
+    pub fn sends(&self) -> Vec<Send> {
+        let mut sends = Vec::with_capacity(5);
+        if let Some(prev) = self.close {
+            sends.extend([Send::Close(prev), Send::WakeSensor(prev.sensor)]);
+        }
+        sends.extend([
+            Send::Open(self.open),
+            Send::WakeSensor(self.open.sensor),
+            Send::WakeAgent,
+        ]);
+        sends
+    }
+}
+
 /// The episode in progress.
 #[derive(Debug)]
 struct Running {

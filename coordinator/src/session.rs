@@ -3,7 +3,7 @@
 //! decision (δ at each waypoint, episode records, ledgers, the report).
 
 use crate::CoordinatorError;
-use crate::core::{CoordinatorCore, LegAt, Opening, RollCall};
+use crate::core::{CoordinatorCore, LegAt, Opening, RollCall, Send};
 use etp_runtime::report::RunReport;
 use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_coordinator::{Drift, Outcome, Waypoint};
@@ -187,21 +187,29 @@ impl<'a> Coordinator<'a> {
     }
 
     /// A decision point as the core decided it: close the previous leg,
-    /// open this one, wake the agent.
+    /// open this one, wake the sensors and then the agent
+    /// ([`Opening::sends`] says in which order, and why).
     fn open(&mut self, o: Opening) -> Result<(), CoordinatorError> {
-        if let Some(prev) = o.close {
-            self.close(prev)?;
+        for send in o.sends() {
+            match send {
+                Send::Close(at) => {
+                    self.send_threshold(at.episode, at.leg, Threshold::CLOSE, at.sensor, 0, 0.0)?
+                }
+                Send::Open(at) => self.send_threshold(
+                    at.episode,
+                    at.leg,
+                    Threshold::OPEN,
+                    at.sensor,
+                    o.delta_index,
+                    o.delta,
+                )?,
+                Send::WakeSensor(sensor) => {
+                    Self::notify(&self.sensor_wake[sensor as usize], "sensor wake")?
+                }
+                Send::WakeAgent => Self::notify(&self.agent_wake, "agent wake")?,
+            }
         }
-        let at = o.open;
-        self.send_threshold(
-            at.episode,
-            at.leg,
-            Threshold::OPEN,
-            at.sensor,
-            o.delta_index,
-            o.delta,
-        )?;
-        Self::notify(&self.agent_wake, "agent wake")
+        Ok(())
     }
 
     /// Run `episodes` episodes, stop every process, return the report.

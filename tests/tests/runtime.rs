@@ -54,6 +54,10 @@ mod network;
 #[path = "runtime/lossy.rs"]
 mod lossy;
 
+// A leg's OPEN that reaches its sensor after the leg's first truth (issue 53's hang).
+#[path = "runtime/late_open.rs"]
+mod late_open;
+
 #[path = "runtime/folders.rs"]
 mod folders;
 

@@ -239,3 +239,43 @@ fn the_roll_call_names_who_is_missing() {
     roll.on_hello(&h);
     assert!(roll.all_present());
 }
+
+/// The sends of every decision point: each `threshold` is followed by its
+/// sensor's wake-up, and the agent is woken last. Without the wake-up after
+/// the OPEN a sensor that took the leg's first truth before the OPEN
+/// reached its queue waited for a wake-up that never came, and the agent
+/// for its slot (the run hung).
+#[test]
+fn every_threshold_is_followed_by_its_sensors_wake_up_and_the_agent_is_woken_last() {
+    let s = scenario();
+    let st = constant(&s, 1);
+    let mut core = CoordinatorCore::new(&s, &st.policy, 1, TAG);
+    let legs = s.legs.len() as u32;
+    for o in episode(&mut core, 0, legs) {
+        let sends = o.sends();
+        assert_eq!(sends.last(), Some(&Send::WakeAgent), "{sends:?}");
+        for (i, send) in sends.iter().enumerate() {
+            let sensor = match send {
+                Send::Close(at) | Send::Open(at) => at.sensor,
+                _ => continue,
+            };
+            assert_eq!(
+                sends.get(i + 1),
+                Some(&Send::WakeSensor(sensor)),
+                "{send:?} not followed by its sensor's wake-up: {sends:?}"
+            );
+        }
+        let opens: Vec<_> = sends
+            .iter()
+            .filter_map(|x| match x {
+                Send::Open(at) => Some(*at),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(opens, vec![o.open]);
+        assert_eq!(
+            sends.contains(&Send::Close(o.close.unwrap_or(o.open))),
+            o.close.is_some()
+        );
+    }
+}
