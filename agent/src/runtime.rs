@@ -16,6 +16,7 @@ use crate::core::{AfterSlot, EpisodeCore, EpisodeEnd, Fault, SlotRequest, SlotRe
 use crate::link::Links;
 use crate::{AgentError, AgentStats, Exit, IDLE_CHECK, SLOT_CHECK};
 use etp_runtime::live::{LiveTap, SlotFrame, Totals};
+use etp_runtime::report::DriftRecord;
 use etp_runtime::wire::PortError;
 use etp_runtime::wire::agent_to_coordinator::{Drift, Outcome, Waypoint};
 use etp_runtime::wire::coordinator_to_agent::Control;
@@ -71,6 +72,8 @@ pub struct Agent<const N: usize> {
     stats: AgentStats,
     /// `etp run --live`: the view's feed (never blocks, never fails the run).
     live: Option<LiveTap>,
+    /// The sensors' names (the view's drift flags name them).
+    sensor_names: Vec<String>,
     _hello: Option<Pub<Hello>>,
 }
 
@@ -119,6 +122,7 @@ impl<const N: usize> Agent<N> {
             coordinator_wake,
             stats: AgentStats::default(),
             live,
+            sensor_names: scenario.sensors.iter().map(|s| s.name.clone()).collect(),
             _hello: Some(hello),
             node,
         })
@@ -410,19 +414,27 @@ impl<const N: usize> Agent<N> {
             threshold = f.threshold,
             "channel drift flagged"
         );
+        let d = Drift {
+            header: self.stamp.header(f.episode, leg, f.step),
+            sensor: f.sensor as u32,
+            quantity: f.quantity.code(),
+            alternative: f.alternative,
+            statistic: f.statistic,
+            threshold: f.threshold,
+            since_onset: f.since_onset,
+            observations: f.observations,
+            estimate: f.estimate.unwrap_or(-1.0),
+        };
         self.drift
-            .publish(Drift {
-                header: self.stamp.header(f.episode, leg, f.step),
-                sensor: f.sensor as u32,
-                quantity: f.quantity.code(),
-                alternative: f.alternative,
-                statistic: f.statistic,
-                threshold: f.threshold,
-                since_onset: f.since_onset,
-                observations: f.observations,
-                estimate: f.estimate.unwrap_or(-1.0),
-            })
+            .publish(d)
             .map_err(|e| PortError::send("drift", e))?;
+        if let Some(tap) = self.live.as_mut() {
+            let names = &self.sensor_names;
+            let name = |i: u32| names.get(i as usize).cloned().unwrap_or_else(|| i.to_string());
+            if let Some(record) = DriftRecord::from_wire(&d, name) {
+                tap.note_drift(record);
+            }
+        }
         Ok(())
     }
 

@@ -15,8 +15,10 @@
 //! sensors; sent again every second and when a client subscribes),
 //! `/agent` (`foxglove.SceneUpdate`: true position, prior mean and 3σ
 //! ellipse, the serving sensor's transmission), `/outcome` (`foxglove.Log`,
-//! one line per finished episode), and JSON for the Plot panel: `/status`,
-//! `/outcomes`, `/energy`, `/rates`, `/sensor/<name>`.
+//! one line per finished episode, and a warning line per flag of the
+//! channel monitor), and JSON for the Plot panel: `/status`, `/outcomes`,
+//! `/energy`, `/rates`, `/sensor/<name>`, and `/drift` (each flag of the
+//! channel monitor once: the fields of `run --json`'s `drift[]`).
 
 pub mod draw;
 mod publish;

@@ -8,6 +8,7 @@ use foxglove::messages::{Log, SceneUpdate, Timestamp, log::Level};
 use foxglove::{Channel, ChannelBuilder, Context, RawChannel, Schema};
 use serde_json::{Value, json};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// The topics of the live view, with their schema names (what a client
 /// sees advertised).
@@ -19,11 +20,13 @@ pub mod topics {
     pub const OUTCOMES: &str = "/outcomes";
     pub const ENERGY: &str = "/energy";
     pub const RATES: &str = "/rates";
+    /// A flag of the channel monitor (docs/MODEL.md §11), once each.
+    pub const DRIFT: &str = "/drift";
     /// `/sensor/<name>`, one per sensor.
     pub const SENSOR_PREFIX: &str = "/sensor/";
 
     /// (topic, schema name) of the fixed topics.
-    pub const FIXED: [(&str, &str); 7] = [
+    pub const FIXED: [(&str, &str); 8] = [
         (SCENE, "foxglove.SceneUpdate"),
         (AGENT, "foxglove.SceneUpdate"),
         (OUTCOME, "foxglove.Log"),
@@ -31,6 +34,7 @@ pub mod topics {
         (OUTCOMES, "etp.live.Outcomes"),
         (ENERGY, "etp.live.Energy"),
         (RATES, "etp.live.Rates"),
+        (DRIFT, "etp.live.Drift"),
     ];
     /// The schema of every `/sensor/<name>`.
     pub const SENSOR_SCHEMA: &str = "etp.live.Sensor";
@@ -47,7 +51,7 @@ fn json_channel(
     let properties: serde_json::Map<String, Value> = props
         .iter()
         .map(|(name, description)| {
-            let kind = if name.ends_with("_name") || *name == "outcome" || *name == "sensor" {
+            let kind = if name.ends_with("_name") || ["outcome", "sensor", "quantity"].contains(name) {
                 "string"
             } else {
                 "number"
@@ -102,6 +106,9 @@ pub struct Channels {
     outcomes: Option<Arc<RawChannel>>,
     energy: Option<Arc<RawChannel>>,
     rates: Option<Arc<RawChannel>>,
+    drift: Option<Arc<RawChannel>>,
+    /// Flags of the channel monitor already shown (frames carry them all).
+    drift_shown: AtomicUsize,
     sensors: Vec<Option<Arc<RawChannel>>>,
 }
 
@@ -174,6 +181,24 @@ impl Channels {
                     ("delivered", "delivered measurements per slot so far"),
                 ],
             ),
+            drift: json_channel(
+                ctx,
+                DRIFT,
+                "etp.live.Drift",
+                &[
+                    ("sensor", "the flagged sensor's name"),
+                    ("quantity", "loss, more_triggers or fewer_triggers"),
+                    ("episode", "episode of the slot that raised the flag"),
+                    ("step", "episode step k of that slot"),
+                    ("statistic", "the CUSUM statistic (null: infinite)"),
+                    ("threshold", "the threshold it reached"),
+                    ("alternative", "the alternative tested against"),
+                    ("since_onset", "observations from the estimated onset"),
+                    ("observations", "observations of this sensor's test so far"),
+                    ("estimate", "a loss flag's lost / attempts since the onset"),
+                ],
+            ),
+            drift_shown: AtomicUsize::new(0),
             sensors: scenario
                 .sensors
                 .iter()
@@ -345,5 +370,30 @@ impl Channels {
             );
         }
         log_json(&self.rates, &Value::Object(rates));
+        self.drift_flags(t);
+    }
+
+    /// The flags in `t` not shown yet: each on `/drift` and as a warning
+    /// line on `/outcome`.
+    fn drift_flags(&self, t: &Totals) {
+        let shown = self.drift_shown.load(Ordering::Relaxed);
+        let Some(new) = t.drift.get(shown..).filter(|n| !n.is_empty()) else {
+            return;
+        };
+        self.drift_shown.store(t.drift.len(), Ordering::Relaxed);
+        for flag in new {
+            if let Ok(v) = serde_json::to_value(flag) {
+                log_json(&self.drift, &v);
+            }
+            if self.outcome.has_sinks() {
+                self.outcome.log(&Log {
+                    timestamp: Some(Timestamp::now()),
+                    level: Level::Warning as i32,
+                    message: format!("channel drift: {}", flag.describe()),
+                    name: "etp run".into(),
+                    ..Log::default()
+                });
+            }
+        }
     }
 }

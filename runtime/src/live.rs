@@ -44,6 +44,9 @@ pub struct Totals {
     /// Attempts in finished episodes only (what the predicted energy per
     /// episode compares to).
     pub attempts_finished: Vec<u64>,
+    /// Every flag of the channel monitor so far (at most three per
+    /// sensor), so a dropped frame loses none.
+    pub drift: Vec<crate::report::DriftRecord>,
 }
 
 /// One slot as the agent saw it.
@@ -163,6 +166,12 @@ impl LiveTap {
                 true
             }
         }
+    }
+
+    /// A flag of the channel monitor: every later frame carries it (the
+    /// view shows each flag once).
+    pub fn note_drift(&mut self, flag: crate::report::DriftRecord) {
+        self.totals.drift.push(flag);
     }
 
     /// The running totals.

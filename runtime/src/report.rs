@@ -115,13 +115,14 @@ impl DriftRecord {
             _ => format!("trigger probability {:.3}", self.alternative),
         };
         let mut line = format!(
-            "{} {} at episode {} step {}: CUSUM {stat} ≥ {:.2} against {what}, {} observations since the onset",
+            "{} {} at episode {} step {}: CUSUM {stat} ≥ {:.2} against {what}, {} observation{} since the onset",
             self.sensor,
             self.quantity.replace('_', " "),
             self.episode,
             self.step,
             self.threshold,
-            self.since_onset
+            self.since_onset,
+            if self.since_onset == 1 { "" } else { "s" }
         );
         if let Some(e) = self.estimate {
             line.push_str(&format!(", loss measured since then {e:.3}"));

@@ -172,7 +172,17 @@ fn json_of(seen: &Seen, topic: &str) -> Vec<Value> {
 fn a_foxglove_client_sees_the_scene_and_the_steps_and_the_run_is_unchanged() {
     let _serial = serial();
     let id = unique_run_id("live");
+    // s2's link turns lossy at episode 5 (the run's model is the ideal
+    // link): the monitor flags it, and the view shows the flag.
+    let schedule = std::env::temp_dir().join(format!("{id}-schedule.toml"));
+    std::fs::write(
+        &schedule,
+        "[[change]]\nsensor = \"s2\"\nepisode = 5\nloss = 0.3\n",
+    )
+    .expect("schedule file");
+    let schedule_arg = schedule.display().to_string();
     let mut live_args = args("30");
+    live_args.extend(["--channel-schedule", &schedule_arg]);
     live_args.extend(["--live", "127.0.0.1:0", "--live-wait"]);
     let mut run = EtpRun::spawn(&id, &live_args);
     // The port, from the line `etp: live view: … ws://127.0.0.1:PORT …`.
@@ -196,6 +206,7 @@ fn a_foxglove_client_sees_the_scene_and_the_steps_and_the_run_is_unchanged() {
         ("/outcomes", "etp.live.Outcomes"),
         ("/energy", "etp.live.Energy"),
         ("/rates", "etp.live.Rates"),
+        ("/drift", "etp.live.Drift"),
     ]
     .into_iter()
     .map(|(t, s)| (t.to_string(), s))
@@ -258,7 +269,10 @@ fn a_foxglove_client_sees_the_scene_and_the_steps_and_the_run_is_unchanged() {
     // The run is the one without a view.
     let v: Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("JSON ({e}): {out}"));
     let plain_id = unique_run_id("live-plain");
-    let (plain_code, plain_out, plain_err) = EtpRun::spawn(&plain_id, &args("30")).finish_code();
+    let mut plain_args = args("30");
+    plain_args.extend(["--channel-schedule", &schedule_arg]);
+    let (plain_code, plain_out, plain_err) = EtpRun::spawn(&plain_id, &plain_args).finish_code();
+    let _ = std::fs::remove_file(&schedule);
     assert_eq!(plain_code, Some(0), "{plain_err}");
     let p: Value = serde_json::from_str(&plain_out).expect("JSON");
     for k in [
@@ -271,9 +285,35 @@ fn a_foxglove_client_sees_the_scene_and_the_steps_and_the_run_is_unchanged() {
         "energy_mean",
         "sensors",
         "episode_results",
+        "drift",
     ] {
         assert_eq!(v[k], p[k], "`{k}` differs with --live");
     }
+    // The monitor's flags: on /drift once each, in the run's order, as
+    // `drift[]` says them (every frame after a flag carries it, so only a
+    // flag of the last moments can miss the view), and a warning line each.
+    let run_flags = v["drift"].as_array().expect("drift[]");
+    assert!(
+        run_flags.iter().any(|f| f["sensor"] == "s2" && f["quantity"] == "loss"),
+        "s2's loss was not flagged: {run_flags:?}"
+    );
+    let view_flags = json_of(&seen, "/drift");
+    assert!(!view_flags.is_empty(), "no /drift message");
+    assert_eq!(
+        view_flags[..],
+        run_flags[..view_flags.len().min(run_flags.len())],
+        "the view's flags are not the run's"
+    );
+    assert_eq!(view_flags.len().min(run_flags.len()), view_flags.len());
+    let warnings = seen
+        .messages
+        .get("/outcome")
+        .map_or(0, |m| {
+            m.iter()
+                .filter(|b| String::from_utf8_lossy(b).contains("channel drift: s2 loss"))
+                .count()
+        });
+    assert_eq!(warnings, 1, "one warning line for s2's loss flag on /outcome");
     // What the view counted agrees with the report where it saw the end.
     let outcomes = json_of(&seen, "/outcomes");
     if let Some(last) = outcomes.last() {
