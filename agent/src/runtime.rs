@@ -430,7 +430,12 @@ impl<const N: usize> Agent<N> {
             .map_err(|e| PortError::send("drift", e))?;
         if let Some(tap) = self.live.as_mut() {
             let names = &self.sensor_names;
-            let name = |i: u32| names.get(i as usize).cloned().unwrap_or_else(|| i.to_string());
+            let name = |i: u32| {
+                names
+                    .get(i as usize)
+                    .cloned()
+                    .unwrap_or_else(|| i.to_string())
+            };
             if let Some(record) = DriftRecord::from_wire(&d, name) {
                 tap.note_drift(record);
             }

@@ -27,6 +27,7 @@ pub use etp_runtime::report::RunReport;
 
 use etp_runtime::shell::{self, Done};
 use etp_runtime::wire::{RunId, WireError};
+use etp_shared::drift::OnDrift;
 use etp_shared::strategy::Strategy;
 use std::time::Duration;
 
@@ -77,19 +78,16 @@ pub struct Args {
     pub progress: Option<std::path::PathBuf>,
     /// What a flag of the agent's channel monitor does: `warn` (reported)
     /// or `stop` (the run ends after the flag's episode).
-    #[arg(long, value_enum, default_value_t = OnDrift::Warn)]
+    #[arg(long, value_parser = on_drift, default_value = "warn")]
     pub on_drift: OnDrift,
 }
 
-/// `--on-drift`: what the coordinator does with a flag of the channel
-/// monitor (docs/MODEL.md §11).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum OnDrift {
-    /// Report it; the run goes on.
-    #[default]
-    Warn,
-    /// Report it and end the run after the flag's episode.
-    Stop,
+/// `--on-drift WORD` (docs/MODEL.md §11).
+fn on_drift(word: &str) -> Result<OnDrift, String> {
+    OnDrift::parse(word).ok_or_else(|| {
+        let words: Vec<&str> = OnDrift::ALL.iter().map(|o| o.name()).collect();
+        format!("`{word}`: one of {}", words.join(", "))
+    })
 }
 
 /// Run all episodes and return the report.

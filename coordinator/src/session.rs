@@ -15,6 +15,7 @@ use etp_runtime::wire::{
     self, AGENT_NODE, COORDINATOR_NODE, Liveness, Notifier, Ports, Pub, RunId, SENDER_COORDINATOR,
     ServiceId, Stamper, Sub, Waiter, Wake, Watchdog, to_wire_vec,
 };
+use etp_shared::drift::OnDrift;
 use etp_shared::scenario::Scenario;
 use etp_shared::strategy::Policy;
 use iceoryx2::prelude::*;
@@ -41,7 +42,7 @@ pub struct Coordinator<'a> {
     outcome: Sub<Outcome>,
     drift: Sub<Drift>,
     /// `--on-drift`: what a flag of the channel monitor does.
-    on_drift: crate::OnDrift,
+    on_drift: OnDrift,
     /// With `--on-drift stop`: the flag that ends the run after its episode.
     stop_for_drift: Option<String>,
     ledger: Sub<Ledger>,
@@ -79,7 +80,7 @@ impl<'a> Coordinator<'a> {
             waypoint: ports.subscriber(ServiceId::Waypoint)?,
             outcome: ports.subscriber(ServiceId::Outcome)?,
             drift: ports.subscriber(ServiceId::Drift)?,
-            on_drift: crate::OnDrift::Warn,
+            on_drift: OnDrift::Warn,
             stop_for_drift: None,
             ledger: ports.subscriber(ServiceId::Ledger)?,
             hello: ports.subscriber(ServiceId::Hello)?,
@@ -280,7 +281,7 @@ impl<'a> Coordinator<'a> {
     }
 
     /// What a flag of the channel monitor does (`--on-drift`).
-    pub fn on_drift(&mut self, on_drift: crate::OnDrift) {
+    pub fn on_drift(&mut self, on_drift: OnDrift) {
         self.on_drift = on_drift;
     }
 
@@ -328,7 +329,7 @@ impl<'a> Coordinator<'a> {
             let d: Drift = *s;
             if let Some(r) = self.core.on_drift(&d) {
                 tracing::warn!("channel drift: {}", r.describe());
-                if self.on_drift == crate::OnDrift::Stop && self.stop_for_drift.is_none() {
+                if self.on_drift == OnDrift::Stop && self.stop_for_drift.is_none() {
                     self.stop_for_drift = Some(format!(
                         "stopped on channel drift (--on-drift stop) after episode {}: {}",
                         r.episode,

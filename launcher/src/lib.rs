@@ -111,7 +111,7 @@ pub use error::{Error, Result};
 use etp_runtime::cleanup;
 use etp_runtime::wire::RunId;
 pub use live::parse_addr as parse_live_addr;
-pub use request::{DriftWatch, OnDrift, RecordTo, RunRequest, RunTarget};
+pub use request::{DriftWatch, RecordTo, RunRequest, RunTarget};
 use std::time::Duration;
 pub use verdict::{exit_for, problems};
 

@@ -11,6 +11,7 @@
 use crate::config::{self, RunConfig};
 use crate::error::{Error, Result};
 use etp_runtime::link_keys;
+use etp_shared::drift::OnDrift;
 use etp_shared::radio::{Estimator, RadioOverride};
 use etp_shared::trigger::TriggerFamily;
 use std::net::SocketAddr;
@@ -93,30 +94,6 @@ pub struct LiveView {
     pub addr: SocketAddr,
     /// Start the episodes only once a client subscribed (`--live-wait`).
     pub wait_for_client: bool,
-}
-
-/// What a flag of the channel monitor does (`--on-drift`, docs/MODEL.md §11).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum OnDrift {
-    /// Reported; the run goes on.
-    #[default]
-    Warn,
-    /// Reported; the run ends after the flag's episode.
-    Stop,
-}
-
-impl OnDrift {
-    /// `warn`, `stop` (the run file's and the coordinator's word).
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Warn => "warn",
-            Self::Stop => "stop",
-        }
-    }
-
-    pub fn parse(s: &str) -> Option<Self> {
-        [Self::Warn, Self::Stop].into_iter().find(|o| o.name() == s)
-    }
 }
 
 /// The run's channel monitor (docs/MODEL.md §11).

@@ -158,7 +158,7 @@ pub fn problems(a: &super::RunRequest, outcome: &supervise::Supervised) -> Vec<(
             format!("{why} (accept with --allow-degraded)"),
         ));
     }
-    if a.drift.on_drift == crate::OnDrift::Stop
+    if a.drift.on_drift == etp_shared::drift::OnDrift::Stop
         && let Some(first) = outcome.report.drift.first()
         && outcome.report.episodes < outcome.report.requested_episodes
     {

@@ -51,11 +51,12 @@ fn json_channel(
     let properties: serde_json::Map<String, Value> = props
         .iter()
         .map(|(name, description)| {
-            let kind = if name.ends_with("_name") || ["outcome", "sensor", "quantity"].contains(name) {
-                "string"
-            } else {
-                "number"
-            };
+            let kind =
+                if name.ends_with("_name") || ["outcome", "sensor", "quantity"].contains(name) {
+                    "string"
+                } else {
+                    "number"
+                };
             (
                 (*name).to_string(),
                 json!({"type": kind, "description": description}),

@@ -49,6 +49,33 @@ pub const ALTERNATIVES: [f64; 3] = [0.125, 0.25, 0.5];
 /// The monitor's false-alarm probability per run unless asked otherwise.
 pub const DEFAULT_FALSE_ALARM: f64 = 0.01;
 
+/// What a run does with a flag (`--on-drift`, run-file key `on_drift`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum OnDrift {
+    /// Reported; the run goes on.
+    #[default]
+    Warn,
+    /// Reported; the run ends after the flag's episode.
+    Stop,
+}
+
+impl OnDrift {
+    pub const ALL: [OnDrift; 2] = [Self::Warn, Self::Stop];
+
+    /// `warn`, `stop` (the command line's, the run file's and the
+    /// coordinator's word).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Warn => "warn",
+            Self::Stop => "stop",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|o| o.name() == s)
+    }
+}
+
 /// Page's CUSUM of a log-likelihood ratio.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Cusum {

@@ -294,7 +294,9 @@ fn a_foxglove_client_sees_the_scene_and_the_steps_and_the_run_is_unchanged() {
     // flag of the last moments can miss the view), and a warning line each.
     let run_flags = v["drift"].as_array().expect("drift[]");
     assert!(
-        run_flags.iter().any(|f| f["sensor"] == "s2" && f["quantity"] == "loss"),
+        run_flags
+            .iter()
+            .any(|f| f["sensor"] == "s2" && f["quantity"] == "loss"),
         "s2's loss was not flagged: {run_flags:?}"
     );
     let view_flags = json_of(&seen, "/drift");
@@ -305,15 +307,15 @@ fn a_foxglove_client_sees_the_scene_and_the_steps_and_the_run_is_unchanged() {
         "the view's flags are not the run's"
     );
     assert_eq!(view_flags.len().min(run_flags.len()), view_flags.len());
-    let warnings = seen
-        .messages
-        .get("/outcome")
-        .map_or(0, |m| {
-            m.iter()
-                .filter(|b| String::from_utf8_lossy(b).contains("channel drift: s2 loss"))
-                .count()
-        });
-    assert_eq!(warnings, 1, "one warning line for s2's loss flag on /outcome");
+    let warnings = seen.messages.get("/outcome").map_or(0, |m| {
+        m.iter()
+            .filter(|b| String::from_utf8_lossy(b).contains("channel drift: s2 loss"))
+            .count()
+    });
+    assert_eq!(
+        warnings, 1,
+        "one warning line for s2's loss flag on /outcome"
+    );
     // What the view counted agrees with the report where it saw the end.
     let outcomes = json_of(&seen, "/outcomes");
     if let Some(last) = outcomes.last() {
