@@ -414,17 +414,7 @@ impl<const N: usize> Agent<N> {
             threshold = f.threshold,
             "channel drift flagged"
         );
-        let d = Drift {
-            header: self.stamp.header(f.episode, leg, f.step),
-            sensor: f.sensor as u32,
-            quantity: f.quantity.code(),
-            alternative: f.alternative,
-            statistic: f.statistic,
-            threshold: f.threshold,
-            since_onset: f.since_onset,
-            observations: f.observations,
-            estimate: f.estimate.unwrap_or(-1.0),
-        };
+        let d = Drift::of_flag(self.stamp.header(f.episode, leg, f.step), &f);
         self.drift
             .publish(d)
             .map_err(|e| PortError::send("drift", e))?;

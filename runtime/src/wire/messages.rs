@@ -281,6 +281,38 @@ pub mod agent_to_coordinator {
         pub const LOSS: u32 = 1;
         pub const MORE_TRIGGERS: u32 = 2;
         pub const FEWER_TRIGGERS: u32 = 3;
+
+        /// The message of the monitor's flag `f` (the agent publishes it,
+        /// `replay verify` compares the recorded one with it).
+        pub fn of_flag(header: Header, f: &etp_shared::drift::Flag) -> Self {
+            Self {
+                header,
+                sensor: f.sensor as u32,
+                quantity: f.quantity.code(),
+                alternative: f.alternative,
+                statistic: f.statistic,
+                threshold: f.threshold,
+                since_onset: f.since_onset,
+                observations: f.observations,
+                estimate: f.estimate.unwrap_or(-1.0),
+            }
+        }
+
+        /// The same flag, every field bit for bit, the header's episode and
+        /// step included (its sender, run and sequence aside).
+        pub fn same_flag(&self, other: &Self) -> bool {
+            let bits = |a: f64, b: f64| a.to_bits() == b.to_bits();
+            self.sensor == other.sensor
+                && self.quantity == other.quantity
+                && self.header.episode == other.header.episode
+                && self.header.step == other.header.step
+                && bits(self.alternative, other.alternative)
+                && bits(self.statistic, other.statistic)
+                && bits(self.threshold, other.threshold)
+                && self.since_onset == other.since_onset
+                && self.observations == other.observations
+                && bits(self.estimate, other.estimate)
+        }
     }
 }
 

@@ -13,19 +13,12 @@ use etp_shared::radio::Transmission;
 use etp_shared::scenario::Scenario;
 use std::collections::BTreeMap;
 
-/// The flag as the agent published it (the header aside).
+/// The flag as the agent published it (the header's episode and step
+/// compared, the rest of it aside).
 fn same(f: &Flag, d: &Drift) -> bool {
-    let bits = |a: f64, b: f64| a.to_bits() == b.to_bits();
-    d.sensor as usize == f.sensor
-        && d.quantity == f.quantity.code()
-        && d.header.episode == f.episode
-        && d.header.step == f.step
-        && bits(d.alternative, f.alternative)
-        && bits(d.statistic, f.statistic)
-        && bits(d.threshold, f.threshold)
-        && d.since_onset == f.since_onset
-        && d.observations == f.observations
-        && bits(d.estimate, f.estimate.unwrap_or(-1.0))
+    let mut header = d.header;
+    (header.episode, header.step) = (f.episode, f.step);
+    Drift::of_flag(header, f).same_flag(d)
 }
 
 /// Feed the monitor every recorded slot of the episodes before `upto` (a
