@@ -95,6 +95,9 @@ fn create_output(path: &Path) -> Result<File> {
         })
 }
 
+/// The MCAP writer the recorder writes through.
+type Writer = mcap::Writer<BufWriter<File>>;
+
 /// Record to `file` (created by the caller) until told to stop.
 fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
     let run = RunId::new(&cli.run_id)?;
@@ -106,58 +109,8 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
         run: &run,
         sensors,
     };
-    let mut w = mcap::WriteOptions::new()
-        .compression(Some(mcap::Compression::Zstd))
-        .chunk_size(Some(CHUNK))
-        .profile(recording::PROFILE)
-        .library(format!(
-            "etp-recorder {} (recording format {})",
-            env!("CARGO_PKG_VERSION"),
-            recording::FORMAT_VERSION
-        ))
-        .create(BufWriter::new(file))
-        .context("starting the MCAP writer")?;
-    if let Some(meta) = &cli.meta {
-        let text =
-            std::fs::read_to_string(meta).with_context(|| format!("reading {}", meta.display()))?;
-        let records: BTreeMap<String, BTreeMap<String, String>> =
-            serde_json::from_str(&text).with_context(|| format!("parsing {}", meta.display()))?;
-        for (name, metadata) in records {
-            w.write_metadata(&Metadata { name, metadata })
-                .context("writing metadata")?;
-        }
-    }
-    let mut schemas: BTreeMap<Kind, u16> = BTreeMap::new();
-    let mut channels = Vec::new();
-    for s in ServiceId::recorded(sensors) {
-        let Some((topic, kind)) = recording::channel(s) else {
-            continue;
-        };
-        let schema = match schemas.get(&kind) {
-            Some(id) => *id,
-            None => {
-                let (name, encoding, data) = ENCODING.schema(kind)?;
-                let id = w.add_schema(&name, encoding, &data)?;
-                schemas.insert(kind, id);
-                id
-            }
-        };
-        let id = w.add_channel(
-            schema,
-            &topic,
-            ENCODING.name(),
-            &BTreeMap::from([("service".to_string(), s.name(&run))]),
-        )?;
-        let drain = recording::ports::encoded_subscriber(&ports, s, true)?;
-        channels.push(Channel {
-            id,
-            topic,
-            drain,
-            count: 0,
-            batch: Vec::new(),
-            received_at: 0,
-        });
-    }
+    let mut w = start_writer(cli, file)?;
+    let mut channels = open_channels(&mut w, &ports, sensors)?;
     let waiter = Waiter::over(
         ServiceId::all_events(sensors)
             .into_iter()
@@ -182,6 +135,84 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
         channels = channels.len(),
         "recording"
     );
+    let handed_over = record_until_stopped(cli, &ports, &waiter, &mut w, &mut channels)?;
+    finish_recording(cli, &run, w, &channels, handed_over)
+}
+
+/// The MCAP writer over `file`, with the metadata records of `--meta`
+/// written first.
+fn start_writer(cli: &Cli, file: File) -> Result<Writer> {
+    let mut w = mcap::WriteOptions::new()
+        .compression(Some(mcap::Compression::Zstd))
+        .chunk_size(Some(CHUNK))
+        .profile(recording::PROFILE)
+        .library(format!(
+            "etp-recorder {} (recording format {})",
+            env!("CARGO_PKG_VERSION"),
+            recording::FORMAT_VERSION
+        ))
+        .create(BufWriter::new(file))
+        .context("starting the MCAP writer")?;
+    if let Some(meta) = &cli.meta {
+        let text =
+            std::fs::read_to_string(meta).with_context(|| format!("reading {}", meta.display()))?;
+        let records: BTreeMap<String, BTreeMap<String, String>> =
+            serde_json::from_str(&text).with_context(|| format!("parsing {}", meta.display()))?;
+        for (name, metadata) in records {
+            w.write_metadata(&Metadata { name, metadata })
+                .context("writing metadata")?;
+        }
+    }
+    Ok(w)
+}
+
+/// One channel per recorded service of the run (each schema written once),
+/// each with its subscriber.
+fn open_channels(w: &mut Writer, ports: &Ports<'_>, sensors: usize) -> Result<Vec<Channel>> {
+    let mut schemas: BTreeMap<Kind, u16> = BTreeMap::new();
+    let mut channels = Vec::new();
+    for s in ServiceId::recorded(sensors) {
+        let Some((topic, kind)) = recording::channel(s) else {
+            continue;
+        };
+        let schema = match schemas.get(&kind) {
+            Some(id) => *id,
+            None => {
+                let (name, encoding, data) = ENCODING.schema(kind)?;
+                let id = w.add_schema(&name, encoding, &data)?;
+                schemas.insert(kind, id);
+                id
+            }
+        };
+        let id = w.add_channel(
+            schema,
+            &topic,
+            ENCODING.name(),
+            &BTreeMap::from([("service".to_string(), s.name(ports.run))]),
+        )?;
+        let drain = recording::ports::encoded_subscriber(ports, s, true)?;
+        channels.push(Channel {
+            id,
+            topic,
+            drain,
+            count: 0,
+            batch: Vec::new(),
+            received_at: 0,
+        });
+    }
+    Ok(channels)
+}
+
+/// Record until SIGTERM/SIGINT or the parent's death, then drain what is
+/// left; returns the metadata a replay handed over, if it was read.
+fn record_until_stopped(
+    cli: &Cli,
+    ports: &Ports<'_>,
+    waiter: &Waiter,
+    w: &mut Writer,
+    channels: &mut [Channel],
+) -> Result<Option<HandedOver>> {
+    let run = ports.run;
     let parent = std::os::unix::process::parent_id();
     let mut last_flush = Instant::now();
     let mut stopping = false;
@@ -192,53 +223,21 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
     // The replay hand-over this recorder has attached for.
     let mut attached_for: Option<observers::Token> = None;
     loop {
-        if let Some(token) = observers::handover_token(&run)
+        if let Some(token) = observers::handover_token(run)
             && attached_for != Some(token)
         {
             // Every publisher of the replay exists once its hand-over does.
-            for c in &channels {
+            for c in channels.iter() {
                 c.drain
                     .attach()
                     .with_context(|| format!("attaching to the publishers of {}", c.topic))?;
             }
-            observers::acknowledge(&run, token).context("acknowledging the replay's hand-over")?;
+            observers::acknowledge(run, token).context("acknowledging the replay's hand-over")?;
             attached_for = Some(token);
         }
-        let mut got = 0usize;
-        // Every queue emptied first (copies), then encoded and written:
-        // protobuf encoding is slower than a copy, and a publisher that
-        // ends (a replay, the run's last messages) must not outrun it.
-        for c in &mut channels {
-            c.batch.clear();
-            c.drain
-                .take(&mut c.batch)
-                .with_context(|| format!("receiving on {}", c.topic))?;
-            c.received_at = now_ns();
-        }
-        for c in &mut channels {
-            let t = c.received_at;
-            for (sent, r) in &c.batch {
-                let data = ENCODING
-                    .encode_recorded(r)
-                    .with_context(|| format!("encoding a message of {}", c.topic))?;
-                w.write_to_known_channel(
-                    &MessageHeader {
-                        channel_id: c.id,
-                        sequence: c.count,
-                        log_time: t,
-                        // The sender's clock: on another host it may be
-                        // ahead of this one; nothing is ordered by it.
-                        publish_time: *sent,
-                    },
-                    &data,
-                )
-                .with_context(|| format!("writing a message of {}", c.topic))?;
-                c.count = c.count.wrapping_add(1);
-            }
-            got += c.batch.len();
-        }
+        let got = record_pass(w, channels)?;
         if got > 0 && handed_over.is_none() && cli.meta.is_none() {
-            handed_over = Some(read_handed_over_metadata(&run)?);
+            handed_over = Some(read_handed_over_metadata(run)?);
         }
         if last_flush.elapsed() >= FLUSH_EVERY {
             w.flush().context("flushing the recording")?;
@@ -253,7 +252,7 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
         }
         // SIGCONT after a pause resumes the wait; only SIGINT/SIGTERM stop.
         match waiter
-            .wait(&node, FLUSH_EVERY)
+            .wait(ports.node, FLUSH_EVERY)
             .context("waiting for messages")?
         {
             Wake::Notified { .. } | Wake::Silence => {}
@@ -263,10 +262,61 @@ fn run(cli: &Cli, file: File, ready: &mut bool) -> Result<serde_json::Value> {
             stopping = true;
         }
     }
+    Ok(handed_over)
+}
+
+/// One pass over the subscribers: what each holds, written to the file;
+/// returns how many messages it wrote.
+fn record_pass(w: &mut Writer, channels: &mut [Channel]) -> Result<usize> {
+    let mut got = 0usize;
+    // Every queue emptied first (copies), then encoded and written:
+    // protobuf encoding is slower than a copy, and a publisher that
+    // ends (a replay, the run's last messages) must not outrun it.
+    for c in channels.iter_mut() {
+        c.batch.clear();
+        c.drain
+            .take(&mut c.batch)
+            .with_context(|| format!("receiving on {}", c.topic))?;
+        c.received_at = now_ns();
+    }
+    for c in channels.iter_mut() {
+        let t = c.received_at;
+        for (sent, r) in &c.batch {
+            let data = ENCODING
+                .encode_recorded(r)
+                .with_context(|| format!("encoding a message of {}", c.topic))?;
+            w.write_to_known_channel(
+                &MessageHeader {
+                    channel_id: c.id,
+                    sequence: c.count,
+                    log_time: t,
+                    // The sender's clock: on another host it may be
+                    // ahead of this one; nothing is ordered by it.
+                    publish_time: *sent,
+                },
+                &data,
+            )
+            .with_context(|| format!("writing a message of {}", c.topic))?;
+            c.count = c.count.wrapping_add(1);
+        }
+        got += c.batch.len();
+    }
+    Ok(got)
+}
+
+/// Write a replay's metadata (without `--meta`), finish the file and
+/// summarise it: `{"path", "messages", "counts", "bytes"}`.
+fn finish_recording(
+    cli: &Cli,
+    run: &RunId,
+    mut w: Writer,
+    channels: &[Channel],
+    handed_over: Option<HandedOver>,
+) -> Result<serde_json::Value> {
     if cli.meta.is_none() {
         let records = match handed_over {
             Some(records) => records,
-            None => read_handed_over_metadata(&run)?,
+            None => read_handed_over_metadata(run)?,
         };
         for (name, metadata) in records {
             w.write_metadata(&Metadata { name, metadata })
