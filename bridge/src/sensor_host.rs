@@ -17,6 +17,7 @@ use crate::session::{
 use crate::{BridgeError, emit};
 use etp_runtime::wire::traffic::Direction;
 use etp_runtime::wire::{self, AGENT_NODE, COORDINATOR_NODE, Ports, RunId, ServiceId};
+use iceoryx2::prelude::*;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -129,7 +130,9 @@ fn claim(
     Ok(())
 }
 
-pub fn run(a: &Args) -> Result<(), BridgeError> {
+/// The Zenoh session to the agent host (its certificate checked first, with
+/// TLS).
+fn connect(a: &Args) -> Result<zenoh::Session, BridgeError> {
     let identity = a
         .host
         .link
@@ -146,15 +149,14 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
     )?)
     .wait()
     .map_err(|e| BridgeError::Zenoh(format!("connecting to {}: {e}", a.connect)))?;
-    let info = fetch(&session, a, a.host.join_wait())?;
-    if let Some(why) = crate::session::other_protocol(
-        Some(info.link_protocol),
-        Some(etp_runtime::wire::stamp::LINK_PROTOCOL),
-    ) {
-        return Err(BridgeError::Join(why));
-    }
-    let served: Vec<usize> = if a.sensors.is_empty() {
-        info.remote.clone()
+    Ok(session)
+}
+
+/// The sensors this host serves: those named (each must be a remote sensor
+/// of the run), or every remote sensor.
+fn served_sensors(a: &Args, info: &SessionInfo) -> Result<Vec<usize>, BridgeError> {
+    if a.sensors.is_empty() {
+        Ok(info.remote.clone())
     } else {
         a.sensors
             .iter()
@@ -175,15 +177,13 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
                         ))
                     })
             })
-            .collect::<Result<_, _>>()?
-    };
-    let host = a
-        .host
-        .link
-        .name
-        .as_deref()
-        .unwrap_or(etp_runtime::link_keys::DEFAULT_SENSOR_HOST);
-    claim(&session, &info, &served, host, a.host.join_wait())?;
+            .collect::<Result<_, _>>()
+    }
+}
+
+/// Write the run's scenario (and its channel schedule, checked) into
+/// `--dir`; returns the scenario's path and the schedule's, if any.
+fn write_run_files(a: &Args, info: &SessionInfo) -> Result<(PathBuf, Option<String>), BridgeError> {
     std::fs::create_dir_all(&a.dir)
         .map_err(|e| BridgeError::Input(format!("creating {}: {e}", a.dir.display())))?;
     let scenario = a.dir.join("scenario.toml");
@@ -209,6 +209,32 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
             Some(path.display().to_string())
         }
     };
+    Ok((scenario, schedule))
+}
+
+/// The proxies of the coordinator and the agent on this host.
+type Proxies = (Node<ipc::Service>, Node<ipc::Service>);
+
+/// A sensor host's end: joins the run, serves its sensors until the run is
+/// over, then reports what it refused and forwarded.
+pub fn run(a: &Args) -> Result<(), BridgeError> {
+    let session = connect(a)?;
+    let info = fetch(&session, a, a.host.join_wait())?;
+    if let Some(why) = crate::session::other_protocol(
+        Some(info.link_protocol),
+        Some(etp_runtime::wire::stamp::LINK_PROTOCOL),
+    ) {
+        return Err(BridgeError::Join(why));
+    }
+    let served = served_sensors(a, &info)?;
+    let host = a
+        .host
+        .link
+        .name
+        .as_deref()
+        .unwrap_or(etp_runtime::link_keys::DEFAULT_SENSOR_HOST);
+    claim(&session, &info, &served, host, a.host.join_wait())?;
+    let (scenario, schedule) = write_run_files(a, &info)?;
     let run = RunId::new(&info.run_id)?;
     let sensors = info.sensors.len();
     let node = wire::create_node(&run, "etp-bridge-in")?;
@@ -268,59 +294,18 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         "channel_schedule": schedule,
         "sensors": served.iter().filter_map(|&i| info.sensors.get(i).cloned()).collect::<Vec<_>>(),
     }));
-    let parent = std::os::unix::process::parent_id();
     // A sensor that said hello is up: its token announces it to the agent
     // host, for as long as its process lives here.
     let mut tokens: std::collections::BTreeMap<usize, zenoh::liveliness::LivelinessToken> =
         std::collections::BTreeMap::new();
-    let mut last_check = Instant::now();
-    let result = loop {
-        if wire::termination_requested(&node) || std::os::unix::process::parent_id() != parent {
-            break Ok(());
-        }
-        // Listing the nodes costs about a millisecond: not on every message.
-        if last_check.elapsed() >= LIVENESS_CHECK {
-            last_check = Instant::now();
-            tokens.retain(|&i, _| {
-                let alive = wire::liveness(node.config(), &wire::sensor_node_name(i))
-                    == wire::Liveness::Alive;
-                if !alive {
-                    tracing::info!(sensor = i, "local sensor gone: its token is withdrawn");
-                }
-                alive
-            });
-        }
-        match rx.recv_timeout(Duration::from_millis(20)) {
-            Ok(Incoming::Hello(i)) => {
-                let t = session
-                    .liveliness()
-                    .declare_token(sensor_alive_key(run.as_str(), i))
-                    .wait()
-                    .map_err(|e| {
-                        BridgeError::Zenoh(format!("liveliness token of sensor {i}: {e}"))
-                    })?;
-                tokens.insert(i, t);
-            }
-            // The agent host's probe ([`crate::session::probe_key`]): read
-            // (that is its point), not a service.
-            Ok(Incoming::Data { key, .. }) if crate::session::is_probe_key(&key) => {}
-            Ok(Incoming::Data { key, bytes }) => {
-                for m in inbound.receive(&mut admission, &key, &bytes) {
-                    inbound.deliver(m, &counters)?;
-                }
-            }
-            // Nobody queries a sensor host: it declares no queryable.
-            Ok(Incoming::Alive { alive: true, .. } | Incoming::Claim(_) | Incoming::Asked(..)) => {}
-            Ok(Incoming::Alive { alive: false, .. }) => {
-                tracing::warn!("the agent host is gone: the local sensors stop");
-                emit(&serde_json::json!({"event": "agent-host-gone"}));
-                proxies = None;
-                break Ok(());
-            }
-            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
-            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break Ok(()),
-        }
+    let serving = Serving {
+        session: &session,
+        node: &node,
+        run: &run,
+        inbound: &inbound,
+        counters: &counters,
     };
+    serving.until_over(&rx, &mut admission, &mut tokens, &mut proxies)?;
     drop(proxies);
     drop(tokens);
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
@@ -329,5 +314,86 @@ pub fn run(a: &Args) -> Result<(), BridgeError> {
         .map_err(|_| BridgeError::Wire("the outbound thread panicked".into()))?;
     crate::emit_refused(&admission, &info.sensors);
     crate::emit_traffic(&counters, &stalls, &info.sensors);
-    result.and(out)
+    out
+}
+
+/// What a sensor host serves its sensors with.
+struct Serving<'a> {
+    session: &'a zenoh::Session,
+    node: &'a Node<ipc::Service>,
+    run: &'a RunId,
+    inbound: &'a Inbound,
+    counters: &'a Counters,
+}
+
+impl Serving<'_> {
+    /// Forward towards the local sensors and announce each that said hello,
+    /// until termination, the parent's death or the agent host's end (its
+    /// proxies then go at once); a failure ends this end at once.
+    fn until_over(
+        &self,
+        rx: &std::sync::mpsc::Receiver<Incoming>,
+        admission: &mut Admission,
+        tokens: &mut std::collections::BTreeMap<usize, zenoh::liveliness::LivelinessToken>,
+        proxies: &mut Option<Proxies>,
+    ) -> Result<(), BridgeError> {
+        let Serving {
+            session,
+            node,
+            run,
+            inbound,
+            counters,
+        } = *self;
+        let parent = std::os::unix::process::parent_id();
+        let mut last_check = Instant::now();
+        loop {
+            if wire::termination_requested(node) || std::os::unix::process::parent_id() != parent {
+                return Ok(());
+            }
+            // Listing the nodes costs about a millisecond: not on every message.
+            if last_check.elapsed() >= LIVENESS_CHECK {
+                last_check = Instant::now();
+                tokens.retain(|&i, _| {
+                    let alive = wire::liveness(node.config(), &wire::sensor_node_name(i))
+                        == wire::Liveness::Alive;
+                    if !alive {
+                        tracing::info!(sensor = i, "local sensor gone: its token is withdrawn");
+                    }
+                    alive
+                });
+            }
+            match rx.recv_timeout(Duration::from_millis(20)) {
+                Ok(Incoming::Hello(i)) => {
+                    let t = session
+                        .liveliness()
+                        .declare_token(sensor_alive_key(run.as_str(), i))
+                        .wait()
+                        .map_err(|e| {
+                            BridgeError::Zenoh(format!("liveliness token of sensor {i}: {e}"))
+                        })?;
+                    tokens.insert(i, t);
+                }
+                // The agent host's probe ([`crate::session::probe_key`]): read
+                // (that is its point), not a service.
+                Ok(Incoming::Data { key, .. }) if crate::session::is_probe_key(&key) => {}
+                Ok(Incoming::Data { key, bytes }) => {
+                    for m in inbound.receive(admission, &key, &bytes) {
+                        inbound.deliver(m, counters)?;
+                    }
+                }
+                // Nobody queries a sensor host: it declares no queryable.
+                Ok(
+                    Incoming::Alive { alive: true, .. } | Incoming::Claim(_) | Incoming::Asked(..),
+                ) => {}
+                Ok(Incoming::Alive { alive: false, .. }) => {
+                    tracing::warn!("the agent host is gone: the local sensors stop");
+                    emit(&serde_json::json!({"event": "agent-host-gone"}));
+                    *proxies = None;
+                    return Ok(());
+                }
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+                Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => return Ok(()),
+            }
+        }
+    }
 }
