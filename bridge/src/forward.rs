@@ -234,14 +234,7 @@ impl Outbound {
         // remote sensor (the key names the sender).
         type Publishers = BTreeMap<Option<usize>, zenoh::pubsub::Publisher<'static>>;
         let mut links: Vec<(ServiceId, Box<dyn EncodedSubscriber>, Publishers)> = Vec::new();
-        let declare = |key: String| {
-            session
-                .declare_publisher(key.clone())
-                .congestion_control(zenoh::qos::CongestionControl::Block)
-                .express(true)
-                .wait()
-                .map_err(|e| BridgeError::Zenoh(format!("publisher {key}: {e}")))
-        };
+        let declare = |key: String| declare_publisher(session, key);
         for &s in &self.services {
             let sub = encoded_subscriber(&ports, s, false)?;
             let mut publishers = Publishers::new();
@@ -257,8 +250,7 @@ impl Outbound {
         // Down: per sensor, when its last message was put, and the probe
         // publisher towards its host ([`Outbound::probing`]).
         let mut last_put: BTreeMap<usize, Instant> = BTreeMap::new();
-        let mut probes: BTreeMap<usize, (String, zenoh::pubsub::Publisher<'static>)> =
-            BTreeMap::new();
+        let mut probes = Probes::new();
         let probe = zenoh::bytes::ZBytes::from(vec![0u8; PROBE_BYTES]);
         let waiter = Waiter::over(
             self.events
@@ -327,38 +319,8 @@ impl Outbound {
                     on_put(s, h, payload);
                 }
             }
-            // Down: probe the hosts that owe an answer.
-            for (&sensor, &put) in &last_put {
-                if !self.owes(sensor, put) {
-                    continue;
-                }
-                let Some(Grant::Host(host)) = self.grant(sensor) else {
-                    continue;
-                };
-                if probes.get(&sensor).is_none_or(|(h, _)| *h != host) {
-                    let p = declare(probe_key(&run, &host, sensor))?;
-                    probes.insert(sensor, (host.clone(), p));
-                }
-                let Some((_, p)) = probes.get(&sensor) else {
-                    continue;
-                };
-                let started = Instant::now();
-                p.put(probe.clone())
-                    .wait()
-                    .map_err(|e| BridgeError::Zenoh(format!("probe of sensor {sensor}: {e}")))?;
-                self.waited(stalls, sensor, started, Some(host));
-            }
-            if let Some(refused) = self.grants.lock().ok().map(|g| {
-                g.iter()
-                    .filter(|(_, g)| matches!(g, Grant::Refused(_) | Grant::Cut(_)))
-                    .map(|(&i, _)| i)
-                    .collect::<Vec<_>>()
-            }) {
-                for i in refused {
-                    last_put.remove(&i);
-                    probes.remove(&i);
-                }
-            }
+            self.probe_owing(session, &run, &last_put, &mut probes, &probe, stalls)?;
+            self.forget_closed(&mut last_put, &mut probes);
             if stop.load(Ordering::Relaxed) {
                 return Ok(());
             }
@@ -370,7 +332,72 @@ impl Outbound {
     }
 }
 
+/// Down: a probe publisher, and the host it puts towards, per sensor.
+type Probes = BTreeMap<usize, (String, zenoh::pubsub::Publisher<'static>)>;
+
+/// A Zenoh publisher on `key` that blocks while a peer's queue is full.
+fn declare_publisher(
+    session: &zenoh::Session,
+    key: String,
+) -> Result<zenoh::pubsub::Publisher<'static>, BridgeError> {
+    session
+        .declare_publisher(key.clone())
+        .congestion_control(zenoh::qos::CongestionControl::Block)
+        .express(true)
+        .wait()
+        .map_err(|e| BridgeError::Zenoh(format!("publisher {key}: {e}")))
+}
+
 impl Outbound {
+    /// Down: probe the hosts that owe an answer, each through a publisher
+    /// towards the host its sensor is granted to.
+    fn probe_owing(
+        &self,
+        session: &zenoh::Session,
+        run: &str,
+        last_put: &BTreeMap<usize, Instant>,
+        probes: &mut Probes,
+        probe: &zenoh::bytes::ZBytes,
+        stalls: &Stalls,
+    ) -> Result<(), BridgeError> {
+        for (&sensor, &put) in last_put {
+            if !self.owes(sensor, put) {
+                continue;
+            }
+            let Some(Grant::Host(host)) = self.grant(sensor) else {
+                continue;
+            };
+            if probes.get(&sensor).is_none_or(|(h, _)| *h != host) {
+                let p = declare_publisher(session, probe_key(run, &host, sensor))?;
+                probes.insert(sensor, (host.clone(), p));
+            }
+            let Some((_, p)) = probes.get(&sensor) else {
+                continue;
+            };
+            let started = Instant::now();
+            p.put(probe.clone())
+                .wait()
+                .map_err(|e| BridgeError::Zenoh(format!("probe of sensor {sensor}: {e}")))?;
+            self.waited(stalls, sensor, started, Some(host));
+        }
+        Ok(())
+    }
+
+    /// Down: a sensor refused or cut is neither timed nor probed any more.
+    fn forget_closed(&self, last_put: &mut BTreeMap<usize, Instant>, probes: &mut Probes) {
+        if let Some(refused) = self.grants.lock().ok().map(|g| {
+            g.iter()
+                .filter(|(_, g)| matches!(g, Grant::Refused(_) | Grant::Cut(_)))
+                .map(|(&i, _)| i)
+                .collect::<Vec<_>>()
+        }) {
+            for i in refused {
+                last_put.remove(&i);
+                probes.remove(&i);
+            }
+        }
+    }
+
     /// A put (or probe) for `sensor` towards `host` that started at
     /// `started` is over: if it waited [`STALL`] or more, a stall is noted;
     /// if it waited out Zenoh's close and the wait is attributed, the host
