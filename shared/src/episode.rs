@@ -175,6 +175,72 @@ pub struct LegResult {
     pub expected_transmissions: f64,
 }
 
+impl LegResult {
+    /// One measurement slot: `sent` triggered, `sending` is what the link
+    /// did with it, `kf` whether it was in the enforced δ = 0 phase,
+    /// `expected` the transmissions the model expected of it.
+    #[inline(always)]
+    fn count_slot(&mut self, sent: bool, sending: Transmission, kf: bool, expected: f64) {
+        self.slots += 1;
+        self.transmissions += sending.attempts;
+        self.triggers += u32::from(sent);
+        self.delivered += u32::from(sending.delivered);
+        self.kf_slots += u32::from(kf);
+        self.expected_transmissions += expected;
+    }
+}
+
+/// What the serving link does with a slot's measurement: nothing unless it
+/// `sent`; one delivered attempt on an ideal link; a lossy link's fate from
+/// `channels`.
+#[inline(always)]
+fn transmission(
+    sent: bool,
+    lossy: bool,
+    channels: &mut EpisodeChannels,
+    sensor: usize,
+) -> Transmission {
+    if !sent {
+        Transmission {
+            attempts: 0,
+            delivered: false,
+        }
+    } else if lossy {
+        channels.transmit(sensor)
+    } else {
+        Transmission {
+            attempts: 1,
+            delivered: true,
+        }
+    }
+}
+
+/// A leg's opening threshold and its end rule under `mode`; `silence` gives
+/// a threshold its silence factor (the enforced δ = 0 phase's among them).
+#[inline(always)]
+fn leg_rule<const N: usize>(
+    mode: &LegMode<N>,
+    silence: impl Fn(Threshold) -> Threshold,
+) -> (Threshold, LegRule<N>) {
+    match *mode {
+        LegMode::EventTriggered(t) => (t, LegRule::Waypoint),
+        LegMode::KfConvergence {
+            threshold,
+            eps_kf,
+            eps_p,
+            p_kf,
+        } => (
+            threshold,
+            LegRule::KfConvergence {
+                eps_kf,
+                eps_p,
+                p_kf,
+                full_kf: silence(Threshold::new(0.0)),
+            },
+        ),
+    }
+}
+
 /// Terminal classification of an episode.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum Outcome {
@@ -492,6 +558,26 @@ impl<const N: usize> CompiledScenario<N> {
         self.run_leg_with(filter, call)
     }
 
+    /// The threshold a leg's silences update with: β_q(δ) for the aware
+    /// estimator; the family's own for the others (docs/MODEL.md §9); on a
+    /// lossy link, the radio's.
+    #[inline(always)]
+    fn silence_threshold(&self, sensor: usize, lossy: bool, t: Threshold, m: usize) -> Threshold {
+        if self.trigger != TriggerFamily::Box {
+            Threshold {
+                delta: t.delta,
+                beta: self.silence_factor(sensor, t.delta, m),
+            }
+        } else if lossy {
+            Threshold {
+                delta: t.delta,
+                beta: self.radio.silence_beta(sensor, t.delta, m),
+            }
+        } else {
+            t
+        }
+    }
+
     /// The leg loop: [`AgentCore`]'s step (the one order of the step) with
     /// the world the simulated plant and the slot served inline by the
     /// serving sensor's typed filter (`M` known here: one innovation for
@@ -517,42 +603,12 @@ impl<const N: usize> CompiledScenario<N> {
         let family = self.trigger;
         // The silence update's factor: β_q(δ) for the aware estimator; the
         // family's own for the others (docs/MODEL.md §9).
-        let silence = |t: Threshold| {
-            if family != TriggerFamily::Box {
-                Threshold {
-                    delta: t.delta,
-                    beta: self.silence_factor(sensor, t.delta, M),
-                }
-            } else if lossy {
-                Threshold {
-                    delta: t.delta,
-                    beta: self.radio.silence_beta(sensor, t.delta, M),
-                }
-            } else {
-                t
-            }
-        };
+        let silence = |t: Threshold| self.silence_threshold(sensor, lossy, t, M);
         // Send-on-delta's reference: the last measurement the agent received
         // on this leg (none yet: the next slot sends).
         let mut last_delivered: Option<Vector<M>> = None;
         let counted_rate = !family.has_model_rate();
-        let (threshold, rule) = match *mode {
-            LegMode::EventTriggered(t) => (t, LegRule::Waypoint),
-            LegMode::KfConvergence {
-                threshold,
-                eps_kf,
-                eps_p,
-                p_kf,
-            } => (
-                threshold,
-                LegRule::KfConvergence {
-                    eps_kf,
-                    eps_p,
-                    p_kf,
-                    full_kf: silence(Threshold::new(0.0)),
-                },
-            ),
-        };
+        let (threshold, rule) = leg_rule(mode, silence);
         let mut core = AgentCore::open(leg, silence(threshold), rule, state.belief, 0);
         let mut r = LegResult {
             end: LegEnd::Terminated,
@@ -617,19 +673,7 @@ impl<const N: usize> CompiledScenario<N> {
                     || channels.trigger_uniform(sensor),
                 ),
             };
-            let sending = if !sent {
-                Transmission {
-                    attempts: 0,
-                    delivered: false,
-                }
-            } else if lossy {
-                channels.transmit(sensor)
-            } else {
-                Transmission {
-                    attempts: 1,
-                    delivered: true,
-                }
-            };
+            let sending = transmission(sent, lossy, channels, sensor);
             let delivered = sending.delivered.then_some(&y);
             let post = match (family, delivered, last_delivered.as_ref()) {
                 // Send-on-delta's silence on a link that loses nothing: the
@@ -646,20 +690,20 @@ impl<const N: usize> CompiledScenario<N> {
             if family == TriggerFamily::SendOnDelta && sending.delivered {
                 last_delivered = Some(y);
             }
-            r.slots += 1;
-            r.transmissions += sending.attempts;
-            r.triggers += u32::from(sent);
-            r.delivered += u32::from(sending.delivered);
-            r.kf_slots += u32::from(core.in_kf_phase());
-            r.expected_transmissions += if counted_rate {
-                // Variance and periodic decide deterministically (given P⁻,
-                // given the slot number), so a slot's expectation is its
-                // decision; send-on-delta has no model rate (docs/MODEL.md
-                // §9): the count stands in.
-                f64::from(u8::from(sent))
-            } else {
-                expected_rate
-            };
+            r.count_slot(
+                sent,
+                sending,
+                core.in_kf_phase(),
+                if counted_rate {
+                    // Variance and periodic decide deterministically (given
+                    // P⁻, given the slot number), so a slot's expectation is
+                    // its decision; send-on-delta has no model rate
+                    // (docs/MODEL.md §9): the count stands in.
+                    f64::from(u8::from(sent))
+                } else {
+                    expected_rate
+                },
+            );
             observer.on_step(&StepEvent {
                 leg,
                 x: &state.x,
