@@ -1,7 +1,6 @@
 //! The shape of the code (ARCHITECTURE.md, "Invariants"): clap is the
 //! command lines' API, not the libraries'; no library function is longer
-//! than a reader can hold. Each names what is still to be moved, and that
-//! list only shrinks.
+//! than a reader can hold.
 
 use std::path::{Path, PathBuf};
 
@@ -267,21 +266,12 @@ fn long_library_functions() -> Vec<(String, usize)> {
 }
 
 /// No library function over 150 lines: a long one is split along the phases
-/// its comments name. The ones still to split are named here, and each must
-/// still be long — the list only shrinks.
+/// its comments name.
 #[test]
 fn no_library_function_is_longer_than_150_lines() {
-    const STILL_TO_SPLIT: [&str; 5] = [
-        "bridge/src/agent_host.rs::run",
-        "bridge/src/forward.rs::run",
-        "bridge/src/sensor_host.rs::run",
-        "recorder/src/lib.rs::run",
-        "shared/src/episode.rs::run_leg_with",
-    ];
     let long = long_library_functions();
     let unexpected: Vec<String> = long
         .iter()
-        .filter(|(f, _)| !STILL_TO_SPLIT.contains(&f.as_str()))
         .map(|(f, n)| format!("{f}: {n} lines"))
         .collect();
     assert!(
@@ -289,12 +279,6 @@ fn no_library_function_is_longer_than_150_lines() {
         "library functions over {MAX_FUNCTION_LINES} lines: split each along its phases:\n{}",
         unexpected.join("\n")
     );
-    for f in STILL_TO_SPLIT {
-        assert!(
-            long.iter().any(|(l, _)| l == f),
-            "{f} is no longer over {MAX_FUNCTION_LINES} lines (or gone): remove it from STILL_TO_SPLIT"
-        );
-    }
 }
 
 /// The scan measures what it claims: a multi-line signature, a body with
