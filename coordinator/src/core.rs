@@ -104,6 +104,14 @@ pub enum Send {
     WakeAgent,
 }
 
+impl Send {
+    /// Closing leg `at`: its CLOSE, then its sensor's wake-up (the sensor
+    /// answers with its ledger) — at a decision point and at an episode's end.
+    pub fn closing(at: LegAt) -> [Send; 2] {
+        [Send::Close(at), Send::WakeSensor(at.sensor)]
+    }
+}
+
 impl Opening {
     /// The sends of this decision point, in order. Every `threshold` is
     /// followed by its sensor's wake-up: the service has two readers (the
@@ -117,7 +125,7 @@ impl Opening {
     pub fn sends(&self) -> Vec<Send> {
         let mut sends = Vec::with_capacity(5);
         if let Some(prev) = self.close {
-            sends.extend([Send::Close(prev), Send::WakeSensor(prev.sensor)]);
+            sends.extend(Send::closing(prev));
         }
         sends.extend([
             Send::Open(self.open),

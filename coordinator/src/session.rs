@@ -172,8 +172,10 @@ impl<'a> Coordinator<'a> {
 
     /// Close a leg at its sensor (the sensor answers with its ledger).
     fn close(&mut self, at: LegAt) -> Result<(), CoordinatorError> {
-        self.send_threshold(at.episode, at.leg, Threshold::CLOSE, at.sensor, 0, 0.0)?;
-        Self::notify(&self.sensor_wake[at.sensor as usize], "sensor wake")
+        for send in Send::closing(at) {
+            self.execute(send, None)?;
+        }
+        Ok(())
     }
 
     fn drain_ledgers(&mut self) -> Result<(), CoordinatorError> {
@@ -192,25 +194,26 @@ impl<'a> Coordinator<'a> {
     /// ([`Opening::sends`] says in which order, and why).
     fn open(&mut self, o: Opening) -> Result<(), CoordinatorError> {
         for send in o.sends() {
-            match send {
-                Send::Close(at) => {
-                    self.send_threshold(at.episode, at.leg, Threshold::CLOSE, at.sensor, 0, 0.0)?
-                }
-                Send::Open(at) => self.send_threshold(
-                    at.episode,
-                    at.leg,
-                    Threshold::OPEN,
-                    at.sensor,
-                    o.delta_index,
-                    o.delta,
-                )?,
-                Send::WakeSensor(sensor) => {
-                    Self::notify(&self.sensor_wake[sensor as usize], "sensor wake")?
-                }
-                Send::WakeAgent => Self::notify(&self.agent_wake, "agent wake")?,
-            }
+            self.execute(send, Some(&o))?;
         }
         Ok(())
+    }
+
+    /// One send of the core's; an OPEN takes its δ from `opening`.
+    fn execute(&mut self, send: Send, opening: Option<&Opening>) -> Result<(), CoordinatorError> {
+        match send {
+            Send::Close(at) => {
+                self.send_threshold(at.episode, at.leg, Threshold::CLOSE, at.sensor, 0, 0.0)
+            }
+            Send::Open(at) => {
+                let (index, delta) = opening.map_or((0, 0.0), |o| (o.delta_index, o.delta));
+                self.send_threshold(at.episode, at.leg, Threshold::OPEN, at.sensor, index, delta)
+            }
+            Send::WakeSensor(sensor) => {
+                Self::notify(&self.sensor_wake[sensor as usize], "sensor wake")
+            }
+            Send::WakeAgent => Self::notify(&self.agent_wake, "agent wake"),
+        }
     }
 
     /// Run `episodes` episodes, stop every process, return the report.
