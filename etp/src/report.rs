@@ -4,7 +4,7 @@
 //! package.
 
 use etp_shared::scenario::Scenario;
-use etp_synthesis::report::{estimates, first_non_finite};
+use etp_synthesis::report::estimates;
 use etp_synthesis::simulate::SimulationSummary;
 
 /// Per-sensor radio counts (only when the radio loses packets).
@@ -36,21 +36,10 @@ pub fn radio_table(s: &Scenario, sum: &SimulationSummary) -> String {
     o
 }
 
-/// The last line of defence against a result that is not a number: a
-/// summary holding one (a scenario whose numbers overflowed in a way
-/// `Scenario::from_toml` did not foresee) is an error naming the quantity,
-/// never a table or a JSON `null` with exit 0.
+/// [`etp_pipeline::validation::ensure_finite`]: a summary that is not a
+/// number is an error, never a table or a JSON `null` with exit 0.
 pub fn ensure_finite(sum: &SimulationSummary) -> anyhow::Result<()> {
-    match first_non_finite(sum) {
-        None => Ok(()),
-        Some((key, v)) => anyhow::bail!(
-            "the simulation's {key} is {v}, not a number: the scenario's arithmetic overflowed \
-             over {} episodes ({} steps); nothing is reported (check the scenario's model.F, \
-             Q, R and P0: docs/MODEL.md §1.1)",
-            sum.episodes,
-            sum.total_steps
-        ),
-    }
+    Ok(etp_pipeline::validation::ensure_finite(sum)?)
 }
 
 /// A readable table of a summary.

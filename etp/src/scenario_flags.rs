@@ -5,7 +5,7 @@
 //! and handed to the libraries as typed values (a [`RadioOverride`], an
 //! `Option<TriggerFamily>`).
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use etp_shared::radio::{Estimator, RadioOverride};
 use etp_shared::scenario::Scenario;
 use etp_shared::trigger::TriggerFamily;
@@ -56,7 +56,8 @@ impl RadioArgs {
 /// `--trigger FAMILY` of `simulate`, `synthesize`, `run` and `bench`: the
 /// trigger family every sensor uses, over the scenario's `[triggering]
 /// family` (docs/MODEL.md §9). On `validate` (and `run` with a strategy) it
-/// can only confirm the strategy's own family ([`TriggerArgs::confirm`]).
+/// can only confirm the strategy's own family (`etp validate`: the
+/// validation request's `trigger`).
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct TriggerArgs {
     /// Trigger family over the scenario's own: box (the paper's ∞-norm trigger), stochastic,
@@ -71,20 +72,6 @@ pub fn parse_family(s: &str) -> std::result::Result<TriggerFamily, String> {
 }
 
 impl TriggerArgs {
-    /// A strategy's family, confirmed: a strategy is made for its scenario's
-    /// family (its thresholds and predictions mean nothing under another), so
-    /// `--trigger` naming another is refused by name.
-    pub fn confirm(&self, strategy_family: TriggerFamily) -> Result<()> {
-        match self.trigger {
-            Some(family) if family != strategy_family => bail!(
-                "--trigger {family}: the strategy was made for trigger family `{strategy_family}` \
-                 (its thresholds and predictions hold for that family only); synthesize with \
-                 --trigger {family} for a strategy of that family"
-            ),
-            _ => Ok(()),
-        }
-    }
-
     /// The scenario with the family applied (for runs that write no file
     /// carrying the scenario).
     pub fn apply(&self, mut s: Scenario) -> Scenario {

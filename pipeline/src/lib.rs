@@ -15,7 +15,10 @@
 //! * [`selection`] — the strategy a request's loop stands by, as its file.
 //! * [`predictions`] — a strategy file's predictions as reports show them,
 //!   the aggregation check, the checks against a simulation.
-//! * [`validation`] — `etp validate`'s JSON and failed checks.
+//! * [`validation`] — a strategy simulated and checked against its
+//!   predictions ([`validation::validate`] from a typed
+//!   [`validation::ValidationRequest`]): `etp validate`, `etp demo`, a
+//!   study's cases and `etpareto.validate`; the JSON and the failed checks.
 //! * [`study`] — `etp study`: a SPEC's cases (synthesis, strategy,
 //!   validation), resumable, shared out over the executor's ranks; its
 //!   tables ([`study::run`] from a typed [`study::StudyRequest`]).

@@ -5,20 +5,19 @@
 //! released on a worker thread while this thread passes the step under way
 //! (`etp_pipeline::progress::current`) to the caller's progress callback.
 
-use crate::errors::{
-    EtpError, FileFormatError, ScenarioError, SimulationError, chain, pipeline_error,
-};
+use crate::errors::{EtpError, ScenarioError, SimulationError, pipeline_error};
 use crate::scenario::PyScenario;
 use etp_pipeline::mdp_build::MdpRequest;
 use etp_pipeline::selection::{RequestSettings, meet_goal};
 use etp_pipeline::synthesis_dir::Synthesis;
 use etp_pipeline::synthesize::{SynthesisRequest, synthesize as synthesize_dir};
-use etp_pipeline::validation::{comparison_json, failed_checks, plot_map};
+use etp_pipeline::validation::{
+    MapRequest, StrategySource, ValidationRequest, map_stem_beside, validate as validate_step,
+};
 use etp_shared::scenario::Scenario;
 use etp_shared::trigger::TriggerFamily;
 use etp_synthesis::exec::Executor;
 use etp_synthesis::predict::request::Goal;
-use etp_synthesis::validate::simulate_strategy;
 use pyo3::prelude::*;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -252,57 +251,20 @@ pub fn validate(
     } else {
         strategy
     };
-    let (strategy, scenario) = etp_runtime::strategy_arg::load_strategy(&path)
-        .map_err(|e| FileFormatError::new_err(chain(&e)))?;
-    // `--plot`: refused before any work when the figures exist.
-    if plot_episodes.is_some() {
-        for ext in ["png", "svg"] {
-            let stem = path
-                .file_stem()
-                .and_then(|s| s.to_str())
-                .unwrap_or("strategy");
-            let p = path.with_file_name(format!("{stem}-map.{ext}"));
-            etp_pipeline::output::refuse_existing(&Executor::LOCAL, &p, force)
-                .map_err(pipeline_error)?;
-        }
-    }
-    let work = || {
-        let exec = Executor::LOCAL;
-        let pb = etp_pipeline::progress::bar(&exec, episodes, "validate", true);
-        let r = simulate_strategy(
-            &scenario,
-            &strategy.policy,
-            episodes,
-            seed,
-            &exec.work(|k| pb.inc(k)),
-        );
-        pb.finish_and_clear();
-        r
+    let request = ValidationRequest {
+        map: plot_episodes.map(|n| MapRequest {
+            stem: map_stem_beside(&path),
+            episodes: n,
+            force,
+        }),
+        quiet: true,
+        ..ValidationRequest::new(StrategySource::File(path), episodes, seed)
     };
-    let sum = with_progress(py, progress, work)?
-        .map_err(|e| EtpError::new_err(chain(&e)))?
-        .summary();
-    let v = comparison_json(&scenario, &scenario.radio, &strategy, &sum, seed);
-    let text = serde_json::to_string(&v).map_err(|e| EtpError::new_err(e.to_string()))?;
-    let failed = failed_checks(&strategy, &sum)
-        .into_iter()
-        .map(str::to_string)
-        .collect();
-    let plots = match plot_episodes {
-        Some(n) => py
-            .detach(|| {
-                plot_map(
-                    &scenario,
-                    &strategy,
-                    &path,
-                    n,
-                    seed,
-                    force,
-                    &Executor::LOCAL,
-                )
-            })
-            .map_err(pipeline_error)?,
-        None => Vec::new(),
-    };
-    Ok((text, failed, plots))
+    let v = with_progress(py, progress, move || {
+        validate_step(request, &Executor::LOCAL)
+    })?
+    .map_err(pipeline_error)?;
+    let text = serde_json::to_string(&v.json).map_err(|e| EtpError::new_err(e.to_string()))?;
+    let failed = v.failed.into_iter().map(str::to_string).collect();
+    Ok((text, failed, v.maps))
 }

@@ -4,12 +4,12 @@
 use crate::report::{radio_table, summary_table};
 use anyhow::Result;
 use etp_pipeline::predictions::{self, checks};
-use etp_pipeline::progress;
-use etp_pipeline::validation::{comparison_json, failed_checks, plot_map, plot_map_to};
+use etp_pipeline::validation::{
+    MapRequest, StrategySource, ValidationRequest, map_stem_beside, validate,
+};
 use etp_recording_tools::vocab::channels_text;
 use etp_shared::strategy::Strategy;
 use etp_synthesis::simulate::SimulationSummary;
-use etp_synthesis::validate::simulate_strategy;
 use std::path::PathBuf;
 
 /// Exit code: the report was printed and at least one of the strategy's
@@ -57,76 +57,52 @@ pub struct Args {
     pub trigger: crate::scenario_flags::TriggerArgs,
 }
 
-use etp_runtime::strategy_arg::load_strategy;
 use etp_synthesis::exec::Executor;
 
 pub fn run(a: Args, exec: &Executor) -> Result<()> {
-    let (strategy, scenario) = load_strategy(&a.strategy)?;
-    a.trigger.confirm(scenario.trigger)?;
-    // The strategy's own channel unless the options say otherwise (a
-    // robustness study); the report names both.
-    let synthesized = scenario.radio.clone();
-    let scenario = a.radio.apply(scenario)?;
-    let pb = progress::bar(exec, a.sim.episodes, "validate", a.json);
-    let sum = simulate_strategy(
-        &scenario,
-        &strategy.policy,
-        a.sim.episodes,
-        a.sim.seed,
-        &exec.work(|k| pb.inc(k)),
-    )?
-    .summary();
-    pb.finish_and_clear();
-    crate::report::ensure_finite(&sum)?;
+    // `-o STEM`: its folder must exist, refused by name before any work.
     if let Some(stem) = &a.out {
         etp_files::write::existing_folder_of(stem, "-o")?;
     }
-    let plot_paths = if let (true, Some(stem)) = (a.plot, &a.out) {
-        plot_map_to(
-            &scenario,
-            &strategy,
-            stem,
-            a.plot_episodes,
-            a.sim.seed,
-            a.force,
-            exec,
-        )?
-    } else if a.plot {
-        plot_map(
-            &scenario,
-            &strategy,
-            &a.strategy,
-            a.plot_episodes,
-            a.sim.seed,
-            a.force,
-            exec,
-        )?
-    } else {
-        Vec::new()
-    };
+    let map = a.plot.then(|| MapRequest {
+        stem: a
+            .out
+            .clone()
+            .unwrap_or_else(|| map_stem_beside(&a.strategy)),
+        episodes: a.plot_episodes,
+        force: a.force,
+    });
+    let v = validate(
+        ValidationRequest {
+            trigger: a.trigger.trigger,
+            // The strategy's own channel unless the options say otherwise
+            // (a robustness study); the report names both.
+            radio: a.radio.to_override(),
+            map,
+            quiet: a.json,
+            ..ValidationRequest::new(
+                StrategySource::File(a.strategy.clone()),
+                a.sim.episodes,
+                a.sim.seed,
+            )
+        },
+        exec,
+    )?;
+    let (strategy, scenario, sum) = (&v.strategy, &v.scenario, &v.summary);
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&comparison_json(
-                &scenario,
-                &synthesized,
-                &strategy,
-                &sum,
-                a.sim.seed
-            ))?
-        );
+        println!("{}", serde_json::to_string_pretty(&v.json)?);
     } else {
         println!("{} — {}", scenario.name, strategy.provenance.label);
-        print!("{}", comparison_table(&strategy, &sum));
+        print!("{}", comparison_table(strategy, sum));
         println!("\npredictions of the strategy file:");
-        print!("{}", predictions::text_of(&strategy));
-        print!("{}", check_text(&strategy, &sum));
+        print!("{}", predictions::text_of(strategy));
+        print!("{}", check_text(strategy, sum));
         // The error this simulation measures (the stored one, if any, was
         // printed with the predictions above).
-        if let Some(c) = predictions::check_of(&strategy, &sum, a.sim.seed) {
+        if let Some(c) = predictions::check_of(strategy, sum, a.sim.seed) {
             print!(
                 "{}",
-                predictions::aggregation_text(&c, predictions::reference_name(&strategy), "here")
+                predictions::aggregation_text(&c, predictions::reference_name(strategy), "here")
             );
         }
         let names: Vec<String> = scenario.sensors.iter().map(|x| x.name.clone()).collect();
@@ -134,25 +110,24 @@ pub fn run(a: Args, exec: &Executor) -> Result<()> {
             "\nsimulation details ({} episodes, seed {}, {}):",
             sum.episodes,
             a.sim.seed,
-            channels_text(&synthesized, &scenario.radio, &names)
+            channels_text(&v.synthesized, &scenario.radio, &names)
         );
-        print!("{}", summary_table(&sum));
-        print!("{}", radio_table(&scenario, &sum));
-        for p in &plot_paths {
+        print!("{}", summary_table(sum));
+        print!("{}", radio_table(scenario, sum));
+        for p in &v.maps {
             println!("wrote {}", p.display());
         }
     }
-    let failed = failed_checks(&strategy, &sum);
-    if failed.is_empty() {
+    if v.failed.is_empty() {
         Ok(())
     } else {
         Err(etp_runtime::shell::ExitWith {
             code: EXIT_CHECK_FAILS,
             message: format!(
                 "etp validate: {} check(s) FAIL: {} (the strategy's prediction against the simulation's interval joined with its own ±; its certified bounds against the simulation's interval; {}; {} episodes, seed {})",
-                failed.len(),
-                failed.join(", "),
-                checks(&strategy, &sum).0.describe(),
+                v.failed.len(),
+                v.failed.join(", "),
+                checks(strategy, sum).0.describe(),
                 sum.episodes,
                 a.sim.seed
             ),
