@@ -10,15 +10,14 @@ use etp_launcher as multiprocess;
 use etp_pipeline::front::write_front;
 use etp_pipeline::mdp_build::{MdpRequest, build_mdp};
 use etp_pipeline::output::write_new;
-use etp_pipeline::progress;
 use etp_pipeline::selection::{RequestSettings, meet_goal};
+use etp_pipeline::validation::{MapRequest, StrategySource, ValidationRequest, validate};
 use etp_runtime::scenario_arg::scenario_text;
 use etp_shared::rng::mix64;
 use etp_shared::scenario::DEFAULT_SCENARIO;
 use etp_synthesis::exec::Executor;
 use etp_synthesis::mdp::MDP_FILE;
 use etp_synthesis::predict::request::{Goal, Verdict};
-use etp_synthesis::validate::{sample_trajectories, simulate_strategy};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -198,22 +197,29 @@ pub fn run(a: Args, exec: &Executor) -> Result<()> {
             a.validate_episodes
         ),
     );
-    let pb = progress::bar(exec, a.validate_episodes, "validate", a.json);
-    let sim = simulate_strategy(
-        &built.scenario,
-        &strategy.policy,
-        a.validate_episodes,
-        a.seed,
-        &exec.work(|k| pb.inc(k)),
-    )?
-    .summary();
-    pb.finish_and_clear();
+    // `etp validate strategy.json --plot`'s step, on the synthesis's
+    // scenario (the strategy's own) in the demo's fresh folder.
     let map_stem = dir.join("strategy-map");
-    etp_figures::map_plot(
-        &built.scenario,
-        &sample_trajectories(&built.scenario, &strategy.policy, 40, a.seed),
-        &map_stem,
+    let validation = validate(
+        ValidationRequest {
+            map: Some(MapRequest {
+                stem: map_stem.clone(),
+                episodes: 40,
+                force: true,
+            }),
+            quiet: a.json,
+            ..ValidationRequest::new(
+                StrategySource::Loaded {
+                    strategy: Box::new(strategy),
+                    scenario: Box::new(built.scenario.clone()),
+                },
+                a.validate_episodes,
+                a.seed,
+            )
+        },
+        exec,
     )?;
+    let (strategy, sim) = (validation.strategy, validation.summary);
 
     // 4. Multi-process run.
     stage(

@@ -14,13 +14,12 @@ use crate::error::{Context, Error, StudyError};
 use crate::front::write_front;
 use crate::mdp_build::{MdpRequest, build_mdp};
 use crate::output::write_new;
-use crate::predictions::checks;
 use crate::selection::{RequestSettings, meet_goal};
 use crate::synthesis_dir::Synthesis;
+use crate::validation::{StrategySource, ValidationRequest, validate};
 use etp_shared::strategy::Strategy;
 use etp_synthesis::exec::Executor;
 use etp_synthesis::predict::request::Goal;
-use etp_synthesis::validate::simulate_strategy;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -217,14 +216,21 @@ fn request(
         .policy
         .scenario()
         .in_strategy("the strategy's scenario")?;
-    let sum = simulate_strategy(
-        &scenario,
-        &strategy.policy,
-        s.episodes,
-        s.seed,
-        &syn.exec.work(|_| {}),
-    )?
-    .summary();
+    let v = validate(
+        ValidationRequest {
+            quiet: true,
+            ..ValidationRequest::new(
+                StrategySource::Loaded {
+                    strategy: Box::new(strategy),
+                    scenario: Box::new(scenario),
+                },
+                s.episodes,
+                s.seed,
+            )
+        },
+        &syn.exec,
+    )?;
+    let sum = v.summary;
     timing.validation_seconds = started.elapsed().as_secs_f64();
     row.episodes = Some(sum.episodes);
     row.simulated_p_target = Some(sum.p_target.value);
@@ -240,10 +246,8 @@ fn request(
         row.miss_energy_relative = (sum.energy_mean.value != 0.0)
             .then(|| (p.energy_mean - sum.energy_mean.value) / sum.energy_mean.value);
     }
-    let (_, all) = checks(&strategy, &sum);
-    let failed: Vec<&str> = all.iter().filter(|c| !c.holds).map(|c| c.name).collect();
-    row.checks_hold = Some(failed.is_empty());
-    row.failed_checks = Some(failed.join("; "));
+    row.checks_hold = Some(v.failed.is_empty());
+    row.failed_checks = Some(v.failed.join("; "));
     Ok(row)
 }
 
