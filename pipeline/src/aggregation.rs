@@ -3,7 +3,7 @@
 //! `etp_synthesis::abstraction::aggregation`): which regions lump beliefs
 //! with different futures.
 
-use crate::progress;
+use crate::progress::Progress;
 use etp_shared::scenario::Scenario;
 use etp_synthesis::abstraction::aggregation::{self, AggregationReport};
 use etp_synthesis::exec::Executor;
@@ -19,13 +19,13 @@ pub fn measure(
     mdp: &Mdp,
     episodes: u64,
     alpha: f64,
-    json: bool,
+    progress: &Progress,
     exec: &Executor,
 ) -> crate::error::Result<Option<(AggregationReport, f64)>> {
     if episodes == 0 {
         return Ok(None);
     }
-    let pb = progress::bar(exec, episodes, "aggregation check", json);
+    let pb = progress.bar(exec, episodes, "aggregation check");
     let started = std::time::Instant::now();
     let work = exec.work(|k| pb.inc(k));
     let r = aggregation::measure(scenario, mdp, episodes, mdp.seed, alpha, &work)?;

@@ -23,8 +23,9 @@
 //!   validation), resumable, shared out over the executor's ranks; its
 //!   tables ([`study::run`] from a typed [`study::StudyRequest`]).
 //! * [`output`] — files written beside and renamed, never over one unasked.
-//! * [`progress`] — the steps' bars, and the bar under way for a caller
-//!   that draws progress itself.
+//! * [`progress`] — the steps' bars, through the [`progress::Progress`]
+//!   value each step is handed, and the bar under way for a caller that
+//!   draws progress itself.
 //!
 //! Every step runs its Monte Carlo on the executor it is handed
 //! (`etp_synthesis::exec::Executor`: a thread pool and, under `etp`'s MPI

@@ -9,7 +9,7 @@ pub mod split;
 
 use crate::error::{Context, Error, Result};
 use crate::output::write_new;
-use crate::progress;
+use crate::progress::Progress;
 use etp_shared::scenario::Scenario;
 use etp_synthesis::abstraction::split::SplitSettings;
 use etp_synthesis::abstraction::{self, AbstractionParams};
@@ -37,8 +37,8 @@ pub struct MdpRequest {
     pub pool_policy: Option<PathBuf>,
     /// With `pool_policy`: simulate every threshold at every state.
     pub all_actions: bool,
-    /// No progress bar (`--json`).
-    pub quiet: bool,
+    /// Where the bars go (none drawn with `--json`).
+    pub progress: Progress,
     /// Where the Monte Carlo runs (threads and ranks); rank 0 writes.
     pub exec: Executor,
 }
@@ -60,7 +60,7 @@ impl MdpRequest {
             split: SplitSettings::default(),
             pool_policy: None,
             all_actions: false,
-            quiet: false,
+            progress: Progress::default(),
             exec: Executor::LOCAL,
         }
     }
@@ -127,7 +127,7 @@ pub fn build_mdp(r: MdpRequest) -> Result<BuiltMdp> {
         split,
         pool_policy,
         all_actions,
-        quiet,
+        progress,
         exec,
     } = r;
     let dir = out.unwrap_or_else(|| Path::new("out").join(&s.name));
@@ -160,12 +160,7 @@ pub fn build_mdp(r: MdpRequest) -> Result<BuiltMdp> {
             Some(st)
         }
     };
-    let pb = progress::bar(
-        &exec,
-        abstraction::progress_total(&s, &p),
-        "synthesize",
-        quiet,
-    );
+    let pb = progress.bar(&exec, abstraction::progress_total(&s, &p), "synthesize");
     let started = Instant::now();
     let mdp = match &pool_policy {
         None => abstraction::build(&s, &p, &exec.work(|k| pb.inc(k))),
@@ -183,7 +178,7 @@ pub fn build_mdp(r: MdpRequest) -> Result<BuiltMdp> {
     mdp.check()
         .computing("the built MDP failed its own consistency check (a bug)")?;
     let first_seconds = started.elapsed().as_secs_f64();
-    let (mdp, split) = split::apply(&s, &p, mdp, first_seconds, &split, quiet, &exec)?;
+    let (mdp, split) = split::apply(&s, &p, mdp, first_seconds, &split, &progress, &exec)?;
     let (mdp, merge) = match merge {
         None => (mdp, None),
         Some(alpha) => {

@@ -5,6 +5,7 @@
 
 use crate::error::{Context, Result};
 use crate::output::write_new;
+use crate::progress::Progress;
 use crate::selection::{DEFAULT_LEVEL, RequestSettings, goal_label, standing_strategy};
 use crate::synthesis_dir::Synthesis;
 use etp_files::write::output_folder;
@@ -40,7 +41,7 @@ pub fn compute(
     bounds: &[Option<f64>],
     points: usize,
     s: &RequestSettings,
-    quiet: bool,
+    progress: &Progress,
     each: &dyn Fn(Option<f64>, &PredictedPoint),
 ) -> Result<Vec<PredictedFront>> {
     if syn.exec.is_root() {
@@ -48,7 +49,7 @@ pub fn compute(
     }
     let params = abstraction::params_of(&syn.mdp);
     let units = rebuild::progress_units(&syn.scenario, &params);
-    let pb = crate::progress::bar(&syn.exec, 0, "predicted front: rebuilds", quiet);
+    let pb = progress.bar(&syn.exec, 0, "predicted front: rebuilds");
     let mut curves = Vec::new();
     let level = s.confidence.unwrap_or(DEFAULT_LEVEL);
     for &bound in bounds {
@@ -90,7 +91,7 @@ pub fn compute(
                         &outcome.certified,
                         level,
                         0,
-                        true,
+                        &progress.silenced(),
                     )
                     .and_then(|(strategy, _)| {
                         write_new(

@@ -7,7 +7,7 @@
 //! the request loop).
 
 use crate::error::{Context, Result};
-use crate::progress;
+use crate::progress::Progress;
 use etp_shared::stats::verdict::{Check, Family, Measured, Outcomes, prediction_checks};
 use etp_shared::strategy::{
     AggregationCheck, CertifiedPrediction, Prediction, PredictionCi95, SimulatedValue, Strategy,
@@ -59,14 +59,14 @@ pub fn reference(s: &Strategy) -> Option<(Prediction, Option<PredictionCi95>, &'
 pub fn aggregation_check(
     strategy: &Strategy,
     episodes: u64,
-    quiet: bool,
+    progress: &Progress,
     exec: &Executor,
 ) -> Result<Option<AggregationCheck>> {
     let scenario = strategy
         .policy
         .scenario()
         .in_strategy("the aggregation check needs the strategy's scenario")?;
-    let pb = progress::bar(exec, episodes, "aggregation check", quiet);
+    let pb = progress.bar(exec, episodes, "aggregation check");
     let sum = etp_synthesis::validate::simulate_strategy(
         &scenario,
         &strategy.policy,

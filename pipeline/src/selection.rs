@@ -7,6 +7,7 @@
 
 use crate::error::{Context, Result};
 use crate::predictions;
+use crate::progress::Progress;
 use crate::synthesis_dir::Synthesis;
 use etp_shared::strategy::{CertifiedPrediction, Strategy};
 use etp_synthesis::certify::crossfit::{CrossFit, crossfit};
@@ -105,7 +106,7 @@ pub fn standing_strategy(
     certified: &Certified,
     level: f64,
     aggregation_check: u64,
-    quiet: bool,
+    progress: &Progress,
 ) -> Result<(Strategy, Option<f64>)> {
     let mut strategy = outcome.strategy.clone();
     outcome.on_policy.stand_by(&mut strategy, certified, level);
@@ -121,7 +122,7 @@ pub fn standing_strategy(
     }
     if aggregation_check > 0 {
         strategy.predictions.aggregation =
-            predictions::aggregation_check(&strategy, aggregation_check, quiet, &syn.exec)?;
+            predictions::aggregation_check(&strategy, aggregation_check, progress, &syn.exec)?;
     }
     Ok((strategy, unmatched))
 }
@@ -163,7 +164,7 @@ pub fn meet_goal(
     mdp: &Mdp,
     goal: Goal,
     s: &RequestSettings,
-    quiet: bool,
+    progress: &Progress,
 ) -> Result<(Outcome, Strategy, Option<f64>)> {
     let level = s.confidence.unwrap_or(DEFAULT_LEVEL);
     let certified = match goal {
@@ -174,7 +175,7 @@ pub fn meet_goal(
     let make = |omega: &RandomisedPolicy, value: etp_synthesis::pareto::policy::Objectives| {
         syn.strategy_of(mdp, omega, value, &label)
     };
-    let pb = crate::progress::bar(&syn.exec, 0, "rebuilds", quiet);
+    let pb = progress.bar(&syn.exec, 0, "rebuilds");
     let outcome = syn.meet(
         mdp,
         goal,
@@ -195,7 +196,7 @@ pub fn meet_goal(
         &outcome.certified,
         level,
         s.aggregation_check,
-        quiet,
+        progress,
     )?;
     Ok((outcome, strategy, unmatched))
 }

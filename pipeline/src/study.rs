@@ -33,6 +33,7 @@ pub mod table;
 
 use crate::error::StudyError;
 use crate::output::write_new;
+use crate::progress::Progress;
 use etp_synthesis::exec::Executor;
 use indicatif::ProgressBar;
 use serde::{Deserialize, Serialize};
@@ -245,8 +246,9 @@ pub struct StudyRequest {
     /// The study's folder (default `out/study-<name>`: [`folder`]); the
     /// same folder resumes a study that did not finish.
     pub out: Option<PathBuf>,
-    /// No progress bar (the bar still counts, for `progress::current`).
-    pub quiet: bool,
+    /// Where the study's bar goes (its cases' steps count theirs there
+    /// too, never drawn).
+    pub progress: Progress,
 }
 
 /// What a study says as it goes (`etp study` prints it); each method's
@@ -363,13 +365,15 @@ fn run_share(
         .filter(|(_, r)| **r == rank)
         .map(|(w, _)| w.pending.len())
         .sum();
-    let pb = crate::progress::bar(exec, mine_count as u64, "study", request.quiet);
+    let pb = request.progress.bar(exec, mine_count as u64, "study");
+    let inner = request.progress.silenced();
     let mut mine: Vec<Finished> = Vec::new();
     // Whole jobs apart: this rank alone on its threads, writing its cases.
     let alone = exec.alone();
     let on = case::Placement {
         exec: if apart { &alone } else { exec },
         rank,
+        progress: &inner,
     };
     for (w, r) in plan.work.iter().zip(&assign) {
         if *r != rank {

@@ -131,7 +131,7 @@ pub fn synthesize(r: SynthesisRequest) -> Result<Synthesized> {
     // The channel is recorded when the options changed the scenario text's own.
     let own_radio = Scenario::from_toml(&r.text).in_scenario("scenario")?.radio;
     let params = r.mdp.params;
-    let quiet = r.mdp.quiet;
+    let progress = r.mdp.progress.clone();
     let force = r.mdp.force;
     let exec = r.mdp.exec.clone();
     let built = build_mdp(r.mdp)?;
@@ -177,7 +177,7 @@ pub fn synthesize(r: SynthesisRequest) -> Result<Synthesized> {
         &built.mdp,
         r.aggregation_episodes,
         r.aggregation_alpha,
-        quiet,
+        &progress,
         &exec,
     )?;
     Ok(Synthesized {

@@ -6,6 +6,7 @@
 
 use crate::error::{Context, Error, Result};
 use crate::predictions::{self, checks};
+use crate::progress::Progress;
 use etp_runtime::strategy_arg::{StrategyArgError, load_strategy};
 use etp_shared::radio::{Radio, RadioOverride};
 use etp_shared::scenario::Scenario;
@@ -59,13 +60,13 @@ pub struct ValidationRequest {
     pub seed: u64,
     /// Also draw the map.
     pub map: Option<MapRequest>,
-    /// No progress bar drawn (the bar still counts for a watcher).
-    pub quiet: bool,
+    /// Where the simulation's bar goes.
+    pub progress: Progress,
 }
 
 impl ValidationRequest {
     /// `strategy` simulated for `episodes` episodes with `seed`, under its
-    /// own channel and family, no map, its progress drawn.
+    /// own channel and family, no map, its bar drawn.
     pub fn new(strategy: StrategySource, episodes: u64, seed: u64) -> Self {
         ValidationRequest {
             strategy,
@@ -74,7 +75,7 @@ impl ValidationRequest {
             episodes,
             seed,
             map: None,
-            quiet: false,
+            progress: Progress::default(),
         }
     }
 }
@@ -121,7 +122,7 @@ pub fn validate(request: ValidationRequest, exec: &Executor) -> Result<Validatio
             crate::output::refuse_existing(exec, &p, map.force)?;
         }
     }
-    let pb = crate::progress::bar(exec, request.episodes, "validate", request.quiet);
+    let pb = request.progress.bar(exec, request.episodes, "validate");
     let summary = simulate_strategy(
         &scenario,
         &strategy.policy,
@@ -333,7 +334,7 @@ mod tests {
 
     fn quiet(strategy: StrategySource) -> ValidationRequest {
         ValidationRequest {
-            quiet: true,
+            progress: Progress::new(true),
             ..ValidationRequest::new(strategy, 200, 3)
         }
     }

@@ -3,11 +3,14 @@
 //! through `etp-pipeline` (the library those commands call), with the same
 //! defaults, the same files and the same JSON. The work runs with the GIL
 //! released on a worker thread while this thread passes the step under way
-//! (`etp_pipeline::progress::current`) to the caller's progress callback.
+//! (`etp_pipeline::progress::Progress::current` of the value the work was
+//! handed, so each call sees its own step) to the caller's progress
+//! callback.
 
 use crate::errors::{EtpError, ScenarioError, SimulationError, pipeline_error};
 use crate::scenario::PyScenario;
 use etp_pipeline::mdp_build::MdpRequest;
+use etp_pipeline::progress::Progress;
 use etp_pipeline::selection::{RequestSettings, meet_goal};
 use etp_pipeline::synthesis_dir::Synthesis;
 use etp_pipeline::synthesize::{SynthesisRequest, synthesize as synthesize_dir};
@@ -25,25 +28,28 @@ use std::time::Duration;
 /// How often the progress callback is called at most.
 const POLL: Duration = Duration::from_millis(200);
 
-/// Run `work` without the GIL on a worker thread; meanwhile call
-/// `progress(stage, done, total)` (when given) each time the step under
-/// way moves. A callback that raises stops the callbacks; its exception
+/// Run `work` without the GIL on a worker thread, handing it where its
+/// steps' progress goes (never drawn); meanwhile call `progress(stage,
+/// done, total)` (when given) each time the step under way moves. A callback that raises stops the callbacks; its exception
 /// is raised when the work has finished (the work itself cannot be
 /// interrupted half-way: its files are written beside and renamed, so
 /// nothing half-done is left either way).
 pub(crate) fn with_progress<T: Send>(
     py: Python<'_>,
     progress: Option<Py<PyAny>>,
-    work: impl FnOnce() -> T + Send,
+    work: impl FnOnce(Progress) -> T + Send,
 ) -> PyResult<T> {
     let Some(cb) = progress else {
-        return Ok(py.detach(work));
+        return Ok(py.detach(|| work(Progress::new(true))));
     };
-    etp_pipeline::progress::watch(true);
+    let watched = Progress::watched();
     let mut raised: Option<PyErr> = None;
     let out = py.detach(|| {
         std::thread::scope(|scope| {
-            let handle = scope.spawn(work);
+            let handle = scope.spawn({
+                let p = watched.clone();
+                move || work(p)
+            });
             let mut last: Option<(String, u64, u64)> = None;
             let mut report = |now: Option<(String, u64, u64)>, raised: &mut Option<PyErr>| {
                 if raised.is_some() || now.is_none() || now == last {
@@ -60,13 +66,12 @@ pub(crate) fn with_progress<T: Send>(
             };
             while !handle.is_finished() {
                 std::thread::sleep(POLL);
-                report(etp_pipeline::progress::current(), &mut raised);
+                report(watched.current(), &mut raised);
             }
-            report(etp_pipeline::progress::current(), &mut raised);
+            report(watched.current(), &mut raised);
             handle.join()
         })
     });
-    etp_pipeline::progress::watch(false);
     let out = out.map_err(|_| EtpError::new_err("the work panicked (a bug: please report it)"))?;
     match raised {
         Some(e) => Err(e),
@@ -128,12 +133,14 @@ pub fn synthesize(
     mdp.params.holdout_samples = holdout_samples;
     mdp.out = Some(out);
     mdp.force = force;
-    mdp.quiet = true;
     let mut request = SynthesisRequest::new(mdp, text);
     request.kf_baseline = kf_baseline;
     request.aggregation_episodes = aggregation_episodes;
-    let done =
-        with_progress(py, progress, move || synthesize_dir(request))?.map_err(pipeline_error)?;
+    let done = with_progress(py, progress, move |p| {
+        request.mdp.progress = p;
+        synthesize_dir(request)
+    })?
+    .map_err(pipeline_error)?;
     serde_json::to_string(&done.to_json()).map_err(|e| EtpError::new_err(e.to_string()))
 }
 
@@ -211,11 +218,11 @@ pub fn select_strategy(
         confidence,
         aggregation_check,
     };
-    let work = move || -> etp_pipeline::error::Result<(String, String, usize)> {
+    let work = move |p: Progress| -> etp_pipeline::error::Result<(String, String, usize)> {
         let exec = Executor::LOCAL;
         let syn = Synthesis::load(&dir, output.as_deref(), &exec)?;
         etp_pipeline::output::refuse_existing(&exec, &syn.output, force)?;
-        let (outcome, strategy, _) = meet_goal(&syn, &syn.mdp, goal, &settings, true)?;
+        let (outcome, strategy, _) = meet_goal(&syn, &syn.mdp, goal, &settings, &p)?;
         let text = strategy.to_json();
         etp_pipeline::output::write_new(&exec, &syn.output, text.as_bytes(), force)?;
         Ok((
@@ -257,11 +264,16 @@ pub fn validate(
             episodes: n,
             force,
         }),
-        quiet: true,
         ..ValidationRequest::new(StrategySource::File(path), episodes, seed)
     };
-    let v = with_progress(py, progress, move || {
-        validate_step(request, &Executor::LOCAL)
+    let v = with_progress(py, progress, move |p| {
+        validate_step(
+            ValidationRequest {
+                progress: p,
+                ..request
+            },
+            &Executor::LOCAL,
+        )
     })?
     .map_err(pipeline_error)?;
     let text = serde_json::to_string(&v.json).map_err(|e| EtpError::new_err(e.to_string()))?;

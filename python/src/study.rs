@@ -35,12 +35,14 @@ pub fn study(
         }
     }
     .map_err(study_error)?;
-    let request = StudyRequest {
-        spec,
-        out,
-        quiet: true,
+    let work = move |progress| {
+        let request = StudyRequest {
+            spec,
+            out,
+            progress,
+        };
+        etp_pipeline::study::run(&request, &Executor::LOCAL, &mut Silent)
     };
-    let work = move || etp_pipeline::study::run(&request, &Executor::LOCAL, &mut Silent);
     let done = with_progress(py, progress, work)?.map_err(study_error)?;
     // One process is rank 0 of its own executor: the outcome is there.
     done.map(|d| d.json)

@@ -10,6 +10,7 @@ use etp_launcher as multiprocess;
 use etp_pipeline::front::write_front;
 use etp_pipeline::mdp_build::{MdpRequest, build_mdp};
 use etp_pipeline::output::write_new;
+use etp_pipeline::progress::Progress;
 use etp_pipeline::selection::{RequestSettings, meet_goal};
 use etp_pipeline::validation::{MapRequest, StrategySource, ValidationRequest, validate};
 use etp_runtime::scenario_arg::scenario_text;
@@ -117,7 +118,7 @@ pub fn run(a: Args, exec: &Executor) -> Result<()> {
     // Method 1 baseline.
     let mut request = MdpRequest::defaults(scenario.clone(), a.samples, a.seed);
     request.out = Some(dir.clone());
-    request.quiet = a.json;
+    request.progress = Progress::new(a.json);
     request.exec = exec.clone();
     let built = build_mdp(request)?;
     let front = write_front(&built.dir, &built.mdp, None, &text, None, false, exec)?;
@@ -149,8 +150,8 @@ pub fn run(a: Args, exec: &Executor) -> Result<()> {
         aggregation_check: 0,
         ..RequestSettings::default()
     };
-    let (outcome, strategy, _) =
-        meet_goal(&syn, &syn.mdp, goal, &settings, a.json).context("the demo's strategy")?;
+    let (outcome, strategy, _) = meet_goal(&syn, &syn.mdp, goal, &settings, &Progress::new(a.json))
+        .context("the demo's strategy")?;
     if outcome.verdict != Verdict::Met {
         anyhow::bail!(
             "the demo's request P_tar ≥ {} is out of reach on this synthesis ({})",
@@ -181,7 +182,7 @@ pub fn run(a: Args, exec: &Executor) -> Result<()> {
                 aggregation_check: 0,
                 ..Default::default()
             },
-            a.json,
+            &Progress::new(a.json),
             &|_, _| {},
         )?
     };
@@ -207,7 +208,7 @@ pub fn run(a: Args, exec: &Executor) -> Result<()> {
                 episodes: 40,
                 force: true,
             }),
-            quiet: a.json,
+            progress: Progress::new(a.json),
             ..ValidationRequest::new(
                 StrategySource::Loaded {
                     strategy: Box::new(strategy),

@@ -6,6 +6,7 @@
 //! `etp_pipeline::study::run`; this module parses, prints and sums up.
 
 use anyhow::Result;
+use etp_pipeline::progress::Progress;
 use etp_pipeline::study::spec::Spec;
 use etp_pipeline::study::table::Finished;
 use etp_pipeline::study::{Observer, StudyRequest};
@@ -100,7 +101,7 @@ pub fn run(a: Args, exec: &Executor) -> Result<()> {
     let request = StudyRequest {
         spec: Spec::load(&a.spec)?,
         out: a.out,
-        quiet: a.json,
+        progress: Progress::new(a.json),
     };
     let Some(done) = etp_pipeline::study::run(&request, exec, &mut Say)? else {
         return Ok(());

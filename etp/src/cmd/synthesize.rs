@@ -10,6 +10,7 @@ use anyhow::{Result, bail};
 use etp_pipeline::aggregation;
 use etp_pipeline::mdp_build::split;
 use etp_pipeline::mdp_build::{MdpReport, MdpRequest};
+use etp_pipeline::progress::Progress;
 use etp_pipeline::synthesize::{
     DEFAULT_AGGREGATION_ALPHA, DEFAULT_AGGREGATION_EPISODES, SynthesisRequest, scenario_under,
     synthesize,
@@ -271,7 +272,7 @@ impl Args {
             split: self.split.settings(),
             pool_policy: self.pool_policy.clone(),
             all_actions: self.all_actions,
-            quiet: self.json,
+            progress: Progress::new(self.json),
             exec: exec.clone(),
         })
     }

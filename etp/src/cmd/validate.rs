@@ -4,6 +4,7 @@
 use crate::report::{radio_table, summary_table};
 use anyhow::Result;
 use etp_pipeline::predictions::{self, checks};
+use etp_pipeline::progress::Progress;
 use etp_pipeline::validation::{
     MapRequest, StrategySource, ValidationRequest, map_stem_beside, validate,
 };
@@ -79,7 +80,7 @@ pub fn run(a: Args, exec: &Executor) -> Result<()> {
             // (a robustness study); the report names both.
             radio: a.radio.to_override(),
             map,
-            quiet: a.json,
+            progress: Progress::new(a.json),
             ..ValidationRequest::new(
                 StrategySource::File(a.strategy.clone()),
                 a.sim.episodes,

@@ -4,7 +4,7 @@
 //! flags are split and the MDP re-estimated, round by round.
 
 use crate::error::{Context, Error, Result};
-use crate::progress;
+use crate::progress::Progress;
 use etp_shared::scenario::Scenario;
 use etp_synthesis::abstraction::split::{RoundReport, SplitSettings, split_adaptively};
 use etp_synthesis::abstraction::{self, AbstractionParams};
@@ -71,14 +71,14 @@ pub fn apply(
     first: Mdp,
     first_build_seconds: f64,
     a: &SplitSettings,
-    quiet: bool,
+    progress: &Progress,
     exec: &Executor,
 ) -> Result<(Mdp, Option<SplitSummary>)> {
     if a.budget == 0 || first.method != Method::Discretized {
         return Ok((first, None));
     }
     let per_round = a.episodes + abstraction::progress_total(scenario, params);
-    let pb = progress::bar(exec, per_round * u64::from(a.rounds), "splitting", quiet);
+    let pb = progress.bar(exec, per_round * u64::from(a.rounds), "splitting");
     let (states_before, per_dp_before) = (first.states.len(), first.states_per_decision_point());
     let started = Instant::now();
     let mut last = Instant::now();

@@ -14,6 +14,7 @@ use crate::error::{Context, Error, StudyError};
 use crate::front::write_front;
 use crate::mdp_build::{MdpRequest, build_mdp};
 use crate::output::write_new;
+use crate::progress::Progress;
 use crate::selection::{RequestSettings, meet_goal};
 use crate::synthesis_dir::Synthesis;
 use crate::validation::{StrategySource, ValidationRequest, validate};
@@ -57,7 +58,7 @@ fn synthesis(
     dir: &Path,
     s: &Settings,
     timing: &mut Timing,
-    exec: &Executor,
+    (exec, progress): (&Executor, &Progress),
 ) -> Result<Synthesis, Error> {
     if synthesized {
         return Synthesis::load(dir, None, exec);
@@ -66,7 +67,7 @@ fn synthesis(
     let mut request = MdpRequest::defaults(job.scenario.clone(), s.samples, s.seed);
     request.out = Some(dir.to_path_buf());
     request.force = true;
-    request.quiet = true;
+    request.progress = progress.clone();
     request.exec = exec.clone();
     let built = build_mdp(request)?;
     let front = write_front(&built.dir, &built.mdp, None, &job.text, None, true, exec)?;
@@ -158,6 +159,7 @@ fn request(
     (k, r): (usize, &Request),
     kf: &mut Option<f64>,
     timing: &mut Timing,
+    progress: &Progress,
 ) -> Result<Row, Error> {
     let mut row = base_row(job, syn, s);
     row.request_index = Some(k);
@@ -183,7 +185,7 @@ fn request(
         confidence: None,
         aggregation_check: s.aggregation_check,
     };
-    let (outcome, strategy, _) = meet_goal(syn, &syn.mdp, goal, &settings, true)?;
+    let (outcome, strategy, _) = meet_goal(syn, &syn.mdp, goal, &settings, progress)?;
     let file = format!("strategy-{k}.json");
     let path = syn.dir.join(&file);
     write_new(&syn.exec, &path, strategy.to_json().as_bytes(), true)?;
@@ -218,7 +220,7 @@ fn request(
         .in_strategy("the strategy's scenario")?;
     let v = validate(
         ValidationRequest {
-            quiet: true,
+            progress: progress.clone(),
             ..ValidationRequest::new(
                 StrategySource::Loaded {
                     strategy: Box::new(strategy),
@@ -257,6 +259,9 @@ fn request(
 pub struct Placement<'a> {
     pub exec: &'a Executor,
     pub rank: usize,
+    /// Where the cases' steps count their progress (drawn by none of
+    /// them: the study draws its own bar).
+    pub progress: &'a Progress,
 }
 
 /// Do the cases of `job` that its `plan` names (request indices; `None`:
@@ -281,11 +286,17 @@ pub fn run_job(
     };
     let mut timing = fresh();
     let mut kf = None;
-    let syn = synthesis(job, plan.synthesized, &dir, s, &mut timing, exec).map_err(|source| {
-        StudyError::Case {
-            what: format!("study case {}: the synthesis", job.id),
-            source,
-        }
+    let syn = synthesis(
+        job,
+        plan.synthesized,
+        &dir,
+        s,
+        &mut timing,
+        (exec, on.progress),
+    )
+    .map_err(|source| StudyError::Case {
+        what: format!("study case {}: the synthesis", job.id),
+        source,
     })?;
     for &k in &plan.pending {
         let row = match k {
@@ -294,12 +305,12 @@ pub fn run_job(
                 let r = requests.get(k).ok_or_else(|| {
                     StudyError::Bug(format!("study case {}: no request {k} (a bug)", job.id))
                 })?;
-                request(job, &syn, s, (k, r), &mut kf, &mut timing).map_err(|source| {
-                    StudyError::Case {
+                request(job, &syn, s, (k, r), &mut kf, &mut timing, on.progress).map_err(
+                    |source| StudyError::Case {
                         what: format!("study case {} request {k}", job.id),
                         source,
-                    }
-                })?
+                    },
+                )?
             }
         };
         let f = Finished {

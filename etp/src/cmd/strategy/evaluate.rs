@@ -9,7 +9,7 @@ use super::EvaluateArgs;
 use anyhow::{Context, Result, bail};
 use etp_pipeline::output::{refuse_existing, write_new};
 use etp_pipeline::predictions;
-use etp_pipeline::progress;
+use etp_pipeline::progress::{self, Progress};
 use etp_pipeline::synthesis_dir::Synthesis;
 use etp_synthesis::abstraction;
 use etp_synthesis::exec::Executor;
@@ -72,8 +72,12 @@ pub fn run(a: &EvaluateArgs, exec: &Executor) -> Result<()> {
     );
     strategy.predictions.aggregation = None;
     if a.check.aggregation_check > 0 {
-        strategy.predictions.aggregation =
-            predictions::aggregation_check(&strategy, a.check.aggregation_check, a.out.json, exec)?;
+        strategy.predictions.aggregation = predictions::aggregation_check(
+            &strategy,
+            a.check.aggregation_check,
+            &Progress::new(a.out.json),
+            exec,
+        )?;
     }
     write_new(
         exec,

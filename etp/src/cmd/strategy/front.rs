@@ -8,6 +8,7 @@
 use super::FrontArgs;
 use anyhow::Result;
 use etp_pipeline::predicted_front::{STRATEGIES, compute, store};
+use etp_pipeline::progress::Progress;
 use etp_pipeline::selection::RequestSettings;
 use etp_pipeline::synthesis_dir::Synthesis;
 use etp_synthesis::exec::Executor;
@@ -30,11 +31,18 @@ pub fn run(a: &FrontArgs, exec: &Executor) -> Result<()> {
     };
     let started = Instant::now();
     let quiet = a.json;
-    let curves = compute(&syn, &bounds, a.points, &settings, quiet, &|bound, p| {
-        if !quiet {
-            eprintln!("{}", point_line(bound, p));
-        }
-    })?;
+    let curves = compute(
+        &syn,
+        &bounds,
+        a.points,
+        &settings,
+        &Progress::new(quiet),
+        &|bound, p| {
+            if !quiet {
+                eprintln!("{}", point_line(bound, p));
+            }
+        },
+    )?;
     let seconds = started.elapsed().as_secs_f64();
     let files = store(&mut syn, curves.clone())?;
     if a.json {

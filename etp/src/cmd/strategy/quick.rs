@@ -10,6 +10,7 @@ use super::{Args, Request};
 use anyhow::{Context, Result};
 use etp_pipeline::output::{refuse_existing, write_new};
 use etp_pipeline::predictions;
+use etp_pipeline::progress::Progress;
 use etp_pipeline::selection::{DEFAULT_LEVEL, selection_diagnostics};
 use etp_pipeline::synthesis_dir::Synthesis;
 use etp_synthesis::certify::intervals::interval_mdp;
@@ -76,8 +77,12 @@ pub fn run(a: &Args, request: Request, exec: &Executor) -> Result<()> {
     let mut strategy = syn.strategy_of(mdp, &omega, value, &label);
     let unmatched = selection_diagnostics(&mut strategy, mdp, &omega, cost, level)?;
     if a.check.aggregation_check > 0 {
-        strategy.predictions.aggregation =
-            predictions::aggregation_check(&strategy, a.check.aggregation_check, a.out.json, exec)?;
+        strategy.predictions.aggregation = predictions::aggregation_check(
+            &strategy,
+            a.check.aggregation_check,
+            &Progress::new(a.out.json),
+            exec,
+        )?;
     }
     write_new(
         exec,

@@ -6,7 +6,7 @@ use super::{Args, EXIT_OUT_OF_REACH, Request, certified};
 use anyhow::{Context, Result};
 use etp_pipeline::output::{refuse_existing, write_new};
 use etp_pipeline::predictions;
-use etp_pipeline::progress;
+use etp_pipeline::progress::{self, Progress};
 use etp_pipeline::selection::{DEFAULT_LEVEL, RequestSettings, meet_goal, standing_strategy};
 use etp_pipeline::synthesis_dir::Synthesis;
 use etp_shared::strategy::Strategy;
@@ -44,7 +44,7 @@ pub fn run(a: &Args, request: Request, exec: &Executor) -> Result<()> {
                 confidence: a.confidence,
                 aggregation_check: a.check.aggregation_check,
             };
-            meet_goal(&syn, mdp, goal, &settings, a.out.json)?
+            meet_goal(&syn, mdp, goal, &settings, &Progress::new(a.out.json))?
         }
         Request::Vertex(k) => vertex(a, &syn, mdp, k, &label)?,
     };
@@ -126,7 +126,7 @@ fn vertex(
         &outcome.certified,
         level,
         a.check.aggregation_check,
-        a.out.json,
+        &Progress::new(a.out.json),
     )?;
     Ok((outcome, strategy, unmatched))
 }
