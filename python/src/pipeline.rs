@@ -29,9 +29,10 @@ use std::time::Duration;
 const POLL: Duration = Duration::from_millis(200);
 
 /// Run `work` without the GIL on a worker thread, handing it where its
-/// steps' progress goes (never drawn); meanwhile call `progress(stage,
-/// done, total)` (when given) each time the step under way moves. A callback that raises stops the callbacks; its exception
-/// is raised when the work has finished (the work itself cannot be
+/// steps' progress goes (never drawn; watched when a callback is given);
+/// meanwhile call `progress(stage, done, total)` each time the step under
+/// way moves. A callback that raises stops the callbacks; its exception is
+/// raised when the work has finished (the work itself cannot be
 /// interrupted half-way: its files are written beside and renamed, so
 /// nothing half-done is left either way).
 pub(crate) fn with_progress<T: Send>(
