@@ -5,6 +5,7 @@ callback sees the steps."""
 from __future__ import annotations
 
 import json
+import threading
 
 import pytest
 
@@ -94,6 +95,42 @@ def test_validate_is_the_cli_json(pair):
         v.report["predicted"]["energy_mean"] - v.report["energy_mean"])
     # The checks at 95 % family-wise, as the CLI states them.
     assert v.report["checks_level"]["family_wise_level"] == 0.95
+
+
+def test_two_threads_each_see_their_own_steps(pair, tmp_path):
+    """Two steps at once on two threads: each callback sees its own step's
+    bars, never the other's."""
+    root, *_ = pair
+    path = root / "py" / "strategy.json"
+    if not path.exists():
+        etpareto.select_strategy(root / "py", min_target=0.9, aggregation_check=300)
+    seen = {"synthesize": [], "validate": []}
+    errors = []
+
+    def synthesize():
+        etpareto.synthesize("open-2d", tmp_path / "syn", samples=100, seed=3,
+                            aggregation_episodes=500,
+                            progress=lambda stage, *_: seen["synthesize"].append(stage))
+
+    def validate():
+        etpareto.validate(path, episodes=20000, seed=2,
+                          progress=lambda stage, *_: seen["validate"].append(stage))
+
+    def guarded(step):
+        try:
+            step()
+        except Exception as e:  # raised in the test's thread below
+            errors.append(e)
+
+    threads = [threading.Thread(target=guarded, args=(f,)) for f in (synthesize, validate)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors, errors
+    assert seen["validate"] and set(seen["validate"]) == {"validate"}, seen
+    assert seen["synthesize"], seen
+    assert set(seen["synthesize"]) <= {"synthesize", "aggregation check", "splitting"}, seen
 
 
 def test_bad_requests_raise_value_errors(pair):
