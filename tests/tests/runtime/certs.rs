@@ -6,7 +6,7 @@
 //! a hint. Certificates beyond `etp certs init` (expired ones) are made here
 //! with rcgen, with the same parameters.
 
-use super::remote::{Guard, Hosts, NS_OUT, certs_init, hosts, scratch};
+use super::remote::{Guard, Hosts, NS_OUT, PY_LISTENER, certs_init, hosts, scratch};
 use super::serial;
 use etp_tests::bin_dir;
 use rcgen::{
@@ -60,21 +60,6 @@ fn bundles(dir: &Path, agent: (i64, i64), b: (i64, i64)) {
     std::fs::write(dir.join("agent-host/hosts.json"), r#"{"b": null}"#).expect("hosts");
 }
 
-const LISTENER: &str = r#"import json, sys, time, zenoh
-conf = zenoh.Config()
-conf.insert_json5("mode", '"peer"')
-conf.insert_json5("scouting/multicast/enabled", "false")
-conf.insert_json5("scouting/gossip/enabled", "false")
-conf.insert_json5("listen/endpoints", json.dumps(["tls/10.77.1.1:7447"]))
-conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(sys.argv[1]))
-conf.insert_json5("transport/link/tls/listen_certificate", json.dumps(sys.argv[2]))
-conf.insert_json5("transport/link/tls/listen_private_key", json.dumps(sys.argv[3]))
-conf.insert_json5("transport/link/tls/enable_mtls", "true")
-s = zenoh.open(conf)
-q = s.declare_queryable("etp/session", lambda query: query.reply("etp/session", "not a run"))
-time.sleep(60)
-"#;
-
 /// A real Zenoh listener (Python) posing as the agent host with host
 /// `cert`'s key pair of bundle folder `keys`.
 fn fake_agent_host(h: &Hosts, keys: &Path, cert: &str) -> Guard {
@@ -84,7 +69,7 @@ fn fake_agent_host(h: &Hosts, keys: &Path, cert: &str) -> Guard {
         Command::new("ip")
             .args(["netns", "exec", &h.agent])
             .arg(etp_tests::pyenv::python())
-            .args(["-c", LISTENER])
+            .args(["-c", PY_LISTENER])
             .arg(b.join("ca.pem"))
             .arg(b.join(format!("{cert}.pem")))
             .arg(b.join(format!("{cert}.key")))

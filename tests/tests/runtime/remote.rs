@@ -41,6 +41,9 @@ pub(super) const NS_OUT: &str = "/dev/shm/.etp-out";
 pub(super) struct Hosts {
     pub(super) agent: String,
     pub(super) sensors: Vec<String>,
+    /// The Zenoh shared-memory files in the machine's /dev/shm when the
+    /// namespaces were made ([`zenoh_shm_files`]).
+    zenoh_shm_before: std::collections::BTreeSet<String>,
 }
 
 impl Hosts {
@@ -51,6 +54,7 @@ impl Hosts {
             sensors: (0..sensor_hosts)
                 .map(|k| format!("etp{p}{tag}s{k}"))
                 .collect(),
+            zenoh_shm_before: zenoh_shm_files(),
         };
         ip(&["netns", "add", &h.agent])?;
         ip(&["-n", &h.agent, "link", "set", "lo", "up"])?;
@@ -185,7 +189,32 @@ impl Drop for Hosts {
         for ns in self.sensors.iter().chain(std::iter::once(&self.agent)) {
             let _ = ip(&["netns", "del", ns]);
         }
+        // The Python peers share the machine's /dev/shm (only etp's
+        // processes get a private one): one killed with shared memory on
+        // would leave its file there for good.
+        let left: Vec<String> = zenoh_shm_files()
+            .difference(&self.zenoh_shm_before)
+            .cloned()
+            .collect();
+        if !left.is_empty() && !std::thread::panicking() {
+            panic!("left in /dev/shm by a Zenoh peer of the test: {left:?}");
+        }
     }
+}
+
+/// The names of Zenoh's shared-memory files (`<n>.zenoh`) in /dev/shm.
+/// The bridge is built without Zenoh's shared memory; a Python peer
+/// (`eclipse-zenoh`) has it on unless its configuration turns it off
+/// ([`PY_CONNECT`], [`PY_LISTENER`]).
+fn zenoh_shm_files() -> std::collections::BTreeSet<String> {
+    std::fs::read_dir("/dev/shm")
+        .map(|d| {
+            d.filter_map(|e| e.ok())
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.ends_with(".zenoh"))
+                .collect()
+        })
+        .unwrap_or_default()
 }
 
 /// A child in its own process group, killed with its group on drop.
@@ -734,6 +763,9 @@ def session(ep, ca, cert, key, extra=None):
     conf.insert_json5("mode", '"peer"')
     conf.insert_json5("scouting/multicast/enabled", "false")
     conf.insert_json5("scouting/gossip/enabled", "false")
+    # Zenoh's shared memory off: a peer killed with it on leaves its file
+    # in the machine's /dev/shm (the test network's teardown refuses that).
+    conf.insert_json5("transport/shared_memory/enabled", "false")
     conf.insert_json5("connect/endpoints", json.dumps([ep]))
     if ca:
         conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(ca))
@@ -745,6 +777,28 @@ def session(ep, ca, cert, key, extra=None):
     for k, v in (extra or {}).items():
         conf.insert_json5(k, v)
     return zenoh.open(conf)
+"#;
+
+/// Python: a real Zenoh listener at the agent host's address on the test
+/// network, posing as the agent host with the CA, certificate and key given
+/// as arguments 1–3 (mutual TLS); it answers the session query with "not a
+/// run".
+pub(super) const PY_LISTENER: &str = r#"import json, sys, time, zenoh
+conf = zenoh.Config()
+conf.insert_json5("mode", '"peer"')
+conf.insert_json5("scouting/multicast/enabled", "false")
+conf.insert_json5("scouting/gossip/enabled", "false")
+# Zenoh's shared memory off: a peer killed with it on leaves its file in
+# the machine's /dev/shm (the test network's teardown refuses that).
+conf.insert_json5("transport/shared_memory/enabled", "false")
+conf.insert_json5("listen/endpoints", json.dumps(["tls/10.77.1.1:7447"]))
+conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(sys.argv[1]))
+conf.insert_json5("transport/link/tls/listen_certificate", json.dumps(sys.argv[2]))
+conf.insert_json5("transport/link/tls/listen_private_key", json.dumps(sys.argv[3]))
+conf.insert_json5("transport/link/tls/enable_mtls", "true")
+s = zenoh.open(conf)
+q = s.declare_queryable("etp/session", lambda query: query.reply("etp/session", "not a run"))
+time.sleep(60)
 "#;
 
 /// The TLS arguments of [`PY_CONNECT`]'s `session` for host `name` of the
@@ -1179,26 +1233,12 @@ fn a_sensor_host_certificate_cannot_pose_as_the_agent_host() {
     let dir = scratch("po");
     let keys = dir.join("keys");
     certs_init(&keys, &["b", "c"]);
-    let listener = r#"import json, sys, time, zenoh
-conf = zenoh.Config()
-conf.insert_json5("mode", '"peer"')
-conf.insert_json5("scouting/multicast/enabled", "false")
-conf.insert_json5("scouting/gossip/enabled", "false")
-conf.insert_json5("listen/endpoints", json.dumps(["tls/10.77.1.1:7447"]))
-conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(sys.argv[1]))
-conf.insert_json5("transport/link/tls/listen_certificate", json.dumps(sys.argv[2]))
-conf.insert_json5("transport/link/tls/listen_private_key", json.dumps(sys.argv[3]))
-conf.insert_json5("transport/link/tls/enable_mtls", "true")
-s = zenoh.open(conf)
-q = s.declare_queryable("etp/session", lambda query: query.reply("etp/session", "not a run"))
-time.sleep(60)
-"#;
     for (cert, connects) in [("c", false), ("agent-host", true)] {
         let mut posing = Guard(Some(
             Command::new("ip")
                 .args(["netns", "exec", &h.agent])
                 .arg(etp_tests::pyenv::python())
-                .args(["-c", listener])
+                .args(["-c", PY_LISTENER])
                 .arg(keys.join(cert).join("ca.pem"))
                 .arg(keys.join(cert).join(format!("{cert}.pem")))
                 .arg(keys.join(cert).join(format!("{cert}.key")))
