@@ -190,12 +190,18 @@ fn a_stalled_certified_peer_of_a_served_sensor_costs_the_run_nothing() {
     let p = std::process::id();
     let (base, vb, _) = timed_run(&h, &dir, &keys, &format!("t{p}-stbase"), false);
     let (with, vr, seen) = timed_run(&h, &dir, &keys, &format!("t{p}-strogue"), true);
+    // Where a long run's time went: the report's `seconds` count the
+    // episodes alone, `wall_seconds` the whole of `etp run`.
     eprintln!(
         "stalled certified peer of s1: run {with:.1} s with it, {base:.1} s without (+{:.1} s); \
-         stalled without: {}, with: {}",
+         stalled without: {}, with: {}; episodes {} s and etp run {} s without, {} s and {} s with",
         with - base,
         vb["link"]["stalled"],
-        vr["link"]["stalled"]
+        vr["link"]["stalled"],
+        vb["seconds"],
+        vb["wall_seconds"],
+        vr["seconds"],
+        vr["wall_seconds"]
     );
     for v in [&vb, &vr] {
         assert_eq!(num(v, "episodes"), 600.0);
