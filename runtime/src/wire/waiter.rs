@@ -130,12 +130,44 @@ impl Waiter {
                 // first two end it.
                 Ok(_) if termination_requested(node) => return Ok(Wake::Terminate),
                 Ok(WaitSetRunResult::Interrupt) => {}
-                Ok(_) if Instant::now() >= until => return Ok(Wake::Silence),
+                Ok(_) if Instant::now() >= until => return self.after_silence(),
                 // A spurious early return: wait for the rest.
                 Ok(_) => {}
                 Err(e) => return Err(WireError::Wait(format!("{e:?}"))),
             }
         }
+    }
+}
+
+impl Waiter {
+    /// A wait that timed out: drain every listener before calling it
+    /// silence. A listener can be left deaf by iceoryx2's event state
+    /// (0.10, `iceoryx2-cal` `event::common`): a drain that swaps the
+    /// state from NOTIFIED to IDLE and then empties the socket can eat the
+    /// datagram of a notifier that set the state to PENDING in between; that
+    /// notifier then sets NOTIFIED with the socket empty, every later notify
+    /// sees NOTIFIED and sends nothing, and the wait set (which only watches
+    /// the socket) never fires again. Draining here resets the state, so a
+    /// lost wake-up costs one timeout instead of every wait that follows
+    /// (docs/MODEL.md §3.3).
+    fn after_silence(&self) -> Result<Wake, WireError> {
+        let dead = EventId::new(DEAD_NOTIFIER_EVENT);
+        let mut notified = false;
+        let mut dead_peer = false;
+        for (_, listener) in &self.listeners {
+            listener
+                .try_wait(|ev| {
+                    notified = true;
+                    dead_peer |= ev.id == dead;
+                })
+                .map_err(|e| WireError::Wait(format!("{e:?}")))?;
+        }
+        Ok(if notified {
+            tracing::debug!("a wake-up was lost: its notification was found at the timeout");
+            Wake::Notified { dead_peer }
+        } else {
+            Wake::Silence
+        })
     }
 }
 
