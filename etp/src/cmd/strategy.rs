@@ -19,8 +19,13 @@ mod quick;
 mod select;
 
 use crate::prediction_args::{CheckArgs, RebuildArgs, RequestLoopArgs};
+use etp_pipeline::output::write_new;
+use etp_pipeline::predictions;
 use etp_pipeline::selection::DEFAULT_LEVEL;
+use etp_pipeline::synthesis_dir::Synthesis;
+use etp_shared::strategy::Strategy;
 use etp_synthesis::exec::Executor;
+use serde_json::json;
 
 /// `etp strategy` exits with this code when the request is out of reach:
 /// the best strategy the loop could stand behind was written and reported
@@ -117,6 +122,49 @@ impl OutArgs {
         }
         Ok(())
     }
+
+    /// Writes `strategy` to `syn`'s output (rank 0 of `exec`); an existing
+    /// file is replaced only with `--force`.
+    pub fn write(&self, exec: &Executor, syn: &Synthesis, strategy: &Strategy) -> Result<()> {
+        write_new(exec, &syn.output, strategy.to_json().as_bytes(), self.force)?;
+        Ok(())
+    }
+}
+
+impl CheckArgs {
+    /// The aggregation check asked for (none at 0 episodes), stored in
+    /// `strategy`'s predictions.
+    pub fn store_aggregation_check(
+        &self,
+        strategy: &mut Strategy,
+        quiet: bool,
+        exec: &Executor,
+    ) -> Result<()> {
+        if self.aggregation_check > 0 {
+            strategy.predictions.aggregation = predictions::aggregation_check(
+                strategy,
+                self.aggregation_check,
+                &etp_pipeline::progress::Progress::new(quiet),
+                exec,
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// The fields a `--json` report of a written strategy opens with: the
+/// file, its label, the verdict and its predictions.
+fn report_fields(
+    syn: &Synthesis,
+    strategy: &Strategy,
+    verdict: &str,
+) -> serde_json::Map<String, serde_json::Value> {
+    let mut m = serde_json::Map::new();
+    m.insert("strategy".into(), json!(syn.output));
+    m.insert("label".into(), json!(strategy.provenance.label));
+    m.insert("verdict".into(), json!(verdict));
+    m.extend(predictions::json_fields(strategy));
+    m
 }
 
 #[derive(Debug, clap::Subcommand)]

@@ -5,11 +5,11 @@
 //! `etp strategy`: `predicted` with its ±, certified bounds on the first
 //! rebuild, the aggregation check.
 
-use super::EvaluateArgs;
+use super::{EvaluateArgs, report_fields};
 use anyhow::{Context, Result, bail};
-use etp_pipeline::output::{refuse_existing, write_new};
+use etp_pipeline::output::refuse_existing;
 use etp_pipeline::predictions;
-use etp_pipeline::progress::{self, Progress};
+use etp_pipeline::progress;
 use etp_pipeline::synthesis_dir::Synthesis;
 use etp_synthesis::abstraction;
 use etp_synthesis::exec::Executor;
@@ -71,27 +71,12 @@ pub fn run(a: &EvaluateArgs, exec: &Executor) -> Result<()> {
         a.dir.display()
     );
     strategy.predictions.aggregation = None;
-    if a.check.aggregation_check > 0 {
-        strategy.predictions.aggregation = predictions::aggregation_check(
-            &strategy,
-            a.check.aggregation_check,
-            &Progress::new(a.out.json),
-            exec,
-        )?;
-    }
-    write_new(
-        exec,
-        &syn.output,
-        strategy.to_json().as_bytes(),
-        a.out.force,
-    )?;
+    a.check
+        .store_aggregation_check(&mut strategy, a.out.json, exec)?;
+    a.out.write(exec, &syn, &strategy)?;
     let seconds = started.elapsed().as_secs_f64();
     if a.out.json {
-        let mut m = serde_json::Map::new();
-        m.insert("strategy".into(), json!(syn.output));
-        m.insert("label".into(), json!(strategy.provenance.label));
-        m.insert("verdict".into(), json!("evaluated"));
-        m.extend(predictions::json_fields(&strategy));
+        let mut m = report_fields(&syn, &strategy, "evaluated");
         if let Some(serde_json::Value::Object(d)) = m.get_mut("diagnostics") {
             d.insert(
                 "rebuild".into(),

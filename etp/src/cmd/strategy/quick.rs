@@ -6,11 +6,10 @@
 //! pools (docs/MODEL.md §7.3) — are kept under `diagnostics` and printed as
 //! such. `etp strategy evaluate FILE DIR` predicts it later.
 
-use super::{Args, Request};
+use super::{Args, Request, report_fields};
 use anyhow::{Context, Result};
-use etp_pipeline::output::{refuse_existing, write_new};
+use etp_pipeline::output::refuse_existing;
 use etp_pipeline::predictions;
-use etp_pipeline::progress::Progress;
 use etp_pipeline::selection::{DEFAULT_LEVEL, selection_diagnostics};
 use etp_pipeline::synthesis_dir::Synthesis;
 use etp_synthesis::certify::intervals::interval_mdp;
@@ -76,26 +75,11 @@ pub fn run(a: &Args, request: Request, exec: &Executor) -> Result<()> {
     );
     let mut strategy = syn.strategy_of(mdp, &omega, value, &label);
     let unmatched = selection_diagnostics(&mut strategy, mdp, &omega, cost, level)?;
-    if a.check.aggregation_check > 0 {
-        strategy.predictions.aggregation = predictions::aggregation_check(
-            &strategy,
-            a.check.aggregation_check,
-            &Progress::new(a.out.json),
-            exec,
-        )?;
-    }
-    write_new(
-        exec,
-        &syn.output,
-        strategy.to_json().as_bytes(),
-        a.out.force,
-    )?;
+    a.check
+        .store_aggregation_check(&mut strategy, a.out.json, exec)?;
+    a.out.write(exec, &syn, &strategy)?;
     if a.out.json {
-        let mut m = serde_json::Map::new();
-        m.insert("strategy".into(), json!(syn.output));
-        m.insert("label".into(), json!(strategy.provenance.label));
-        m.insert("verdict".into(), json!("quick"));
-        m.extend(predictions::json_fields(&strategy));
+        let mut m = report_fields(&syn, &strategy, "quick");
         if let Some(serde_json::Value::Object(d)) = m.get_mut("diagnostics") {
             d.insert("front_epsilon".into(), json!(syn.front.epsilon));
             d.insert("crossfit_unmatched_mass".into(), json!(unmatched));

@@ -2,9 +2,9 @@
 //! §7.4) — or, for `--vertex`, one selection — and the prediction of the
 //! strategy kept from its own on-policy rebuilds.
 
-use super::{Args, EXIT_OUT_OF_REACH, Request, certified};
+use super::{Args, EXIT_OUT_OF_REACH, Request, certified, report_fields};
 use anyhow::{Context, Result};
-use etp_pipeline::output::{refuse_existing, write_new};
+use etp_pipeline::output::refuse_existing;
 use etp_pipeline::predictions;
 use etp_pipeline::progress::{self, Progress};
 use etp_pipeline::selection::{DEFAULT_LEVEL, RequestSettings, meet_goal, standing_strategy};
@@ -49,12 +49,7 @@ pub fn run(a: &Args, request: Request, exec: &Executor) -> Result<()> {
         Request::Vertex(k) => vertex(a, &syn, mdp, k, &label)?,
     };
     let seconds = started.elapsed().as_secs_f64();
-    write_new(
-        exec,
-        &syn.output,
-        strategy.to_json().as_bytes(),
-        a.out.force,
-    )?;
+    a.out.write(exec, &syn, &strategy)?;
     let explanation = explanation(&syn, request);
     let report = Report {
         syn: &syn,
@@ -203,17 +198,11 @@ struct Report<'a> {
 impl Report<'_> {
     fn json(&self) -> Value {
         let o = self.outcome;
-        let mut m = serde_json::Map::new();
-        m.insert("strategy".into(), json!(self.syn.output));
-        m.insert("label".into(), json!(self.strategy.provenance.label));
-        m.insert(
-            "verdict".into(),
-            json!(match self.request {
-                Request::Vertex(_) => "vertex",
-                _ => o.verdict.name(),
-            }),
-        );
-        m.extend(predictions::json_fields(self.strategy));
+        let verdict = match self.request {
+            Request::Vertex(_) => "vertex",
+            _ => o.verdict.name(),
+        };
+        let mut m = report_fields(self.syn, self.strategy, verdict);
         if let Some(Value::Object(d)) = m.get_mut("diagnostics") {
             let first = o.on_policy.first();
             d.insert(
