@@ -1,12 +1,14 @@
 //! What the live view draws, as Foxglove's own schemas (`foxglove.SceneUpdate`,
-//! `foxglove.Log`): the scenario's map, and the agent at one slot. Frame
-//! `world`, the scenario's workspace coordinates (a 2-D scenario in the plane
-//! z = 0, its boxes as thin slabs); a state is drawn through the workspace
-//! map C (position C x, covariance C P Cᵀ), like the legs and obstacles.
+//! `foxglove.Log`): the scenario's map (built by
+//! `etp_recording_tools::foxglove::map`, as for a recording's copy) and the
+//! agent at one slot. Frame `world`, the scenario's workspace coordinates (a
+//! 2-D scenario in the plane z = 0, its boxes as thin slabs); a state is drawn
+//! through the workspace map C (position C x, covariance C P Cᵀ), like the
+//! legs and obstacles.
 
 use etp_recording_tools::foxglove::geometry::ellipsoid;
+use etp_recording_tools::foxglove::map::{self, Draw, point};
 use etp_runtime::live::SlotFrame;
-use etp_shared::geometry::Aabb;
 use etp_shared::scenario::Scenario;
 use foxglove::messages::{
     Color, CubePrimitive, KeyValuePair, LinePrimitive, Point3, Pose, Quaternion, SceneEntity,
@@ -18,21 +20,21 @@ use nalgebra::{DMatrix, DVector, Matrix3, Vector3 as V3};
 pub const FRAME: &str = "world";
 /// Ellipses and ellipsoids at this many standard deviations.
 pub const SIGMA: f64 = 3.0;
-const SLAB: f64 = 0.1;
 const DISC: f64 = 0.01;
 
-const fn rgba(r: f64, g: f64, b: f64, a: f64) -> Color {
-    Color { r, g, b, a }
+/// A colour of the map's palette as Foxglove's protobuf message.
+const fn color(c: map::Color) -> Color {
+    Color {
+        r: c.r,
+        g: c.g,
+        b: c.b,
+        a: c.a,
+    }
 }
-const OBSTACLE: Color = rgba(0.55, 0.45, 0.38, 0.9);
-const TARGET: Color = rgba(0.1, 0.8, 0.25, 0.45);
-const ROUTE: Color = rgba(0.35, 0.55, 0.95, 0.8);
-const SENSOR: Color = rgba(0.65, 0.35, 0.85, 1.0);
-const WHITE: Color = rgba(1.0, 1.0, 1.0, 1.0);
 /// The agent in a slot where its sensor transmitted / stayed silent.
-pub const SENT: Color = rgba(1.0, 0.55, 0.0, 1.0);
-pub const SILENT: Color = rgba(0.2, 0.55, 1.0, 1.0);
-const ELLIPSE: Color = rgba(1.0, 1.0, 1.0, 0.25);
+pub const SENT: Color = color(map::SENT);
+pub const SILENT: Color = color(map::SILENT);
+const ELLIPSE: Color = color(map::rgba(1.0, 1.0, 1.0, 0.25));
 
 /// The scenario's geometry, for drawing states.
 #[derive(Debug, Clone)]
@@ -84,11 +86,6 @@ impl Map {
     }
 }
 
-/// A workspace point (its first three coordinates) in 3-D.
-fn point(v: &[f64]) -> V3<f64> {
-    V3::from_fn(|i, _| v.get(i).copied().unwrap_or(0.0))
-}
-
 fn v3(p: V3<f64>) -> Vector3 {
     Vector3 {
         x: p.x,
@@ -109,118 +106,88 @@ fn pose(p: V3<f64>) -> Option<Pose> {
     })
 }
 
-fn entity(t: Timestamp, id: &str) -> SceneEntity {
-    SceneEntity {
-        timestamp: Some(t),
-        frame_id: FRAME.into(),
-        id: id.into(),
-        ..SceneEntity::default()
+/// Foxglove's protobuf messages, as the live view sends them, stamped
+/// with the time they hold.
+struct ProtobufMessages(Timestamp);
+
+impl Draw for ProtobufMessages {
+    type Entity = SceneEntity;
+    type Update = SceneUpdate;
+
+    fn entity(&self, id: &str) -> SceneEntity {
+        SceneEntity {
+            timestamp: Some(self.0),
+            frame_id: FRAME.into(),
+            id: id.into(),
+            ..SceneEntity::default()
+        }
+    }
+
+    fn cube(&self, e: &mut SceneEntity, centre: V3<f64>, size: V3<f64>, c: map::Color) {
+        e.cubes.push(CubePrimitive {
+            pose: pose(centre),
+            size: Some(v3(size)),
+            color: Some(color(c)),
+        });
+    }
+
+    fn ball(&self, e: &mut SceneEntity, p: V3<f64>, d: f64, c: map::Color) {
+        e.spheres.push(SpherePrimitive {
+            pose: pose(p),
+            size: Some(Vector3 { x: d, y: d, z: d }),
+            color: Some(color(c)),
+        });
+    }
+
+    fn strip(&self, e: &mut SceneEntity, points: &[V3<f64>], thickness: f64, c: map::Color) {
+        e.lines.push(LinePrimitive {
+            thickness,
+            scale_invariant: true,
+            points: points
+                .iter()
+                .map(|p| Point3 {
+                    x: p.x,
+                    y: p.y,
+                    z: p.z,
+                })
+                .collect(),
+            color: Some(color(c)),
+            ..LinePrimitive::default()
+        });
+    }
+
+    fn label(&self, e: &mut SceneEntity, p: V3<f64>, px: f64, c: map::Color, text: String) {
+        e.texts.push(TextPrimitive {
+            pose: pose(p),
+            billboard: true,
+            font_size: px,
+            scale_invariant: true,
+            color: Some(color(c)),
+            text,
+        });
+    }
+
+    fn note(&self, e: &mut SceneEntity, key: String, value: String) {
+        e.metadata.push(KeyValuePair { key, value });
+    }
+
+    fn update(&self, entities: Vec<SceneEntity>) -> SceneUpdate {
+        SceneUpdate {
+            deletions: Vec::new(),
+            entities,
+        }
     }
 }
 
-fn ball(p: V3<f64>, d: f64, color: Color) -> SpherePrimitive {
-    SpherePrimitive {
-        pose: pose(p),
-        size: Some(Vector3 { x: d, y: d, z: d }),
-        color: Some(color),
-    }
-}
-
-fn label(p: V3<f64>, color: Color, text: String) -> TextPrimitive {
-    TextPrimitive {
-        pose: pose(p),
-        billboard: true,
-        font_size: 14.0,
-        scale_invariant: true,
-        color: Some(color),
-        text,
-    }
-}
-
-fn kv(key: String, value: String) -> KeyValuePair {
-    KeyValuePair { key, value }
-}
-
-fn cube(b: &Aabb, dim: usize, color: Color) -> CubePrimitive {
-    let (lo, hi) = (point(&b.min), point(&b.max));
-    let mut size = hi - lo;
-    if dim < 3 {
-        size.z = SLAB;
-    }
-    CubePrimitive {
-        pose: pose((lo + hi) / 2.0),
-        size: Some(v3(size)),
-        color: Some(color),
-    }
-}
-
-/// The map: obstacles, target, the route through the waypoints (start
-/// white), the sensors with their names. Stable ids: publishing it again
-/// replaces it.
+/// The map (see [`map::scene`]) in the workspace's dimension, its route
+/// from the route's start (the plant's initial state if it has none).
 pub fn scene(s: &Scenario, map: &Map, t: Timestamp) -> SceneUpdate {
-    let dim = map.dim();
-    let mut obstacles = entity(t, "obstacles");
-    obstacles.cubes = s
-        .obstacles
-        .iter()
-        .map(|o| cube(&o.bounds, dim, OBSTACLE))
-        .collect();
-    obstacles.metadata = s
-        .obstacles
-        .iter()
-        .enumerate()
-        .map(|(i, o)| kv(format!("obstacle {i}"), o.name.clone()))
-        .collect();
-    let mut target = entity(t, "target");
-    target.cubes.push(cube(&s.target, dim, TARGET));
-    let mut route = entity(t, "route");
     let start = if s.route_start.is_empty() {
         s.plant.x0.as_slice()
     } else {
         s.route_start.as_slice()
     };
-    let mut points = vec![point(start)];
-    points.extend(s.legs.iter().map(|l| point(l.to.as_slice())));
-    route.spheres = points
-        .iter()
-        .enumerate()
-        .map(|(i, p)| ball(*p, 0.08, if i == 0 { WHITE } else { ROUTE }))
-        .collect();
-    route.lines.push(LinePrimitive {
-        thickness: 1.5,
-        scale_invariant: true,
-        points: points
-            .iter()
-            .map(|p| Point3 {
-                x: p.x,
-                y: p.y,
-                z: p.z,
-            })
-            .collect(),
-        color: Some(Color { a: 0.5, ..ROUTE }),
-        ..LinePrimitive::default()
-    });
-    route.metadata = s
-        .legs
-        .iter()
-        .enumerate()
-        .map(|(i, l)| {
-            let sensor = s.sensors.get(l.sensor).map_or("?", |x| x.name.as_str());
-            kv(format!("leg {i}"), format!("served by {sensor}"))
-        })
-        .collect();
-    let mut sensors = entity(t, "sensors");
-    for x in &s.sensors {
-        let p = point(x.position.as_slice());
-        sensors.spheres.push(ball(p, 0.15, SENSOR));
-        sensors
-            .texts
-            .push(label(p + V3::new(0.0, 0.0, 0.25), SENSOR, x.name.clone()));
-    }
-    SceneUpdate {
-        deletions: Vec::new(),
-        entities: vec![obstacles, target, route, sensors],
-    }
+    map::scene(&ProtobufMessages(t), s, map.dim(), start)
 }
 
 /// The agent at one slot: the true position (orange if the serving sensor
@@ -228,18 +195,21 @@ pub fn scene(s: &Scenario, map: &Map, t: Timestamp) -> SceneUpdate {
 /// its 3σ ellipse (ellipsoid in 3-D), a line to the serving sensor when it
 /// transmitted, and a label (episode, step, leg, sensor, δ).
 pub fn agent(s: &Scenario, map: &Map, f: &SlotFrame, t: Timestamp) -> SceneUpdate {
-    let mut e = entity(t, "agent");
+    let draw = ProtobufMessages(t);
+    let mut e = draw.entity("agent");
     let truth = map.project(&f.x, None).map(|(p, _)| p);
     let prior = map.project(&f.mean, Some(&f.cov));
     let sent = f.attempts > 0;
     let sensor = s.sensors.get(f.sensor as usize);
     if let Some(p) = truth {
-        e.spheres
-            .push(ball(p, 0.14, if sent { SENT } else { SILENT }));
+        let c = if sent { map::SENT } else { map::SILENT };
+        draw.ball(&mut e, p, 0.14, c);
         let name = sensor.map_or("?", |x| x.name.as_str());
-        e.texts.push(label(
+        draw.label(
+            &mut e,
             p + V3::new(0.0, 0.0, 0.3),
-            WHITE,
+            14.0,
+            map::WHITE,
             format!(
                 "episode {} step {} leg {} · {name} δ={:.4}{}",
                 f.episode,
@@ -248,27 +218,14 @@ pub fn agent(s: &Scenario, map: &Map, f: &SlotFrame, t: Timestamp) -> SceneUpdat
                 f.delta,
                 if sent { " · sent" } else { "" }
             ),
-        ));
+        );
         if let (true, Some(x)) = (sent, sensor) {
             let q = point(x.position.as_slice());
-            e.lines.push(LinePrimitive {
-                thickness: 2.0,
-                scale_invariant: true,
-                points: [q, p]
-                    .iter()
-                    .map(|p| Point3 {
-                        x: p.x,
-                        y: p.y,
-                        z: p.z,
-                    })
-                    .collect(),
-                color: Some(SENT),
-                ..LinePrimitive::default()
-            });
+            draw.strip(&mut e, &[q, p], 2.0, map::SENT);
         }
     }
     if let Some((m, cov)) = prior {
-        e.spheres.push(ball(m, 0.08, WHITE));
+        draw.ball(&mut e, m, 0.08, map::WHITE);
         if let Some(el) = cov.and_then(|c| ellipsoid(&c, map.dim(), SIGMA, DISC)) {
             let q = el.orientation.into_inner();
             e.spheres.push(SpherePrimitive {
@@ -290,10 +247,7 @@ pub fn agent(s: &Scenario, map: &Map, f: &SlotFrame, t: Timestamp) -> SceneUpdat
             });
         }
     }
-    SceneUpdate {
-        deletions: Vec::new(),
-        entities: vec![e],
-    }
+    draw.update(vec![e])
 }
 
 #[cfg(test)]

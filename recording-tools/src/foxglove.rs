@@ -27,6 +27,7 @@
 //! time order (the source is in drain order).
 
 pub mod geometry;
+pub mod map;
 mod msg;
 mod scene;
 #[cfg(test)]

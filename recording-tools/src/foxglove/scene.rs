@@ -1,33 +1,24 @@
-//! What is drawn: the scenario's map, the agent at one step, the true path
-//! of one episode. Coordinates are the scenario's own in frame `world`; a
-//! 2-D scenario lies in the plane z = 0 with its boxes drawn as thin slabs.
+//! What is drawn of a recording: the scenario's map (built by
+//! [`super::map`]), the agent at one step, the true path of one episode.
+//! Coordinates are the scenario's own in frame `world`; a 2-D scenario lies
+//! in the plane z = 0 with its boxes drawn as thin slabs.
 
 use super::geometry::{Ellipsoid, ellipsoid};
+use super::map::{self, Draw, SENT, SILENT, WHITE};
 use super::msg::{
     Color, CubePrimitive, LinePrimitive, Pose, SceneEntity, SceneUpdate, SpherePrimitive,
     TextPrimitive, Time, Vector3, kv, rgba,
 };
 use etp_runtime::wire::agent_to_coordinator::Outcome;
-use etp_shared::geometry::Aabb;
 use etp_shared::scenario::Scenario;
 use nalgebra::{Matrix3, Vector3 as V3};
 
 /// Ellipses and ellipsoids are drawn at this many standard deviations.
 pub const SIGMA: f64 = 3.0;
-/// Height of a 2-D box, and thickness of a 2-D ellipse disc: thin enough to
-/// read as the plane, thick enough to be seen from above at an angle.
-const SLAB: f64 = 0.1;
+/// Thickness of a 2-D ellipse disc.
 const DISC: f64 = 0.01;
 
-const OBSTACLE: Color = rgba(0.55, 0.45, 0.38, 0.9);
-const TARGET: Color = rgba(0.1, 0.8, 0.25, 0.45);
-const ROUTE: Color = rgba(0.35, 0.55, 0.95, 0.8);
-const SENSOR: Color = rgba(0.65, 0.35, 0.85, 1.0);
-const LABEL: Color = rgba(1.0, 1.0, 1.0, 1.0);
-/// The agent in a slot where its sensor transmitted / stayed silent / the
-/// slot's closing message is not in the file.
-const SENT: Color = rgba(1.0, 0.55, 0.0, 1.0);
-const SILENT: Color = rgba(0.2, 0.55, 1.0, 1.0);
+/// The agent in a slot whose closing message is not in the file.
 const UNKNOWN: Color = rgba(0.6, 0.6, 0.6, 1.0);
 
 fn faded(c: Color, a: f64) -> Color {
@@ -54,74 +45,50 @@ pub fn outcome_name(outcome: u32) -> &'static str {
     }
 }
 
-/// A scenario point (2 or 3 coordinates) in 3-D.
-fn p3(v: &[f64]) -> V3<f64> {
-    V3::from_fn(|i, _| v.get(i).copied().unwrap_or(0.0))
+/// The JSON messages of a recording's copy, stamped with the time they hold.
+struct JsonMessages(Time);
+
+impl Draw for JsonMessages {
+    type Entity = SceneEntity;
+    type Update = SceneUpdate;
+
+    fn entity(&self, id: &str) -> SceneEntity {
+        SceneEntity::new(self.0, id)
+    }
+
+    fn cube(&self, e: &mut SceneEntity, centre: V3<f64>, size: V3<f64>, color: Color) {
+        e.cubes.push(CubePrimitive {
+            pose: Pose::at(centre),
+            size: size.into(),
+            color,
+        });
+    }
+
+    fn ball(&self, e: &mut SceneEntity, p: V3<f64>, d: f64, color: Color) {
+        e.spheres.push(SpherePrimitive::ball(p, d, color));
+    }
+
+    fn strip(&self, e: &mut SceneEntity, points: &[V3<f64>], thickness: f64, color: Color) {
+        let points = points.iter().map(|p| Vector3::from(*p)).collect();
+        e.lines.push(LinePrimitive::strip(points, thickness, color));
+    }
+
+    fn label(&self, e: &mut SceneEntity, p: V3<f64>, px: f64, color: Color, text: String) {
+        e.texts.push(TextPrimitive::label(p, px, color, text));
+    }
+
+    fn note(&self, e: &mut SceneEntity, key: String, value: String) {
+        e.metadata.push(kv(&key, value));
+    }
+
+    fn update(&self, entities: Vec<SceneEntity>) -> SceneUpdate {
+        SceneUpdate::of(entities)
+    }
 }
 
-fn cube(b: &Aabb, dim: usize, color: Color) -> CubePrimitive {
-    let (lo, hi) = (p3(&b.min), p3(&b.max));
-    let mut size = hi - lo;
-    if dim < 3 {
-        size.z = SLAB;
-    }
-    CubePrimitive {
-        pose: Pose::at((lo + hi) / 2.0),
-        size: size.into(),
-        color,
-    }
-}
-
-/// The map: obstacles, target, the route through the waypoints (start
-/// white), the sensors with their names. Stable ids, so publishing it again
-/// replaces it.
+/// The map (see [`map::scene`]), its route from the plant's initial state.
 pub fn scene(s: &Scenario, t: Time) -> SceneUpdate {
-    let mut obstacles = SceneEntity::new(t, "obstacles");
-    for o in &s.obstacles {
-        obstacles.cubes.push(cube(&o.bounds, s.dim, OBSTACLE));
-    }
-    obstacles.metadata = s
-        .obstacles
-        .iter()
-        .enumerate()
-        .map(|(i, o)| kv(&format!("obstacle {i}"), &o.name))
-        .collect();
-    let mut target = SceneEntity::new(t, "target");
-    target.cubes.push(cube(&s.target, s.dim, TARGET));
-    let mut route = SceneEntity::new(t, "route");
-    let mut points = vec![p3(s.plant.x0.as_slice())];
-    points.extend(s.legs.iter().map(|l| p3(l.to.as_slice())));
-    route.spheres = points
-        .iter()
-        .enumerate()
-        .map(|(i, p)| SpherePrimitive::ball(*p, 0.08, if i == 0 { LABEL } else { ROUTE }))
-        .collect();
-    route.lines.push(LinePrimitive::strip(
-        points.iter().map(|p| Vector3::from(*p)).collect(),
-        1.5,
-        faded(ROUTE, 0.5),
-    ));
-    route.metadata = s
-        .legs
-        .iter()
-        .enumerate()
-        .map(|(i, l)| {
-            let sensor = s.sensors.get(l.sensor).map_or("?", |x| x.name.as_str());
-            kv(&format!("leg {i}"), format!("served by {sensor}"))
-        })
-        .collect();
-    let mut sensors = SceneEntity::new(t, "sensors");
-    for x in &s.sensors {
-        let p = p3(x.position.as_slice());
-        sensors.spheres.push(SpherePrimitive::ball(p, 0.15, SENSOR));
-        sensors.texts.push(TextPrimitive::label(
-            p + V3::new(0.0, 0.0, 0.25),
-            14.0,
-            SENSOR,
-            x.name.clone(),
-        ));
-    }
-    SceneUpdate::of(vec![obstacles, target, route, sensors])
+    map::scene(&JsonMessages(t), s, s.dim, s.plant.x0.as_slice())
 }
 
 /// One step of the agent as the file has it.
@@ -166,7 +133,7 @@ pub fn agent(a: &AgentView, t: Time) -> SceneUpdate {
                 .push(SpherePrimitive::ellipsoid(*mean, &el, faded(color, 0.3)));
             e.metadata.push(kv("ellipse", ellipse_note(&el)));
         }
-        e.spheres.push(SpherePrimitive::ball(*mean, 0.05, LABEL));
+        e.spheres.push(SpherePrimitive::ball(*mean, 0.05, WHITE));
         anchor = Some(*mean);
     }
     if let Some(x) = a.truth.filter(finite) {
@@ -190,7 +157,7 @@ pub fn agent(a: &AgentView, t: Time) -> SceneUpdate {
         e.texts.push(TextPrimitive::label(
             p + V3::new(0.0, 0.0, 0.3),
             13.0,
-            LABEL,
+            WHITE,
             text,
         ));
     }
