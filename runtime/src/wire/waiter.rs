@@ -163,7 +163,9 @@ impl Waiter {
                 .map_err(|e| WireError::Wait(format!("{e:?}")))?;
         }
         Ok(if notified {
-            tracing::debug!("a wake-up was lost: its notification was found at the timeout");
+            tracing::debug!(
+                "notified, yet the wait timed out: a lost wake-up (or one that came as the wait ended)"
+            );
             Wake::Notified { dead_peer }
         } else {
             Wake::Silence
